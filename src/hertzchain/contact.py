@@ -1,0 +1,135 @@
+"""Contact laws between two bodies: Hertz elastic force (paper eq. 1) and dissipative variants.
+
+Geometry helpers here are plain Python (used to build a model and by :mod:`hertzchain.theory`);
+the compiled force evaluations live in :mod:`hertzchain.integrate.kernels`.
+
+Conventions (DESIGN.md section 2): overlap delta > 0 in compression, force
+F = kappa * delta^(3/2) for delta > 0 and 0 otherwise (never attractive), with
+1/kappa = (theta + theta') * sqrt(1/R + 1/R'), theta = 3 (1 - nu^2) / (4 Y), 1/R' = 0 for a flat.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .errors import ConfigError
+from .materials import Material, get_material
+
+__all__ = [
+    "hertz_constant", "effective_radius", "effective_modulus", "yield_force", "Elastic",
+    "Viscoelastic", "Dashpot", "ContactLaw", "LAW_CODES",
+]
+
+
+def effective_radius(radius1: float, radius2: float | None) -> float:
+    """Reduced radius R* = 1 / (1/R + 1/R') [m]; ``radius2=None`` (or inf) is a flat."""
+    inv = 1.0 / radius1 + (0.0 if radius2 is None or math.isinf(radius2) else 1.0 / radius2)
+    return 1.0 / inv
+
+
+def effective_modulus(mat1: str | Material, mat2: str | Material) -> float:
+    """Contact modulus E* with 1/E* = (1-nu^2)/Y + (1-nu'^2)/Y' [Pa] (so that E* = 3/(4(theta+theta')))."""
+    m1, m2 = get_material(mat1), get_material(mat2)
+    return 0.75 / (m1.theta + m2.theta)
+
+
+def hertz_constant(radius1: float, radius2: float | None, mat1: str | Material, mat2: str | Material) -> float:
+    """Hertz stiffness kappa [N/m^1.5] of paper eq. 1: 1/kappa = (theta + theta') sqrt(1/R + 1/R').
+
+    Parameters
+    ----------
+    radius1, radius2:
+        Radii of curvature [m] of the two bodies; ``radius2=None`` is a flat (wall cap).
+    mat1, mat2:
+        Materials (catalogue names or :class:`Material`).
+    """
+    m1, m2 = get_material(mat1), get_material(mat2)
+    inv_r = 1.0 / radius1 + (0.0 if radius2 is None or math.isinf(radius2) else 1.0 / radius2)
+    return 1.0 / ((m1.theta + m2.theta) * math.sqrt(inv_r))
+
+
+def yield_force(radius1: float, radius2: float | None, mat1: str | Material, mat2: str | Material) -> tuple[float, float]:
+    """Elastic limit of a contact as estimated in the paper (Sec. II): (F_Y [N], delta_Y [m]).
+
+    Yield is taken when the mean contact pressure F / (pi a^2) reaches sigma_Y, with the Hertz
+    contact radius a^3 = 3 F R* / (4 E*) (a^3 = theta R F for two equal spheres, as in the paper).
+    Solving gives F_Y = (pi sigma_Y)^3 (3 R* / (4 E*))^2 and delta_Y = a_Y^2 / R*. The weaker of
+    the two materials sets sigma_Y. Returns (inf, inf) when neither material has a yield stress.
+    """
+    m1, m2 = get_material(mat1), get_material(mat2)
+    stresses = [s for s in (m1.yield_stress, m2.yield_stress) if s is not None]
+    if not stresses:
+        return math.inf, math.inf
+    sigma = min(stresses)
+    r_eff = effective_radius(radius1, radius2)
+    e_eff = effective_modulus(m1, m2)
+    c = 3.0 * r_eff / (4.0 * e_eff)
+    force = (math.pi * sigma) ** 3 * c**2
+    a = (c * force) ** (1.0 / 3.0)
+    return force, a * a / r_eff
+
+
+# --- dissipative laws ------------------------------------------------------------------------
+# Integer codes select the compiled force function (see integrate/kernels.py).
+LAW_CODES = {"elastic": 0, "viscoelastic": 1, "dashpot": 2}
+
+
+@dataclass(frozen=True)
+class Elastic:
+    """Pure Hertz contact, paper eq. 1: F = kappa delta^(3/2)."""
+
+    name = "elastic"
+
+    @property
+    def parameter(self) -> float:
+        return 0.0
+
+
+@dataclass(frozen=True)
+class Viscoelastic:
+    """Kuwabara-Kono viscoelastic Hertz contact: F = kappa (delta^(3/2) + A delta^(1/2) d(delta)/dt).
+
+    Clipped at zero while unloading (never attractive).
+
+    Parameters
+    ----------
+    A:
+        Dissipative time constant [s] (same for every contact of the run).
+    """
+
+    A: float
+    name = "viscoelastic"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.A) and self.A >= 0):
+            raise ConfigError("contact.A", f"must be a finite number >= 0 (s), got {self.A!r}")
+
+    @property
+    def parameter(self) -> float:
+        return self.A
+
+
+@dataclass(frozen=True)
+class Dashpot:
+    """Hertz contact with a linear dashpot: F = kappa delta^(3/2) + gamma d(delta)/dt, clipped at zero.
+
+    Parameters
+    ----------
+    gamma:
+        Damping coefficient [N s/m] (same for every contact of the run).
+    """
+
+    gamma: float
+    name = "dashpot"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.gamma) and self.gamma >= 0):
+            raise ConfigError("contact.gamma", f"must be a finite number >= 0 (N s/m), got {self.gamma!r}")
+
+    @property
+    def parameter(self) -> float:
+        return self.gamma
+
+
+ContactLaw = Elastic | Viscoelastic | Dashpot

@@ -1,0 +1,40 @@
+"""Exceptions and warnings raised by hertzchain.
+
+They are kept in one small module so that the CLI can turn every *user* error into a one
+paragraph message with exit status 2, while genuine bugs still show a traceback.
+"""
+
+from __future__ import annotations
+
+
+class HertzchainError(Exception):
+    """Base class of the errors a user can cause (bad input, a diverging run...)."""
+
+
+class ConfigError(HertzchainError, ValueError):
+    """An input value is invalid.
+
+    Parameters
+    ----------
+    field:
+        Dotted name of the offending field, e.g. ``"chain.diameters_mm[3]"``.
+    message:
+        What was wrong and what is allowed.
+    """
+
+    def __init__(self, field: str, message: str):
+        self.field = field
+        self.message = message
+        super().__init__(f"{field}: {message}")
+
+
+class SimulationDiverged(HertzchainError, FloatingPointError):
+    """The integration produced non-finite numbers (time step far too large, bad input)."""
+
+
+class PulseNotFound(HertzchainError, ValueError):
+    """A signal holds no pulse that the analysis can fit."""
+
+
+class ElasticLimitWarning(UserWarning):
+    """Contact forces passed the elastic limit (yield) estimated as in the paper, Sec. II."""
