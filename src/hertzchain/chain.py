@@ -1,0 +1,195 @@
+"""Chains of beads: diameters, materials and perpendicular offsets, with the paper's builders.
+
+Numbering follows DESIGN.md section 2: beads 1..N from the impact end; in arrays bead n sits at
+index n - 1. Masses are m = rho pi phi^3 / 6.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Sequence
+
+import numpy as np
+
+from .errors import ConfigError
+from .materials import Material, get_material
+
+__all__ = ["Chain", "TABLE_I_MM", "paper_chain"]
+
+#: Bead diameters [mm] of the paper's Table I (beads 1-16 are the 26 mm monodisperse part).
+TABLE_I_MM: dict[str, tuple[float, ...]] = {
+    "chain1": (26.0,) * 16 + (24.00, 23.00, 22.00, 21.00, 20.00, 19.00, 18.00, 16.65, 16.00, 15.00,
+                               14.00, 13.00, 12.00, 11.00),
+    "chain2": (26.0,) * 16 + (24.00, 22.00, 20.00, 18.00, 16.65, 16.00, 14.00, 13.00, 12.00, 11.00,
+                               10.00, 9.00),
+}
+
+
+def _check_diameters(diameters: np.ndarray, field_name: str) -> None:
+    if diameters.ndim != 1 or diameters.size == 0:
+        raise ConfigError(field_name, "must be a non-empty list of diameters")
+    bad = np.flatnonzero(~np.isfinite(diameters) | (diameters <= 0))
+    if bad.size:
+        i = int(bad[0])
+        raise ConfigError(f"{field_name}[{i}]", f"diameter of bead {i + 1} must be a positive finite number, "
+                          f"got {diameters[i]!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Chain:
+    """A line of spherical beads, numbered 1..N from the impact end.
+
+    Parameters
+    ----------
+    diameters:
+        Bead diameters phi_n [m], shape (N,).
+    materials:
+        One :class:`Material` per bead (a single material or name is broadcast).
+    offsets:
+        Perpendicular offsets e_n of the bead centres from the chain axis [m], shape (N,);
+        zeros for an aligned chain (DESIGN.md section 2, misalignment).
+    """
+
+    diameters: np.ndarray
+    materials: tuple[Material, ...] = field(default=())
+    offsets: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        d = np.asarray(self.diameters, dtype=float).copy()
+        _check_diameters(d, "chain.diameters")
+        d.setflags(write=False)
+        object.__setattr__(self, "diameters", d)
+        mats = self.materials
+        if isinstance(mats, (str, Material)):
+            mats = (get_material(mats),) * d.size
+        elif len(mats) == 0:
+            mats = (get_material("AISI52100"),) * d.size
+        else:
+            mats = tuple(get_material(m) for m in mats)
+        if len(mats) != d.size:
+            raise ConfigError("chain.materials", f"needs one material per bead ({d.size}), got {len(mats)}")
+        object.__setattr__(self, "materials", mats)
+        e = np.zeros(d.size) if self.offsets is None else np.asarray(self.offsets, dtype=float).copy()
+        if e.shape != d.shape:
+            raise ConfigError("chain.offsets", f"needs one offset per bead ({d.size}), got {e.size}")
+        if not np.all(np.isfinite(e)):
+            raise ConfigError("chain.offsets", "offsets must be finite")
+        radii = d / 2
+        # Neighbours must still overlap along the axis: |e_n - e_{n+1}| < R_n + R_{n+1}.
+        de = np.abs(np.diff(e))
+        too_far = np.flatnonzero(de >= 0.5 * (radii[:-1] + radii[1:]))
+        if too_far.size:
+            n = int(too_far[0]) + 1
+            raise ConfigError("chain.offsets", f"beads {n} and {n + 1} are offset by {de[n - 1]:.3g} m, more than half "
+                              "the sum of their radii; the contact would not be a head-on Hertz contact")
+        e.setflags(write=False)
+        object.__setattr__(self, "offsets", e)
+
+    # ---------------------------------------------------------------- builders
+    @classmethod
+    def from_diameters(cls, diameters: Sequence[float], material: str | Material | Sequence = "AISI52100",
+                       offsets: Sequence[float] | None = None) -> "Chain":
+        """Chain from explicit diameters [m] (one material for all beads, or one per bead)."""
+        d = np.asarray(diameters, dtype=float)
+        mats = material if isinstance(material, (str, Material)) else tuple(material)
+        return cls(d, mats, None if offsets is None else np.asarray(offsets, float))
+
+    @classmethod
+    def uniform(cls, n: int, diameter: float, material: str | Material = "AISI52100") -> "Chain":
+        """``n`` identical beads of diameter ``diameter`` [m]."""
+        if int(n) < 1:
+            raise ConfigError("chain.n", f"a chain needs at least one bead, got {n}")
+        return cls.from_diameters([diameter] * int(n), material)
+
+    def append_taper(self, n: int, q: float, material: str | Material | None = None) -> "Chain":
+        """Append ``n`` beads with the exponential taper phi_{k+1} = (1 - q) phi_k (paper Sec. II).
+
+        The first appended bead is (1 - q) times the current last bead. ``q`` is a fraction
+        (0.056 for 5.6 %); it must be in [0, 1).
+        """
+        if not (0.0 <= q < 1.0):
+            raise ConfigError("chain.taper.q", f"tapering factor must lie in [0, 1), got {q!r}")
+        last = self.diameters[-1]
+        new = last * (1.0 - q) ** np.arange(1, int(n) + 1)
+        mat = get_material(material) if material is not None else self.materials[-1]
+        return self.concat(Chain.from_diameters(new, mat))
+
+    def concat(self, other: "Chain") -> "Chain":
+        """Beads of ``self`` followed by the beads of ``other``."""
+        return Chain(np.concatenate([self.diameters, other.diameters]), self.materials + other.materials,
+                     np.concatenate([self.offsets, other.offsets]))
+
+    def truncated(self, n: int) -> "Chain":
+        """The first ``n`` beads (the paper's protocol: a chain cut after bead n, wall behind it)."""
+        if not (1 <= n <= self.n_beads):
+            raise ConfigError("chain.truncate", f"must be between 1 and {self.n_beads}, got {n}")
+        return Chain(self.diameters[:n], self.materials[:n], self.offsets[:n])
+
+    def substitute(self, bead: int, diameter: float | None = None,
+                   material: str | Material | None = None) -> "Chain":
+        """Replace bead ``bead`` (1-based) by one of another diameter [m] and/or material."""
+        if not (1 <= bead <= self.n_beads):
+            raise ConfigError("chain.substitutions.bead", f"bead must be between 1 and {self.n_beads}, got {bead}")
+        d = self.diameters.copy()
+        mats = list(self.materials)
+        if diameter is not None:
+            d[bead - 1] = diameter
+        if material is not None:
+            mats[bead - 1] = get_material(material)
+        return Chain(d, tuple(mats), self.offsets)
+
+    def with_offsets(self, offsets: Sequence[float] | dict[int, float]) -> "Chain":
+        """Same beads with perpendicular offsets [m]: a full list, or {bead: offset} (1-based)."""
+        if isinstance(offsets, dict):
+            e = self.offsets.copy()
+            for bead, value in offsets.items():
+                if not (1 <= int(bead) <= self.n_beads):
+                    raise ConfigError("chain.offsets", f"bead {bead} is not in 1..{self.n_beads}")
+                e[int(bead) - 1] = value
+        else:
+            e = np.asarray(offsets, dtype=float)
+        return replace(self, offsets=e)
+
+    # ---------------------------------------------------------------- properties
+    @property
+    def n_beads(self) -> int:
+        return int(self.diameters.size)
+
+    def __len__(self) -> int:
+        return self.n_beads
+
+    @property
+    def radii(self) -> np.ndarray:
+        """Bead radii R_n [m]."""
+        return self.diameters / 2.0
+
+    @property
+    def densities(self) -> np.ndarray:
+        return np.array([m.density for m in self.materials])
+
+    @property
+    def masses(self) -> np.ndarray:
+        """Bead masses m_n = rho pi phi^3 / 6 [kg] (DESIGN.md section 2)."""
+        return self.densities * math.pi * self.diameters**3 / 6.0
+
+    @property
+    def is_aligned(self) -> bool:
+        return not np.any(self.offsets)
+
+    def describe(self) -> dict:
+        """Plain-data description (stored in result attributes)."""
+        names = [m.name for m in self.materials]
+        return {
+            "diameters_mm": [float(x) for x in self.diameters * 1e3],
+            "materials": names[0] if len(set(names)) == 1 else names,
+            "offsets_mm": [float(x) for x in self.offsets * 1e3],
+        }
+
+
+def paper_chain(name: str, material: str | Material = "AISI52100") -> Chain:
+    """The paper's Table I chains by name: ``"chain1"`` (q ~ 5.60 %) or ``"chain2"`` (q ~ 8.27 %)."""
+    key = name.lower().replace("_", "").replace(" ", "")
+    if key not in TABLE_I_MM:
+        raise ConfigError("chain.preset", f"unknown paper chain {name!r}; known: {', '.join(TABLE_I_MM)}")
+    return Chain.from_diameters(np.array(TABLE_I_MM[key]) * 1e-3, material)

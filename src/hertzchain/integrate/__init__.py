@@ -1,0 +1,1 @@
+"""Integrators: the compiled velocity Verlet (default) and the scipy DOP853 reference."""

@@ -1,0 +1,245 @@
+"""The physical model: chain + striker + wall + contact law (+ precompression), and its flat arrays.
+
+:class:`Model` is what a user builds; :meth:`Model.system` turns it into the unit-free SI arrays
+(:class:`System`) that the compiled integrators and the scipy reference share, so both integrate
+exactly the same equations (paper eq. 1 with per-contact Hertz constants).
+
+Bodies (DESIGN.md section 2): 0 = striker, 1..N = beads, N + 1 = wall (a ghost body that never
+moves; with no wall its contact has kappa = 0). Contact j joins bodies j and j + 1, j = 0..N.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from .chain import Chain
+from .contact import LAW_CODES, Dashpot, Elastic, Viscoelastic, hertz_constant, yield_force
+from .errors import ConfigError
+from .materials import Material, get_material
+
+__all__ = ["Striker", "Wall", "Model", "System"]
+
+
+@dataclass(frozen=True)
+class Striker:
+    """The impacting sphere (body 0), touching bead 1 at t = 0.
+
+    Parameters
+    ----------
+    diameter:
+        Striker diameter [m] (the paper uses 8 mm).
+    velocity:
+        Impact velocity [m/s], towards the chain (> 0).
+    material:
+        Striker material (default: AISI 52100).
+    """
+
+    diameter: float = 8e-3
+    velocity: float = 0.5
+    material: Material | str = "AISI52100"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.diameter) and self.diameter > 0):
+            raise ConfigError("striker.diameter_mm", f"must be a positive number, got {self.diameter * 1e3!r} mm")
+        if not (math.isfinite(self.velocity) and self.velocity > 0):
+            raise ConfigError("striker.velocity", f"must be a positive speed in m/s (towards the chain), got {self.velocity!r}")
+        object.__setattr__(self, "material", get_material(self.material))
+
+    @property
+    def mass(self) -> float:
+        """Striker mass rho pi phi^3 / 6 [kg]."""
+        return self.material.density * math.pi * self.diameter**3 / 6.0
+
+
+@dataclass(frozen=True)
+class Wall:
+    """What ends the chain after bead N.
+
+    ``kind="flat"`` (default) is an immovable flat whose cap is ``material`` (the chain's last
+    bead material when None, like the paper's sensor cap); ``kind="none"`` is a free end.
+    """
+
+    kind: Literal["flat", "none"] = "flat"
+    material: Material | str | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("flat", "none"):
+            raise ConfigError("wall.type", f"must be 'flat' or 'none', got {self.kind!r}")
+        if self.material is not None:
+            object.__setattr__(self, "material", get_material(self.material))
+
+    @property
+    def present(self) -> bool:
+        return self.kind != "none"
+
+
+@dataclass(frozen=True)
+class System:
+    """Flat SI arrays of a model, as the compiled kernels take them. See :meth:`Model.system`.
+
+    Shapes: N beads, ``nb = N + 1`` moving bodies, ``N + 2`` bodies with the ghost wall,
+    ``N + 1`` contact slots (the last one has kappa = 0 when there is no wall).
+    """
+
+    mass: np.ndarray        # (N+2,) kg; wall ghost: inf
+    inv_mass: np.ndarray    # (N+2,) 1/kg; wall ghost: 0
+    kappa: np.ndarray       # (N+1,) N/m^1.5
+    damping: np.ndarray     # (N+1,) A [s] (viscoelastic) or gamma [N s/m] (dashpot)
+    d0: np.ndarray          # (N+1,) initial overlap [m] (precompression)
+    de: np.ndarray          # (N+1,) perpendicular offset difference e_{j+1} - e_j [m]
+    dx0: np.ndarray         # (N+1,) initial axial distance of centres of misaligned pairs [m]
+    rsum: np.ndarray        # (N+1,) R_j + R_{j+1} [m]
+    fext: np.ndarray        # (N+2,) constant external force [N] (precompression push on bead 1)
+    u0: np.ndarray          # (N+2,) initial displacement [m]
+    v0: np.ndarray          # (N+2,) initial velocity [m/s]
+    law: int                # LAW_CODES
+    misaligned: bool
+    has_wall: bool
+    yield_force: np.ndarray  # (N+1,) F_Y per contact [N] (inf when not defined)
+
+    @property
+    def n_beads(self) -> int:
+        return self.mass.size - 2
+
+    @property
+    def n_contacts(self) -> int:
+        """Number of real contacts: N + 1 with a wall, N without."""
+        return self.n_beads + (1 if self.has_wall else 0)
+
+    @property
+    def general(self) -> bool:
+        """True when the slower general force loop is needed (dissipation or offsets)."""
+        return self.law != 0 or self.misaligned
+
+    def max_frequency(self) -> float:
+        """Upper estimate of the highest angular frequency omega_max [rad/s] the run can reach.
+
+        Each contact's overlap is bounded by putting all the energy available (striker kinetic
+        energy + precompression energy) into that contact: (2/5) kappa delta^(5/2) <= E. The
+        tangent stiffness k = (3/2) kappa delta^(1/2) then bounds the linearised stiffness matrix,
+        and Gershgorin's theorem bounds its highest eigenvalue: omega^2 <= max_i 2 (k_left + k_right) / m_i.
+        """
+        energy = 0.5 * self.mass[0] * self.v0[0] ** 2
+        kap = self.kappa
+        energy += float(np.sum(0.4 * kap * self.d0**2.5))
+        with np.errstate(divide="ignore"):
+            dmax = np.where(kap > 0, (2.5 * energy / np.where(kap > 0, kap, 1.0)) ** 0.4, 0.0) + self.d0
+        k = 1.5 * kap * np.sqrt(dmax)
+        nb = self.n_beads + 1
+        k_left = np.concatenate([[0.0], k[: nb - 1]])
+        k_right = k[:nb]
+        omega2 = 2.0 * (k_left + k_right) * self.inv_mass[:nb]
+        return float(np.sqrt(omega2.max()))
+
+
+@dataclass(frozen=True)
+class Model:
+    """A chain hit by a striker, ended by a wall, with a contact law.
+
+    Parameters
+    ----------
+    chain:
+        The beads.
+    striker:
+        The impacting sphere (body 0).
+    wall:
+        The end condition (default: immovable flat of the chain's material).
+    law:
+        Contact law: :class:`Elastic` (paper eq. 1), :class:`Viscoelastic` or :class:`Dashpot`.
+    precompression:
+        Static force [N] squeezing beads 1..N against the wall before impact (0 = the paper's
+        "barely touching" chain). Needs a wall.
+    """
+
+    chain: Chain
+    striker: Striker = field(default_factory=Striker)
+    wall: Wall = field(default_factory=Wall)
+    law: Elastic | Viscoelastic | Dashpot = field(default_factory=Elastic)
+    precompression: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.precompression) and self.precompression >= 0):
+            raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
+        if self.precompression > 0 and not self.wall.present:
+            raise ConfigError("chain.precompression", "a static precompression needs a wall to push against")
+        if self.precompression > 0 and not self.chain.is_aligned:
+            raise ConfigError("chain.precompression", "precompression together with bead offsets is not supported")
+
+    @property
+    def wall_material(self) -> Material | None:
+        if not self.wall.present:
+            return None
+        return self.wall.material or self.chain.materials[-1]
+
+    def contact_radii(self) -> list[tuple[float, float | None]]:
+        """(R, R') of every contact 0..N (R' None = flat)."""
+        r = [self.striker.diameter / 2] + list(self.chain.radii)
+        pairs: list[tuple[float, float | None]] = [(r[j], r[j + 1]) for j in range(self.chain.n_beads)]
+        pairs.append((r[-1], None))
+        return pairs
+
+    def contact_materials(self) -> list[tuple[Material, Material | None]]:
+        mats = [self.striker.material] + list(self.chain.materials)
+        out: list[tuple[Material, Material | None]] = [(mats[j], mats[j + 1]) for j in range(self.chain.n_beads)]
+        out.append((mats[-1], self.wall_material))
+        return out
+
+    def system(self) -> System:
+        """Flatten the model into SI arrays (see :class:`System`)."""
+        n = self.chain.n_beads
+        mass = np.empty(n + 2)
+        mass[0] = self.striker.mass
+        mass[1 : n + 1] = self.chain.masses
+        mass[n + 1] = np.inf
+        inv_mass = np.zeros(n + 2)
+        inv_mass[: n + 1] = 1.0 / mass[: n + 1]
+
+        kappa = np.zeros(n + 1)
+        fy = np.full(n + 1, np.inf)
+        for j, ((r1, r2), (m1, m2)) in enumerate(zip(self.contact_radii(), self.contact_materials())):
+            if m2 is None:  # free end: no contact
+                continue
+            kappa[j] = hertz_constant(r1, r2, m1, m2)
+            fy[j] = yield_force(r1, r2, m1, m2)[0]
+
+        damping = np.full(n + 1, float(self.law.parameter))
+        # Precompression: every contact of the chain (not the striker's) carries F0 statically.
+        d0 = np.zeros(n + 1)
+        fext = np.zeros(n + 2)
+        if self.precompression > 0:
+            d0[1:] = (self.precompression / kappa[1:]) ** (2.0 / 3.0)
+            fext[1] = self.precompression
+
+        e = np.concatenate([[0.0], self.chain.offsets, [0.0]])
+        de = np.diff(e)
+        de[n] = 0.0  # a flat wall is unaffected by the last bead's offset (DESIGN.md)
+        r = np.concatenate([[self.striker.diameter / 2], self.chain.radii, [0.0]])
+        rsum = r[:-1] + r[1:]
+        # Misaligned neighbours start touching along their line of centres (DESIGN.md).
+        dx0 = np.sqrt(np.maximum(rsum**2 - de**2, 0.0))
+
+        v0 = np.zeros(n + 2)
+        v0[0] = self.striker.velocity
+        return System(mass=mass, inv_mass=inv_mass, kappa=kappa, damping=damping, d0=d0, de=de, dx0=dx0,
+                      rsum=rsum, fext=fext, u0=np.zeros(n + 2), v0=v0, law=LAW_CODES[self.law.name],
+                      misaligned=bool(np.any(de != 0.0)), has_wall=self.wall.present, yield_force=fy)
+
+    def describe(self) -> dict:
+        """Plain-data description of the model (stored in result attributes)."""
+        law = {"law": self.law.name}
+        if self.law.name == "viscoelastic":
+            law["A"] = self.law.A
+        elif self.law.name == "dashpot":
+            law["gamma"] = self.law.gamma
+        return {
+            "chain": self.chain.describe(),
+            "striker": {"diameter_mm": self.striker.diameter * 1e3, "velocity": self.striker.velocity,
+                        "material": self.striker.material.name},
+            "wall": {"type": self.wall.kind, "material": None if self.wall_material is None else self.wall_material.name},
+            "contact": law,
+            "precompression": self.precompression,
+        }

@@ -1,0 +1,87 @@
+"""What is recorded and when: the laboratory's sensors and the simulation's own probes.
+
+Sensors follow DESIGN.md section 2: the wall sensor reads the wall contact force F_N; a sensor
+embedded in bead n (bead cut in two halves around a stiff piezo, mass compensated) reads, in the
+rigid limit, F_s = (F_{n-1} + F_n) / 2.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import ConfigError
+
+__all__ = ["Probes", "sensor_forces"]
+
+
+@dataclass(frozen=True)
+class Probes:
+    """Recording schedule and signals.
+
+    Parameters
+    ----------
+    sample_interval:
+        Time between samples [s], like an oscilloscope's (default 100 ns).
+    sensors:
+        Beads (1..N) with an embedded sensor.
+    contacts:
+        Contact numbers (0..N) whose forces are stored, or None for all of them. The wall contact
+        and the two contacts of every sensor bead are always computed.
+    velocities:
+        Also store the velocity of every body (0 = striker, 1..N beads).
+    """
+
+    sample_interval: float = 1e-7
+    sensors: tuple[int, ...] = field(default=())
+    contacts: tuple[int, ...] | None = None
+    velocities: bool = False
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.sample_interval, (int, float)) and math.isfinite(self.sample_interval)
+                and self.sample_interval > 0):
+            raise ConfigError("run.sample_interval", f"must be a positive time in s, got {self.sample_interval!r}")
+        object.__setattr__(self, "sensors", tuple(int(s) for s in self.sensors))
+        if self.contacts is not None:
+            object.__setattr__(self, "contacts", tuple(int(c) for c in self.contacts))
+
+    def validate(self, n_beads: int, has_wall: bool) -> None:
+        """Check bead and contact numbers against a chain of ``n_beads`` beads."""
+        for i, s in enumerate(self.sensors):
+            if not (1 <= s <= n_beads):
+                raise ConfigError(f"probes.sensors[{i}]", f"bead {s} does not exist: beads are numbered 1..{n_beads}")
+        if len(set(self.sensors)) != len(self.sensors):
+            raise ConfigError("probes.sensors", "a bead is listed twice")
+        last = n_beads if has_wall else n_beads - 1
+        for i, c in enumerate(self.contacts or ()):
+            if not (0 <= c <= last):
+                raise ConfigError(f"probes.contacts[{i}]", f"contact {c} does not exist: contacts are 0..{last}")
+
+    def recorded_contacts(self, n_beads: int, has_wall: bool) -> np.ndarray:
+        """Sorted contact numbers the integrator must record (requested + wall + sensors')."""
+        n_contacts = n_beads + (1 if has_wall else 0)
+        if self.contacts is None:
+            return np.arange(n_contacts)
+        need = set(self.contacts)
+        if has_wall:
+            need.add(n_beads)
+        for s in self.sensors:
+            need.update((s - 1, s) if s < n_contacts else (s - 1,))
+        return np.array(sorted(need), dtype=np.int64)
+
+
+def sensor_forces(contact_force: np.ndarray, contacts: np.ndarray, sensors: tuple[int, ...]) -> np.ndarray:
+    """Force read by sensors embedded in beads ``sensors``: F_s = (F_{n-1} + F_n) / 2 [N].
+
+    ``contact_force`` is (time, contact) for the contact numbers ``contacts``. For the last bead
+    of a chain with a free end F_n = 0.
+    """
+    index = {int(c): i for i, c in enumerate(contacts)}
+    out = np.empty((contact_force.shape[0], len(sensors)))
+    for k, n in enumerate(sensors):
+        left = contact_force[:, index[n - 1]]
+        right = contact_force[:, index[n]] if n in index else 0.0
+        out[:, k] = 0.5 * (left + right)
+    return out

@@ -1,0 +1,108 @@
+"""Results as one self-describing :class:`xarray.Dataset`, saved as NetCDF.
+
+Dimensions: ``time`` [s], ``contact`` (0..N, DESIGN.md numbering), ``sensor`` (bead numbers of
+embedded sensors), ``bead`` (1..N) and ``body`` (0 = striker, 1..N). Every variable carries
+``units`` and ``long_name``; the full input, the package version, the integrator and the time
+step are in the attributes.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from . import __version__
+from .integrate.verlet import RawRun
+from .model import Model
+from .probes import Probes, sensor_forces
+
+__all__ = ["build_dataset", "save", "load"]
+
+ENGINE = "h5netcdf"
+
+
+def _var(dims, data, units: str, long_name: str) -> xr.Variable:
+    return xr.Variable(dims, data, attrs={"units": units, "long_name": long_name})
+
+
+def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float, config: dict | None = None,
+                  extra_attrs: dict | None = None) -> xr.Dataset:
+    """Assemble the result of one run (see the module docstring for the layout)."""
+    chain = model.chain
+    n = chain.n_beads
+    system = model.system()
+    wanted = raw.contacts if probes.contacts is None else np.array(sorted(set(probes.contacts)), dtype=np.int64)
+    cols = np.searchsorted(raw.contacts, wanted)
+    data = {
+        "contact_force": _var(("time", "contact"), raw.contact_force[:, cols], "N",
+                              "contact force F_j between body j and body j+1 (paper eq. 1)"),
+        "kinetic_energy": _var(("time",), raw.kinetic_energy, "J", "kinetic energy of striker and beads"),
+        "potential_energy": _var(("time",), raw.potential_energy, "J",
+                                 "Hertz potential energy sum (2/5) kappa delta^(5/2) (minus external work)"),
+        "dissipated_energy": _var(("time",), raw.dissipated_energy, "J", "energy dissipated by the contact law"),
+        "diameter": _var(("bead",), chain.diameters.copy(), "m", "bead diameter phi_n"),
+        "mass": _var(("bead",), chain.masses, "kg", "bead mass rho pi phi^3 / 6"),
+        "offset": _var(("bead",), chain.offsets.copy(), "m", "perpendicular offset e_n of the bead centre"),
+        "kappa": _var(("contact",), system.kappa[wanted], "N m-1.5", "Hertz constant kappa_j of the contact"),
+        "yield_force": _var(("contact",), system.yield_force[wanted], "N",
+                            "elastic limit F_Y of the contact (mean pressure = sigma_Y, paper Sec. II)"),
+        "max_contact_force": _var(("contact",), raw.max_force[cols], "N", "maximum sampled contact force"),
+    }
+    if model.wall.present:
+        data["wall_force"] = _var(("time",), raw.contact_force[:, np.searchsorted(raw.contacts, n)], "N",
+                                  "force on the wall sensor (contact N)")
+    if probes.sensors:
+        data["sensor_force"] = _var(("time", "sensor"), sensor_forces(raw.contact_force, raw.contacts, probes.sensors),
+                                    "N", "force read by the sensor embedded in the bead, (F_{n-1} + F_n)/2")
+    if raw.velocity is not None:
+        data["velocity"] = _var(("time", "body"), raw.velocity, "m s-1", "velocity of body (0 = striker)")
+    coords = {
+        "time": ("time", raw.time, {"units": "s", "long_name": "time since impact"}),
+        "contact": ("contact", wanted, {"long_name": "contact j joins body j and body j+1 (0 = striker-bead 1)"}),
+        "bead": ("bead", np.arange(1, n + 1), {"long_name": "bead number from the impact end"}),
+    }
+    if probes.sensors:
+        coords["sensor"] = ("sensor", np.array(probes.sensors), {"long_name": "bead holding the embedded sensor"})
+    if raw.velocity is not None:
+        coords["body"] = ("body", np.arange(n + 1), {"long_name": "body number (0 = striker)"})
+
+    over = [int(c) for c, f, fy in zip(wanted, raw.max_force[cols], system.yield_force[wanted]) if f > fy]
+    attrs = {
+        "title": "hertzchain simulation",
+        "hertzchain_version": __version__,
+        "integrator": raw.integrator,
+        "dt": raw.dt,
+        "n_steps": raw.n_steps,
+        "duration": duration,
+        "sample_interval": probes.sample_interval,
+        "model": json.dumps(model.describe()),
+        "config": json.dumps(config if config is not None else {"model": model.describe()}),
+        "peak_wall_force": raw.peak_wall_force,
+        "peak_wall_time": raw.peak_wall_time,
+        "elastic_limit_exceeded": int(bool(over)),
+        "elastic_limit_contacts": json.dumps(over),
+        "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "conventions": "SI units; numbering of DESIGN.md section 2 (beads 1..N from the impact end)",
+    }
+    attrs.update(extra_attrs or {})
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def save(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write a result to NetCDF (HDF5 based); parent folders are created."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    ds.to_netcdf(tmp, engine=ENGINE)
+    tmp.replace(path)  # never leave a half-written file under the final name
+    return path
+
+
+def load(path: str | Path) -> xr.Dataset:
+    """Read a result written by :func:`save` (fully loaded, file closed)."""
+    with xr.open_dataset(path, engine=ENGINE) as ds:
+        return ds.load()

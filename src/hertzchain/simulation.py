@@ -1,0 +1,74 @@
+"""Run a model: choose the integrator, record the probes, check the elastic limit, build the result."""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from typing import Callable, Literal
+
+import xarray as xr
+
+from .errors import ConfigError, ElasticLimitWarning
+from .integrate.reference import run_reference
+from .integrate.verlet import run_verlet
+from .model import Model
+from .probes import Probes
+from .result import build_dataset
+
+__all__ = ["simulate"]
+
+
+def simulate(model: Model, duration: float, probes: Probes | None = None, *,
+             integrator: Literal["verlet", "dop853", "rk45"] = "verlet", dt: float | None = None,
+             rtol: float = 1e-10, progress: Callable[[int, int], None] | None = None,
+             config: dict | None = None) -> xr.Dataset:
+    """Simulate ``model`` for ``duration`` [s] and return the result Dataset.
+
+    Parameters
+    ----------
+    model:
+        Chain, striker, wall and contact law.
+    duration:
+        Simulated time [s] after impact.
+    probes:
+        What to record (default: every contact force and the energies every 100 ns).
+    integrator:
+        ``"verlet"`` (compiled, fixed step; default) or the scipy reference ``"dop853"``
+        (``"rk45"`` also accepted), adaptive with relative tolerance ``rtol``.
+    dt:
+        Verlet time step [s]; automatic when None (see :func:`hertzchain.integrate.verlet.auto_time_step`).
+    progress:
+        Called as ``progress(done, total)`` between chunks of a Verlet run.
+    config:
+        The input it came from, stored in the result's attributes.
+
+    Warns
+    -----
+    ElasticLimitWarning
+        When a recorded contact force passes the contact's elastic limit (paper Sec. II).
+    """
+    probes = probes or Probes()
+    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+        raise ConfigError("run.duration", f"must be a positive time in s, got {duration!r}")
+    if probes.sample_interval > duration:
+        raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
+    system = model.system()
+    probes.validate(model.chain.n_beads, model.wall.present)
+    rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
+    if integrator == "verlet":
+        raw = run_verlet(system, duration, probes.sample_interval, dt=dt, record_velocities=probes.velocities,
+                         contacts=rec, progress=progress)
+    elif integrator in ("dop853", "rk45"):
+        raw = run_reference(system, duration, probes.sample_interval, method=integrator.upper(), rtol=rtol,
+                            record_velocities=probes.velocities)
+    else:
+        raise ConfigError("run.integrator", f"must be 'verlet', 'dop853' or 'rk45', got {integrator!r}")
+    ds = build_dataset(raw, model, probes, duration=duration, config=config)
+    over = json.loads(ds.attrs["elastic_limit_contacts"])
+    if over:
+        ratio = float((ds.max_contact_force / ds.yield_force).max())
+        warnings.warn(ElasticLimitWarning(
+            f"contact forces pass the elastic limit of the paper (Sec. II) at contacts {over} "
+            f"(up to {ratio:.2f} x F_Y); beads would yield plastically: lower the striker velocity"), stacklevel=2)
+    return ds
