@@ -1,9 +1,47 @@
-"""hertzchain: impulse propagation in chains of elastic beads with Hertz contacts."""
+"""hertzchain: impulse propagation in chains of elastic beads with Hertz contacts.
+
+The public API is re-exported here and loaded lazily (PEP 562), so ``import hertzchain`` and the
+CLI's ``--help`` stay fast; the compiled kernels load on first use.
+"""
 
 from __future__ import annotations
 
+import importlib
+
 __version__ = "0.1.0"
 
-from .errors import ConfigError, ElasticLimitWarning, HertzchainError, PulseNotFound, SimulationDiverged
-from .materials import CATALOGUE, Material, get_material, register_material
-from .contact import Dashpot, Elastic, Viscoelastic, hertz_constant, yield_force
+_EXPORTS = {
+    # errors
+    "HertzchainError": "errors", "ConfigError": "errors", "SimulationDiverged": "errors",
+    "PulseNotFound": "errors", "ElasticLimitWarning": "errors",
+    # model
+    "Material": "materials", "CATALOGUE": "materials", "get_material": "materials",
+    "register_material": "materials",
+    "Elastic": "contact", "Viscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
+    "yield_force": "contact",
+    "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain",
+    "Striker": "model", "Wall": "model", "Model": "model",
+    # running and results
+    "Probes": "probes", "simulate": "simulation", "save": "result", "load": "result",
+    "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
+    # measurement, analysis, theory
+    "Instrument": "instrument",
+    "fit_pulse": "analysis", "PulseFit": "analysis", "power_spectrum": "analysis",
+    "tapering_factor": "theory", "ballistic_ratios": "theory", "solitary_wave_speed": "theory",
+    "yield_limit": "theory", "predict_chain": "theory", "nesterenko_force": "theory",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'hertzchain' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

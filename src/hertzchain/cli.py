@@ -1,0 +1,193 @@
+"""Command line: ``hertzchain run | plot | analyze | materials | reproduce | sweep``.
+
+Every user error (bad config, bad file, bad option) ends with a one-paragraph message and exit
+status 2, never a traceback. Heavy imports are deferred into the commands so ``--help`` is quick.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+
+import click
+
+
+@contextmanager
+def progress_bar(description: str, enabled: bool = True):
+    """A Rich progress bar on stderr; yields ``update(done, total)``."""
+    if not enabled:
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                  TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=False) as prog:
+        task = prog.add_task(description, total=None)
+
+        def update(done: int, total: int) -> None:
+            prog.update(task, completed=done, total=total)
+
+        yield update
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="hertzchain")
+def cli() -> None:
+    """Impulse propagation in chains of Hertzian beads (tapered granular shock absorbers)."""
+
+
+@cli.command()
+@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="NetCDF file to write (e.g. result.nc).")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
+def run(config: Path, out: Path, quiet: bool) -> None:
+    """Simulate the chain described by CONFIG (TOML) and save the result as NetCDF."""
+    import warnings
+
+    from .config import build_model, build_probes, load_config
+    from .errors import ElasticLimitWarning
+    from .result import save
+    from .simulation import simulate
+
+    cfg = load_config(config)
+    model = build_model(cfg)
+    probes = build_probes(cfg)
+    # A progress bar only when the run is long enough to be worth one (> ~1e8 bead-steps).
+    from .integrate.verlet import auto_time_step
+
+    dt = cfg.run.dt or auto_time_step(model.system())
+    work = cfg.run.duration / dt * model.chain.n_beads
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ElasticLimitWarning)
+        with progress_bar("simulating", enabled=not quiet and work > 1e8) as update:
+            ds = simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
+                          rtol=cfg.run.rtol, progress=update, config=cfg.model_dump(mode="json"))
+    for w in caught:
+        click.echo(f"warning: {w.message}", err=True)
+    save(ds, out)
+    if not quiet:
+        msg = f"wrote {out} ({ds.sizes['time']} samples, {ds.sizes['contact']} contacts, dt = {ds.attrs['dt']:.3g} s)"
+        if "wall_force" in ds:
+            msg += f"; peak wall force {ds.attrs['peak_wall_force']:.4g} N at {ds.attrs['peak_wall_time'] * 1e3:.4g} ms"
+        click.echo(msg)
+
+
+def _open_result(path: Path):
+    from .errors import ConfigError
+    from .result import load
+
+    if not path.exists():
+        raise ConfigError(str(path), "no such file")
+    try:
+        return load(path)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(str(path), f"is not a hertzchain NetCDF result ({exc})") from None
+
+
+@cli.command()
+@click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Image file (PNG, PDF or SVG).")
+@click.option("--signal", "signals", multiple=True, help="wall_force, sensor_force or contact_force (repeatable).")
+@click.option("--contact", "contacts", multiple=True, type=int, help="Contacts to draw with --signal contact_force.")
+def plot(result: Path, out: Path, signals: tuple[str, ...], contacts: tuple[int, ...]) -> None:
+    """Draw the force signals of RESULT against time, one panel per signal."""
+    from .plotting import plot_signals
+
+    ds = _open_result(result)
+    click.echo(f"wrote {plot_signals(ds, out, signals or None, contacts or None)}")
+
+
+@cli.command()
+@click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--signal", "signals", multiple=True,
+              help="wall_force, sensor_force or contact_force (repeatable; default wall and sensors).")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
+def analyze(source: Path, signals: tuple[str, ...], as_json: bool) -> None:
+    """Fit every chosen pulse of SOURCE (a result .nc, or a CSV of time and force) as in the paper.
+
+    The loading part of each pulse is fitted with F_m cos^6((t - T)/tau) (paper Sec. III); the front
+    and tail momenta Q_F, Q_T are the integrals before and after T + tau.
+    """
+    import json
+
+    from .analysis import analyze_signals
+    from .errors import ConfigError
+
+    if not source.exists():
+        raise ConfigError(str(source), "no such file")
+    if source.suffix.lower() == ".csv":
+        rows = analyze_signals(source)
+    else:
+        ds = _open_result(source)
+        chosen = signals or tuple(s for s in ("wall_force", "sensor_force") if s in ds) or ("contact_force",)
+        rows = analyze_signals(ds, signals=chosen)
+    if as_json:
+        click.echo(json.dumps(rows, indent=2, default=float))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"pulse fits of {source.name} (loading part, F_m cos^6((t-T)/tau))")
+    for col in ("signal", "F_m [N]", "T [ms]", "tau [us]", "Q_F [mN s]", "Q_T [mN s]"):
+        table.add_column(col, justify="right")
+    for r in rows:
+        label = r["signal"] + ("" if r.get("index") is None else f"[{r['index']}]")
+        if r.get("error"):
+            table.add_row(label, f"[red]{r['error']}[/red]", "", "", "", "")
+            continue
+        table.add_row(label, f"{r['peak_force']:.4g} ± {r['peak_force_err']:.1g}",
+                      f"{r['time_of_flight'] * 1e3:.5g} ± {r['time_of_flight_err'] * 1e3:.1g}",
+                      f"{r['duration'] * 1e6:.4g} ± {r['duration_err'] * 1e6:.1g}",
+                      f"{r['front_momentum'] * 1e3:.4g}", f"{r['tail_momentum'] * 1e3:.4g}")
+    Console().print(table)
+
+
+@cli.command()
+def materials() -> None:
+    """List the material catalogue (SI units) with sources."""
+    from .materials import CATALOGUE
+
+    for m in CATALOGUE.values():
+        ys = "-" if m.yield_stress is None else f"{m.yield_stress:.3g}"
+        click.echo(f"{m.name:16s} rho={m.density:<7g} Y={m.young:<9.3g} nu={m.poisson:<5g} sigma_Y={ys:<8s} ({m.source})")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: run the CLI, turning user errors into a message and exit status 2."""
+    from .errors import HertzchainError
+
+    try:
+        cli.main(args=argv, prog_name="hertzchain", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("aborted", err=True)
+        return 130
+    except click.exceptions.ClickException as exc:
+        exc.show()
+        return 2 if isinstance(exc, click.UsageError) else exc.exit_code
+    except HertzchainError as exc:
+        click.echo(f"error: {exc}", err=True)
+        return 2
+    except KeyboardInterrupt:
+        click.echo("interrupted", err=True)
+        return 130
+    except Exception as exc:  # a bug: say so plainly, full traceback on request
+        if os.environ.get("HERTZCHAIN_DEBUG"):
+            raise
+        click.echo(f"internal error: {type(exc).__name__}: {exc}\n"
+                   "This is a bug in hertzchain; rerun with HERTZCHAIN_DEBUG=1 for the traceback.", err=True)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
+
+
+def entry() -> None:
+    """Console-script entry point."""
+    sys.exit(main())
