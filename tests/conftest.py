@@ -1,0 +1,24 @@
+"""Shared fixtures: small models used across the engine tests."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import hertzchain as hc
+
+#: The core-engine issue's contract chain: 16 beads of 26 mm then 24, 23, 22 mm.
+CONTRACT_DIAMETERS_MM = [26.0] * 16 + [24.0, 23.0, 22.0]
+
+
+@pytest.fixture(scope="session")
+def contract_model() -> hc.Model:
+    chain = hc.Chain.from_diameters(np.array(CONTRACT_DIAMETERS_MM) * 1e-3)
+    return hc.Model(chain, hc.Striker(8e-3, 0.5), hc.Wall("flat"))
+
+
+@pytest.fixture(scope="session")
+def gentle_contract_model() -> hc.Model:
+    """The contract chain hit at 0.2 m/s: every contact stays inside its elastic limit."""
+    chain = hc.Chain.from_diameters(np.array(CONTRACT_DIAMETERS_MM) * 1e-3)
+    return hc.Model(chain, hc.Striker(8e-3, 0.2), hc.Wall("flat"))
