@@ -48,7 +48,7 @@ def run(config: Path, out: Path, quiet: bool) -> None:
     """Simulate the chain described by CONFIG (TOML) and save the result as NetCDF."""
     import warnings
 
-    from .config import build_model, build_probes, load_config
+    from .config import apply_instruments, build_instruments, build_model, build_probes, load_config
     from .errors import ElasticLimitWarning
     from .result import save
     from .simulation import simulate
@@ -56,6 +56,7 @@ def run(config: Path, out: Path, quiet: bool) -> None:
     cfg = load_config(config)
     model = build_model(cfg)
     probes = build_probes(cfg)
+    build_instruments(cfg)  # fail on bad instrument settings before a long run
     # A progress bar only when the run is long enough to be worth one (> ~1e8 bead-steps).
     from .integrate.verlet import auto_time_step
 
@@ -68,6 +69,7 @@ def run(config: Path, out: Path, quiet: bool) -> None:
                           rtol=cfg.run.rtol, progress=update, config=cfg.model_dump(mode="json"))
     for w in caught:
         click.echo(f"warning: {w.message}", err=True)
+    ds = apply_instruments(ds, cfg)
     save(ds, out)
     if not quiet:
         msg = f"wrote {out} ({ds.sizes['time']} samples, {ds.sizes['contact']} contacts, dt = {ds.attrs['dt']:.3g} s)"
@@ -145,6 +147,44 @@ def analyze(source: Path, signals: tuple[str, ...], as_json: bool) -> None:
                       f"{r['duration'] * 1e6:.4g} ± {r['duration_err'] * 1e6:.1g}",
                       f"{r['front_momentum'] * 1e3:.4g}", f"{r['tail_momentum'] * 1e3:.4g}")
     Console().print(table)
+
+
+@cli.command()
+@click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("reproduction"),
+              show_default=True, help="Folder for figures, data, summary.json and the report.")
+@click.option("--velocity", type=float, default=0.2, show_default=True,
+              help="Striker speed [m/s] (not given in the paper; normalised results do not depend on it).")
+@click.option("--elastic", is_flag=True, help="No dissipation (default: calibrated to the paper's eps = 0.985).")
+@click.option("--law", type=click.Choice(["viscoelastic", "dashpot"]), default="viscoelastic", show_default=True,
+              help="Dissipative contact law calibrated to eps.")
+@click.option("--eps", type=float, default=0.985, show_default=True, help="Per-bead factor eps to calibrate to.")
+@click.option("--no-figures", is_flag=True, help="Only data and summary.json.")
+def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, no_figures: bool) -> None:
+    """Reproduce the paper: Figs. 1-6, its numbers and a report (about a minute on 2 cores)."""
+    from .errors import ConfigError
+
+    if not (velocity > 0 and velocity < 10):
+        raise ConfigError("--velocity", f"must be a striker speed in (0, 10) m/s, got {velocity}")
+    if not (0 < eps <= 1):
+        raise ConfigError("--eps", f"must lie in (0, 1], got {eps}")
+    from .paper.protocol import Settings
+    from .paper.reproduce import count_runs, reproduce as run_reproduction
+
+    settings = Settings(striker_velocity=velocity, elastic=elastic, law=law, eps=eps)
+    total = count_runs(settings)
+    with progress_bar("reproducing the paper") as update:
+        done = [0]
+
+        def tick(msg: str) -> None:
+            done[0] += 1
+            update(done[0], total)
+
+        summary = run_reproduction(out, settings, progress=tick, figures=not no_figures)
+    c1, c2 = summary["chain1"], summary["chain2"]
+    click.echo(f"wrote {out}/ in {summary['timing']['total_s']:.1f} s: "
+               f"Q1 = {c1['Q_fit']:.4f} +- {c1['Q_fit_err']:.4f} (theory {c1['Q_theory']:.4f}, paper 1.025 +- 0.016), "
+               f"Q2 = {c2['Q_fit']:.4f} +- {c2['Q_fit_err']:.4f} (theory {c2['Q_theory']:.4f}, paper 1.049 +- 0.044), "
+               f"eps = {summary['eps']:.4f}")
 
 
 @cli.command()

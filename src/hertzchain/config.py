@@ -157,6 +157,32 @@ class ProbesConfig(_Section):
     velocities: bool = False
 
 
+class InstrumentChannel(_Section):
+    """One measured channel: a sensor preset plus any :class:`hertzchain.instrument.Instrument` field."""
+
+    preset: Literal["pcb_208a11", "pcb_200b02"] | None = None
+    sensitivity_mV_per_N: float | None = None
+    noise_rms_mV: float | None = None
+    sample_rate: float | None = None
+    record_length: int | None = None
+    trigger_level_N: float | None = None
+    pretrigger_fraction: float | None = None
+    bits: int | None = None
+    full_scale_V: float | None = None
+    offset_V: float | None = None
+    n_average: int | None = None
+    trigger_jitter: bool | None = None
+    seed: int | None = None
+
+
+class InstrumentConfig(_Section):
+    """``[instrument]``: the laboratory's measurement chain, off unless a channel is given."""
+
+    trigger: Literal["self", "wall"] = "self"
+    wall: InstrumentChannel | None = None
+    sensors: InstrumentChannel | None = None
+
+
 class RunConfig(_Section):
     """The whole run file."""
 
@@ -167,6 +193,7 @@ class RunConfig(_Section):
     contact: ContactConfig = ContactConfig()
     run: RunSection = RunSection()
     probes: ProbesConfig = ProbesConfig()
+    instrument: InstrumentConfig = InstrumentConfig()
 
 
 def _field_name(loc: tuple[Any, ...]) -> str:
@@ -330,6 +357,35 @@ def build_probes(cfg: RunConfig):
                   contacts=None if p.contacts == "all" else tuple(p.contacts), velocities=p.velocities)
 
 
+def build_instruments(cfg: RunConfig) -> dict:
+    """Instrument objects of ``[instrument]`` (``{}`` when the measurement chain is off)."""
+    from .instrument import Instrument
+
+    out = {}
+    for channel in ("wall", "sensors"):
+        ch = getattr(cfg.instrument, channel)
+        if ch is None:
+            continue
+        fields = {k: v for k, v in ch.model_dump().items() if v is not None and k != "preset"}
+        default = "pcb_208a11" if channel == "wall" else "pcb_200b02"
+        try:
+            out[channel] = getattr(Instrument, ch.preset or default)(**fields)
+        except ConfigError as exc:
+            raise ConfigError(exc.field.replace("instrument.", f"instrument.{channel}.", 1), exc.message) from None
+    return out
+
+
+def apply_instruments(ds, cfg: RunConfig):
+    """Add the measured signals of ``[instrument]`` to a result (ideal signals are kept)."""
+    instruments = build_instruments(cfg)
+    if not instruments:
+        return ds
+    from .instrument import measure_dataset
+
+    return measure_dataset(ds, wall=instruments.get("wall"), sensors=instruments.get("sensors"),
+                           trigger=cfg.instrument.trigger)
+
+
 def run_config(cfg: RunConfig | dict | str | Path, progress=None):
     """Build and simulate a config; returns the result :class:`xarray.Dataset`."""
     from .simulation import simulate
@@ -339,5 +395,7 @@ def run_config(cfg: RunConfig | dict | str | Path, progress=None):
     elif isinstance(cfg, dict):
         cfg = parse_config(cfg)
     model = build_model(cfg)
-    return simulate(model, cfg.run.duration, build_probes(cfg), integrator=cfg.run.integrator, dt=cfg.run.dt,
-                    rtol=cfg.run.rtol, progress=progress, config=cfg.model_dump(mode="json"))
+    build_instruments(cfg)  # fail on bad instrument settings before a long run
+    ds = simulate(model, cfg.run.duration, build_probes(cfg), integrator=cfg.run.integrator, dt=cfg.run.dt,
+                  rtol=cfg.run.rtol, progress=progress, config=cfg.model_dump(mode="json"))
+    return apply_instruments(ds, cfg)

@@ -475,3 +475,65 @@ class Acquisition:
     def absolute_time(self) -> np.ndarray:
         """Nominal sample times on the simulation's clock [s] (``time + trigger_time``)."""
         return self.time + self.trigger_time
+
+
+def measure_dataset(ds, wall: Instrument | None = None, sensors: Instrument | None = None,
+                    trigger: str = "self"):
+    """Add "measured" signals to a simulation result, keeping the ideal ones.
+
+    Parameters
+    ----------
+    ds:
+        A result :class:`xarray.Dataset` (``wall_force``, ``sensor_force``).
+    wall, sensors:
+        Instruments for the wall sensor and for the embedded sensors (None: not measured).
+    trigger:
+        ``"self"``: each channel triggers on itself; ``"wall"``: every channel triggers on the
+        wall force (the paper triggers the embedded sensor's acquisition with the wall sensor in
+        the uniform chain, Sec. II).
+
+    Returns
+    -------
+    A new Dataset with ``measured_wall_force(wall_scope_time)`` and
+    ``measured_sensor_force(sensor_scope_time, sensor)`` [N], time axes relative to the trigger
+    [s], the trigger times on the simulation clock, and each instrument's settings in the
+    variable attributes. Each sensor gets its own random stream (seeded from the instrument's
+    seed and the sensor bead), so two sensors never share noise.
+    """
+    import json
+
+    import xarray as xr
+
+    if trigger not in ("self", "wall"):
+        raise ConfigError("instrument.trigger", f"must be 'self' or 'wall', got {trigger!r}")
+    if trigger == "wall" and "wall_force" not in ds:
+        raise ConfigError("instrument.trigger", "'wall' needs a wall (wall.type = 'flat')")
+    out = ds.copy()
+    t = ds.time.values
+    trig = ds.wall_force.values if trigger == "wall" else None
+    if wall is not None:
+        if "wall_force" not in ds:
+            raise ConfigError("instrument.wall", "the run has no wall to measure (wall.type = 'none')")
+        acq = wall.acquire(t, ds.wall_force.values, trigger_signal=trig)
+        out = out.assign_coords(wall_scope_time=("wall_scope_time", acq.time, {"units": "s",
+                                "long_name": "oscilloscope time relative to the trigger"}))
+        out["measured_wall_force"] = xr.Variable(("wall_scope_time",), acq.force, attrs={
+            "units": "N", "long_name": "wall force as measured (sensor, noise, scope, averaging)",
+            "trigger_time": acq.trigger_time, "n_clipped": acq.n_clipped, "instrument": json.dumps(wall.as_dict())})
+    if sensors is not None:
+        if "sensor_force" not in ds:
+            raise ConfigError("instrument.sensors", "the run has no embedded sensors (probes.sensors is empty)")
+        records, trig_times = [], []
+        for bead in ds.sensor.values:
+            seed = None if sensors.seed is None else np.random.SeedSequence([sensors.seed, int(bead)])
+            acq = sensors.acquire(t, ds.sensor_force.sel(sensor=bead).values, trigger_signal=trig,
+                                  rng=np.random.default_rng(seed))
+            records.append(acq.force)
+            trig_times.append(acq.trigger_time)
+        out = out.assign_coords(sensor_scope_time=("sensor_scope_time", acq.time, {"units": "s",
+                                "long_name": "oscilloscope time relative to the trigger"}))
+        out["measured_sensor_force"] = xr.Variable(("sensor_scope_time", "sensor"), np.array(records).T, attrs={
+            "units": "N", "long_name": "embedded-sensor force as measured", "instrument": json.dumps(sensors.as_dict())})
+        out["sensor_trigger_time"] = xr.Variable(("sensor",), np.array(trig_times), attrs={
+            "units": "s", "long_name": "trigger time of each sensor's record on the simulation clock"})
+    return out
