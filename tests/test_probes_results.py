@@ -74,3 +74,13 @@ def test_bad_probe_numbers():
         hc.simulate(model, 1e-4, hc.Probes(sensors=(6,)))
     with pytest.raises(hc.ConfigError, match=r"probes.contacts\[0\]"):
         hc.simulate(model, 1e-4, hc.Probes(contacts=(9,)))
+
+
+def test_elastic_limit_checks_contacts_that_are_not_stored():
+    # Only the wall is stored, but the small striker's contact passes its limit: still caught.
+    model = hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.5))
+    with pytest.warns(hc.ElasticLimitWarning):
+        ds = hc.simulate(model, 2e-4, hc.Probes(contacts=(30,)))
+    assert list(ds.contact.values) == [30]
+    assert ds.max_contact_force.sizes["contact_all"] == 31
+    assert json.loads(ds.attrs["elastic_limit_contacts"]) == [0]

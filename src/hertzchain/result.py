@@ -35,6 +35,7 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
     chain = model.chain
     n = chain.n_beads
     system = model.system()
+    nc = system.n_contacts
     wanted = raw.contacts if probes.contacts is None else np.array(sorted(set(probes.contacts)), dtype=np.int64)
     cols = np.searchsorted(raw.contacts, wanted)
     data = {
@@ -47,10 +48,11 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
         "diameter": _var(("bead",), chain.diameters.copy(), "m", "bead diameter phi_n"),
         "mass": _var(("bead",), chain.masses, "kg", "bead mass rho pi phi^3 / 6"),
         "offset": _var(("bead",), chain.offsets.copy(), "m", "perpendicular offset e_n of the bead centre"),
-        "kappa": _var(("contact",), system.kappa[wanted], "N m-1.5", "Hertz constant kappa_j of the contact"),
-        "yield_force": _var(("contact",), system.yield_force[wanted], "N",
+        "kappa": _var(("contact_all",), system.kappa[:nc], "N m-1.5", "Hertz constant kappa_j of the contact"),
+        "yield_force": _var(("contact_all",), system.yield_force[:nc], "N",
                             "elastic limit F_Y of the contact (mean pressure = sigma_Y, paper Sec. II)"),
-        "max_contact_force": _var(("contact",), raw.max_force[cols], "N", "maximum sampled contact force"),
+        "max_contact_force": _var(("contact_all",), raw.max_force, "N",
+                                  "largest sampled force of every contact, stored or not"),
     }
     if model.wall.present:
         data["wall_force"] = _var(("time",), raw.contact_force[:, np.searchsorted(raw.contacts, n)], "N",
@@ -63,6 +65,7 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
     coords = {
         "time": ("time", raw.time, {"units": "s", "long_name": "time since impact"}),
         "contact": ("contact", wanted, {"long_name": "contact j joins body j and body j+1 (0 = striker-bead 1)"}),
+        "contact_all": ("contact_all", np.arange(nc), {"long_name": "every contact of the chain (elastic-limit check)"}),
         "bead": ("bead", np.arange(1, n + 1), {"long_name": "bead number from the impact end"}),
     }
     if probes.sensors:
@@ -70,7 +73,7 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
     if raw.velocity is not None:
         coords["body"] = ("body", np.arange(n + 1), {"long_name": "body number (0 = striker)"})
 
-    over = [int(c) for c, f, fy in zip(wanted, raw.max_force[cols], system.yield_force[wanted]) if f > fy]
+    over = [int(c) for c, f, fy in zip(range(nc), raw.max_force, system.yield_force[:nc]) if f > fy]
     attrs = {
         "title": "hertzchain simulation",
         "hertzchain_version": __version__,
@@ -92,12 +95,23 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
-def save(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write a result to NetCDF (HDF5 based); parent folders are created."""
+def save(ds: xr.Dataset, path: str | Path, compress: bool = True, single_precision: bool = False) -> Path:
+    """Write a result to NetCDF (HDF5 based, gzip-compressed); parent folders are created.
+
+    ``single_precision`` stores the time-dependent variables as float32 (7 significant digits,
+    enough to redraw figures; halves the size); the default keeps every bit.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
-    ds.to_netcdf(tmp, engine=ENGINE)
+    encoding = {}
+    for name, var in ds.data_vars.items():
+        enc = {"compression": "gzip", "compression_opts": 4, "shuffle": True} if compress and var.size > 1000 else {}
+        if single_precision and "time" in var.dims:
+            enc["dtype"] = "float32"
+        if enc:
+            encoding[name] = enc
+    ds.to_netcdf(tmp, engine=ENGINE, encoding=encoding)
     tmp.replace(path)  # never leave a half-written file under the final name
     return path
 

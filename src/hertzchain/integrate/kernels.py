@@ -52,7 +52,11 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g):
         else:
             d = u[j] - u[j + 1] + d0[j]
             c = 1.0
-        if d <= 0.0:
+        # d == 0 is kept as a contact: at the impact instant (t = 0, striker just touching) the
+        # dashpot force is already gamma d(delta)/dt = gamma v0 (the law jumps at closure); taking
+        # 0 there instead made Verlet's first half kick miss an O(dt) impulse (first-order error).
+        # The elastic part and the Kuwabara-Kono term (~ delta^(1/2)) vanish at d == 0 anyway.
+        if d < 0.0:
             g[j + 1] = 0.0
             continue
         sd = np.sqrt(d)
@@ -129,7 +133,7 @@ def _track_peak(fw, step, peak):
 @njit(cache=True, nogil=True)
 def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
                wall_slot, dt, stride, k_start, k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_v,
-               peak, acc):
+               fmax, peak, acc):
     """Advance ``(k_stop - k_start) * stride`` velocity-Verlet steps, sampling after every stride.
 
     On entry and exit ``u, v, a, g`` hold positions, synchronised velocities, accelerations and
@@ -139,8 +143,9 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     dissipated power (W), global step count]. ``peak`` tracks contact ``wall_slot`` (the wall):
     [max force, step of max, force one step before, force one step after, waiting flag, previous
     force]; the parabola through the three gives the peak between steps. Sample k of ``out_f``
-    receives the forces of the contacts listed in ``rec``. Returns 0, or 1 when the state became
-    non-finite.
+    receives the forces of the contacts listed in ``rec``; ``fmax`` keeps every contact's largest
+    sampled force, stored or not, for the elastic-limit check. Returns 0, or 1 when the state
+    became non-finite.
 
     Velocities used by the dissipative forces at t + dt are predicted as v(t + dt/2) + a(t) dt/2;
     the error is O(dt^2) per step, so the scheme stays second order.
@@ -177,6 +182,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
         # --- probes, sampled inside the compiled loop
         for j in range(nout):
             out_f[k, j] = g[rec[j] + 1]
+        for j in range(fmax.shape[0]):
+            fmax[j] = max(fmax[j], g[j + 1])
         ke = kinetic_energy(v, mass)
         out_ke[k] = ke
         out_pe[k] = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, not general)

@@ -33,7 +33,7 @@ class RawRun:
     potential_energy: np.ndarray
     dissipated_energy: np.ndarray
     velocity: np.ndarray | None  # (K, N+1) m/s, bodies 0..N
-    max_force: np.ndarray       # (N+1,) N, maximum over the samples
+    max_force: np.ndarray       # (n_contacts,) N, every contact's maximum over the samples
     peak_wall_force: float      # N, refined between steps
     peak_wall_time: float       # s
     dt: float                   # s, the step actually used (0 for adaptive)
@@ -88,8 +88,9 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     u, v = w.u, w.v
     g = np.zeros(w.n_slots + 1)
     a = np.zeros(w.n_slots)
+    power0 = 0.0
     if system.general:
-        kernels.forces_general(u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, system.law, g)
+        power0 = kernels.forces_general(u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, system.law, g)
     else:
         kernels.forces_elastic(u, w.kappa, w.d0, g)
     kernels.accelerations(g, w.fext, w.inv_mass, a)
@@ -106,9 +107,11 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     out_ed[0] = 0.0
     if record_velocities:
         out_v[0] = v[:nb]
+    fmax = g[1 : nc + 1].copy()
     fw0 = g[w.wall_slot + 1]
     peak = np.array([fw0, 0.0, 0.0, 0.0, 0.0, fw0])
     acc = np.zeros(3)
+    acc[1] = power0  # dissipated power at t = 0, first point of the trapezoidal integral
 
     samples_per_chunk = max(1, chunk_steps // stride)
     k = 1
@@ -116,7 +119,7 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
         k_stop = min(n_samples, k + samples_per_chunk)
         status = kernels.verlet_run(u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
                                     w.rsum, w.fext, system.law, system.general, w.wall_slot, dt, stride, k,
-                                    k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, peak, acc)
+                                    k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc)
         if status != 0:
             raise SimulationDiverged(
                 f"the integration diverged (non-finite state) before t = {k_stop * sample_interval:.4g} s "
@@ -135,6 +138,6 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
         t_pk += s * dt
     time = np.arange(n_samples) * sample_interval
     return RawRun(time=time, contact_force=out_f, kinetic_energy=out_ke, potential_energy=out_pe,
-                  dissipated_energy=out_ed, velocity=out_v if record_velocities else None, max_force=out_f.max(axis=0),
+                  dissipated_energy=out_ed, velocity=out_v if record_velocities else None, max_force=fmax,
                   peak_wall_force=float(fpk), peak_wall_time=float(t_pk), dt=dt, integrator="verlet",
                   n_steps=int(acc[2]), contacts=rec)

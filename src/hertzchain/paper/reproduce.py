@@ -11,7 +11,7 @@ from typing import Callable
 import numpy as np
 
 from .. import __version__, theory
-from ..result import save
+from ..result import save as _save
 from . import protocol
 from .protocol import ChainStudy, Settings
 from .values import PAPER
@@ -89,7 +89,12 @@ def build_summary(studies: dict[str, ChainStudy], ratio: dict, speed: dict, sett
 
 
 def _save_data(out: Path, studies, mis, subs, ratio) -> None:
+    """Every simulated trace, as single-precision compressed NetCDF (enough to redraw figures)."""
     data = out / "data"
+
+    def save(ds, path):
+        _save(ds, path, single_precision=True)
+
     for name, study in studies.items():
         for n, ds in study.wall.items():
             save(ds, data / f"{name}_truncated_{n:02d}.nc")

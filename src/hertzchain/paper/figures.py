@@ -1,0 +1,632 @@
+"""The paper's six figures, drawn from the data of :mod:`hertzchain.paper.protocol`.
+
+One function per figure of Melo, Job, Santibanez, Tapia, PRE 2006; each takes data objects
+(:class:`~hertzchain.paper.protocol.ChainStudy`, the dicts of datasets returned by
+``run_misalignment`` / ``run_substitutions``, the :class:`~.protocol.Settings`) and returns a
+:class:`matplotlib.figure.Figure`; nothing here runs a simulation.
+
+- :func:`fig1`, :func:`fig2`: pulse in the uniform part, wall force of the chains truncated after
+  beads 18..28, power spectra of the incoming and outgoing pulses (chains 1 and 2);
+- :func:`fig3`: misalignment of bead 22 and bead 28 of chain 2, single-bead substitutions in
+  chain 1 cut after bead 24;
+- :func:`fig4`: the self-similar collapse F/F_m against (t - T)/tau;
+- :func:`fig5`: diameters, F_m, tau, Q_F and Q_T against the bead number, with eqs. 7-8;
+- :func:`fig6`: time of flight, its departure from the restitution-only prediction, local speed.
+
+:func:`figure_summary` gives the numbers the figures show (spectral centroids, misalignment and
+substitution effects, collapse quality) so that the report can state them in words, and
+:func:`save_figure` writes a figure as PNG (200 dpi) and PDF (vector).
+
+Figures are built on ``Figure`` objects with the Agg canvas attached, so the global pyplot state
+and the session's backend are never touched. Sizes follow the paper's two-column format
+(~3.4 in a column, ~7 in a full width) with 8-pt fonts.
+
+Conventions (SI inside, display units on the axes): forces in N, times in ms (pulse durations
+in us), diameters in mm, momenta in mN s, speeds in m/s. Bead n is the paper's numbering (1 at
+the impact end); "truncation n" is the chain cut after bead n with the wall behind it.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import wraps
+from pathlib import Path
+from typing import Callable
+
+import matplotlib
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from .. import analysis, theory
+from .values import FIG12_TRUNCATIONS, PAPER
+
+__all__ = ["fig1", "fig2", "fig3", "fig4", "fig5", "fig6", "save_figure", "figure_summary",
+           "STYLE", "PULSE_WINDOW_MS", "SPECTRUM_WINDOW_S", "SENSOR_BEAD"]
+
+N0 = PAPER["n0"]
+
+#: Shown range of t - T [ms] around each pulse's time of flight (Figs. 1-3).
+PULSE_WINDOW_MS = (-0.4, 0.6)
+#: Record cut for the power spectra [s]: T - 0.6 ms .. T + 0.6 ms, Hann-windowed around T.
+SPECTRUM_WINDOW_S = (-0.6e-3, 0.6e-3)
+#: Embedded sensor drawn as "the pulse in the uniform part" (far from striker and taper).
+SENSOR_BEAD = 12
+#: Beads of the uniform part whose sensors are used for timing (the striker transient is
+#: over after ~3 beads; the protocol's fits use the same cut).
+FIRST_CLEAN_BEAD = 4
+
+#: Matplotlib style for the paper's column widths (8-pt fonts, thin lines).
+STYLE = {
+    "font.size": 8, "axes.labelsize": 8, "axes.titlesize": 8, "legend.fontsize": 7,
+    "xtick.labelsize": 7, "ytick.labelsize": 7, "lines.linewidth": 1.0, "lines.markersize": 3.5,
+    "axes.linewidth": 0.6, "xtick.major.width": 0.6, "ytick.major.width": 0.6,
+    "xtick.direction": "in", "ytick.direction": "in", "xtick.top": True, "ytick.right": True,
+    "legend.frameon": False, "legend.handlelength": 1.8, "legend.borderaxespad": 0.3,
+    "mathtext.default": "regular", "pdf.fonttype": 42, "savefig.dpi": 200,
+}
+
+C1, C2, C3, CK = "#1f77b4", "#d62728", "#2ca02c", "0.2"
+
+
+def _styled(func: Callable) -> Callable:
+    """Draw under :data:`STYLE` (font sizes are fixed when artists are created)."""
+
+    @wraps(func)
+    def wrapper(*args, **kwargs):
+        with matplotlib.rc_context(STYLE):
+            return func(*args, **kwargs)
+
+    return wrapper
+
+
+def _figure(width: float, height: float) -> Figure:
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    fig.get_layout_engine().set(w_pad=0.03, h_pad=0.03, wspace=0.04, hspace=0.04)
+    return fig
+
+
+def _tag(ax, text: str, loc: str = "upper left") -> None:
+    """Panel letter, e.g. "(b)", inside the axes."""
+    x, ha = (0.03, "left") if "left" in loc else (0.97, "right")
+    y, va = (0.95, "top") if "upper" in loc else (0.05, "bottom")
+    ax.text(x, y, text, transform=ax.transAxes, ha=ha, va=va, fontweight="bold")
+
+
+def save_figure(fig: Figure, out_dir: str | Path, name: str, dpi: int = 200) -> dict[str, Path]:
+    """Write ``name.png`` (raster, ``dpi``) and ``name.pdf`` (vector) into ``out_dir``.
+
+    Returns {"png": path, "pdf": path}. The directory is created if needed.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"png": out / f"{name}.png", "pdf": out / f"{name}.pdf"}
+    with matplotlib.rc_context(STYLE):
+        if fig.canvas is None or not isinstance(fig.canvas, FigureCanvasAgg):
+            FigureCanvasAgg(fig)
+        fig.savefig(paths["png"], dpi=dpi)
+        fig.savefig(paths["pdf"])
+    return paths
+
+
+# ------------------------------------------------------------------------------------------
+# data helpers
+# ------------------------------------------------------------------------------------------
+def _eps_theory(settings) -> float:
+    """The eps of the closed-form predictions: 1 for elastic runs, else the calibrated target."""
+    return 1.0 if getattr(settings, "elastic", False) else float(getattr(settings, "eps", PAPER["eps"]))
+
+
+def _wall_signal(study, n: int) -> tuple[np.ndarray, np.ndarray]:
+    ds = study.wall[int(n)]
+    return ds.time.values, ds.wall_force.values
+
+
+def _sensor_signal(study, bead: int) -> tuple[np.ndarray, np.ndarray]:
+    ds = study.wall[int(study.truncations[-1])]
+    return ds.time.values, ds.sensor_force.sel(sensor=bead).values
+
+
+def _n0(study) -> int:
+    return int(study.truncations[0])
+
+
+def _cut(t: np.ndarray, f: np.ndarray, centre: float, window: tuple[float, float]):
+    sel = (t >= centre + window[0]) & (t <= centre + window[1])
+    return t[sel], f[sel]
+
+
+def _spectra(study):
+    """Spectra of the wall pulse of the uniform chain (n0) and of the full chain (N)."""
+    n_in, n_out = _n0(study), int(study.truncations[-1])
+    cuts = []
+    for n in (n_in, n_out):
+        t, f = _wall_signal(study, n)
+        fit = study.wall_fits[n]
+        tc, fc = _cut(t, f - fit.baseline, fit.time_of_flight, SPECTRUM_WINDOW_S)
+        cuts.append((tc, fc))
+    nfft = 8 * max(c[0].size for c in cuts)
+    return analysis.compare_spectra(cuts[0][0], cuts[0][1], cuts[1][0], cuts[1][1], nfft=nfft,
+                                    window="hann", normalize="max"), n_in, n_out
+
+
+def _uniform_speed(study, settings, beads: np.ndarray) -> np.ndarray:
+    """Wave speed v_n = v_1 eps^((n - 1)/5) of the uniform-part fit (eq. 8 with q = 0)."""
+    return study.v1 * _eps_theory(settings) ** ((np.asarray(beads, float) - 1.0) / 5.0)
+
+
+def _tof_prediction(study, settings, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """Ballistic time of flight T_n for n = 0..N (paper Sec. III).
+
+    n <= n0: the uniform-part fit T_n = T0 + (phi0/v1)(1 - eps^(-n/5))/(1 - eps^(-1/5)); beyond,
+    T_n = T_(n-1) + phi_n / v_n with the actual diameters and v_n from eq. 8 with tapering
+    ``q`` (q = 0: restitution only, the paper's T(eps; q = 0)).
+    """
+    phi = study.chain.diameters
+    n0 = _n0(study)
+    eps = _eps_theory(settings)
+    beads = np.arange(0, phi.size + 1)
+    T = np.empty(beads.size)
+    T[: n0 + 1] = theory.time_of_flight_uniform(beads[: n0 + 1], float(phi[0]), study.v1, study.T0, eps)
+    v = float(_uniform_speed(study, settings, [n0])[0])
+    ratio = theory.ballistic_ratios(q, eps).speed
+    for n in range(n0 + 1, phi.size + 1):
+        v *= ratio
+        T[n] = T[n - 1] + phi[n - 1] / v
+    return beads, T
+
+
+def _sensor_tof(study) -> tuple[np.ndarray, np.ndarray]:
+    beads = np.asarray(study.sensor_beads)
+    T = study.sensor_series("time_of_flight")
+    use = (beads >= FIRST_CLEAN_BEAD) & np.isfinite(T)
+    return beads[use], T[use]
+
+
+def _wall_tof_shift(study) -> float:
+    """Shift [s] that puts the wall time of flight at n0 on the embedded sensor's at n0."""
+    n0 = _n0(study)
+    t_sensor = study.sensor_fits[n0].time_of_flight
+    return float(t_sensor - study.wall_fits[n0].time_of_flight)
+
+
+def _anchored(pred: np.ndarray, beads: np.ndarray, n_anchor: int, value: float) -> np.ndarray:
+    """Scale a per-bead prediction so that it equals ``value`` at bead ``n_anchor``."""
+    k = int(np.nonzero(beads == n_anchor)[0][0])
+    return pred * (value / pred[k])
+
+
+def _prediction(study, settings, q: float | None):
+    """theory.predict_chain for the study's chain (eq. 7 forces, eq. 8 speeds, tau_n)."""
+    material = study.chain.materials[0]
+    f0 = study.wall_fits[_n0(study)].peak_force
+    return theory.predict_chain(study.chain.diameters, material, f0, _eps_theory(settings), _n0(study),
+                                0.0, q)
+
+
+# ------------------------------------------------------------------------------------------
+# Figs. 1 and 2
+# ------------------------------------------------------------------------------------------
+def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
+    fig = _figure(7.0, 7.4)
+    axes = fig.subplots(4, 2)
+    flat = axes.ravel()
+    n0 = _n0(study)
+    letters = "abcdefgh"
+    t_ms = lambda t, T: (t - T) * 1e3  # noqa: E731
+
+    # (a) the pulse in the uniform chain: wall force of the n0-bead chain and embedded sensor
+    ax = flat[0]
+    t, f = _wall_signal(study, n0)
+    fit = study.wall_fits[n0]
+    ax.plot(t_ms(t, fit.time_of_flight), f, color=CK, label=f"wall, chain of {n0} beads")
+    ts, fs = _sensor_signal(study, SENSOR_BEAD)
+    sfit = study.sensor_fits[SENSOR_BEAD]
+    ax.plot(t_ms(ts, sfit.time_of_flight), fs, color=C1, ls="--",
+            label=f"sensor in bead {SENSOR_BEAD}")
+    ax.text(0.97, 0.95, f"$\\phi$ = {study.chain.diameters[0] * 1e3:.0f} mm\n"
+            f"$F_m$ = {fit.peak_force:.2f} N\n$\\tau$ = {fit.duration * 1e6:.0f} $\\mu$s",
+            transform=ax.transAxes, ha="right", va="top")
+    ax.legend(loc="center right", bbox_to_anchor=(1.0, 0.38))
+    _tag(ax, "(a)")
+    fmax = max(float(np.max(f)), float(np.max(fs)))
+
+    # (b)-(g) wall force of the truncated chains
+    shown = [n for n in FIG12_TRUNCATIONS if n in study.wall]
+    for k, n in enumerate(shown):
+        ax = flat[k + 1]
+        t, f = _wall_signal(study, n)
+        fit = study.wall_fits[n]
+        x = t_ms(t, fit.time_of_flight)
+        ax.plot(x, f, color=CK)
+        xm = np.linspace(-math.pi / 2 * fit.duration, 0.0, 80)
+        ax.plot(xm * 1e3, fit.model(xm + fit.time_of_flight), color=C3, ls=":", lw=1.3)
+        ax.text(0.97, 0.95, f"n = {n}, $\\phi_{{{n}}}$ = {study.chain.diameters[n - 1] * 1e3:g} mm\n"
+                f"$F_m$ = {fit.peak_force:.2f} N\n$\\tau$ = {fit.duration * 1e6:.0f} $\\mu$s",
+                transform=ax.transAxes, ha="right", va="top")
+        _tag(ax, f"({letters[k + 1]})")
+        fmax = max(fmax, float(np.max(f)))
+    for ax in flat[: len(shown) + 1]:
+        ax.set_xlim(*PULSE_WINDOW_MS)
+        ax.set_ylim(-0.04 * fmax, 1.12 * fmax)
+        ax.set_ylabel("F [N]")
+        ax.set_xlabel("t - T [ms]")
+    if shown:
+        flat[1].plot([], [], color=C3, ls=":", lw=1.3, label="$F_m\\cos^6[(t-T)/\\tau]$ fit")
+        flat[1].legend(loc="center right", bbox_to_anchor=(1.0, 0.38))
+
+    # (h) power spectra: incoming (uniform chain) and outgoing (full tapered chain)
+    ax = flat[7]
+    spec, n_in, n_out = _spectra(study)
+    for freq, power, c, col, lab in ((spec.freq_in, spec.power_in, spec.centroid_in, C1,
+                                      f"in: n = {n_in} (uniform)"),
+                                     (spec.freq_out, spec.power_out, spec.centroid_out, C2,
+                                      f"out: n = {n_out}")):
+        ax.semilogy(freq * 1e-3, power, color=col, label=lab)
+        ax.axvline(c * 1e-3, color=col, ls="--", lw=0.8)
+    ax.set_xlim(0, 40)
+    ax.set_ylim(1e-8, 3)
+    ax.set_xlabel("f [kHz]")
+    ax.set_ylabel("power [arb. units]")
+    ax.legend(loc="upper right")
+    ax.text(0.97, 0.62, f"centroids (dashed):\n{spec.centroid_in * 1e-3:.1f} kHz $\\to$ "
+            f"{spec.centroid_out * 1e-3:.1f} kHz", transform=ax.transAxes, ha="right", va="top")
+    _tag(ax, "(h)", "lower left")
+    fig.suptitle(f"{chain_label}: q = {study.q * 100:.2f} % ({q_label}); wall force against t - T, "
+                 f"T = fitted time of flight of each pulse", fontsize=8)
+    return fig
+
+
+@_styled
+def fig1(study1, settings) -> Figure:
+    """Paper Fig. 1: pulse evolution in chain 1 (q1 = 5.60 %).
+
+    (a) the pulse in the uniform chain: wall force of the chain cut after bead n0 = 16 (solid)
+    and the sensor embedded in bead 12 of the full chain (dashed), each against t - T with its
+    own fitted time of flight T; (b)-(g) wall force of the chain truncated after beads 18, 20,
+    22, 24, 26, 28 against t - T, with the cos^6 fit of the loading part (dotted); all force
+    panels share one force scale so the decay is visible; (h) power spectra (arbitrary units,
+    each normalised to its maximum) of the wall pulse of the uniform chain (in) and of the full
+    chain (out), cut to T +- 0.6 ms with a Hann window, with their spectral centroids (dashed).
+
+    Parameters
+    ----------
+    study1:
+        :class:`~hertzchain.paper.protocol.ChainStudy` of ``"chain1"``.
+    settings:
+        The run's :class:`~hertzchain.paper.protocol.Settings` (for the annotations).
+    """
+    return _fig_pulses(study1, settings, "Chain 1", "$q_1$")
+
+
+@_styled
+def fig2(study2, settings) -> Figure:
+    """Paper Fig. 2: the same as :func:`fig1` for chain 2 (q2 = 8.27 %, N = 28)."""
+    return _fig_pulses(study2, settings, "Chain 2", "$q_2$")
+
+
+# ------------------------------------------------------------------------------------------
+# Fig. 3
+# ------------------------------------------------------------------------------------------
+@_styled
+def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
+    """Paper Fig. 3: sensitivity to misalignment and to a local change of the tapering.
+
+    (a) wall force at the end of the full chain 2 with bead 22 (phi = 16 mm) offset
+    perpendicular to the axis by e (legend, in mm; e = fraction x phi_22); (b) the same for bead
+    28 (phi = 9 mm), the bead touching the wall; (c) wall force of chain 1 cut after bead 24
+    (reference) and with the dq/q = +1 and -1 single-bead substitutions. In each panel the time
+    axis is t - T with T the time of flight of the panel's reference (aligned / unmodified)
+    chain, so arrival-time shifts stay visible.
+
+    Parameters
+    ----------
+    misalignment:
+        {(bead, fraction): dataset with ``wall_force``} from ``run_misalignment``.
+    substitutions:
+        {label: dataset} from ``run_substitutions`` (the unmodified chain labelled "reference").
+    settings:
+        The run's settings (unused beyond the title; kept for a uniform signature).
+    """
+    fig = _figure(3.4, 6.2)
+    axes = fig.subplots(3, 1)
+    beads = sorted({b for b, _ in misalignment})
+    colours = [CK, C1, C2, C3, "#9467bd", "#8c564b"]
+    styles = ["-", "--", "-.", ":", "-", "--"]
+    panels = []
+    for b in beads[:2]:
+        fracs = sorted(fr for bb, fr in misalignment if bb == b)
+        entries = []
+        for fr in fracs:
+            ds = misalignment[(b, fr)]
+            phi = float(ds.diameter.sel(bead=b)) if "diameter" in ds else math.nan
+            entries.append((f"e = {fr * phi * 1e3:.2f} mm ({fr * 100:.0f} %)", ds))
+        phi_b = float(misalignment[(b, fracs[0])].diameter.sel(bead=b)) * 1e3
+        panels.append((f"chain 2, bead {b} offset ($\\phi_{{{b}}}$ = {phi_b:g} mm)", entries))
+    sub_entries = [(lab, ds) for lab, ds in substitutions.items()]
+    sub_entries.sort(key=lambda e: e[0] != "reference")
+    panels.append(("chain 1, beads 1-24", sub_entries))
+
+    for k, (ax, (title, entries)) in enumerate(zip(axes, panels)):
+        ref_ds = entries[0][1]
+        ref_fit = analysis.fit_pulse(ref_ds.time.values, ref_ds.wall_force.values)
+        fmax = 0.0
+        for j, (lab, ds) in enumerate(entries):
+            t, f = ds.time.values, ds.wall_force.values
+            ax.plot((t - ref_fit.time_of_flight) * 1e3, f, color=colours[j % 6], ls=styles[j % 6],
+                    label=lab)
+            fmax = max(fmax, float(np.max(f[(t - ref_fit.time_of_flight) < PULSE_WINDOW_MS[1] * 1e-3])))
+        ax.set_xlim(*PULSE_WINDOW_MS)
+        ax.set_ylim(-0.04 * fmax, 1.15 * fmax)
+        ax.set_xlabel("t - T [ms]")
+        ax.set_ylabel("F [N]")
+        ax.legend(loc="upper right", title=title, title_fontsize=7)
+        _tag(ax, f"({'abc'[k]})")
+    return fig
+
+
+# ------------------------------------------------------------------------------------------
+# Fig. 4
+# ------------------------------------------------------------------------------------------
+def _collapse_records(study1, study2):
+    """(label, bead, chain index, x, y) of every pulse of Figs. 1-2, rescaled by its fit."""
+    out = []
+    for ci, study in enumerate((study1, study2)):
+        n0 = _n0(study)
+        for n in (n0,) + tuple(FIG12_TRUNCATIONS):
+            if n not in study.wall or study.wall_fits.get(n) is None:
+                continue
+            t, f = _wall_signal(study, n)
+            x, y = analysis.collapse(t, f, study.wall_fits[n])
+            out.append((f"chain {ci + 1}, n = {n}", n, ci, x, y))
+        if ci == 0:  # the embedded-sensor pulse of the uniform part (the same in both chains)
+            t, f = _sensor_signal(study, SENSOR_BEAD)
+            x, y = analysis.collapse(t, f, study.sensor_fits[SENSOR_BEAD])
+            out.append((f"sensor, bead {SENSOR_BEAD}", SENSOR_BEAD, -1, x, y))
+    return out
+
+
+def _collapse_rms(records) -> float:
+    """Largest rms deviation from cos^6 on the loading part -pi/2 < (t - T)/tau < 0."""
+    worst = 0.0
+    for *_, x, y in records:
+        sel = (x > -math.pi / 2) & (x <= 0)
+        worst = max(worst, float(np.sqrt(np.mean((y[sel] - np.cos(x[sel]) ** 6) ** 2))))
+    return worst
+
+
+@_styled
+def fig4(study1, study2) -> Figure:
+    """Paper Fig. 4: self-similar collapse of the front pulse.
+
+    Every pulse of Figs. 1-2 (wall force of both chains cut after beads 16, 18, ..., 28 and the
+    embedded sensor of the uniform part) is plotted as (F - baseline)/F_m against (t - T)/tau,
+    with F_m, T, tau from its own cos^6 fit of the loading part. Colour: bead number n; solid:
+    chain 1, dashed: chain 2, dotted: the sensor. The thick black curve is Nesterenko's cos^6
+    over the loading part, the fitted range.
+    """
+    fig = _figure(3.4, 2.9)
+    ax = fig.subplots()
+    records = _collapse_records(study1, study2)
+    cmap = matplotlib.colormaps["viridis"]
+    beads = [r[1] for r in records]
+    lo, hi = min(beads), max(beads)
+    norm = matplotlib.colors.Normalize(lo, hi)
+    for lab, n, ci, x, y in records:
+        sel = (x > -2.5) & (x < 3.5)
+        ls = {0: "-", 1: "--", -1: ":"}[ci]
+        ax.plot(x[sel], y[sel], color=cmap(norm(n)), ls=ls, lw=0.8)
+    xs = np.linspace(-math.pi / 2, 0, 200)
+    ax.plot(xs, np.cos(xs) ** 6, color="k", lw=2.2, alpha=0.55, label="$\\cos^6[(t-T)/\\tau]$")
+    ax.plot([], [], color="0.4", ls="-", lw=0.8, label="chain 1 (wall)")
+    ax.plot([], [], color="0.4", ls="--", lw=0.8, label="chain 2 (wall)")
+    ax.plot([], [], color="0.4", ls=":", lw=0.8, label=f"sensor, bead {SENSOR_BEAD}")
+    ax.set_xlim(-2.5, 3.5)
+    ax.set_ylim(-0.08, 1.12)
+    ax.set_xlabel("(t - T) / $\\tau$")
+    ax.set_ylabel("F / $F_m$")
+    ax.legend(loc="upper right")
+    sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
+    cb = fig.colorbar(sm, ax=ax, pad=0.01, fraction=0.05)
+    cb.set_label("bead n")
+    ax.text(0.03, 0.95, f"max rms deviation\nfrom $\\cos^6$ on the\nloading part: {_collapse_rms(records):.3f}",
+            transform=ax.transAxes, ha="left", va="top", fontsize=7)
+    return fig
+
+
+# ------------------------------------------------------------------------------------------
+# Fig. 5
+# ------------------------------------------------------------------------------------------
+@_styled
+def fig5(study1, study2, settings) -> Figure:
+    """Paper Fig. 5: characteristics of the pulse along both chains (left chain 1, right chain 2).
+
+    (a) bead diameters phi_n and the fit phi_0 (1 - q)^(n - n0) for n > n0 with the chain's q;
+    (b) peak wall force F_m against the truncation n, with eq. 7 for q = 0 (restitution only,
+    dashed) and the chain's q (solid), anchored at the measured F_m at n0 = 16;
+    (c) duration tau against n, with tau_n = (phi_n / 2) sqrt(10) / v_n, v_n from eq. 8 with
+    q = 0 (dashed) and the chain's q (solid); eq. 5 gives the wave's speed but the wall pulse
+    lasts ~1.09 times the inter-bead pulse, so each prediction is scaled to pass through the
+    measured tau at n0 (only its shape along the chain is predicted);
+    (d) front and tail momenta Q_F, Q_T of the wall pulse and their sum (momentum conservation).
+    eps of the predictions: 1 for elastic runs, ``settings.eps`` otherwise.
+    """
+    fig = _figure(7.0, 7.0)
+    axes = fig.subplots(4, 2, sharex="col")
+    for col, study in enumerate((study1, study2)):
+        n0 = _n0(study)
+        phi = study.chain.diameters
+        beads_all = np.arange(1, phi.size + 1)
+        n = np.asarray(study.truncations)
+        label = "12"[col]
+        xlim = (n0 - 1.5, phi.size + 0.5)
+
+        ax = axes[0, col]
+        show = beads_all >= n0 - 1
+        ax.plot(beads_all[show], phi[show] * 1e3, "o", color=CK, mfc="none", label="$\\phi_n$ (Table I)")
+        nn = np.linspace(n0, phi.size, 100)
+        ax.plot(nn, phi[0] * (1 - study.q) ** (nn - n0) * 1e3, color=C1,
+                label=f"$\\phi_0(1-q)^{{n-n_0}}$, q = {study.q * 100:.2f} %")
+        ax.set_ylabel("$\\phi_n$ [mm]")
+        ax.legend(loc="upper right")
+        ax.set_title(f"chain {label} ($q_{label}$)")
+        _tag(ax, f"(a{label})", "lower left")
+
+        ax = axes[1, col]
+        F = study.series("peak_force")
+        ax.plot(n, F, "o", color=CK, label="simulation (wall)")
+        for q, ls, lab in ((0.0, "--", "eq. 7, q = 0"), (study.q, "-", f"eq. 7, q = {study.q * 100:.2f} %")):
+            pred = _prediction(study, settings, q)
+            yp = _anchored(pred.peak_force, pred.bead, n0, F[0])
+            sel = pred.bead >= n0
+            ax.plot(pred.bead[sel], yp[sel], color=C1 if q else C2, ls=ls, label=lab)
+        ax.set_ylabel("$F_m$ [N]")
+        ax.legend(loc="lower left")
+        _tag(ax, f"(b{label})", "upper right")
+
+        ax = axes[2, col]
+        tau = study.series("duration")
+        ax.plot(n, tau * 1e6, "o", color=CK, label="simulation (wall)")
+        for q, ls, lab in ((0.0, "--", "eq. 8, q = 0"), (study.q, "-", f"eq. 8, q = {study.q * 100:.2f} %")):
+            pred = _prediction(study, settings, q)
+            yp = _anchored(pred.duration, pred.bead, n0, tau[0])
+            sel = pred.bead >= n0
+            ax.plot(pred.bead[sel], yp[sel] * 1e6, color=C1 if q else C2, ls=ls, label=lab)
+        ax.set_ylabel("$\\tau$ [$\\mu$s]")
+        ax.legend(loc="lower left", title=f"anchored at n = {n0}", title_fontsize=7)
+        _tag(ax, f"(c{label})", "upper right")
+
+        ax = axes[3, col]
+        QF, QT = study.series("front_momentum") * 1e3, study.series("tail_momentum") * 1e3
+        ax.plot(n, QF, "o-", color=C1, label="$Q_F$ (front)")
+        ax.plot(n, QT, "s-", color=C2, label="$Q_T$ (tail)")
+        ax.plot(n, QF + QT, "^-", color=CK, label="$Q_F + Q_T$")
+        ax.set_ylabel("$Q_F$, $Q_T$ [mN s]")
+        ax.set_xlabel("bead n")
+        ax.set_ylim(0, 1.25 * float(np.nanmax(QF + QT)))
+        ax.legend(loc="lower left", ncol=3, columnspacing=0.8, handlelength=1.4)
+        _tag(ax, f"(d{label})", "upper right")
+        for a in axes[:, col]:
+            a.set_xlim(*xlim)
+    return fig
+
+
+# ------------------------------------------------------------------------------------------
+# Fig. 6
+# ------------------------------------------------------------------------------------------
+@_styled
+def fig6(study1, study2, settings) -> Figure:
+    """Paper Fig. 6: time of flight and speed along both chains (left chain 1, right chain 2).
+
+    (a) time of flight T_n: embedded sensors for n <= n0 (open circles) and wall pulses of the
+    truncated chains for n >= n0 (filled). The wall sensor sits behind the last bead, the
+    embedded sensor inside bead n, so the wall series is shifted to meet the sensor at n0 (shift
+    in the legend). Lines: the restitution-only prediction T(eps; q = 0) (dashed) - the fit
+    T_n = T0 + (phi0/v1)(1 - eps^(-n/5))/(1 - eps^(-1/5)) of the uniform part, continued with
+    T_n = T_(n-1) + phi_n / v_n and v_n = v1 eps^((n-1)/5) (eq. 8, q = 0) with the real
+    diameters - and the ballistic prediction with the chain's q (solid, eq. 8);
+    (b) T - T(eps; q = 0) for the data and the ballistic prediction with q;
+    (c) local speed v_n = phi_n / (T_n - T_(n-1)), with the fit v_n = Q^(n - n') v_n' over the
+    tapered part (solid, n' = n0 + 1) and the same law with the theoretical Q of eq. 8 (dashed).
+    """
+    fig = _figure(7.0, 6.2)
+    axes = fig.subplots(3, 2, sharex="col")
+    for col, study in enumerate((study1, study2)):
+        label = "12"[col]
+        n0 = _n0(study)
+        phi = study.chain.diameters
+        N = phi.size
+        n_w = np.asarray(study.truncations)
+        T_w = study.series("time_of_flight") + _wall_tof_shift(study)
+        n_s, T_s = _sensor_tof(study)
+        beads0, T_q0 = _tof_prediction(study, settings, 0.0)
+        _, T_q = _tof_prediction(study, settings, study.q)
+        shift_us = _wall_tof_shift(study) * 1e6
+
+        ax = axes[0, col]
+        ax.plot(n_s, T_s * 1e3, "o", color=CK, mfc="none", label="embedded sensors")
+        ax.plot(n_w, T_w * 1e3, "o", color=CK, label=f"wall, shifted {shift_us:+.0f} $\\mu$s")
+        ax.plot(beads0, T_q0 * 1e3, color=C2, ls="--", label="T($\\epsilon$; q = 0)")
+        ax.plot(beads0[n0:], T_q[n0:] * 1e3, color=C1, label=f"ballistic, q = {study.q * 100:.2f} %")
+        ax.set_ylabel("T [ms]")
+        ax.legend(loc="upper left")
+        ax.set_title(f"chain {label} ($q_{label}$)")
+        _tag(ax, f"(a{label})", "lower right")
+
+        ax = axes[1, col]
+        ax.axhline(0, color=C2, ls="--", lw=0.8)
+        ax.plot(n_s, (T_s - T_q0[n_s]) * 1e6, "o", color=CK, mfc="none", label="embedded sensors")
+        ax.plot(n_w, (T_w - T_q0[n_w]) * 1e6, "o", color=CK, label="wall (shifted)")
+        ax.plot(beads0[n0:], (T_q[n0:] - T_q0[n0:]) * 1e6, color=C1, label=f"ballistic, q = {study.q * 100:.2f} %")
+        ax.set_ylabel("T - T($\\epsilon$; q = 0) [$\\mu$s]")
+        ax.legend(loc="lower left")
+        _tag(ax, f"(b{label})", "upper right")
+
+        ax = axes[2, col]
+        vs = phi[0] / np.diff(T_s)
+        ax.plot(n_s[1:], vs, "o", color=CK, mfc="none", label="embedded sensors")
+        v_loc, b_loc = np.asarray(study.extras["v_local"]), np.asarray(study.extras["v_local_beads"])
+        ax.plot(b_loc, v_loc, "o", color=CK, label="wall")
+        n_ref = n0 + 1
+        nn = np.linspace(n_ref, N, 60)
+        v_ref = study.extras["v_ref"]
+        ax.plot(nn, v_ref * study.Q_fit ** (nn - n_ref), color=C1,
+                label=f"fit Q = {study.Q_fit:.3f} $\\pm$ {study.Q_fit_err:.3f}")
+        ax.plot(nn, v_ref * study.Q_theory ** (nn - n_ref), color=C2, ls="--",
+                label=f"eq. 8 $Q^{{th}}$ = {study.Q_theory:.3f}")
+        pq = PAPER[study.name]
+        ax.plot([], [], " ", label=f"paper: Q = {pq['Q_fit']:.3f} $\\pm$ {pq['Q_fit_err']:.3f}, "
+                f"$Q^{{th}}$ = {pq['Q_theory']:.3f}")
+        ax.set_ylabel("v [m/s]")
+        ax.set_xlabel("bead n")
+        ax.legend(loc="upper left")
+        top = max(float(np.max(v_loc)), float(np.max(vs)))
+        ax.set_ylim(0.9 * min(float(np.min(vs)), float(np.min(v_loc))), top * 1.22)
+        _tag(ax, f"(c{label})", "lower right")
+        for a in axes[:, col]:
+            a.set_xlim(0, N + 1)
+    return fig
+
+
+# ------------------------------------------------------------------------------------------
+# numbers for the report
+# ------------------------------------------------------------------------------------------
+def figure_summary(study1, study2, misalignment: dict | None = None,
+                   substitutions: dict | None = None, settings=None) -> dict:
+    """The numbers the figures show, as plain data for ``summary["figures"]`` of the report.
+
+    Keys: ``spectra`` {chain: {n_in, n_out, centroid_in_hz, centroid_out_hz}}, ``collapse_rms``
+    (largest rms deviation from cos^6 on the loading part, Fig. 4), ``wall_tof_shift_s``
+    {chain: shift of Fig. 6a}, ``tof_gain_s`` {chain: T(eps; q=0) - T at the last bead};
+    with the Fig. 3 data also ``misalignment`` {"bead:fraction": {offset_m, peak_force,
+    duration, time_of_flight}} and ``substitutions`` {label: {peak_force, duration,
+    time_of_flight}} (from the cos^6 fit of each wall pulse).
+    """
+    out: dict = {"spectra": {}, "wall_tof_shift_s": {}, "tof_gain_s": {}}
+    for study in (study1, study2):
+        spec, n_in, n_out = _spectra(study)
+        out["spectra"][study.name] = {"n_in": n_in, "n_out": n_out, "centroid_in_hz": spec.centroid_in,
+                                      "centroid_out_hz": spec.centroid_out}
+        out["wall_tof_shift_s"][study.name] = _wall_tof_shift(study)
+        if settings is not None:
+            _, T_q0 = _tof_prediction(study, settings, 0.0)
+            T_last = study.series("time_of_flight")[-1] + _wall_tof_shift(study)
+            out["tof_gain_s"][study.name] = float(T_q0[-1] - T_last)
+    out["collapse_rms"] = _collapse_rms(_collapse_records(study1, study2))
+    if misalignment:
+        rows = {}
+        for (b, fr), ds in sorted(misalignment.items()):
+            fit = analysis.fit_pulse(ds.time.values, ds.wall_force.values)
+            rows[f"{b}:{fr:g}"] = {"bead": int(b), "fraction": float(fr),
+                                   "offset_m": float(fr * ds.diameter.sel(bead=b)),
+                                   "peak_force": fit.peak_force, "duration": fit.duration,
+                                   "time_of_flight": fit.time_of_flight}
+        out["misalignment"] = rows
+    if substitutions:
+        out["substitutions"] = {}
+        for lab, ds in substitutions.items():
+            fit = analysis.fit_pulse(ds.time.values, ds.wall_force.values)
+            out["substitutions"][lab] = {"peak_force": fit.peak_force, "duration": fit.duration,
+                                         "time_of_flight": fit.time_of_flight}
+    return out
