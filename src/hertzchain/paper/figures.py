@@ -50,6 +50,8 @@ N0 = PAPER["n0"]
 PULSE_WINDOW_MS = (-0.4, 0.6)
 #: Record cut for the power spectra [s]: T - 0.6 ms .. T + 0.6 ms, Hann-windowed around T.
 SPECTRUM_WINDOW_S = (-0.6e-3, 0.6e-3)
+#: Level (fraction of the maximum; 1e-2 = -20 dB) of the spectral bandwidth quoted in Figs. 1h-2h.
+BANDWIDTH_LEVEL = 1e-2
 #: Embedded sensor drawn as "the pulse in the uniform part" (far from striker and taper).
 SENSOR_BEAD = 12
 #: Beads of the uniform part whose sensors are used for timing (the striker transient is
@@ -147,8 +149,15 @@ def _spectra(study):
         tc, fc = _cut(t, f - fit.baseline, fit.time_of_flight, SPECTRUM_WINDOW_S)
         cuts.append((tc, fc))
     nfft = 8 * max(c[0].size for c in cuts)
-    return analysis.compare_spectra(cuts[0][0], cuts[0][1], cuts[1][0], cuts[1][1], nfft=nfft,
-                                    window="hann", normalize="max"), n_in, n_out
+    spec = analysis.compare_spectra(cuts[0][0], cuts[0][1], cuts[1][0], cuts[1][1], nfft=nfft,
+                                    window="hann", normalize="max")
+    return spec, n_in, n_out
+
+
+def _bandwidth(freq: np.ndarray, power: np.ndarray, level: float = BANDWIDTH_LEVEL) -> float:
+    """Highest frequency [Hz] where the max-normalised power is still >= ``level``."""
+    above = np.nonzero(power >= level * power.max())[0]
+    return float(freq[above[-1]]) if above.size else math.nan
 
 
 def _uniform_speed(study, settings, beads: np.ndarray) -> np.ndarray:
@@ -241,7 +250,7 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
         x = t_ms(t, fit.time_of_flight)
         ax.plot(x, f, color=CK)
         xm = np.linspace(-math.pi / 2 * fit.duration, 0.0, 80)
-        ax.plot(xm * 1e3, fit.model(xm + fit.time_of_flight), color=C3, ls=":", lw=1.3)
+        ax.plot(xm * 1e3, fit.model(xm + fit.time_of_flight), color=C2, ls="--", lw=0.9)
         ax.text(0.97, 0.95, f"n = {n}, $\\phi_{{{n}}}$ = {study.chain.diameters[n - 1] * 1e3:g} mm\n"
                 f"$F_m$ = {fit.peak_force:.2f} N\n$\\tau$ = {fit.duration * 1e6:.0f} $\\mu$s",
                 transform=ax.transAxes, ha="right", va="top")
@@ -253,7 +262,7 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
         ax.set_ylabel("F [N]")
         ax.set_xlabel("t - T [ms]")
     if shown:
-        flat[1].plot([], [], color=C3, ls=":", lw=1.3, label="$F_m\\cos^6[(t-T)/\\tau]$ fit")
+        flat[1].plot([], [], color=C2, ls="--", lw=0.9, label="$F_m\\cos^6[(t-T)/\\tau]$ fit")
         flat[1].legend(loc="center right", bbox_to_anchor=(1.0, 0.38))
 
     # (h) power spectra: incoming (uniform chain) and outgoing (full tapered chain)
@@ -270,9 +279,11 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
     ax.set_xlabel("f [kHz]")
     ax.set_ylabel("power [arb. units]")
     ax.legend(loc="upper right")
-    ax.text(0.97, 0.62, f"centroids (dashed):\n{spec.centroid_in * 1e-3:.1f} kHz $\\to$ "
-            f"{spec.centroid_out * 1e-3:.1f} kHz", transform=ax.transAxes, ha="right", va="top")
-    _tag(ax, "(h)", "lower left")
+    bw_in, bw_out = _bandwidth(spec.freq_in, spec.power_in), _bandwidth(spec.freq_out, spec.power_out)
+    ax.text(0.97, 0.66, f"centroid (dashed): {spec.centroid_in * 1e-3:.1f} $\\to$ "
+            f"{spec.centroid_out * 1e-3:.1f} kHz\n-20 dB bandwidth: {bw_in * 1e-3:.1f} $\\to$ "
+            f"{bw_out * 1e-3:.1f} kHz", transform=ax.transAxes, ha="right", va="top")
+    _tag(ax, "(h)", "lower right")
     fig.suptitle(f"{chain_label}: q = {study.q * 100:.2f} % ({q_label}); wall force against t - T, "
                  f"T = fitted time of flight of each pulse", fontsize=8)
     return fig
@@ -329,7 +340,7 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
     settings:
         The run's settings (unused beyond the title; kept for a uniform signature).
     """
-    fig = _figure(3.4, 6.2)
+    fig = _figure(3.4, 7.2)
     axes = fig.subplots(3, 1)
     beads = sorted({b for b, _ in misalignment})
     colours = [CK, C1, C2, C3, "#9467bd", "#8c564b"]
@@ -343,25 +354,44 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
             phi = float(ds.diameter.sel(bead=b)) if "diameter" in ds else math.nan
             entries.append((f"e = {fr * phi * 1e3:.2f} mm ({fr * 100:.0f} %)", ds))
         phi_b = float(misalignment[(b, fracs[0])].diameter.sel(bead=b)) * 1e3
-        panels.append((f"chain 2, bead {b} offset ($\\phi_{{{b}}}$ = {phi_b:g} mm)", entries))
-    sub_entries = [(lab, ds) for lab, ds in substitutions.items()]
-    sub_entries.sort(key=lambda e: e[0] != "reference")
-    panels.append(("chain 1, beads 1-24", sub_entries))
+        panels.append((f"chain 2, bead {b} ($\\phi_{{{b}}}$ = {phi_b:g} mm) offset by e", entries,
+                       ["aligned"] + [f"{fr * 100:.0f} %" for fr in fracs[1:]]))
+    sub_entries = sorted(substitutions.items(), key=lambda e: e[0] != "reference")
+    ref_phi = sub_entries[0][1].diameter.values
+    labelled, short = [], []
+    for lab, ds in sub_entries:
+        changed = np.nonzero(ds.diameter.values != ref_phi)[0]
+        if changed.size:  # name the substituted bead and its new diameter
+            b = int(changed[0]) + 1
+            lab = f"{lab} ($\\phi_{{{b}}}$ = {ds.diameter.values[b - 1] * 1e3:g} mm)"
+        labelled.append((lab, ds))
+        short.append(lab.split(" (")[0].replace("dq/q = ", ""))
+    panels.append((f"chain 1 cut after bead {ref_phi.size}: one bead substituted", labelled, short))
 
-    for k, (ax, (title, entries)) in enumerate(zip(axes, panels)):
+    for k, (ax, (title, entries, short)) in enumerate(zip(axes, panels)):
         ref_ds = entries[0][1]
         ref_fit = analysis.fit_pulse(ref_ds.time.values, ref_ds.wall_force.values)
         fmax = 0.0
+        deltas = []
         for j, (lab, ds) in enumerate(entries):
             t, f = ds.time.values, ds.wall_force.values
+            if j > 0:  # the changes are small: quote them (cos^6 fit of each pulse)
+                fit = analysis.fit_pulse(t, f)
+                deltas.append(f"{short[j]}:  {100 * (fit.peak_force / ref_fit.peak_force - 1):+.2f}   "
+                              f"{100 * (fit.duration / ref_fit.duration - 1):+.2f}   "
+                              f"{1e6 * (fit.time_of_flight - ref_fit.time_of_flight):+.1f}")
             ax.plot((t - ref_fit.time_of_flight) * 1e3, f, color=colours[j % 6], ls=styles[j % 6],
                     label=lab)
             fmax = max(fmax, float(np.max(f[(t - ref_fit.time_of_flight) < PULSE_WINDOW_MS[1] * 1e-3])))
         ax.set_xlim(*PULSE_WINDOW_MS)
-        ax.set_ylim(-0.04 * fmax, 1.15 * fmax)
+        ax.set_ylim(-0.04 * fmax, 1.62 * fmax)
         ax.set_xlabel("t - T [ms]")
         ax.set_ylabel("F [N]")
-        ax.legend(loc="upper right", title=title, title_fontsize=7)
+        ax.set_title(title, pad=3)
+        ax.legend(loc="upper left", bbox_to_anchor=(0.0, 0.9))
+        ax.text(0.99, 0.97, "vs. " + short[0] + ":  $\\Delta F_m$ [%]  $\\Delta\\tau$ [%]  "
+                "$\\Delta T$ [$\\mu$s]\n" + "\n".join(deltas), transform=ax.transAxes, ha="right",
+                va="top", fontsize=7, linespacing=1.5)
         _tag(ax, f"({'abc'[k]})")
     return fig
 
@@ -481,6 +511,8 @@ def fig5(study1, study2, settings) -> Figure:
             yp = _anchored(pred.peak_force, pred.bead, n0, F[0])
             sel = pred.bead >= n0
             ax.plot(pred.bead[sel], yp[sel], color=C1 if q else C2, ls=ls, label=lab)
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, hi + 0.12 * (hi - lo))  # room for the panel tag above the q = 0 line
         ax.set_ylabel("$F_m$ [N]")
         ax.legend(loc="lower left")
         _tag(ax, f"(b{label})", "upper right")
@@ -493,6 +525,8 @@ def fig5(study1, study2, settings) -> Figure:
             yp = _anchored(pred.duration, pred.bead, n0, tau[0])
             sel = pred.bead >= n0
             ax.plot(pred.bead[sel], yp[sel] * 1e6, color=C1 if q else C2, ls=ls, label=lab)
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, hi + 0.08 * (hi - lo))
         ax.set_ylabel("$\\tau$ [$\\mu$s]")
         ax.legend(loc="lower left", title=f"anchored at n = {n0}", title_fontsize=7)
         _tag(ax, f"(c{label})", "upper right")
@@ -501,7 +535,9 @@ def fig5(study1, study2, settings) -> Figure:
         QF, QT = study.series("front_momentum") * 1e3, study.series("tail_momentum") * 1e3
         ax.plot(n, QF, "o-", color=C1, label="$Q_F$ (front)")
         ax.plot(n, QT, "s-", color=C2, label="$Q_T$ (tail)")
-        ax.plot(n, QF + QT, "^-", color=CK, label="$Q_F + Q_T$")
+        total = QF + QT
+        spread = 100 * float(np.nanstd(total, ddof=1) / np.nanmean(total))
+        ax.plot(n, total, "^-", color=CK, label=f"$Q_F + Q_T$ ($\\pm${spread:.0f} %)")
         ax.set_ylabel("$Q_F$, $Q_T$ [mN s]")
         ax.set_xlabel("bead n")
         ax.set_ylim(0, 1.25 * float(np.nanmax(QF + QT)))

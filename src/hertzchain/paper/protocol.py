@@ -27,7 +27,8 @@ from ..simulation import simulate
 from .values import PAPER
 
 __all__ = ["Settings", "ChainStudy", "run_chain_study", "run_misalignment", "run_substitutions",
-           "run_wall_chain_ratio", "run_speed_check", "fit_or_none", "contact_law"]
+           "run_wall_chain_ratio", "run_speed_check", "fit_or_none", "contact_law",
+           "study_from_datasets", "wall_chain_ratio_from_dataset"]
 
 N0 = PAPER["n0"]
 
@@ -126,27 +127,34 @@ class ChainStudy:
 def run_chain_study(name: str, settings: Settings, progress: Callable[[str], None] | None = None) -> ChainStudy:
     """Run the paper's protocol on ``chain1`` or ``chain2`` and analyse it (Sec. III)."""
     full = paper_chain(name, settings.material)
-    q, q_std = theory.tapering_factor(full.diameters, N0)
     law = contact_law(settings, full)
     truncations = np.arange(N0, full.n_beads + 1)
     sensors = tuple(range(1, N0 + 1))
     wall: dict[int, xr.Dataset] = {}
-    fits: dict[int, object] = {}
     for n in truncations:
         chain = full.truncated(int(n))
         model = Model(chain, settings.striker(), Wall("flat"), law)
         # Only the wall contact is stored (the wall sensor); the full chain's run also carries the
         # embedded sensors of the uniform part.
         probes = Probes(settings.sample_interval, sensors=sensors if n == full.n_beads else (), contacts=(int(n),))
-        ds = _simulate(model, settings, probes)
-        wall[int(n)] = ds
-        fits[int(n)] = fit_or_none(ds.time.values, ds.wall_force.values)
+        wall[int(n)] = _simulate(model, settings, probes)
         if progress:
             progress(f"{name}: truncated after bead {n}")
+    return study_from_datasets(name, wall, settings, law)
+
+
+def study_from_datasets(name: str, wall: dict[int, xr.Dataset], settings: Settings, law=None) -> ChainStudy:
+    """Analyse the wall records of the truncated chains (the full chain's also carries the
+    embedded sensors of the uniform part): pulse fits, eps, T fit, local velocities, Q fit."""
+    full = paper_chain(name, settings.material)
+    q, q_std = theory.tapering_factor(full.diameters, N0)
+    truncations = np.array(sorted(wall))
+    fits = {n: fit_or_none(ds.time.values, ds.wall_force.values) for n, ds in wall.items()}
     full_ds = wall[full.n_beads]
+    sensors = tuple(int(b) for b in full_ds.sensor.values)
     sensor_fits = {b: fit_or_none(full_ds.time.values, full_ds.sensor_force.sel(sensor=b).values) for b in sensors}
-    study = ChainStudy(name=name, chain=full, q=q, q_std=q_std, truncations=truncations, wall=wall, wall_fits=fits,
-                       sensor_beads=np.array(sensors), sensor_fits=sensor_fits, law=law)
+    study = ChainStudy(name=name, chain=full, q=q, q_std=q_std, truncations=truncations, wall=dict(wall),
+                       wall_fits=fits, sensor_beads=np.array(sensors), sensor_fits=sensor_fits, law=law)
     _analyse_timing(study, settings)
     return study
 
@@ -218,7 +226,12 @@ def run_wall_chain_ratio(settings: Settings) -> dict:
     chain = Chain.uniform(N0, PAPER["bead_diameter"], settings.material)
     model = Model(chain, settings.striker(), Wall("flat"), Elastic())
     short = Settings(**{**settings.__dict__, "duration": 2.5e-3})  # the pulse reaches the wall by ~1.3 ms
-    ds = _simulate(model, short, Probes(settings.sample_interval / 4, contacts=(12, N0)))
+    return wall_chain_ratio_from_dataset(_simulate(model, short, Probes(settings.sample_interval / 4,
+                                                                        contacts=(12, N0))))
+
+
+def wall_chain_ratio_from_dataset(ds: xr.Dataset) -> dict:
+    """Fit the wall pulse and the contact-12 pulse of the uniform elastic run; their ratios."""
     t = ds.time.values
     fw = analysis.fit_pulse(t, ds.wall_force.values)
     fc = analysis.fit_pulse(t, ds.contact_force.sel(contact=12).values)

@@ -16,7 +16,7 @@ from . import protocol
 from .protocol import ChainStudy, Settings
 from .values import PAPER
 
-__all__ = ["reproduce", "count_runs", "build_summary"]
+__all__ = ["reproduce", "redraw", "load_data", "draw", "count_runs", "build_summary"]
 
 
 def count_runs(settings: Settings) -> int:
@@ -88,6 +88,9 @@ def build_summary(studies: dict[str, ChainStudy], ratio: dict, speed: dict, sett
     }
 
 
+_SUB_TAGS = {"reference": "reference", "dq/q = +1": "dq_plus", "dq/q = -1": "dq_minus"}
+
+
 def _save_data(out: Path, studies, mis, subs, ratio) -> None:
     """Every simulated trace, as single-precision compressed NetCDF (enough to redraw figures)."""
     data = out / "data"
@@ -101,9 +104,66 @@ def _save_data(out: Path, studies, mis, subs, ratio) -> None:
     for (bead, frac), ds in mis.items():
         save(ds, data / f"fig3_chain2_offset_bead{bead}_e{frac:.2f}.nc")
     for label, ds in subs.items():
-        tag = {"reference": "reference", "dq/q = +1": "dq_plus", "dq/q = -1": "dq_minus"}[label]
-        save(ds, data / f"fig3c_chain1_24_{tag}.nc")
+        save(ds, data / f"fig3c_chain1_24_{_SUB_TAGS[label]}.nc")
     save(ratio["dataset"], data / "uniform16_elastic_wall_chain_ratio.nc")
+
+
+def load_data(out_dir: str | Path, settings: Settings):
+    """Read back the traces of a reproduction: (studies, misalignment, substitutions, ratio)."""
+    import re
+
+    from ..errors import ConfigError
+    from ..result import load
+
+    data = Path(out_dir) / "data"
+    if not data.is_dir():
+        raise ConfigError(str(data), "no data folder: run 'hertzchain reproduce' first")
+    studies = {}
+    for name in ("chain1", "chain2"):
+        wall = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): load(p)
+                for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
+        if not wall:
+            raise ConfigError(str(data), f"holds no {name} traces")
+        studies[name] = protocol.study_from_datasets(name, wall, settings)
+    mis = {}
+    for p in sorted(data.glob("fig3_chain2_offset_bead*_e*.nc")):
+        m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
+        mis[(int(m.group(1)), float(m.group(2)))] = load(p)
+    subs = {label: load(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
+    ratio = protocol.wall_chain_ratio_from_dataset(load(data / "uniform16_elastic_wall_chain_ratio.nc"))
+    return studies, mis, subs, ratio
+
+
+def draw(out_dir: str | Path, studies, mis, subs, settings: Settings) -> dict[str, Path]:
+    """Draw Figs. 1-6 (PNG + PDF) into ``out_dir``; returns {name: png path}."""
+    from . import figures as figs
+
+    drawn = {
+        "fig1": lambda: figs.fig1(studies["chain1"], settings), "fig2": lambda: figs.fig2(studies["chain2"], settings),
+        "fig3": lambda: figs.fig3(mis, subs, settings), "fig4": lambda: figs.fig4(studies["chain1"], studies["chain2"]),
+        "fig5": lambda: figs.fig5(studies["chain1"], studies["chain2"], settings),
+        "fig6": lambda: figs.fig6(studies["chain1"], studies["chain2"], settings),
+    }
+    return {name: figs.save_figure(make(), Path(out_dir), name) for name, make in drawn.items()}
+
+
+def redraw(out_dir: str | Path) -> dict:
+    """Redraw the figures and the report of an existing reproduction from its data/ (no simulation)."""
+    from ..errors import ConfigError
+    from .report import write_report
+
+    out = Path(out_dir)
+    try:
+        summary = json.loads((out / "summary.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise ConfigError(str(out / "summary.json"), f"cannot read it ({exc})") from None
+    known = {k: v for k, v in summary["settings"].items() if k in Settings.__dataclass_fields__}
+    settings = Settings(**known, eps=summary["settings"].get("eps_target") or PAPER["eps"],
+                        elastic=summary["settings"]["law"] == "elastic")
+    studies, mis, subs, _ = load_data(out, settings)
+    paths = draw(out, studies, mis, subs, settings)
+    write_report(out, summary, paths, summary["settings"])
+    return summary
 
 
 def reproduce(out_dir: str | Path, settings: Settings | None = None,
@@ -134,17 +194,9 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     summary = build_summary(studies, ratio, speed, settings, {"simulation_s": t_sim})
     fig_paths: dict[str, Path] = {}
     if figures:
-        from . import figures as figs
         from .report import write_report
 
-        drawn = {
-            "fig1": figs.fig1(studies["chain1"], settings), "fig2": figs.fig2(studies["chain2"], settings),
-            "fig3": figs.fig3(mis, subs, settings), "fig4": figs.fig4(studies["chain1"], studies["chain2"]),
-            "fig5": figs.fig5(studies["chain1"], studies["chain2"], settings),
-            "fig6": figs.fig6(studies["chain1"], studies["chain2"], settings),
-        }
-        for name, fig in drawn.items():
-            fig_paths[name] = figs.save_figure(fig, out, name)
+        fig_paths = draw(out, studies, mis, subs, settings)
         summary["timing"]["total_s"] = time.perf_counter() - t0
         write_report(out, summary, fig_paths, settings.describe())
     summary["timing"]["total_s"] = time.perf_counter() - t0
