@@ -206,7 +206,9 @@ class Model:
             kappa[j] = hertz_constant(r1, r2, m1, m2)
             fy[j] = yield_force(r1, r2, m1, m2)[0]
 
-        damping = np.full(n + 1, float(self.law.parameter))
+        # No damping where there is no contact (the free end's slot has kappa = 0): a dashpot there
+        # would push the last bead against a wall that does not exist (F = gamma d(delta)/dt).
+        damping = np.where(kappa > 0, float(self.law.parameter), 0.0)
         # Precompression: every contact of the chain (not the striker's) carries F0 statically.
         d0 = np.zeros(n + 1)
         fext = np.zeros(n + 2)

@@ -47,6 +47,17 @@ def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
 
 def _wall_force(system: System, y: np.ndarray) -> float:
     nb = system.n_beads + 1
+    if system.general:
+        # Dissipative laws: the wall force includes the rate term, so use the same kernel as the
+        # recorded forces (the elastic part alone is not the force the wall sensor reads).
+        u = np.zeros(nb + 1)
+        v = np.zeros(nb + 1)
+        g = np.zeros(nb + 1)
+        u[:nb] = y[:nb]
+        v[:nb] = y[nb : 2 * nb]
+        kernels.forces_general(u, v, system.kappa, system.damping, system.d0, system.de, system.dx0, system.rsum,
+                               system.law, g)
+        return float(g[nb])
     d = y[nb - 1] + system.d0[-1]
     return float(system.kappa[-1] * max(d, 0.0) ** 1.5)
 
