@@ -24,6 +24,8 @@ _EXPORTS = {
     # running and results
     "Probes": "probes", "simulate": "simulation", "save": "result", "load": "result",
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
+    # dissipation
+    "calibrate_law": "dissipation", "measure_eps": "dissipation",
     # measurement, analysis, theory
     "Instrument": "instrument",
     "fit_pulse": "analysis", "PulseFit": "analysis", "power_spectrum": "analysis",
