@@ -96,20 +96,20 @@ def _tag(ax, text: str, loc: str = "upper left") -> None:
     ax.text(x, y, text, transform=ax.transAxes, ha=ha, va=va, fontweight="bold")
 
 
-def save_figure(fig: Figure, out_dir: str | Path, name: str, dpi: int = 200) -> dict[str, Path]:
-    """Write ``name.png`` (raster, ``dpi``) and ``name.pdf`` (vector) into ``out_dir``.
+def save_figure(fig: Figure, out_dir: str | Path, name: str, dpi: int = 200) -> Path:
+    """Write ``name.png`` (raster, ``dpi`` dots per inch) and ``name.pdf`` (vector) into ``out_dir``.
 
-    Returns {"png": path, "pdf": path}. The directory is created if needed.
+    The directory is created if needed. Returns the PNG path (the PDF lies beside it, same stem).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {"png": out / f"{name}.png", "pdf": out / f"{name}.pdf"}
+    png = out / f"{name}.png"
     with matplotlib.rc_context(STYLE):
-        if fig.canvas is None or not isinstance(fig.canvas, FigureCanvasAgg):
+        if not isinstance(fig.canvas, FigureCanvasAgg):
             FigureCanvasAgg(fig)
-        fig.savefig(paths["png"], dpi=dpi)
-        fig.savefig(paths["pdf"])
-    return paths
+        fig.savefig(png, dpi=dpi)
+        fig.savefig(png.with_suffix(".pdf"))
+    return png
 
 
 # ------------------------------------------------------------------------------------------
@@ -284,8 +284,11 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
             f"{spec.centroid_out * 1e-3:.1f} kHz\n-20 dB bandwidth: {bw_in * 1e-3:.1f} $\\to$ "
             f"{bw_out * 1e-3:.1f} kHz", transform=ax.transAxes, ha="right", va="top")
     _tag(ax, "(h)", "lower right")
-    fig.suptitle(f"{chain_label}: q = {study.q * 100:.2f} % ({q_label}); wall force against t - T, "
-                 f"T = fitted time of flight of each pulse", fontsize=8)
+    desc = settings.describe() if hasattr(settings, "describe") else {}
+    run = (f"; {desc.get('law', '?')} contacts, striker {desc.get('striker_diameter', math.nan) * 1e3:g} mm at "
+           f"{desc.get('striker_velocity', math.nan):g} m/s") if desc else ""
+    fig.suptitle(f"{chain_label}: q = {study.q * 100:.2f} % ({q_label}){run}\n"
+                 f"(a)-(g): force against t - T, T = fitted time of flight of each pulse", fontsize=8)
     return fig
 
 
@@ -537,11 +540,11 @@ def fig5(study1, study2, settings) -> Figure:
         ax.plot(n, QT, "s-", color=C2, label="$Q_T$ (tail)")
         total = QF + QT
         spread = 100 * float(np.nanstd(total, ddof=1) / np.nanmean(total))
-        ax.plot(n, total, "^-", color=CK, label=f"$Q_F + Q_T$ ($\\pm${spread:.0f} %)")
+        ax.plot(n, total, "^-", color=CK, label=f"$Q_F + Q_T$ (rel. std {spread:.0f} %)")
         ax.set_ylabel("$Q_F$, $Q_T$ [mN s]")
         ax.set_xlabel("bead n")
-        ax.set_ylim(0, 1.25 * float(np.nanmax(QF + QT)))
-        ax.legend(loc="lower left", ncol=3, columnspacing=0.8, handlelength=1.4)
+        ax.set_ylim(0, 1.6 * float(np.nanmax(total)))
+        ax.legend(loc="upper left", bbox_to_anchor=(0.0, 0.9), ncol=3, columnspacing=0.8, handlelength=1.4)
         _tag(ax, f"(d{label})", "upper right")
         for a in axes[:, col]:
             a.set_xlim(*xlim)
@@ -595,6 +598,8 @@ def fig6(study1, study2, settings) -> Figure:
         ax.plot(n_s, (T_s - T_q0[n_s]) * 1e6, "o", color=CK, mfc="none", label="embedded sensors")
         ax.plot(n_w, (T_w - T_q0[n_w]) * 1e6, "o", color=CK, label="wall (shifted)")
         ax.plot(beads0[n0:], (T_q[n0:] - T_q0[n0:]) * 1e6, color=C1, label=f"ballistic, q = {study.q * 100:.2f} %")
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, hi + 0.1 * (hi - lo))  # room for the panel tag above the zero line
         ax.set_ylabel("T - T($\\epsilon$; q = 0) [$\\mu$s]")
         ax.legend(loc="lower left")
         _tag(ax, f"(b{label})", "upper right")
@@ -632,8 +637,10 @@ def figure_summary(study1, study2, misalignment: dict | None = None,
                    substitutions: dict | None = None, settings=None) -> dict:
     """The numbers the figures show, as plain data for ``summary["figures"]`` of the report.
 
-    Keys: ``spectra`` {chain: {n_in, n_out, centroid_in_hz, centroid_out_hz}}, ``collapse_rms``
-    (largest rms deviation from cos^6 on the loading part, Fig. 4), ``wall_tof_shift_s``
+    Keys: ``spectra`` {chain: {n_in, n_out, centroid_in_hz, centroid_out_hz, bandwidth_in_hz,
+    bandwidth_out_hz}} (Figs. 1h-2h; bandwidth at -20 dB), ``collapse_rms``
+    (largest rms deviation from cos^6 on the loading part, Fig. 4) and ``collapse_pulses`` (how many
+    pulses Fig. 4 draws), ``wall_tof_shift_s``
     {chain: shift of Fig. 6a}, ``tof_gain_s`` {chain: T(eps; q=0) - T at the last bead};
     with the Fig. 3 data also ``misalignment`` {"bead:fraction": {offset_m, peak_force,
     duration, time_of_flight}} and ``substitutions`` {label: {peak_force, duration,
@@ -642,14 +649,19 @@ def figure_summary(study1, study2, misalignment: dict | None = None,
     out: dict = {"spectra": {}, "wall_tof_shift_s": {}, "tof_gain_s": {}}
     for study in (study1, study2):
         spec, n_in, n_out = _spectra(study)
-        out["spectra"][study.name] = {"n_in": n_in, "n_out": n_out, "centroid_in_hz": spec.centroid_in,
-                                      "centroid_out_hz": spec.centroid_out}
+        out["spectra"][study.name] = {
+            "n_in": n_in, "n_out": n_out, "centroid_in_hz": spec.centroid_in,
+            "centroid_out_hz": spec.centroid_out,
+            "bandwidth_in_hz": _bandwidth(spec.freq_in, spec.power_in),
+            "bandwidth_out_hz": _bandwidth(spec.freq_out, spec.power_out)}
         out["wall_tof_shift_s"][study.name] = _wall_tof_shift(study)
         if settings is not None:
             _, T_q0 = _tof_prediction(study, settings, 0.0)
             T_last = study.series("time_of_flight")[-1] + _wall_tof_shift(study)
             out["tof_gain_s"][study.name] = float(T_q0[-1] - T_last)
-    out["collapse_rms"] = _collapse_rms(_collapse_records(study1, study2))
+    records = _collapse_records(study1, study2)
+    out["collapse_rms"] = _collapse_rms(records)
+    out["collapse_pulses"] = len(records)
     if misalignment:
         rows = {}
         for (b, fr), ds in sorted(misalignment.items()):
