@@ -1,0 +1,334 @@
+"""Sweeps: design (grid / random / tolerances), chunked resumable runs, Dask, errors, CLI."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import copy
+import json
+import os
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hertzchain import sweep as sweep_mod
+from hertzchain.errors import ConfigError, HertzchainError
+from hertzchain.sweep import SweepMismatch, load_sweep, parse_sweep, run_sweep
+
+# Tiny chains of 10 mm beads: 200 samples each, the wall pulse arrives before 1.5e-4 s.
+BASE = {"chain": {"uniform": {"n": 3, "diameter_mm": 10.0}},
+        "striker": {"diameter_mm": 8.0, "velocity": 0.2},
+        "run": {"duration": 2e-4, "sample_interval": 1e-6}}
+GRID = {"mode": "grid", "chunk_size": 2,
+        "parameters": {"striker.velocity": [0.1, 0.15, 0.2, 0.3], "chain.uniform.n": [3, 4]}}
+
+
+def grid_sweep(**changes) -> dict:
+    sw = copy.deepcopy(GRID)
+    sw.update(changes)
+    return {"base": copy.deepcopy(BASE), "sweep": sw}
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """An uninterrupted local run of the grid sweep (8 members, 4 chunks)."""
+    out = tmp_path_factory.mktemp("reference")
+    return run_sweep(grid_sweep(), out)
+
+
+def test_grid_sweep_table_and_files(reference):
+    df = reference.metrics
+    cfg = parse_sweep(grid_sweep())
+    assert cfg.n_members == 8 and len(cfg.chunks()) == 4
+    # Cartesian product, last parameter fastest, each member's config carries its values.
+    assert cfg.members[1] == {"striker.velocity": 0.1, "chain.uniform.n": 4}
+    assert cfg.member_config(5)["striker"]["velocity"] == 0.2 and cfg.member_config(5)["chain"]["uniform"]["n"] == 4
+    assert df["member"].tolist() == list(range(8))
+    assert df["striker.velocity"].tolist() == [0.1, 0.1, 0.15, 0.15, 0.2, 0.2, 0.3, 0.3]
+    assert df["chain.uniform.n"].tolist() == [3, 4] * 4
+    assert (df["fit_error"] == "").all()
+    # Physics: the fitted wall peak is the integrator's peak within the cos^6 fit error, and it
+    # grows with the striker speed (F_m ~ V^(6/5) for a Hertzian impact).
+    assert np.allclose(df["F_m"], df["peak_wall_force"], rtol=0.03)
+    for n in (3, 4):
+        f = df.loc[df["chain.uniform.n"] == n, "F_m"].to_numpy()
+        assert np.all(np.diff(f) > 0)
+        ratio = f[-1] / f[0]
+        assert 0.7 * 3.0 ** 1.2 < ratio < 1.3 * 3.0 ** 1.2
+    assert (df["T"] > 0).all() and (df["tau"] > 0).all() and (df["Q_F"] > 0).all()
+    # Files: one chunk file per chunk, the definition and its hash, and the table on disk.
+    files = sorted(p.name for p in (reference.out_dir / "chunks").iterdir())
+    assert files == [f"chunk_{i:05d}.nc" for i in range(4)]
+    meta = json.loads((reference.out_dir / "sweep.json").read_text())
+    assert meta["hash"] == cfg.hash and meta["n_members"] == 8
+    on_disk = pd.read_csv(reference.metrics_path, keep_default_na=False, na_values=[""])
+    assert np.array_equal(on_disk["F_m"].to_numpy(), df["F_m"].to_numpy())
+    # Parquet only when pyarrow is there (it is not a dependency).
+    import importlib.util
+    assert (reference.out_dir / "metrics.parquet").exists() == (importlib.util.find_spec("pyarrow") is not None)
+
+
+class Killed(Exception):
+    pass
+
+
+def test_killed_sweep_resumes_without_recomputing(tmp_path, reference, monkeypatch):
+    out = tmp_path / "run"
+
+    def kill_after_two_chunks(done, total):
+        if done >= 4:  # chunk_size 2: the second chunk file has just been written
+            raise Killed
+
+    with pytest.raises(Killed):
+        run_sweep(grid_sweep(), out, progress=kill_after_two_chunks)
+    chunks = out / "chunks"
+    assert sorted(p.name for p in chunks.iterdir()) == ["chunk_00000.nc", "chunk_00001.nc"]
+    assert not (out / "metrics.csv").exists()
+    stamps = {p.name: p.stat().st_mtime_ns for p in chunks.iterdir()}
+    # What a kill can leave behind: a half-written temporary file and, worse, an unreadable file
+    # under a final name (e.g. copied in by hand): neither may be taken for a finished chunk.
+    (chunks / ".chunk_00002.nc.999.tmp").write_bytes(b"half a chunk")
+    (chunks / "chunk_00003.nc").write_bytes(b"not netcdf")
+
+    computed = []
+    real = sweep_mod.compute_chunk
+
+    def counting(task):
+        computed.append(task.index)
+        return real(task)
+
+    monkeypatch.setattr(sweep_mod, "compute_chunk", counting)
+    seen = []
+    result = run_sweep(grid_sweep(), out, progress=lambda d, t: seen.append(d))
+    assert computed == [2, 3]
+    assert result.skipped == [0, 1] and result.computed == [2, 3]
+    assert seen == [4, 6, 8]  # the resumed members count as done from the start
+    assert {p.name: p.stat().st_mtime_ns for p in chunks.iterdir() if p.name in stamps} == stamps
+    assert not list(chunks.glob("*.tmp"))
+    pd.testing.assert_frame_equal(result.metrics, reference.metrics, check_exact=True)
+
+
+def test_other_sweep_in_the_same_folder_needs_force(tmp_path):
+    small = grid_sweep(parameters={"striker.velocity": [0.2]})
+    run_sweep(small, tmp_path)
+    other = grid_sweep(parameters={"striker.velocity": [0.3]})
+    with pytest.raises(SweepMismatch, match="--force"):
+        run_sweep(other, tmp_path)
+    assert isinstance(SweepMismatch("x"), HertzchainError)  # the CLI turns it into exit status 2
+    result = run_sweep(other, tmp_path, force=True)
+    assert result.computed == [0] and result.metrics["striker.velocity"].tolist() == [0.3]
+    assert json.loads((tmp_path / "sweep.json").read_text())["hash"] == parse_sweep(other).hash
+    # The order of the parameters orders the members: another order is another sweep.
+    swapped = grid_sweep(parameters=dict(reversed(list(GRID["parameters"].items()))))
+    assert parse_sweep(swapped).members[1] == {"chain.uniform.n": 3, "striker.velocity": 0.15}
+    assert parse_sweep(swapped).hash != parse_sweep(grid_sweep()).hash
+
+
+def test_dask_local_cluster_gives_the_same_metrics(tmp_path, reference):
+    distributed = pytest.importorskip("distributed")
+    from click.testing import CliRunner
+
+    from hertzchain.sweep_cli import sweep
+
+    toml = tmp_path / "grid.toml"
+    toml.write_text(to_toml(grid_sweep()))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            done = []
+            result = run_sweep(grid_sweep(), tmp_path / "api", client=client, progress=lambda d, t: done.append(d))
+        # The command line connects to the scheduler by its address.
+        res = CliRunner().invoke(sweep, [str(toml), "--out", str(tmp_path / "cli"), "--quiet",
+                                         "--scheduler", cluster.scheduler_address])
+        assert res.exit_code == 0, res.output
+    assert sorted(result.computed) == [0, 1, 2, 3] and done[-1] == 8
+    assert len(list((tmp_path / "api" / "chunks").glob("chunk_*.nc"))) == 4
+    pd.testing.assert_frame_equal(result.metrics, reference.metrics, check_exact=True)
+    cli = pd.read_csv(tmp_path / "cli" / "metrics.csv")
+    assert np.array_equal(cli["F_m"].to_numpy(), reference.metrics["F_m"].to_numpy())
+
+
+def to_toml(d: dict) -> str:
+    """A sweep mapping as TOML (the few value types used here)."""
+    def value(v):
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{json.dumps(k)} = {value(x)}" for k, x in v.items()) + " }"
+        if isinstance(v, list):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        return json.dumps(v) if isinstance(v, str) else repr(v)
+    return "".join(f"[{table}]\n" + "".join(f"{json.dumps(k)} = {value(v)}\n" for k, v in body.items())
+                   for table, body in d.items())
+
+
+class MapOnly:
+    """The smallest 'client': only ``map`` (like multiprocessing.Pool.imap)."""
+
+    def map(self, fn, items):
+        return (fn(x) for x in items)
+
+
+@pytest.mark.parametrize("make_client", [lambda: cf.ThreadPoolExecutor(2), MapOnly], ids=["executor", "map"])
+def test_other_clients_give_the_same_metrics(tmp_path, reference, make_client):
+    client = make_client()
+    try:
+        result = run_sweep(grid_sweep(), tmp_path, client=client)
+    finally:
+        if hasattr(client, "shutdown"):
+            client.shutdown()
+    pd.testing.assert_frame_equal(result.metrics, reference.metrics, check_exact=True)
+
+
+def random_sweep(n=6, seed=7, **tol) -> dict:
+    sw = {"mode": "random", "n": n, "seed": seed, "chunk_size": 4,
+          "parameters": {"striker.velocity": {"low": 0.1, "high": 0.4},
+                         "striker.diameter_mm": {"low": 4.0, "high": 12.0, "log": True},
+                         "chain.uniform.n": {"low": 2, "high": 5, "integer": True},
+                         "striker.material": ["AISI52100", "brass"]}}
+    if tol:
+        sw["tolerances"] = tol
+    return {"base": copy.deepcopy(BASE), "sweep": sw}
+
+
+def test_random_design_is_reproducible_from_the_seed():
+    a = parse_sweep(random_sweep())
+    b = parse_sweep(random_sweep())
+    assert a.members == b.members and a.hash == b.hash
+    c = parse_sweep(random_sweep(seed=8))
+    assert c.members != a.members and c.hash != a.hash
+    # A member depends only on (seed, index): drawing more members keeps the first ones.
+    assert parse_sweep(random_sweep(n=10)).members[:6] == a.members
+    for m in parse_sweep(random_sweep(n=40)).members:
+        assert 0.1 <= m["striker.velocity"] <= 0.4
+        assert 4.0 <= m["striker.diameter_mm"] <= 12.0
+        assert isinstance(m["chain.uniform.n"], int) and 2 <= m["chain.uniform.n"] <= 5
+        assert m["striker.material"] in ("AISI52100", "brass")
+    many = parse_sweep(random_sweep(n=40)).members
+    assert len({m["chain.uniform.n"] for m in many}) == 4 and len({m["striker.material"] for m in many}) == 2
+
+
+def test_tolerances_are_seeded_per_member_and_have_the_requested_size():
+    def tol_sweep(n, seed=1):
+        d = grid_sweep(parameters={"striker.velocity": [0.2] * n},
+                       tolerances={"diameter_rel": 1e-3, "offset_mm": 0.05, "seed": seed})
+        d["base"]["chain"]["uniform"]["n"] = 60
+        return parse_sweep(d)
+
+    models = tol_sweep(4).models()
+    again = tol_sweep(6).models()
+    for m, r in zip(models, again[:4]):  # same seed: same beads, whatever the number of members
+        assert np.array_equal(m.chain.diameters, r.chain.diameters)
+        assert np.array_equal(m.chain.offsets, r.chain.offsets)
+    assert not np.array_equal(models[0].chain.diameters, models[1].chain.diameters)
+    assert not np.array_equal(tol_sweep(1, seed=2).models()[0].chain.diameters, models[0].chain.diameters)
+    rel = np.concatenate([m.chain.diameters / 10e-3 - 1 for m in models])
+    off = np.concatenate([m.chain.offsets for m in models])
+    assert 0.8e-3 < rel.std() < 1.2e-3 and abs(rel.mean()) < 3e-4
+    assert 0.04e-3 < off.std() < 0.06e-3
+    assert models[0].striker.diameter == 8e-3  # only the beads are perturbed
+
+
+BAD = [
+    ({"mode": "foo"}, "sweep.mode"),
+    ({"chunk_size": 0}, "sweep.chunk_size"),
+    ({"colour": 1}, "sweep.colour"),
+    ({"parameters": {"striker..velocity": [0.1]}}, 'sweep.parameters["striker..velocity"]'),
+    ({"parameters": {"wheel.size": [0.1]}}, 'sweep.parameters["wheel.size"]'),
+    ({"parameters": {"striker.velocity": {"low": 0.1, "high": 0.2}}}, 'sweep.parameters["striker.velocity"]'),
+    ({"parameters": {"striker.velocity": []}}, 'sweep.parameters["striker.velocity"]'),
+    ({"parameters": {"run.duration": [1e-4]}}, 'sweep.parameters["run.duration"]'),
+    ({"parameters": {"striker.velocity": [0.1, -0.2]}}, "striker.velocity"),
+    ({"parameters": {"chain.uniform.n": [3, 0]}}, "chain.uniform.n"),
+    ({"parameters": {"chain.taper.q": [0.05]}}, "chain.taper.n"),
+    ({"parameters": {"chain.diameters_mm[2]": [9.0]}}, 'sweep.parameters["chain.diameters_mm[2]"]'),
+    ({"parameters": {}}, "sweep.parameters"),
+    ({"tolerances": {"diameter_rel": -1e-3}}, "sweep.tolerances.diameter_rel"),
+    ({"tolerances": {"offset": 0.1}}, "sweep.tolerances.offset"),
+    ({"mode": "random"}, "sweep.n"),
+    ({"n": 3}, "sweep.n"),
+    ({"mode": "random", "n": 3, "parameters": {"striker.velocity": {"low": 0.3, "high": 0.2}}},
+     'sweep.parameters["striker.velocity"].high'),
+    ({"mode": "random", "n": 3, "parameters": {"striker.velocity": {"low": 0.3}}},
+     'sweep.parameters["striker.velocity"].high'),
+    ({"mode": "random", "n": 3, "parameters": {"striker.velocity": {"low": 0.0, "high": 0.2, "log": True}}},
+     'sweep.parameters["striker.velocity"].low'),
+]
+
+
+@pytest.mark.parametrize("changes, field", BAD, ids=[f for _, f in BAD])
+def test_bad_sweep_names_the_field(changes, field):
+    with pytest.raises(ConfigError) as e:
+        parse_sweep(grid_sweep(**changes))
+    assert e.value.field == field
+
+
+def test_bad_base_and_missing_tables_name_the_field(tmp_path):
+    d = grid_sweep()
+    d["base"]["striker"]["velocity"] = "fast"
+    with pytest.raises(ConfigError) as e:
+        parse_sweep(d)
+    assert e.value.field == "base.striker.velocity"
+    with pytest.raises(ConfigError) as e:
+        parse_sweep({"base": BASE})
+    assert e.value.field == "sweep"
+    path = tmp_path / "broken.toml"
+    path.write_text("[sweep\nmode = 'grid'")
+    with pytest.raises(ConfigError, match="not valid TOML") as e:
+        load_sweep(path)
+    assert e.value.field == str(path)
+
+
+def test_example_sweep_file_is_valid():
+    here = os.path.dirname(__file__)
+    cfg = load_sweep(os.path.join(here, "..", "examples", "sweep_taper.toml"))
+    assert cfg.n_members == 12 and cfg.parameter_names == ["striker.velocity", "chain.taper.q"]
+    assert [m.chain.n_beads for m in cfg.models()] == [24] * 12
+
+
+def test_cli_runs_resumes_and_reports_user_errors(tmp_path):
+    from click.testing import CliRunner
+
+    from hertzchain.sweep_cli import sweep
+
+    toml = tmp_path / "s.toml"
+    toml.write_text(
+        "[base]\nchain = { uniform = { n = 3, diameter_mm = 10.0 } }\nstriker = { velocity = 0.2 }\n"
+        "run = { duration = 2e-4, sample_interval = 1e-6 }\n"
+        "[sweep]\nchunk_size = 1\nparameters = { \"striker.velocity\" = [0.1, 0.2] }\n")
+    out = tmp_path / "out"
+    runner = CliRunner()
+    res = runner.invoke(sweep, [str(toml), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "2 chunks computed, 0 resumed" in res.output
+    assert len(pd.read_csv(out / "metrics.csv")) == 2
+    res = runner.invoke(sweep, [str(toml), "--out", str(out), "--quiet"])
+    assert res.exit_code == 0 and res.output == ""
+    toml.write_text(toml.read_text().replace("chunk_size = 1", "chunk_size = 0"))
+    res = runner.invoke(sweep, [str(toml), "--out", str(out)])
+    assert isinstance(res.exception, ConfigError) and res.exception.field == "sweep.chunk_size"
+
+
+def test_chunk_tasks_and_results_survive_pickling(tmp_path):
+    """What a Dask worker in another process receives and sends back (processes=True pickles)."""
+    import pickle
+
+    cfg = parse_sweep(grid_sweep(parameters={"striker.velocity": [0.1, 0.2]},
+                                 tolerances={"diameter_rel": 1e-3, "offset_mm": 0.02, "seed": 3}))
+    captured = []
+    real = sweep_mod.compute_chunk
+
+    class Recorder:
+        def map(self, fn, tasks):
+            for t in tasks:
+                captured.append(t)
+                yield pickle.loads(pickle.dumps(real(pickle.loads(pickle.dumps(t)))))
+
+    result = run_sweep(cfg, tmp_path / "pickled", client=Recorder())
+    direct = run_sweep(cfg, tmp_path / "direct")
+    assert len(captured) == 1 and captured[0].members == [0, 1]
+    pd.testing.assert_frame_equal(result.metrics, direct.metrics, check_exact=True)
+    # The tolerances reached the simulation: the stored beads are the perturbed ones.
+    import xarray as xr
+    with xr.open_dataset(tmp_path / "pickled" / "chunks" / "chunk_00000.nc", engine="h5netcdf") as ds:
+        assert np.array_equal(ds["diameter"].values[0], cfg.models()[0].chain.diameters)
+        assert np.array_equal(ds["offset"].values[1], cfg.models()[1].chain.offsets)
+        assert not np.all(ds["offset"].values == 0)
