@@ -147,6 +147,13 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings) -> dict[st
     return {name: figs.save_figure(make(), Path(out_dir), name) for name, make in drawn.items()}
 
 
+def _figure_numbers(studies, mis, subs, settings) -> dict:
+    """The numbers the figures show (spectral centroids, collapse quality, Fig. 3 changes)."""
+    from .figures import figure_summary
+
+    return figure_summary(studies["chain1"], studies["chain2"], mis, subs, settings)
+
+
 def redraw(out_dir: str | Path) -> dict:
     """Redraw the figures and the report of an existing reproduction from its data/ (no simulation)."""
     from ..errors import ConfigError
@@ -162,6 +169,7 @@ def redraw(out_dir: str | Path) -> dict:
                         elastic=summary["settings"]["law"] == "elastic")
     studies, mis, subs, _ = load_data(out, settings)
     paths = draw(out, studies, mis, subs, settings)
+    summary["figures"] = _figure_numbers(studies, mis, subs, settings)
     write_report(out, summary, paths, summary["settings"])
     return summary
 
@@ -197,6 +205,7 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
         from .report import write_report
 
         fig_paths = draw(out, studies, mis, subs, settings)
+        summary["figures"] = _figure_numbers(studies, mis, subs, settings)
         summary["timing"]["total_s"] = time.perf_counter() - t0
         write_report(out, summary, fig_paths, settings.describe())
     summary["timing"]["total_s"] = time.perf_counter() - t0
