@@ -162,7 +162,7 @@ def analyze(source: Path, signals: tuple[str, ...], as_json: bool) -> None:
 @click.option("--from-data", is_flag=True, help="Redraw figures and report from OUT/data without simulating.")
 def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, no_figures: bool,
               from_data: bool) -> None:
-    """Reproduce the paper: Figs. 1-6, its numbers and a report (well under a minute on 2 cores)."""
+    """Reproduce the paper (Figures 1-6, its numbers, a report) in well under a minute."""
     from .errors import ConfigError
 
     if from_data:
@@ -204,6 +204,15 @@ def materials() -> None:
     for m in CATALOGUE.values():
         ys = "-" if m.yield_stress is None else f"{m.yield_stress:.3g}"
         click.echo(f"{m.name:16s} rho={m.density:<7g} Y={m.young:<9.3g} nu={m.poisson:<5g} sigma_Y={ys:<8s} ({m.source})")
+
+
+def _register_subcommands() -> None:
+    from .sweep_cli import sweep
+
+    cli.add_command(sweep)
+
+
+_register_subcommands()
 
 
 def main(argv: list[str] | None = None) -> int:
