@@ -24,6 +24,9 @@ _EXPORTS = {
     # running and results
     "Probes": "probes", "simulate": "simulation", "save": "result", "load": "result",
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
+    # many chains
+    "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch",
+    "run_sweep": "sweep", "load_sweep": "sweep",
     # dissipation
     "calibrate_law": "dissipation", "measure_eps": "dissipation",
     # measurement, analysis, theory
