@@ -16,7 +16,7 @@ from .model import Model
 from .probes import Probes
 from .result import build_dataset
 
-__all__ = ["simulate"]
+__all__ = ["simulate", "warn_elastic_limit"]
 
 
 def simulate(model: Model, duration: float, probes: Probes | None = None, *,
@@ -65,10 +65,16 @@ def simulate(model: Model, duration: float, probes: Probes | None = None, *,
     else:
         raise ConfigError("run.integrator", f"must be 'verlet', 'dop853' or 'rk45', got {integrator!r}")
     ds = build_dataset(raw, model, probes, duration=duration, config=config)
+    warn_elastic_limit(ds, stacklevel=3)
+    return ds
+
+
+def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> None:
+    """Warn (ElasticLimitWarning) when the result records forces past the elastic limit."""
     over = json.loads(ds.attrs["elastic_limit_contacts"])
     if over:
         ratio = float((ds.max_contact_force / ds.yield_force).max())
         warnings.warn(ElasticLimitWarning(
-            f"contact forces pass the elastic limit of the paper (Sec. II) at contacts {over} "
-            f"(up to {ratio:.2f} x F_Y); beads would yield plastically: lower the striker velocity"), stacklevel=2)
-    return ds
+            f"{where}contact forces pass the elastic limit of the paper (Sec. II) at contacts {over} "
+            f"(up to {ratio:.2f} x F_Y); beads would yield plastically: lower the striker velocity"),
+            stacklevel=stacklevel + 1)

@@ -21,10 +21,8 @@ Public entry points: :func:`simulate_many` (a list of single-run Datasets, ident
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import math
 import threading
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -34,12 +32,13 @@ import numpy as np
 import xarray as xr
 from numba import njit, prange
 
-from ..errors import ConfigError, ElasticLimitWarning, SimulationDiverged
+from ..errors import ConfigError, SimulationDiverged
 from ..model import Model
 from ..probes import Probes
+from ..simulation import warn_elastic_limit
 from . import kernels
 from .layout import pack
-from .verlet import RawRun, _stride, auto_time_step, check_time_step
+from .verlet import RawRun, _stride, auto_time_step, check_time_step, initialise, refine_peak
 
 __all__ = ["simulate_batch", "simulate_many", "run_batch", "stack_results"]
 
@@ -163,18 +162,6 @@ def _check_inputs(models: Sequence[Model], duration: float, probes, dt) -> tuple
     return plist, dts
 
 
-def _refine_peak(peak: np.ndarray, dt: float) -> tuple[float, float]:
-    """Parabola through the wall force around its maximum, exactly as in ``run_verlet``."""
-    fpk, step_pk, fb, fa = peak[0], peak[1], peak[2], peak[3]
-    t_pk = step_pk * dt
-    denom = fb - 2.0 * fpk + fa
-    if step_pk > 0 and peak[4] == 0.0 and denom < 0.0:
-        s = 0.5 * (fb - fa) / denom
-        fpk = fpk - 0.25 * (fb - fa) * s
-        t_pk += s * dt
-    return float(fpk), float(t_pk)
-
-
 def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequence[Probes] | None = None, *,
               dt: float | Sequence[float | None] | None = None, progress: Callable[[int, int], None] | None = None,
               n_threads: int | None = None) -> list[RawRun]:
@@ -238,30 +225,15 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     peak = _aligned_zeros(nmem * _LINE).reshape(nmem, _LINE)
     acc = _aligned_zeros(nmem * _LINE).reshape(nmem, _LINE)
 
-    # ---- initial state: the same kernel calls, in the same order, as run_verlet
+    # ---- initial state: the very function run_verlet uses, on per-member views
     views = []
     for m, (mb, w) in enumerate(zip(members, packs)):
         s, p = off[m], w.n_slots
         u, v, g, a = (flat["u"][s:s + p + 1], flat["v"][s:s + p + 1], flat["g"][s:s + p + 1], flat["a"][s:s + p])
-        sysm = mb.system
-        power0 = 0.0
-        if sysm.general:
-            power0 = kernels.forces_general(u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, sysm.law, g)
-        else:
-            kernels.forces_elastic(u, w.kappa, w.d0, g)
-        kernels.accelerations(g, w.fext, w.inv_mass, a)
         f = out_f[f_off[m]:f_off[m + 1]].reshape(n_samples, nrec[m])
         vv = out_v[v_off[m]:v_off[m + 1]].reshape(v_rows[m], nb[m])
-        f[0] = g[mb.rec + 1]
-        out_ke[m, 0] = kernels.kinetic_energy(v, w.mass)
-        out_pe[m, 0] = kernels.potential_energy(u, g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False)
-        out_ed[m, 0] = 0.0
-        if mb.record_v:
-            vv[0] = v[: nb[m]]
-        fmax[fmax_off[m]:fmax_off[m + 1]] = g[1:n_contacts[m] + 1]
-        fw0 = g[w.wall_slot + 1]
-        peak[m, :6] = [fw0, 0.0, 0.0, 0.0, 0.0, fw0]
-        acc[m, 1] = power0  # dissipated power at t = 0, first point of the trapezoidal integral
+        initialise(mb.system, w, u, v, g, a, mb.rec, f, out_ke[m], out_pe[m], out_ed[m], vv, mb.record_v,
+                   fmax[fmax_off[m]:fmax_off[m + 1]], peak[m], acc[m])
         views.append((f, vv))
 
     law = np.array([mb.system.law for mb in members], dtype=np.int64)
@@ -308,23 +280,13 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     runs = []
     for m, mb in enumerate(members):
         f, vv = views[m]
-        fpk, t_pk = _refine_peak(peak[m, :6], mb.dt)
+        fpk, t_pk = refine_peak(peak[m], mb.dt)
         runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=out_ke[m], potential_energy=out_pe[m],
                            dissipated_energy=out_ed[m], velocity=vv if mb.record_v else None,
                            max_force=fmax[fmax_off[m]:fmax_off[m + 1]], peak_wall_force=fpk, peak_wall_time=t_pk,
                            dt=mb.dt,
                            integrator="verlet", n_steps=int(acc[m, 2]), contacts=mb.rec))
     return runs
-
-
-def _warn_elastic_limit(ds: xr.Dataset, where: str = "") -> None:
-    """The elastic-limit warning of :func:`hertzchain.simulate` (same wording)."""
-    over = json.loads(ds.attrs["elastic_limit_contacts"])
-    if over:
-        ratio = float((ds.max_contact_force / ds.yield_force).max())
-        warnings.warn(ElasticLimitWarning(
-            f"{where}contact forces pass the elastic limit of the paper (Sec. II) at contacts {over} "
-            f"(up to {ratio:.2f} x F_Y); beads would yield plastically: lower the striker velocity"), stacklevel=3)
 
 
 def simulate_many(models: Sequence[Model], duration: float, probes: Probes | Sequence[Probes] | None = None, *,
@@ -367,7 +329,7 @@ def simulate_many(models: Sequence[Model], duration: float, probes: Probes | Seq
     out = []
     for i, (raw, model, p, cfg) in enumerate(zip(runs, models, plist, cfgs)):
         ds = build_dataset(raw, model, p, duration=duration, config=cfg)
-        _warn_elastic_limit(ds, f"member {i}: " if len(models) > 1 else "")
+        warn_elastic_limit(ds, f"member {i}: " if len(models) > 1 else "")
         out.append(ds)
     return out
 

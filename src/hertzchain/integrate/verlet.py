@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import ConfigError, SimulationDiverged
 from ..model import System
 from . import kernels
-from .layout import pack
+from .layout import Packed, pack
 
 __all__ = ["auto_time_step", "check_time_step", "run_verlet", "RawRun", "STEPS_PER_RADIAN"]
 
@@ -66,6 +66,45 @@ def _stride(sample_interval: float, dt: float) -> tuple[int, float]:
     return stride, sample_interval / stride
 
 
+def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_v: bool,
+               fmax, peak, acc) -> None:
+    """State at t = 0 (forces, accelerations) and sample 0 of every probe, written in place.
+
+    Shared by :func:`run_verlet` and the batched engine, which passes per-member views, so
+    both start from exactly the same numbers. ``peak`` (>= 6 slots) and ``acc`` (>= 3) are the
+    kernel's wall-peak tracker and accumulators (see ``kernels.verlet_run``).
+    """
+    power0 = 0.0
+    if system.general:
+        power0 = kernels.forces_general(u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, system.law, g)
+    else:
+        kernels.forces_elastic(u, w.kappa, w.d0, g)
+    kernels.accelerations(g, w.fext, w.inv_mass, a)
+    out_f[0] = g[rec + 1]
+    out_ke[0] = kernels.kinetic_energy(v, w.mass)
+    out_pe[0] = kernels.potential_energy(u, g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False)
+    out_ed[0] = 0.0
+    if record_v:
+        out_v[0] = v[: out_v.shape[1]]
+    fmax[:] = g[1 : fmax.size + 1]
+    fw0 = g[w.wall_slot + 1]
+    peak[:6] = (fw0, 0.0, 0.0, 0.0, 0.0, fw0)
+    acc[:3] = (0.0, power0, 0.0)  # dissipated power at t = 0: first point of the trapezoidal integral
+
+
+def refine_peak(peak: np.ndarray, dt: float) -> tuple[float, float]:
+    """Peak wall force [N] and its time [s] from the kernel's tracker: the parabola through the
+    force at the steps around the maximum (the peak falls between steps)."""
+    fpk, step_pk, fb, fa = peak[0], peak[1], peak[2], peak[3]
+    t_pk = step_pk * dt
+    denom = fb - 2.0 * fpk + fa
+    if step_pk > 0 and peak[4] == 0.0 and denom < 0.0:
+        s = 0.5 * (fb - fa) / denom
+        fpk = fpk - 0.25 * (fb - fa) * s
+        t_pk += s * dt
+    return float(fpk), float(t_pk)
+
+
 def run_verlet(system: System, duration: float, sample_interval: float, dt: float | None = None,
                record_velocities: bool = False, contacts: np.ndarray | None = None,
                progress: Callable[[int, int], None] | None = None, chunk_steps: int = 2_000_000) -> RawRun:
@@ -88,30 +127,16 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     u, v = w.u, w.v
     g = np.zeros(w.n_slots + 1)
     a = np.zeros(w.n_slots)
-    power0 = 0.0
-    if system.general:
-        power0 = kernels.forces_general(u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, system.law, g)
-    else:
-        kernels.forces_elastic(u, w.kappa, w.d0, g)
-    kernels.accelerations(g, w.fext, w.inv_mass, a)
-
     rec = np.arange(nc) if contacts is None else np.asarray(contacts, dtype=np.int64)
     out_f = np.empty((n_samples, rec.size))
     out_ke = np.empty(n_samples)
     out_pe = np.empty(n_samples)
     out_ed = np.empty(n_samples)
     out_v = np.empty((n_samples if record_velocities else 1, nb))
-    out_f[0] = g[rec + 1]
-    out_ke[0] = kernels.kinetic_energy(v, w.mass)
-    out_pe[0] = kernels.potential_energy(u, g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False)
-    out_ed[0] = 0.0
-    if record_velocities:
-        out_v[0] = v[:nb]
-    fmax = g[1 : nc + 1].copy()
-    fw0 = g[w.wall_slot + 1]
-    peak = np.array([fw0, 0.0, 0.0, 0.0, 0.0, fw0])
+    fmax = np.empty(nc)
+    peak = np.empty(6)
     acc = np.zeros(3)
-    acc[1] = power0  # dissipated power at t = 0, first point of the trapezoidal integral
+    initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc)
 
     samples_per_chunk = max(1, chunk_steps // stride)
     k = 1
@@ -128,16 +153,9 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
         if progress is not None:
             progress(k - 1, n_samples - 1)
 
-    # Parabola through the wall force at the steps around its maximum: peak between steps.
-    fpk, step_pk, fb, fa = peak[0], peak[1], peak[2], peak[3]
-    t_pk = step_pk * dt
-    denom = fb - 2.0 * fpk + fa
-    if step_pk > 0 and peak[4] == 0.0 and denom < 0.0:
-        s = 0.5 * (fb - fa) / denom
-        fpk = fpk - 0.25 * (fb - fa) * s
-        t_pk += s * dt
+    fpk, t_pk = refine_peak(peak, dt)
     time = np.arange(n_samples) * sample_interval
     return RawRun(time=time, contact_force=out_f, kinetic_energy=out_ke, potential_energy=out_pe,
                   dissipated_energy=out_ed, velocity=out_v if record_velocities else None, max_force=fmax,
-                  peak_wall_force=float(fpk), peak_wall_time=float(t_pk), dt=dt, integrator="verlet",
+                  peak_wall_force=fpk, peak_wall_time=t_pk, dt=dt, integrator="verlet",
                   n_steps=int(acc[2]), contacts=rec)
