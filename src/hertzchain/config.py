@@ -243,18 +243,22 @@ def parse_config(data: dict) -> RunConfig:
         raise ConfigError(name or "config", msg) from None
 
 
-def load_config(path: str | Path) -> RunConfig:
-    """Read and validate a TOML run file."""
+def read_toml(path: str | Path, what: str = "config file") -> dict:
+    """Read a TOML file; a missing file or bad TOML is a ConfigError naming the path."""
     path = Path(path)
     try:
         text = path.read_text()
     except OSError as exc:
-        raise ConfigError(str(path), f"cannot read the config file: {exc.strerror}") from None
+        raise ConfigError(str(path), f"cannot read the {what}: {exc.strerror}") from None
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(str(path), f"is not valid TOML: {exc}") from None
-    return parse_config(data)
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """Read and validate a TOML run file."""
+    return parse_config(read_toml(path))
 
 
 def _register_materials(cfg: RunConfig) -> None:

@@ -49,7 +49,6 @@ import json
 import math
 import os
 import re
-import tomllib
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -394,16 +393,9 @@ def parse_sweep(data: dict) -> SweepConfig:
 
 def load_sweep(path: str | Path) -> SweepConfig:
     """Read and validate a TOML sweep file (see the module docstring)."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(str(path), f"cannot read the sweep file: {exc.strerror}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(path), f"is not valid TOML: {exc}") from None
-    return parse_sweep(data)
+    from .config import read_toml
+
+    return parse_sweep(read_toml(path, "sweep file"))
 
 
 # ------------------------------------------------------------------------------ computing chunks
