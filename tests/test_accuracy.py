@@ -32,19 +32,21 @@ def test_verlet_agrees_with_dop853_on_peak_wall_force(contract_model, dop853_con
         ds = hc.simulate(contract_model, 2.5e-3)  # automatic step
     ref = dop853_contract
     # The issue asks for 1e-5; the automatic step is designed to deliver 1e-6.
-    assert ds.attrs["peak_wall_force"] == pytest.approx(ref.attrs["peak_wall_force"], rel=1e-6)
-    assert ds.attrs["peak_wall_time"] == pytest.approx(ref.attrs["peak_wall_time"], rel=1e-6)
+    assert ds.attrs["peak_wall_force"] == pytest.approx(ref.attrs["peak_wall_force"], rel=1e-6, abs=0)
+    assert ds.attrs["peak_wall_time"] == pytest.approx(ref.attrs["peak_wall_time"], rel=1e-6, abs=0)
     # Whole signals agree too (relative to the pulse height).
     diff = np.abs(ds.wall_force.values - ref.wall_force.values).max()
     assert diff < 1e-5 * ref.attrs["peak_wall_force"]
 
 
-@pytest.mark.parametrize("name,velocity", [("chain1", 0.2), ("chain2", 0.05)])
+@pytest.mark.parametrize("name,velocity", [("chain1", 0.2), ("chain2", 0.1)])
 def test_automatic_step_delivers_1e6_on_paper_chains(name, velocity):
     model = hc.Model(hc.paper_chain(name), hc.Striker(8e-3, velocity))
-    ds = hc.simulate(model, 2.5e-3)
-    ref = hc.simulate(model, 2.5e-3, integrator="dop853", rtol=1e-12)
-    assert ds.attrs["peak_wall_force"] == pytest.approx(ref.attrs["peak_wall_force"], rel=1e-6)
+    ds = hc.simulate(model, 3e-3)
+    ref = hc.simulate(model, 3e-3, integrator="dop853", rtol=1e-12)
+    # The pulse must have reached the wall (a ~0 N "peak" would compare nothing).
+    assert ref.attrs["peak_wall_force"] > 1.0
+    assert ds.attrs["peak_wall_force"] == pytest.approx(ref.attrs["peak_wall_force"], rel=1e-6, abs=0)
 
 
 def test_dop853_reference_is_converged(gentle_contract_model):
