@@ -23,13 +23,18 @@ from numba import njit
 
 LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT = 0, 1, 2
 
+#: Overlaps below this [m] count as zero (forces below ~1e-35 N). Without it the numerical
+#: precursor ahead of a pulse decays into subnormal floats (~1e-300), which x86 handles ~30x
+#: slower: 2.4 instead of 1.6 ns per bead-step while a pulse crosses a 30-bead chain.
+DELTA_MIN = 1e-30
+
 
 @njit(cache=True, nogil=True)
 def forces_elastic(u, kappa, d0, g):
     """Aligned Hertz forces g[j+1] = kappa_j max(delta_j, 0)^(3/2), delta_j = u_j - u_{j+1} + d0_j (eq. 1)."""
     for j in range(kappa.shape[0]):
         d = u[j] - u[j + 1] + d0[j]
-        d = max(d, 0.0)
+        d = d if d > DELTA_MIN else 0.0
         g[j + 1] = kappa[j] * d * np.sqrt(d)
 
 
@@ -59,6 +64,8 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g):
         if d < 0.0:
             g[j + 1] = 0.0
             continue
+        if d <= DELTA_MIN:
+            d = 0.0
         sd = np.sqrt(d)
         fel = kappa[j] * d * sd
         if law == LAW_ELASTIC:
