@@ -30,11 +30,14 @@ def _var(dims, data, units: str, long_name: str) -> xr.Variable:
 
 
 def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float, config: dict | None = None,
-                  extra_attrs: dict | None = None) -> xr.Dataset:
-    """Assemble the result of one run (see the module docstring for the layout)."""
+                  extra_attrs: dict | None = None, system=None) -> xr.Dataset:
+    """Assemble the result of one run (see the module docstring for the layout).
+
+    ``system`` is ``model.system()`` when the caller already has it (it is not free for long chains).
+    """
     chain = model.chain
     n = chain.n_beads
-    system = model.system()
+    system = system if system is not None else model.system()
     nc = system.n_contacts
     wanted = raw.contacts if probes.contacts is None else np.array(sorted(set(probes.contacts)), dtype=np.int64)
     cols = np.searchsorted(raw.contacts, wanted)

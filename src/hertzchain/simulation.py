@@ -64,7 +64,7 @@ def simulate(model: Model, duration: float, probes: Probes | None = None, *,
                             record_velocities=probes.velocities)
     else:
         raise ConfigError("run.integrator", f"must be 'verlet', 'dop853' or 'rk45', got {integrator!r}")
-    ds = build_dataset(raw, model, probes, duration=duration, config=config)
+    ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system)
     warn_elastic_limit(ds, stacklevel=3)
     return ds
 
