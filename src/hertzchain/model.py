@@ -115,20 +115,27 @@ class System:
         """True when the slower general force loop is needed (dissipation or offsets)."""
         return self.law != 0 or self.misaligned
 
-    def max_frequency(self) -> float:
-        """Upper estimate of the highest angular frequency omega_max [rad/s] the run can reach.
+    def max_overlap(self) -> np.ndarray:
+        """Upper bound of every contact's overlap [m] over the whole run, (N+1,).
 
-        Each contact's overlap is bounded by putting all the energy available (striker kinetic
-        energy + precompression energy) into that contact: (2/5) kappa delta^(5/2) <= E. The
-        tangent stiffness k = (3/2) kappa delta^(1/2) then bounds the linearised stiffness matrix,
-        and Gershgorin's theorem bounds its highest eigenvalue: omega^2 <= max_i 2 (k_left + k_right) / m_i.
+        All the energy available (striker kinetic energy + precompression energy) put into one
+        contact: (2/5) kappa delta^(5/2) <= E, plus the static overlap d0. Contacts with kappa = 0
+        (no wall) get 0.
         """
         energy = 0.5 * self.mass[0] * self.v0[0] ** 2
         kap = self.kappa
         energy += float(np.sum(0.4 * kap * self.d0**2.5))
         with np.errstate(divide="ignore"):
-            dmax = np.where(kap > 0, (2.5 * energy / np.where(kap > 0, kap, 1.0)) ** 0.4, 0.0) + self.d0
-        k = 1.5 * kap * np.sqrt(dmax)
+            return np.where(kap > 0, (2.5 * energy / np.where(kap > 0, kap, 1.0)) ** 0.4, 0.0) + self.d0
+
+    def max_frequency(self) -> float:
+        """Upper estimate of the highest angular frequency omega_max [rad/s] the run can reach.
+
+        Each contact's overlap is bounded by :meth:`max_overlap`; the tangent stiffness
+        k = (3/2) kappa delta^(1/2) then bounds the linearised stiffness matrix, and Gershgorin's
+        theorem bounds its highest eigenvalue: omega^2 <= max_i 2 (k_left + k_right) / m_i.
+        """
+        k = 1.5 * self.kappa * np.sqrt(self.max_overlap())
         nb = self.n_beads + 1
         k_left = np.concatenate([[0.0], k[: nb - 1]])
         k_right = k[:nb]

@@ -40,9 +40,12 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
     system = system if system is not None else model.system()
     nc = system.n_contacts
     wanted = raw.contacts if probes.contacts is None else np.array(sorted(set(probes.contacts)), dtype=np.int64)
-    cols = np.searchsorted(raw.contacts, wanted)
+    if np.array_equal(wanted, raw.contacts):
+        forces = raw.contact_force  # every recorded contact is wanted: no copy (it can be 100s of MB)
+    else:
+        forces = raw.contact_force[:, np.searchsorted(raw.contacts, wanted)]
     data = {
-        "contact_force": _var(("time", "contact"), raw.contact_force[:, cols], "N",
+        "contact_force": _var(("time", "contact"), forces, "N",
                               "contact force F_j between body j and body j+1 (paper eq. 1)"),
         "kinetic_energy": _var(("time",), raw.kinetic_energy, "J", "kinetic energy of striker and beads"),
         "potential_energy": _var(("time",), raw.potential_energy, "J",
@@ -76,12 +79,15 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
     if raw.velocity is not None:
         coords["body"] = ("body", np.arange(n + 1), {"long_name": "body number (0 = striker)"})
 
-    over = [int(c) for c, f, fy in zip(range(nc), raw.max_force, system.yield_force[:nc]) if f > fy]
+    ratio = raw.max_force / system.yield_force[:nc]
+    over = np.flatnonzero(ratio > 1.0).tolist()
     attrs = {
         "title": "hertzchain simulation",
         "hertzchain_version": __version__,
         "integrator": raw.integrator,
         "dt": raw.dt,
+        "dt_max": raw.dt_max if raw.integrator == "verlet" else 0.0,
+        "time_step": ("adaptive" if raw.adaptive else "fixed") if raw.integrator == "verlet" else "solve_ivp",
         "n_steps": raw.n_steps,
         "duration": duration,
         "sample_interval": probes.sample_interval,
@@ -91,6 +97,7 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
         "peak_wall_time": raw.peak_wall_time,
         "elastic_limit_exceeded": int(bool(over)),
         "elastic_limit_contacts": json.dumps(over),
+        "elastic_limit_ratio": float(ratio.max()) if ratio.size else 0.0,
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "conventions": "SI units; numbering of DESIGN.md section 2 (beads 1..N from the impact end)",
     }

@@ -71,9 +71,11 @@ def simulate(model: Model, duration: float, probes: Probes | None = None, *,
 
 def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> None:
     """Warn (ElasticLimitWarning) when the result records forces past the elastic limit."""
+    if not ds.attrs.get("elastic_limit_exceeded", 1):
+        return
     over = json.loads(ds.attrs["elastic_limit_contacts"])
     if over:
-        ratio = float((ds.max_contact_force / ds.yield_force).max())
+        ratio = ds.attrs.get("elastic_limit_ratio") or float((ds.max_contact_force / ds.yield_force).max())
         warnings.warn(ElasticLimitWarning(
             f"{where}contact forces pass the elastic limit of the paper (Sec. II) at contacts {over} "
             f"(up to {ratio:.2f} x F_Y); beads would yield plastically: lower the striker velocity"),

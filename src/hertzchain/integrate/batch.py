@@ -38,7 +38,7 @@ from ..probes import Probes
 from ..simulation import warn_elastic_limit
 from . import kernels
 from .layout import pack
-from .verlet import RawRun, _stride, auto_time_step, check_time_step, initialise, refine_peak
+from .verlet import RawRun, StepPlan, _dt_used, initialise, refine_peak, step_plan
 
 __all__ = ["simulate_batch", "simulate_many", "run_batch", "stack_results"]
 
@@ -59,8 +59,8 @@ def _aligned_zeros(n: int) -> np.ndarray:
 
 
 @njit(parallel=True, cache=True)
-def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law,
-                  general, wall_slot, dt, stride, k_start, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed,
+def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap,
+                  law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed,
                   out_v, v_off, v_rows, nbody, record_v, fmax, fmax_off, peak, acc, status):
     """Advance every member from sample ``k_start`` to ``k_stop`` with :func:`kernels.verlet_run`.
 
@@ -88,10 +88,11 @@ def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, dampin
         vv = out_v[v_off[m]:v_off[m + 1]].reshape((v_rows[m], nbody[m]))
         status[m] = kernels.verlet_run(u[s:s + p + 1], v[s:s + p + 1], a[s:s + p], g[s:s + p + 1], mass[s:s + p],
                                        inv_mass[s:s + p], kappa[s:s + p], damping[s:s + p], d0[s:s + p],
-                                       de[s:s + p], dx0[s:s + p], rsum[s:s + p], fext[s:s + p], law[m], general[m],
-                                       wall_slot[m], dt[m], stride[m], k_start, k_stop, rec[r0:r1], f, out_ke[m],
-                                       out_pe[m], out_ed[m], vv, record_v[m], fmax[fmax_off[m]:fmax_off[m + 1]],
-                                       peak[m, :6], acc[m, :3])
+                                       de[s:s + p], dx0[s:s + p], rsum[s:s + p], fext[s:s + p], dcap[s:s + p],
+                                       law[m], general[m], wall_slot[m], interval, stride[m], n_sub[m], n_eval[m],
+                                       c_steps[m], relax[m], k_start, k_stop, rec[r0:r1], f, out_ke[m], out_pe[m],
+                                       out_ed[m], vv, record_v[m], fmax[fmax_off[m]:fmax_off[m + 1]], peak[m],
+                                       acc[m])
 
 
 # The workqueue threading layer (the one available without TBB/OpenMP) aborts the process when two
@@ -124,8 +125,7 @@ class _Member:
 
     system: object
     rec: np.ndarray
-    dt: float
-    stride: int
+    plan: StepPlan
     record_v: bool
 
 
@@ -181,13 +181,9 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     members: list[_Member] = []
     for model, p, dti in zip(models, plist, dts):
         system = model.system()
-        if dti is None:
-            dti = auto_time_step(system)
-        else:
-            check_time_step(system, dti)
-        stride, dti = _stride(interval, dti)
+        plan = step_plan(system, interval, dti)
         rec = p.recorded_contacts(model.chain.n_beads, model.wall.present)
-        members.append(_Member(system, rec, dti, stride, bool(p.velocities)))
+        members.append(_Member(system, rec, plan, bool(p.velocities)))
 
     # ---- ragged layout: member m owns off[m]:off[m+1] (P + 1 slots) of every body/contact buffer
     packs = [pack(mb.system) for mb in members]
@@ -197,7 +193,7 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     n_slots = np.array([w.n_slots for w in packs], dtype=np.int64)
     total = int(off[-1])
-    names = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext")
+    names = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
     flat = {k: _aligned_zeros(total) for k in names + ("u", "v", "g", "a")}
     for m, w in enumerate(packs):
         s, p = off[m], w.n_slots
@@ -221,7 +217,7 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     n_contacts = np.array([mb.system.n_contacts for mb in members], dtype=np.int64)
     fmax_off = np.concatenate([[0], np.cumsum(n_contacts)]).astype(np.int64)
     fmax = np.zeros(int(fmax_off[-1]))
-    # Written every step: one cache line per member (see ``sizes``); the kernel gets [:6] / [:3].
+    # Written every step: one cache line (8 doubles) per member (see ``sizes``).
     peak = _aligned_zeros(nmem * _LINE).reshape(nmem, _LINE)
     acc = _aligned_zeros(nmem * _LINE).reshape(nmem, _LINE)
 
@@ -239,13 +235,17 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     law = np.array([mb.system.law for mb in members], dtype=np.int64)
     general = np.array([mb.system.general for mb in members], dtype=np.bool_)
     wall_slot = np.array([w.wall_slot for w in packs], dtype=np.int64)
-    dt_arr = np.array([mb.dt for mb in members], dtype=np.float64)
-    stride = np.array([mb.stride for mb in members], dtype=np.int64)
+    stride = np.array([mb.plan.stride for mb in members], dtype=np.int64)
+    n_sub = np.array([mb.plan.n_sub for mb in members], dtype=np.int64)
+    n_eval = np.array([mb.plan.n_eval for mb in members], dtype=np.int64)
+    c_steps = np.array([mb.plan.c_steps for mb in members], dtype=np.float64)
+    relax = np.array([mb.plan.relax for mb in members], dtype=np.int64)
+    steps_per_sample = np.array([interval / mb.plan.dt for mb in members])
     record_v = np.array([mb.record_v for mb in members], dtype=np.bool_)
     status = np.zeros(nmem, dtype=np.int64)
     # Cost of one sample per member (the general force loop is roughly twice the elastic one):
     # the most expensive members go first so that the threads finish together.
-    cost = stride * (n_slots + 1) * np.where(general, 2, 1)
+    cost = steps_per_sample * (n_slots + 1) * np.where(general, 2, 1)
     order = np.argsort(-cost, kind="stable").astype(np.int64)
     samples_per_call = max(1, int(CHUNK_SLOT_STEPS * max(1, n_threads or numba.get_num_threads()) // cost.sum()))
 
@@ -262,8 +262,8 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
                 with numba.parallel_chunksize(1):
                     _batch_kernel(order, off, n_slots, flat["u"], flat["v"], flat["a"], flat["g"], flat["mass"],
                                   flat["inv_mass"], flat["kappa"], flat["damping"], flat["d0"], flat["de"],
-                                  flat["dx0"], flat["rsum"], flat["fext"], law, general, wall_slot, dt_arr, stride,
-                                  k, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_v, v_off, v_rows,
+                                  flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], law, general, wall_slot,
+                                  interval, stride, n_sub, n_eval, c_steps, relax, k, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_v, v_off, v_rows,
                                   nb, record_v, fmax, fmax_off, peak, acc, status)
             finally:
                 numba.set_num_threads(previous)
@@ -280,12 +280,13 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     runs = []
     for m, mb in enumerate(members):
         f, vv = views[m]
-        fpk, t_pk = refine_peak(peak[m], mb.dt)
+        fpk, t_pk = refine_peak(peak[m])
+        dt_min, dt_max = _dt_used(mb.plan, acc[m], interval)
         runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=out_ke[m], potential_energy=out_pe[m],
                            dissipated_energy=out_ed[m], velocity=vv if mb.record_v else None,
                            max_force=fmax[fmax_off[m]:fmax_off[m + 1]], peak_wall_force=fpk, peak_wall_time=t_pk,
-                           dt=mb.dt,
-                           integrator="verlet", n_steps=int(acc[m, 2]), contacts=mb.rec))
+                           dt=dt_min, integrator="verlet", n_steps=int(acc[m, 2]), contacts=mb.rec, dt_max=dt_max,
+                           adaptive=mb.plan.adaptive))
     return runs
 
 

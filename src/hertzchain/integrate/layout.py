@@ -27,6 +27,7 @@ class Packed:
     dx0: np.ndarray
     rsum: np.ndarray
     fext: np.ndarray
+    dcap: np.ndarray  # upper bound of each contact's overlap over the run [m] (System.max_overlap)
     u: np.ndarray
     v: np.ndarray
     n_slots: int
@@ -47,5 +48,5 @@ def pack(system: System) -> Packed:
     inv_mass = _pad(system.inv_mass[:nb], p)
     return Packed(mass=mass, inv_mass=inv_mass, kappa=_pad(system.kappa, p), damping=_pad(system.damping, p),
                   d0=_pad(system.d0, p), de=_pad(system.de, p), dx0=_pad(system.dx0, p), rsum=_pad(system.rsum, p),
-                  fext=_pad(system.fext[:nb], p), u=_pad(system.u0[:nb], p + 1), v=_pad(system.v0[:nb], p + 1),
+                  fext=_pad(system.fext[:nb], p), dcap=_pad(system.max_overlap(), p), u=_pad(system.u0[:nb], p + 1), v=_pad(system.v0[:nb], p + 1),
                   n_slots=p, wall_slot=system.n_beads)

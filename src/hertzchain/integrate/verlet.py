@@ -13,11 +13,22 @@ from ..model import System
 from . import kernels
 from .layout import Packed, pack
 
-__all__ = ["auto_time_step", "check_time_step", "run_verlet", "RawRun", "STEPS_PER_RADIAN"]
+__all__ = ["auto_time_step", "check_time_step", "run_verlet", "RawRun", "StepPlan", "step_plan",
+           "STEPS_PER_RADIAN", "ADAPTIVE_STEPS_PER_RADIAN"]
 
-#: Automatic step: dt = 1 / (STEPS_PER_RADIAN * omega_max). Calibrated so that the peak wall force
-#: of the paper's chains is within 1e-6 of a DOP853 rtol=1e-12 reference (tests/test_accuracy.py).
+#: Fixed automatic step (:func:`auto_time_step`): dt = 1 / (STEPS_PER_RADIAN * omega_max), with
+#: omega_max the whole run's bound (System.max_frequency).
 STEPS_PER_RADIAN = 300.0
+#: Adaptive step (the default): omega dt <= 1 / ADAPTIVE_STEPS_PER_RADIAN with omega bounded from
+#: the present overlaps (kernels.required_stride). Calibrated so that the peak wall force of the
+#: paper's chains is within 1e-6 of a DOP853 rtol=1e-12 reference and the energy error stays
+#: below 1e-6 (tests/test_accuracy.py, tests/test_conservation.py).
+ADAPTIVE_STEPS_PER_RADIAN = 400.0
+#: The adaptive step is re-evaluated at least every HORIZON_RADIANS / omega_max seconds (a
+#: twentieth of the shortest contact, roughly), looking that far ahead.
+HORIZON_RADIANS = 0.4
+#: An adaptive step grows only after this many evaluations in a row allowed it.
+RELAX_EVALUATIONS = 5
 #: A user time step with omega_max dt above this is refused (Verlet is unstable at 2; the error
 #: on forces is already ~1 % well before).
 MAX_OMEGA_DT = 0.5
@@ -36,10 +47,12 @@ class RawRun:
     max_force: np.ndarray       # (n_contacts,) N, every contact's maximum over the samples
     peak_wall_force: float      # N, refined between steps
     peak_wall_time: float       # s
-    dt: float                   # s, the step actually used (0 for adaptive)
+    dt: float                   # s, the (smallest) step used; 0 for solve_ivp
     integrator: str
     n_steps: int                # steps (Verlet) or right-hand-side evaluations (solve_ivp)
     contacts: np.ndarray        # contact numbers of the columns of contact_force
+    dt_max: float = 0.0         # s, the largest step used (= dt for a fixed step)
+    adaptive: bool = False      # True when the step was chosen as the run went
 
 
 def auto_time_step(system: System, sample_interval: float | None = None) -> float:
@@ -66,12 +79,54 @@ def _stride(sample_interval: float, dt: float) -> tuple[int, float]:
     return stride, sample_interval / stride
 
 
+@dataclass(frozen=True)
+class StepPlan:
+    """How the kernel steps through sample intervals (see ``kernels.verlet_run``).
+
+    ``stride`` > 0: fixed step dt = interval / stride. ``stride`` == 0: adaptive; each interval is
+    cut into ``n_sub`` blocks and the number of steps per block is re-evaluated every ``n_eval``
+    blocks.
+    """
+
+    stride: int
+    dt: float          # s: the fixed step, or the smallest possible adaptive step
+    n_sub: int = 1
+    n_eval: int = 1
+    c_steps: float = 0.0    # adaptive: steps per radian of the bound omega (ADAPTIVE_STEPS_PER_RADIAN)
+    relax: int = 0          # adaptive: evaluations in a row before the step may grow (RELAX_EVALUATIONS)
+
+    @property
+    def adaptive(self) -> bool:
+        return self.stride == 0
+
+
+def step_plan(system: System, sample_interval: float, dt: float | None) -> StepPlan:
+    """Fixed step ``dt`` [s] (checked, shortened to divide the sample interval) or, when None, the
+    adaptive step: blocks short enough (<= HORIZON_RADIANS / omega_max) for the look-ahead of
+    ``kernels.required_stride`` to hold."""
+    if dt is not None:
+        check_time_step(system, dt)
+        stride, dt = _stride(sample_interval, dt)
+        return StepPlan(stride=stride, dt=dt)
+    w = system.max_frequency()
+    if w <= 0.0:  # nothing moves: any step is exact
+        return StepPlan(stride=1, dt=sample_interval)
+    bmax = HORIZON_RADIANS / w
+    if sample_interval <= bmax:
+        n_sub, n_eval = 1, max(1, math.floor(bmax / sample_interval))
+    else:
+        n_sub, n_eval = math.ceil(sample_interval / bmax - 1e-9), 1
+    block = sample_interval / n_sub
+    return StepPlan(stride=0, dt=block / math.ceil(block * ADAPTIVE_STEPS_PER_RADIAN * w - 1e-9),
+                    n_sub=n_sub, n_eval=n_eval, c_steps=ADAPTIVE_STEPS_PER_RADIAN, relax=RELAX_EVALUATIONS)
+
+
 def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_v: bool,
                fmax, peak, acc) -> None:
     """State at t = 0 (forces, accelerations) and sample 0 of every probe, written in place.
 
     Shared by :func:`run_verlet` and the batched engine, which passes per-member views, so
-    both start from exactly the same numbers. ``peak`` (>= 6 slots) and ``acc`` (>= 3) are the
+    both start from exactly the same numbers. ``peak`` and ``acc`` (8 slots each) are the
     kernel's wall-peak tracker and accumulators (see ``kernels.verlet_run``).
     """
     power0 = 0.0
@@ -88,20 +143,23 @@ def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe
         out_v[0] = v[: out_v.shape[1]]
     fmax[:] = g[1 : fmax.size + 1]
     fw0 = g[w.wall_slot + 1]
-    peak[:6] = (fw0, 0.0, 0.0, 0.0, 0.0, fw0)
-    acc[:3] = (0.0, power0, 0.0)  # dissipated power at t = 0: first point of the trapezoidal integral
+    peak[:8] = (fw0, 0.0, 0.0, 0.0, 0.0, fw0, 0.0, 0.0)
+    # dissipated power at t = 0 (first point of the trapezoidal integral); no adaptive step chosen yet
+    acc[:8] = (0.0, power0, 0.0, 0.0, 0.0, 0.0, 0.0, np.inf)
 
 
-def refine_peak(peak: np.ndarray, dt: float) -> tuple[float, float]:
-    """Peak wall force [N] and its time [s] from the kernel's tracker: the parabola through the
-    force at the steps around the maximum (the peak falls between steps)."""
-    fpk, step_pk, fb, fa = peak[0], peak[1], peak[2], peak[3]
-    t_pk = step_pk * dt
-    denom = fb - 2.0 * fpk + fa
-    if step_pk > 0 and peak[4] == 0.0 and denom < 0.0:
-        s = 0.5 * (fb - fa) / denom
-        fpk = fpk - 0.25 * (fb - fa) * s
-        t_pk += s * dt
+def refine_peak(peak: np.ndarray) -> tuple[float, float]:
+    """Peak wall force [N] and its time [s] from the kernel's tracker: the vertex of the parabola
+    through the force at the steps around the maximum (the peak falls between steps; the two
+    steps may differ when the adaptive step changed there)."""
+    fpk, t_pk, fb, fa, h0, h1 = peak[0], peak[1], peak[2], peak[3], peak[6], peak[7]
+    if t_pk > 0 and peak[4] == 0.0 and h0 > 0 and h1 > 0:
+        s01 = (fpk - fb) / h0
+        s12 = (fa - fpk) / h1
+        c = (s12 - s01) / (h0 + h1)
+        if c < 0.0:
+            b = s12 - c * h1  # slope at the maximum step: p(t) = fpk + b (t - t_pk) + c (t - t_pk)^2
+            return float(fpk - 0.25 * b * b / c), float(t_pk - 0.5 * b / c)
     return float(fpk), float(t_pk)
 
 
@@ -110,16 +168,12 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
                progress: Callable[[int, int], None] | None = None, chunk_steps: int = 2_000_000) -> RawRun:
     """Integrate ``system`` for ``duration`` [s] with the compiled velocity Verlet.
 
-    Probes are sampled every ``sample_interval`` [s]; the step is ``dt`` [s] (automatic when
-    None), shortened if needed so that it divides the sample interval. ``contacts`` lists the
+    Probes are sampled every ``sample_interval`` [s]; the step is ``dt`` [s], shortened if needed
+    so that it divides the sample interval, or adaptive when None (see :func:`step_plan`). ``contacts`` lists the
     contact numbers whose forces are recorded (all when None). ``progress(done, total)``
     is called between chunks of about ``chunk_steps`` steps.
     """
-    if dt is None:
-        dt = auto_time_step(system)
-    else:
-        check_time_step(system, dt)
-    stride, dt = _stride(sample_interval, dt)
+    plan = step_plan(system, sample_interval, dt)
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
     nc = system.n_contacts
     nb = system.n_beads + 1
@@ -134,28 +188,39 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     out_ed = np.empty(n_samples)
     out_v = np.empty((n_samples if record_velocities else 1, nb))
     fmax = np.empty(nc)
-    peak = np.empty(6)
-    acc = np.zeros(3)
+    peak = np.empty(8)
+    acc = np.zeros(8)
     initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc)
 
-    samples_per_chunk = max(1, chunk_steps // stride)
+    samples_per_chunk = max(1, round(chunk_steps * plan.dt / sample_interval))
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_chunk)
         status = kernels.verlet_run(u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
-                                    w.rsum, w.fext, system.law, system.general, w.wall_slot, dt, stride, k,
-                                    k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc)
+                                    w.rsum, w.fext, w.dcap, system.law, system.general, w.wall_slot,
+                                    sample_interval, plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax,
+                                    k, k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax,
+                                    peak, acc)
         if status != 0:
             raise SimulationDiverged(
                 f"the integration diverged (non-finite state) before t = {k_stop * sample_interval:.4g} s "
-                f"with dt = {dt:.3g} s; use a smaller run.dt (or the automatic one) or check the inputs")
+                f"with dt = {_dt_used(plan, acc, sample_interval)[0]:.3g} s; use a smaller run.dt (or the automatic one) or check the inputs")
         k = k_stop
         if progress is not None:
             progress(k - 1, n_samples - 1)
 
-    fpk, t_pk = refine_peak(peak, dt)
+    fpk, t_pk = refine_peak(peak)
+    dt_min, dt_max = _dt_used(plan, acc, sample_interval)
     time = np.arange(n_samples) * sample_interval
     return RawRun(time=time, contact_force=out_f, kinetic_energy=out_ke, potential_energy=out_pe,
                   dissipated_energy=out_ed, velocity=out_v if record_velocities else None, max_force=fmax,
-                  peak_wall_force=fpk, peak_wall_time=t_pk, dt=dt, integrator="verlet",
-                  n_steps=int(acc[2]), contacts=rec)
+                  peak_wall_force=fpk, peak_wall_time=t_pk, dt=dt_min, integrator="verlet",
+                  n_steps=int(acc[2]), contacts=rec, dt_max=dt_max, adaptive=plan.adaptive)
+
+
+def _dt_used(plan: StepPlan, acc: np.ndarray, sample_interval: float) -> tuple[float, float]:
+    """Smallest and largest step [s] a run used (from the kernel's accumulators)."""
+    if not plan.adaptive or acc[6] == 0:
+        return plan.dt, plan.dt
+    block = sample_interval / plan.n_sub
+    return block / acc[6], block / acc[7]
