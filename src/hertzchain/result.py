@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,18 +21,57 @@ from .integrate.verlet import RawRun
 from .model import Model
 from .probes import Probes, sensor_forces
 
-__all__ = ["build_dataset", "save", "load"]
+__all__ = ["build_dataset", "run_fields", "RunFields", "save", "load"]
 
 ENGINE = "h5netcdf"
 
 
-def _var(dims, data, units: str, long_name: str) -> xr.Variable:
-    return xr.Variable(dims, data, attrs={"units": units, "long_name": long_name})
+#: Units and long name of every variable a run may hold (shared by :func:`build_dataset` and the
+#: batched engine's stacked results, which take them from :func:`run_fields`).
+VARIABLES: dict[str, tuple[str, str]] = {
+    "contact_force": ("N", "contact force F_j between body j and body j+1 (paper eq. 1)"),
+    "kinetic_energy": ("J", "kinetic energy of striker and beads"),
+    "potential_energy": ("J", "Hertz potential energy sum (2/5) kappa delta^(5/2) (minus external work)"),
+    "dissipated_energy": ("J", "energy dissipated by the contact law"),
+    "diameter": ("m", "bead diameter phi_n"),
+    "mass": ("kg", "bead mass rho pi phi^3 / 6"),
+    "offset": ("m", "perpendicular offset e_n of the bead centre"),
+    "kappa": ("N m-1.5", "Hertz constant kappa_j of the contact"),
+    "yield_force": ("N", "elastic limit F_Y of the contact (mean pressure = sigma_Y, paper Sec. II)"),
+    "max_contact_force": ("N", "largest sampled force of every contact, stored or not"),
+    "wall_force": ("N", "force on the wall sensor (contact N)"),
+    "sensor_force": ("N", "force read by the sensor embedded in the bead, (F_{n-1} + F_n)/2"),
+    "velocity": ("m s-1", "velocity of body (0 = striker)"),
+}
+
+#: Attributes of every coordinate a run may hold.
+COORDINATES: dict[str, dict[str, str]] = {
+    "time": {"units": "s", "long_name": "time since impact"},
+    "contact": {"long_name": "contact j joins body j and body j+1 (0 = striker-bead 1)"},
+    "contact_all": {"long_name": "every contact of the chain (elastic-limit check)"},
+    "bead": {"long_name": "bead number from the impact end"},
+    "sensor": {"long_name": "bead holding the embedded sensor"},
+    "body": {"long_name": "body number (0 = striker)"},
+}
 
 
-def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float, config: dict | None = None,
-                  extra_attrs: dict | None = None, system=None) -> xr.Dataset:
-    """Assemble the result of one run (see the module docstring for the layout).
+@dataclass
+class RunFields:
+    """Everything :func:`build_dataset` puts in a Dataset, as plain NumPy (no xarray objects).
+
+    ``data`` maps each variable, in Dataset order, to ``(dims, array, attrs)``; ``coords`` maps
+    each coordinate to ``(dim, values, attrs)``; ``attrs`` are the Dataset attributes. The
+    batched engine stacks many of these into one Dataset without building one per member.
+    """
+
+    data: dict[str, tuple[tuple[str, ...], np.ndarray, dict]]
+    coords: dict[str, tuple[str, np.ndarray, dict]]
+    attrs: dict
+
+
+def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, config: dict | None = None,
+               extra_attrs: dict | None = None, system=None) -> RunFields:
+    """Variables, coordinates and attributes of one run (see the module docstring for the layout).
 
     ``system`` is ``model.system()`` when the caller already has it (it is not free for long chains).
     """
@@ -44,43 +84,39 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
         forces = raw.contact_force  # every recorded contact is wanted: no copy (it can be 100s of MB)
     else:
         forces = raw.contact_force[:, np.searchsorted(raw.contacts, wanted)]
-    data = {
-        "contact_force": _var(("time", "contact"), forces, "N",
-                              "contact force F_j between body j and body j+1 (paper eq. 1)"),
-        "kinetic_energy": _var(("time",), raw.kinetic_energy, "J", "kinetic energy of striker and beads"),
-        "potential_energy": _var(("time",), raw.potential_energy, "J",
-                                 "Hertz potential energy sum (2/5) kappa delta^(5/2) (minus external work)"),
-        "dissipated_energy": _var(("time",), raw.dissipated_energy, "J", "energy dissipated by the contact law"),
-        "diameter": _var(("bead",), chain.diameters.copy(), "m", "bead diameter phi_n"),
-        "mass": _var(("bead",), chain.masses, "kg", "bead mass rho pi phi^3 / 6"),
-        "offset": _var(("bead",), chain.offsets.copy(), "m", "perpendicular offset e_n of the bead centre"),
-        "kappa": _var(("contact_all",), system.kappa[:nc], "N m-1.5", "Hertz constant kappa_j of the contact"),
-        "yield_force": _var(("contact_all",), system.yield_force[:nc], "N",
-                            "elastic limit F_Y of the contact (mean pressure = sigma_Y, paper Sec. II)"),
-        "max_contact_force": _var(("contact_all",), raw.max_force, "N",
-                                  "largest sampled force of every contact, stored or not"),
+    arrays = {
+        "contact_force": (("time", "contact"), forces),
+        "kinetic_energy": (("time",), raw.kinetic_energy),
+        "potential_energy": (("time",), raw.potential_energy),
+        "dissipated_energy": (("time",), raw.dissipated_energy),
+        "diameter": (("bead",), chain.diameters.copy()),
+        "mass": (("bead",), chain.masses),
+        "offset": (("bead",), chain.offsets.copy()),
+        "kappa": (("contact_all",), system.kappa[:nc]),
+        "yield_force": (("contact_all",), system.yield_force[:nc]),
+        "max_contact_force": (("contact_all",), raw.max_force),
     }
     if model.wall.present:
-        data["wall_force"] = _var(("time",), raw.contact_force[:, np.searchsorted(raw.contacts, n)], "N",
-                                  "force on the wall sensor (contact N)")
+        arrays["wall_force"] = (("time",), raw.contact_force[:, np.searchsorted(raw.contacts, n)])
     if probes.sensors:
-        data["sensor_force"] = _var(("time", "sensor"), sensor_forces(raw.contact_force, raw.contacts, probes.sensors),
-                                    "N", "force read by the sensor embedded in the bead, (F_{n-1} + F_n)/2")
+        arrays["sensor_force"] = (("time", "sensor"), sensor_forces(raw.contact_force, raw.contacts, probes.sensors))
     if raw.velocity is not None:
-        data["velocity"] = _var(("time", "body"), raw.velocity, "m s-1", "velocity of body (0 = striker)")
-    coords = {
-        "time": ("time", raw.time, {"units": "s", "long_name": "time since impact"}),
-        "contact": ("contact", wanted, {"long_name": "contact j joins body j and body j+1 (0 = striker-bead 1)"}),
-        "contact_all": ("contact_all", np.arange(nc), {"long_name": "every contact of the chain (elastic-limit check)"}),
-        "bead": ("bead", np.arange(1, n + 1), {"long_name": "bead number from the impact end"}),
-    }
+        arrays["velocity"] = (("time", "body"), raw.velocity)
+    data = {}
+    for name, (dims, values) in arrays.items():
+        units, long_name = VARIABLES[name]
+        data[name] = (dims, values, {"units": units, "long_name": long_name})
+
+    coord_values = {"time": raw.time, "contact": wanted, "contact_all": np.arange(nc), "bead": np.arange(1, n + 1)}
     if probes.sensors:
-        coords["sensor"] = ("sensor", np.array(probes.sensors), {"long_name": "bead holding the embedded sensor"})
+        coord_values["sensor"] = np.array(probes.sensors)
     if raw.velocity is not None:
-        coords["body"] = ("body", np.arange(n + 1), {"long_name": "body number (0 = striker)"})
+        coord_values["body"] = np.arange(n + 1)
+    coords = {name: (name, values, dict(COORDINATES[name])) for name, values in coord_values.items()}
 
     ratio = raw.max_force / system.yield_force[:nc]
     over = np.flatnonzero(ratio > 1.0).tolist()
+    described = model.describe()
     attrs = {
         "title": "hertzchain simulation",
         "hertzchain_version": __version__,
@@ -91,8 +127,8 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
         "n_steps": raw.n_steps,
         "duration": duration,
         "sample_interval": probes.sample_interval,
-        "model": json.dumps(model.describe()),
-        "config": json.dumps(config if config is not None else {"model": model.describe()}),
+        "model": json.dumps(described),
+        "config": json.dumps(config if config is not None else {"model": described}),
         "peak_wall_force": raw.peak_wall_force,
         "peak_wall_time": raw.peak_wall_time,
         "elastic_limit_exceeded": int(bool(over)),
@@ -102,7 +138,19 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
         "conventions": "SI units; numbering of DESIGN.md section 2 (beads 1..N from the impact end)",
     }
     attrs.update(extra_attrs or {})
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    return RunFields(data, coords, attrs)
+
+
+def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float, config: dict | None = None,
+                  extra_attrs: dict | None = None, system=None) -> xr.Dataset:
+    """Assemble the result of one run (see the module docstring for the layout; the content is
+    :func:`run_fields`).
+
+    ``system`` is ``model.system()`` when the caller already has it (it is not free for long chains).
+    """
+    f = run_fields(raw, model, probes, duration=duration, config=config, extra_attrs=extra_attrs, system=system)
+    data = {name: xr.Variable(dims, values, attrs=attrs) for name, (dims, values, attrs) in f.data.items()}
+    return xr.Dataset(data, coords=f.coords, attrs=f.attrs)
 
 
 def save(ds: xr.Dataset, path: str | Path, compress: bool = True, single_precision: bool = False) -> Path:

@@ -15,7 +15,9 @@ numerical is re-implemented here:
 
 Public entry points: :func:`simulate_many` (a list of single-run Datasets, identical to
 :func:`~hertzchain.simulation.simulate`'s) and :func:`simulate_batch` (one Dataset stacked along a
-``member`` dimension).
+``member`` dimension, identical to :func:`stack_results` of :func:`simulate_many`'s but built
+straight from the engine's arrays: no Dataset per member, and the output buffers that already
+have the stacked layout, such as the (member, time) energies, are used without a copy).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import math
 import threading
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Callable, Sequence
 
 import numba
@@ -171,6 +174,15 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     :func:`hertzchain.integrate.verlet.run_verlet` returns for each member alone.
     """
     plist, dts = _check_inputs(models, duration, probes, dt)
+    return _run(models, duration, plist, dts, progress, n_threads)[0]
+
+
+def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads
+         ) -> tuple[list[RawRun], list, dict[str, np.ndarray]]:
+    """:func:`run_batch` on checked inputs. Also returns every member's ``Model.system()`` and the
+    output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
+    energies always, ``recorded_force`` (member, time, recorded contact) when every member
+    records the same contacts, ``velocity`` when every member records velocities of as many bodies."""
     if n_threads is not None and not (isinstance(n_threads, (int, np.integer))
                                       and 1 <= n_threads <= numba.config.NUMBA_NUM_THREADS):
         raise ConfigError("n_threads", f"must be an integer in 1..{numba.config.NUMBA_NUM_THREADS}, got {n_threads!r}")
@@ -287,7 +299,14 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
                            max_force=fmax[fmax_off[m]:fmax_off[m + 1]], peak_wall_force=fpk, peak_wall_time=t_pk,
                            dt=dt_min, integrator="verlet", n_steps=int(acc[m, 2]), contacts=mb.rec, dt_max=dt_max,
                            adaptive=mb.plan.adaptive))
-    return runs
+    # The output buffers seen as (member, time, ...) where every member has the same layout: row m
+    # is exactly what RawRun m holds (its arrays are views of these rows).
+    stacked = {"kinetic_energy": out_ke, "potential_energy": out_pe, "dissipated_energy": out_ed}
+    if all(np.array_equal(mb.rec, members[0].rec) for mb in members):
+        stacked["recorded_force"] = out_f.reshape(nmem, n_samples, nrec[0])
+    if record_v.all() and np.all(nb == nb[0]):
+        stacked["velocity"] = out_v.reshape(nmem, n_samples, nb[0])
+    return runs, [mb.system for mb in members], stacked
 
 
 def simulate_many(models: Sequence[Model], duration: float, probes: Probes | Sequence[Probes] | None = None, *,
@@ -324,12 +343,12 @@ def simulate_many(models: Sequence[Model], duration: float, probes: Probes | Seq
     """
     from ..result import build_dataset
 
-    plist, _ = _check_inputs(models, duration, probes, dt)
+    plist, dts = _check_inputs(models, duration, probes, dt)
     cfgs = _as_list(configs, len(models), "configs") if configs is not None else [None] * len(models)
-    runs = run_batch(models, duration, plist, dt=dt, progress=progress, n_threads=n_threads)
+    runs, systems, _ = _run(models, duration, plist, dts, progress, n_threads)
     out = []
-    for i, (raw, model, p, cfg) in enumerate(zip(runs, models, plist, cfgs)):
-        ds = build_dataset(raw, model, p, duration=duration, config=cfg)
+    for i, (raw, model, p, cfg, system) in enumerate(zip(runs, models, plist, cfgs, systems)):
+        ds = build_dataset(raw, model, p, duration=duration, config=cfg, system=system)
         warn_elastic_limit(ds, f"member {i}: " if len(models) > 1 else "")
         out.append(ds)
     return out
@@ -345,72 +364,143 @@ _MEMBER_ATTRS = {
 }
 
 
-def stack_results(datasets: Sequence[xr.Dataset], member: Sequence[int] | None = None) -> xr.Dataset:
-    """Stack single-run Datasets (same time axis) along a new ``member`` dimension.
+@dataclass
+class _Part:
+    """One member as the stacker needs it, in plain NumPy (from a Dataset or from ``run_fields``).
 
-    Dimensions other than ``time`` (``contact``, ``bead``, ``sensor``, ``body``) become the sorted
-    union of the members' coordinates; values a member lacks (a shorter chain, no wall) are NaN.
-    ``n_beads``, ``n_contacts`` (real contacts: N + 1 with a wall, N without) and ``has_wall``
-    say what is real. Per-member attributes (``dt``, ``n_steps``, ``peak_wall_force``,
-    ``peak_wall_time``, ``elastic_limit_exceeded``, ``model``, ``config``) become variables along
-    ``member``; the shared ones (duration, sample interval, version...) stay attributes.
+    ``data``: data variables in Dataset order, ``(dims, values, attrs)``; ``dims``: every
+    dimension but ``time`` in the Dataset's dimension order, ``(coordinate values, attrs)``;
+    ``attrs``: the Dataset attributes.
     """
-    if not datasets:
-        raise ConfigError("datasets", "nothing to stack")
-    nmem = len(datasets)
-    time = datasets[0]["time"]
-    for i, ds in enumerate(datasets):
-        if ds.sizes["time"] != time.size or not np.array_equal(ds["time"].values, time.values):
-            raise ConfigError(f"datasets[{i}]", "all members must share one time axis (duration and sample interval)")
-    dims: dict[str, np.ndarray] = {}
-    coord_attrs: dict[str, dict] = {}
-    for ds in datasets:
-        for d in ds.dims:
-            if d == "time":
-                continue
-            vals = ds[d].values
-            dims[d] = np.union1d(dims[d], vals) if d in dims else np.unique(vals)
-            coord_attrs.setdefault(d, dict(ds[d].attrs))
-    var_names: list[str] = []
-    for ds in datasets:
-        var_names += [k for k in ds.data_vars if k not in var_names]
 
+    data: dict[str, tuple[tuple[str, ...], np.ndarray, dict]]
+    dims: dict[str, tuple[np.ndarray, dict]]
+    attrs: dict
+
+
+def _part_of_dataset(ds: xr.Dataset) -> _Part:
+    """The :class:`_Part` of a single-run Dataset (a dimension without coordinate counts 0, 1, ...)."""
     data = {}
-    for name in var_names:
-        first = next(ds[name] for ds in datasets if name in ds)
-        shape = (nmem,) + tuple(time.size if d == "time" else dims[d].size for d in first.dims)
-        out = np.full(shape, np.nan)
-        for i, ds in enumerate(datasets):
-            if name not in ds:
-                continue
-            idx = tuple(np.arange(time.size) if d == "time" else np.searchsorted(dims[d], ds[d].values)
-                        for d in first.dims)
-            out[i][np.ix_(*idx)] = ds[name].values
-        data[name] = xr.Variable(("member",) + first.dims, out, attrs=dict(first.attrs))
+    for name in ds.data_vars:
+        var = ds.variables[name]
+        data[name] = (var.dims, var.values, var.attrs)
+    dims = {}
+    for d in ds.dims:
+        if d != "time":
+            var = ds.variables.get(d)
+            dims[d] = (var.values, var.attrs) if var is not None else (np.arange(ds.sizes[d]), {})
+    return _Part(data, dims, ds.attrs)
 
-    has_wall = np.array(["wall_force" in ds for ds in datasets])
+
+def _part_of_fields(f) -> _Part:
+    """The :class:`_Part` of a :class:`hertzchain.result.RunFields`, dimensions in the order the
+    Dataset of :func:`hertzchain.result.build_dataset` has them (first use by a data variable,
+    then by a coordinate)."""
+    dims = {}
+    for dim_names in [v[0] for v in f.data.values()] + [(c[0],) for c in f.coords.values()]:
+        for d in dim_names:
+            if d != "time" and d not in dims:
+                dims[d] = (f.coords[d][1], f.coords[d][2])
+    return _Part(f.data, dims, f.attrs)
+
+
+def _positions(union: np.ndarray, values: np.ndarray):
+    """Where ``values`` sit in the sorted ``union``: a slice when they are one increasing run
+    (cheap basic indexing), else the index array."""
+    pos = np.searchsorted(union, values)
+    if pos.size <= 1 or bool(np.all(np.diff(pos) == 1)):
+        start = int(pos[0]) if pos.size else 0
+        return slice(start, start + pos.size)
+    return pos
+
+
+def _stack(parts: Sequence[_Part], time, n_time: int, member, ready: dict[str, np.ndarray] | None = None
+           ) -> xr.Dataset:
+    """The stacked Dataset of :func:`stack_results` (see there) from members in plain NumPy.
+
+    ``time`` is the shared time coordinate (a Variable or a ``(dim, values, attrs)`` tuple) of
+    ``n_time`` samples. Members with equal coordinate arrays share the index work, so a batch
+    of similar members costs one slice assignment per member and variable. ``ready`` may hold
+    variables already in the stacked layout, row i being member i's array (the engine's output
+    buffers): one is used as it is, not copied, when every member has the variable with exactly
+    the stacked coordinates (so there is nothing to pad); otherwise it is ignored.
+    """
+    ready = ready or {}
+    nmem = len(parts)
+    # Union of every dimension's coordinates; identical arrays (the usual case) are merged once.
+    distinct: dict[str, dict[tuple, np.ndarray]] = {}
+    coord_attrs: dict[str, dict] = {}
+    keys = []
+    for p in parts:
+        pk = {}
+        for d, (vals, attrs) in p.dims.items():
+            key = (vals.dtype.str, vals.shape, vals.tobytes())
+            pk[d] = key
+            distinct.setdefault(d, {}).setdefault(key, vals)
+            coord_attrs.setdefault(d, dict(attrs))
+        keys.append(pk)
+    dims = {d: np.unique(np.concatenate([v.ravel() for v in arrays.values()]))
+            for d, arrays in distinct.items()}
+    where = {d: {key: _positions(dims[d], vals) for key, vals in arrays.items()} for d, arrays in distinct.items()}
+
+    var_names: list[str] = []
+    for p in parts:
+        var_names += [k for k in p.data if k not in var_names]
+    data = {}
+    indexers: dict[tuple, tuple] = {}
+
+    def indexer(i: int, var_dims: tuple[str, ...]) -> tuple:
+        """Where member i's array of a variable with ``var_dims`` goes in the stacked one (minus member)."""
+        ck = (var_dims,) + tuple(keys[i][d] for d in var_dims if d != "time")
+        idx = indexers.get(ck)
+        if idx is None:
+            idx = tuple(slice(None) if d == "time" else where[d][keys[i][d]] for d in var_dims)
+            if not all(isinstance(x, slice) for x in idx):
+                idx = np.ix_(*(np.arange(n_time) if d == "time" else
+                               (np.arange(dims[d].size)[x] if isinstance(x, slice) else x)
+                               for d, x in zip(var_dims, idx)))
+            indexers[ck] = idx
+        return idx
+
+    for name in var_names:
+        first_dims, _, first_attrs = next(p.data[name] for p in parts if name in p.data)
+        shape = (nmem,) + tuple(n_time if d == "time" else dims[d].size for d in first_dims)
+        idxs = [indexer(i, first_dims) if name in p.data else None for i, p in enumerate(parts)]
+        full = tuple(slice(None) if d == "time" else slice(0, dims[d].size) for d in first_dims)
+        if (name in ready and ready[name].shape == shape
+                and all(idx is not None and all(isinstance(x, slice) and x == f for x, f in zip(idx, full))
+                        for idx in idxs)):
+            out = ready[name]  # every member fills its whole row: nothing to pad, nothing to copy
+        else:
+            out = np.full(shape, np.nan)
+            for i, (p, idx) in enumerate(zip(parts, idxs)):
+                if idx is not None:
+                    out[i][idx] = p.data[name][1]
+        data[name] = xr.Variable(("member",) + tuple(first_dims), out, attrs=dict(first_attrs))
+
+    has_wall = np.array(["wall_force" in p.data for p in parts])
     for key, (units, long_name) in _MEMBER_ATTRS.items():
-        vals = np.array([ds.attrs[key] for ds in datasets], dtype=float)
+        vals = np.array([p.attrs[key] for p in parts], dtype=float)
         if key.startswith("peak_wall"):
             vals = np.where(has_wall, vals, np.nan)  # the kernel tracks a kappa = 0 contact: 0 N, not a peak
         data[key] = xr.Variable(("member",), vals, attrs={"units": units, "long_name": long_name})
-    data["n_beads"] = xr.Variable(("member",), np.array([ds.sizes["bead"] for ds in datasets], dtype=np.int64),
-                                  attrs={"units": "1", "long_name": "number of beads N"})
+    n_beads = np.array([p.dims["bead"][0].size for p in parts], dtype=np.int64)
+    data["n_beads"] = xr.Variable(("member",), n_beads, attrs={"units": "1", "long_name": "number of beads N"})
     data["n_contacts"] = xr.Variable(
-        ("member",), np.array([ds.sizes["bead"] + int(w) for ds, w in zip(datasets, has_wall)], dtype=np.int64),
+        ("member",), n_beads + has_wall.astype(np.int64),
         attrs={"units": "1", "long_name": "number of real contacts (N + 1 with a wall, N without)"})
     data["has_wall"] = xr.Variable(("member",), has_wall.astype(np.int8),
                                    attrs={"units": "1", "long_name": "1 when the chain ends on a wall"})
     for key, long_name in (("model", "model description (JSON)"), ("config", "input of the member (JSON)")):
-        data[key] = xr.Variable(("member",), np.array([ds.attrs[key] for ds in datasets], dtype=object),
+        data[key] = xr.Variable(("member",), np.array([p.attrs[key] for p in parts], dtype=object),
                                 attrs={"long_name": long_name})
 
     coords = {"member": ("member", np.arange(nmem) if member is None else np.asarray(member, dtype=np.int64),
                          {"long_name": "member of the batch"}),
-              "time": time.variable}
+              "time": time}
     for d, vals in dims.items():
         coords[d] = (d, vals, coord_attrs[d])
-    a0 = datasets[0].attrs
+    a0 = parts[0].attrs
     attrs = {
         "title": "hertzchain batch simulation",
         "hertzchain_version": a0["hertzchain_version"],
@@ -425,6 +515,26 @@ def stack_results(datasets: Sequence[xr.Dataset], member: Sequence[int] | None =
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
+def stack_results(datasets: Sequence[xr.Dataset], member: Sequence[int] | None = None) -> xr.Dataset:
+    """Stack single-run Datasets (same time axis) along a new ``member`` dimension.
+
+    Dimensions other than ``time`` (``contact``, ``bead``, ``sensor``, ``body``) become the sorted
+    union of the members' coordinates; values a member lacks (a shorter chain, no wall) are NaN.
+    ``n_beads``, ``n_contacts`` (real contacts: N + 1 with a wall, N without) and ``has_wall``
+    say what is real. Per-member attributes (``dt``, ``n_steps``, ``peak_wall_force``,
+    ``peak_wall_time``, ``elastic_limit_exceeded``, ``model``, ``config``) become variables along
+    ``member``; the shared ones (duration, sample interval, version...) stay attributes.
+    :func:`simulate_batch` builds the same Dataset straight from the engine's arrays.
+    """
+    if not datasets:
+        raise ConfigError("datasets", "nothing to stack")
+    time = datasets[0]["time"]
+    for i, ds in enumerate(datasets):
+        if ds.sizes["time"] != time.size or not np.array_equal(ds["time"].values, time.values):
+            raise ConfigError(f"datasets[{i}]", "all members must share one time axis (duration and sample interval)")
+    return _stack([_part_of_dataset(ds) for ds in datasets], time.variable, time.size, member)
+
+
 def simulate_batch(models: Sequence[Model], duration: float, probes: Probes | Sequence[Probes] | None = None, *,
                    dt: float | Sequence[float | None] | None = None, progress: Callable[[int, int], None] | None = None,
                    n_threads: int | None = None, configs: Sequence[dict | None] | None = None) -> xr.Dataset:
@@ -435,7 +545,10 @@ def simulate_batch(models: Sequence[Model], duration: float, probes: Probes | Se
     ``member`` dimension; ``contact`` / ``bead`` / ``sensor`` / ``body`` are the union over the
     members, NaN where a member has no such item (see :func:`stack_results`, which also lists the
     per-member variables ``dt``, ``n_steps``, ``peak_wall_force``, ``peak_wall_time``,
-    ``n_beads``, ``n_contacts``, ``has_wall``, ``model``, ``config``).
+    ``n_beads``, ``n_contacts``, ``has_wall``, ``model``, ``config``). The Dataset is the one
+    ``stack_results(simulate_many(...))`` gives (but for ``created_utc``), built without a
+    Dataset per member; where the members share a layout, variables are views of the engine's
+    output buffers (``contact_force`` and ``wall_force`` may then share one buffer).
 
     Parameters
     ----------
@@ -459,5 +572,42 @@ def simulate_batch(models: Sequence[Model], duration: float, probes: Probes | Se
     ElasticLimitWarning
         Once per member whose contact forces pass the elastic limit.
     """
-    return stack_results(simulate_many(models, duration, probes, dt=dt, progress=progress, n_threads=n_threads,
-                                       configs=configs))
+    from ..result import run_fields
+
+    # What stack_results(simulate_many(...)) gives, without one Dataset per member: every member's
+    # run_fields (the arrays and attributes build_dataset would wrap) go straight into the stack.
+    plist, dts = _check_inputs(models, duration, probes, dt)
+    cfgs = _as_list(configs, len(models), "configs") if configs is not None else [None] * len(models)
+    runs, systems, stacked = _run(models, duration, plist, dts, progress, n_threads)
+    parts, time = [], None
+    for i, (raw, model, p, cfg, system) in enumerate(zip(runs, models, plist, cfgs, systems)):
+        fields = run_fields(raw, model, p, duration=duration, config=cfg, system=system)
+        if time is None:
+            time = fields.coords["time"]  # every member has this time axis (shared duration and interval)
+        part = _part_of_fields(fields)
+        if part.attrs["elastic_limit_exceeded"]:
+            # What warn_elastic_limit reads of a member's Dataset (building one per member costs ~0.2 ms).
+            warn_elastic_limit(SimpleNamespace(attrs=part.attrs, max_contact_force=part.data["max_contact_force"][1],
+                                               yield_force=part.data["yield_force"][1]),
+                               f"member {i}: " if len(models) > 1 else "")
+        parts.append(part)
+    return _stack(parts, time, runs[0].time.size, None, ready=_ready(stacked, runs[0], models[0], parts[0]))
+
+
+def _ready(stacked: dict[str, np.ndarray], raw: RawRun, model: Model, part: _Part) -> dict[str, np.ndarray]:
+    """The engine's buffers as the stacked variables of ``run_fields`` (row m = member m's array),
+    assuming every member is laid out as member 0 (``raw``, ``model``, ``part``); :func:`_stack`
+    uses one only where that holds. Views where possible, so a uniform batch copies nothing."""
+    ready = {k: stacked[k] for k in ("kinetic_energy", "potential_energy", "dissipated_energy", "velocity")
+             if k in stacked}
+    forces = stacked.get("recorded_force")
+    if forces is not None:
+        # the columns run_fields takes from raw.contact_force (= forces[m])
+        cols = np.searchsorted(raw.contacts, part.dims["contact"][0])
+        if cols.size and np.array_equal(cols, np.arange(cols[0], cols[0] + cols.size)):
+            ready["contact_force"] = forces[:, :, cols[0]:cols[0] + cols.size]
+        else:
+            ready["contact_force"] = forces[:, :, cols]
+        if model.wall.present:
+            ready["wall_force"] = forces[:, :, np.searchsorted(raw.contacts, model.chain.n_beads)]
+    return ready
