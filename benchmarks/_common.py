@@ -277,3 +277,90 @@ def solve_scipy(system, duration: float, method: str, rtol: float, rhs_kind: str
                           options={"xatol": 1e-13})
     peak = max(-float(res.fun), float(fw[k]))
     return {"peak_wall_force": peak, "peak_wall_time": float(res.x), "nfev": int(sol.nfev)}
+
+
+# ----------------------------------------------------------------------------- time to solution
+def time_to_solution(model, duration: float, tolerance: float, repeat: int, repeat_scipy: int,
+                     rhs_kinds: tuple[str, ...] = ("numpy", "compiled")) -> dict:
+    """Wall-clock time to get the peak wall force within ``tolerance`` (relative) of DOP853 rtol=1e-12.
+
+    hertzchain: the whole ``simulate(model, duration)`` call with its automatic (adaptive) step and
+    default probes (every contact force + energies every 100 ns, Dataset built). scipy:
+    ``solve_ivp`` RK45 and DOP853 with rtol = 1e-4, 1e-5, ... (atol scaled alike) until the peak
+    is within ``tolerance``; the state is sampled every 100 ns as well (:func:`solve_scipy`).
+    ``speedup_vs_scipy`` is against the faster scipy solver with the NumPy right-hand side (what a
+    user writes); ``speedup_vs_scipy_compiled_rhs`` against scipy driving hertzchain's compiled one.
+    """
+    import hertzchain as hc
+    from hertzchain.integrate.verlet import run_verlet
+
+    system = model.system()
+    t_ref, _, ref_ds = best_of(lambda: hc.simulate(model, duration, integrator="dop853", rtol=1e-12), 1)
+    ref = float(ref_ds.attrs["peak_wall_force"])
+
+    def rel(x: float) -> float:
+        return abs(x / ref - 1.0)
+
+    hc.simulate(model, duration)  # warm
+    t_hc, times_hc, ds = best_of(lambda: hc.simulate(model, duration), repeat)
+    hc_peak = float(ds.attrs["peak_wall_force"])
+    t_kernel, _, _ = best_of(lambda: run_verlet(system, duration, 1e-7), repeat)
+    out = {"reference": {"integrator": "dop853", "rtol": 1e-12, "peak_wall_force": ref, "time_s": t_ref},
+           "hertzchain": {"time_s": t_hc, "times_s": times_hc, "run_verlet_only_time_s": t_kernel,
+                          "simulate_outside_run_verlet_s": t_hc - t_kernel,
+                          "time_step": ds.attrs.get("time_step", "fixed"), "dt": float(ds.attrs["dt"]),
+                          "dt_max": float(ds.attrs.get("dt_max", ds.attrs["dt"])),
+                          "n_steps": int(ds.attrs["n_steps"]), "peak_wall_force": hc_peak,
+                          "rel_error": rel(hc_peak), "within_tolerance": rel(hc_peak) <= tolerance}}
+    scipy_res = {}
+    for rhs_kind in rhs_kinds:
+        for method in ("RK45", "DOP853"):
+            scan = []
+            reached = None
+            for e in range(4, 13):
+                rtol = 10.0 ** -e
+                t, _, r = best_of(lambda: solve_scipy(system, duration, method, rtol, rhs_kind), 1)
+                scan.append({"rtol": rtol, "time_s": t, "peak_wall_force": r["peak_wall_force"],
+                             "rel_error": rel(r["peak_wall_force"]), "nfev": r["nfev"]})
+                if rel(r["peak_wall_force"]) <= tolerance:
+                    reached = rtol
+                    break
+            entry = {"scan": scan, "rtol_reached": reached}
+            if reached is not None:
+                tb, tt, _ = best_of(lambda: solve_scipy(system, duration, method, reached, rhs_kind),
+                                    max(0, repeat_scipy - 1))
+                entry["time_s"] = min(tb, scan[-1]["time_s"])
+                entry["times_s"] = [scan[-1]["time_s"]] + tt
+                entry["rel_error"] = scan[-1]["rel_error"]
+                entry["nfev"] = scan[-1]["nfev"]
+            scipy_res[f"{method}_{rhs_kind}"] = entry
+    out["scipy"] = scipy_res
+
+    def fastest(kind: str) -> tuple[str | None, float]:
+        cands = [(k, v["time_s"]) for k, v in scipy_res.items() if k.endswith(kind) and "time_s" in v]
+        return min(cands, key=lambda kv: kv[1]) if cands else (None, float("nan"))
+
+    for kind in rhs_kinds:
+        name, t = fastest("_" + kind)
+        suffix = "" if kind == "numpy" else "_" + kind + "_rhs"
+        out[f"fastest_scipy_{kind}_rhs"] = name
+        out["speedup_vs_scipy" + suffix] = t / t_hc
+    return out
+
+
+def time_to_solution_rows(t: dict, tolerance: float) -> list[tuple]:
+    """Table rows (solver, rtol, time ms, peak rel err, within, x slower) of :func:`time_to_solution`."""
+    h = t["hertzchain"]
+    step = (f"adaptive dt {h['dt'] * 1e9:.3g}-{h['dt_max'] * 1e9:.3g} ns" if h["time_step"] == "adaptive"
+            else f"dt {h['dt'] * 1e9:.3g} ns")
+    rows = [(f"hertzchain Verlet ({step}, {h['n_steps']} steps)", "-", f"{h['time_s'] * 1e3:.2f}",
+             f"{h['rel_error']:.1e}", "yes" if h["within_tolerance"] else "NO", "1")]
+    for k, v in t["scipy"].items():
+        method, kind = k.split("_")
+        name = f"scipy {method}, {'NumPy' if kind == 'numpy' else 'compiled'} RHS"
+        if "time_s" in v:
+            rows.append((name, f"{v['rtol_reached']:.0e}", f"{v['time_s'] * 1e3:.2f}", f"{v['rel_error']:.1e}", "yes",
+                         f"{v['time_s'] / h['time_s']:.1f}"))
+        else:
+            rows.append((name, "not reached", "-", f"{v['scan'][-1]['rel_error']:.1e}", "NO", "-"))
+    return rows

@@ -17,7 +17,7 @@ Measures, after a JIT warm-up (compile / cache-load time is reported apart from 
 2. Time-to-solution on the contract chain (16 x 26 mm then 24, 23, 22 mm, striker 8 mm at
    0.5 m/s, flat wall, 2.5 ms): wall-clock time to get the peak wall force within 1e-6
    (relative) of a tight reference (DOP853, rtol = 1e-12). hertzchain: ``simulate(model, 2.5e-3)``
-   with its automatic step. scipy: ``solve_ivp`` RK45 and DOP853 with rtol = 1e-4, 1e-5, ...
+   with its automatic (adaptive) step, default probes, Dataset included. scipy: ``solve_ivp`` RK45 and DOP853 with rtol = 1e-4, 1e-5, ...
    (atol scaled alike) until the peak reaches 1e-6, with a plain vectorised NumPy right-hand side
    and, as a stronger baseline, with hertzchain's compiled one.
 
@@ -44,7 +44,7 @@ from numba import njit
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import (RESULTS, best_of, calibrate, contract_model, machine_info, measure, quiet,  # noqa: E402
-                     save_json, solve_scipy, table, uniform_model)
+                     save_json, table, time_to_solution, time_to_solution_rows, uniform_model)
 
 TARGET_BEAD_STEPS = 5e8
 TARGET_SPEEDUP = 10.0
@@ -171,84 +171,30 @@ def cold_compile_time() -> dict:
 
 
 # ----------------------------------------------------------------------------- time to solution
-def time_to_solution(repeat: int, repeat_scipy: int) -> dict:
+def contract_time_to_solution(repeat: int, repeat_scipy: int) -> dict:
+    """:func:`_common.time_to_solution` on the contract chain, plus the fixed-step error scan."""
     import hertzchain as hc
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.verlet import auto_time_step, run_verlet
 
     model = contract_model()
     system = model.system()
-    t_ref, _, ref_ds = best_of(lambda: hc.simulate(model, DURATION, integrator="dop853", rtol=1e-12), 1)
-    ref = float(ref_ds.attrs["peak_wall_force"])
+    out = time_to_solution(model, DURATION, TOLERANCE, repeat, repeat_scipy)
+    ref = out["reference"]["peak_wall_force"]
+    t_np = out["hertzchain"]["time_s"] * out["speedup_vs_scipy"]
 
-    def rel(x: float) -> float:
-        return abs(x / ref - 1.0)
-
-    # hertzchain, automatic step: the whole simulate() call (Dataset included) is timed.
-    hc.simulate(model, DURATION)  # warm
-    t_hc, times_hc, ds = best_of(lambda: hc.simulate(model, DURATION), repeat)
-    hc_peak = float(ds.attrs["peak_wall_force"])
-    t_kernel, _, _ = best_of(lambda: run_verlet(system, DURATION, SAMPLE), repeat)
-    # the same steps with a single sample at the end: the cost of stepping alone
-    t_steps, _, _ = best_of(lambda: run_verlet(system, DURATION, DURATION, dt=float(ds.attrs["dt"])), repeat)
-    out = {"reference": {"integrator": "dop853", "rtol": 1e-12, "peak_wall_force": ref, "time_s": t_ref},
-           "hertzchain": {"time_s": t_hc, "times_s": times_hc, "run_verlet_only_time_s": t_kernel,
-                          "breakdown_s": {"stepping": t_steps, "probes_every_100ns": t_kernel - t_steps,
-                                          "simulate_outside_run_verlet": t_hc - t_kernel},
-                          "dt": float(ds.attrs["dt"]), "n_steps": int(ds.attrs["n_steps"]),
-                          "peak_wall_force": hc_peak, "rel_error": rel(hc_peak),
-                          "within_tolerance": rel(hc_peak) <= TOLERANCE}}
-
-    # scipy: tighten rtol by decades until the peak is within 1e-6, then re-time that tolerance.
-    scipy_res = {}
-    for rhs_kind in ("numpy", "compiled"):
-        for method in ("RK45", "DOP853"):
-            scan = []
-            reached = None
-            for e in range(4, 13):
-                rtol = 10.0 ** -e
-                t, _, r = best_of(lambda: solve_scipy(system, DURATION, method, rtol, rhs_kind), 1)
-                scan.append({"rtol": rtol, "time_s": t, "peak_wall_force": r["peak_wall_force"],
-                             "rel_error": rel(r["peak_wall_force"]), "nfev": r["nfev"]})
-                if rel(r["peak_wall_force"]) <= TOLERANCE:
-                    reached = rtol
-                    break
-            entry = {"scan": scan, "rtol_reached": reached}
-            if reached is not None:
-                tb, tt, _ = best_of(lambda: solve_scipy(system, DURATION, method, reached, rhs_kind),
-                                    max(0, repeat_scipy - 1))
-                entry["time_s"] = min(tb, scan[-1]["time_s"])
-                entry["times_s"] = [scan[-1]["time_s"]] + tt
-                entry["rel_error"] = scan[-1]["rel_error"]
-                entry["nfev"] = scan[-1]["nfev"]
-            scipy_res[f"{method}_{rhs_kind}"] = entry
-    out["scipy"] = scipy_res
-
-    def fastest(kind: str) -> tuple[str, float]:
-        cands = [(k, v["time_s"]) for k, v in scipy_res.items() if k.endswith(kind) and "time_s" in v]
-        return min(cands, key=lambda kv: kv[1]) if cands else (None, float("nan"))
-
-    k_np, t_np = fastest("_numpy")
-    k_c, t_c = fastest("_compiled")
-    out["fastest_scipy_numpy_rhs"] = k_np
-    out["fastest_scipy_compiled_rhs"] = k_c
-    out["speedup_vs_scipy"] = t_np / t_hc
-    out["speedup_vs_scipy_compiled_rhs"] = t_c / t_hc
-
-    # Supplementary: how much margin the automatic step leaves (peak error vs fixed dt).
+    # For comparison: the fixed automatic step (one dt for the whole run, set by the stiffest moment).
+    dt_fixed = auto_time_step(system, SAMPLE)
+    t_fix, _, ds_fix = best_of(lambda: hc.simulate(model, DURATION, dt=dt_fixed), repeat)
+    out["fixed_auto_step"] = {"dt": dt_fixed, "n_steps": int(ds_fix.attrs["n_steps"]), "simulate_time_s": t_fix,
+                              "rel_error": abs(float(ds_fix.attrs["peak_wall_force"]) / ref - 1),
+                              "speedup_vs_scipy": t_np / t_fix}
+    # How the peak error of a fixed step grows with dt (Verlet is second order).
     scan = []
     for dt in (5e-9, 1e-8, 2e-8, 2.5e-8, 1e-7 / 3, 5e-8, 1e-7):
         t, _, raw = best_of(lambda: run_verlet(system, DURATION, SAMPLE, dt=dt), max(1, repeat // 2))
         scan.append({"dt": dt, "run_verlet_time_s": t, "peak_wall_force": raw.peak_wall_force,
-                     "rel_error": rel(raw.peak_wall_force)})
+                     "rel_error": abs(raw.peak_wall_force / ref - 1)})
     out["verlet_error_vs_dt"] = scan
-    ok = [s for s in scan if s["rel_error"] <= TOLERANCE]
-    if ok:
-        dt_max = max(s["dt"] for s in ok)
-        hc.simulate(model, DURATION, dt=dt_max)
-        t_big, _, ds_big = best_of(lambda: hc.simulate(model, DURATION, dt=dt_max), repeat)
-        out["largest_sufficient_dt"] = {"dt": dt_max, "simulate_time_s": t_big,
-                                        "rel_error": rel(float(ds_big.attrs["peak_wall_force"])),
-                                        "speedup_vs_scipy": t_np / t_big}
     return out
 
 
@@ -268,7 +214,7 @@ def main(argv: list[str] | None = None) -> dict:
     if not args.quick:
         compile_info["cold"] = cold_compile_time()
     throughput = {n: measure_verlet(n, min_time, repeat) for n in (30, 10_000)}
-    tts = time_to_solution(repeat, repeat_scipy)
+    tts = contract_time_to_solution(repeat, repeat_scipy)
 
     res = {"benchmark": "kernel", "quick": args.quick, "machine": info,
            "settings": {"dt": DT, "sample_interval": SAMPLE, "repeat": repeat, "min_run_time_s": min_time,
@@ -321,26 +267,15 @@ def report(res: dict) -> None:
     h = t["hertzchain"]
     print(f"\nTime to solution: contract chain, 2.5 ms, peak wall force within {TOLERANCE:g} of DOP853 rtol=1e-12 "
           f"({t['reference']['peak_wall_force']:.10g} N)")
-    rows = [("hertzchain Verlet (auto dt %.3g ns)" % (h["dt"] * 1e9), "-", f"{h['time_s'] * 1e3:.2f}",
-             f"{h['rel_error']:.1e}", "yes" if h["within_tolerance"] else "NO", "1")]
-    for k, v in t["scipy"].items():
-        method, kind = k.split("_")
-        name = f"scipy {method}, {'NumPy' if kind == 'numpy' else 'compiled'} RHS"
-        if "time_s" in v:
-            rows.append((name, f"{v['rtol_reached']:.0e}", f"{v['time_s'] * 1e3:.2f}", f"{v['rel_error']:.1e}", "yes",
-                         f"{v['time_s'] / h['time_s']:.1f}"))
-        else:
-            rows.append((name, "not reached", "-", f"{v['scan'][-1]['rel_error']:.1e}", "NO", "-"))
-    print(table(rows, ("solver", "rtol", "time ms", "peak rel err", "<= 1e-6", "x slower")))
-    b = h["breakdown_s"]
-    print(f"  hertzchain time = simulate() incl. Dataset: stepping {b['stepping'] * 1e3:.2f} ms + probes every 100 ns "
-          f"{b['probes_every_100ns'] * 1e3:.2f} ms + outside run_verlet {b['simulate_outside_run_verlet'] * 1e3:.2f} ms")
-    if "largest_sufficient_dt" in t:
-        b = t["largest_sufficient_dt"]
-        print(f"  margin of the automatic step: dt = {b['dt'] * 1e9:.3g} ns still gives {b['rel_error']:.1e} in "
-              f"{b['simulate_time_s'] * 1e3:.2f} ms ({b['speedup_vs_scipy']:.1f}x the faster NumPy-RHS scipy)")
-        print("  error vs dt: " + ", ".join(f"{s['dt'] * 1e9:.3g} ns: {s['rel_error']:.1e}"
-                                            for s in t["verlet_error_vs_dt"]))
+    print(table(time_to_solution_rows(t, TOLERANCE), ("solver", "rtol", "time ms", "peak rel err", "<= 1e-6",
+                                                       "x slower")))
+    print(f"  hertzchain time = simulate() incl. Dataset: run_verlet {h['run_verlet_only_time_s'] * 1e3:.2f} ms "
+          f"+ outside it {h['simulate_outside_run_verlet_s'] * 1e3:.2f} ms")
+    f = t["fixed_auto_step"]
+    print(f"  the fixed automatic step instead (dt = {f['dt'] * 1e9:.3g} ns, {f['n_steps']} steps): "
+          f"{f['simulate_time_s'] * 1e3:.2f} ms, error {f['rel_error']:.1e} ({f['speedup_vs_scipy']:.1f}x scipy)")
+    print("  fixed-step error vs dt: " + ", ".join(f"{s['dt'] * 1e9:.3g} ns: {s['rel_error']:.1e}"
+                                                  for s in t["verlet_error_vs_dt"]))
 
     g = res["targets"]
     print("\nTargets")
