@@ -22,3 +22,12 @@ def gentle_contract_model() -> hc.Model:
     """The contract chain hit at 0.2 m/s: every contact stays inside its elastic limit."""
     chain = hc.Chain.from_diameters(np.array(CONTRACT_DIAMETERS_MM) * 1e-3)
     return hc.Model(chain, hc.Striker(8e-3, 0.2), hc.Wall("flat"))
+
+
+def assert_same_run(single, other) -> None:
+    """Every array bit for bit (np.array_equal), every attribute but the creation time."""
+    assert set(single.variables) == set(other.variables)
+    for name in single.variables:
+        assert np.array_equal(single[name].values, other[name].values), name
+    assert {k: v for k, v in single.attrs.items() if k != "created_utc"} == \
+        {k: v for k, v in other.attrs.items() if k != "created_utc"}

@@ -17,6 +17,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import assert_same_run
 
 import hertzchain as hc
 from hertzchain.errors import ElasticLimitWarning
@@ -314,15 +315,6 @@ def batch_members():
     probes[3] = hc.Probes(BATCH_INTERVAL, contacts=(0, 5))
     probes[4] = hc.Probes(BATCH_INTERVAL, velocities=True)
     return models, probes, dts
-
-
-def assert_same_run(single, other):
-    """Every array bit for bit, every attribute but the creation time (as tests/test_batch.py)."""
-    assert set(single.variables) == set(other.variables)
-    for name in single.variables:
-        assert np.array_equal(single[name].values, other[name].values), name
-    assert {k: v for k, v in single.attrs.items() if k != "created_utc"} == \
-        {k: v for k, v in other.attrs.items() if k != "created_utc"}
 
 
 @pytest.fixture(scope="module")

@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import assert_same_run
 
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
 from hertzchain.errors import ConfigError, ElasticLimitWarning
@@ -43,15 +44,6 @@ def single_runs(models, probes, dts=None):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
         return [simulate(m, DURATION, p, dt=dt) for m, p, dt in zip(models, probes, dts)]
-
-
-def assert_same_run(single, other):
-    """Every array bit for bit (np.array_equal), every attribute but the creation time."""
-    assert set(single.variables) == set(other.variables)
-    for name in single.variables:
-        assert np.array_equal(single[name].values, other[name].values), name
-    assert {k: v for k, v in single.attrs.items() if k != "created_utc"} == \
-        {k: v for k, v in other.attrs.items() if k != "created_utc"}
 
 
 @pytest.fixture(scope="module")
