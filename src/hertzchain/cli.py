@@ -72,7 +72,13 @@ def run(config: Path, out: Path, quiet: bool) -> None:
     ds = apply_instruments(ds, cfg)
     save(ds, out)
     if not quiet:
-        msg = f"wrote {out} ({ds.sizes['time']} samples, {ds.sizes['contact']} contacts, dt = {ds.attrs['dt']:.3g} s)"
+        if ds.attrs.get("time_step") == "adaptive":
+            step = f"adaptive dt {ds.attrs['dt']:.3g}-{ds.attrs['dt_max']:.3g} s, {ds.attrs['n_steps']} steps"
+        elif ds.attrs.get("time_step") == "solve_ivp":
+            step = f"{ds.attrs['integrator']}, {ds.attrs['n_steps']} right-hand-side calls"
+        else:
+            step = f"dt = {ds.attrs['dt']:.3g} s"
+        msg = f"wrote {out} ({ds.sizes['time']} samples, {ds.sizes['contact']} contacts, {step})"
         if "wall_force" in ds:
             msg += f"; peak wall force {ds.attrs['peak_wall_force']:.4g} N at {ds.attrs['peak_wall_time'] * 1e3:.4g} ms"
         click.echo(msg)
