@@ -213,6 +213,7 @@ def materials() -> None:
 
 
 def _register_subcommands() -> None:
+    # One line per subcommand module (each command lives in its own module).
     from .sweep_cli import sweep
 
     cli.add_command(sweep)
