@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 import tomllib
 from pathlib import Path
+from collections.abc import Iterable
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -256,9 +257,66 @@ def read_toml(path: str | Path, what: str = "config file") -> dict:
         raise ConfigError(str(path), f"is not valid TOML: {exc}") from None
 
 
-def load_config(path: str | Path) -> RunConfig:
-    """Read and validate a TOML run file."""
-    return parse_config(read_toml(path))
+def apply_overrides(data: dict, assignments: Iterable[str], prefix: str = "") -> dict:
+    """Apply ``--set DOTTED.PATH=VALUE`` assignments to a config mapping read from TOML.
+
+    Parameters
+    ----------
+    data : dict
+        The mapping as read from the TOML file (left unchanged; a changed copy is returned).
+    assignments : iterable of str
+        ``"striker.velocity=0.3"``, ``"chain.taper={n = 30, q = 0.05}"``, ``"probes.sensors=[8, 12]"``.
+        VALUE is read as a TOML value (so ``0.3`` is a number, ``"elastic"`` or a bare word a
+        string); list items are addressed as ``key[i]``.
+    prefix : str
+        Section the paths are relative to (``"base"`` for sweep and design files).
+
+    Returns
+    -------
+    dict
+        The new mapping, to be validated by the same schema as the file itself.
+    """
+    import copy
+    import re
+
+    out = copy.deepcopy(data)
+    for item in assignments:
+        if "=" not in item:
+            raise ConfigError("--set", f"{item!r} is not DOTTED.PATH=VALUE (e.g. striker.velocity=0.3)")
+        path, raw = (part.strip() for part in item.split("=", 1))
+        try:
+            value = tomllib.loads(f"v = {raw}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = raw  # a bare word such as elastic: a string
+        keys = ([prefix] if prefix else []) + path.split(".")
+        node: Any = out
+        for depth, key in enumerate(keys):
+            m = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?", key)
+            if not m:
+                raise ConfigError(f"--set {path}", f"{key!r} is not a field name (letters, digits, _; list items as key[i])")
+            name, index = m.group(1), m.group(2)
+            last = depth == len(keys) - 1
+            if not isinstance(node, dict):
+                raise ConfigError(f"--set {path}", f"{'.'.join(keys[:depth])} is not a section")
+            if index is None:
+                if last:
+                    node[name] = value
+                else:
+                    node = node.setdefault(name, {})
+            else:
+                seq = node.get(name)
+                if not isinstance(seq, list) or int(index) >= len(seq):
+                    raise ConfigError(f"--set {path}", f"{name} has no item {index} in this config")
+                if last:
+                    seq[int(index)] = value
+                else:
+                    node = seq[int(index)]
+    return out
+
+
+def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
+    """Read and validate a TOML run file, after applying ``--set`` overrides (:func:`apply_overrides`)."""
+    return parse_config(apply_overrides(read_toml(path), overrides))
 
 
 def _register_materials(cfg: RunConfig) -> None:
