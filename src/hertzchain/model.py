@@ -190,6 +190,14 @@ class Model:
             raise ConfigError("chain.precompression", "a static precompression needs a wall to push against")
         if self.precompression > 0 and not self.chain.is_aligned:
             raise ConfigError("chain.precompression", "precompression together with bead offsets is not supported")
+        # The striker's contact obeys the same head-on rule as the chain's (Chain checks beads n, n+1):
+        # the striker flies along the axis, so bead 1's offset e_1 must stay below (R_s + R_1) / 2;
+        # past R_s + R_1 it would miss the chain and the run would report 0 N.
+        e1, reach = abs(float(self.chain.offsets[0])), 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])
+        if e1 >= reach:
+            raise ConfigError("chain.offsets", f"bead 1 is offset by {e1:.3g} m from the striker's line of flight, "
+                              f"more than half the sum of their radii ({reach:.3g} m); the striker would not "
+                              "hit it head-on (or would miss the chain)")
 
     @property
     def wall_material(self) -> Material | None:
