@@ -53,7 +53,10 @@ def run(config: Path, out: Path, quiet: bool) -> None:
     from .result import save
     from .simulation import simulate
 
+    from .fileio import check_target
+
     cfg = load_config(config)
+    check_target(out)  # refuse a FIFO, a link or a device as --out before any work
     model = build_model(cfg)
     probes = build_probes(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run
@@ -91,9 +94,15 @@ def _open_result(path: Path):
     if not path.exists():
         raise ConfigError(str(path), "no such file")
     try:
-        return load(path)
-    except (OSError, ValueError) as exc:
+        ds = load(path)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ConfigError(str(path), f"is not a hertzchain NetCDF result ({exc})") from None
+    # What every command reads: a time axis and at least one force signal.
+    forces = [v for v in ("wall_force", "sensor_force", "contact_force") if v in ds]
+    if "time" not in ds.coords or ds.time.ndim != 1 or ds.time.size < 2 or not forces:
+        raise ConfigError(str(path), "is not a hertzchain result: it needs a 'time' axis of at least 2 samples and "
+                          "one of wall_force, sensor_force, contact_force")
+    return ds
 
 
 @cli.command()
@@ -104,8 +113,9 @@ def _open_result(path: Path):
 @click.option("--contact", "contacts", multiple=True, type=int, help="Contacts to draw with --signal contact_force.")
 def plot(result: Path, out: Path, signals: tuple[str, ...], contacts: tuple[int, ...]) -> None:
     """Draw the force signals of RESULT against time, one panel per signal."""
-    from .plotting import plot_signals
+    from .plotting import image_format, plot_signals
 
+    image_format(out)  # an unknown --out suffix is refused before the file is read
     ds = _open_result(result)
     click.echo(f"wrote {plot_signals(ds, out, signals or None, contacts or None)}")
 
@@ -121,8 +131,6 @@ def analyze(source: Path, signals: tuple[str, ...], as_json: bool) -> None:
     The loading part of each pulse is fitted with F_m cos^6((t - T)/tau) (paper Sec. III); the front
     and tail momenta Q_F, Q_T are the integrals before and after T + tau.
     """
-    import json
-
     from .analysis import analyze_signals
     from .errors import ConfigError
 
@@ -135,7 +143,9 @@ def analyze(source: Path, signals: tuple[str, ...], as_json: bool) -> None:
         chosen = signals or tuple(s for s in ("wall_force", "sensor_force") if s in ds) or ("contact_force",)
         rows = analyze_signals(ds, signals=chosen)
     if as_json:
-        click.echo(json.dumps(rows, indent=2, default=float))
+        from .fileio import json_text
+
+        click.echo(json_text(rows))  # NaN (a failed fit) becomes null: valid JSON
         return
     from rich.console import Console
     from rich.table import Table
@@ -222,30 +232,56 @@ def _register_subcommands() -> None:
 _register_subcommands()
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings reach the user as one line ``warning: ...`` on stderr (no file name or code line)."""
+    click.echo(f"warning: {message}", err=True)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: run the CLI, turning user errors into a message and exit status 2."""
+    """Entry point: run the CLI, turning user errors into a message and exit status 2.
+
+    The one error path of the command line: a :class:`~hertzchain.errors.HertzchainError` (bad
+    config, bad file, a run that diverged), a usage error, an unreadable or unwritable file
+    (OSError) or a lack of memory ends with one paragraph naming what is wrong and exit status
+    2; anything else is a bug, reported as such with exit status 1.
+    """
+    import warnings
+
     from .errors import HertzchainError
 
-    try:
-        cli.main(args=argv, prog_name="hertzchain", standalone_mode=False)
-    except click.exceptions.Abort:
-        click.echo("aborted", err=True)
-        return 130
-    except click.exceptions.ClickException as exc:
-        exc.show()
-        return 2 if isinstance(exc, click.UsageError) else exc.exit_code
-    except HertzchainError as exc:
-        click.echo(f"error: {exc}", err=True)
-        return 2
-    except KeyboardInterrupt:
-        click.echo("interrupted", err=True)
-        return 130
-    except Exception as exc:  # a bug: say so plainly, full traceback on request
-        if os.environ.get("HERTZCHAIN_DEBUG"):
-            raise
-        click.echo(f"internal error: {type(exc).__name__}: {exc}\n"
-                   "This is a bug in hertzchain; rerun with HERTZCHAIN_DEBUG=1 for the traceback.", err=True)
-        return 1
+    with warnings.catch_warnings():
+        # NumPy's floating-point RuntimeWarnings (overflow, invalid value...) are not shown: every
+        # result is checked by hertzchain.checks, which raises or warns in the user's terms.
+        warnings.simplefilter("ignore", RuntimeWarning)
+        warnings.showwarning = _show_warning
+        try:
+            cli.main(args=argv, prog_name="hertzchain", standalone_mode=False)
+        except click.exceptions.Abort:
+            click.echo("aborted", err=True)
+            return 130
+        except click.exceptions.ClickException as exc:
+            exc.show()
+            return 2 if isinstance(exc, click.UsageError) else exc.exit_code
+        except HertzchainError as exc:
+            click.echo(f"error: {exc}", err=True)
+            return 2
+        except KeyboardInterrupt:
+            click.echo("interrupted", err=True)
+            return 130
+        except MemoryError:
+            click.echo("error: not enough memory for this job; shorten run.duration, raise run.sample_interval "
+                       "or record fewer contacts (probes.contacts)", err=True)
+            return 2
+        except OSError as exc:  # a file the job needed could not be read or written
+            where = exc.filename if exc.filename is not None else "a file"
+            click.echo(f"error: {where}: {exc.strerror or exc}", err=True)
+            return 2
+        except Exception as exc:  # a bug: say so plainly, full traceback on request
+            if os.environ.get("HERTZCHAIN_DEBUG"):
+                raise
+            click.echo(f"internal error: {type(exc).__name__}: {exc}\n"
+                       "This is a bug in hertzchain; rerun with HERTZCHAIN_DEBUG=1 for the traceback.", err=True)
+            return 1
     return 0
 
 
