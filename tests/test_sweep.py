@@ -58,7 +58,7 @@ def test_grid_sweep_table_and_files(reference):
     assert (df["T"] > 0).all() and (df["tau"] > 0).all() and (df["Q_F"] > 0).all()
     # Files: one chunk file per chunk, the definition and its hash, and the table on disk.
     files = sorted(p.name for p in (reference.out_dir / "chunks").iterdir())
-    assert files == [f"chunk_{i:05d}.nc" for i in range(4)]
+    assert files == sorted([f"chunk_{i:05d}.nc" for i in range(4)] + [f"chunk_{i:05d}.nc.sha256" for i in range(4)])
     meta = json.loads((reference.out_dir / "sweep.json").read_text())
     assert meta["hash"] == cfg.hash and meta["n_members"] == 8
     on_disk = pd.read_csv(reference.metrics_path, keep_default_na=False, na_values=[""])
@@ -82,7 +82,8 @@ def test_killed_sweep_resumes_without_recomputing(tmp_path, reference, monkeypat
     with pytest.raises(Killed):
         run_sweep(grid_sweep(), out, progress=kill_after_two_chunks)
     chunks = out / "chunks"
-    assert sorted(p.name for p in chunks.iterdir()) == ["chunk_00000.nc", "chunk_00001.nc"]
+    assert sorted(p.name for p in chunks.iterdir()) == ["chunk_00000.nc", "chunk_00000.nc.sha256",
+                                                        "chunk_00001.nc", "chunk_00001.nc.sha256"]
     assert not (out / "metrics.csv").exists()
     stamps = {p.name: p.stat().st_mtime_ns for p in chunks.iterdir()}
     # What a kill can leave behind: a half-written temporary file and, worse, an unreadable file
