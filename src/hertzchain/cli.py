@@ -16,21 +16,32 @@ import click
 
 @contextmanager
 def progress_bar(description: str, enabled: bool = True):
-    """A Rich progress bar on stderr; yields ``update(done, total)``."""
+    """A Rich progress bar on stderr; yields ``update(done, total)``.
+
+    The bar appears at the first update, so a job refused by its checks before any work (bad
+    input, not enough memory) prints only its error message.
+    """
     if not enabled:
         yield None
         return
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                  TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=False) as prog:
-        task = prog.add_task(description, total=None)
+    state: dict = {}
 
-        def update(done: int, total: int) -> None:
-            prog.update(task, completed=done, total=total)
+    def update(done: int, total: int) -> None:
+        if not state:
+            prog = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                            TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=False)
+            prog.start()
+            state.update(prog=prog, task=prog.add_task(description, total=None))
+        state["prog"].update(state["task"], completed=done, total=total)
 
+    try:
         yield update
+    finally:
+        if state:
+            state["prog"].stop()
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

@@ -193,6 +193,8 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc)
 
     samples_per_chunk = max(1, round(chunk_steps * plan.dt / sample_interval))
+    if progress is not None:
+        progress(0, n_samples - 1)  # the checks passed and the work starts
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_chunk)
