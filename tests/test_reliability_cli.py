@@ -1,0 +1,151 @@
+"""One error path for the command line: every bad input or file gives its name and what is wrong,
+exit 2, never a traceback; JSON output is valid JSON; NumPy warnings do not reach the user
+(issue 10, parts 1 and 5)."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import hertzchain as hc
+from hertzchain.cli import main
+from hertzchain.config import parse_config
+
+SMALL_RUN = ('[chain]\nuniform = {n = 3, diameter_mm = 26.0}\n[striker]\nvelocity = 0.2\n'
+             '[run]\nduration = 3e-4\nsample_interval = 1e-6\n')
+
+
+def run_error(capsys, argv) -> str:
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "Traceback" not in err and "internal error" not in err
+    assert "\n\n" not in err.strip()  # one paragraph
+    return err
+
+
+# ---------------------------------------------------------------------------- strict types, bounds
+@pytest.mark.parametrize("section,key,value,field", [
+    ("striker", "velocity", True, "striker.velocity"),            # issue: ran at 1 m/s
+    ("striker", "velocity", "0.5", "striker.velocity"),           # issue: taken as a number
+    ("chain", "diameters_mm", [True], "chain.diameters_mm[0]"),   # issue: built 1 mm beads
+    ("chain", "uniform", {"n": 1e30, "diameter_mm": 26.0}, "chain.uniform.n"),
+    ("chain", "uniform", {"n": 3, "diameter_mm": 1e300}, "chain.uniform.diameter_mm"),
+    ("chain", "uniform", {"n": 3, "diameter_mm": 1e-300}, "chain.uniform.diameter_mm"),
+    ("run", "duration", 1e300, "run.duration"),
+    ("run", "sample_interval", 1e-300, "run.sample_interval"),
+    ("contact", "gamma", 1e300, "contact.gamma"),
+    ("probes", "sensors", [2.0], "probes.sensors[0]"),
+    ("probes", "velocities", 1, "probes.velocities"),
+    ("wall", "type", 1, "wall.type"),
+])
+def test_strict_types_and_bounds_name_the_field(section, key, value, field):
+    data = {"chain": {"uniform": {"n": 3, "diameter_mm": 26.0}}, "contact": {"law": "dashpot", "gamma": 1.0}}
+    data.setdefault(section, {})
+    data[section] = {k: v for k, v in data[section].items() if k not in ("uniform", "diameters_mm")} \
+        if key in ("uniform", "diameters_mm") else dict(data[section])
+    data[section][key] = value
+    with pytest.raises(hc.ConfigError) as info:
+        parse_config(data)
+    assert info.value.field == field
+
+
+def test_model_errors_name_the_key_as_written():
+    """Issue: a bad bead built from chain.uniform was reported as chain.diameters[0]."""
+    from hertzchain.config import build_model
+
+    with pytest.raises(hc.ConfigError, match=r"^chain\.taper: .* makes the last bead"):
+        build_model(parse_config({"chain": {"uniform": {"n": 2, "diameter_mm": 26.0}, "taper": {"n": 900, "q": 0.9}}}))
+    with pytest.raises(hc.ConfigError, match=r"^chain\.offsets_mm: needs one value per bead \(3\), got 5"):
+        build_model(parse_config({"chain": {"uniform": {"n": 3, "diameter_mm": 26.0}, "offsets_mm": [0.0] * 5}}))
+    with pytest.raises(hc.ConfigError, match=r"^chain\.offsets_fraction: needs one value per bead"):
+        build_model(parse_config({"chain": {"uniform": {"n": 3, "diameter_mm": 26.0}, "offsets_fraction": [0.1] * 4}}))
+
+
+# ---------------------------------------------------------------------------- bad files
+def test_non_utf8_config_and_csv(tmp_path, capsys):
+    cfg = tmp_path / "latin1.toml"
+    cfg.write_bytes(SMALL_RUN.replace("[chain]", "# d\xe9j\xe0\n[chain]").encode("latin-1"))
+    err = run_error(capsys, ["run", str(cfg), "--out", str(tmp_path / "r.nc")])
+    assert f"error: {cfg}: is not UTF-8" in err
+    csv = tmp_path / "scope.csv"
+    csv.write_bytes("time,force\n0,0\n".encode() + b"\xff\xfe1,2\n")
+    err = run_error(capsys, ["analyze", str(csv)])
+    assert f"error: {csv}: is not UTF-8" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["latin1.toml", "scope.csv"]
+
+
+def test_result_without_expected_content_under_plot_and_analyze(tmp_path, capsys):
+    foreign = tmp_path / "foreign.nc"
+    xr.Dataset({"x": ("n", np.arange(5.0))}).to_netcdf(foreign, engine="h5netcdf")
+    for argv in (["plot", str(foreign), "--out", str(tmp_path / "p.png")], ["analyze", str(foreign)]):
+        err = run_error(capsys, argv)
+        assert f"error: {foreign}: is not a hertzchain result" in err
+    garbage = tmp_path / "garbage.nc"
+    garbage.write_bytes(b"\x89HDF\r\n" + b"\x00" * 100)
+    err = run_error(capsys, ["plot", str(garbage), "--out", str(tmp_path / "p.png")])
+    assert f"error: {garbage}: is not a hertzchain NetCDF result" in err
+    assert not (tmp_path / "p.png").exists()
+
+
+def test_plot_without_model_attributes_and_unknown_suffix(tmp_path, capsys):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(SMALL_RUN)
+    out = tmp_path / "r.nc"
+    assert main(["run", str(cfg), "--out", str(out), "-q"]) == 0
+    ds = hc.load(out)
+    del ds.attrs["model"]
+    bare = tmp_path / "bare.nc"
+    hc.save(ds, bare)
+    assert main(["plot", str(bare), "--out", str(tmp_path / "b.png")]) == 0
+    assert (tmp_path / "b.png").read_bytes()[:4] == b"\x89PNG"
+    err = run_error(capsys, ["plot", str(out), "--out", str(tmp_path / "r.xyz")])
+    assert "error: --out: " in err and ".png" in err
+    assert not (tmp_path / "r.xyz").exists()
+
+
+def test_damaged_data_under_reproduce_from_data(tmp_path, capsys):
+    from hertzchain.paper.protocol import Settings
+
+    err = run_error(capsys, ["reproduce", "--out", str(tmp_path), "--from-data"])
+    assert "summary.json" in err
+    (tmp_path / "summary.json").write_text("{not json")
+    assert "summary.json: cannot read it" in run_error(capsys, ["reproduce", "--out", str(tmp_path), "--from-data"])
+    (tmp_path / "summary.json").write_text("{}")
+    assert "summary.json: is not the summary" in run_error(capsys, ["reproduce", "--out", str(tmp_path), "--from-data"])
+    (tmp_path / "summary.json").write_text(json.dumps({"settings": Settings().describe()}))
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "chain1_truncated_16.nc").write_bytes(b"truncated")
+    err = run_error(capsys, ["reproduce", "--out", str(tmp_path), "--from-data"])
+    assert f"{data / 'chain1_truncated_16.nc'}: is damaged" in err
+
+
+def test_analyze_json_is_valid_json_with_null(tmp_path, capsys):
+    """Issue: a failed fit wrote bare NaN, which no JSON parser reads."""
+    csv = tmp_path / "flat.csv"
+    csv.write_text("time,force\n" + "".join(f"{i * 1e-6},0.0\n" for i in range(50)))
+    assert main(["analyze", str(csv), "--json"]) == 0
+    text = capsys.readouterr().out
+    rows = json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in JSON"))
+    assert rows[0]["error"] and rows[0]["peak_force"] is None
+
+
+def test_numpy_warnings_do_not_reach_the_user(tmp_path, capsys, monkeypatch):
+    import hertzchain.cli as cli_mod
+
+    @cli_mod.cli.command("noisy")
+    def noisy():
+        np.log(np.zeros(1))  # RuntimeWarning: divide by zero
+        warnings.warn(hc.ElasticLimitWarning("ours"))
+
+    try:
+        assert main(["noisy"]) == 0
+    finally:
+        cli_mod.cli.commands.pop("noisy")
+    err = capsys.readouterr().err
+    assert err == "warning: ours\n"
