@@ -36,6 +36,10 @@ LONG_RUN_S = 180.0
 #: Cost of one bead-step of the compiled Verlet [s] (benchmarks/kernel.py: ~1.2 ns aligned
 #: elastic; the general loop for dissipation or offsets is a few times slower), on one core.
 NS_PER_BEAD_STEP = {"elastic": 1.5e-9, "general": 6e-9}
+#: solve_ivp (DOP853 at rtol ~1e-10) advances about this many radians of omega_max per step, at
+#: about SCIPY_S_PER_STEP of Python overhead per step (plus the compiled forces).
+SCIPY_RADIANS_PER_STEP = 0.05
+SCIPY_S_PER_STEP = 2e-5
 #: Share of the available memory a run may plan to use (the result is copied once when it is
 #: assembled and written).
 MEMORY_SHARE = 0.8
@@ -104,7 +108,7 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
     members : int
         Runs held in memory together (a sweep chunk).
     integrator : str
-        ``"verlet"``, or a scipy method (its run time is not estimated).
+        ``"verlet"``, or a scipy method (``"dop853"``, ``"rk45"``; a rougher estimate).
 
     Returns
     -------
@@ -117,12 +121,16 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
     recorded = probes.recorded_contacts(n, system.has_wall).size
     signals = recorded + 4 + len(probes.sensors) + (n + 1 if probes.velocities else 0)  # + 3 energies, time, wall
     memory = BYTES_PER_VALUE * samples * signals * members
-    steps, seconds = 0.0, 0.0
     if integrator == "verlet":
         plan = step_plan(system, probes.sample_interval, dt)
         steps = duration / plan.dt
         per = NS_PER_BEAD_STEP["general" if system.general else "elastic"]
         seconds = steps * (n + 1) * members * per
+    else:
+        # solve_ivp: about SCIPY_RADIANS_PER_STEP of the fastest motion per step, each step a few
+        # Python-level right-hand-side calls
+        steps = duration * system.max_frequency() / SCIPY_RADIANS_PER_STEP
+        seconds = steps * (SCIPY_S_PER_STEP + (n + 1) * NS_PER_BEAD_STEP["general"]) * members
     return ResourceEstimate(samples=samples, signals=signals, members=members, memory_bytes=int(memory),
                             steps=steps, seconds=seconds)
 

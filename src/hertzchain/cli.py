@@ -106,8 +106,9 @@ def _open_result(path: Path):
         raise ConfigError(str(path), "no such file")
     try:
         ds = load(path)
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise ConfigError(str(path), f"is not a hertzchain NetCDF result ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
+        raise ConfigError(str(path), f"is not a hertzchain NetCDF result, or is damaged "
+                          f"({type(exc).__name__}: {exc})") from None
     # What every command reads: a time axis and at least one force signal.
     forces = [v for v in ("wall_force", "sensor_force", "contact_force") if v in ds]
     if "time" not in ds.coords or ds.time.ndim != 1 or ds.time.size < 2 or not forces:

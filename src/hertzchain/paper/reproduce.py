@@ -120,7 +120,7 @@ def load_data(out_dir: str | Path, settings: Settings):
         return _load_data(data, settings, load)
     except ConfigError:
         raise
-    except (OSError, ValueError, KeyError, AttributeError, IndexError, TypeError) as exc:
+    except (OSError, ValueError, KeyError, AttributeError, IndexError, TypeError, RuntimeError) as exc:
         # A trace that is readable NetCDF but lacks what the protocol needs (damaged, foreign)
         raise ConfigError(str(data), f"holds a damaged or foreign trace ({type(exc).__name__}: {exc}); "
                           "rerun 'hertzchain reproduce' without --from-data") from None
@@ -136,8 +136,8 @@ def _load_data(data: Path, settings: Settings, load):
             raise ConfigError(str(p), "is missing: rerun 'hertzchain reproduce' without --from-data")
         try:
             return load(p)
-        except (OSError, ValueError, KeyError) as exc:
-            raise ConfigError(str(p), f"is damaged or not a hertzchain result ({exc})") from None
+        except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
+            raise ConfigError(str(p), f"is damaged or not a hertzchain result ({type(exc).__name__}: {exc})") from None
 
     studies = {}
     for name in ("chain1", "chain2"):
