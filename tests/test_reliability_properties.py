@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 import hertzchain as hc
@@ -165,6 +165,7 @@ def _run_case(case, capsys) -> None:
         out = folder / "r.nc"
         code = main(["run", str(cfg), "--out", str(out), "-q"])
         err = capsys.readouterr().err
+        event(f"exit {code}")  # --hypothesis-show-statistics: both outcomes are exercised
         assert_clean_outcome(code, err, folder, {"c.toml"}, out, set(data))
     finally:
         shutil.rmtree(folder)
@@ -247,5 +248,61 @@ def test_generated_csv_files_exit_0_or_2(rows, header, capsys):
             assert captured.err.startswith(f"error: {csv}"), captured.err
         else:
             json.loads(captured.out, parse_constant=lambda c: pytest.fail(f"bare {c}"))
+    finally:
+        shutil.rmtree(folder)
+
+
+@st.composite
+def mutated_sweeps(draw) -> tuple[dict, str]:
+    """A small valid sweep file, then 0..2 hostile values in its [sweep] table or its base."""
+    sweep = {"parameters": {"striker.velocity": [0.1, 0.2]}, "chunk_size": 1}
+    base = {"chain": {"uniform": {"n": 3, "diameter_mm": 26.0}},
+            "run": {"duration": 2e-4, "sample_interval": 2e-6}}
+    data = {"base": base, "sweep": sweep}
+    for _ in range(draw(st.integers(0, 2))):
+        target = draw(st.sampled_from(["chunk_size", "mode", "n", "seed", "store", "velocities", "parameter",
+                                       "duration", "n_beads"]))
+        value = draw(HOSTILE)
+        if target == "velocities":
+            sweep["parameters"]["striker.velocity"] = draw(st.lists(HOSTILE, min_size=1, max_size=2))
+        elif target == "parameter":
+            sweep["parameters"][draw(st.sampled_from(["run.duration", "chain.nope", "striker..x", "chain.taper.q"]))] = \
+                draw(st.one_of(HOSTILE, st.lists(HOSTILE, min_size=1, max_size=2)))
+        elif target == "duration":
+            base["run"]["duration"] = value
+        elif target == "n_beads":
+            base["chain"]["uniform"]["n"] = value
+        else:
+            sweep[target] = value
+    lines = ["[base.chain]", f"uniform = {toml_value(base['chain']['uniform'])}", "[base.run]"]
+    lines += [f"{k} = {toml_value(v)}" for k, v in base["run"].items()]
+    lines += ["[sweep]"] + [f"{json.dumps(k)} = {toml_value(v)}" for k, v in sweep.items()]
+    return data, "\n".join(lines) + "\n"
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                 HealthCheck.too_slow])
+@given(case=mutated_sweeps())
+def test_mutated_sweep_files_exit_0_or_2_and_write_nothing_when_refused(case, run_budget, capsys):
+    _, text = case
+    folder = Path(tempfile.mkdtemp(prefix="hc-prop-"))
+    try:
+        (folder / "s.toml").write_text(text)
+        out = folder / "out"
+        code = main(["sweep", str(folder / "s.toml"), "--out", str(out), "-q"])
+        err = capsys.readouterr().err
+        event(f"exit {code}")
+        assert "Traceback" not in err and "internal error" not in err, err
+        assert code in (0, 2), err
+        if code == 0:
+            import pandas as pd
+
+            df = pd.read_csv(out / "metrics.csv")
+            assert len(df) >= 1 and np.all(np.isfinite(df["peak_wall_force"]))
+        else:
+            assert err.startswith("error: ") and len(err.strip().splitlines()) == 1, err
+            field = err[len("error: "):].split(": ", 1)[0]
+            assert field.split(".")[0].split("[")[0] in {"base", "sweep"} or field.startswith(str(folder)), err
+            assert not out.exists(), "a refused sweep wrote files"
     finally:
         shutil.rmtree(folder)

@@ -251,12 +251,23 @@ class SweepConfig:
                 try:
                     model = build_model(parse_config(self.member_config(i)))
                 except ConfigError as exc:
-                    raise ConfigError(exc.field, f"{exc.message} (sweep member {i}: {self.members[i]})") from None
+                    raise _member_error(exc, i, self.members[i]) from None
                 if self.sweep.tolerances is not None:
                     model = _apply_tolerances(model, self.sweep.tolerances, i)
                 out.append(model)
             self._models = out
         return self._models
+
+
+def _member_error(exc: ConfigError, index: int, values: dict[str, Any]) -> ConfigError:
+    """A member's config error under the key the user wrote: ``sweep.parameters["PATH"]`` when the
+    bad field is a swept value, ``base.FIELD`` otherwise (a base value the member's values made
+    invalid, e.g. ``base.chain.taper.n`` when only ``chain.taper.q`` is swept)."""
+    if exc.field.startswith("sweep."):  # already named in the sweep table (a path that does not fit the base)
+        return ConfigError(exc.field, f"{exc.message} (sweep member {index}: {values})")
+    swept = next((p for p in values if exc.field == p or exc.field.startswith((p + ".", p + "["))), None)
+    field_name = f'sweep.parameters["{swept}"]' if swept is not None else f"base.{exc.field}"
+    return ConfigError(field_name, f"{exc.field}: {exc.message} (sweep member {index}: {values})")
 
 
 def _apply_tolerances(model, tol: Tolerances, index: int):
@@ -396,7 +407,7 @@ def parse_sweep(data: dict) -> SweepConfig:
         try:
             parse_config(cfg.member_config(i))
         except ConfigError as exc:
-            raise ConfigError(exc.field, f"{exc.message} (sweep member {i}: {members[i]})") from None
+            raise _member_error(exc, i, members[i]) from None
     return cfg
 
 
