@@ -184,3 +184,16 @@ def test_cli_refuses_a_run_too_large_for_memory(tmp_path, capsys):
     assert err.startswith("error: run.duration") and "GiB" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["long.toml"]
     assert math.isfinite(checks.available_memory() or 1.0)
+
+
+def test_divergence_message_names_run_dt_only_when_it_was_given(monkeypatch):
+    """Issue: the divergence message asked for a smaller run.dt when none was given."""
+    from hertzchain.integrate import kernels
+
+    monkeypatch.setattr(kernels, "verlet_run", lambda *args: 1)  # the kernel reports a non-finite state
+    model = hc.Model(hc.Chain.uniform(3, 26e-3), hc.Striker(8e-3, 0.2))
+    with pytest.raises(SimulationDiverged) as auto:
+        hc.simulate(model, 1e-4)
+    assert "automatic step" in str(auto.value) and "run.dt" not in str(auto.value)
+    with pytest.raises(SimulationDiverged, match=r"with run\.dt = 1e-08 s; use a smaller run\.dt"):
+        hc.simulate(model, 1e-4, dt=1e-8)
