@@ -197,3 +197,20 @@ def test_divergence_message_names_run_dt_only_when_it_was_given(monkeypatch):
     assert "automatic step" in str(auto.value) and "run.dt" not in str(auto.value)
     with pytest.raises(SimulationDiverged, match=r"with run\.dt = 1e-08 s; use a smaller run\.dt"):
         hc.simulate(model, 1e-4, dt=1e-8)
+
+
+def test_sweep_member_that_gains_energy_stops_the_sweep(tmp_path, monkeypatch):
+    """The batched engine has no balance check of its own: compute_chunk checks every member."""
+    from hertzchain.integrate import verlet
+
+    monkeypatch.setattr(verlet, "check_time_step", lambda system, dt: None)
+    w = dashpot_model(1e5).system().max_frequency()
+    sweep = {"base": {"chain": {"uniform": {"n": 5, "diameter_mm": 26.0}}, "striker": {"velocity": 0.2},
+                      "contact": {"law": "dashpot", "gamma": 1e5},
+                      "run": {"duration": 2e-5, "sample_interval": 1e-5, "dt": 6.0 / w}},
+             "sweep": {"parameters": {"striker.diameter_mm": [8.0]}}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(SimulationDiverged, match=r"sweep member 0 .*gains energy.*run\.dt"):
+            hc.run_sweep(sweep, tmp_path / "out")
+    assert not list((tmp_path / "out" / "chunks").glob("chunk_*.nc"))

@@ -25,7 +25,7 @@ import numpy as np
 from .errors import ConfigError, HertzRangeWarning, LongRunWarning, PulseNotReachedWarning, SimulationDiverged
 
 __all__ = ["ResourceEstimate", "estimate_resources", "check_resources", "check_before_run", "check_after_run",
-           "check_energy_balance", "available_memory", "HERTZ_MAX_OVERLAP", "LONG_RUN_S"]
+           "check_energy_balance", "energy_tolerance", "energy_cause", "available_memory", "HERTZ_MAX_OVERLAP", "LONG_RUN_S"]
 
 #: Largest overlap delta / R_min (R_min the smaller radius of the pair) taken as inside the range of
 #: Hertz theory (paper eq. 1 assumes a contact radius a = sqrt(R* delta) much smaller than R;
@@ -243,7 +243,54 @@ def check_energy_balance(time: np.ndarray, kinetic: np.ndarray, potential: np.nd
                                  f"Cause: {cause}")
 
 
-def _energy_cause(model, dt: float | None, integrator: str) -> str:
+def energy_tolerance(system, dt_max: float, integrator: str = "verlet", rtol: float = 1e-10) -> float:
+    """Relative energy gain a correct run may show (see :func:`check_energy_balance`).
+
+    Verlet conserves a shadow energy; the true one oscillates by O((omega dt)^2) (about 1 % at the
+    largest user step allowed, omega dt = MAX_OMEGA_DT = 0.5; ~1e-7 with the adaptive step), so
+    the allowance follows the largest step used, up to that of the largest step allowed, and is
+    at least 1e-3. For the scipy integrators it is 10 ``rtol`` (at least 1e-3).
+
+    Parameters
+    ----------
+    system : hertzchain.model.System
+        The model's arrays.
+    dt_max : float
+        Largest Verlet step used [s].
+    integrator : str
+        ``"verlet"``, ``"dop853"`` or ``"rk45"``.
+    rtol : float
+        Relative tolerance of the scipy integrators.
+
+    Returns
+    -------
+    float
+        The tolerance, relative to the initial energy.
+    """
+    if integrator != "verlet":
+        return max(1e-3, 10.0 * rtol)
+    from .integrate.verlet import MAX_OMEGA_DT
+
+    return max(1e-3, 0.1 * min(system.max_frequency() * dt_max, MAX_OMEGA_DT) ** 2)
+
+
+def energy_cause(model, dt: float | None, integrator: str = "verlet") -> str:
+    """What to change when a run gains energy, named as the user wrote it.
+
+    Parameters
+    ----------
+    model : hertzchain.model.Model
+        The model.
+    dt : float or None
+        The user's fixed step [s] (None: automatic).
+    integrator : str
+        ``"verlet"``, ``"dop853"`` or ``"rk45"``.
+
+    Returns
+    -------
+    str
+        A sentence naming ``run.dt``, ``contact.gamma``, ``contact.A`` or ``run.rtol``.
+    """
     if integrator != "verlet":
         return "the solver tolerance run.rtol is too loose; lower it"
     if dt is not None:
@@ -282,18 +329,9 @@ def check_after_run(ds, model, system, *, dt: float | None = None, integrator: s
     SimulationDiverged
         The run gained energy (see :func:`check_energy_balance`).
     """
-    # Verlet conserves a shadow energy; the true one oscillates by O((omega dt)^2) (about 1 % at the
-    # largest user step allowed, omega dt = MAX_OMEGA_DT = 0.5; ~1e-7 with the adaptive step), so
-    # the allowance follows the step actually used, up to that of the largest step allowed.
-    if integrator == "verlet":
-        from .integrate.verlet import MAX_OMEGA_DT
-
-        wdt = system.max_frequency() * float(ds.attrs.get("dt_max") or ds.attrs["dt"])
-        tolerance = max(1e-3, 0.1 * min(wdt, MAX_OMEGA_DT) ** 2)
-    else:
-        tolerance = max(1e-3, 10.0 * rtol)
+    tolerance = energy_tolerance(system, float(ds.attrs.get("dt_max") or ds.attrs["dt"]), integrator, rtol)
     check_energy_balance(ds.time.values, ds.kinetic_energy.values, ds.potential_energy.values,
-                         ds.dissipated_energy.values, tolerance=tolerance, cause=_energy_cause(model, dt, integrator))
+                         ds.dissipated_energy.values, tolerance=tolerance, cause=energy_cause(model, dt, integrator))
 
     nc = system.n_contacts
     fmax = ds.max_contact_force.values

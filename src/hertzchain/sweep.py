@@ -62,7 +62,7 @@ from typing import Any, Callable, Iterator, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from .errors import ConfigError, HertzchainError
+from .errors import ConfigError, HertzchainError, SimulationDiverged
 
 __all__ = ["SweepConfig", "SweepMismatch", "SweepLocked", "SweepResult", "load_sweep", "parse_sweep", "run_sweep",
            "compute_chunk", "METRIC_COLUMNS"]
@@ -462,6 +462,7 @@ def compute_chunk(task: _ChunkTask):
         ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, n_threads=task.n_threads,
                             configs=None)
     ds = ds.assign_coords(member=("member", np.asarray(task.members, dtype=np.int64), ds["member"].attrs))
+    _check_members_energy(ds, task)
     values = {k: np.full(len(task.members), np.nan) for k in METRIC_COLUMNS}
     errors = [""] * len(task.members)
     time = ds["time"].values
@@ -484,6 +485,23 @@ def compute_chunk(task: _ChunkTask):
                                    attrs={"long_name": "swept parameter values of the member (JSON)"})
     ds.attrs.update(sweep_hash=task.sweep_hash, chunk=task.index, title="hertzchain sweep chunk")
     return ds
+
+
+def _check_members_energy(ds, task: _ChunkTask) -> None:
+    """The energy balance of every member (hertzchain.checks), which the batched engine does not
+    check itself: a member that gains energy stops the sweep, naming the member and the cause."""
+    from .checks import check_energy_balance, energy_cause, energy_tolerance
+
+    time = ds["time"].values
+    ke, pe, ed = (ds[v].values for v in ("kinetic_energy", "potential_energy", "dissipated_energy"))
+    for i, model in enumerate(task.models):
+        dt = task.dt[i] if isinstance(task.dt, list) else task.dt
+        # the adaptive step's largest step is not stored per member: the minimum allowance then
+        tol = energy_tolerance(model.system(), dt) if dt is not None else energy_tolerance(model.system(), 0.0)
+        try:
+            check_energy_balance(time, ke[i], pe[i], ed[i], tolerance=tol, cause=energy_cause(model, dt))
+        except SimulationDiverged as exc:
+            raise SimulationDiverged(f"sweep member {task.members[i]} ({task.params[i]}): {exc}") from None
 
 
 def _write_chunk(ds, path: Path) -> None:
