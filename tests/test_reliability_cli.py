@@ -149,3 +149,23 @@ def test_numpy_warnings_do_not_reach_the_user(tmp_path, capsys, monkeypatch):
         cli_mod.cli.commands.pop("noisy")
     err = capsys.readouterr().err
     assert err == "warning: ours\n"
+
+
+@pytest.mark.parametrize("changes,field", [
+    ({"seed": -1}, "sweep.seed"),                               # numpy refused it with a traceback
+    ({"chunk_size": True}, "sweep.chunk_size"),
+    ({"chunk_size": 2.0}, "sweep.chunk_size"),
+    ({"tolerances": {"diameter_rel": 1e-3, "seed": -5}}, "sweep.tolerances.seed"),
+    ({"tolerances": {"offset_mm": 1e300}}, "sweep.tolerances.offset_mm"),
+    ({"mode": "random", "n": 10**12, "parameters": {"striker.velocity": [0.1]}}, "sweep.n"),
+    ({"parameters": {"striker.velocity": [0.1] * 1000, "striker.diameter_mm": [8.0] * 1001}}, "sweep.parameters"),
+    ({"parameters": {"striker.velocity": [0.1, "0.2"]}}, 'sweep.parameters["striker.velocity"]'),
+])
+def test_sweep_table_is_strict_and_bounded(changes, field):
+    from hertzchain.sweep import parse_sweep
+
+    data = {"base": {"chain": {"uniform": {"n": 3, "diameter_mm": 26.0}}},
+            "sweep": {"parameters": {"striker.velocity": [0.1]}, **changes}}
+    with pytest.raises(hc.ConfigError) as info:
+        parse_sweep(data)
+    assert info.value.field == field

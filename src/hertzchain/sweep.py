@@ -90,7 +90,13 @@ class SweepLocked(HertzchainError):
 
 # ------------------------------------------------------------------------------ schema
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # strict like the run config (hertzchain.config): no booleans or strings as numbers, no NaN
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+#: Most members a sweep may have (a grid's product of list lengths, or random mode's n).
+MAX_MEMBERS = 1_000_000
+_SEED = Field(default=0, ge=0, le=2**63 - 1)
 
 
 class Range(_Section):
@@ -107,9 +113,9 @@ class Tolerances(_Section):
     """Per-bead random deviations (manufacturing tolerances), seeded per member index."""
 
     diameter_rel: float = Field(default=0.0, ge=0, lt=0.1, description="relative diameter deviation (1 sigma)")
-    offset_mm: float = Field(default=0.0, ge=0, description="perpendicular offset deviation, mm (1 sigma)")
+    offset_mm: float = Field(default=0.0, ge=0, le=1e3, description="perpendicular offset deviation, mm (1 sigma)")
     distribution: Literal["normal", "uniform"] = "normal"
-    seed: int = 0
+    seed: int = _SEED
 
 
 class SweepSection(_Section):
@@ -117,12 +123,12 @@ class SweepSection(_Section):
 
     mode: Literal["grid", "random"] = "grid"
     parameters: dict[str, Any] = {}
-    n: int | None = Field(default=None, ge=1, description="members drawn in random mode")
-    seed: int = 0
-    chunk_size: int = Field(default=32, ge=1, description="members per chunk file")
+    n: int | None = Field(default=None, ge=1, le=MAX_MEMBERS, description="members drawn in random mode")
+    seed: int = _SEED
+    chunk_size: int = Field(default=32, ge=1, le=MAX_MEMBERS, description="members per chunk file")
     tolerances: Tolerances | None = None
     store: Literal["wall", "probes"] = "wall"
-    n_threads: int | None = Field(default=None, ge=1)
+    n_threads: int | None = Field(default=None, ge=1, le=4096)
 
 
 class _SweepFile(_Section):
@@ -388,6 +394,10 @@ def parse_sweep(data: dict) -> SweepConfig:
 
     names = list(sw.parameters)
     if sw.mode == "grid":
+        size = math.prod(len(specs[k]) for k in names)
+        if size > MAX_MEMBERS:
+            raise ConfigError("sweep.parameters", f"the grid has {size:,} members (the product of the list "
+                              f"lengths); at most {MAX_MEMBERS:,} are allowed: use fewer values or mode = 'random'")
         combos = itertools.product(*(specs[k] for k in names)) if names else [()]
         members = [dict(zip(names, c)) for c in combos]
     else:
