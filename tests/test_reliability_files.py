@@ -227,3 +227,13 @@ def test_invalid_sweep_writes_nothing(tmp_path):
     assert not out.exists()
     good = hc.run_sweep(small_sweep(), out)  # the corrected sweep is not blocked
     assert good.computed == [0, 1]
+
+
+def test_missing_folder(tmp_path, capsys):
+    with pytest.raises(ConfigError, match="its folder does not exist"):
+        fileio.write_text(tmp_path / "nope" / "a.txt", "x")
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(SMALL_RUN)
+    # hertzchain run creates the result's folder, as before
+    assert main(["run", str(cfg), "--out", str(tmp_path / "new" / "r.nc"), "-q"]) == 0
+    assert hc.load(tmp_path / "new" / "r.nc").time.size == 201

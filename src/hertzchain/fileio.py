@@ -61,14 +61,12 @@ def check_target(path: str | os.PathLike) -> None:
     Parameters
     ----------
     path : str or os.PathLike
-        The file about to be written. Its folder must exist.
+        The file about to be written.
     """
     path = Path(path)
     try:
         st = os.lstat(path)  # lstat: a symlink is reported as itself, not as what it points to
-    except FileNotFoundError:
-        if not path.parent.is_dir():
-            raise ConfigError(str(path), f"cannot be written: the folder {path.parent} does not exist") from None
+    except FileNotFoundError:  # absent (or its folder is): writing will create it, or say why not
         return
     except OSError as exc:
         raise ConfigError(str(path), f"cannot be written: {_reason(exc)}") from None
