@@ -15,11 +15,11 @@ import click
 
 
 @contextmanager
-def progress_bar(description: str, enabled: bool = True):
+def progress_bar(description: str, enabled: bool = True, lazy: bool = False):
     """A Rich progress bar on stderr; yields ``update(done, total)``.
 
-    The bar appears at the first update, so a job refused by its checks before any work (bad
-    input, not enough memory) prints only its error message.
+    With ``lazy`` the bar appears at the first update, so a job refused by its checks before any
+    work (bad input, not enough memory) prints only its error message.
     """
     if not enabled:
         yield None
@@ -29,14 +29,19 @@ def progress_bar(description: str, enabled: bool = True):
 
     state: dict = {}
 
+    def start() -> None:
+        prog = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                        TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=False)
+        prog.start()
+        state.update(prog=prog, task=prog.add_task(description, total=None))
+
     def update(done: int, total: int) -> None:
         if not state:
-            prog = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                            TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=False)
-            prog.start()
-            state.update(prog=prog, task=prog.add_task(description, total=None))
+            start()
         state["prog"].update(state["task"], completed=done, total=total)
 
+    if not lazy:
+        start()
     try:
         yield update
     finally:
@@ -78,7 +83,7 @@ def run(config: Path, out: Path, quiet: bool) -> None:
     work = cfg.run.duration / dt * model.chain.n_beads
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ElasticLimitWarning)
-        with progress_bar("simulating", enabled=not quiet and work > 1e8) as update:
+        with progress_bar("simulating", enabled=not quiet and work > 1e8, lazy=True) as update:
             ds = simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                           rtol=cfg.run.rtol, progress=update, config=cfg.model_dump(mode="json"))
     for w in caught:
