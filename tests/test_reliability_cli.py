@@ -169,3 +169,38 @@ def test_sweep_table_is_strict_and_bounded(changes, field):
     with pytest.raises(hc.ConfigError) as info:
         parse_sweep(data)
     assert info.value.field == field
+
+
+@pytest.fixture(scope="module")
+def small_result():
+    model = hc.Model(hc.Chain.uniform(4, 26e-3), hc.Striker(8e-3, 0.2))
+    return hc.simulate(model, 4e-4, hc.Probes(sample_interval=1e-6, sensors=(2,)))
+
+
+DAMAGE = {
+    "no time": lambda ds: ds.drop_vars("time"),
+    "no contact axis": lambda ds: ds.drop_vars("contact"),
+    "no sensor axis": lambda ds: ds.drop_vars("sensor"),
+    "no wall force": lambda ds: ds.drop_vars("wall_force"),
+    "no forces": lambda ds: ds.drop_vars(["wall_force", "sensor_force", "contact_force"]),
+    "NaN wall force": lambda ds: ds.assign(wall_force=ds.wall_force * np.nan),
+    "no attributes": lambda ds: ds.assign_attrs({k: "" for k in ds.attrs}),
+    "model attribute not JSON": lambda ds: ds.assign_attrs(model="{not json"),
+    "model attribute a list": lambda ds: ds.assign_attrs(model="[1, 2]"),
+    "one sample": lambda ds: ds.isel(time=slice(0, 1)),
+}
+
+
+@pytest.mark.parametrize("damage", DAMAGE)
+def test_results_with_missing_or_odd_content(small_result, damage, tmp_path, capsys):
+    """Issue: 5 of 19 plot cases (results without the expected attributes...) were internal errors."""
+    path = tmp_path / "r.nc"
+    DAMAGE[damage](small_result).to_netcdf(path, engine="h5netcdf")
+    for argv in (["plot", str(path), "--out", str(tmp_path / "p.png")], ["analyze", str(path), "--json"]):
+        code = main(argv)
+        captured = capsys.readouterr()
+        assert code in (0, 2) and "internal error" not in captured.err, captured.err
+        if code == 2:
+            assert captured.err.startswith(f"error: {path}") or captured.err.startswith("error: --"), captured.err
+        elif argv[0] == "analyze":
+            json.loads(captured.out, parse_constant=lambda c: pytest.fail(f"bare {c}"))

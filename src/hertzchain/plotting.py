@@ -58,6 +58,27 @@ def image_format(out: str | Path, option: str = "--out") -> str:
     return fmt
 
 
+def _title(ds: xr.Dataset) -> str:
+    """'N beads, striker D mm at V m/s' from the result's ``model`` attribute ('?' where a result
+    written elsewhere lacks it or holds something else)."""
+    import json
+
+    def table(x) -> dict:
+        return x if isinstance(x, dict) else {}
+
+    def num(x) -> str:
+        return f"{x:g}" if isinstance(x, (int, float)) and not isinstance(x, bool) else "?"
+
+    try:
+        model = table(json.loads(ds.attrs.get("model", "{}")))
+    except (TypeError, ValueError):
+        model = {}
+    diameters = table(model.get("chain")).get("diameters_mm")
+    s = table(model.get("striker"))
+    n = len(diameters) if isinstance(diameters, list) else "?"
+    return f"{n} beads, striker {num(s.get('diameter_mm'))} mm at {num(s.get('velocity'))} m/s"
+
+
 def plot_signals(ds: xr.Dataset, out: str | Path, signals: Sequence[str] | None = None,
                  contacts: Sequence[int] | None = None, title: str | None = None) -> Path:
     """Draw each signal in its own panel (force [N] against time [ms]) and save to ``out``."""
@@ -77,15 +98,7 @@ def plot_signals(ds: xr.Dataset, out: str | Path, signals: Sequence[str] | None 
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("t [ms]")
     if title is None:
-        import json
-
-        model = json.loads(ds.attrs.get("model", "{}"))
-        n = len(model.get("chain", {}).get("diameters_mm", []))
-        s = model.get("striker", {})
-        def num(x) -> str:  # a result written elsewhere may lack the model attributes
-            return f"{x:g}" if isinstance(x, (int, float)) else "?"
-
-        title = f"{n} beads, striker {num(s.get('diameter_mm'))} mm at {num(s.get('velocity'))} m/s"
+        title = _title(ds)
     axes[0, 0].set_title(title)
     fig.tight_layout()
     out = Path(out)
