@@ -139,14 +139,24 @@ def test_concurrent_writers_leave_one_whole_file(tmp_path):
     assert leftovers(tmp_path) == []
 
 
+def _cli_run(argv: list[str]) -> None:
+    sys.exit(main(argv))
+
+
 def test_two_cli_runs_on_the_same_out(tmp_path):
+    """The issue's case: two `hertzchain run` writing one --out (forked: no second import)."""
     cfg = tmp_path / "c.toml"
     cfg.write_text(SMALL_RUN)
     out = tmp_path / "r.nc"
-    cmd = [sys.executable, "-m", "hertzchain.cli", "run", str(cfg), "--out", str(out), "-q"]
-    procs = [subprocess.Popen(cmd, stderr=subprocess.PIPE) for _ in range(2)]
-    codes = [p.wait(120) for p in procs]
-    assert codes == [0, 0]
+    main(["run", str(cfg), "--out", str(tmp_path / "warm.nc"), "-q"])  # compile before forking
+    (tmp_path / "warm.nc").unlink()
+    ctx = mp.get_context("fork")
+    procs = [ctx.Process(target=_cli_run, args=(["run", str(cfg), "--out", str(out), "-q"],)) for _ in range(3)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(120)
+    assert [p.exitcode for p in procs] == [0, 0, 0]
     ds = hc.load(out)  # one whole file from one of them
     assert ds.time.size == 201 and np.all(np.isfinite(ds.contact_force.values))
     assert leftovers(tmp_path) == []
