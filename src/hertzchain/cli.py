@@ -66,10 +66,9 @@ def run(config: Path, out: Path, quiet: bool) -> None:
 
     from .config import apply_instruments, build_instruments, build_model, build_probes, load_config
     from .errors import ElasticLimitWarning
+    from .fileio import check_target
     from .result import save
     from .simulation import simulate
-
-    from .fileio import check_target
 
     cfg = load_config(config)
     check_target(out)  # refuse a FIFO, a link or a device as --out before any work
@@ -254,6 +253,25 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     click.echo(f"warning: {message}", err=True)
 
 
+def _user_warnings(func):
+    """Run ``func`` with warnings shown as :func:`_show_warning` lines and NumPy's floating-point
+    RuntimeWarnings (overflow, invalid value...) silenced: every result is checked by
+    :mod:`hertzchain.checks`, which raises or warns in the user's terms."""
+    import functools
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            warnings.showwarning = _show_warning
+            return func(*args, **kwargs)
+
+    return wrapper
+
+
+@_user_warnings
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, turning user errors into a message and exit status 2.
 
@@ -262,43 +280,36 @@ def main(argv: list[str] | None = None) -> int:
     (OSError) or a lack of memory ends with one paragraph naming what is wrong and exit status
     2; anything else is a bug, reported as such with exit status 1.
     """
-    import warnings
-
     from .errors import HertzchainError
 
-    with warnings.catch_warnings():
-        # NumPy's floating-point RuntimeWarnings (overflow, invalid value...) are not shown: every
-        # result is checked by hertzchain.checks, which raises or warns in the user's terms.
-        warnings.simplefilter("ignore", RuntimeWarning)
-        warnings.showwarning = _show_warning
-        try:
-            cli.main(args=argv, prog_name="hertzchain", standalone_mode=False)
-        except click.exceptions.Abort:
-            click.echo("aborted", err=True)
-            return 130
-        except click.exceptions.ClickException as exc:
-            exc.show()
-            return 2 if isinstance(exc, click.UsageError) else exc.exit_code
-        except HertzchainError as exc:
-            click.echo(f"error: {exc}", err=True)
-            return 2
-        except KeyboardInterrupt:
-            click.echo("interrupted", err=True)
-            return 130
-        except MemoryError:
-            click.echo("error: not enough memory for this job; shorten run.duration, raise run.sample_interval "
-                       "or record fewer contacts (probes.contacts)", err=True)
-            return 2
-        except OSError as exc:  # a file the job needed could not be read or written
-            where = exc.filename if exc.filename is not None else "a file"
-            click.echo(f"error: {where}: {exc.strerror or exc}", err=True)
-            return 2
-        except Exception as exc:  # a bug: say so plainly, full traceback on request
-            if os.environ.get("HERTZCHAIN_DEBUG"):
-                raise
-            click.echo(f"internal error: {type(exc).__name__}: {exc}\n"
-                       "This is a bug in hertzchain; rerun with HERTZCHAIN_DEBUG=1 for the traceback.", err=True)
-            return 1
+    try:
+        cli.main(args=argv, prog_name="hertzchain", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("aborted", err=True)
+        return 130
+    except click.exceptions.ClickException as exc:
+        exc.show()
+        return 2 if isinstance(exc, click.UsageError) else exc.exit_code
+    except HertzchainError as exc:
+        click.echo(f"error: {exc}", err=True)
+        return 2
+    except KeyboardInterrupt:
+        click.echo("interrupted", err=True)
+        return 130
+    except MemoryError:
+        click.echo("error: not enough memory for this job; shorten run.duration, raise run.sample_interval "
+                   "or record fewer contacts (probes.contacts)", err=True)
+        return 2
+    except OSError as exc:  # a file the job needed could not be read or written
+        where = exc.filename if exc.filename is not None else "a file"
+        click.echo(f"error: {where}: {exc.strerror or exc}", err=True)
+        return 2
+    except Exception as exc:  # a bug: say so plainly, full traceback on request
+        if os.environ.get("HERTZCHAIN_DEBUG"):
+            raise
+        click.echo(f"internal error: {type(exc).__name__}: {exc}\n"
+                   "This is a bug in hertzchain; rerun with HERTZCHAIN_DEBUG=1 for the traceback.", err=True)
+        return 1
     return 0
 
 
