@@ -73,9 +73,9 @@ def _bounded(kind: str, *, open_low: bool = False, **kw: Any) -> Any:
     return Field(gt=lo, le=hi, **kw) if open_low else Field(ge=lo, le=hi, **kw)
 
 
-Diameter = Annotated[float, _bounded("diameter_mm")]
-BeadNumber = Annotated[int, _bounded("beads")]
-Offset = Annotated[float, _bounded("offset_mm")]
+_Diameter = Annotated[float, _bounded("diameter_mm")]
+_BeadNumber = Annotated[int, _bounded("beads")]
+_Offset = Annotated[float, _bounded("offset_mm")]
 
 
 class MaterialConfig(_Section):
@@ -88,18 +88,18 @@ class MaterialConfig(_Section):
 
 
 class UniformBlock(_Section):
-    n: BeadNumber
-    diameter_mm: Diameter
+    n: _BeadNumber
+    diameter_mm: _Diameter
 
 
 class TaperBlock(_Section):
-    n: BeadNumber
+    n: _BeadNumber
     q: float = Field(ge=0, lt=1, description="tapering factor as a fraction (0.056 = 5.6 %)")
 
 
 class Substitution(_Section):
-    bead: BeadNumber
-    diameter_mm: Diameter | None = None
+    bead: _BeadNumber
+    diameter_mm: _Diameter | None = None
     material: str | None = None
 
 
@@ -112,9 +112,9 @@ class ChainConfig(_Section):
     preset: Literal["chain1", "chain2"] | None = None
     uniform: UniformBlock | None = None
     taper: TaperBlock | None = None
-    truncate: BeadNumber | None = None
+    truncate: _BeadNumber | None = None
     substitutions: list[Substitution] = []
-    offsets_mm: list[Offset] | None = None
+    offsets_mm: list[_Offset] | None = None
     offsets_fraction: list[Annotated[float, Field(ge=-0.5, le=0.5)]] | None = None
     precompression: float = _bounded("precompression", default=0.0, description="static force, N")
 
@@ -145,7 +145,7 @@ class ChainConfig(_Section):
 
 
 class StrikerConfig(_Section):
-    diameter_mm: Diameter = 8.0
+    diameter_mm: _Diameter = 8.0
     velocity: float = _bounded("velocity", open_low=True, default=0.5, description="m/s towards the chain")
     material: str | None = None
 
@@ -187,7 +187,7 @@ class RunSection(_Section):
 
 
 class ProbesConfig(_Section):
-    sensors: list[BeadNumber] = []
+    sensors: list[_BeadNumber] = []
     contacts: Literal["all"] | list[Annotated[int, Field(ge=0, le=BOUNDS["beads"][1])]] = "all"
     velocities: bool = False
 
