@@ -204,3 +204,13 @@ def test_results_with_missing_or_odd_content(small_result, damage, tmp_path, cap
             assert captured.err.startswith(f"error: {path}") or captured.err.startswith("error: --"), captured.err
         elif argv[0] == "analyze":
             json.loads(captured.out, parse_constant=lambda c: pytest.fail(f"bare {c}"))
+
+
+def test_oscilloscope_work_is_bounded_before_the_run():
+    from hertzchain.config import MAX_SCOPE_SAMPLES, build_instruments
+
+    data = {"chain": {"preset": "chain1"}, "instrument": {"wall": {"record_length": 10_000_000, "n_average": 1000}}}
+    with pytest.raises(hc.ConfigError, match=r"^instrument\.wall\.n_average: 1000 acquisitions"):
+        build_instruments(parse_config(data))
+    data["instrument"]["wall"]["n_average"] = int(MAX_SCOPE_SAMPLES // 10_000_000)
+    assert build_instruments(parse_config(data))["wall"].n_average == 10

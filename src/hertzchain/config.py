@@ -484,6 +484,10 @@ def build_probes(cfg: RunConfig):
                   contacts=None if p.contacts == "all" else tuple(p.contacts), velocities=p.velocities)
 
 
+#: Most oscilloscope samples (record_length x n_average) a measured channel may draw.
+MAX_SCOPE_SAMPLES = 1e8
+
+
 def build_instruments(cfg: RunConfig) -> dict:
     """Instrument objects of ``[instrument]`` (``{}`` when the measurement chain is off)."""
     from .instrument import Instrument
@@ -499,6 +503,14 @@ def build_instruments(cfg: RunConfig) -> dict:
             out[channel] = getattr(Instrument, ch.preset or default)(**fields)
         except ConfigError as exc:
             raise ConfigError(exc.field.replace("instrument.", f"instrument.{channel}.", 1), exc.message) from None
+        # Resources before any work (as hertzchain.checks does for the run): every averaged
+        # acquisition draws record_length samples of noise and digitises them.
+        inst = out[channel]
+        drawn = inst.record_length * inst.n_average
+        if drawn > MAX_SCOPE_SAMPLES:
+            raise ConfigError(f"instrument.{channel}.n_average", f"{inst.n_average} acquisitions of record_length = "
+                              f"{inst.record_length} points are {drawn:.3g} samples; at most {MAX_SCOPE_SAMPLES:.0e} "
+                              "(the oscilloscope of the paper records 1000 points)")
     return out
 
 
