@@ -247,3 +247,14 @@ def test_missing_folder(tmp_path, capsys):
     # hertzchain run creates the result's folder, as before
     assert main(["run", str(cfg), "--out", str(tmp_path / "new" / "r.nc"), "-q"]) == 0
     assert hc.load(tmp_path / "new" / "r.nc").time.size == 201
+
+
+def test_out_that_is_the_input_is_refused(tmp_path, capsys):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(SMALL_RUN)
+    assert main(["run", str(cfg), "--out", str(cfg)]) == 2
+    assert capsys.readouterr().err.startswith("error: --out: ") and cfg.read_text() == SMALL_RUN
+    png = tmp_path / "r.png"
+    png.write_bytes(b"\x89PNG not a result")
+    assert main(["plot", str(png), "--out", str(png)]) == 2
+    assert png.read_bytes() == b"\x89PNG not a result"

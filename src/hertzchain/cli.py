@@ -66,11 +66,12 @@ def run(config: Path, out: Path, quiet: bool) -> None:
 
     from .config import apply_instruments, build_instruments, build_model, build_probes, load_config
     from .errors import ElasticLimitWarning
-    from .fileio import check_target
+    from .fileio import check_not_input, check_target
     from .result import save
     from .simulation import simulate
 
     cfg = load_config(config)
+    check_not_input(out, config)
     check_target(out)  # refuse a FIFO, a link or a device as --out before any work
     model = build_model(cfg)
     probes = build_probes(cfg)
@@ -131,7 +132,10 @@ def plot(result: Path, out: Path, signals: tuple[str, ...], contacts: tuple[int,
     """Draw the force signals of RESULT against time, one panel per signal."""
     from .plotting import image_format, plot_signals
 
+    from .fileio import check_not_input
+
     image_format(out)  # an unknown --out suffix is refused before the file is read
+    check_not_input(out, result)
     ds = _open_result(result)
     click.echo(f"wrote {plot_signals(ds, out, signals or None, contacts or None)}")
 

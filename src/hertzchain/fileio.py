@@ -29,7 +29,7 @@ from typing import Any, Iterator
 
 from .errors import ConfigError
 
-__all__ = ["atomic_path", "write_text", "write_bytes", "check_target", "json_text"]
+__all__ = ["atomic_path", "write_text", "write_bytes", "check_target", "check_not_input", "json_text"]
 
 _REASONS = {
     errno.ENOSPC: "no space left on the device",
@@ -73,6 +73,28 @@ def check_target(path: str | os.PathLike) -> None:
     if not stat.S_ISREG(st.st_mode):
         raise ConfigError(str(path), f"exists and is {_kind(st.st_mode)}; hertzchain only replaces regular files, "
                           "so it was left alone: choose another output name")
+
+
+def check_not_input(out: str | os.PathLike, *inputs: str | os.PathLike, option: str = "--out") -> None:
+    """Refuse an output that is one of the job's input files (it would be replaced, and lost).
+
+    Parameters
+    ----------
+    out : str or os.PathLike
+        The file about to be written.
+    *inputs : str or os.PathLike
+        The files the job reads.
+    option : str
+        How the user named the output (for the message).
+    """
+    for src in inputs:
+        try:
+            same = os.path.samefile(out, src)
+        except OSError:  # one of them does not exist: not the same file
+            continue
+        if same:
+            raise ConfigError(option, f"{str(out)!r} is the input file {str(src)!r}; writing there would replace "
+                              "it: choose another output name")
 
 
 def _reason(exc: OSError) -> str:
