@@ -258,3 +258,23 @@ def test_out_that_is_the_input_is_refused(tmp_path, capsys):
     png.write_bytes(b"\x89PNG not a result")
     assert main(["plot", str(png), "--out", str(png)]) == 2
     assert png.read_bytes() == b"\x89PNG not a result"
+
+
+def test_real_write_limit_is_a_clean_error(tmp_path):
+    """A real fault, not a monkeypatch: the file-size limit (RLIMIT_FSIZE) makes every write past
+    64 kB fail with EFBIG, as a full disk would fail with ENOSPC."""
+    import resource
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(SMALL_RUN.replace("duration = 2e-4", "duration = 4e-3"))
+    out = tmp_path / "r.nc"
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64_000, 64_000))
+
+    proc = subprocess.run([sys.executable, "-m", "hertzchain.cli", "run", str(cfg), "--out", str(out), "-q"],
+                          capture_output=True, text=True, timeout=120, preexec_fn=limit)
+    assert proc.returncode == 2, proc.stderr
+    assert f"error: {out}: cannot be written: the file is too large for the file system" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.toml"]
