@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -135,7 +134,7 @@ def test_analyze_json_is_valid_json_with_null(tmp_path, capsys):
     assert rows[0]["error"] and rows[0]["peak_force"] is None
 
 
-def test_numpy_warnings_do_not_reach_the_user(tmp_path, capsys, monkeypatch):
+def test_numpy_warnings_do_not_reach_the_user(capsys):
     import hertzchain.cli as cli_mod
 
     @cli_mod.cli.command("noisy")

@@ -25,7 +25,8 @@ import numpy as np
 from .errors import ConfigError, HertzRangeWarning, LongRunWarning, PulseNotReachedWarning, SimulationDiverged
 
 __all__ = ["ResourceEstimate", "estimate_resources", "check_resources", "check_before_run", "check_after_run",
-           "check_energy_balance", "energy_tolerance", "energy_cause", "available_memory", "HERTZ_MAX_OVERLAP", "LONG_RUN_S"]
+           "check_energy_balance", "energy_tolerance", "energy_cause", "available_memory", "HERTZ_MAX_OVERLAP",
+           "LONG_RUN_S"]
 
 #: Largest overlap delta / R_min (R_min the smaller radius of the pair) taken as inside the range of
 #: Hertz theory (paper eq. 1 assumes a contact radius a = sqrt(R* delta) much smaller than R;
