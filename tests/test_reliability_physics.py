@@ -45,17 +45,19 @@ def test_step_bound_of_a_damped_contact_is_the_closed_form():
 def test_strong_dashpot_keeps_the_energy_balance(gamma):
     """Issue: gamma = 1e5 gained 1.8 % (and 1e25 x at larger gamma) with the elastic step bound.
     With the damping in the bound, kinetic + elastic + dissipated stays constant to 1e-6."""
+    model = dashpot_model(gamma)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", hc.ElasticLimitWarning)
-        ds = hc.simulate(dashpot_model(gamma), 3e-4, hc.Probes(sample_interval=1e-6))
+        ds = hc.simulate(model, 3e-4, hc.Probes(sample_interval=1e-6))
     e = total_energy(ds)
     assert np.all(np.isfinite(e))
     assert np.max(np.abs(e - e[0])) < 1e-6 * e[0]
     # Strong damping dissipates almost everything, and the wall force stays below the force that
-    # stops the striker's whole momentum in one damping time m / gamma of a bead.
+    # would stop the striker's whole momentum within one damping time m_bead / gamma (the issue's
+    # run reported 1e17 N).
     assert ds.dissipated_energy.values[-1] > 0.99 * e[0]
-    m_bead = hc.Chain.uniform(1, 26e-3).masses[0]
-    assert ds.wall_force.max() < 2e-3 * 0.2 * gamma / m_bead * 1e3  # << the 1e17 N of the issue
+    momentum = model.striker.mass * model.striker.velocity
+    assert 0 < ds.wall_force.max() < momentum * gamma / model.chain.masses[0]
 
 
 def test_fixed_step_must_respect_the_damping_bound():
