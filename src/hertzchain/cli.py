@@ -13,6 +13,7 @@ from pathlib import Path
 
 import click
 
+from .cli_options import set_option
 
 @contextmanager
 def progress_bar(description: str, enabled: bool = True):
@@ -43,17 +44,18 @@ def cli() -> None:
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="NetCDF file to write (e.g. result.nc).")
+@set_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
-def run(config: Path, out: Path, quiet: bool) -> None:
+def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> None:
     """Simulate the chain described by CONFIG (TOML) and save the result as NetCDF."""
     import warnings
 
     from .config import apply_instruments, build_instruments, build_model, build_probes, load_config
-    from .errors import ElasticLimitWarning
+    from .errors import DurationWarning, ElasticLimitWarning
     from .result import save
-    from .simulation import simulate
+    from .simulation import auto_duration, simulate
 
-    cfg = load_config(config)
+    cfg = load_config(config, overrides)
     model = build_model(cfg)
     probes = build_probes(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run
@@ -61,9 +63,11 @@ def run(config: Path, out: Path, quiet: bool) -> None:
     from .integrate.verlet import auto_time_step
 
     dt = cfg.run.dt or auto_time_step(model.system())
-    work = cfg.run.duration / dt * model.chain.n_beads
+    duration = auto_duration(model) if cfg.run.duration == "auto" else cfg.run.duration
+    work = duration / dt * model.chain.n_beads
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ElasticLimitWarning)
+        warnings.simplefilter("always", DurationWarning)
         with progress_bar("simulating", enabled=not quiet and work > 1e8) as update:
             ds = simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                           rtol=cfg.run.rtol, progress=update, config=cfg.model_dump(mode="json"))
@@ -78,7 +82,8 @@ def run(config: Path, out: Path, quiet: bool) -> None:
             step = f"{ds.attrs['integrator']}, {ds.attrs['n_steps']} right-hand-side calls"
         else:
             step = f"dt = {ds.attrs['dt']:.3g} s"
-        msg = f"wrote {out} ({ds.sizes['time']} samples, {ds.sizes['contact']} contacts, {step})"
+        span = f"{ds.attrs['duration'] * 1e3:.3g} ms" + (" (automatic)" if ds.attrs.get("duration_mode") == "auto" else "")
+        msg = f"wrote {out} ({span}, {ds.sizes['time']} samples, {ds.sizes['contact']} contacts, {step})"
         if "wall_force" in ds:
             msg += f"; peak wall force {ds.attrs['peak_wall_force']:.4g} N at {ds.attrs['peak_wall_time'] * 1e3:.4g} ms"
         click.echo(msg)

@@ -15,7 +15,7 @@ A minimal config (the contract of the core-engine issue)::
     [wall]
     type = "flat"           # or "none"
     [run]
-    duration = 2.5e-3       # s
+    duration = 2.5e-3       # s, or "auto" (the default)
     sample_interval = 1e-7  # s
     [probes]
     sensors = [2]
@@ -138,17 +138,26 @@ class ContactConfig(_Section):
 
 
 class RunSection(_Section):
-    duration: float = Field(default=2.5e-3, gt=0, description="s")
+    duration: float | Literal["auto"] = Field(
+        default="auto", description="s, or 'auto': until the front has crossed the chain and its tail passed "
+                                    "(hertzchain.simulation.auto_duration)")
     sample_interval: float = Field(default=1e-7, gt=0, description="s")
     dt: float | None = Field(default=None, gt=0, description="s; automatic when absent")
     integrator: Literal["verlet", "dop853", "rk45"] = "verlet"
     rtol: float = Field(default=1e-10, gt=0, lt=1)
 
+    @field_validator("duration", mode="before")
+    @classmethod
+    def _auto_or_time(cls, v: Any) -> Any:
+        if isinstance(v, str) and v != "auto":
+            raise ValueError("must be a time in s or 'auto'")
+        return v
+
     @field_validator("duration", "sample_interval", "dt")
     @classmethod
-    def _finite(cls, v: float | None) -> float | None:
-        if v is not None and not math.isfinite(v):
-            raise ValueError("must be finite")
+    def _finite(cls, v: float | str | None) -> float | str | None:
+        if isinstance(v, float) and not (math.isfinite(v) and v > 0):
+            raise ValueError("must be finite and greater than 0 (a time in s)")
         return v
 
 

@@ -38,3 +38,7 @@ class PulseNotFound(HertzchainError, ValueError):
 
 class ElasticLimitWarning(UserWarning):
     """Contact forces passed the elastic limit (yield) estimated as in the paper, Sec. II."""
+
+
+class DurationWarning(UserWarning):
+    """An automatic run duration (``duration = "auto"``) may be too short for the wall pulse."""

@@ -52,7 +52,7 @@ import re
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Iterator, Literal
+from typing import Any, Callable, Iterable, Iterator, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -391,11 +391,15 @@ def parse_sweep(data: dict) -> SweepConfig:
     return cfg
 
 
-def load_sweep(path: str | Path) -> SweepConfig:
-    """Read and validate a TOML sweep file (see the module docstring)."""
-    from .config import read_toml
+def load_sweep(path: str | Path, overrides: Iterable[str] = ()) -> SweepConfig:
+    """Read and validate a TOML sweep file (see the module docstring).
 
-    return parse_sweep(read_toml(path, "sweep file"))
+    ``overrides`` are ``--set DOTTED.PATH=VALUE`` assignments relative to ``[base]``
+    (:func:`hertzchain.config.apply_overrides`), validated like the file.
+    """
+    from .config import apply_overrides, read_toml
+
+    return parse_sweep(apply_overrides(read_toml(path, "sweep file"), overrides, prefix="base"))
 
 
 # ------------------------------------------------------------------------------ computing chunks
@@ -694,6 +698,12 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     else:
         probes = base_probes
     member_dts = [parse_config(cfg.member_config(i)).run.dt for i in range(cfg.n_members)]
+    duration = run_cfg.run.duration
+    if duration == "auto":
+        from .simulation import auto_duration
+
+        # Members share one time axis (the batched engine): the slowest member's duration.
+        duration = max(auto_duration(m) for m in models)
 
     total = cfg.n_members
     done_members = 0
@@ -704,7 +714,7 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
             done_members += len(members)
         else:
             todo.append(_ChunkTask(index=index, members=list(members), models=[models[m] for m in members],
-                                   params=[cfg.members[m] for m in members], duration=run_cfg.run.duration,
+                                   params=[cfg.members[m] for m in members], duration=duration,
                                    probes=probes, dt=[member_dts[m] for m in members],
                                    n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash))
     if progress is not None:
