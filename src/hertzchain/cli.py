@@ -102,20 +102,6 @@ def _open_result(path: Path):
 
 
 @cli.command()
-@click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Image file (PNG, PDF or SVG).")
-@click.option("--signal", "signals", multiple=True, help="wall_force, sensor_force or contact_force (repeatable).")
-@click.option("--contact", "contacts", multiple=True, type=int, help="Contacts to draw with --signal contact_force.")
-def plot(result: Path, out: Path, signals: tuple[str, ...], contacts: tuple[int, ...]) -> None:
-    """Draw the force signals of RESULT against time, one panel per signal."""
-    from .plotting import plot_signals
-
-    ds = _open_result(result)
-    click.echo(f"wrote {plot_signals(ds, out, signals or None, contacts or None)}")
-
-
-@cli.command()
 @click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--signal", "signals", multiple=True,
               help="wall_force, sensor_force or contact_force (repeatable; default wall and sensors).")
@@ -219,9 +205,11 @@ def materials() -> None:
 
 def _register_subcommands() -> None:
     # One line per subcommand module (each command lives in its own module).
+    from .plot_cli import plot
     from .sweep_cli import sweep
 
     cli.add_command(sweep)
+    cli.add_command(plot)
 
 
 _register_subcommands()
