@@ -17,7 +17,7 @@ def _model(n=10, velocity=0.2, striker=8e-3):
 
 @pytest.fixture(scope="module")
 def result():
-    return hc.simulate(_model(), 1.2e-3, hc.Probes(sample_interval=1e-6, sensors=(5,)))
+    return hc.simulate(_model(), 1.6e-3, hc.Probes(sample_interval=1e-6, sensors=(5,)))
 
 
 @pytest.fixture(scope="module")
@@ -113,7 +113,7 @@ def test_signals_of_a_batch_member(batch):
 def test_measured_signal_on_its_own_time_axis(result):
     from hertzchain.instrument import Instrument, measure_dataset
 
-    ds = measure_dataset(result, wall=Instrument.pcb_208a11(seed=1, sample_rate=1e6, record_length=400))
+    ds = measure_dataset(result, wall=Instrument.pcb_208a11(seed=1, sample_rate=1e6, record_length=300))
     fig = plotting.plot_signals(ds, signals=["measured_wall_force", "wall_force"])
     line = fig.axes[0].get_lines()[0]
     assert np.allclose(line.get_xdata(), ds.wall_scope_time.values * 1e3)
