@@ -205,11 +205,13 @@ def materials() -> None:
 
 def _register_subcommands() -> None:
     # One line per subcommand module (each command lives in its own module).
+    from .animate_cli import animate
     from .plot_cli import plot
     from .sweep_cli import sweep
 
     cli.add_command(sweep)
     cli.add_command(plot)
+    cli.add_command(animate)
 
 
 _register_subcommands()

@@ -165,6 +165,7 @@ class ProbesConfig(_Section):
     sensors: list[int] = []
     contacts: Literal["all"] | list[int] = "all"
     velocities: bool = False
+    positions: bool = False
 
 
 class InstrumentChannel(_Section):
@@ -425,7 +426,8 @@ def build_probes(cfg: RunConfig):
 
     p = cfg.probes
     return Probes(sample_interval=cfg.run.sample_interval, sensors=tuple(p.sensors),
-                  contacts=None if p.contacts == "all" else tuple(p.contacts), velocities=p.velocities)
+                  contacts=None if p.contacts == "all" else tuple(p.contacts), velocities=p.velocities,
+                  positions=p.positions)
 
 
 def build_instruments(cfg: RunConfig) -> dict:

@@ -23,7 +23,7 @@ import xarray as xr
 from .errors import ConfigError
 
 __all__ = ["plot_signals", "plot_spacetime", "plot_energy", "signal_list", "select_member", "time_window",
-           "contact_positions", "save_figure", "SIGNALS", "KINDS"]
+           "contact_positions", "bead_centres", "save_figure", "SIGNALS", "KINDS"]
 
 #: Time dimensions of a result: the simulation's and the instrument model's scope records.
 TIME_DIMS = ("time", "wall_scope_time", "sensor_scope_time")
@@ -257,22 +257,30 @@ def plot_signals(ds: xr.Dataset, out: str | Path | None = None, signals: Sequenc
     return fig
 
 
-def contact_positions(ds: xr.Dataset) -> np.ndarray:
-    """Position [m] along the chain of every contact of ``ds.contact_all`` at rest.
+def bead_centres(ds: xr.Dataset) -> np.ndarray:
+    """Centre [m] of every bead along the chain at rest, bead 1's left side at 0.
 
-    Contact 0 (striker-bead 1) is at 0; contact j lies between beads j and j + 1, at the sum of
-    the diameters of beads 1..j (the axial distance for offset beads); contact N (bead N-wall)
-    is the chain's length.
+    Consecutive centres are the axial distance of touching spheres apart,
+    sqrt((R_n + R_{n+1})^2 - (e_{n+1} - e_n)^2) (equal to R_n + R_{n+1} for aligned beads).
     """
     phi = ds.diameter.values
     e = ds.offset.values if "offset" in ds else np.zeros_like(phi)
-    rsum = 0.5 * (phi[:-1] + phi[1:])
-    dx = np.sqrt(np.maximum(rsum**2 - np.diff(e) ** 2, 0.0))  # centre-to-centre along the axis
-    centres = np.concatenate([[0.5 * phi[0]], 0.5 * phi[0] + np.cumsum(dx)])
-    n_contacts = ds.sizes.get("contact_all", phi.size + 1)
-    x = np.concatenate([[0.0], centres[:-1] + 0.5 * phi[:-1] * dx / np.maximum(rsum, 1e-300),
-                        [centres[-1] + 0.5 * phi[-1]]])
-    return x[:n_contacts]
+    dx = np.sqrt(np.maximum((0.5 * (phi[:-1] + phi[1:])) ** 2 - np.diff(e) ** 2, 0.0))
+    return 0.5 * phi[0] + np.concatenate([[0.0], np.cumsum(dx)])
+
+
+def contact_positions(ds: xr.Dataset) -> np.ndarray:
+    """Position [m] along the chain of every contact of ``ds.contact_all`` at rest.
+
+    Contact 0 (striker-bead 1) is at 0; contact j between beads j and j + 1 is their touching
+    point, R_j / (R_j + R_{j+1}) of the way between their centres (the sum of the diameters of
+    beads 1..j for an aligned chain); contact N (bead N-wall) is the wall.
+    """
+    phi = ds.diameter.values
+    c = bead_centres(ds)
+    between = c[:-1] + np.diff(c) * phi[:-1] / (phi[:-1] + phi[1:])
+    x = np.concatenate([[0.0], between, [c[-1] + 0.5 * phi[-1]]])
+    return x[: ds.sizes.get("contact_all", phi.size + 1)]
 
 
 def _edges(x: np.ndarray) -> np.ndarray:

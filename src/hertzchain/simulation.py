@@ -106,12 +106,12 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     if integrator == "verlet":
         raw = run_verlet(system, duration, probes.sample_interval, dt=dt, record_velocities=probes.velocities,
-                         contacts=rec, progress=progress)
+                         contacts=rec, progress=progress, record_positions=probes.positions)
     elif integrator in ("dop853", "rk45"):
         from .integrate.reference import run_reference  # scipy.integrate: loaded only for these
 
         raw = run_reference(system, duration, probes.sample_interval, method=integrator.upper(), rtol=rtol,
-                            record_velocities=probes.velocities)
+                            record_velocities=probes.velocities, record_positions=probes.positions)
     else:
         raise ConfigError("run.integrator", f"must be 'verlet', 'dop853' or 'rk45', got {integrator!r}")
     ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system,
