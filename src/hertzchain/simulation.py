@@ -71,8 +71,8 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
     model:
         Chain, striker, wall and contact law.
     duration:
-        Simulated time [s] after impact, or ``"auto"`` (:func:`auto_duration`; recorded in the
-        attributes ``duration`` and ``duration_mode``).
+        Simulated time [s] after impact, or ``"auto"`` (:func:`auto_duration`; the result's
+        attribute ``duration`` holds the value, and ``duration_mode = "auto"`` says how it came).
     probes:
         What to record (default: every contact force and the energies every 100 ns).
     integrator:
@@ -115,7 +115,7 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
     else:
         raise ConfigError("run.integrator", f"must be 'verlet', 'dop853' or 'rk45', got {integrator!r}")
     ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system,
-                       extra_attrs={"duration_mode": mode})
+                       extra_attrs={"duration_mode": "auto"} if mode == "auto" else None)
     warn_elastic_limit(ds, stacklevel=3)
     if mode == "auto" and "wall_force" in ds and ds.attrs["peak_wall_time"] > 0.8 * duration:
         warnings.warn(DurationWarning(
