@@ -163,9 +163,17 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
     from .errors import ConfigError
 
     if from_data:
-        from .paper.reproduce import redraw
+        from .paper.reproduce import FIGURE_NAMES, redraw
 
-        redraw(out)
+        with progress_bar("redrawing figures and report") as update:
+            done = [0]
+
+            def step(msg: str) -> None:
+                done[0] += 1
+                update(done[0], len(FIGURE_NAMES) + 2)
+
+            summary = redraw(out, progress=step)
+        _echo_elastic_limit(summary)
         click.echo(f"redrew the figures and the report in {out}/ from {out}/data")
         return
 
@@ -174,10 +182,10 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
     if not (0 < eps <= 1):
         raise ConfigError("--eps", f"must lie in (0, 1], got {eps}")
     from .paper.protocol import Settings
-    from .paper.reproduce import count_runs, reproduce as run_reproduction
+    from .paper.reproduce import count_steps, reproduce as run_reproduction
 
     settings = Settings(striker_velocity=velocity, elastic=elastic, law=law, eps=eps)
-    total = count_runs(settings)
+    total = count_steps(settings, figures=not no_figures)
     with progress_bar("reproducing the paper") as update:
         done = [0]
 
@@ -186,11 +194,19 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
             update(done[0], total)
 
         summary = run_reproduction(out, settings, progress=tick, figures=not no_figures)
+    _echo_elastic_limit(summary)
     c1, c2 = summary["chain1"], summary["chain2"]
     click.echo(f"wrote {out}/ in {summary['timing']['total_s']:.1f} s: "
                f"Q1 = {c1['Q_fit']:.4f} +- {c1['Q_fit_err']:.4f} (theory {c1['Q_theory']:.4f}, paper 1.025 +- 0.016), "
                f"Q2 = {c2['Q_fit']:.4f} +- {c2['Q_fit_err']:.4f} (theory {c2['Q_theory']:.4f}, paper 1.049 +- 0.044), "
                f"eps = {summary['eps']:.4f}")
+
+
+def _echo_elastic_limit(summary: dict) -> None:
+    """Say on the console when a reproduction's contact forces pass the elastic limit."""
+    msg = (summary.get("elastic_limit") or {}).get("message")
+    if msg:
+        click.echo(f"warning: {msg}", err=True)
 
 
 @cli.command()

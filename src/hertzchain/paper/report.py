@@ -274,17 +274,17 @@ def _fig3_note(summary: dict) -> tuple[str, str]:
                       "summary['figures']); compare the curves by eye.")
     parts, verdicts = [], []
     if mis:
-        ref = {r["bead"]: r for r in mis.values() if _num(r.get("fraction")) == 0}
+        ref = {r["bead"]: r for r in mis if _num(r.get("offset_fraction")) == 0}
         worst_dT, worst_dF = 0.0, 0.0
-        for b in sorted({r["bead"] for r in mis.values()}):
-            rows = sorted((r for r in mis.values() if r["bead"] == b), key=lambda r: r["fraction"])
+        for b in sorted({r["bead"] for r in mis}):
+            rows = sorted((r for r in mis if r["bead"] == b), key=lambda r: r["offset_fraction"])
             big, base = rows[-1], ref.get(b)
             if base is None or big is base:
                 continue
             dF = big["peak_force"] / base["peak_force"] - 1
             dT = big["time_of_flight"] - base["time_of_flight"]
             worst_dT, worst_dF = max(worst_dT, abs(dT)), max(worst_dF, abs(dF))
-            parts.append(f"e = {big['offset_m'] * 1e3:.2f} mm ({100 * big['fraction']:.0f} %) at bead {b} changes "
+            parts.append(f"e = {big['offset_m'] * 1e3:.2f} mm ({100 * big['offset_fraction']:.0f} %) at bead {b} changes "
                          f"F_m by {100 * dF:+.2f} % and T by {dT * 1e6:+.1f} µs")
         verdicts.append(f"as in the paper the front pulse speed is unchanged (|dT| <= {worst_dT * 1e6:.1f} µs); "
                         f"the paper's slight amplitude loss and damped tail oscillations are barely present "
