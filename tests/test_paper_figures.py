@@ -20,8 +20,10 @@ from hertzchain.paper import protocol
 from hertzchain.paper.report import comparison_rows, figure_notes, write_report
 from hertzchain.paper.values import PAPER
 
+from figure_checks import text_overlaps, uncovered
+
 #: name -> (number of panels, figure width [in]) expected for each figure.
-EXPECTED = {"fig1": (8, 7.0), "fig2": (8, 7.0), "fig3": (3, 3.4), "fig4": (1, 3.4), "fig5": (8, 7.0),
+EXPECTED = {"fig1": (8, 7.0), "fig2": (8, 7.0), "fig3": (5, 3.4), "fig4": (1, 3.4), "fig5": (8, 7.0),
             "fig6": (6, 7.0)}
 
 
@@ -131,12 +133,66 @@ def test_figure_text_uses_paper_symbols(drawn):
 
 def test_fig3_legends_give_offsets_in_mm(drawn):
     fig, _ = drawn["fig3"]
-    a, b, c = _panels(fig)
+    a, _, b, _, c = _panels(fig)
     for ax in (a, b):
         texts = [t.get_text() for t in ax.get_legend().get_texts()]
         assert len(texts) == 3 and all(re.match(r"e = \d+\.\d\d mm", t) for t in texts)
     texts = [t.get_text() for t in c.get_legend().get_texts()]
     assert texts[0] == "reference" and any("+1" in t for t in texts) and any("-1" in t for t in texts)
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_figures_checked_by_data(drawn, name):
+    """No text box or legend covers a drawn data point; every axis range covers its curves."""
+    fig, _ = drawn[name]
+    assert text_overlaps(fig) == []
+    assert uncovered(fig) == []
+
+
+def test_fig1h_spectrum_axis_is_used_and_centroids_apart(drawn, data):
+    for name, study in (("fig1", data["chain1"]), ("fig2", data["chain2"])):
+        fig, _ = drawn[name]
+        ax = _panels(fig)[7]
+        renderer = fig.canvas.get_renderer()
+        fig.draw(renderer)
+        # the outgoing spectrum reaches the bottom (1e-8) in the right part of the frequency axis
+        out = [l for l in ax.get_lines() if l.get_label().startswith("out")][0]
+        f, p = out.get_data()
+        last = f[p >= 1e-8][-1]
+        lo, hi = ax.get_xlim()
+        assert 0.6 < np.log(last / lo) / np.log(hi / lo) <= 1.0
+        # the two centroid lines are at least 5 points apart on the page
+        spec = figs.figure_summary(data["chain1"], data["chain2"])["spectra"][study.name]
+        xs = ax.transData.transform([[spec["centroid_in_hz"] * 1e-3, 1.0], [spec["centroid_out_hz"] * 1e-3, 1.0]])
+        assert abs(xs[1, 0] - xs[0, 0]) > 5 * fig.dpi / 72
+
+
+def test_fig3_shows_the_misalignment_difference(drawn, data):
+    """(a'): F(10 % offset) - F(aligned) on its own scale, sample by sample."""
+    from hertzchain import analysis
+
+    fig, _ = drawn["fig3"]
+    diff = _panels(fig)[1]
+    ref, big = data["misalignment"][(22, 0.0)], data["misalignment"][(22, 0.1)]
+    t = ref.time.values
+    x = (t - analysis.fit_pulse(t, ref.wall_force.values).time_of_flight) * 1e3
+    sel = (x >= figs.PULSE_WINDOW_MS[0]) & (x <= figs.PULSE_WINDOW_MS[1])
+    line = [l for l in diff.get_lines() if len(l.get_xdata()) > 2][-1]
+    assert np.allclose(line.get_xdata(), x[sel])
+    assert np.allclose(line.get_ydata(), (big.wall_force.values - ref.wall_force.values)[sel] * 1e3)
+    lo, hi = diff.get_ylim()
+    y = line.get_ydata()
+    # its own scale: a few times the largest difference, far below the force scale of (a)
+    assert lo <= y.min() and y.max() <= hi and (hi - lo) < 4 * np.ptp(y)
+
+
+def test_fig4_curves_peak_at_one(drawn):
+    fig, _ = drawn["fig4"]
+    ax = _panels(fig)[0]
+    curves = [l.get_ydata() for l in ax.get_lines() if len(l.get_ydata()) > 100]
+    assert len(curves) == 16  # 15 pulses and cos^6
+    for y in curves:
+        assert abs(np.max(y) - 1.0) < 2e-3
 
 
 def test_fig6_legend_quotes_q(drawn, data):
