@@ -217,24 +217,36 @@ def test_report_md_and_html(drawn, summary, settings, tmp_path):
     md, page = out["md"].read_text(encoding="utf-8"), out["html"].read_text(encoding="utf-8")
     # the comparison table
     for row in ("tapering factor q1", "standard deviation of q1", "tapering factor q2", "standard deviation of q2",
-                "Q1 (fit", "Q2 (fit", "Q1^th", "Q2^th", "eps measured back", "wall/chain peak-force ratio",
-                "wall/chain duration ratio", "yield force", "yield overlap"):
-        assert row in md and row in page, row
+                "Q1 (fit", "Q2 (fit", "$Q_1^{th}$", "$Q_2^{th}$", "$\\varepsilon$ measured back",
+                "wall/chain peak-force ratio", "wall/chain duration ratio", "yield force", "yield overlap"):
+        assert row in md and re.sub(r"\$([^$]+)\$", r"\\(\1\\)", row) in page, row
     assert "| quantity | simulated | paper | relative difference | verdict |" in md
     assert "the paper's error bar 1.025 ± 0.016" in md
-    assert re.search(r"Q_fit = 1\.\d{3} ± 0\.\d{3} lies (inside|outside) the paper's error bar", md)
+    assert re.search(r"\$Q_\{fit\}\$ = 1\.\d{3} ± 0\.\d{3} lies (inside|outside) the paper's error bar", md)
+    # maths as maths: no ASCII formula left in the notes; MathJax delimiters in the page
+    assert "\\(F_m\\)" in page and "$F_m$" in md and "\\(\\tau\\)" in page
+    notes = md.split("## Parameters")[0]
+    for ascii_formula in (r"F_m\^\(n\+1\)", r"Q\^\(n-n'\)", r" tau ", r"T\(eps", r"(?<!\\)cos\^6"):
+        assert not re.search(ascii_formula, notes), ascii_formula
     # the two-speed check and the run's parameters
     assert "do not depend on the striker speed" in md or "DEPEND on the striker speed" in md
     assert "striker_velocity" in md and "0.2 m/s" in md and "sample_interval" in page
     # every figure linked (md) and embedded byte for byte (html), nothing external
     for name, png in paths.items():
-        assert f"{png.name})" in md
+        assert re.search(rf'<img src="[^"]*{png.name}"', md)
         notes = figure_notes(summary, settings.describe())[name]
         assert notes[0] and notes[1]
     embedded = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
     assert len(embedded) == len(paths)
     assert {base64.b64decode(e) for e in embedded} == {p.read_bytes() for p in paths.values()}
-    assert not re.search(r'(src|href)="(https?:)?//', page) and "<script" not in page and "<link" not in page
+    # nothing external but MathJax, which only typesets the formulas (TeX source when offline)
+    external = re.findall(r'(?:src|href)="((?:https?:)?//[^"]+)"', page)
+    assert external == ["https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-chtml.js"] and "<link" not in page
+    # one scale: each figure shown at its size in inches (a one-column figure at 3.4/7 of the page)
+    widths = {name: float(w) for name, w in re.findall(r'<h3 id="(fig\d)">.*?style="width: ([\d.]+)%"', page,
+                                                      flags=re.S)}
+    for name, (fig, _) in drawn.items():
+        assert widths[name] == pytest.approx(100 * fig.get_figwidth() / 7.0, abs=0.2)
 
 
 def test_report_without_optional_keys(tmp_path):
