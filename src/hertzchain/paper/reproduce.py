@@ -179,7 +179,7 @@ def _save_data(out: Path, studies, mis, subs, ratio) -> None:
 #: Variables of a trace that the analysis and the figures read (the rest stays on disk).
 _TRACE_VARIABLES = ("wall_force", "sensor_force", "diameter", "offset", "max_contact_force", "yield_force")
 _H5_INTERNAL = {"DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME", "_Netcdf4Dimid", "_Netcdf4Coordinates",
-                "_nc3_strict", "_FillValue"}
+                "_nc3_strict", "_FillValue", "_NCProperties"}
 
 
 def _h5_attr(v):
