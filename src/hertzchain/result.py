@@ -12,14 +12,17 @@ import datetime as _dt
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
 
 from . import __version__
-from .integrate.verlet import RawRun
 from .model import Model
 from .probes import Probes, sensor_forces
+
+if TYPE_CHECKING:  # the compiled kernels load only when a run is made, not to read a result
+    from .integrate.verlet import RawRun
 
 __all__ = ["build_dataset", "run_fields", "RunFields", "save", "load"]
 

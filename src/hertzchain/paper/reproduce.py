@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import multiprocessing
 import os
 import time
 from pathlib import Path
@@ -20,8 +21,11 @@ from .values import PAPER
 __all__ = ["reproduce", "redraw", "load_data", "draw", "count_runs", "count_steps", "build_summary",
            "elastic_limit_summary", "FIGURE_NAMES", "SUMMARY_UNITS"]
 
-#: The figures drawn, in order (one progress step each, then one for the report).
+#: The figures drawn (one progress step each, then one for the report).
 FIGURE_NAMES = ("fig1", "fig2", "fig3", "fig4", "fig5", "fig6")
+#: Order in which the drawing processes take the figures: the costliest first (Fig. 5, then the
+#: eight-panel Figs. 1-2), so that two processes finish together.
+_DRAW_ORDER = ("fig5", "fig1", "fig2", "fig6", "fig3", "fig4")
 
 #: Units of the summary.json values (SI), written into the file under ``"units"``.
 SUMMARY_UNITS = {
@@ -217,6 +221,15 @@ def load_trace(path: str | Path, names=_TRACE_VARIABLES):
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
+def _load_study(data: Path, name: str, settings: Settings):
+    """The :class:`ChainStudy` of one chain from its truncation records in ``data``."""
+    import re
+
+    wall = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): load_trace(p)
+            for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
+    return protocol.study_from_datasets(name, wall, settings)
+
+
 def load_data(out_dir: str | Path, settings: Settings):
     """Read back the traces of a reproduction: (studies, misalignment, substitutions, ratio)."""
     import re
@@ -229,11 +242,9 @@ def load_data(out_dir: str | Path, settings: Settings):
         raise ConfigError(str(data), "no data folder: run 'hertzchain reproduce' first")
     studies = {}
     for name in ("chain1", "chain2"):
-        wall = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): load_trace(p)
-                for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
-        if not wall:
+        if not any(data.glob(f"{name}_truncated_*.nc")):
             raise ConfigError(str(data), f"holds no {name} traces")
-        studies[name] = protocol.study_from_datasets(name, wall, settings)
+        studies[name] = _load_study(data, name, settings)
     mis = {}
     for p in sorted(data.glob("fig3_chain2_offset_bead*_e*.nc")):
         m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
@@ -282,8 +293,6 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     one core). ``progress(message)`` is called after each figure is written.
     """
     global _DRAW_JOB
-    import multiprocessing
-
     makers = _figure_makers(studies, mis, subs, settings)
     workers = min(len(FIGURE_NAMES), _usable_cores()) if workers is None else workers
     drawn: dict[str, Path] = {}
@@ -291,7 +300,7 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     try:
         if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
             with multiprocessing.get_context("fork").Pool(workers) as pool:
-                for name, path in pool.imap_unordered(_draw_one, FIGURE_NAMES):
+                for name, path in pool.imap_unordered(_draw_one, _DRAW_ORDER):
                     drawn[name] = path
                     if progress is not None:
                         progress(f"drew {name}")
