@@ -96,6 +96,9 @@ def select_member(ds: xr.Dataset, member: int | None = None) -> xr.Dataset:
     xarray.Dataset
         The chosen run, without the ``member`` dimension.
     """
+    if "time" not in ds.coords:
+        raise ConfigError("RESULT", "is not a hertzchain result (no time axis); give a file written by "
+                          "hertzchain run, sweep or hertzchain.save")
     if "member" not in ds.dims:
         if member is not None:
             raise ConfigError("--member", "this result holds a single run; leave --member out")
@@ -140,7 +143,7 @@ def signal_list(ds: xr.Dataset, signals: Sequence[str] | None = None,
     ds : xarray.Dataset
         One run (see :func:`select_member`).
     signals : sequence of str or None
-        Names from :data:`SIGNALS`; default: the wall and sensor forces, and their measured
+        Names from ``SIGNALS``; default: the wall and sensor forces, and their measured
         versions when the instrument model was on (else the contact forces).
     contacts : sequence of int or None
         Contacts drawn for ``contact_force`` (default: about six spread along the chain).
@@ -322,7 +325,7 @@ def plot_spacetime(ds: xr.Dataset, out: str | Path | None = None, *, scale: str 
     -------
     matplotlib.figure.Figure
         The map is ``fig.axes[0].collections[0]``; its array is the (time, contact) forces [N]
-        drawn (binned in time, keeping each bin's largest force, beyond :data:`MAX_MAP_ROWS` samples).
+        drawn (binned in time, keeping each bin's largest force, beyond ``MAX_MAP_ROWS`` samples).
     """
     from matplotlib.colors import LogNorm, Normalize
 
