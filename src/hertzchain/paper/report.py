@@ -11,7 +11,10 @@
 - per-bead tables of the wall pulse and the exact parameters of the run.
 
 The HTML file embeds the figures as base64 PNG and has its CSS inline: it opens anywhere with no
-other file. Both documents are generated from one list of blocks, so they always say the same.
+other file; MathJax (loaded from its CDN) typesets the formulas, which read as TeX source offline.
+Formulas are written as ASCII in the notes (``F_m``, ``tau``, ``Q^(n-n')``) and turned into TeX
+(``$F_m$``, ``$\\tau$``) for both documents; figures are shown at one scale (their size in
+inches). Both documents are generated from one list of blocks, so they always say the same.
 
 Summary keys read (missing ones are skipped, never fatal): ``chain1``/``chain2`` {q, q_std,
 Q_theory, Q_fit, Q_fit_err, beads, peak_force, duration, time_of_flight, front_momentum,
@@ -743,7 +746,9 @@ def write_report(out_dir: str | Path, summary: dict, figures: dict[str, Any],
     out.mkdir(parents=True, exist_ok=True)
     blocks = _blocks(summary, dict(figures or {}), settings_desc)
     md, page = out / "report.md", out / "report.html"
-    md.write_text(_to_markdown(blocks, out.resolve()), encoding="utf-8")
-    page.write_text(_to_html(blocks), encoding="utf-8")
+    from ..fileio import write_text
+
+    write_text(md, _to_markdown(blocks, out.resolve()))
+    write_text(page, _to_html(blocks))
     return {"md": md, "html": page}
 
