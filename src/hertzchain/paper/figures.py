@@ -330,7 +330,8 @@ def fig1(study1, settings) -> Figure:
     22, 24, 26, 28 against t - T, with the cos^6 fit of the loading part (dotted); all force
     panels share one force scale so the decay is visible; (h) power spectra (arbitrary units,
     each normalised to its maximum) of the wall pulse of the uniform chain (in) and of the full
-    chain (out), cut to T +- 0.6 ms with a Hann window, with their spectral centroids (dashed).
+    chain (out), cut to T +- 0.6 ms with a Hann window, on log-log axes up to where the outgoing
+    spectrum falls below 1e-8, with their spectral centroids (vertical lines).
 
     Parameters
     ----------
@@ -360,7 +361,9 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
     28 (phi = 9 mm), the bead touching the wall; (c) wall force of chain 1 cut after bead 24
     (reference) and with the dq/q = +1 and -1 single-bead substitutions. In each panel the time
     axis is t - T with T the time of flight of the panel's reference (aligned / unmodified)
-    chain, so arrival-time shifts stay visible.
+    chain, so arrival-time shifts stay visible. The offsets change F by less than 0.1 % of F_m,
+    so below (a) and (b) the difference from the aligned chain, F - F(aligned) [mN], is drawn on
+    its own scale (a', b'), titled with the changes of the cos^6 fits (F_m, tau, T).
 
     Parameters
     ----------
