@@ -4,7 +4,9 @@ Every timing is the wall clock of a fresh process (as a user runs it), so it inc
 imports. "Cold" means an empty Numba cache (``NUMBA_CACHE_DIR`` pointed at a new folder: every
 kernel is compiled); "warm" reuses the cache the previous runs filled. The baseline of
 ``--from-data`` in the same run is ``reproduce --no-figures`` (simulating everything, drawing
-nothing): redrawing must be the faster of the two. About 2.5 minutes on 2 cores.
+nothing): redrawing must be the faster of the two. The CPU seconds of each command (all its
+processes) are saved too: on a shared machine they vary less than the wall clock. About 2.5
+minutes on 2 cores.
 
     .venv/bin/python benchmarks/ux_timings.py [--json benchmarks/results/ux_timings.json] [--repeat 3]
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -43,10 +46,20 @@ def _cli() -> list[str]:
     return [str(exe)] if exe.exists() else [sys.executable, "-m", "hertzchain.cli"]
 
 
-def _run(args: list[str], env: dict) -> float:
+#: CPU seconds (user + system, all processes) of every command _run timed, by label.
+CPU: dict[str, list[float]] = {}
+
+
+def _run(args: list[str], env: dict, label: str) -> float:
+    """Wall-clock seconds of one command; its CPU seconds go to CPU[label] (less sensitive than
+    the wall clock to the other users of a shared machine)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run(args, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - t0
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    CPU.setdefault(label, []).append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+    return wall
 
 
 def main() -> None:
@@ -62,14 +75,14 @@ def main() -> None:
         cold_env = {**os.environ, "NUMBA_CACHE_DIR": str(work / "numba_cache")}
         out = work / "reproduction"
         # cold: empty Numba cache, every kernel compiled in this run
-        results["reproduce_cold_s"] = _run([*cli, "reproduce", "--out", str(out)], cold_env)
-        warm = [_run([*cli, "reproduce", "--out", str(out)], cold_env) for _ in range(max(1, args.repeat - 1))]
+        results["reproduce_cold_s"] = _run([*cli, "reproduce", "--out", str(out)], cold_env, "reproduce_cold")
+        warm = [_run([*cli, "reproduce", "--out", str(out)], cold_env, "reproduce_warm") for _ in range(max(1, args.repeat - 1))]
         results["reproduce_warm_s"] = min(warm)
         results["reproduce_warm_all_s"] = warm
-        no_fig = [_run([*cli, "reproduce", "--out", str(work / "nofig"), "--no-figures"], cold_env)
+        no_fig = [_run([*cli, "reproduce", "--out", str(work / "nofig"), "--no-figures"], cold_env, "no_figures")
                   for _ in range(max(1, args.repeat - 1))]
         results["reproduce_no_figures_warm_s"] = min(no_fig)
-        redraw = [_run([*cli, "reproduce", "--out", str(out), "--from-data"], cold_env) for _ in range(args.repeat)]
+        redraw = [_run([*cli, "reproduce", "--out", str(out), "--from-data"], cold_env, "from_data") for _ in range(args.repeat)]
         results["from_data_s"] = min(redraw)
         results["from_data_all_s"] = redraw
         first = []
@@ -83,10 +96,15 @@ def main() -> None:
         results["first_simulate_warm_s"] = min(f[1] for f in first[1:])
         results["simulate_imports_scipy_integrate"] = bool(max(f[2] for f in first))
 
-    rows = [("reproduce, cold (empty Numba cache)", f"{results['reproduce_cold_s']:.1f} s"),
-            ("reproduce, warm", f"{results['reproduce_warm_s']:.1f} s"),
-            ("reproduce --no-figures, warm (baseline)", f"{results['reproduce_no_figures_warm_s']:.1f} s"),
-            ("reproduce --from-data", f"{results['from_data_s']:.1f} s"),
+    results["cpu_s"] = {k: min(v) for k, v in CPU.items()}
+    results["load_average_at_end"] = list(os.getloadavg())
+    cpu = results["cpu_s"]
+    rows = [("reproduce, cold (empty Numba cache): wall / CPU",
+             f"{results['reproduce_cold_s']:.1f} s / {cpu['reproduce_cold']:.1f} s"),
+            ("reproduce, warm: wall / CPU", f"{results['reproduce_warm_s']:.1f} s / {cpu['reproduce_warm']:.1f} s"),
+            ("reproduce --no-figures, warm (baseline): wall / CPU",
+             f"{results['reproduce_no_figures_warm_s']:.1f} s / {cpu['no_figures']:.1f} s"),
+            ("reproduce --from-data: wall / CPU", f"{results['from_data_s']:.1f} s / {cpu['from_data']:.1f} s"),
             ("import hertzchain", f"{results['import_s']:.2f} s"),
             ("first simulate after import, cold / warm cache",
              f"{results['first_simulate_cold_s']:.2f} s / {results['first_simulate_warm_s']:.2f} s"),
