@@ -161,5 +161,5 @@ def test_plot_cli(tmp_path, result, batch, capsys):
     assert "--member" in capsys.readouterr().err
     (tmp_path / "bad.nc").write_text("not a result")
     assert main(["plot", str(tmp_path / "bad.nc"), "--out", str(tmp_path / "x.png")]) == 2
-    assert main(["plot", str(path), "--out", str(tmp_path / "x.jpg")]) == 2
+    assert main(["plot", str(path), "--out", str(tmp_path / "x.doc")]) == 2
     assert not (tmp_path / "x.png").exists()

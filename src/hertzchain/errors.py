@@ -42,3 +42,15 @@ class ElasticLimitWarning(UserWarning):
 
 class DurationWarning(UserWarning):
     """An automatic run duration (``duration = "auto"``) may be too short for the wall pulse."""
+
+
+class HertzRangeWarning(UserWarning):
+    """A contact overlap passed the range of Hertz theory (a fraction of the smaller radius, paper eq. 1)."""
+
+
+class PulseNotReachedWarning(UserWarning):
+    """The record ended before the pulse reached the wall (the wall force is 0 for want of time)."""
+
+
+class LongRunWarning(UserWarning):
+    """A run is projected to take more than a few minutes (the estimate is in the message)."""

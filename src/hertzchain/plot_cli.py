@@ -50,6 +50,7 @@ def plot(result: Path, out: Path, kind: str, window: str | None, member: int | N
     from .errors import ConfigError
     from . import plotting
 
+    plotting.image_format(out)  # an unknown --out suffix is refused before the file is read
     span = parse_window(window)
     if kind != "signals" and (signals or contacts):
         raise ConfigError("--signal", f"--signal and --contact go with --kind signals, not --kind {kind}")

@@ -23,7 +23,7 @@ import xarray as xr
 from .errors import ConfigError
 
 __all__ = ["plot_signals", "plot_spacetime", "plot_energy", "signal_list", "select_member", "time_window",
-           "contact_positions", "bead_centres", "save_figure", "SIGNALS", "KINDS"]
+           "contact_positions", "bead_centres", "save_figure", "image_format", "IMAGE_FORMATS", "SIGNALS", "KINDS"]
 
 #: Time dimensions of a result: the simulation's and the instrument model's scope records.
 TIME_DIMS = ("time", "wall_scope_time", "sensor_scope_time")
@@ -50,8 +50,35 @@ def _figure(width: float, height: float):
     return fig
 
 
+#: Image formats the figures can be written in (by file suffix).
+IMAGE_FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
+
+
+def image_format(out: str | Path, option: str = "--out") -> str:
+    """The image format of ``out`` from its suffix.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        Target file name.
+    option : str
+        The option named in the error (``--out``).
+
+    Returns
+    -------
+    str
+        The format (``"png"``, ``"pdf"``, ...); a ConfigError naming ``option`` when the suffix
+        is not one of IMAGE_FORMATS.
+    """
+    fmt = Path(out).suffix.lower().lstrip(".")
+    if fmt not in IMAGE_FORMATS:
+        raise ConfigError(option, f"{str(out)!r} has no image suffix Matplotlib can write; "
+                          f"use one of {', '.join('.' + f for f in IMAGE_FORMATS)}")
+    return fmt
+
+
 def save_figure(fig, out: str | Path, dpi: int = 150) -> Path:
-    """Write ``fig`` to ``out`` atomically; the format follows the suffix (PNG, PDF, SVG).
+    """Write ``fig`` to ``out`` atomically; the format follows the suffix (:func:`image_format`).
 
     Parameters
     ----------
@@ -70,10 +97,7 @@ def save_figure(fig, out: str | Path, dpi: int = 150) -> Path:
     from .fileio import atomic_path
 
     out = Path(out)
-    fmt = out.suffix.lower().lstrip(".")
-    if fmt not in ("png", "pdf", "svg"):
-        raise ConfigError("--out", f"cannot write a figure as {out.suffix or 'a file without suffix'!r}; "
-                          "use .png, .pdf or .svg")
+    fmt = image_format(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:
         fig.savefig(tmp, format=fmt, dpi=dpi)
@@ -189,16 +213,24 @@ def signal_list(ds: xr.Dataset, signals: Sequence[str] | None = None,
 
 
 def _title(ds: xr.Dataset, member: int | None = None) -> str:
+    """'N beads, striker D mm at V m/s' from the result's ``model`` (attribute, or per-member
+    variable of a batch), '?' where a result written elsewhere lacks it or holds something else;
+    with the member and its swept parameters when a member was chosen."""
+    def table(x) -> dict:
+        return x if isinstance(x, dict) else {}
+
+    def num(x) -> str:
+        return f"{x:g}" if isinstance(x, (int, float)) and not isinstance(x, bool) else "?"
+
     raw = ds["model"].values.item() if "model" in ds.data_vars else ds.attrs.get("model", "{}")
     try:
-        model = json.loads(raw)
+        model = table(json.loads(raw))
     except (TypeError, ValueError):
         model = {}
-    n = len(model.get("chain", {}).get("diameters_mm", [])) or ds.sizes.get("bead", 0)
-    s = model.get("striker", {})
-    title = f"{n} beads"
-    if s:
-        title += f", striker {s.get('diameter_mm', math.nan):g} mm at {s.get('velocity', math.nan):g} m/s"
+    diameters = table(model.get("chain")).get("diameters_mm")
+    s = table(model.get("striker"))
+    n = len(diameters) if isinstance(diameters, list) else "?"
+    title = f"{n} beads, striker {num(s.get('diameter_mm'))} mm at {num(s.get('velocity'))} m/s"
     if member is not None:
         title += f" (member {member}"
         if "parameters" in ds:
@@ -209,7 +241,10 @@ def _title(ds: xr.Dataset, member: int | None = None) -> str:
 
 def _ylim(ax, values: np.ndarray) -> None:
     """Axis range covering every drawn value, with a margin (no clipped peak)."""
-    lo, hi = float(np.nanmin(values)), float(np.nanmax(values))
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:  # nothing to draw (a damaged or foreign result): Matplotlib's default
+        return
+    lo, hi = float(finite.min()), float(finite.max())
     pad = 0.06 * (hi - lo) if hi > lo else max(abs(hi), 1e-30) * 0.1
     ax.set_ylim(lo - pad, hi + pad)
 
@@ -351,8 +386,8 @@ def plot_spacetime(ds: xr.Dataset, out: str | Path | None = None, *, scale: str 
     else:
         x = contacts.astype(float)
         xlabel = "contact j (0 = striker-bead 1)"
-    fmax = float(np.max(f)) if f.size else 0.0
-    if fmax <= 0:
+    fmax = float(np.nanmax(f)) if np.isfinite(f).any() else 0.0
+    if not fmax > 0:
         raise ConfigError("--window", "no contact carries any force in this time range")
     norm = LogNorm(floor * fmax, fmax) if scale == "log" else Normalize(0.0, fmax)
     data = np.ma.masked_less_equal(f, floor * fmax) if scale == "log" else f
@@ -409,7 +444,8 @@ def plot_energy(ds: xr.Dataset, out: str | Path | None = None, *, window: Sequen
         ax.plot(t[sel] * 1e3, e, lw=1.0, label=lab)
     ax.plot(t[sel] * 1e3, total, lw=1.2, color="k", label="total")
     ax.set_xlim(t[sel][0] * 1e3, t[sel][-1] * 1e3)
-    ax.set_ylim(0, 1.05 * float(np.max(total)) if np.max(total) > 0 else 1.0)
+    top = float(np.nanmax(total)) if np.isfinite(total).any() else 0.0
+    ax.set_ylim(0, 1.05 * top if top > 0 else 1.0)
     ax.set_xlabel("t [ms]")
     ax.set_ylabel("energy [mJ]")
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside the axes: never on the data

@@ -10,6 +10,7 @@ from typing import Callable, Literal
 import numpy as np
 import xarray as xr
 
+from .checks import check_after_run, check_before_run
 from .errors import ConfigError, DurationWarning, ElasticLimitWarning
 from .model import Model
 from .probes import Probes
@@ -85,10 +86,21 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
     config:
         The input it came from, stored in the result's attributes.
 
+    Raises
+    ------
+    ConfigError
+        A bad input, a precompression beyond the range of Hertz theory, or records that cannot
+        fit in memory (naming the field to change; nothing is allocated before these checks).
+    SimulationDiverged
+        The integration became non-finite or gained energy (:mod:`hertzchain.checks`).
+
     Warns
     -----
     ElasticLimitWarning
         When a recorded contact force passes the contact's elastic limit (paper Sec. II).
+    HertzRangeWarning, PulseNotReachedWarning, LongRunWarning
+        Overlaps beyond Hertz theory; a record that ends before the pulse reaches the wall; a run
+        projected to take more than a few minutes.
     """
     from .integrate.verlet import run_verlet
     from .result import build_dataset
@@ -103,19 +115,21 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     system = model.system()
     probes.validate(model.chain.n_beads, model.wall.present)
+    if integrator not in ("verlet", "dop853", "rk45"):
+        raise ConfigError("run.integrator", f"must be 'verlet', 'dop853' or 'rk45', got {integrator!r}")
+    check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # before any allocation
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     if integrator == "verlet":
         raw = run_verlet(system, duration, probes.sample_interval, dt=dt, record_velocities=probes.velocities,
                          contacts=rec, progress=progress, record_positions=probes.positions)
-    elif integrator in ("dop853", "rk45"):
+    else:
         from .integrate.reference import run_reference  # scipy.integrate: loaded only for these
 
         raw = run_reference(system, duration, probes.sample_interval, method=integrator.upper(), rtol=rtol,
                             record_velocities=probes.velocities, record_positions=probes.positions)
-    else:
-        raise ConfigError("run.integrator", f"must be 'verlet', 'dop853' or 'rk45', got {integrator!r}")
     ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system,
                        extra_attrs={"duration_mode": "auto"} if mode == "auto" else None)
+    check_after_run(ds, model, system, dt=dt, integrator=integrator, rtol=rtol, stacklevel=3)
     warn_elastic_limit(ds, stacklevel=3)
     if mode == "auto" and "wall_force" in ds and ds.attrs["peak_wall_time"] > 0.8 * duration:
         warnings.warn(DurationWarning(

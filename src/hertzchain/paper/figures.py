@@ -39,6 +39,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .. import analysis, theory
+from ..fileio import atomic_path
 from .values import FIG12_TRUNCATIONS, PAPER
 
 __all__ = ["fig1", "fig2", "fig3", "fig4", "fig5", "fig6", "save_figure", "figure_summary",
@@ -114,6 +115,7 @@ def save_figure(fig: Figure, out_dir: str | Path, name: str, dpi: int = 200) -> 
     with matplotlib.rc_context(STYLE):
         if not isinstance(fig.canvas, FigureCanvasAgg):
             FigureCanvasAgg(fig)
+        # written through hertzchain.fileio: a killed or failed save never leaves half a figure
         with atomic_path(png) as tmp:
             fig.savefig(tmp, dpi=dpi, format="png")
         fig.set_layout_engine("none")

@@ -221,36 +221,51 @@ def load_trace(path: str | Path, names=_TRACE_VARIABLES):
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
-def _load_study(data: Path, name: str, settings: Settings):
-    """The :class:`ChainStudy` of one chain from its truncation records in ``data``."""
-    import re
-
-    wall = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): load_trace(p)
-            for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
-    return protocol.study_from_datasets(name, wall, settings)
-
-
 def load_data(out_dir: str | Path, settings: Settings):
     """Read back the traces of a reproduction: (studies, misalignment, substitutions, ratio)."""
-    import re
-
     from ..errors import ConfigError
     from ..result import load
 
     data = Path(out_dir) / "data"
     if not data.is_dir():
         raise ConfigError(str(data), "no data folder: run 'hertzchain reproduce' first")
+    try:
+        return _load_data(data, settings, load)
+    except ConfigError:
+        raise
+    except (OSError, ValueError, KeyError, AttributeError, IndexError, TypeError, RuntimeError) as exc:
+        # A trace that is readable NetCDF but lacks what the protocol needs (damaged, foreign)
+        raise ConfigError(str(data), f"holds a damaged or foreign trace ({type(exc).__name__}: {exc}); "
+                          "rerun 'hertzchain reproduce' without --from-data") from None
+
+
+def _load_data(data: Path, settings: Settings, load):
+    import re
+
+    from ..errors import ConfigError
+
+    def read(p: Path, whole: bool = False):
+        """A trace: the variables the figures draw (:func:`load_trace`), or the whole result."""
+        if not p.is_file():
+            raise ConfigError(str(p), "is missing: rerun 'hertzchain reproduce' without --from-data")
+        try:
+            return load(p) if whole else load_trace(p)
+        except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
+            raise ConfigError(str(p), f"is damaged or not a hertzchain result ({type(exc).__name__}: {exc})") from None
+
     studies = {}
     for name in ("chain1", "chain2"):
-        if not any(data.glob(f"{name}_truncated_*.nc")):
+        wall = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p)
+                for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
+        if not wall:
             raise ConfigError(str(data), f"holds no {name} traces")
-        studies[name] = _load_study(data, name, settings)
+        studies[name] = protocol.study_from_datasets(name, wall, settings)
     mis = {}
     for p in sorted(data.glob("fig3_chain2_offset_bead*_e*.nc")):
         m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
-        mis[(int(m.group(1)), float(m.group(2)))] = load_trace(p)
-    subs = {label: load_trace(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
-    ratio = protocol.wall_chain_ratio_from_dataset(load(data / "uniform16_elastic_wall_chain_ratio.nc"))
+        mis[(int(m.group(1)), float(m.group(2)))] = read(p)
+    subs = {label: read(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
+    ratio = protocol.wall_chain_ratio_from_dataset(read(data / "uniform16_elastic_wall_chain_ratio.nc", whole=True))
     return studies, mis, subs, ratio
 
 
@@ -340,12 +355,16 @@ def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -
     tick = progress or (lambda msg: None)
     out = Path(out_dir)
     try:
-        summary = json.loads((out / "summary.json").read_text())
+        summary = json.loads((out / "summary.json").read_bytes().decode("utf-8"))
     except (OSError, ValueError) as exc:
         raise ConfigError(str(out / "summary.json"), f"cannot read it ({exc})") from None
-    known = {k: v for k, v in summary["settings"].items() if k in Settings.__dataclass_fields__}
-    settings = Settings(**known, eps=summary["settings"].get("eps_target") or PAPER["eps"],
-                        elastic=summary["settings"]["law"] == "elastic")
+    try:
+        known = {k: v for k, v in summary["settings"].items() if k in Settings.__dataclass_fields__}
+        settings = Settings(**known, eps=summary["settings"].get("eps_target") or PAPER["eps"],
+                            elastic=summary["settings"]["law"] == "elastic")
+    except (KeyError, TypeError, AttributeError, ValueError) as exc:
+        raise ConfigError(str(out / "summary.json"), f"is not the summary of a reproduction: its 'settings' "
+                          f"are missing or damaged ({type(exc).__name__}: {exc})") from None
     studies, mis, subs, _ = load_data(out, settings)
     summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
     tick("read the data")
