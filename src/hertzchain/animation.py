@@ -9,6 +9,7 @@ micrometres against centimetre beads).
 
 from __future__ import annotations
 
+import json
 import math
 import shutil
 import subprocess
@@ -96,7 +97,8 @@ def chain_frames(ds: xr.Dataset, n_frames: int = 100, *, window: Sequence[float]
     run = select_member(ds, member)
     if not (isinstance(n_frames, (int, np.integer)) and 2 <= n_frames <= 2000):
         raise ConfigError("--frames", f"must be an integer in 2..2000, got {n_frames!r}")
-    if "contact_force" not in run or run.sizes.get("contact", 0) != run.sizes.get("contact_all", -1):
+    if ("contact_force" not in run or "diameter" not in run
+            or run.sizes.get("contact", 0) != run.sizes.get("contact_all", -1)):
         raise ConfigError("RESULT", "an animation needs every contact force: run with [probes] contacts = \"all\" "
                           "(the default)")
     t = run.time.values
@@ -104,10 +106,11 @@ def chain_frames(ds: xr.Dataset, n_frames: int = 100, *, window: Sequence[float]
     index = sel[np.round(np.linspace(0, sel.size - 1, min(n_frames, sel.size))).astype(int)]
     if index.size < n_frames:
         raise ConfigError("--frames", f"the time range holds only {sel.size} samples, fewer than {n_frames} frames")
-    import json
-
     raw = run["model"].values.item() if "model" in run.data_vars else run.attrs.get("model", "{}")
-    striker_d = float(json.loads(raw).get("striker", {}).get("diameter_mm", 8.0)) * 1e-3
+    try:
+        striker_d = float(json.loads(raw)["striker"]["diameter_mm"]) * 1e-3
+    except (KeyError, TypeError, ValueError):  # a result written elsewhere: draw the paper's 8 mm striker
+        striker_d = 8e-3
     phi = run.diameter.values
     n = phi.size
     f = run.contact_force.values[index]  # (F, contacts), contacts 0..N (or N-1 without a wall)
