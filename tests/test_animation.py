@@ -84,7 +84,7 @@ def test_animate_cli_and_errors(tmp_path, with_positions, capsys, monkeypatch):
     monkeypatch.setattr(animation.shutil, "which", lambda name: None)
     assert main(["animate", str(path), "--out", str(tmp_path / "b.mp4"), "-q"]) == 2
     assert "ffmpeg" in capsys.readouterr().err
-    only_wall = hc.simulate(_model(), 5e-4, hc.Probes(sample_interval=1e-6, contacts=()))
+    only_wall = hc.simulate(_model(), 1.2e-3, hc.Probes(sample_interval=1e-6, contacts=()))
     hc.save(only_wall, tmp_path / "w.nc")
     assert main(["animate", str(tmp_path / "w.nc"), "--out", str(tmp_path / "b.gif"), "-q"]) == 2
     assert "every contact force" in capsys.readouterr().err
