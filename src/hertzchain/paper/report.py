@@ -469,6 +469,8 @@ _FORMULAS = [
     ("T(eps; q = 0)", r"T(\varepsilon; q = 0)"),
     ("F_m ~ v^(6/5), times ~ v^(-1/5)", r"F_m \propto v^{6/5}$, times $\propto v^{-1/5}"),
     ("(t - T)/tau", r"(t - T)/\tau"),
+    ("|dT|", r"|\Delta T|"),
+    ("|dF_m|", r"|\Delta F_m|"),
     ("F/F_m", r"F/F_m"),
     ("Q_F + Q_T", r"Q_F + Q_T"),
     ("Q_T/Q_F", r"Q_T/Q_F"),
