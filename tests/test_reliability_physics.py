@@ -218,3 +218,12 @@ def test_sweep_member_that_gains_energy_stops_the_sweep(tmp_path, monkeypatch):
         with pytest.raises(SimulationDiverged, match=r"sweep member 0 .*gains energy.*run\.dt"):
             hc.run_sweep(sweep, tmp_path / "out")
     assert not list((tmp_path / "out" / "chunks").glob("chunk_*.nc"))
+
+
+def test_estimate_counts_every_recorded_signal():
+    system = hc.Model(hc.Chain.uniform(10, 26e-3)).system()
+    base = checks.estimate_resources(system, 1e-3, hc.Probes(sample_interval=1e-6, contacts=()))
+    assert base.samples == 1001 and base.signals == 1 + 4  # the wall contact, 3 energies, time
+    both = checks.estimate_resources(system, 1e-3, hc.Probes(sample_interval=1e-6, contacts=(), sensors=(3,),
+                                                             velocities=True, positions=True))
+    assert both.signals == base.signals + 2 + 1 + 2 * 11  # sensor's contacts, its force, bodies 0..10 twice

@@ -120,7 +120,8 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
     n = system.n_beads
     samples = int(math.floor(duration / probes.sample_interval + 1e-9)) + 1
     recorded = probes.recorded_contacts(n, system.has_wall).size
-    signals = recorded + 4 + len(probes.sensors) + (n + 1 if probes.velocities else 0)  # + 3 energies, time, wall
+    bodies = (n + 1) * (int(bool(probes.velocities)) + int(bool(getattr(probes, "positions", False))))
+    signals = recorded + 4 + len(probes.sensors) + bodies  # + 3 energies, time, wall
     memory = BYTES_PER_VALUE * samples * signals * members
     if integrator == "verlet":
         plan = step_plan(system, probes.sample_interval, dt)
