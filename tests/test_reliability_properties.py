@@ -389,12 +389,14 @@ def test_configs_drawn_from_the_schema_are_accepted_or_refused_by_field(data):
     and the resource estimate either succeed or raise a ConfigError naming a field of the input
     (the chain or instrument key as written); never another exception."""
     from hertzchain.config import build_instruments, build_model, build_probes, parse_config
+    from hertzchain.simulation import auto_duration
 
     try:
         cfg = parse_config(data)
         model = build_model(cfg)
         build_instruments(cfg)
-        checks.estimate_resources(model.system(), cfg.run.duration, build_probes(cfg), dt=cfg.run.dt,
+        duration = auto_duration(model) if cfg.run.duration == "auto" else cfg.run.duration
+        checks.estimate_resources(model.system(), duration, build_probes(cfg), dt=cfg.run.dt,
                                   integrator=cfg.run.integrator)
         event("accepted")
     except hc.ConfigError as exc:
