@@ -427,14 +427,27 @@ def _baseline(t: np.ndarray, y: np.ndarray) -> float:
     """Median of the record before the pulse rises (the chain is at rest before the impact).
 
     The pulse starts where the signal first leaves the first samples' level by 5 % of its
-    largest excursion; the earlier 80 % of those samples give the level. With fewer than five
-    of them (a record starting on the pulse) nothing is removed.
+    largest excursion; the earlier 80 % of those samples are the candidates. They give the
+    level only if they are flat: the medians of their two halves may differ by no more than
+    three standard errors of the noise (robust estimate from second differences). A record that
+    starts on the pulse's slow front, or with fewer than ten candidates, keeps its values
+    (nothing is removed: a fit can free ``baseline`` instead).
     """
+    from ..analysis.pulse import estimate_noise
+
     head = np.median(y[: max(5, y.size // 50)])
     dev = np.abs(y - head)
     rise = np.flatnonzero(dev > 0.05 * dev.max())
     n = int(0.8 * (rise[0] if rise.size else y.size))
-    return float(np.median(y[:n])) if n >= 5 else 0.0
+    if n < 10:
+        return 0.0
+    pre = y[:n]
+    sigma = estimate_noise(pre)
+    # Standard error of a median of n/2 gaussian samples: 1.2533 sigma / sqrt(n/2); two of them.
+    drift = abs(float(np.median(pre[n // 2:]) - np.median(pre[: n // 2])))
+    if drift > 3.0 * 1.2533 * sigma * math.sqrt(2.0 / (n / 2)) + 1e-12 * float(np.ptp(y)):
+        return 0.0
+    return float(np.median(pre))
 
 
 def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sensitivity: float | None = None,
@@ -466,7 +479,8 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
     time_column : str or int, optional
         The time column, by name or index (default: the one named time/t, else the first).
     baseline : bool
-        Subtract the level before the pulse (median of the pre-pulse samples) [N].
+        Subtract the level before the pulse [N]: the median of the pre-pulse samples when they
+        are flat (a record starting on the pulse's front keeps its values).
     check : bool
         Refuse a time axis that cannot hold a pulse of a bead chain (sample spacing outside
         :data:`PLAUSIBLE_SAMPLE_INTERVAL` or record length outside
