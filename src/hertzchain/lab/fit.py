@@ -19,8 +19,8 @@ fields and the gain). The Jacobian of every iteration costs one batched engine c
 (:func:`hertzchain.integrate.batch.simulate_batch`): one forward-difference member per trace
 and free config field; the derivatives in gain, time offset and baseline are exact (the
 simulated signal, its time derivative, one). The covariance is ``s^2 (J^T J)^-1`` with ``s^2``
-the residual variance per degree of freedom, so the standard errors hold when the weights are
-only right up to a common factor.
+the residual variance per degree of freedom, taken trace by trace (each trace's rows of J are
+scaled by its own), so the standard errors hold when the noise estimates are off.
 """
 
 from __future__ import annotations
@@ -93,7 +93,8 @@ class FitResult:
     start : numpy.ndarray
         Starting values.
     covariance, correlation : numpy.ndarray
-        ``s^2 (J^T J)^-1`` and the correlation matrix derived from it.
+        ``s^2 (J^T J)^-1`` (each trace's rows scaled by its own residual variance) and the
+        correlation matrix derived from it.
     cost : float
         Half the sum of squared weighted residuals at the optimum.
     residual_variance : float
@@ -495,15 +496,24 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
 
     x0 = np.clip(x0, lower + 1e-12 * scale, upper - 1e-12 * scale)
     sol = least_squares(fun, x0, jac=prob.jacobian, bounds=(lower, upper), x_scale=scale, method="trf",
-                        max_nfev=max_evaluations, xtol=1e-10, ftol=1e-10, gtol=1e-10)
+                        max_nfev=max_evaluations, xtol=1e-8, ftol=1e-8, gtol=1e-8)
     x = sol.x
     J = prob.jacobian(x)
     _identifiability(prob.names, J, "at the optimum")
     res, parts = prob.model(x)
     n, p = res.size, x.size
     s2 = float(res @ res) / max(n - p, 1)
-    _, s, vt = np.linalg.svd(J, full_matrices=False)
-    cov = (vt.T / s**2) @ vt * s2
+    # Each trace's rows scaled by its own residual variance (its share of the n - p degrees of
+    # freedom), so a trace whose noise estimate was off does not carry a wrong weight into the
+    # errors; with one trace this is s^2 (J^T J)^-1.
+    edges = np.concatenate([[0], np.cumsum([t.size for t in prob.t])])
+    Jw = J.copy()
+    for k in range(len(prob.t)):
+        rk = res[edges[k]:edges[k + 1]]
+        s2k = float(rk @ rk) / max(rk.size * (n - p) / n, 1)
+        Jw[edges[k]:edges[k + 1]] /= math.sqrt(s2k)
+    _, s, vt = np.linalg.svd(Jw, full_matrices=False)
+    cov = (vt.T / s**2) @ vt
     err = np.sqrt(np.diag(cov))
     corr = cov / np.outer(err, err)
     cfg_values = x[:P]
