@@ -170,3 +170,24 @@ def test_compare_cli(tmp_path, capsys):
     assert main(["compare", str(meas), str(tmp_path / "c.toml"), "--out", str(out), "--json", str(js),
                  "--sensor", "pcb_208a11", "--align", "xcorr"]) == 0
     assert json.loads(js.read_text())["rms_residual"] < noise_n * 1.5
+
+
+def test_bootstrap_agrees_with_covariance(tmp_path):
+    """Where the model is close to linear over the error bars, the residual bootstrap's spread
+    matches the covariance's standard errors (20 refits: the spread is known to ~16 %, so a
+    ratio in [0.5, 1.5] is 3 sigma)."""
+    cfg = {"chain": {"uniform": {"n": 8, "diameter_mm": 26}}, "striker": {"velocity": 0.3}, "run": {"duration": 1.0e-3}}
+    ds = hc.run_config(cfg)
+    scope = hc.Instrument.pcb_208a11(sample_rate=2.5e6, noise_rms_mV=20.0, bits=16, trigger_level_N=0.5,
+                                     trigger_jitter=False, seed=11)
+    acq = scope.acquire(ds.time.values, ds.wall_force.values)
+    da = read_trace(write_tds_csv(tmp_path / "b.csv", acq.time, acq.volts), sensor="pcb_208a11")
+    start = {**cfg, "striker": {"velocity": 0.27}}
+    result = fit_traces(start, [Trace(da)], ["striker.velocity", "gain", "time_offset"], bootstrap=20, seed=3)
+    assert result.bootstrap.shape == (20, 3)
+    ratio = result.bootstrap.std(axis=0, ddof=1) / result.stderr
+    assert np.all((ratio > 0.5) & (ratio < 1.5)), ratio
+    boot = result.as_json()["parameters"]["striker.velocity"]["bootstrap"]
+    assert boot["refits"] == 20 and boot["interval_68"][0] < result.values[0] < boot["interval_68"][1]
+    with pytest.raises(ConfigError, match="--bootstrap"):
+        fit_traces(start, [Trace(da)], ["gain"], bootstrap=1)

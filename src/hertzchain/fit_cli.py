@@ -49,10 +49,12 @@ def parse_measured(item: str) -> tuple[Path, str | None, list[str], str | None]:
 @set_option
 @click.option("--max-evaluations", type=int, default=100, show_default=True,
               help="Most model evaluations (each one batched engine call).")
+@click.option("--bootstrap", type=int, default=0, metavar="N",
+              help="Also N residual-bootstrap refits: errors that do not assume a linear model (N x the fit's cost).")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or table.")
 def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Path, signal: str, column: str | None,
         sensitivity: float | None, sensor: str | None, time_unit: str | None, overrides: tuple[str, ...],
-        max_evaluations: int, quiet: bool) -> None:
+        max_evaluations: int, bootstrap: int, quiet: bool) -> None:
     """Calibrate the --free fields of CONFIG on the MEASURED traces by least squares.
 
     Each MEASURED is a scope file, optionally followed by settings for that trace only:
@@ -78,12 +80,17 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
         da = read_trace(path, col if col is not None else column, sensitivity=sensitivity, sensor=sensor,
                         time_unit=time_unit)
         traces.append(Trace(da, sig or signal, tuple(sets), path.name))
-    with progress_bar("fitting", enabled=not quiet) as update:
+    with progress_bar("fitting" + (f" (+{bootstrap} bootstrap refits)" if bootstrap else ""),
+                      enabled=not quiet) as update:
+        # The bar counts engine calls against a typical budget (~20 per fit), capped below 100 %.
+        budget = 20 * (1 + bootstrap)
+
         def tick(n: int, cost: float) -> None:
             if update is not None:
-                update(min(n, max_evaluations), max_evaluations)
+                update(min(n, budget - 1), budget)
 
-        result = fit_traces(data, traces, free, overrides=overrides, max_evaluations=max_evaluations, progress=tick)
+        result = fit_traces(data, traces, free, overrides=overrides, max_evaluations=max_evaluations,
+                            bootstrap=bootstrap, progress=tick)
     paths = write_fit_outputs(result, out)
     if quiet:
         return
@@ -92,10 +99,12 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
 
     table = Table(title=f"fit of {config.name} on {len(traces)} trace(s): "
                         f"{'converged' if result.converged else 'NOT converged'}, s^2 = {result.residual_variance:.3g}")
-    for col in ("parameter", "value", "stderr", "start"):
+    boot = result.as_json()["parameters"]
+    for col in ("parameter", "value", "stderr", "start") + (("bootstrap stderr",) if bootstrap else ()):
         table.add_column(col, justify="right")
     for n, v, s, s0 in zip(result.names, result.values, result.stderr, result.start):
-        table.add_row(n, f"{v:.6g}", f"{s:.2g}", f"{s0:.6g}")
+        extra = (f"{boot[n]['bootstrap']['stderr']:.2g}",) if bootstrap else ()
+        table.add_row(n, f"{v:.6g}", f"{s:.2g}", f"{s0:.6g}", *extra)
     Console().print(table)
     click.echo(f"{result.n_evaluations} engine calls ({result.n_members} chains) in {result.elapsed:.2f} s; "
                f"wrote {', '.join(str(p) for p in paths.values())}")

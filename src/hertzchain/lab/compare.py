@@ -36,6 +36,8 @@ class Comparison:
         Root mean square of measured - aligned simulated over the measured samples [N].
     shift : float
         Time added to the measured clock to read the simulation [s].
+    align : str
+        How the shift was found: ``"fit"`` (equal fitted T) or ``"xcorr"`` (cross-correlation).
     measured, simulated : dict
         The paper's pulse parameters of each (``peak_force``, ``time_of_flight``, ``duration``
         and their ``_err``) [N, s].

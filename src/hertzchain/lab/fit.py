@@ -115,6 +115,8 @@ class FitResult:
     traces : list of dict
         Per trace: ``name``, ``signal``, ``time`` [s], ``data``, ``model``, ``residual`` [N],
         ``noise`` [N], ``rms_residual`` [N].
+    bootstrap : numpy.ndarray
+        Parameter vectors of the bootstrap refits, shape (refits, parameters); empty without.
     elapsed : float
         Wall time of the fit [s].
     """
@@ -134,13 +136,21 @@ class FitResult:
     message: str
     config: dict
     traces: list[dict] = field(repr=False)
+    bootstrap: np.ndarray = field(default_factory=lambda: np.empty((0, 0)), repr=False)
     elapsed: float = 0.0
 
     def as_json(self) -> dict:
         """The result as the ``fit.json`` mapping (SI units)."""
+        pars = {n: {"value": float(v), "stderr": float(e), "start": float(s)}
+                for n, v, e, s in zip(self.names, self.values, self.stderr, self.start)}
+        if self.bootstrap.size:
+            for i, n in enumerate(self.names):
+                b = self.bootstrap[:, i]
+                pars[n]["bootstrap"] = {"stderr": float(np.std(b, ddof=1)),
+                                        "interval_68": [float(q) for q in np.percentile(b, [15.87, 84.13])],
+                                        "refits": int(b.size)}
         return {
-            "parameters": {n: {"value": float(v), "stderr": float(e), "start": float(s)}
-                           for n, v, e, s in zip(self.names, self.values, self.stderr, self.start)},
+            "parameters": pars,
             "correlation": {"names": list(self.names), "matrix": np.round(self.correlation, 6).tolist()},
             "cost": float(self.cost), "residual_variance": float(self.residual_variance),
             "n_points": int(self.n_points), "n_parameters": len(self.names),
@@ -421,6 +431,7 @@ def _identifiability(names: list[str], J: np.ndarray, when: str) -> None:
 
 def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, overrides: Sequence[str] = (),
                rel_step: float = FD_STEP, max_evaluations: int = 100, n_threads: int | None = None,
+               bootstrap: int = 0, seed: int | None = 0,
                progress: Callable[[int, float], None] | None = None) -> FitResult:
     """Calibrate the free parameters of a run config on measured traces (least squares).
 
@@ -444,6 +455,13 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
         Most residual evaluations (each one batched engine call).
     n_threads : int, optional
         Threads of the batched engine.
+    bootstrap : int
+        Number of residual-bootstrap refits (0: none). Each one refits, from the optimum, the
+        best model plus the trace's residuals drawn with replacement (scaled by
+        sqrt(n / (n - p))); the spread of the refits is an uncertainty that does not assume the
+        model is linear in its parameters over the error bars.
+    seed : int, optional
+        Seed of the bootstrap's random draws.
     progress : callable, optional
         ``progress(n_evaluations, cost)`` after each residual evaluation.
 
@@ -451,7 +469,8 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     -------
     FitResult
         Best values, standard errors (covariance ``s^2 (J^T J)^-1``), correlations, cost,
-        engine-call counts, the calibrated config and the per-trace model and residuals.
+        engine-call counts, the calibrated config, the per-trace model and residuals, and the
+        bootstrap samples when asked for.
 
     Raises
     ------
@@ -465,6 +484,8 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     from ..config import apply_overrides, read_toml
 
     t0 = _time.perf_counter()
+    if not (isinstance(bootstrap, (int, np.integer)) and (bootstrap == 0 or bootstrap >= 2)):
+        raise ConfigError("--bootstrap", f"must be 0 (none) or a number of refits >= 2, got {bootstrap!r}")
     data = read_toml(config) if isinstance(config, (str, Path)) else dict(config)
     data = apply_overrides(data, overrides)
     prob = _Problem(data, traces, free, rel_step, n_threads)
@@ -516,6 +537,10 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     cov = (vt.T / s**2) @ vt
     err = np.sqrt(np.diag(cov))
     corr = cov / np.outer(err, err)
+    samples = np.empty((0, p))
+    if bootstrap:
+        samples = _bootstrap(prob, x, parts, bootstrap, seed, dict(jac=prob.jacobian, bounds=(lower, upper),
+                             x_scale=scale, method="trf", max_nfev=max_evaluations, xtol=1e-8, ftol=1e-8, gtol=1e-8))
     cfg_values = x[:P]
     calibrated = apply_overrides(data, [f"{path}={_assign(v)}" for path, v in zip(prob.cfg_paths, cfg_values)])
     out_traces = []
@@ -528,4 +553,25 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     return FitResult(names=prob.names, values=x, stderr=err, start=x0, covariance=cov, correlation=corr,
                      cost=float(sol.cost), residual_variance=s2, n_points=n, n_evaluations=prob.n_evaluations,
                      n_members=prob.n_members, converged=bool(sol.status > 0), message=str(sol.message),
-                     config=calibrated, traces=out_traces, elapsed=_time.perf_counter() - t0)
+                     config=calibrated, traces=out_traces, bootstrap=samples, elapsed=_time.perf_counter() - t0)
+
+
+def _bootstrap(prob: _Problem, x: np.ndarray, parts: list, n_refits: int, seed: int | None, options: dict) -> np.ndarray:
+    """Residual bootstrap: refit best model + resampled residuals, ``n_refits`` times."""
+    from scipy.optimize import least_squares
+
+    rng = np.random.default_rng(seed)
+    data = prob.y
+    n = sum(y.size for y in data)
+    inflate = math.sqrt(n / max(n - x.size, 1))
+    best = [parts[k][3] for k in range(len(data))]
+    out = []
+    try:
+        for _ in range(n_refits):
+            prob.y = [m + inflate * rng.choice(y - m, size=y.size) for y, m in zip(data, best)]
+            prob._cache = {}
+            out.append(least_squares(prob.residuals, x, **options).x)
+    finally:
+        prob.y = data
+        prob._cache = {}
+    return np.array(out)
