@@ -100,8 +100,9 @@ def test_fit_cli_on_shipped_example(tmp_path, capsys):
 
 
 def test_series_with_per_trace_settings(tmp_path, capsys):
-    """Two wall traces of chain 1 truncated after beads 20 and 30 (the paper's protocol), one
-    gain and one speed shared, one time offset each (noise-free records: exact recovery)."""
+    """Two wall traces of chain 1 truncated after beads 20 and 30 (the paper's protocol) and the
+    sensor embedded in bead 12, each read with its own sensitivity: one speed shared, one gain
+    per sensor kind, one time offset per trace (noise-free records: exact recovery)."""
     data = {**START, "striker": {"diameter_mm": 8.0, "velocity": 0.23}}
     args = []
     for n in (20, 30):
@@ -111,13 +112,21 @@ def test_series_with_per_trace_settings(tmp_path, capsys):
         path = write_tds_csv(tmp_path / f"n{n}.csv", ds.wall_scope_time.values,
                              ds.measured_wall_force.values * 112.40e-3 * 1.04)
         args.append(f"{path}@chain.truncate={n}")
+    ds = hc.run_config({**data, "chain": {"preset": "chain1"}, "probes": {"sensors": [12]},
+                        "instrument": {"sensors": {"sample_rate": 2.5e6, "bits": 24, "trigger_level_N": 0.5,
+                                                   "sensitivity_mV_per_N": 11.24 * 0.95, "trigger_jitter": False}}})
+    path = write_picoscope(tmp_path / "bead12.csv", ds.sensor_scope_time.values,
+                           ds.measured_sensor_force.sel(sensor=12).values * 11.24e-3 * 0.95)
+    args.append(f"{path}@signal=sensor:12@sensor=pcb_200b02@column=Channel A")
     out = tmp_path / "series"
     assert main(["fit", "examples/lab_chain1.toml", *args, "--sensor", "pcb_208a11", "--free", "striker.velocity",
                  "--free", "gain", "--free", "time_offset", "--set", "contact.A=2e-6", "--out", str(out), "-q"]) == 0
     pars = json.loads((out / "fit.json").read_text())["parameters"]
-    assert set(pars) == {"striker.velocity", "gain", "time_offset[0]", "time_offset[1]"}
+    assert set(pars) == {"striker.velocity", "gain[sensor]", "gain[wall]", "time_offset[0]", "time_offset[1]",
+                         "time_offset[2]"}
     assert pars["striker.velocity"]["value"] == pytest.approx(0.23, rel=2e-4)
-    assert pars["gain"]["value"] == pytest.approx(1.04, rel=2e-4)
+    assert pars["gain[wall]"]["value"] == pytest.approx(1.04, rel=2e-4)
+    assert pars["gain[sensor]"]["value"] == pytest.approx(0.95, rel=2e-4)
 
 
 def test_non_identifiable_and_bad_start(tmp_path, signal, capsys):

@@ -10,29 +10,40 @@ from .analyze_cli import trace_options
 from .cli_options import set_option
 
 
-def parse_measured(item: str) -> tuple[Path, str | None, list[str], str | None]:
-    """``FILE[@KEY=VALUE...]`` -> (file, signal, config overrides, column).
+#: Per-trace keys of a MEASURED argument that say how to read the file (the rest are config paths).
+READ_KEYS = ("column", "sensitivity", "sensor", "time_unit")
 
-    KEY is ``signal`` (``wall`` or ``sensor:N``), ``column``, or a dotted config path for this
-    trace only (``chain.truncate=16``).
+
+def parse_measured(item: str) -> tuple[Path, str | None, list[str], dict]:
+    """``FILE[@KEY=VALUE...]`` -> (file, signal, config overrides, read options).
+
+    KEY is ``signal`` (``wall`` or ``sensor:N``), one of :data:`READ_KEYS` (how to read this
+    file: ``column=CH2``, ``sensor=pcb_200b02``, ``sensitivity=11.0``, ``time_unit=us``), or a
+    dotted config path for this trace only (``chain.truncate=16``).
     """
     from .errors import ConfigError
 
     if Path(item).exists() or "@" not in item:
-        return Path(item), None, [], None
+        return Path(item), None, [], {}
     name, *settings = item.split("@")
-    signal, column, overrides = None, None, []
+    signal, read, overrides = None, {}, []
     for s in settings:
         key, eq, value = s.partition("=")
         if not eq:
             raise ConfigError(item, f"{s!r} is not KEY=VALUE (e.g. {name}@chain.truncate=16@signal=wall)")
         if key == "signal":
             signal = value
-        elif key == "column":
-            column = value
+        elif key in READ_KEYS:
+            if key == "sensitivity":
+                try:
+                    read[key] = float(value)
+                except ValueError:
+                    raise ConfigError(item, f"sensitivity={value!r} is not a number (mV/N)") from None
+            else:
+                read[key] = value
         else:
             overrides.append(s)
-    return Path(name), signal, overrides, column
+    return Path(name), signal, overrides, read
 
 
 @click.command()
@@ -59,7 +70,8 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
 
     Each MEASURED is a scope file, optionally followed by settings for that trace only:
     FILE@chain.truncate=16 (the paper's protocol: the wall trace of each truncated chain),
-    FILE@signal=sensor:12, FILE@column=CH2. The model is seen through the instrument (sampled
+    FILE@signal=sensor:12@sensor=pcb_200b02 (the embedded sensor, read with its own sensitivity),
+    FILE@column=CH2. The model is seen through the instrument (sampled
     at the scope's times, times gain, shifted by time_offset, plus baseline); the Jacobian of each
     iteration comes from one batched engine call.
     """
@@ -76,9 +88,12 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
     parse_config(apply_overrides(data, overrides))  # a bad file or --set fails before reading traces
     traces = []
     for item in measured:
-        path, sig, sets, col = parse_measured(item)
-        da = read_trace(path, col if col is not None else column, sensitivity=sensitivity, sensor=sensor,
-                        time_unit=time_unit)
+        path, sig, sets, own = parse_measured(item)
+        options = {"column": column, "time_unit": time_unit}
+        if "sensitivity" not in own and "sensor" not in own:
+            options.update(sensitivity=sensitivity, sensor=sensor)
+        options.update(own)
+        da = read_trace(path, **options)
         traces.append(Trace(da, sig or signal, tuple(sets), path.name))
     with progress_bar("fitting" + (f" (+{bootstrap} bootstrap refits)" if bootstrap else ""),
                       enabled=not quiet) as update:
