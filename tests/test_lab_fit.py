@@ -133,6 +133,9 @@ def test_non_identifiable_and_bad_start(tmp_path, signal, capsys):
     t, volts, tau = lab_record(signal, 7)
     path = write_mso_csv(tmp_path / "r.csv", t, volts)
     da = read_trace(path, sensor="pcb_208a11")
+    # Stopped early: said so, in the result and in fit.json.
+    early = fit_traces(START, [Trace(da)], ["striker.velocity", "gain", "time_offset"], max_evaluations=2)
+    assert not early.converged and "not converged" in early.as_json()["warnings"][0]
     # run.rtol is not used by the Verlet engine: the traces cannot tell anything about it.
     with pytest.raises(ConfigError, match="run.rtol.*do not change"):
         fit_traces(START, [Trace(da)], ["run.rtol", "gain", "time_offset"])

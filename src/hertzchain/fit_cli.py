@@ -107,6 +107,8 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
         result = fit_traces(data, traces, free, overrides=overrides, max_evaluations=max_evaluations,
                             bootstrap=bootstrap, progress=tick)
     paths = write_fit_outputs(result, out)
+    for doubt in result.warnings:
+        click.echo(f"warning: {doubt}", err=True)
     if quiet:
         return
     from rich.console import Console

@@ -42,6 +42,8 @@ __all__ = ["Trace", "FitResult", "fit_traces", "MEASUREMENT_PARAMETERS"]
 MEASUREMENT_PARAMETERS = ("gain", "time_offset", "baseline")
 #: Relative forward-difference step of a config field.
 FD_STEP = 1e-4
+#: Residual variance (in units of the estimated noise variance) above which a fit is flagged.
+MAX_RESIDUAL_VARIANCE = 10.0
 #: Condition number of the column-normalised Jacobian above which a parameter set is refused
 #: as not identifiable (a combination of parameters leaves the traces unchanged).
 MAX_CONDITION = 1e7
@@ -117,6 +119,9 @@ class FitResult:
         ``noise`` [N], ``rms_residual`` [N].
     bootstrap : numpy.ndarray
         Parameter vectors of the bootstrap refits, shape (refits, parameters); empty without.
+    warnings : list of str
+        What makes the result doubtful (not converged; residuals far above the noise, the mark
+        of a local minimum or of physics the model lacks).
     elapsed : float
         Wall time of the fit [s].
     """
@@ -137,6 +142,7 @@ class FitResult:
     config: dict
     traces: list[dict] = field(repr=False)
     bootstrap: np.ndarray = field(default_factory=lambda: np.empty((0, 0)), repr=False)
+    warnings: list[str] = field(default_factory=list)
     elapsed: float = 0.0
 
     def as_json(self) -> dict:
@@ -155,7 +161,8 @@ class FitResult:
             "cost": float(self.cost), "residual_variance": float(self.residual_variance),
             "n_points": int(self.n_points), "n_parameters": len(self.names),
             "n_evaluations": int(self.n_evaluations), "n_members": int(self.n_members),
-            "converged": bool(self.converged), "message": self.message, "elapsed_s": float(self.elapsed),
+            "converged": bool(self.converged), "message": self.message, "warnings": list(self.warnings),
+            "elapsed_s": float(self.elapsed),
             "traces": [{"name": t["name"], "signal": t["signal"], "n_points": int(t["time"].size),
                         "noise": float(t["noise"]), "rms_residual": float(t["rms_residual"])} for t in self.traces],
         }
@@ -537,6 +544,17 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     cov = (vt.T / s**2) @ vt
     err = np.sqrt(np.diag(cov))
     corr = cov / np.outer(err, err)
+    doubts = []
+    if not sol.status > 0:
+        doubts.append(f"not converged after {sol.nfev} evaluations ({sol.message}); raise --max-evaluations "
+                      "or start closer")
+    # With the noise estimated from the records themselves, s^2 is ~1 for a model that fits;
+    # far above it the optimum is a local one (e.g. a pulse aligned on the wrong peak) or the
+    # model misses part of the physics.
+    if s2 > MAX_RESIDUAL_VARIANCE:
+        doubts.append(f"the residuals are {math.sqrt(s2):.3g} times the noise: the model does not describe "
+                      "the records (a local minimum from a poor start, or physics the model lacks); look at "
+                      "fit.png before trusting the values")
     samples = np.empty((0, p))
     if bootstrap:
         samples = _bootstrap(prob, x, parts, bootstrap, seed, dict(jac=prob.jacobian, bounds=(lower, upper),
@@ -553,7 +571,8 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     return FitResult(names=prob.names, values=x, stderr=err, start=x0, covariance=cov, correlation=corr,
                      cost=float(sol.cost), residual_variance=s2, n_points=n, n_evaluations=prob.n_evaluations,
                      n_members=prob.n_members, converged=bool(sol.status > 0), message=str(sol.message),
-                     config=calibrated, traces=out_traces, bootstrap=samples, elapsed=_time.perf_counter() - t0)
+                     config=calibrated, traces=out_traces, bootstrap=samples, warnings=doubts,
+                     elapsed=_time.perf_counter() - t0)
 
 
 def _bootstrap(prob: _Problem, x: np.ndarray, parts: list, n_refits: int, seed: int | None, options: dict) -> np.ndarray:

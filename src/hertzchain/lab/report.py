@@ -128,6 +128,7 @@ def fit_html(result, png: bytes) -> str:
 td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}}</style></head><body>
 <h1>hertzchain fit</h1>
 <p>{'Converged' if result.converged else '<b>Not converged</b>'}: {e(result.message)}<br>
+{''.join(f'<b>Warning:</b> {e(w)}<br>' for w in result.warnings)}
 cost (half the sum of squared noise-weighted residuals) {result.cost:.6g}; {result.n_points} samples,
 {len(result.names)} parameters; residual variance s<sup>2</sup> = {result.residual_variance:.4g} (1 when the
 residuals are the noise); {result.n_evaluations} batched engine calls ({result.n_members} chains) in {result.elapsed:.2f} s.</p>
