@@ -18,8 +18,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 import hertzchain as hc
 from hertzchain.config import build_model, build_probes, load_config
 from hertzchain.fileio import write_text

@@ -246,6 +246,8 @@ class _Problem:
             if not s > 0:
                 # A noise-free record (a simulation): weight by a tiny fraction of its range instead.
                 self.sigma[k] = 1e-6 * float(np.ptp(self.y[k]))
+        # A trace whose time offset is not free reads the simulation on its own clock.
+        self.tau_fixed = np.zeros(K)
         self.n_evaluations = 0
         self.n_members = 0
         self._cache: dict[bytes, tuple] = {}
@@ -370,7 +372,6 @@ class _Problem:
         """Starting vector: config values as given; time offsets by cross-correlation, gain and
         baseline by linear least squares on the starting model."""
         K = len(self.traces)
-        self.tau_fixed = np.zeros(K)
         x = np.zeros(len(self.names))
         x[:len(self.cfg_paths)] = self.x_cfg0
         # The starting model over the config's own run.duration (at least one record long),

@@ -8,8 +8,6 @@ import io
 import json
 from pathlib import Path
 
-import numpy as np
-
 from ..fileio import write_bytes, write_text
 
 __all__ = ["figure_bytes", "plot_comparison", "plot_fit", "fit_html", "write_fit_outputs", "toml_text"]
