@@ -78,6 +78,8 @@ def test_coverage_over_40_seeds(tmp_path, signal):
     60-76 % of cases (68.3 % expected; binomial sd 3.7 %)."""
     z = np.array([(lambda r, t: (r.values - t) / r.stderr)(*_fit_record(tmp_path, signal, s)) for s in range(40)])
     coverage = float(np.mean(np.abs(z) < 1))
+    print(f"1-sigma coverage over {z.shape[0]} seeds x {z.shape[1]} parameters: {coverage:.3f}; per parameter "
+          + ", ".join(f"{n} {c:.3f}" for n, c in zip(FREE, np.mean(np.abs(z) < 1, axis=0))))
     assert 0.60 <= coverage <= 0.76, coverage
 
 
