@@ -42,6 +42,11 @@ __all__ = ["Trace", "FitResult", "fit_traces", "MEASUREMENT_PARAMETERS"]
 MEASUREMENT_PARAMETERS = ("gain", "time_offset", "baseline")
 #: Relative forward-difference step of a config field.
 FD_STEP = 1e-4
+#: Stopping tolerances of the least squares: relative change of the cost (half chi^2, ~n/2 at
+#: the optimum, so 1e-6 is a change far below the 0.5 that moves a parameter by one standard
+#: error) and relative step in the parameters' natural units.
+FTOL = 1e-6
+XTOL = 1e-6
 #: Residual variance (in units of the estimated noise variance) above which a fit is flagged.
 MAX_RESIDUAL_VARIANCE = 10.0
 #: Condition number of the column-normalised Jacobian above which a parameter set is refused
@@ -251,6 +256,7 @@ class _Problem:
         self.n_evaluations = 0
         self.n_members = 0
         self._cache: dict[bytes, tuple] = {}
+        self._sim_cache: dict[bytes, tuple] = {}
 
     # ---- engine ----------------------------------------------------------------------------
     def _configs(self, cfg_values: np.ndarray) -> list:
@@ -320,7 +326,18 @@ class _Problem:
         if key in self._cache:
             return self._cache[key]
         cfg, gains, taus, bases, K = self.split(x)
-        sims = self.simulate([cfg], taus)[0]
+        # The simulation depends on the config fields only (the gain, time offsets and baselines
+        # act on its output), and a longer run is the same run continued: reuse the last one for
+        # these fields while it reaches the last scope sample.
+        need = max(float(t[-1]) + float(tau) for t, tau in zip(self.t, taus))
+        hit = self._sim_cache.get(cfg.tobytes())
+        if hit is not None and hit[0] >= need:
+            sims = hit[1]
+        else:
+            span = max(float(t[-1] - t[0]) for t in self.t)
+            duration = need + 0.25 * span + 2 * self.sample_interval
+            sims = self.simulate([cfg], taus, duration=duration)[0]
+            self._sim_cache = {cfg.tobytes(): (float(sims[0][0][-1]), sims)}
         res, parts = [], []
         for k, (ts, f) in enumerate(sims):
             fk = np.interp(self.t[k] + taus[k], ts, f)
@@ -334,11 +351,12 @@ class _Problem:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         return self.model(x)[0]
 
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        """d residual / d x: one batched call for the config fields, exact for the rest."""
+    def jacobian(self, x: np.ndarray, config_fields: bool = True) -> np.ndarray:
+        """d residual / d x: one batched call for the config fields, exact for the rest
+        (``config_fields=False``: those columns are left at zero and no engine call is made)."""
         res, parts = self.model(x)
         cfg, gains, taus, bases, K = self.split(x)
-        P = len(self.cfg_paths)
+        P = len(self.cfg_paths) if config_fields else 0
         sizes = [t.size for t in self.t]
         edges = np.concatenate([[0], np.cumsum(sizes)])
         J = np.zeros((res.size, len(self.names)))
@@ -487,8 +505,6 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
         where the records are, or a gain of the wrong sign), or a parameter the traces cannot
         determine (the message names it and what it is confused with).
     """
-    from scipy.optimize import least_squares
-
     from ..config import apply_overrides, read_toml
 
     t0 = _time.perf_counter()
@@ -517,15 +533,22 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
             scale[prob.base_idx[k]] = prob.sigma[k]
     _identifiability(prob.names, prob.jacobian(x0) * scale, "at the start")
 
+    meas = np.arange(P, x0.size)
+    if P and meas.size:
+        # First the measurement's own parameters on the starting model: they need no engine call
+        # (the one simulation is reused), and the full fit then starts with the records aligned
+        # and scaled by least squares rather than by the cross-correlation's coarse guess.
+        x0[meas] = _solve(lambda xm: prob.residuals(_put(x0, meas, xm)),
+                          lambda xm: prob.jacobian(_put(x0, meas, xm), config_fields=False)[:, meas],
+                          x0[meas], scale[meas], lower[meas], upper[meas], max_evaluations).x
+
     def fun(x):
         r = prob.residuals(x)
         if progress is not None:
             progress(prob.n_evaluations, 0.5 * float(r @ r))
         return r
 
-    x0 = np.clip(x0, lower + 1e-12 * scale, upper - 1e-12 * scale)
-    sol = least_squares(fun, x0, jac=prob.jacobian, bounds=(lower, upper), x_scale=scale, method="trf",
-                        max_nfev=max_evaluations, xtol=1e-8, ftol=1e-8, gtol=1e-8)
+    sol = _solve(fun, prob.jacobian, x0, scale, lower, upper, max_evaluations)
     x = sol.x
     J = prob.jacobian(x)
     _identifiability(prob.names, J * scale, "at the optimum")
@@ -558,8 +581,8 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
                       "fit.png before trusting the values")
     samples = np.empty((0, p))
     if bootstrap:
-        samples = _bootstrap(prob, x, parts, bootstrap, seed, dict(jac=prob.jacobian, bounds=(lower, upper),
-                             x_scale=scale, method="trf", max_nfev=max_evaluations, xtol=1e-8, ftol=1e-8, gtol=1e-8))
+        samples = _bootstrap(prob, x, parts, bootstrap, seed,
+                             lambda: _solve(prob.residuals, prob.jacobian, x, scale, lower, upper, max_evaluations).x)
     cfg_values = x[:P]
     calibrated = apply_overrides(data, [f"{path}={_assign(v)}" for path, v in zip(prob.cfg_paths, cfg_values)])
     out_traces = []
@@ -576,10 +599,32 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
                      elapsed=_time.perf_counter() - t0)
 
 
-def _bootstrap(prob: _Problem, x: np.ndarray, parts: list, n_refits: int, seed: int | None, options: dict) -> np.ndarray:
-    """Residual bootstrap: refit best model + resampled residuals, ``n_refits`` times."""
+def _put(x: np.ndarray, index: np.ndarray, values: np.ndarray) -> np.ndarray:
+    out = x.copy()
+    out[index] = values
+    return out
+
+
+def _solve(fun, jac, x0: np.ndarray, scale: np.ndarray, lower: np.ndarray, upper: np.ndarray, max_nfev: int):
+    """:func:`scipy.optimize.least_squares` (trust region reflective) in the offsets from the
+    start in natural units, u = (x - x0) / scale; returns its result with ``x`` in the
+    parameters' own units.
+
+    Solving for offsets keeps the first trust region at one natural unit: on ``x`` itself it
+    would be ``|x0 / scale|``, thousands of sample spacings for a time offset of milliseconds,
+    and the first steps would be rejected until the region had shrunk.
+    """
     from scipy.optimize import least_squares
 
+    sol = least_squares(lambda u: fun(x0 + u * scale), np.zeros(x0.size), jac=lambda u: jac(x0 + u * scale) * scale,
+                        bounds=((lower - x0) / scale, (upper - x0) / scale), method="trf", max_nfev=max_nfev,
+                        xtol=XTOL, ftol=FTOL, gtol=1e-8)
+    sol.x = x0 + sol.x * scale
+    return sol
+
+
+def _bootstrap(prob: _Problem, x: np.ndarray, parts: list, n_refits: int, seed: int | None, refit) -> np.ndarray:
+    """Residual bootstrap: ``refit()`` on the best model + resampled residuals, ``n_refits`` times."""
     rng = np.random.default_rng(seed)
     data = prob.y
     n = sum(y.size for y in data)
@@ -590,7 +635,7 @@ def _bootstrap(prob: _Problem, x: np.ndarray, parts: list, n_refits: int, seed: 
         for _ in range(n_refits):
             prob.y = [m + inflate * rng.choice(y - m, size=y.size) for y, m in zip(data, best)]
             prob._cache = {}
-            out.append(least_squares(prob.residuals, x, **options).x)
+            out.append(refit())
     finally:
         prob.y = data
         prob._cache = {}
