@@ -15,7 +15,8 @@ the measurement's ``gain``, ``time_offset`` and ``baseline``.
 Residuals are weighted by each trace's noise (robust sample-to-sample estimate,
 :func:`hertzchain.analysis.estimate_noise`), and minimised with
 :func:`scipy.optimize.least_squares` (trust region reflective, positive bounds on the config
-fields and the gain). The Jacobian of every iteration costs one batched engine call
+fields and the gain), after a first fit of gain, time offsets and baselines alone on the
+starting model (time offsets first placed by cross-correlation). The Jacobian of every iteration costs one batched engine call
 (:func:`hertzchain.integrate.batch.simulate_batch`): one forward-difference member per trace
 and free config field; the derivatives in gain, time offset and baseline are exact (the
 simulated signal, its time derivative, one). The covariance is ``s^2 (J^T J)^-1`` with ``s^2``
