@@ -176,11 +176,19 @@ class FitResult:
 
 # ------------------------------------------------------------------------------------------
 def _get(mapping: dict, path: str):
+    """The value at a dotted path (list items as ``key[i]``, as ``--set`` writes them), or None."""
+    import re
+
     node = mapping
     for key in path.split("."):
-        if not isinstance(node, dict) or key not in node:
+        m = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?", key)
+        if m is None or not isinstance(node, dict) or m.group(1) not in node:
             return None
-        node = node[key]
+        node = node[m.group(1)]
+        if m.group(2) is not None:
+            if not isinstance(node, list) or int(m.group(2)) >= len(node):
+                return None
+            node = node[int(m.group(2))]
     return node
 
 
