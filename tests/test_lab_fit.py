@@ -138,6 +138,8 @@ def test_non_identifiable_and_bad_start(tmp_path, signal, capsys):
     # Stopped early: said so, in the result and in fit.json.
     early = fit_traces(START, [Trace(da)], ["striker.velocity", "gain", "time_offset"], max_evaluations=2)
     assert not early.converged and "not converged" in early.as_json()["warnings"][0]
+    with pytest.raises(ConfigError, match=r"r.csv@signal: sensor:31 names no bead.*1..30"):
+        fit_traces(START, [Trace(da, signal="sensor:31", name="r.csv")], ["gain"])
     # run.rtol is not used by the Verlet engine: the traces cannot tell anything about it.
     with pytest.raises(ConfigError, match="run.rtol.*do not change"):
         fit_traces(START, [Trace(da)], ["run.rtol", "gain", "time_offset"])

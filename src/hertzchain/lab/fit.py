@@ -231,10 +231,15 @@ class _Problem:
                     self.names.append(key if K == 1 else f"{key}[{k}]")
         # Per-trace config mappings (global data + the trace's own settings), validated now so a
         # bad override is reported before any simulation.
+        from ..config import build_chain
+
         self.trace_data = []
         for k, tr in enumerate(self.traces):
             d = apply_overrides(data, tr.overrides)
-            parse_config(d)
+            n_beads = build_chain(parse_config(d)).n_beads
+            if self.beads[k] is not None and not 1 <= self.beads[k] <= n_beads:
+                raise ConfigError(f"{tr.name or f'trace {k}'}@signal", f"sensor:{self.beads[k]} names no bead of "
+                                  f"this trace's chain (beads 1..{n_beads})")
             self.trace_data.append(d)
         base_cfg = parse_config(data).model_dump(mode="json")
         self.x_cfg0 = []
