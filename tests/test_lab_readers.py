@@ -97,6 +97,11 @@ def test_delimited_variants(tmp_path, pulse):
     with pytest.raises(ConfigError, match="--time-unit ms"):
         read_trace(tmp_path / "ms.csv")
     _same(read_trace(tmp_path / "ms.csv", time_unit="ms", baseline=False), t, v, 1e-8 * SENS)
+    # An option that contradicts the file, or a sensitivity for a column already in newtons: refused.
+    with pytest.raises(ConfigError, match="--time-unit us contradicts"):
+        read_trace(tmp_path / "excel.csv", time_unit="us")
+    with pytest.raises(ConfigError, match="--sensitivity.*already a force"):
+        read_trace(tmp_path / "excel.csv", sensitivity=SENS)
 
 
 def test_baseline_removed(tmp_path, pulse):
