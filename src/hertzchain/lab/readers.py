@@ -403,6 +403,8 @@ def _pick_column(table: _Table, wanted, time_index: int, path: str) -> int:
         index = hits[0]
     else:
         others = [i for i in range(len(cols)) if i != time_index]
+        if not others:
+            raise ConfigError(path, f"has a single column ({listing}); a record needs a time column and a signal")
         if len(others) == 1:
             index = others[0]
         else:
