@@ -130,6 +130,8 @@ def test_result_signals(tmp_path):
     ("time,force\n" + "\n".join(f"{(i if i != 12 else 5) * 1e-6},{i % 7}" for i in range(30)), "line 14: time does not increase"),
     ("time,force\n" + "\n".join(f"{i * 1e-6},0.25" for i in range(30)), "constant"),
     ("force\n" + "\n".join(f"{i % 3}" for i in range(30)), "single column"),
+    ("time,force\n" + "\n".join(f"{i * 1e-6},{i % 5}" + (",7" if i == 15 else "") for i in range(40)),
+     "line 17 has 3 field"),
     ("time,force\n" + "\n".join(f"{i * 1e-3},{i % 5}" for i in range(30)), "needs a spacing"),
     ("time (ms),volts (V)\n" + "\n".join(f"{i * 1e-3},{i % 5}" for i in range(30)), "--sensitivity"),
     ("time (blorp),force\n" + "\n".join(f"{i * 1e-3},{i % 5}" for i in range(30)), "unknown unit"),

@@ -122,10 +122,14 @@ def _numeric_row(cells: list[str], decimal: str) -> bool:
 
 def _sniff(lines: list[str]) -> tuple[str | None, str]:
     """Separator and decimal mark of the data lines (the last lines of the file)."""
+    from collections import Counter
+
     sample = [ln for ln in lines[-50:] if ln.strip()]
     for sep in (";", "\t", ","):
-        counts = {ln.count(sep) for ln in sample}
-        if sample and min(counts) >= 1 and len(counts) == 1:
+        # The separator splits nearly every data line the same way (a ragged line is then
+        # reported by its number, not taken for another layout).
+        count, n = Counter(ln.count(sep) for ln in sample).most_common(1)[0]
+        if count >= 1 and n >= 0.9 * len(sample):
             break
     else:
         sep = None
@@ -187,6 +191,10 @@ def _read_text(path: Path, raw: bytes) -> _Table:
     import pandas as pd
 
     body = rows[start:]
+    for no, cells in body:
+        if len(cells) != width:
+            raise ConfigError(where, f"line {no} has {len(cells)} field(s) where the data above has {width}: "
+                              f"{' '.join(cells)[:60]!r}")
     text_block = "\n".join(numbered[start + i][1] for i in range(len(body)))
     ncols = max(len(numbered[start + i][1].split(sep)) if sep else len(c) for i, (_, c) in enumerate(body))
     try:
@@ -211,7 +219,8 @@ def _read_text(path: Path, raw: bytes) -> _Table:
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             label = names[j] if names else f"{j}"
-            what = "an empty cell" if cells.iloc[i] == "" else f"{cells.iloc[i]!r} is not a number"
+            raw_cell = body[i][1][j]
+            what = "an empty cell" if raw_cell == "" else f"{raw_cell!r} is not a number"
             raise ConfigError(where, f"line {lineno[i]}, column {label!r}: {what}")
         data[:, j] = values.to_numpy(dtype=float)
     columns = names if names is not None else [str(j) for j in range(width)]
