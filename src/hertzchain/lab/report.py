@@ -23,7 +23,20 @@ def _plt():
 
 
 def figure_bytes(fig, fmt: str = "png") -> bytes:
-    """The figure encoded as ``fmt`` (png, pdf, svg); the figure is closed."""
+    """Encode a Matplotlib figure and close it.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    fmt : str
+        ``png``, ``pdf`` or ``svg``.
+
+    Returns
+    -------
+    bytes
+        The encoded image (150 dpi for PNG).
+    """
     buf = io.BytesIO()
     fig.savefig(buf, format=fmt, dpi=150)
     _plt().close(fig)
@@ -41,7 +54,22 @@ def _format_of(out: Path) -> str:
 
 def plot_comparison(comp, out: str | Path, measured_label: str = "measured",
                     simulated_label: str = "simulated") -> Path:
-    """Overlay of a :class:`~hertzchain.lab.Comparison` with the residual underneath; returns ``out``."""
+    """Draw a comparison: both records [N] against the measured clock [ms], the residual underneath.
+
+    Parameters
+    ----------
+    comp : Comparison
+        What :func:`~hertzchain.lab.compare_traces` returned.
+    out : str or os.PathLike
+        Image file (``.png``, ``.pdf`` or ``.svg``), written atomically.
+    measured_label, simulated_label : str
+        Legend entries.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out``.
+    """
     plt = _plt()
     out = Path(out)
     fmt = _format_of(out)
@@ -65,7 +93,20 @@ def plot_comparison(comp, out: str | Path, measured_label: str = "measured",
 
 
 def plot_fit(result, fmt: str = "png") -> bytes:
-    """Every trace with the fitted model and, underneath, the residual; the encoded figure."""
+    """Draw every trace with the fitted model [N] against time [ms], the residual underneath.
+
+    Parameters
+    ----------
+    result : FitResult
+        What :func:`~hertzchain.lab.fit_traces` returned.
+    fmt : str
+        Image format (``png``, ``pdf``, ``svg``).
+
+    Returns
+    -------
+    bytes
+        The encoded figure.
+    """
     plt = _plt()
     K = len(result.traces)
     ncols = min(K, 3)
@@ -98,7 +139,21 @@ def plot_fit(result, fmt: str = "png") -> bytes:
 
 
 def fit_html(result, png: bytes) -> str:
-    """A self-contained HTML page: parameters with errors, correlations, goodness of fit, the figure."""
+    """A self-contained HTML report of a fit.
+
+    Parameters
+    ----------
+    result : FitResult
+        What :func:`~hertzchain.lab.fit_traces` returned.
+    png : bytes
+        The figure of :func:`plot_fit`, embedded in the page.
+
+    Returns
+    -------
+    str
+        The page: parameters with standard errors (and bootstrap spreads), correlations,
+        goodness of fit, warnings and the figure.
+    """
     e = html.escape
     boot = result.as_json()["parameters"]
     has_boot = bool(result.bootstrap.size)
@@ -140,7 +195,20 @@ residuals are the noise); {result.n_evaluations} batched engine calls ({result.n
 
 
 def toml_text(data: dict, header: str = "") -> str:
-    """A run-config mapping as TOML text (``tomli_w``), after ``header`` comment lines."""
+    """Write a run-config mapping as TOML text (``tomli_w``).
+
+    Parameters
+    ----------
+    data : dict
+        The mapping (as read from a TOML file, with changes).
+    header : str
+        Lines written first as ``#`` comments.
+
+    Returns
+    -------
+    str
+        TOML text that :func:`hertzchain.load_config` reads back to the same mapping.
+    """
     import tomli_w
 
     lines = "".join(f"# {ln}\n" if ln else "#\n" for ln in header.splitlines())
