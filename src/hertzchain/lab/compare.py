@@ -59,7 +59,14 @@ class Comparison:
     residual: np.ndarray = field(repr=False)
 
     def as_json(self) -> dict:
-        """The numbers (no arrays) as a JSON-ready mapping."""
+        """The numbers (no arrays) as a JSON-ready mapping.
+
+        Returns
+        -------
+        dict
+            ``peak_force_diff`` [N], ``time_of_flight_diff`` [s], ``duration_diff`` [s],
+            ``rms_residual`` [N], ``shift`` [s], ``align`` and both pulse fits.
+        """
         keys = ("peak_force_diff", "time_of_flight_diff", "duration_diff", "rms_residual", "shift", "align",
                 "measured", "simulated")
         return {k: getattr(self, k) for k in keys}

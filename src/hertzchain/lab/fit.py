@@ -79,7 +79,13 @@ class Trace:
     name: str = ""
 
     def sensor_bead(self) -> int | None:
-        """Bead number of an embedded sensor, None for the wall."""
+        """The bead the trace's sensor sits in.
+
+        Returns
+        -------
+        int or None
+            Bead number of an embedded sensor, None for the wall.
+        """
         if self.signal == "wall":
             return None
         kind, _, bead = self.signal.partition(":")
@@ -152,7 +158,15 @@ class FitResult:
     elapsed: float = 0.0
 
     def as_json(self) -> dict:
-        """The result as the ``fit.json`` mapping (SI units)."""
+        """The result as the ``fit.json`` mapping (SI units).
+
+        Returns
+        -------
+        dict
+            ``parameters`` ({name: {value, stderr, start[, bootstrap]}}), ``correlation``,
+            ``cost``, ``residual_variance``, ``n_points``, ``n_parameters``, ``n_evaluations``,
+            ``n_members``, ``converged``, ``message``, ``warnings``, ``elapsed_s``, ``traces``.
+        """
         pars = {n: {"value": float(v), "stderr": float(e), "start": float(s)}
                 for n, v, e, s in zip(self.names, self.values, self.stderr, self.start)}
         if self.bootstrap.size:
