@@ -53,6 +53,7 @@ def test_fit_recovers_hidden_parameters(tmp_path, signal, name):
     result, truth = _fit_record(tmp_path, signal, seed, name)
     assert result.converged and result.names == FREE
     z = (result.values - truth) / result.stderr
+    print(f"{name}: (fit - truth)/stderr " + ", ".join(f"{n} {v:+.2f}" for n, v in zip(FREE, z)))
     assert np.all(np.abs(z) < 3), dict(zip(FREE, z))
     # The errors are a real measurement, not a formality: the speed to ~1-2 %, the clock to ~10 us.
     assert result.stderr[0] / TRUTH["velocity"] < 0.03 and result.stderr[2] < 1e-5
