@@ -1,4 +1,4 @@
-"""Command line: ``hertzchain run | plot | analyze | compare | fit | materials | reproduce | sweep``.
+"""Command line: ``hertzchain run | plot | analyze | materials | reproduce | sweep``.
 
 Every user error (bad config, bad file, bad option) ends with a one-paragraph message and exit
 status 2, never a traceback. Heavy imports are deferred into the commands so ``--help`` is quick.
