@@ -89,8 +89,10 @@ def test_fit_cli_on_shipped_example(tmp_path, capsys):
     0.970 of its nominal sensitivity (examples/make_scope_example.py)."""
     out = tmp_path / "fit"
     assert main(["fit", "examples/lab_chain1.toml", "examples/scope_chain1_wall.csv", "--sensor", "pcb_208a11",
-                 "--free", "striker.velocity", "--free", "gain", "--free", "time_offset", "--out", str(out), "-q"]) == 0
+                 "--free", "striker.velocity", "--free", "gain", "--free", "time_offset", "--bootstrap", "3",
+                 "--out", str(out), "-q"]) == 0
     report = json.loads((out / "fit.json").read_text())
+    assert report["parameters"]["gain"]["bootstrap"]["refits"] == 3
     assert report["converged"] and report["n_evaluations"] >= 1 and report["cost"] > 0
     pars = report["parameters"]
     for key, truth in (("striker.velocity", 0.25), ("gain", 109.0 / 112.40)):
@@ -99,7 +101,8 @@ def test_fit_cli_on_shipped_example(tmp_path, capsys):
     calibrated = tomllib.loads((out / "calibrated.toml").read_text())
     assert calibrated["striker"]["velocity"] == pytest.approx(pars["striker.velocity"]["value"], rel=1e-12)
     assert main(["run", str(out / "calibrated.toml"), "--out", str(tmp_path / "c.nc"), "-q"]) == 0
-    assert (out / "fit.png").stat().st_size > 10_000 and "<table>" in (out / "fit.html").read_text()
+    page = (out / "fit.html").read_text()
+    assert (out / "fit.png").stat().st_size > 10_000 and "<table>" in page and "bootstrap 68 % interval" in page
 
 
 def test_series_with_per_trace_settings(tmp_path, capsys):
