@@ -433,6 +433,15 @@ class _Problem:
                                   f"{self._label(k)}; check the config (striker, wall, signal)")
             if self.tau_idx[k] is not None:
                 x[self.tau_idx[k]] = self._align(k, ts, f)
+            else:
+                # A fixed time offset: the record must overlap the simulated pulse on its clock.
+                level = np.abs(np.interp(self.t[k], ts, f))
+                if not level.max() > 1e-3 * np.abs(f).max():
+                    peak = float(ts[int(np.argmax(f))])
+                    raise ConfigError(f"{self._label(k)}", f"bad start: the record spans [{self.t[k][0]:.4g}, "
+                                      f"{self.t[k][-1]:.4g}] s on its own clock, and the simulated signal peaks at "
+                                      f"{peak:.4g} s with nothing inside the record; a scope record counts time "
+                                      "from its trigger: free time_offset")
         for g, i in self.gain_idx.items():
             num = den = 0.0
             for k, (ts, f) in enumerate(sims):
