@@ -65,12 +65,11 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
     Scope files: delimited text in any usual spelling, Tektronix CSV/.isf, PicoScope CSV/TXT,
     LeCroy .trc; volts become newtons with --sensitivity or --sensor.
     """
-    import json
     import math
 
     from .analysis import analyze_signals
     from .errors import ConfigError
-    from .fileio import write_text
+    from .fileio import json_text, write_text
 
     if not source.exists():
         raise ConfigError(str(source), "no such file")
@@ -106,11 +105,12 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
         if not math.isnan(da.attrs["sensitivity_mV_per_N"]):
             units_note += f" / {da.attrs['sensitivity_mV_per_N']:g} mV/N"
         units_note += "; shown in SI"
+    # NaN (a failed fit) becomes null: valid JSON.
     if json_path == "-":
-        click.echo(json.dumps(rows, indent=2, default=float))
+        click.echo(json_text(rows))
         return
     if json_path is not None:
-        write_text(json_path, json.dumps(rows, indent=2, default=float) + "\n")
+        write_text(json_path, json_text(rows) + "\n")
     from rich.console import Console
     from rich.table import Table
 

@@ -63,20 +63,20 @@ def compare(measured: Path, simulated: Path, out: Path, json_path: Path | None, 
     Both pulses are fitted as in the paper (F_m cos^6((t - T)/tau), Sec. III); the table gives the
     differences simulated - measured of F_m, T and tau and the rms residual after alignment.
     """
-    import json
-
-    from .fileio import write_text
+    from .fileio import json_text, write_text
     from .lab.compare import compare_traces
     from .lab.readers import read_trace
     from .lab.report import plot_comparison
+    from .plotting import image_format
 
+    image_format(out)  # an unknown --out suffix is refused before anything is read or simulated
     meas = read_trace(measured, column, sensitivity=sensitivity, sensor=sensor, time_unit=time_unit)
     sim = simulated_signal(simulated, signal)
     comp = compare_traces(meas, sim, align=align)
     plot_comparison(comp, out, measured_label=measured.name, simulated_label=f"{simulated.name} {signal}")
     numbers = comp.as_json()
     if json_path is not None:
-        write_text(json_path, json.dumps(numbers, indent=2) + "\n")
+        write_text(json_path, json_text(numbers) + "\n")
     from rich.console import Console
     from rich.table import Table
 

@@ -274,11 +274,10 @@ class _Problem:
         self.sample_interval = parse_config(data).run.sample_interval
         self.t = [np.asarray(tr.data["time"].values, float) for tr in self.traces]
         self.y = [np.asarray(tr.data.values, float) for tr in self.traces]
-        self.sigma = np.array([estimate_noise(y) for y in self.y])
-        for k, s in enumerate(self.sigma):
-            if not s > 0:
-                # A noise-free record (a simulation): weight by a tiny fraction of its range instead.
-                self.sigma[k] = 1e-6 * float(np.ptp(self.y[k]))
+        # No record is more precise than a millionth of its range (a 20-bit converter): the floor
+        # keeps a noise-free record (a simulation, a finely written file) from getting a weight
+        # set by rounding errors.
+        self.sigma = np.array([max(estimate_noise(y), 1e-6 * float(np.ptp(y))) for y in self.y])
         # A trace whose time offset is not free reads the simulation on its own clock.
         self.tau_fixed = np.zeros(K)
         self.n_evaluations = 0

@@ -5,10 +5,9 @@ from __future__ import annotations
 import base64
 import html
 import io
-import json
 from pathlib import Path
 
-from ..fileio import write_bytes, write_text
+from ..fileio import json_text, write_bytes, write_text
 
 __all__ = ["figure_bytes", "plot_comparison", "plot_fit", "fit_html", "write_fit_outputs", "toml_text"]
 
@@ -43,15 +42,6 @@ def figure_bytes(fig, fmt: str = "png") -> bytes:
     return buf.getvalue()
 
 
-def _format_of(out: Path) -> str:
-    from ..errors import ConfigError
-
-    fmt = out.suffix.lower().lstrip(".")
-    if fmt not in ("png", "pdf", "svg"):
-        raise ConfigError("--out", f"{out.name}: the figure must be .png, .pdf or .svg")
-    return fmt
-
-
 def plot_comparison(comp, out: str | Path, measured_label: str = "measured",
                     simulated_label: str = "simulated") -> Path:
     """Draw a comparison: both records [N] against the measured clock [ms], the residual underneath.
@@ -71,8 +61,10 @@ def plot_comparison(comp, out: str | Path, measured_label: str = "measured",
         ``out``.
     """
     plt = _plt()
+    from ..plotting import image_format
+
     out = Path(out)
-    fmt = _format_of(out)
+    fmt = image_format(out)
     fig, (ax, axr) = plt.subplots(2, 1, sharex=True, figsize=(6.5, 4.8), gridspec_kw={"height_ratios": [3, 1]})
     t_ms = comp.time * 1e3
     ax.plot(t_ms, comp.measured_force, ".", ms=2.5, color="0.3", label=measured_label)
@@ -234,7 +226,7 @@ def write_fit_outputs(result, out: str | Path) -> dict[str, Path]:
     out.mkdir(parents=True, exist_ok=True)
     paths = {k: out / n for k, n in (("json", "fit.json"), ("toml", "calibrated.toml"), ("png", "fit.png"),
                                      ("html", "fit.html"))}
-    write_text(paths["json"], json.dumps(result.as_json(), indent=2) + "\n")
+    write_text(paths["json"], json_text(result.as_json()) + "\n")
     meas = [f"  {n} = {v:.6g} +- {s:.2g}" for n, v, s in zip(result.names, result.values, result.stderr)
             if n.split("[")[0] in ("gain", "time_offset", "baseline")]
     header = ("Calibrated by hertzchain fit (values of the free config fields replaced by their best fit;\n"
