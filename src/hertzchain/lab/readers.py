@@ -140,13 +140,15 @@ def _sniff(lines: list[str]) -> tuple[str | None, str]:
 
 def _read_text(path: Path, raw: bytes) -> _Table:
     where = str(path)
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")  # older scopes write their own code page (e.g. a µ sign)
-    if "\x00" in text:
+    if b"\x00" in raw:
         raise ConfigError(where, "is a binary file, not text; hertzchain reads Tektronix .isf, LeCroy .trc "
                           "and delimited text (.csv, .txt)")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        # One rule for every text file hertzchain reads (configs, CSV): UTF-8, no guessing.
+        raise ConfigError(where, f"is not UTF-8 text (byte {exc.start} cannot be decoded); save the file "
+                          "as UTF-8 (plain ASCII numbers are fine)") from None
     lines = text.splitlines()
     sep_forced = None
     if lines and lines[0].strip().lower().startswith("sep="):
