@@ -222,8 +222,13 @@ def write_fit_outputs(result, out: str | Path) -> dict[str, Path]:
     dict
         File kind -> path written.
     """
+    from ..errors import ConfigError
+
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError("--out", f"{out}: cannot create the folder ({exc.strerror or exc})") from None
     paths = {k: out / n for k, n in (("json", "fit.json"), ("toml", "calibrated.toml"), ("png", "fit.png"),
                                      ("html", "fit.html"))}
     write_text(paths["json"], json_text(result.as_json()) + "\n")
