@@ -80,12 +80,13 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
     from .errors import ConfigError
     from .lab.fit import Trace, fit_traces
     from .lab.readers import read_trace
-    from .lab.report import write_fit_outputs
+    from .lab.report import prepare_folder, write_fit_outputs
 
     if max_evaluations < 1:
         raise ConfigError("--max-evaluations", f"must be at least 1, got {max_evaluations}")
     data = read_toml(config)
     parse_config(apply_overrides(data, overrides))  # a bad file or --set fails before reading traces
+    prepare_folder(out)  # ... and an unusable --out before the fit
     traces = []
     for item in measured:
         path, sig, sets, own = parse_measured(item)

@@ -9,7 +9,8 @@ from pathlib import Path
 
 from ..fileio import json_text, write_bytes, write_text
 
-__all__ = ["figure_bytes", "plot_comparison", "plot_fit", "fit_html", "write_fit_outputs", "toml_text"]
+__all__ = ["figure_bytes", "plot_comparison", "plot_fit", "fit_html", "prepare_folder", "write_fit_outputs",
+           "toml_text"]
 
 
 def _plt():
@@ -207,6 +208,34 @@ def toml_text(data: dict, header: str = "") -> str:
     return lines + tomli_w.dumps(data)
 
 
+def prepare_folder(out: str | Path) -> Path:
+    """Create the output folder (and its parents) if needed.
+
+    Parameters
+    ----------
+    out : str or os.PathLike
+        The folder.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out``.
+
+    Raises
+    ------
+    ConfigError
+        It cannot be created (a file in the way, no permission), naming ``--out``.
+    """
+    from ..errors import ConfigError
+
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError("--out", f"{out}: cannot create the folder ({exc.strerror or exc})") from None
+    return out
+
+
 def write_fit_outputs(result, out: str | Path) -> dict[str, Path]:
     """Write ``fit.json``, ``calibrated.toml``, ``fit.png`` and ``fit.html`` into folder ``out``.
 
@@ -222,13 +251,7 @@ def write_fit_outputs(result, out: str | Path) -> dict[str, Path]:
     dict
         File kind -> path written.
     """
-    from ..errors import ConfigError
-
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError("--out", f"{out}: cannot create the folder ({exc.strerror or exc})") from None
+    out = prepare_folder(out)
     paths = {k: out / n for k, n in (("json", "fit.json"), ("toml", "calibrated.toml"), ("png", "fit.png"),
                                      ("html", "fit.html"))}
     write_text(paths["json"], json_text(result.as_json()) + "\n")
