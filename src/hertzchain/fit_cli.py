@@ -96,8 +96,9 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
         options.update(own)
         da = read_trace(path, **options)
         traces.append(Trace(da, sig or signal, tuple(sets), path.name))
+    # Lazy: a fit refused at its start (bad start, a parameter the data cannot fix) prints only why.
     with progress_bar("fitting" + (f" (+{bootstrap} bootstrap refits)" if bootstrap else ""),
-                      enabled=not quiet) as update:
+                      enabled=not quiet, lazy=True) as update:
         # The bar counts engine calls against a typical budget (~20 per fit), capped below 100 %.
         budget = 20 * (1 + bootstrap)
 
@@ -107,6 +108,8 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
 
         result = fit_traces(data, traces, free, overrides=overrides, max_evaluations=max_evaluations,
                             bootstrap=bootstrap, progress=tick)
+        if update is not None:
+            update(budget, budget)
     paths = write_fit_outputs(result, out)
     for doubt in result.warnings:
         click.echo(f"warning: {doubt}", err=True)
