@@ -211,3 +211,20 @@ def test_bootstrap_agrees_with_covariance(tmp_path):
     assert boot["refits"] == 20 and boot["interval_68"][0] < result.values[0] < boot["interval_68"][1]
     with pytest.raises(ConfigError, match="--bootstrap"):
         fit_traces(start, [Trace(da)], ["gain"], bootstrap=1)
+
+
+def test_fit_a_custom_materials_modulus(tmp_path):
+    """Young's modulus of a [materials.NAME] chain is a free field like any other (its column of
+    J is ~1e-11 of a time offset's in SI: judged in natural units, it is well determined)."""
+    cfg = {"materials": {"mysteel": {"density": 7780.0, "young": 2.0e11, "poisson": 0.3}},
+           "chain": {"uniform": {"n": 8, "diameter_mm": 26}, "material": "mysteel"}, "striker": {"velocity": 0.3},
+           "run": {"duration": 1.0e-3}}
+    true = {**cfg, "materials": {"mysteel": {"density": 7780.0, "young": 2.1e11, "poisson": 0.3}}}
+    ds = hc.run_config(true)
+    acq = hc.Instrument.pcb_208a11(sample_rate=2.5e6, noise_rms_mV=5.0, bits=12, trigger_level_N=0.5,
+                                   seed=3).acquire(ds.time.values, ds.wall_force.values)
+    da = read_trace(write_tds_csv(tmp_path / "y.csv", acq.time, acq.volts), sensor="pcb_208a11")
+    result = fit_traces(cfg, [Trace(da)], ["materials.mysteel.young", "striker.velocity", "time_offset"])
+    z = (result.values - [2.1e11, 0.3, acq.trigger_time + acq.jitter[0]]) / result.stderr
+    assert np.all(np.abs(z) < 3), z
+    assert result.stderr[0] / 2.1e11 < 0.01
