@@ -126,8 +126,11 @@ def test_damaged_data_under_reproduce_from_data(tmp_path, capsys):
 
 def test_analyze_json_is_valid_json_with_null(tmp_path, capsys):
     """Issue: a failed fit wrote bare NaN, which no JSON parser reads."""
-    csv = tmp_path / "flat.csv"
-    csv.write_text("time,force\n" + "".join(f"{i * 1e-6},0.0\n" for i in range(50)))
+    # A record of noise alone: it reads, but holds no pulse to fit (a constant record is refused
+    # by the reader itself, exit 2, issue 11).
+    csv = tmp_path / "noise.csv"
+    noise = np.random.default_rng(0).normal(0.0, 0.01, 50)
+    csv.write_text("time,force\n" + "".join(f"{i * 1e-6},{f}\n" for i, f in enumerate(noise)))
     assert main(["analyze", str(csv), "--json"]) == 0
     text = capsys.readouterr().out
     rows = json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in JSON"))

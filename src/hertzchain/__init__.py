@@ -35,6 +35,9 @@ _EXPORTS = {
     # measurement, analysis, theory
     "Instrument": "instrument",
     "fit_pulse": "analysis", "PulseFit": "analysis", "power_spectrum": "analysis",
+    # laboratory data: scope files, comparison, calibration
+    "read_trace": "lab", "compare_traces": "lab", "Comparison": "lab", "fit_traces": "lab", "Trace": "lab",
+    "FitResult": "lab",
     "tapering_factor": "theory", "ballistic_ratios": "theory", "solitary_wave_speed": "theory",
     "yield_limit": "theory", "predict_chain": "theory", "nesterenko_force": "theory",
     # pictures of results

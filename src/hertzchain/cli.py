@@ -129,51 +129,6 @@ def _open_result(path: Path):
 
 
 @cli.command()
-@click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--signal", "signals", multiple=True,
-              help="wall_force, sensor_force or contact_force (repeatable; default wall and sensors).")
-@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
-def analyze(source: Path, signals: tuple[str, ...], as_json: bool) -> None:
-    """Fit every chosen pulse of SOURCE (a result .nc, or a CSV of time and force) as in the paper.
-
-    The loading part of each pulse is fitted with F_m cos^6((t - T)/tau) (paper Sec. III); the front
-    and tail momenta Q_F, Q_T are the integrals before and after T + tau.
-    """
-    from .analysis import analyze_signals
-    from .errors import ConfigError
-
-    if not source.exists():
-        raise ConfigError(str(source), "no such file")
-    if source.suffix.lower() == ".csv":
-        rows = analyze_signals(source)
-    else:
-        ds = _open_result(source)
-        chosen = signals or tuple(s for s in ("wall_force", "sensor_force") if s in ds) or ("contact_force",)
-        rows = analyze_signals(ds, signals=chosen)
-    if as_json:
-        from .fileio import json_text
-
-        click.echo(json_text(rows))  # NaN (a failed fit) becomes null: valid JSON
-        return
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title=f"pulse fits of {source.name} (loading part, F_m cos^6((t-T)/tau))")
-    for col in ("signal", "F_m [N]", "T [ms]", "tau [us]", "Q_F [mN s]", "Q_T [mN s]"):
-        table.add_column(col, justify="right")
-    for r in rows:
-        label = r["signal"] + ("" if r.get("index") is None else f"[{r['index']}]")
-        if r.get("error"):
-            table.add_row(label, f"[red]{r['error']}[/red]", "", "", "", "")
-            continue
-        table.add_row(label, f"{r['peak_force']:.4g} ± {r['peak_force_err']:.1g}",
-                      f"{r['time_of_flight'] * 1e3:.5g} ± {r['time_of_flight_err'] * 1e3:.1g}",
-                      f"{r['duration'] * 1e6:.4g} ± {r['duration_err'] * 1e6:.1g}",
-                      f"{r['front_momentum'] * 1e3:.4g}", f"{r['tail_momentum'] * 1e3:.4g}")
-    Console().print(table)
-
-
-@cli.command()
 @click.option("--out", "-o", type=click.Path(file_okay=False, path_type=Path), default=Path("reproduction"),
               show_default=True, help="Folder for figures, data, summary.json and the report.")
 @click.option("--velocity", type=float, default=0.2, show_default=True,
@@ -248,13 +203,19 @@ def materials() -> None:
 
 def _register_subcommands() -> None:
     # One line per subcommand module (each command lives in its own module).
+    from .analyze_cli import analyze
     from .animate_cli import animate
+    from .compare_cli import compare
+    from .fit_cli import fit
     from .plot_cli import plot
     from .sweep_cli import sweep
 
     cli.add_command(sweep)
     cli.add_command(plot)
     cli.add_command(animate)
+    cli.add_command(analyze)
+    cli.add_command(compare)
+    cli.add_command(fit)
 
 
 _register_subcommands()

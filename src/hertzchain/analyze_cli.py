@@ -1,0 +1,131 @@
+"""``hertzchain analyze``: the paper's pulse fits (Sec. III) on a result or a measured scope file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+_NETCDF = (".nc", ".nc4", ".netcdf", ".cdf", ".h5")
+
+
+def trace_options(func):
+    """The options that say how to read a measured file (shared by analyze, compare and fit)."""
+    for option in reversed((
+        click.option("--column", default=None, metavar="NAME_OR_INDEX",
+                     help="Signal column of a text/scope file, by header name or 0-based index "
+                          "(default: the only one besides time, or the one named *force*)."),
+        click.option("--sensitivity", type=float, default=None, metavar="MV_PER_N",
+                     help="Sensor sensitivity [mV/N]: the signal is in volts and becomes newtons."),
+        click.option("--sensor", default=None, type=click.Choice(["pcb_208a11", "pcb_200b02"], case_sensitive=False),
+                     help="Sensor preset instead of --sensitivity: pcb_208a11 (112.40 mV/N, wall), "
+                          "pcb_200b02 (11.24 mV/N, embedded)."),
+        click.option("--time-unit", default=None, metavar="s|ms|us|ns",
+                     help="Unit of the time column when the file does not name it."),
+    )):
+        func = option(func)
+    return func
+
+
+def signal_frame(ds, name: str):
+    """A one-signal Dataset on a ``time`` dimension (the instrument's ``*_scope_time`` renamed)."""
+    import xarray as xr
+
+    from .errors import ConfigError
+
+    if name not in ds.data_vars:
+        forces = [v for v in ds.data_vars if ds[v].attrs.get("units") == "N" and any(str(d).endswith("time")
+                                                                                  for d in ds[v].dims)]
+        raise ConfigError("--signal", f"{name!r} is not a signal of this result; available: {', '.join(forces)}")
+    da = ds[name]
+    tdim = next((d for d in da.dims if str(d).endswith("time")), None)
+    if tdim is None:
+        raise ConfigError("--signal", f"{name!r} is not a time signal (dims {da.dims})")
+    if tdim != "time":
+        da = da.reset_coords(drop=True).rename({tdim: "time"})
+    return xr.Dataset({name: da})
+
+
+@click.command()
+@click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--signal", "signals", multiple=True,
+              help="Result signals: wall_force, sensor_force, contact_force, measured_wall_force, "
+                   "measured_sensor_force (repeatable; default wall and sensors).")
+@trace_options
+@click.option("--tail-end", type=float, default=None, metavar="SECONDS",
+              help="Time [s] where the tail momentum Q_T stops (before a reflected pulse comes back).")
+@click.option("--json", "json_path", is_flag=False, flag_value="-", default=None, metavar="PATH",
+              help="Write the rows as JSON to PATH (SI units); --json alone prints them instead of the table.")
+def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitivity: float | None,
+            sensor: str | None, time_unit: str | None, tail_end: float | None, json_path: str | None) -> None:
+    """Fit every chosen pulse of SOURCE (a result .nc, or a measured scope file) as in the paper.
+
+    The loading part of each pulse is fitted with F_m cos^6((t - T)/tau) (paper Sec. III); the front
+    and tail momenta Q_F, Q_T are the integrals before and after T + tau (up to --tail-end).
+    Scope files: delimited text in any usual spelling, Tektronix CSV/.isf, PicoScope CSV/TXT,
+    LeCroy .trc; volts become newtons with --sensitivity or --sensor.
+    """
+    import math
+
+    from .analysis import analyze_signals
+    from .errors import ConfigError
+    from .fileio import json_text, write_text
+
+    if not source.exists():
+        raise ConfigError(str(source), "no such file")
+    if tail_end is not None and not (math.isfinite(tail_end) and tail_end > 0):
+        raise ConfigError("--tail-end", f"must be a positive time in s, got {tail_end}")
+    units_note = "time in s, force in N"
+    if source.suffix.lower() in _NETCDF:
+        from .cli import _open_result
+
+        if sensitivity is not None or sensor is not None or time_unit is not None:
+            raise ConfigError("--sensitivity", "a hertzchain result is already in SI units (N, s); "
+                              "--sensitivity, --sensor and --time-unit apply to scope files")
+        ds = _open_result(source)
+        if column is not None:
+            signals = signals + (column,)
+        chosen = signals or tuple(s for s in ("wall_force", "sensor_force") if s in ds) or ("contact_force",)
+        rows = []
+        for name in chosen:
+            frame = signal_frame(ds, name)
+            if tail_end is not None:
+                frame = frame.sel(time=slice(None, tail_end))
+            rows += analyze_signals(frame, signals=(name,))
+    else:
+        from .lab.readers import read_trace
+
+        da = read_trace(source, column, sensitivity=sensitivity, sensor=sensor, time_unit=time_unit, baseline=False)
+        if tail_end is not None:
+            da = da.sel(time=slice(None, tail_end))
+            if da.size < 10:
+                raise ConfigError("--tail-end", f"{tail_end} s leaves {da.size} samples of {source.name}")
+        rows = analyze_signals(da.to_dataset(name=da.name), signals=(da.name,))
+        units_note = f"time read in {da.attrs['time_unit']}, signal in {da.attrs['raw_unit']}"
+        if not math.isnan(da.attrs["sensitivity_mV_per_N"]):
+            units_note += f" / {da.attrs['sensitivity_mV_per_N']:g} mV/N"
+        units_note += "; shown in SI"
+    # NaN (a failed fit) becomes null: valid JSON.
+    if json_path == "-":
+        click.echo(json_text(rows))
+        return
+    if json_path is not None:
+        write_text(json_path, json_text(rows) + "\n")
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"pulse fits of {source.name} (loading part, F_m cos^6((t-T)/tau); {units_note})")
+    for col in ("signal", "F_m [N]", "T [ms]", "tau [us]", "Q_F [mN s]", "Q_T [mN s]"):
+        table.add_column(col, justify="right")
+    for r in rows:
+        label = r["signal"] + ("" if r.get("index") is None else f"[{r['index']}]")
+        if r.get("error"):
+            table.add_row(label, f"[red]{r['error']}[/red]", "", "", "", "")
+            continue
+        table.add_row(label, f"{r['peak_force']:.4g} ± {r['peak_force_err']:.1g}",
+                      f"{r['time_of_flight'] * 1e3:.5g} ± {r['time_of_flight_err'] * 1e3:.1g}",
+                      f"{r['duration'] * 1e6:.4g} ± {r['duration_err'] * 1e6:.1g}",
+                      f"{r['front_momentum'] * 1e3:.4g}", f"{r['tail_momentum'] * 1e3:.4g}")
+    Console().print(table)
+    if json_path is not None:
+        click.echo(f"wrote {json_path}")
