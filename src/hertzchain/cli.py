@@ -217,6 +217,9 @@ def _register_subcommands() -> None:
     from .sweep_cli import sweep
 
     cli.add_command(sweep)
+    from .design_cli import design
+
+    cli.add_command(design)
 
 
 _register_subcommands()
