@@ -1,6 +1,7 @@
 """The search: a population method, then a local polish; one engine call per generation, checkpointed.
 
-One objective: CMA-ES (:mod:`cma`) in the unit cube of the design space (bounds [0, 1]; integer,
+One objective: CMA-ES (:mod:`cma`, restarted with a doubled population whenever it converges
+while budget is left: IPOP-CMA-ES) in the unit cube of the design space (bounds [0, 1]; integer,
 catalogue and categorical coordinates are binned, see :mod:`hertzchain.design.space`, and keep a
 minimal step so that they go on exploring), then a batched compass search: all neighbours of the
 best point (+- h on every real coordinate, the next bin up and down on every discrete one) in
@@ -46,8 +47,8 @@ class DesignMismatch(HertzchainError):
 class _Randn:
     """Picklable normal sampler for CMA-ES (so the checkpoint carries its random stream)."""
 
-    def __init__(self, seed: int):
-        self.rng = np.random.default_rng([seed, 12])
+    def __init__(self, seed: int, restart: int):
+        self.rng = np.random.default_rng([seed, 12, restart])
 
     def __call__(self, *shape: int) -> np.ndarray:
         return self.rng.standard_normal(shape)
@@ -59,6 +60,7 @@ class _State:
     phase: str = "population"          # "population" -> "polish" -> "done"
     generation: int = 0
     optimiser: Any = None
+    restarts: int = 0
     polish_x: np.ndarray | None = None
     polish_h: float = _POLISH_H0
     history: list[dict] = field(default_factory=list)
@@ -106,21 +108,24 @@ class DesignResult:
     resumed: bool
 
 
-def _new_optimiser(problem: DesignProblem):
+def _new_optimiser(problem: DesignProblem, restart: int = 0):
+    """CMA-ES (one objective; ``restart`` r > 0: population x 2^r from a random start, IPOP-CMA-ES) or NSGA-II."""
     sec = problem.section
     dim = problem.space.dim
     if len(problem.objectives) == 1:
         import cma
 
-        pop = sec.population or max(16, 4 + int(3 * math.log(max(dim, 2))))
+        pop = (sec.population or max(16, 4 + int(3 * math.log(max(dim, 2))))) * 2 ** restart
         # A discrete coordinate keeps a step of ~1/3 of its bin: otherwise CMA-ES freezes it as
         # soon as the step is below one bin (a plateau of equal fitness), before it has settled.
         minstd = [0.3 / v.n_values if v.kind != "real" else 0.0 for v in problem.space.variables]
         # cma needs two coordinates: a 1-D space gets a dummy one that decodes to nothing (_coords).
         minstd += [0.0] * (max(dim, 2) - dim)
-        opts = {"bounds": [0.0, 1.0], "seed": sec.seed + 1, "popsize": pop, "randn": _Randn(sec.seed),
+        randn = _Randn(sec.seed, restart)
+        x0 = np.full(max(dim, 2), 0.5) if restart == 0 else randn.rng.uniform(0.0, 1.0, max(dim, 2))
+        opts = {"bounds": [0.0, 1.0], "seed": sec.seed + 1, "popsize": pop, "randn": randn,
                 "verbose": -9, "verb_log": 0, "verb_disp": 0, "minstd": minstd, "tolfun": 1e-9, "tolx": 1e-6}
-        return cma.CMAEvolutionStrategy(np.full(max(dim, 2), 0.5), 0.3, opts)
+        return cma.CMAEvolutionStrategy(x0, 0.3, opts)
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.problem import Problem
 
@@ -282,10 +287,12 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
             xs = [np.asarray(x, float) for x in pop.get("X")]
         else:
             xs = [np.asarray(x, float) for x in opt.ask()]
-        if state.generation == 0 and len(xs) * per_candidate > budget:
+        # What this generation costs: its candidates not evaluated before (repeats come from the cache).
+        cost = len({problem.space.key(_coords(problem, x)) for x in xs} - state.cache.keys()) * per_candidate
+        if state.generation == 0 and cost > budget:
             raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of {len(xs)} "
                               f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
-        if state.n_evaluations + len(xs) * per_candidate > pop_budget and state.generation > 0:
+        if state.n_evaluations + cost > pop_budget and state.generation > 0:
             state.phase = "polish" if sec.polish and not multi else "done"
             break
         fit = _evaluate(problem, evaluator, state, [_coords(problem, x) for x in xs], "population")
@@ -295,8 +302,13 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         else:
             opt.tell(xs, [f[0] for f in fit])
         state.generation += 1
-        if (not multi and opt.stop()) or state.n_evaluations >= pop_budget:
+        if state.n_evaluations >= pop_budget:
             state.phase = "polish" if sec.polish and not multi else "done"
+        elif not multi and opt.stop():
+            # Converged (or stuck on a plateau of a discrete space) with budget left: restart with a
+            # doubled population from a random point (IPOP-CMA-ES); the cache makes repeats free.
+            state.restarts += 1
+            state.optimiser = _new_optimiser(problem, state.restarts)
         checkpoint()
 
     while state.phase == "polish":
