@@ -148,16 +148,18 @@ def _row(problem: DesignProblem, state: _State, phase: str, x: np.ndarray, ev, v
     return row
 
 
-def _evaluate(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: list[np.ndarray], phase: str):
+def _evaluate(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: list[np.ndarray], phase: str,
+              clock: Callable[[], float]):
     """Evaluate unit-cube points in one engine call; append them to the history; return their fitness."""
     space = problem.space
     decoded = [space.decode(x) for x in xs]
     keys = [space.key(x) for x in xs]
     evaluator.cache = state.cache
     evs = evaluator.evaluate(keys, [c for _, c in decoded])
+    elapsed = clock()
     for x, (vals, _), ev in zip(xs, decoded, evs):
         state.n_evaluations += ev.engine_runs
-        state.history.append(_row(problem, state, phase, x, ev, vals))
+        state.history.append({**_row(problem, state, phase, x, ev, vals), "elapsed_s": elapsed})
     return [ev.fitness(problem.objectives) for ev in evs]
 
 
@@ -270,8 +272,11 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
     t_start = time.perf_counter()
     t_saved = state.elapsed_s
 
+    def clock() -> float:
+        return t_saved + time.perf_counter() - t_start
+
     def checkpoint() -> None:
-        state.elapsed_s = t_saved + time.perf_counter() - t_start
+        state.elapsed_s = clock()
         _save(out, state)
         if progress is not None:
             progress(min(state.n_evaluations, budget), budget)
@@ -295,7 +300,7 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         if state.n_evaluations + cost > pop_budget and state.generation > 0:
             state.phase = "polish" if sec.polish and not multi else "done"
             break
-        fit = _evaluate(problem, evaluator, state, [_coords(problem, x) for x in xs], "population")
+        fit = _evaluate(problem, evaluator, state, [_coords(problem, x) for x in xs], "population", clock)
         if multi:
             pop.set("F", np.array(fit))
             opt.tell(infills=pop)
@@ -325,7 +330,7 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
             state.phase = "done"  # the budget cannot pay for this step
             checkpoint()
             break
-        fit = _evaluate(problem, evaluator, state, neigh, "polish")
+        fit = _evaluate(problem, evaluator, state, neigh, "polish", clock)
         j = int(np.argmin([f[0] for f in fit]))
         if fit[j][0] < f0 - 1e-12 * abs(f0):
             state.polish_x = neigh[j]
