@@ -249,12 +249,12 @@ class Evaluator:
             return 1
         return len(self.robust.velocities or [None]) * self.robust.draws
 
-    def _scenario_models(self, cfg: dict) -> list:
+    def _scenario_models(self, cfg: dict, nominal) -> list:
         from ..config import build_model, parse_config
         from ..sweep import Tolerances, _apply_tolerances
 
         if self.robust is None:
-            return [build_model(parse_config(cfg))]
+            return [nominal]
         out = []
         tol = Tolerances(**self.robust.tolerances) if self.robust.tolerances else None
         for v in self.robust.velocities or [None]:
@@ -270,28 +270,28 @@ class Evaluator:
         from ..probes import Probes
 
         results: dict[int, Evaluation] = {}
-        pending: dict[Any, tuple[int, dict, dict]] = {}
+        pending: dict[Any, tuple[int, dict, dict, Any]] = {}
         for i, (key, cfg) in enumerate(zip(keys, configs)):
             if key in self.cache:
                 results[i] = replace(self.cache[key], engine_runs=0)
                 continue
             if key in pending:
                 continue
-            run_cfg = parse_config(cfg)
-            geo = geometry(build_model(run_cfg).chain)
+            model = build_model(parse_config(cfg))
+            geo = geometry(model.chain)
             viol = geometric_violation(self.constraints, geo)
             if viol > 0:
                 ev = Evaluation({n: math.nan for n in self.objectives}, False, viol, dict(geo))
                 self.cache[key] = ev
                 results[i] = ev
             else:
-                pending[key] = (i, cfg, geo)
+                pending[key] = (i, cfg, geo, model)
         if pending:
             run0 = parse_config(next(iter(pending.values()))[1])
             probes = Probes(sample_interval=build_probes(run0).sample_interval, contacts=())
             models, owner = [], []
-            for key, (i, cfg, geo) in pending.items():
-                ms = self._scenario_models(cfg)
+            for key, (i, cfg, geo, model) in pending.items():
+                ms = self._scenario_models(cfg, model)
                 models += ms
                 owner += [key] * len(ms)
             tasks = [_Task(models[s:s + self.chunk_size], run0.run.duration, probes, run0.run.dt, self.objectives,
@@ -301,7 +301,7 @@ class Evaluator:
             parts = _gather(self.client, tasks)
             merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
             owner_arr = np.array([list(pending).index(k) for k in owner])
-            for j, (key, (i, cfg, geo)) in enumerate(pending.items()):
+            for j, (key, (i, cfg, geo, _)) in enumerate(pending.items()):
                 sel = owner_arr == j
                 fy = float(merged["force_over_yield"][sel].max())
                 pulse = bool(merged["pulse_at_wall"][sel].all())
