@@ -104,6 +104,11 @@ def _open_result(path: Path):
 @click.option("--contact", "contacts", multiple=True, type=int, help="Contacts to draw with --signal contact_force.")
 def plot(result: Path, out: Path, signals: tuple[str, ...], contacts: tuple[int, ...]) -> None:
     """Draw the force signals of RESULT against time, one panel per signal."""
+    if result.suffix.lower() == ".csv":  # a sweep's metrics.csv: --signal names the metric (default F_m)
+        from .metrics_plot import plot_metrics
+
+        click.echo(f"wrote {plot_metrics(result, out, *signals[:1])}")
+        return
     from .plotting import plot_signals
 
     ds = _open_result(result)
