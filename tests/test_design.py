@@ -98,7 +98,7 @@ def test_killed_design_resumes_to_the_same_result_and_seed_reproduces(tmp_path):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run_design(parse_design(_nq_design(budget=120)), tmp_path / "b", progress=killer)
+        run_design(parse_design(_nq_design(budget=120)), tmp_path / "b", progress=killer, checkpoint_interval=0)
     assert (tmp_path / "b" / "checkpoint.pkl").exists()
     resumed = run_design(parse_design(_nq_design(budget=120)), tmp_path / "b")
     assert resumed.resumed

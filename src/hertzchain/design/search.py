@@ -1,6 +1,7 @@
 """The search: a population method, then a local polish; one engine call per generation, checkpointed.
 
-One objective: CMA-ES (:mod:`cma`, restarted with a doubled population whenever it converges
+One objective: a Latin hypercube over the whole space, then CMA-ES (:mod:`cma`) from its best
+point (restarted with a doubled population whenever it converges
 while budget is left: IPOP-CMA-ES) in the unit cube of the design space (bounds [0, 1]; integer,
 catalogue and categorical coordinates are binned, see :mod:`hertzchain.design.space`, and keep a
 minimal step so that they go on exploring), then a batched compass search: all neighbours of the
@@ -11,7 +12,8 @@ candidates ever evaluated as the Pareto front.
 
 Every generation (population or polish step) is evaluated in ONE batched engine call
 (:class:`~hertzchain.design.objectives.Evaluator`), then the whole search state (optimiser,
-random streams, history, evaluated candidates) is written to ``checkpoint.pkl``; a rerun with
+random streams, history, evaluated candidates) is written to ``checkpoint.pkl`` (at most once
+a second when generations are faster than that); a rerun with
 the same design and output folder resumes from it and ends with the same result as an
 uninterrupted run. The random streams are seeded by ``[design].seed`` only.
 """
@@ -28,14 +30,16 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import ConfigError, HertzchainError
-from .objectives import Evaluator
+from .objectives import INFEASIBLE, Evaluator
 from .problem import DesignProblem
 
 __all__ = ["DesignResult", "run_design", "DesignMismatch"]
 
 _CHECKPOINT = "checkpoint.pkl"
-#: Share of the budget the population method may use when a polish follows.
-_POPULATION_SHARE = 0.75
+#: Generations without a better best after which the population phase hands over to the polish.
+_STALL_GENERATIONS = 5
+#: Most IPOP restarts (population x 2^r): a fully explored discrete space ends the search.
+_MAX_RESTARTS = 6
 #: Initial and smallest polish step (unit-cube coordinates).
 _POLISH_H0, _POLISH_HMIN = 0.05, 1e-4
 
@@ -61,6 +65,8 @@ class _State:
     generation: int = 0
     optimiser: Any = None
     restarts: int = 0
+    stall: int = 0
+    best_f: float = math.inf
     polish_x: np.ndarray | None = None
     polish_h: float = _POLISH_H0
     history: list[dict] = field(default_factory=list)
@@ -108,28 +114,43 @@ class DesignResult:
     resumed: bool
 
 
-def _new_optimiser(problem: DesignProblem, restart: int = 0):
-    """CMA-ES (one objective; ``restart`` r > 0: population x 2^r from a random start, IPOP-CMA-ES) or NSGA-II."""
+def _population(problem: DesignProblem) -> int:
+    """Candidates per generation: ``[design].population`` or max(32, CMA-ES's 4 + 3 ln d): a batch
+    of a few dozen chains costs the engine little more than one."""
+    if problem.section.population:
+        return problem.section.population
+    if len(problem.objectives) > 1:
+        return 40
+    return max(32, 4 + int(3 * math.log(max(problem.space.dim, 2))))
+
+
+def _new_optimiser(problem: DesignProblem, restart: int = 0, x0: np.ndarray | None = None):
+    """CMA-ES from ``x0`` (one objective; ``restart`` r > 0: population x 2^r from a random start,
+    IPOP-CMA-ES) or NSGA-II (several)."""
     sec = problem.section
     dim = problem.space.dim
     if len(problem.objectives) == 1:
         import cma
 
-        pop = (sec.population or max(16, 4 + int(3 * math.log(max(dim, 2))))) * 2 ** restart
+        pop = _population(problem) * 2 ** restart
         # A discrete coordinate keeps a step of ~1/3 of its bin: otherwise CMA-ES freezes it as
         # soon as the step is below one bin (a plateau of equal fitness), before it has settled.
         minstd = [0.3 / v.n_values if v.kind != "real" else 0.0 for v in problem.space.variables]
         # cma needs two coordinates: a 1-D space gets a dummy one that decodes to nothing (_coords).
         minstd += [0.0] * (max(dim, 2) - dim)
         randn = _Randn(sec.seed, restart)
-        x0 = np.full(max(dim, 2), 0.5) if restart == 0 else randn.rng.uniform(0.0, 1.0, max(dim, 2))
+        start = np.full(max(dim, 2), 0.5)
+        if x0 is not None:
+            start[:dim] = x0
+        elif restart > 0:
+            start = randn.rng.uniform(0.0, 1.0, max(dim, 2))
         opts = {"bounds": [0.0, 1.0], "seed": sec.seed + 1, "popsize": pop, "randn": randn,
                 "verbose": -9, "verb_log": 0, "verb_disp": 0, "minstd": minstd, "tolfun": 1e-9, "tolx": 1e-6}
-        return cma.CMAEvolutionStrategy(x0, 0.3, opts)
+        return cma.CMAEvolutionStrategy(start, 0.2 if x0 is not None else 0.3, opts)
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.problem import Problem
 
-    algo = NSGA2(pop_size=sec.population or 40)
+    algo = NSGA2(pop_size=_population(problem))
     algo.setup(Problem(n_var=dim, n_obj=len(problem.objectives), xl=0.0, xu=1.0), seed=sec.seed, verbose=False)
     return algo
 
@@ -230,7 +251,8 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float) -> list[
 
 
 def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, device: str | None = None,
-               progress: Callable[[int, int], None] | None = None, force: bool = False) -> DesignResult:
+               progress: Callable[[int, int], None] | None = None, force: bool = False,
+               checkpoint_interval: float = 1.0) -> DesignResult:
     """Run (or resume) a design search; the state is checkpointed after every engine call.
 
     Parameters
@@ -250,6 +272,9 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         ``progress(evaluations_done, budget)`` after every engine call.
     force : bool
         Start afresh when ``out_dir`` holds the checkpoint of another design.
+    checkpoint_interval : float
+        Least time [s] between two checkpoint saves (0: after every generation); the state is
+        always saved at the end.
 
     Returns
     -------
@@ -268,79 +293,117 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
     budget = sec.budget
     per_candidate = evaluator.n_scenarios
     multi = len(problem.objectives) > 1
-    pop_budget = budget * (_POPULATION_SHARE if sec.polish and not multi else 1.0)
     t_start = time.perf_counter()
     t_saved = state.elapsed_s
 
     def clock() -> float:
         return t_saved + time.perf_counter() - t_start
 
-    def checkpoint() -> None:
+    last_save = [-math.inf]
+
+    def checkpoint(final: bool = False) -> None:
         state.elapsed_s = clock()
-        _save(out, state)
+        # Saving costs a pickle and an fsync (~10 ms): on fast generations, at most one save per
+        # checkpoint_interval seconds, so a kill loses at most that much work.
+        if final or state.elapsed_s - last_save[0] >= checkpoint_interval:
+            _save(out, state)
+            last_save[0] = state.elapsed_s
         if progress is not None:
             progress(min(state.n_evaluations, budget), budget)
 
     if progress is not None:
         progress(min(state.n_evaluations, budget), budget)
-    while state.phase == "population":
-        if state.optimiser is None:
-            state.optimiser = _new_optimiser(problem)
-        opt = state.optimiser
-        if multi:
-            pop = opt.ask()
-            xs = [np.asarray(x, float) for x in pop.get("X")]
-        else:
-            xs = [np.asarray(x, float) for x in opt.ask()]
-        # What this generation costs: its candidates not evaluated before (repeats come from the cache).
-        cost = len({problem.space.key(_coords(problem, x)) for x in xs} - state.cache.keys()) * per_candidate
-        if state.generation == 0 and cost > budget:
-            raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of {len(xs)} "
-                              f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
-        if state.n_evaluations + cost > pop_budget and state.generation > 0:
-            state.phase = "polish" if sec.polish and not multi else "done"
-            break
-        fit = _evaluate(problem, evaluator, state, [_coords(problem, x) for x in xs], "population", clock)
-        if multi:
-            pop.set("F", np.array(fit))
-            opt.tell(infills=pop)
-        else:
-            opt.tell(xs, [f[0] for f in fit])
-        state.generation += 1
-        if state.n_evaluations >= pop_budget:
-            state.phase = "polish" if sec.polish and not multi else "done"
-        elif not multi and opt.stop():
-            # Converged (or stuck on a plateau of a discrete space) with budget left: restart with a
-            # doubled population from a random point (IPOP-CMA-ES); the cache makes repeats free.
+    def improved() -> bool:
+        """Whether the best fitness improved since the last call (tracks stagnation)."""
+        best = _best_row(problem, state.history)
+        f = best[problem.objectives[0]] if best["feasible"] else INFEASIBLE * (1.0 + best["violation"])
+        if f < state.best_f - 1e-12 * abs(state.best_f):
+            state.best_f = f
+            return True
+        return False
+
+    def next_cycle() -> None:
+        """After a converged or stalled population phase: polish; after a polish: restart (IPOP)."""
+        if state.phase == "population" and sec.polish and not multi:
+            state.phase, state.polish_x = "polish", None
+        elif state.restarts < _MAX_RESTARTS and not multi:
             state.restarts += 1
             state.optimiser = _new_optimiser(problem, state.restarts)
-        checkpoint()
-
-    while state.phase == "polish":
-        if state.polish_x is None:
-            best = _best_row(problem, state.history)
-            state.polish_x = problem.space.centre(np.asarray(best["x"]))
-            state.polish_h = _POLISH_H0
-        x = state.polish_x
-        f0 = state.cache[problem.space.key(x)].fitness(problem.objectives)[0]  # evaluated: it is the best so far
-        neigh = _polish_neighbours(problem, x, state.polish_h)
-        new = [y for y in neigh if problem.space.key(y) not in state.cache]
-        affordable = (budget - state.n_evaluations) // per_candidate
-        if not neigh or len(new) > affordable:
-            state.phase = "done"  # the budget cannot pay for this step
-            checkpoint()
-            break
-        fit = _evaluate(problem, evaluator, state, neigh, "polish", clock)
-        j = int(np.argmin([f[0] for f in fit]))
-        if fit[j][0] < f0 - 1e-12 * abs(f0):
-            state.polish_x = neigh[j]
+            state.phase, state.stall = "population", 0
         else:
-            state.polish_h /= 2.0
-            if state.polish_h < _POLISH_HMIN:
-                state.phase = "done"
+            state.phase = "done"
+
+    while state.phase != "done":
+        if state.phase == "population" and state.optimiser is None and not multi:
+            # Generation 0: a Latin hypercube over the whole space (seeded), so that CMA-ES starts
+            # from the best region found rather than from the centre of the box.
+            from scipy.stats import qmc
+
+            pop0 = _population(problem)
+            xs = list(qmc.LatinHypercube(d=problem.space.dim, seed=np.random.default_rng([sec.seed, 11])).random(pop0))
+            if len({problem.space.key(x) for x in xs}) * per_candidate > budget:
+                raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of {pop0} "
+                                  f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
+            _evaluate(problem, evaluator, state, xs, "population", clock)
+            improved()
+            state.optimiser = _new_optimiser(problem, x0=np.asarray(_best_row(problem, state.history)["x"]))
+        elif state.phase == "population":
+            if state.optimiser is None:
+                state.optimiser = _new_optimiser(problem)
+            opt = state.optimiser
+            if multi:
+                pop = opt.ask()
+                xs = [np.asarray(x, float) for x in pop.get("X")]
+            else:
+                xs = [np.asarray(x, float) for x in opt.ask()]
+            # What this generation costs: its candidates not evaluated before (repeats come from the cache).
+            cost = len({problem.space.key(_coords(problem, x)) for x in xs} - state.cache.keys()) * per_candidate
+            if state.n_evaluations + cost > budget:
+                if state.generation == 0:
+                    raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of "
+                                      f"{len(xs)} candidates x {per_candidate} scenarios; raise the budget or lower "
+                                      "design.population")
+                state.phase = "polish" if sec.polish and not multi else "done"
+                if state.phase == "polish":
+                    state.polish_x = None
+                continue
+            fit = _evaluate(problem, evaluator, state, [_coords(problem, x) for x in xs], "population", clock)
+            if multi:
+                pop.set("F", np.array(fit))
+                opt.tell(infills=pop)
+            else:
+                opt.tell(xs, [f[0] for f in fit])
+                state.stall = 0 if improved() else state.stall + 1
+                # Converged, or no progress for a while (e.g. sliding along a constraint): polish the
+                # best point, then restart with a doubled population from a random point.
+                if opt.stop() or state.stall >= _STALL_GENERATIONS:
+                    next_cycle()
+        else:  # polish: batched compass search around the best point
+            if state.polish_x is None:
+                state.polish_x = problem.space.centre(np.asarray(_best_row(problem, state.history)["x"]))
+                state.polish_h = _POLISH_H0
+            x = state.polish_x
+            f0 = state.cache[problem.space.key(x)].fitness(problem.objectives)[0]  # evaluated: the best so far
+            neigh = _polish_neighbours(problem, x, state.polish_h)
+            new = [y for y in neigh if problem.space.key(y) not in state.cache]
+            if not neigh or len(new) * per_candidate > budget - state.n_evaluations:
+                state.phase = "done"  # the budget cannot pay for this step
+                continue
+            fit = _evaluate(problem, evaluator, state, neigh, "polish", clock)
+            improved()
+            j = int(np.argmin([f[0] for f in fit]))
+            if fit[j][0] < f0 - 1e-12 * abs(f0):
+                state.polish_x = neigh[j]
+            else:
+                state.polish_h /= 2.0
+                if state.polish_h < _POLISH_HMIN:
+                    next_cycle()
         state.generation += 1
+        if state.n_evaluations >= budget:
+            state.phase = "done"
         checkpoint()
 
+    checkpoint(final=True)
     best = _best_row(problem, state.history)
     best_out = None
     if best is not None:
