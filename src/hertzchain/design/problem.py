@@ -204,7 +204,7 @@ def load_design(path: str | Path, overrides=()) -> DesignProblem:
         The design file.
     overrides : iterable of str
         ``DOTTED.PATH=VALUE`` assignments relative to ``[base]`` (see
-        :func:`hertzchain.config.apply_overrides`).
+        ``hertzchain.config.apply_overrides``).
 
     Returns
     -------

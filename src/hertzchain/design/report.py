@@ -226,7 +226,7 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
     Parameters
     ----------
     result : DesignResult
-        A finished search (:func:`hertzchain.design.run_design`).
+        A finished search (:func:`hertzchain.run_design`).
     figures : bool
         Also write ``design.html`` (convergence, front, chains to scale, wall pulses).
 

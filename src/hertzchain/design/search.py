@@ -77,7 +77,7 @@ class _State:
 
 @dataclass
 class DesignResult:
-    """What :func:`run_design` found.
+    """What :func:`hertzchain.run_design` found.
 
     Attributes
     ----------
@@ -258,9 +258,9 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
     Parameters
     ----------
     problem : DesignProblem
-        From :func:`hertzchain.design.load_design` / :func:`~hertzchain.design.parse_design`.
+        From :func:`hertzchain.load_design` / :func:`hertzchain.parse_design`.
     out_dir : str or Path
-        Output folder: ``checkpoint.pkl`` during the search (see :func:`hertzchain.design.write_report`
+        Output folder: ``checkpoint.pkl`` during the search (see :func:`hertzchain.write_report`
         for the files written at the end).
     client : object
         None: each generation is one local engine call on all cores. A Dask

@@ -407,7 +407,8 @@ class Space:
         _shape_value_error(self.shape, params)
         chain = build_chain(parse_config(cfg))
         names = [m.name for m in chain.materials]
-        d_mm = [float(x) * 1e3 for x in chain.diameters]
+        # Back to mm, rounded to 12 digits so that 26e-3 m is written as 26.0, not 26.000000000000004.
+        d_mm = [float(f"{x * 1e3:.12g}") for x in chain.diameters]
         extra_d, extra_m = Shape(self.shape.kind, params).beads(d_mm[-1], names[-1])
         chain_cfg = {k: v for k, v in cfg["chain"].items()
                      if k not in ("diameters_mm", "preset", "uniform", "taper", "truncate", "materials", "substitutions",
@@ -418,7 +419,7 @@ class Space:
             chain_cfg["materials"] = mats
         else:
             chain_cfg["material"] = mats[0]
-        offsets = [float(x) * 1e3 for x in chain.offsets]
+        offsets = [float(f"{x * 1e3:.12g}") for x in chain.offsets]
         if any(offsets):
             chain_cfg["offsets_mm"] = offsets + [0.0] * len(extra_d)
         return {**cfg, "chain": chain_cfg}
