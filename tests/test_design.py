@@ -192,3 +192,29 @@ def test_best_taper_of_the_paper_length_beats_uniform_and_chain1(tmp_path):
     alone = hc.simulate(hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.2), hc.Wall("flat"), hc.Elastic()),
                         3.0e-3, hc.Probes(sample_interval=1e-6, contacts=()))
     assert cmp["chain1"]["peak_wall_force"] == pytest.approx(alone.attrs["peak_wall_force"], rel=1e-12)
+
+
+def test_other_design_in_the_same_folder_needs_force(tmp_path, capsys):
+    f = tmp_path / "d.toml"
+    _write_design(f, _nq_design(budget=40, polish=False, population=8))
+    out = tmp_path / "out"
+    assert main(["design", str(f), "--out", str(out), "-q", "--no-html"]) == 0
+    _write_design(f, _nq_design(budget=40, polish=False, population=8, seed=9))
+    assert main(["design", str(f), "--out", str(out), "-q", "--no-html"]) == 2
+    assert "different design" in capsys.readouterr().err
+    assert main(["design", str(f), "--out", str(out), "-q", "--no-html", "--force"]) == 0
+    assert json.loads((out / "design.json").read_text())["seed"] == 9
+
+
+@pytest.mark.slow
+def test_dask_scheduler_spreads_generations_with_the_same_result(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    f = tmp_path / "d.toml"
+    _write_design(f, _nq_design(budget=60, population=12, chunk_size=4))
+    assert main(["design", str(f), "--out", str(tmp_path / "here"), "-q", "--no-html"]) == 0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl:
+        assert main(["design", str(f), "--out", str(tmp_path / "dask"), "-q", "--no-html",
+                     "--scheduler", cl.scheduler_address]) == 0
+    a = json.loads((tmp_path / "here" / "design.json").read_text())
+    b = json.loads((tmp_path / "dask" / "design.json").read_text())
+    assert a["best"] == b["best"] and a["n_evaluations"] == b["n_evaluations"]
