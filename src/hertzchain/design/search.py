@@ -203,13 +203,11 @@ def pareto_rows(problem: DesignProblem, history: list[dict]) -> list[dict]:
         if r["feasible"] and key not in seen:
             seen.add(key)
             rows.append(r)
-    front = []
-    for r in rows:
-        a = np.array([r[n] for n in names])
-        dominated = any(np.all(np.array([s[n] for n in names]) <= a) and np.any(np.array([s[n] for n in names]) < a)
-                        for s in rows)
-        if not dominated:
-            front.append(r)
+    if not rows:
+        return []
+    f = np.array([[r[n] for n in names] for r in rows])
+    # Row i is dominated when another row is no worse in every objective and better in one.
+    front = [r for r, a in zip(rows, f) if not np.any(np.all(f <= a, axis=1) & np.any(f < a, axis=1))]
     return sorted(front, key=lambda r: r[names[0]])
 
 
