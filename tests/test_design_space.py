@@ -124,3 +124,19 @@ def test_executor_spreading_a_generation_gives_the_same_search(tmp_path):
         spread = run_design(_problem(design), tmp_path / "b", client=ex)
     assert [r["x"] for r in spread.history] == [r["x"] for r in here.history]
     assert [r["peak_wall_force"] for r in spread.history] == [r["peak_wall_force"] for r in here.history]
+
+
+def test_materials_are_categorical_variables_and_the_example_parses():
+    from pathlib import Path
+
+    from hertzchain.design import load_design
+
+    p = _problem({"variables": {"chain.material": ["AISI52100", "brass", "PTFE"]}})
+    seen = {p.space.values(np.array([x]))["chain.material"] for x in (0.0, 0.34, 0.99)}
+    assert seen == {"AISI52100", "brass", "PTFE"}
+    model = hc.build_model(hc.parse_config(p.space.config({"chain.material": "brass"})))
+    assert {m.name for m in model.chain.materials} == {"brass"}
+    example = load_design(Path(__file__).parent.parent / "examples" / "design_taper.toml")
+    assert example.objectives == ["peak_wall_force"] and example.space.dim == 3
+    assert load_design(Path(__file__).parent.parent / "examples" / "design_taper.toml",
+                       ["striker.velocity=0.3"]).base["striker"]["velocity"] == 0.3
