@@ -2,8 +2,9 @@
 
 The best design is compared with the paper's chain 1 (Table I) and with a uniform chain of as
 many beads (the diameter of the base chain's first bead), all three run with the base config's
-striker, wall, contact law and run settings in one batched engine call; the improvement is
-(reference - best) / reference in percent (positive: the design transmits less).
+striker, wall, contact law and run settings and scored as the search scored candidates (robust
+scenarios included); the improvement is (reference - best) / reference in percent (positive:
+the design transmits less).
 """
 
 from __future__ import annotations
@@ -50,7 +51,11 @@ def _reference_configs(base: dict, best_cfg: dict) -> dict[str, dict]:
 
 
 def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
-    """Objectives of the best design, chain 1 and the uniform chain (nominal scenario), one engine call.
+    """Objectives of the best design, chain 1 and the uniform chain, as the search scored them.
+
+    The three chains are evaluated like candidates (in every scenario of ``[design.robust]``,
+    summarised the same way), so the improvement compares like with like; their nominal wall
+    pulses come from one more batched call.
 
     Parameters
     ----------
@@ -60,9 +65,10 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     Returns
     -------
     (dict, xarray.Dataset)
-        ``{"best" | "chain1" | "uniform": {name: value [SI], "n_beads", "length_mm"},
-        "improvement_percent": {"chain1" | "uniform": {name: percent}}}`` and the batch
-        result (wall forces of the three, members in that order).
+        ``{"best" | "chain1" | "uniform": {name: value [SI] (None when the pulse does not reach
+        the wall within the run), "n_beads", "length_mm", "feasible"}, "improvement_percent":
+        {"chain1" | "uniform": {name: (reference - best) / reference [%]}}}`` and the nominal
+        batch result (wall forces of the three, members in that order).
     """
     import warnings
 
@@ -70,26 +76,36 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     from ..errors import ElasticLimitWarning
     from ..integrate.batch import simulate_batch
     from ..probes import Probes
+    from .constraints import Constraints, geometric_violation
+    from .objectives import Evaluator
 
-    cfgs = _reference_configs(result.problem.base, result.best["config"])
+    prob = result.problem
+    sec = prob.section
+    window = None if sec.window is None else tuple(sec.window)
+    cfgs = _reference_configs(prob.base, result.best["config"])
+    # No geometric rejection here: the references get values even where they break the design's
+    # constraints (the uniform chain is longer than chain 1); feasibility is reported beside them.
+    scorer = Evaluator(prob.objectives, Constraints(pulse_at_wall=sec.constraints.pulse_at_wall), sec.robust, window)
+    evs = scorer.evaluate(list(cfgs), list(cfgs.values()))
     runs = [parse_config(c) for c in cfgs.values()]
     models = [build_model(r) for r in runs]
     probes = Probes(sample_interval=build_probes(runs[0]).sample_interval, contacts=())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
         ds = simulate_batch(models, runs[0].run.duration, probes, dt=runs[0].run.dt)
-    met = member_metrics(ds, result.problem.objectives,
-                         None if result.problem.section.window is None else tuple(result.problem.section.window))
     out: dict[str, Any] = {}
-    for i, (name, model) in enumerate(zip(cfgs, models)):
+    for name, ev in zip(cfgs, evs):
         # A chain whose pulse does not reach the wall within the run has no comparable value.
-        ok = bool(met["pulse_at_wall"][i])
-        out[name] = {n: float(met[n][i]) if ok else None for n in result.problem.objectives}
-        out[name].update(n_beads=model.chain.n_beads, length_mm=float(model.chain.diameters.sum() * 1e3),
-                         pulse_at_wall=ok)
+        ok = bool(ev.metrics["pulse_at_wall"])
+        out[name] = {n: ev.objectives[n] if ok else None for n in prob.objectives}
+        feasible = ev.feasible and geometric_violation(sec.constraints, ev.metrics) == 0 and (
+            sec.constraints.max_force_over_yield is None
+            or ev.metrics["force_over_yield"] <= sec.constraints.max_force_over_yield)
+        out[name].update(n_beads=ev.metrics["n_beads"], length_mm=ev.metrics["length_mm"], pulse_at_wall=ok,
+                         feasible=bool(feasible))
     out["improvement_percent"] = {
         ref: {n: (100.0 * (out[ref][n] - out["best"][n]) / out[ref][n]
-                  if out[ref][n] and out["best"][n] is not None else None) for n in result.problem.objectives}
+                  if out[ref][n] and out["best"][n] is not None else None) for n in prob.objectives}
         for ref in ("chain1", "uniform")}
     return out, ds
 
@@ -205,18 +221,21 @@ def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
     for ref in ("best", "chain1", "uniform"):
         cells = "".join(f"<td>{_num(cmp[ref][n], '.5g')}</td>" for n in names)
         imp = "" if ref == "best" else "; ".join(_num(cmp["improvement_percent"][ref][n], "+.2f", " %") for n in names)
-        rows += f"<tr><td>{ref}</td><td>{cmp[ref]['n_beads']}</td><td>{cmp[ref]['length_mm']:.1f}</td>{cells}<td>{imp}</td></tr>"
+        ok = "yes" if cmp[ref]["feasible"] else "no"
+        rows += (f"<tr><td>{ref}</td><td>{cmp[ref]['n_beads']}</td><td>{cmp[ref]['length_mm']:.1f}</td><td>{ok}</td>"
+                 f"{cells}<td>{imp}</td></tr>")
     heads = "".join(f"<th>{n} [{OBJECTIVES[n][0]}]</th>" for n in names)
     variables = "".join(f"<tr><td><code>{html.escape(k)}</code></td><td>{html.escape(json.dumps(v))}</td></tr>"
                         for k, v in info["best"]["variables"].items())
     images = "".join(f"<h2>{html.escape(t)}</h2><img src='data:image/png;base64,{b}'/>" for t, b in figs)
+    robust = "" if info["robust"] is None else ", every chain scored over the same robust scenarios"
     feasible = "" if info["best"]["feasible"] else "<p><b>No candidate met every constraint; this is the least infeasible.</b></p>"
     return f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>hertzchain design</title>
 <style>body{{font-family:sans-serif;max-width:60em;margin:auto}} td,th{{padding:2px 8px;border-bottom:1px solid #ddd}}</style>
 </head><body><h1>hertzchain design: {html.escape(info['objective_name'])}</h1>{feasible}
 <p>{info['n_evaluations']} engine runs in {info['generations']} engine calls, {info['elapsed_s']:.1f} s
-({info['evaluations_per_s']:.0f} runs/s), seed {info['seed']}. Improvement = (reference - best) / reference.</p>
-<table><tr><th>chain</th><th>beads</th><th>length [mm]</th>{heads}<th>improvement of the best</th></tr>{rows}</table>
+({info['evaluations_per_s']:.0f} runs/s), seed {info['seed']}. Improvement = (reference - best) / reference{robust}.</p>
+<table><tr><th>chain</th><th>beads</th><th>length [mm]</th><th>meets the constraints</th>{heads}<th>improvement of the best</th></tr>{rows}</table>
 <h2>Best design</h2><table>{variables}</table>{images}</body></html>"""
 
 
