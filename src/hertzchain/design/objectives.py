@@ -258,8 +258,8 @@ class Evaluator:
         out = []
         tol = Tolerances(**self.robust.tolerances) if self.robust.tolerances else None
         for v in self.robust.velocities or [None]:
-            c = cfg if v is None else {**cfg, "striker": {**cfg.get("striker", {}), "velocity": v}}
-            model = build_model(parse_config(c))
+            model = nominal if v is None else build_model(parse_config(
+                {**cfg, "striker": {**cfg.get("striker", {}), "velocity": v}}))
             for d in range(self.robust.draws):
                 out.append(model if tol is None else _apply_tolerances(model, tol, d))
         return out
@@ -300,7 +300,8 @@ class Evaluator:
                 [_Task(models, run0.run.duration, probes, run0.run.dt, self.objectives, self.window, self.device)]
             parts = _gather(self.client, tasks)
             merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-            owner_arr = np.array([list(pending).index(k) for k in owner])
+            position = {k: j for j, k in enumerate(pending)}
+            owner_arr = np.array([position[k] for k in owner])
             for j, (key, (i, cfg, geo, _)) in enumerate(pending.items()):
                 sel = owner_arr == j
                 fy = float(merged["force_over_yield"][sel].max())
