@@ -83,5 +83,6 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
 
 def _improvement(info: dict, ref: str) -> str:
     imp = info["comparison"]["improvement_percent"][ref]
-    return ", ".join("n/a (its pulse does not reach the wall within the run)" if v is None else f"{v:+.1f} %"
-                     for v in imp.values())
+    if all(v is None for v in imp.values()):
+        return "n/a (its pulse does not reach the wall within the run)"
+    return ", ".join("n/a" if v is None else f"{v:+.1f} %" for v in imp.values())
