@@ -251,7 +251,7 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float) -> list[
 def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, device: str | None = None,
                progress: Callable[[int, int], None] | None = None, force: bool = False,
                checkpoint_interval: float = 1.0) -> DesignResult:
-    """Run (or resume) a design search; the state is checkpointed after every engine call.
+    """Run (or resume) a design search; the state is checkpointed after engine calls (see checkpoint_interval).
 
     Parameters
     ----------
