@@ -97,6 +97,7 @@ def scipy_time_to_target(target: float, seed: int, max_time: float) -> dict:
     from scipy.optimize import differential_evolution
 
     calls = [0]
+    sims = [0]
     t0 = time.perf_counter()
 
     def objective(x):
@@ -105,6 +106,7 @@ def scipy_time_to_target(target: float, seed: int, max_time: float) -> dict:
         chain = hc.Chain.uniform(4, 26e-3).append_taper(n, q)
         if chain.diameters.min() < 15e-3:  # constraint as a penalty
             return 1e3 + (15e-3 - chain.diameters.min()) * 1e3
+        sims[0] += 1
         ds = hc.simulate(hc.Model(chain, hc.Striker(8e-3, 0.2), hc.Wall("flat"), hc.Elastic()), 2e-3,
                          hc.Probes(sample_interval=1e-6, contacts=()))
         f = float(ds.attrs["peak_wall_force"])
@@ -117,11 +119,13 @@ def scipy_time_to_target(target: float, seed: int, max_time: float) -> dict:
     try:
         differential_evolution(objective, [(2, 12), (0.0, 0.15)], integrality=[True, False], seed=seed,
                                maxiter=1000, tol=0)
-        return {"seed": seed, "reached": False, "time_s": None, "calls": calls[0]}
+        return {"seed": seed, "reached": False, "time_s": None, "calls": calls[0], "simulations": sims[0]}
     except _Reached:
-        return {"seed": seed, "reached": True, "time_s": time.perf_counter() - t0, "calls": calls[0]}
+        return {"seed": seed, "reached": True, "time_s": time.perf_counter() - t0, "calls": calls[0],
+                "simulations": sims[0]}
     except TimeoutError:
-        return {"seed": seed, "reached": False, "time_s": None, "calls": calls[0], "stopped_after_s": max_time}
+        return {"seed": seed, "reached": False, "time_s": None, "calls": calls[0], "simulations": sims[0],
+                "stopped_after_s": max_time}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -140,9 +144,10 @@ def main(argv: list[str] | None = None) -> dict:
     hc.simulate(hc.Model(hc.Chain.uniform(4, 26e-3), hc.Striker(8e-3, 0.2), hc.Wall("flat"), hc.Elastic()), 1e-4)
     ours = [design_time_to_target(target, s) for s in seeds]
     theirs = [scipy_time_to_target(target, s, max_time=60.0) for s in seeds]
-    rows = [(s, f"{a['time_s']:.2f}" if a["reached"] else "not reached", f"{b['time_s']:.2f}" if b["reached"]
-             else "not reached", b["calls"]) for s, a, b in zip(seeds, ours, theirs)]
-    print(table(rows, ("seed", "design s", "scipy DE + simulate s", "DE calls")))
+    rows = [(s, f"{a['time_s']:.2f}" if a["reached"] else "not reached", a.get("engine_runs", "-"),
+             f"{b['time_s']:.2f}" if b["reached"] else "not reached", b["simulations"])
+            for s, a, b in zip(seeds, ours, theirs)]
+    print(table(rows, ("seed", "design s", "design runs", "scipy DE + simulate s", "DE simulations")))
     t_ours = [a["time_s"] for a in ours if a["reached"]]
     t_theirs = [b["time_s"] for b in theirs if b["reached"]]
     med_ours = statistics.median(t_ours) if t_ours else None
