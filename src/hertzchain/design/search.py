@@ -38,8 +38,11 @@ __all__ = ["DesignResult", "run_design", "DesignMismatch"]
 _CHECKPOINT = "checkpoint.pkl"
 #: Generations without a better best after which the population phase hands over to the polish.
 _STALL_GENERATIONS = 5
-#: Most IPOP restarts (population x 2^r): a fully explored discrete space ends the search.
+#: Most IPOP restarts: a fully explored discrete space ends the search.
 _MAX_RESTARTS = 6
+#: The population doubles at the first restarts only: a generation is one engine call whose
+#: records (wall force, energies) grow with its size.
+_MAX_DOUBLINGS = 2
 #: Initial and smallest polish step (unit-cube coordinates).
 _POLISH_H0, _POLISH_HMIN = 0.05, 1e-4
 
@@ -132,7 +135,7 @@ def _new_optimiser(problem: DesignProblem, restart: int = 0, x0: np.ndarray | No
     if len(problem.objectives) == 1:
         import cma
 
-        pop = _population(problem) * 2 ** restart
+        pop = _population(problem) * 2 ** min(restart, _MAX_DOUBLINGS)
         # A discrete coordinate keeps a step of ~1/3 of its bin: otherwise CMA-ES freezes it as
         # soon as the step is below one bin (a plateau of equal fitness), before it has settled.
         minstd = [0.3 / v.n_values if v.kind != "real" else 0.0 for v in problem.space.variables]
