@@ -61,3 +61,8 @@ def test_plot_metrics_one_and_two_parameters(tmp_path):
     assert main(["plot", str(csv), "--out", str(tmp_path / "cli.png"), "--signal", "tau"]) == 0
     assert (tmp_path / "cli.png").stat().st_size > 0
     assert main(["plot", str(csv), "--out", str(tmp_path / "bad.png"), "--signal", "nope"]) == 2
+    # Random draws (not a grid) are drawn as points.
+    rnd = run_sweep({**_sweep(), "sweep": {"mode": "random", "n": 6, "seed": 1, "chunk_size": 8, "parameters": {
+        "chain.taper.q": {"low": 0.0, "high": 0.1}, "striker.velocity": {"low": 0.1, "high": 0.3}}}},
+        tmp_path / "rnd")
+    assert plot_metrics(rnd.metrics_path, tmp_path / "rnd.png").stat().st_size > 0

@@ -4,7 +4,8 @@
 ``chunk``, one column per swept parameter (named by its dotted path), then ``dt`` and the
 metrics (``peak_wall_force``, ``F_m``, ``T``, ``tau``, ``Q_F``, ``Q_T``, SI units). Against one
 parameter the metric is drawn as a line (one line per combination of the other parameters);
-against two as a colour map (mean over the other parameters).
+against two as a colour map, one cell per pair of swept values (mean over the other parameters),
+or for random draws one coloured point per member.
 """
 
 from __future__ import annotations
@@ -106,8 +107,14 @@ def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str 
             ax.legend(fontsize=7)
     else:
         table = df.pivot_table(index=y, columns=x, values=metric, aggfunc="mean")
-        mesh = ax.pcolormesh(table.columns.values, table.index.values, np.ma.masked_invalid(table.values),
-                             shading="nearest")
+        if table.size <= 4 * len(df):
+            # A grid: one cell per pair of values, labelled with them (swept values are rarely evenly spaced).
+            mesh = ax.pcolormesh(np.arange(table.shape[1] + 1), np.arange(table.shape[0] + 1),
+                                 np.ma.masked_invalid(table.values))
+            ax.set_xticks(np.arange(table.shape[1]) + 0.5, [f"{v:.4g}" for v in table.columns.values])
+            ax.set_yticks(np.arange(table.shape[0]) + 0.5, [f"{v:.4g}" for v in table.index.values])
+        else:  # random draws: one coloured point per member
+            mesh = ax.scatter(df[x], df[y], c=df[metric], s=18)
         fig.colorbar(mesh, ax=ax, label=label)
         ax.set_xlabel(x)
         ax.set_ylabel(y)
