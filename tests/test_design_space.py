@@ -114,6 +114,18 @@ def test_pareto_front_is_mutually_non_dominated_and_dominates_the_rest(tmp_path)
         assert not np.any(np.all(front <= a, axis=1) & np.any(front < a, axis=1))
     for b in feasible:  # every feasible candidate is matched or dominated by the front
         assert np.any(np.all(front <= b, axis=1))
+    # NSGA-II resumes from its checkpoint to the same search as well.
+    calls = []
+
+    def killer(done, total):
+        calls.append(done)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_design(_problem(design), tmp_path / "b", progress=killer, checkpoint_interval=0)
+    again = run_design(_problem(design), tmp_path / "b")
+    assert again.resumed and [r["x"] for r in again.history] == [r["x"] for r in res.history]
 
 
 def test_executor_spreading_a_generation_gives_the_same_search(tmp_path):
