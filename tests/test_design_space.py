@@ -37,7 +37,7 @@ def test_power_linear_and_decorated_shapes_decode_to_their_formulas():
     assert c["diameters_mm"] == [20.0, 20.0, 6.0, 20.0, 6.0, 20.0, 6.0, 20.0]
     assert c["materials"] == ["AISI52100"] * 2 + ["brass", "AISI52100"] * 3
     with pytest.warns(hc.ElasticLimitWarning):  # a valid run config; small brass beads yield at 0.2 m/s
-        hc.run_config({**BASE, "chain": c, "run": {"duration": 1e-4, "sample_interval": 1e-6}})
+        hc.run_config({**BASE, "chain": c, "run": {"duration": 1e-3, "sample_interval": 1e-6}})
 
 
 def test_catalogue_monotone_and_integer_variables_decode_to_allowed_values():
@@ -152,3 +152,17 @@ def test_materials_are_categorical_variables_and_the_example_parses():
     assert example.objectives == ["peak_wall_force"] and example.space.dim == 3
     assert load_design(Path(__file__).parent.parent / "examples" / "design_taper.toml",
                        ["striker.velocity=0.3"]).base["striker"]["velocity"] == 0.3
+
+
+def test_a_member_that_gains_energy_is_flagged():
+    """The batched engine has no energy check: the design's own (hertzchain.checks) flags a member
+    whose kinetic + elastic + dissipated energy grows, so it can never be the best design."""
+    from hertzchain.design.objectives import _energy_ok, _Task
+
+    models = [hc.Model(hc.Chain.uniform(4, 26e-3), hc.Striker(8e-3, 0.2), hc.Wall("flat"), hc.Elastic())] * 2
+    probes = hc.Probes(sample_interval=1e-6, contacts=())
+    ds = simulate_batch(models, 5e-4, probes)
+    task = _Task(models, 5e-4, probes, None, ["peak_wall_force"], None)
+    assert _energy_ok(ds, task).tolist() == [True, True]
+    ds["kinetic_energy"].values[1, 200:] *= 1.01  # a 1 % gain, as a too-large step would give
+    assert _energy_ok(ds, task).tolist() == [True, False]

@@ -60,8 +60,10 @@ def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str 
 
     from .errors import ConfigError
     from .fileio import atomic_path
+    from .plotting import image_format
 
     path, out = Path(path), Path(out)
+    fmt = image_format(out)
     try:
         df = pd.read_csv(path)
     except (OSError, ValueError) as exc:
@@ -119,7 +121,6 @@ def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str 
         ax.set_xlabel(x)
         ax.set_ylabel(y)
     ax.set_title(f"{metric} of {path.name}")
-    fmt = out.suffix.lower().lstrip(".") or "png"
     with atomic_path(out) as tmp:
         fig.savefig(tmp, format=fmt, dpi=120, bbox_inches="tight")
     plt.close(fig)

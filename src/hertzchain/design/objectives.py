@@ -93,7 +93,7 @@ class Evaluation:
         Summed relative constraint violation (0 when feasible).
     metrics : dict
         Geometry (``min_diameter_mm``, ``length_mm``, ``mass_kg``, ``n_beads``) and run outcomes
-        (``force_over_yield``, ``pulse_at_wall``).
+        (``force_over_yield``, ``pulse_at_wall``, ``energy_ok``: the energy balance held).
     engine_runs : int
         Members simulated for it (0 when rejected on geometry or taken from the cache).
     """
@@ -196,7 +196,28 @@ def run_task(task: _Task) -> dict[str, np.ndarray]:
         # Designs past the elastic limit are ranked by the max_force_over_yield constraint, not warned about.
         warnings.simplefilter("ignore", ElasticLimitWarning)
         ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, **kwargs)
-    return member_metrics(ds, task.objectives, task.window)
+    out = member_metrics(ds, task.objectives, task.window)
+    out["energy_ok"] = _energy_ok(ds, task)
+    return out
+
+
+def _energy_ok(ds, task: _Task) -> np.ndarray:
+    """Whether each member's energy balance holds (:mod:`hertzchain.checks`; the batched engine does
+    not check it): a member that gains energy has wrong forces, so it is infeasible, never best."""
+    from ..checks import check_energy_balance, energy_tolerance
+    from ..errors import SimulationDiverged
+
+    time = ds["time"].values
+    ke, pe, ed = (ds[v].values for v in ("kinetic_energy", "potential_energy", "dissipated_energy"))
+    ok = np.ones(len(task.models), dtype=bool)
+    for i, model in enumerate(task.models):
+        # the adaptive step's largest step is not stored per member: the minimum allowance then
+        tol = energy_tolerance(model.system(), task.dt if task.dt is not None else 0.0)
+        try:
+            check_energy_balance(time, ke[i], pe[i], ed[i], tolerance=tol, cause="run.dt")
+        except SimulationDiverged:
+            ok[i] = False
+    return ok
 
 
 def summarise(values: np.ndarray, statistic: str, k: float) -> float:
@@ -306,15 +327,16 @@ class Evaluator:
                 sel = owner_arr == j
                 fy = float(merged["force_over_yield"][sel].max())
                 pulse = bool(merged["pulse_at_wall"][sel].all())
+                energy = bool(merged["energy_ok"][sel].all())
                 objs = {}
                 for n in self.objectives:
                     vals = merged[n][sel]
                     objs[n] = (summarise(vals, self.robust.statistic, self.robust.k) if self.robust else float(vals[0]))
                 viol = run_violation(self.constraints, fy, pulse)
-                if any(not math.isfinite(v) for v in objs.values()):
-                    viol = max(viol, 1.0)  # no objective value (no pulse to fit): infeasible
-                ev = Evaluation(objs, viol == 0, viol, {**geo, "force_over_yield": fy, "pulse_at_wall": pulse},
-                                engine_runs=int(sel.sum()))
+                if any(not math.isfinite(v) for v in objs.values()) or not energy:
+                    viol = max(viol, 1.0)  # no objective value (no pulse to fit) or a wrong run: infeasible
+                ev = Evaluation(objs, viol == 0, viol, {**geo, "force_over_yield": fy, "pulse_at_wall": pulse,
+                                                        "energy_ok": energy}, engine_runs=int(sel.sum()))
                 self.cache[key] = replace(ev, engine_runs=0)
                 results[i] = ev
         out = []
