@@ -206,6 +206,20 @@ def test_other_design_in_the_same_folder_needs_force(tmp_path, capsys):
     assert json.loads((out / "design.json").read_text())["seed"] == 9
 
 
+def test_a_folder_in_use_by_another_search_is_refused(tmp_path, capsys):
+    from hertzchain.design.search import DesignLocked
+    from hertzchain.sweep import _folder_lock
+
+    f = tmp_path / "d.toml"
+    _write_design(f, _nq_design(budget=40, polish=False, population=8))
+    out = tmp_path / "out"
+    out.mkdir()
+    with _folder_lock(out, "design", DesignLocked):  # as another process's search would hold it
+        assert main(["design", str(f), "--out", str(out), "-q", "--no-html"]) == 2
+        assert "in use by another design" in capsys.readouterr().err
+    assert main(["design", str(f), "--out", str(out), "-q", "--no-html"]) == 0
+
+
 @pytest.mark.slow
 def test_dask_scheduler_spreads_generations_with_the_same_result(tmp_path):
     distributed = pytest.importorskip("distributed")

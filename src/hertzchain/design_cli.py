@@ -37,7 +37,6 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
     from .errors import ConfigError
 
     problem = load_design(design_file, overrides)
-    out.mkdir(parents=True, exist_ok=True)
     client = None
     if scheduler is not None:
         try:

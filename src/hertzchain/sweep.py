@@ -690,26 +690,27 @@ def _sweep_json(cfg: SweepConfig) -> dict:
 
 
 @contextmanager
-def _folder_lock(out: Path) -> Iterator[None]:
-    """Hold ``out/.sweep.lock`` (``flock``, released by the system even if the process is killed);
-    refuse with :class:`SweepLocked` when another sweep holds it."""
+def _folder_lock(out: Path, kind: str = "sweep", error: type[HertzchainError] | None = None) -> Iterator[None]:
+    """Hold ``out/.{kind}.lock`` (``flock``, released by the system even if the process is killed);
+    refuse with ``error`` (:class:`SweepLocked`) when another run of that kind holds it. Also used
+    by ``hertzchain design`` (``kind="design"``)."""
     try:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX: no lock
         yield
         return
-    path = out / ".sweep.lock"
+    path = out / f".{kind}.lock"
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as exc:
-        raise ConfigError(str(out), f"cannot create the sweep lock file: {exc.strerror}") from None
+        raise ConfigError(str(out), f"cannot create the {kind} lock file: {exc.strerror}") from None
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             holder = os.pread(fd, 64, 0).decode("ascii", "replace").strip() or "?"
-            raise SweepLocked(f"{out} is in use by another sweep (process {holder}); wait for it to finish "
-                              "(rerunning afterwards resumes it) or choose another --out") from None
+            raise (error or SweepLocked)(f"{out} is in use by another {kind} (process {holder}); wait for it to "
+                                         "finish (rerunning afterwards resumes it) or choose another --out") from None
         os.ftruncate(fd, 0)
         os.pwrite(fd, str(os.getpid()).encode(), 0)
         yield

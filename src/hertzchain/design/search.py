@@ -33,7 +33,7 @@ from ..errors import ConfigError, HertzchainError
 from .objectives import INFEASIBLE, Evaluator
 from .problem import DesignProblem
 
-__all__ = ["DesignResult", "run_design", "DesignMismatch"]
+__all__ = ["DesignResult", "run_design", "DesignMismatch", "DesignLocked"]
 
 _CHECKPOINT = "checkpoint.pkl"
 #: Generations without a better best after which the population phase hands over to the polish.
@@ -49,6 +49,10 @@ _POLISH_H0, _POLISH_HMIN = 0.05, 1e-4
 
 class DesignMismatch(HertzchainError):
     """The output folder holds the checkpoint of a different design."""
+
+
+class DesignLocked(HertzchainError):
+    """Another design search is writing into the same output folder."""
 
 
 class _Randn:
@@ -281,9 +285,29 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
     -------
     DesignResult
         The best candidate, the history, the Pareto front and the counts.
+
+    Raises
+    ------
+    DesignMismatch
+        ``out_dir`` holds the checkpoint of another design (and ``force`` is false).
+    DesignLocked
+        Another search is writing into ``out_dir``.
     """
+    from ..sweep import _folder_lock
+
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
+    # Two searches writing one checkpoint would corrupt each other: the folder is locked (flock).
+    with _folder_lock(out, "design", DesignLocked):
+        return _run_design(problem, out, client, device, progress, force, checkpoint_interval)
+
+
+def _run_design(problem: DesignProblem, out: Path, client, device, progress, force: bool,
+                checkpoint_interval: float) -> DesignResult:
+    """:func:`run_design` with the output folder locked."""
     sec = problem.section
     evaluator = Evaluator(problem.objectives, sec.constraints, sec.robust,
                           None if sec.window is None else tuple(sec.window), client, sec.chunk_size, device)
