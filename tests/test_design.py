@@ -232,3 +232,13 @@ def test_dask_scheduler_spreads_generations_with_the_same_result(tmp_path):
     a = json.loads((tmp_path / "here" / "design.json").read_text())
     b = json.loads((tmp_path / "dask" / "design.json").read_text())
     assert a["best"] == b["best"] and a["n_evaluations"] == b["n_evaluations"]
+
+
+def test_a_generation_too_large_for_memory_is_refused_naming_the_population(tmp_path, capsys, monkeypatch):
+    import hertzchain.checks as checks
+
+    monkeypatch.setattr(checks, "available_memory", lambda: 10_000_000)  # 10 MB
+    f = tmp_path / "d.toml"
+    _write_design(f, _nq_design(budget=400, population=200))
+    assert main(["design", str(f), "--out", str(tmp_path / "out"), "-q", "--no-html"]) == 2
+    assert "design.population" in capsys.readouterr().err

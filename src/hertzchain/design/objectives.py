@@ -285,6 +285,17 @@ class Evaluator:
                 out.append(model if tol is None else _apply_tolerances(model, tol, d))
         return out
 
+    def _check_memory(self, models: list, duration: float, probes, dt) -> None:
+        """Refuse an engine call whose records cannot fit in memory (hertzchain.checks), naming the
+        setting that sizes it: the population (one call per generation) or the Dask chunk size."""
+        from ..checks import check_resources, estimate_resources
+
+        members = len(models) if self.client is None else min(self.chunk_size, len(models))
+        largest = max(models, key=lambda m: m.chain.n_beads)
+        est = estimate_resources(largest.system(), duration, probes, dt=dt, members=members)
+        check_resources(replace(est, seconds=0.0),
+                        memory_field="design.population" if self.client is None else "design.chunk_size")
+
     def evaluate(self, keys: list, configs: list[dict]) -> list[Evaluation]:
         """Evaluate candidates (``keys`` identify equal candidates: each is simulated once, ever)."""
         from ..config import build_model, build_probes, parse_config
@@ -315,6 +326,7 @@ class Evaluator:
                 ms = self._scenario_models(cfg, model)
                 models += ms
                 owner += [key] * len(ms)
+            self._check_memory(models, run0.run.duration, probes, run0.run.dt)
             tasks = [_Task(models[s:s + self.chunk_size], run0.run.duration, probes, run0.run.dt, self.objectives,
                            self.window, self.device)
                      for s in range(0, len(models), self.chunk_size)] if self.client is not None else \
