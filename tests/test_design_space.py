@@ -166,3 +166,15 @@ def test_a_member_that_gains_energy_is_flagged():
     assert _energy_ok(ds, task).tolist() == [True, True]
     ds["kinetic_energy"].values[1, 200:] *= 1.01  # a 1 % gain, as a too-large step would give
     assert _energy_ok(ds, task).tolist() == [True, False]
+
+
+@pytest.mark.parametrize("design, field", [
+    ({"budget": 12.0}, "design.budget"),               # strict like the run config: 12.0 is not a count
+    ({"budget": True}, "design.budget"),
+    ({"window": [1e-3, 0.0]}, "design.window"),
+    ({"constraints": {"min_diameter_mm": "10"}}, "design.constraints.min_diameter_mm"),
+])
+def test_design_table_types_are_strict(design, field):
+    with pytest.raises(ConfigError) as exc:
+        _problem({"variables": {"chain.taper.q": [0.0, 0.1]}, **design})
+    assert exc.value.field == field

@@ -39,7 +39,7 @@ class Constraints(BaseModel):
         The wall pulse must peak and fall to half its peak within the run (default true).
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
     min_diameter_mm: float | None = Field(default=None, gt=0)
     max_length_mm: float | None = Field(default=None, gt=0)

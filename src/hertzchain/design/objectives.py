@@ -70,7 +70,7 @@ class Robust(BaseModel):
         Number of standard deviations for ``mean+ksigma``.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
     velocities: list[float] | None = None
     tolerances: dict[str, Any] | None = None

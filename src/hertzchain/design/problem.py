@@ -43,7 +43,7 @@ __all__ = ["DesignProblem", "parse_design", "load_design"]
 class DesignSection(BaseModel):
     """The ``[design]`` table (variables and shape are checked by :mod:`hertzchain.design.space`)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
     objective: str | list[str] = "peak_wall_force"
     variables: dict[str, Any]
@@ -52,14 +52,14 @@ class DesignSection(BaseModel):
     seed: int = 0
     population: int | None = Field(default=None, ge=4)
     polish: bool = True
-    window: tuple[float, float] | None = None
+    window: list[float] | None = None
     chunk_size: int = Field(default=64, ge=1)
     robust: Robust | None = None
     shape: dict[str, Any] | None = None
 
 
 class _DesignFile(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
     base: dict[str, Any]
     design: DesignSection
@@ -163,7 +163,7 @@ def parse_design(data: dict) -> DesignProblem:
             raise ConfigError(field, f"unknown objective {name!r}; allowed: {', '.join(OBJECTIVES)}")
     if len(set(objectives)) != len(objectives):
         raise ConfigError("design.objective", "lists an objective twice")
-    if sec.window is not None and not (0 <= sec.window[0] < sec.window[1]):
+    if sec.window is not None and not (len(sec.window) == 2 and 0 <= sec.window[0] < sec.window[1]):
         raise ConfigError("design.window", f"must be [t0, t1] in s with 0 <= t0 < t1, got {list(sec.window)}")
     if sec.robust is not None:
         if sec.robust.tolerances is not None:

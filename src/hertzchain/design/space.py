@@ -88,7 +88,7 @@ def set_path(cfg: dict, tokens: list[str | int], value: Any, name: str) -> None:
 
 
 class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
     low: float | None = None
     high: float | None = None
