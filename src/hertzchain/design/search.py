@@ -154,8 +154,12 @@ def _new_optimiser(problem: DesignProblem, restart: int = 0, x0: np.ndarray | No
         opts = {"bounds": [0.0, 1.0], "seed": sec.seed + 1, "popsize": pop, "randn": randn,
                 "verbose": -9, "verb_log": 0, "verb_disp": 0, "minstd": minstd, "tolfun": 1e-9, "tolx": 1e-6}
         return cma.CMAEvolutionStrategy(start, 0.2 if x0 is not None else 0.3, opts)
-    from pymoo.algorithms.moo.nsga2 import NSGA2
-    from pymoo.core.problem import Problem
+    try:
+        from pymoo.algorithms.moo.nsga2 import NSGA2
+        from pymoo.core.problem import Problem
+    except ImportError:
+        raise ConfigError("design.objective", "several objectives (a Pareto front) need pymoo: install the "
+                          "'design' extra (pip install -e \".[design]\") or give one objective") from None
 
     algo = NSGA2(pop_size=_population(problem))
     algo.setup(Problem(n_var=dim, n_obj=len(problem.objectives), xl=0.0, xu=1.0), seed=sec.seed, verbose=False)
