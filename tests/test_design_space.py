@@ -178,3 +178,19 @@ def test_design_table_types_are_strict(design, field):
     with pytest.raises(ConfigError) as exc:
         _problem({"variables": {"chain.taper.q": [0.0, 0.1]}, **design})
     assert exc.value.field == field
+
+
+def test_automatic_duration_is_resolved_once_for_the_whole_space(tmp_path):
+    """run.duration = "auto" (the default): one duration for every candidate (one time axis per
+    batch), the longest automatic one over the space's corners and centre, written into best.toml."""
+    from hertzchain.simulation import auto_duration
+
+    base = {"chain": {"uniform": {"n": 4, "diameter_mm": 26.0}, "taper": {"n": 4, "q": 0.05}},
+            "striker": {"diameter_mm": 8.0, "velocity": 0.2}, "run": {"sample_interval": 1e-6}}
+    p = _problem({"variables": {"chain.taper.n": [2, 12]}, "budget": 40, "population": 8, "polish": False}, base=base)
+    longest = auto_duration(hc.Model(hc.Chain.uniform(4, 26e-3).append_taper(12, 0.05), hc.Striker(8e-3, 0.2),
+                                     hc.Wall("flat"), hc.Elastic()))
+    assert p.base["run"]["duration"] == pytest.approx(longest, rel=1e-12)
+    res = run_design(p, tmp_path)
+    assert res.best["config"]["run"]["duration"] == p.base["run"]["duration"]
+    assert "duration" not in base["run"]  # the caller's mapping is left alone

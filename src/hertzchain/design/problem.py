@@ -23,6 +23,7 @@ search after the population method, default true), ``window = [t0, t1]`` [s] (of
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 from dataclasses import dataclass
@@ -183,12 +184,28 @@ def parse_design(data: dict) -> DesignProblem:
     space = Space(base, variables, shape, monotone)
     # Every corner and the centre of the space must be a valid run config: fail now, naming the
     # variable, not after an hour of search.
+    probes = []
     for x in (np.zeros(space.dim), np.ones(space.dim), np.full(space.dim, 0.5)):
         vals = space.values(x)
         try:
-            build_model(parse_config(space.config(vals)))
+            cfg = space.config(vals)
+            build_model(parse_config(cfg))
         except ConfigError as exc:
             raise ConfigError(exc.field, f"{exc.message} (candidate {vals}; check the ranges in design.variables)") from None
+        probes.append(cfg)
+    if base_cfg.run.duration == "auto":
+        # Candidates share one time axis (one batched call per generation): the automatic duration
+        # is resolved once, the longest over the space's corners and centre at every robust speed,
+        # and written into [base.run] (so best.toml holds it). A candidate whose pulse still does
+        # not arrive in time is infeasible (constraint pulse_at_wall), never a false optimum.
+        from ..simulation import auto_duration
+
+        speeds = sec.robust.velocities if sec.robust is not None and sec.robust.velocities else [None]
+        longest = max(auto_duration(build_model(parse_config(
+            c if v is None else {**c, "striker": {**c.get("striker", {}), "velocity": v}}))) for c in probes for v in speeds)
+        base = copy.deepcopy(base)
+        base.setdefault("run", {})["duration"] = longest
+        space = Space(base, variables, shape, monotone)
 
     definition = {"base": base, "design": sec.model_dump(mode="json")}
     digest = hashlib.sha256(json.dumps(definition, sort_keys=True, default=str).encode()).hexdigest()
