@@ -29,7 +29,10 @@ _EXPORTS = {
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
     # many chains
     "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch",
-    "run_sweep": "sweep", "load_sweep": "sweep",
+    "run_sweep": "sweep", "load_sweep": "sweep", "plot_metrics": "metrics_plot",
+    # design search
+    "load_design": "design", "parse_design": "design", "run_design": "design", "write_report": "design",
+    "DesignProblem": "design", "DesignResult": "design",
     # dissipation
     "calibrate_law": "dissipation", "measure_eps": "dissipation",
     # measurement, analysis, theory

@@ -207,10 +207,12 @@ def _register_subcommands() -> None:
     from .animate_cli import animate
     from .compare_cli import compare
     from .fit_cli import fit
+    from .design_cli import design
     from .plot_cli import plot
     from .sweep_cli import sweep
 
     cli.add_command(sweep)
+    cli.add_command(design)
     cli.add_command(plot)
     cli.add_command(animate)
     cli.add_command(analyze)

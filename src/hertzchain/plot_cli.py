@@ -45,7 +45,8 @@ def parse_window(text: str | None) -> tuple[float, float] | None:
 @click.option("--to-scale", is_flag=True, help="--kind spacetime: contacts at their positions along the chain [mm].")
 def plot(result: Path, out: Path, kind: str, window: str | None, member: int | None, signals: tuple[str, ...],
          contacts: tuple[int, ...], scale: str, to_scale: bool) -> None:
-    """Draw RESULT (a hertzchain .nc: a run, a batch or a sweep chunk) into an image."""
+    """Draw RESULT (a hertzchain .nc: a run, a batch or a sweep chunk; or a sweep's metrics.csv:
+    --signal METRIC against the swept parameters) into an image."""
     from .cli import _open_result
     from .errors import ConfigError
     from .fileio import check_not_input
@@ -53,6 +54,11 @@ def plot(result: Path, out: Path, kind: str, window: str | None, member: int | N
 
     plotting.image_format(out)  # an unknown --out suffix is refused before the file is read
     check_not_input(out, result)
+    if result.suffix.lower() == ".csv":  # a sweep's metrics.csv: --signal names the metric (default F_m)
+        from .metrics_plot import plot_metrics
+
+        click.echo(f"wrote {plot_metrics(result, out, *signals[:1])}")
+        return
     span = parse_window(window)
     if kind != "signals" and (signals or contacts):
         raise ConfigError("--signal", f"--signal and --contact go with --kind signals, not --kind {kind}")

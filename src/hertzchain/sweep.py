@@ -14,7 +14,9 @@ A sweep file (TOML) has two tables::
     tolerances = { diameter_rel = 0.001, offset_mm = 0.05, seed = 1 }
 
 Parameters are dotted paths into the base config (``chain.taper.q``, ``chain.diameters_mm[3]``).
-``mode = "random"`` draws ``n`` members with ``seed``; each parameter is then a list to choose
+``zip = [["chain.taper.n", "chain.taper.q"]]`` couples parameters: their lists (of equal
+length) are walked together, as one axis of the grid (or one draw in random mode), e.g. bead
+count and tapering factor chosen so the last bead keeps its size. ``mode = "random"`` draws ``n`` members with ``seed``; each parameter is then a list to choose
 from or a range ``{ low = 0.1, high = 0.4 }`` (options ``log = true``, ``integer = true``).
 ``tolerances`` perturbs every member's beads with seeded random deviations (manufacturing
 tolerances): each diameter phi_n -> phi_n (1 + diameter_rel z) and each perpendicular offset
@@ -129,6 +131,7 @@ class SweepSection(_Section):
     tolerances: Tolerances | None = None
     store: Literal["wall", "probes"] = "wall"
     n_threads: int | None = Field(default=None, ge=1, le=4096)
+    zip: list[list[str]] = Field(default=[], description="groups of parameters varied together (coupled)")
 
 
 class _SweepFile(_Section):
@@ -393,18 +396,30 @@ def parse_sweep(data: dict) -> SweepConfig:
                               f"{{low = , high = }}, got {spec!r}")
 
     names = list(sw.parameters)
+    axes = _zip_axes(sw, specs)
     if sw.mode == "grid":
-        size = math.prod(len(specs[k]) for k in names)
+        # One grid axis per zipped group (its lists walked together) and per other parameter.
+        size = math.prod(len(specs[ax[0]]) for ax in axes)
         if size > MAX_MEMBERS:
             raise ConfigError("sweep.parameters", f"the grid has {size:,} members (the product of the list "
                               f"lengths); at most {MAX_MEMBERS:,} are allowed: use fewer values or mode = 'random'")
-        combos = itertools.product(*(specs[k] for k in names)) if names else [()]
-        members = [dict(zip(names, c)) for c in combos]
+        combos = itertools.product(*(range(len(specs[ax[0]])) for ax in axes)) if axes else [()]
+        members = []
+        for c in combos:
+            member = {k: specs[k][i] for ax, i in zip(axes, c) for k in ax}
+            members.append({k: member[k] for k in names})
     else:
         members = []
         for i in range(sw.n):
             rng = np.random.default_rng([sw.seed, i, 0])  # one stream per member: see module docstring
-            members.append({k: _draw(specs[k], rng) for k in names})
+            member = {}
+            for ax in axes:
+                if len(ax) == 1:
+                    member[ax[0]] = _draw(specs[ax[0]], rng)
+                else:  # a zipped group: one draw picks the same position in every list
+                    j = int(rng.integers(len(specs[ax[0]])))
+                    member.update({k: copy.deepcopy(specs[k][j]) for k in ax})
+            members.append({k: member[k] for k in names})
 
     definition = {"base": base, "sweep": sw.model_dump(mode="json"),
                   # sort_keys below loses the order of the parameters, which orders the grid
@@ -419,6 +434,36 @@ def parse_sweep(data: dict) -> SweepConfig:
         except ConfigError as exc:
             raise _member_error(exc, i, members[i]) from None
     return cfg
+
+
+def _zip_axes(sw: SweepSection, specs: dict[str, list | Range]) -> list[list[str]]:
+    """Axes of the sweep: each ``zip`` group (coupled parameters) and each other parameter alone."""
+    grouped: dict[str, int] = {}
+    for g, group in enumerate(sw.zip):
+        name = f"sweep.zip[{g}]"
+        if len(group) < 2:
+            raise ConfigError(name, f"a zipped group couples at least two parameters, got {group!r}")
+        for path in group:
+            if path not in specs:
+                raise ConfigError(name, f"{path!r} is not one of sweep.parameters ({', '.join(specs)})")
+            if path in grouped:
+                raise ConfigError(name, f"{path!r} is already zipped in sweep.zip[{grouped[path]}]")
+            if not isinstance(specs[path], list):
+                raise ConfigError(f'sweep.parameters["{path}"]', "a zipped parameter needs a list of values, not a range")
+            grouped[path] = g
+        lengths = {p: len(specs[p]) for p in group}
+        if len(set(lengths.values())) != 1:
+            raise ConfigError(name, "zipped parameters need lists of equal length, got "
+                              + ", ".join(f"{p}: {n}" for p, n in lengths.items()))
+    axes: list[list[str]] = []
+    for path in specs:
+        if path in grouped:
+            group = list(sw.zip[grouped[path]])
+            if group not in axes:  # the group's axis sits where its first parameter is listed
+                axes.append(group)
+        else:
+            axes.append([path])
+    return axes
 
 
 def load_sweep(path: str | Path, overrides: Iterable[str] = ()) -> SweepConfig:
@@ -649,26 +694,27 @@ def _sweep_json(cfg: SweepConfig) -> dict:
 
 
 @contextmanager
-def _folder_lock(out: Path) -> Iterator[None]:
-    """Hold ``out/.sweep.lock`` (``flock``, released by the system even if the process is killed);
-    refuse with :class:`SweepLocked` when another sweep holds it."""
+def _folder_lock(out: Path, kind: str = "sweep", error: type[HertzchainError] | None = None) -> Iterator[None]:
+    """Hold ``out/.{kind}.lock`` (``flock``, released by the system even if the process is killed);
+    refuse with ``error`` (:class:`SweepLocked`) when another run of that kind holds it. Also used
+    by ``hertzchain design`` (``kind="design"``)."""
     try:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX: no lock
         yield
         return
-    path = out / ".sweep.lock"
+    path = out / f".{kind}.lock"
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as exc:
-        raise ConfigError(str(out), f"cannot create the sweep lock file: {exc.strerror}") from None
+        raise ConfigError(str(out), f"cannot create the {kind} lock file: {exc.strerror}") from None
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             holder = os.pread(fd, 64, 0).decode("ascii", "replace").strip() or "?"
-            raise SweepLocked(f"{out} is in use by another sweep (process {holder}); wait for it to finish "
-                              "(rerunning afterwards resumes it) or choose another --out") from None
+            raise (error or SweepLocked)(f"{out} is in use by another {kind} (process {holder}); wait for it to "
+                                         "finish (rerunning afterwards resumes it) or choose another --out") from None
         os.ftruncate(fd, 0)
         os.pwrite(fd, str(os.getpid()).encode(), 0)
         yield

@@ -1,0 +1,80 @@
+"""Design constraints: geometry (checked before any simulation) and run outcomes (after it).
+
+Geometry of a candidate chain: smallest bead diameter [mm], total length along the axis (sum
+of the diameters) [mm], total bead mass [kg] (m_n = rho pi phi_n^3 / 6) and bead count. Run
+outcomes: the largest contact force over its elastic limit F/F_Y (paper Sec. II; 1 is the
+onset of yield) and whether the wall pulse arrived and passed within the run (a design that
+only looks good because the pulse never reached the wall is infeasible).
+
+A violation is measured relatively, (value - limit) / |limit| summed over the violated
+constraints, so that the search can rank infeasible candidates by how far they are from the
+feasible set.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+__all__ = ["Constraints", "geometry", "geometric_violation", "run_violation"]
+
+
+class Constraints(BaseModel):
+    """``[design].constraints``: every key optional.
+
+    Attributes
+    ----------
+    min_diameter_mm : float
+        Smallest bead allowed [mm].
+    max_length_mm : float
+        Longest chain (sum of diameters) [mm].
+    max_mass_kg : float
+        Heaviest chain (sum of bead masses) [kg].
+    min_beads, max_beads : int
+        Bead count limits.
+    max_force_over_yield : float
+        Largest contact force over its elastic limit F_Y (1 = onset of yield, paper Sec. II).
+    pulse_at_wall : bool
+        The wall pulse must peak and fall to half its peak within the run (default true).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+    min_diameter_mm: float | None = Field(default=None, gt=0)
+    max_length_mm: float | None = Field(default=None, gt=0)
+    max_mass_kg: float | None = Field(default=None, gt=0)
+    min_beads: int | None = Field(default=None, ge=1)
+    max_beads: int | None = Field(default=None, ge=1)
+    max_force_over_yield: float | None = Field(default=None, gt=0)
+    pulse_at_wall: bool = True
+
+
+def geometry(chain) -> dict[str, float]:
+    """Smallest diameter [mm], length [mm], mass [kg] and bead count of a :class:`~hertzchain.Chain`."""
+    return {"min_diameter_mm": float(chain.diameters.min() * 1e3), "length_mm": float(chain.diameters.sum() * 1e3),
+            "mass_kg": float(chain.masses.sum()), "n_beads": int(chain.n_beads)}
+
+
+def _excess(value: float, limit: float | None, upper: bool) -> float:
+    if limit is None:
+        return 0.0
+    d = (value - limit) if upper else (limit - value)
+    return max(d, 0.0) / abs(limit)
+
+
+def geometric_violation(c: Constraints, geo: dict[str, Any]) -> float:
+    """Summed relative violation of the geometric constraints (0 when all hold)."""
+    return (_excess(geo["min_diameter_mm"], c.min_diameter_mm, upper=False)
+            + _excess(geo["length_mm"], c.max_length_mm, upper=True)
+            + _excess(geo["mass_kg"], c.max_mass_kg, upper=True)
+            + _excess(geo["n_beads"], c.min_beads, upper=False)
+            + _excess(geo["n_beads"], c.max_beads, upper=True))
+
+
+def run_violation(c: Constraints, force_over_yield: float, pulse_at_wall: bool) -> float:
+    """Summed relative violation of the run constraints (worst over the scenarios; 0 when all hold)."""
+    v = _excess(force_over_yield, c.max_force_over_yield, upper=True)
+    if c.pulse_at_wall and not pulse_at_wall:
+        v += 1.0
+    return v

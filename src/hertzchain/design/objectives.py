@@ -1,0 +1,372 @@
+"""Design objectives, robust forms, and the evaluation of a whole generation in one engine call.
+
+Objectives (all minimised, SI units):
+
+- ``peak_wall_force`` [N]: the largest force on the wall (contact N), refined between samples
+  by the engine (the value ``hertzchain run`` reports);
+- ``peak_contact_force`` [N]: the largest force of any contact (striker included);
+- ``max_force_over_yield`` [1]: the largest contact force over its elastic limit F_Y (Sec. II);
+- ``front_momentum_at_wall`` [N s]: Q_F of the wall pulse, the integral of the wall force up
+  to T + tau of its cos^6 fit (paper Sec. III, Fig. 5d);
+- ``energy_at_wall`` [J]: the largest elastic energy stored in the bead N - wall contact,
+  (2/5) kappa delta^(5/2) = (2/5) F^(5/3) / kappa^(2/3) with delta = (F / kappa)^(2/3) (paper
+  eq. 1), within ``window`` = [t0, t1] [s] when given: the energy the pulse delivers into the
+  wall's contact.
+
+Robust forms (``[design.robust]``): every candidate is run in several *scenarios*: each striker
+speed of ``velocities`` times ``draws`` Monte Carlo draws of manufacturing tolerances (the
+sweep's tolerance model: phi_n (1 + diameter_rel z), e_n + offset_mm z', seeded per draw
+index, so every candidate sees the same draws: common random numbers). The objective is then
+the ``worst`` case, the ``mean``, or ``mean+ksigma`` (mean + k standard deviations) over the
+scenarios; run constraints must hold in every scenario.
+
+All scenario runs of all candidates of a generation go to the batched engine in one
+:func:`hertzchain.integrate.batch.simulate_batch` call (or one per chunk on a Dask cluster).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from ..errors import ConfigError, PulseNotFound
+from .constraints import Constraints, geometric_violation, geometry, run_violation
+
+__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "member_metrics"]
+
+#: Objective names with their units and meaning.
+OBJECTIVES: dict[str, tuple[str, str]] = {
+    "peak_wall_force": ("N", "peak force on the wall"),
+    "peak_contact_force": ("N", "peak force of any contact"),
+    "max_force_over_yield": ("1", "largest contact force over its elastic limit F_Y"),
+    "front_momentum_at_wall": ("N s", "front momentum Q_F of the wall pulse (paper Sec. III)"),
+    "energy_at_wall": ("J", "largest elastic energy in the bead N - wall contact"),
+}
+
+#: Fitness of an infeasible candidate: above any feasible objective value, ranked by violation.
+INFEASIBLE = 1e12
+
+
+class Robust(BaseModel):
+    """``[design.robust]``: scenarios every candidate is run in, and how they are summarised.
+
+    Attributes
+    ----------
+    velocities : list of float
+        Striker speeds [m/s] (default: the base config's only).
+    tolerances : dict
+        The sweep's tolerance model: ``diameter_rel`` (1 sigma), ``offset_mm`` [mm],
+        ``distribution`` ("normal" or "uniform"), ``seed``.
+    draws : int
+        Monte Carlo draws of the tolerances per speed.
+    statistic : {"worst", "mean", "mean+ksigma"}
+        Summary of the scenarios' objective values.
+    k : float
+        Number of standard deviations for ``mean+ksigma``.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+    velocities: list[float] | None = None
+    tolerances: dict[str, Any] | None = None
+    draws: int = Field(default=1, ge=1)
+    statistic: Literal["worst", "mean", "mean+ksigma"] = "worst"
+    k: float = Field(default=2.0, ge=0)
+
+
+@dataclass
+class Evaluation:
+    """What one candidate gave.
+
+    Attributes
+    ----------
+    objectives : dict
+        ``{name: value}`` [SI] summarised over the scenarios (NaN when not simulated).
+    feasible : bool
+        Every constraint holds (in every scenario).
+    violation : float
+        Summed relative constraint violation (0 when feasible).
+    metrics : dict
+        Geometry (``min_diameter_mm``, ``length_mm``, ``mass_kg``, ``n_beads``) and run outcomes
+        (``force_over_yield``, ``pulse_at_wall``, ``energy_ok``: the energy balance held).
+    engine_runs : int
+        Members simulated for it (0 when rejected on geometry or taken from the cache).
+    """
+
+    objectives: dict[str, float]
+    feasible: bool
+    violation: float
+    metrics: dict[str, Any]
+    engine_runs: int = 0
+
+    def fitness(self, names: list[str]) -> list[float]:
+        """Values the search minimises: the objectives when feasible, else INFEASIBLE + violation."""
+        if self.feasible:
+            return [self.objectives[n] for n in names]
+        return [INFEASIBLE * (1.0 + self.violation)] * len(names)
+
+
+def _pulse_passed(force: np.ndarray) -> bool:
+    """The wall record holds a whole first pulse: it peaked before the end and fell to half its peak."""
+    if force.size < 3 or not np.all(np.isfinite(force)):
+        return False
+    peak = float(force.max())
+    if peak <= 0.0:
+        return False
+    i = int(np.argmax(force >= 0.999 * peak))  # first sample at the pulse's top
+    return i < force.size - 1 and float(force[i:].min()) < 0.5 * peak
+
+
+def member_metrics(ds, objectives: list[str], window: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
+    """Per-member objective values and run outcomes of a stacked batch result.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        :func:`~hertzchain.integrate.batch.simulate_batch` result (with ``wall_force``).
+    objectives : list of str
+        Names from :data:`OBJECTIVES` to compute.
+    window : (float, float) or None
+        Time window [s] of ``energy_at_wall``.
+
+    Returns
+    -------
+    dict
+        ``{name: array (member,)}`` for each objective, plus ``force_over_yield`` and
+        ``pulse_at_wall`` (bool).
+    """
+    from ..analysis import fit_pulse
+
+    n = ds.sizes["member"]
+    fmax = ds["max_contact_force"].values
+    ratio = np.nanmax(fmax / ds["yield_force"].values, axis=1)
+    wall = ds["wall_force"].values
+    time = ds["time"].values
+    out: dict[str, np.ndarray] = {"force_over_yield": ratio,
+                                  "pulse_at_wall": np.array([_pulse_passed(wall[i]) for i in range(n)])}
+    for name in objectives:
+        if name == "peak_wall_force":
+            out[name] = ds["peak_wall_force"].values.astype(float)
+        elif name == "peak_contact_force":
+            out[name] = np.nanmax(fmax, axis=1)
+        elif name == "max_force_over_yield":
+            out[name] = ratio
+        elif name == "front_momentum_at_wall":
+            q = np.full(n, np.nan)
+            for i in range(n):  # analysis of the finished runs (the simulation itself was one call)
+                try:
+                    q[i] = fit_pulse(time, wall[i]).front_momentum
+                except PulseNotFound:
+                    out["pulse_at_wall"][i] = False
+            out[name] = q
+        elif name == "energy_at_wall":
+            nb = ds["n_beads"].values.astype(int)
+            kappa = ds["kappa"].values[np.arange(n), nb]  # contact N joins bead N and the wall
+            mask = np.ones(time.size, bool) if window is None else (time >= window[0]) & (time <= window[1])
+            fpk = np.max(np.where(mask, np.maximum(wall, 0.0), 0.0), axis=1)
+            out[name] = 0.4 * fpk ** (5.0 / 3.0) / kappa ** (2.0 / 3.0)
+    return out
+
+
+@dataclass
+class _Task:
+    """One engine call: models that share the duration and sample interval (picklable for Dask)."""
+
+    models: list
+    duration: float
+    probes: Any
+    dt: float | None
+    objectives: list[str]
+    window: tuple[float, float] | None
+    device: str | None = None
+
+
+def run_task(task: _Task) -> dict[str, np.ndarray]:
+    """Simulate a task's models in ONE batched engine call and return their :func:`member_metrics`."""
+    from ..errors import ElasticLimitWarning
+    from ..integrate.batch import simulate_batch
+
+    kwargs = {} if task.device is None else {"device": task.device}
+    with warnings.catch_warnings():
+        # Designs past the elastic limit are ranked by the max_force_over_yield constraint, not warned about.
+        warnings.simplefilter("ignore", ElasticLimitWarning)
+        ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, **kwargs)
+    out = member_metrics(ds, task.objectives, task.window)
+    out["energy_ok"] = _energy_ok(ds, task)
+    return out
+
+
+def _energy_ok(ds, task: _Task) -> np.ndarray:
+    """Whether each member's energy balance holds (:mod:`hertzchain.checks`; the batched engine does
+    not check it): a member that gains energy has wrong forces, so it is infeasible, never best."""
+    from ..checks import check_energy_balance, energy_tolerance
+    from ..errors import SimulationDiverged
+
+    time = ds["time"].values
+    ke, pe, ed = (ds[v].values for v in ("kinetic_energy", "potential_energy", "dissipated_energy"))
+    ok = np.ones(len(task.models), dtype=bool)
+    for i, model in enumerate(task.models):
+        # the adaptive step's largest step is not stored per member: the minimum allowance then
+        tol = energy_tolerance(model.system(), task.dt if task.dt is not None else 0.0)
+        try:
+            check_energy_balance(time, ke[i], pe[i], ed[i], tolerance=tol, cause="run.dt")
+        except SimulationDiverged:
+            ok[i] = False
+    return ok
+
+
+def summarise(values: np.ndarray, statistic: str, k: float) -> float:
+    """Worst case, mean, or mean + k sigma of one candidate's scenario values."""
+    if values.size == 1:
+        return float(values[0])
+    if statistic == "worst":
+        return float(values.max())
+    if statistic == "mean":
+        return float(values.mean())
+    return float(values.mean() + k * values.std(ddof=1))
+
+
+@dataclass
+class Evaluator:
+    """Evaluates candidates (run configs): geometry first, then every scenario in one engine call.
+
+    Parameters
+    ----------
+    objectives : list of str
+        Objective names (:data:`OBJECTIVES`).
+    constraints : Constraints
+        The design's constraints.
+    robust : Robust or None
+        Scenarios (speeds x tolerance draws).
+    window : (float, float) or None
+        Time window [s] of ``energy_at_wall``.
+    client : object
+        None (one local call per generation) or a Dask client / executor (chunks of
+        ``chunk_size`` members per task).
+    chunk_size : int
+        Members per task when a client spreads a generation.
+    device : str or None
+        Passed to the engine when it takes one.
+    """
+
+    objectives: list[str]
+    constraints: Constraints
+    robust: Robust | None = None
+    window: tuple[float, float] | None = None
+    client: Any = None
+    chunk_size: int = 64
+    device: str | None = None
+    cache: dict = field(default_factory=dict)
+
+    @property
+    def n_scenarios(self) -> int:
+        """Engine runs per candidate."""
+        if self.robust is None:
+            return 1
+        return len(self.robust.velocities or [None]) * self.robust.draws
+
+    def _scenario_models(self, cfg: dict, nominal) -> list:
+        from ..config import build_model, parse_config
+        from ..sweep import Tolerances, _apply_tolerances
+
+        if self.robust is None:
+            return [nominal]
+        out = []
+        tol = Tolerances(**self.robust.tolerances) if self.robust.tolerances else None
+        for v in self.robust.velocities or [None]:
+            model = nominal if v is None else build_model(parse_config(
+                {**cfg, "striker": {**cfg.get("striker", {}), "velocity": v}}))
+            for d in range(self.robust.draws):
+                out.append(model if tol is None else _apply_tolerances(model, tol, d))
+        return out
+
+    def _check_memory(self, models: list, duration: float, probes, dt) -> None:
+        """Refuse an engine call whose records cannot fit in memory (hertzchain.checks), naming the
+        setting that sizes it: the population (one call per generation) or the Dask chunk size."""
+        from ..checks import check_resources, estimate_resources
+
+        members = len(models) if self.client is None else min(self.chunk_size, len(models))
+        largest = max(models, key=lambda m: m.chain.n_beads)
+        est = estimate_resources(largest.system(), duration, probes, dt=dt, members=members)
+        check_resources(replace(est, seconds=0.0),
+                        memory_field="design.population" if self.client is None else "design.chunk_size")
+
+    def evaluate(self, keys: list, configs: list[dict]) -> list[Evaluation]:
+        """Evaluate candidates (``keys`` identify equal candidates: each is simulated once, ever)."""
+        from ..config import build_model, build_probes, parse_config
+        from ..probes import Probes
+
+        results: dict[int, Evaluation] = {}
+        pending: dict[Any, tuple[int, dict, dict, Any]] = {}
+        for i, (key, cfg) in enumerate(zip(keys, configs)):
+            if key in self.cache:
+                results[i] = replace(self.cache[key], engine_runs=0)
+                continue
+            if key in pending:
+                continue
+            model = build_model(parse_config(cfg))
+            geo = geometry(model.chain)
+            viol = geometric_violation(self.constraints, geo)
+            if viol > 0:
+                ev = Evaluation({n: math.nan for n in self.objectives}, False, viol, dict(geo))
+                self.cache[key] = ev
+                results[i] = ev
+            else:
+                pending[key] = (i, cfg, geo, model)
+        if pending:
+            run0 = parse_config(next(iter(pending.values()))[1])
+            probes = Probes(sample_interval=build_probes(run0).sample_interval, contacts=())
+            models, owner = [], []
+            for key, (i, cfg, geo, model) in pending.items():
+                ms = self._scenario_models(cfg, model)
+                models += ms
+                owner += [key] * len(ms)
+            self._check_memory(models, run0.run.duration, probes, run0.run.dt)
+            tasks = [_Task(models[s:s + self.chunk_size], run0.run.duration, probes, run0.run.dt, self.objectives,
+                           self.window, self.device)
+                     for s in range(0, len(models), self.chunk_size)] if self.client is not None else \
+                [_Task(models, run0.run.duration, probes, run0.run.dt, self.objectives, self.window, self.device)]
+            parts = _gather(self.client, tasks)
+            merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+            position = {k: j for j, k in enumerate(pending)}
+            owner_arr = np.array([position[k] for k in owner])
+            for j, (key, (i, cfg, geo, _)) in enumerate(pending.items()):
+                sel = owner_arr == j
+                fy = float(merged["force_over_yield"][sel].max())
+                pulse = bool(merged["pulse_at_wall"][sel].all())
+                energy = bool(merged["energy_ok"][sel].all())
+                objs = {}
+                for n in self.objectives:
+                    vals = merged[n][sel]
+                    objs[n] = (summarise(vals, self.robust.statistic, self.robust.k) if self.robust else float(vals[0]))
+                viol = run_violation(self.constraints, fy, pulse)
+                if any(not math.isfinite(v) for v in objs.values()) or not energy:
+                    viol = max(viol, 1.0)  # no objective value (no pulse to fit) or a wrong run: infeasible
+                ev = Evaluation(objs, viol == 0, viol, {**geo, "force_over_yield": fy, "pulse_at_wall": pulse,
+                                                        "energy_ok": energy}, engine_runs=int(sel.sum()))
+                self.cache[key] = replace(ev, engine_runs=0)
+                results[i] = ev
+        out = []
+        for i, key in enumerate(keys):
+            out.append(results[i] if i in results else replace(self.cache[key], engine_runs=0))
+        return out
+
+
+def _gather(client, tasks: list[_Task]) -> list[dict]:
+    """Run the tasks here (client None) or on the client, results in task order."""
+    if client is None:
+        return [run_task(t) for t in tasks]
+    from ..sweep import _results
+
+    indexed = [(i, t) for i, t in enumerate(tasks)]
+    got = dict(_results(client, _run_indexed, indexed))
+    return [got[i] for i in range(len(tasks))]
+
+
+def _run_indexed(item: tuple[int, _Task]) -> tuple[int, dict]:
+    return item[0], run_task(item[1])

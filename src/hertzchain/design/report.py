@@ -1,0 +1,303 @@
+"""Design outputs: best.toml, design.json, history.csv, pareto.csv and design.html.
+
+The best design is compared with the paper's chain 1 (Table I) and with a uniform chain of as
+many beads (the diameter of the base chain's first bead), all three run with the base config's
+striker, wall, contact law and run settings and scored as the search scored candidates (robust
+scenarios included); the improvement is (reference - best) / reference in percent (positive:
+the design transmits less).
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import html
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .objectives import OBJECTIVES, member_metrics
+from .search import DesignResult
+
+__all__ = ["write_report", "compare_with_references"]
+
+
+def _toml_ready(x: Any) -> Any:
+    """Plain TOML values (no NumPy scalars, no None)."""
+    if isinstance(x, dict):
+        return {k: _toml_ready(v) for k, v in x.items() if v is not None}
+    if isinstance(x, (list, tuple)):
+        return [_toml_ready(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def _reference_configs(base: dict, best_cfg: dict) -> dict[str, dict]:
+    from ..chain import TABLE_I_MM
+    from ..config import build_chain, parse_config
+
+    material = base.get("chain", {}).get("material", "AISI52100")
+    first = float(build_chain(parse_config(base)).diameters[0] * 1e3)
+    common = {k: v for k, v in best_cfg.items() if k != "chain"}
+    return {"best": best_cfg,
+            "chain1": {**common, "chain": {"preset": "chain1", "material": material}},
+            "uniform": {**common, "chain": {"uniform": {"n": len(TABLE_I_MM["chain1"]), "diameter_mm": first},
+                                            "material": material}}}
+
+
+def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
+    """Objectives of the best design, chain 1 and the uniform chain, as the search scored them.
+
+    The three chains are evaluated like candidates (in every scenario of ``[design.robust]``,
+    summarised the same way), so the improvement compares like with like; their nominal wall
+    pulses come from one more batched call.
+
+    Parameters
+    ----------
+    result : DesignResult
+        A finished search.
+
+    Returns
+    -------
+    (dict, xarray.Dataset)
+        ``{"best" | "chain1" | "uniform": {name: value [SI] (None when the pulse does not reach
+        the wall within the run), "n_beads", "length_mm", "feasible"}, "improvement_percent":
+        {"chain1" | "uniform": {name: (reference - best) / reference [%]}}}`` and the nominal
+        batch result (wall forces of the three, members in that order).
+    """
+    import warnings
+
+    from ..config import build_model, build_probes, parse_config
+    from ..errors import ElasticLimitWarning
+    from ..integrate.batch import simulate_batch
+    from ..probes import Probes
+    from .constraints import Constraints, geometric_violation
+    from .objectives import Evaluator
+
+    prob = result.problem
+    sec = prob.section
+    window = None if sec.window is None else tuple(sec.window)
+    cfgs = _reference_configs(prob.base, result.best["config"])
+    # No geometric rejection here: the references get values even where they break the design's
+    # constraints (the uniform chain is longer than chain 1); feasibility is reported beside them.
+    scorer = Evaluator(prob.objectives, Constraints(pulse_at_wall=sec.constraints.pulse_at_wall), sec.robust, window)
+    evs = scorer.evaluate(list(cfgs), list(cfgs.values()))
+    runs = [parse_config(c) for c in cfgs.values()]
+    models = [build_model(r) for r in runs]
+    probes = Probes(sample_interval=build_probes(runs[0]).sample_interval, contacts=())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ElasticLimitWarning)
+        ds = simulate_batch(models, runs[0].run.duration, probes, dt=runs[0].run.dt)
+    out: dict[str, Any] = {}
+    for name, ev in zip(cfgs, evs):
+        # A chain whose pulse does not reach the wall within the run has no comparable value.
+        ok = bool(ev.metrics["pulse_at_wall"])
+        out[name] = {n: ev.objectives[n] if ok else None for n in prob.objectives}
+        feasible = ev.feasible and geometric_violation(sec.constraints, ev.metrics) == 0 and (
+            sec.constraints.max_force_over_yield is None
+            or ev.metrics["force_over_yield"] <= sec.constraints.max_force_over_yield)
+        out[name].update(n_beads=ev.metrics["n_beads"], length_mm=ev.metrics["length_mm"], pulse_at_wall=ok,
+                         feasible=bool(feasible))
+    out["improvement_percent"] = {
+        ref: {n: (100.0 * (out[ref][n] - out["best"][n]) / out[ref][n]
+                  if out[ref][n] and out["best"][n] is not None else None) for n in prob.objectives}
+        for ref in ("chain1", "uniform")}
+    return out, ds
+
+
+def _history_frame(result: DesignResult):
+    import pandas as pd
+
+    rows = []
+    for r in result.history:
+        rows.append({k: (json.dumps(v) if isinstance(v, (list, dict)) else v) for k, v in r.items() if k != "x"})
+    return pd.DataFrame(rows)
+
+
+def _json_ready(x: Any) -> Any:
+    """JSON values: NaN (no value: an infeasible or unsimulated candidate) becomes null."""
+    if isinstance(x, dict):
+        return {k: _json_ready(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_ready(v) for v in x]
+    if isinstance(x, (float, np.floating)):
+        return None if not math.isfinite(x) else float(x)
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def _png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle
+
+    names = result.problem.objectives
+    obj = names[0]
+    unit = OBJECTIVES[obj][0]
+    figs = []
+    runs = np.cumsum([r["engine_runs"] for r in result.history])
+    vals = np.array([r[obj] if r["feasible"] else np.nan for r in result.history], float)
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    ax.plot(runs, vals, ".", ms=3, color="0.6", label="feasible candidates")
+    best_so_far = np.fmin.accumulate(np.where(np.isnan(vals), np.inf, vals))
+    ax.step(runs, np.where(np.isinf(best_so_far), np.nan, best_so_far), where="post", color="C0", label="best so far")
+    for ref, style in (("chain1", "C3--"), ("uniform", "C2:")):
+        if comparison[ref][obj] is not None:
+            ax.axhline(comparison[ref][obj], color=style[:2], ls=style[2:],
+                       label=f"{ref} ({comparison[ref][obj]:.4g} {unit})")
+    ax.set_xlabel("engine runs")
+    ax.set_ylabel(f"{obj} [{unit}]")
+    ax.legend(fontsize=8)
+    ax.set_title("convergence")
+    figs.append(("Convergence", _png(fig)))
+    plt.close(fig)
+
+    if len(names) > 1:
+        fig, ax = plt.subplots(figsize=(5, 4))
+        feas = [r for r in result.history if r["feasible"]]
+        ax.plot([r[names[0]] for r in feas], [r[names[1]] for r in feas], ".", ms=3, color="0.6", label="feasible")
+        ax.plot([r[names[0]] for r in result.pareto], [r[names[1]] for r in result.pareto], "o-", color="C0",
+                label="Pareto front")
+        ax.set_xlabel(f"{names[0]} [{OBJECTIVES[names[0]][0]}]")
+        ax.set_ylabel(f"{names[1]} [{OBJECTIVES[names[1]][0]}]")
+        ax.legend(fontsize=8)
+        figs.append(("Pareto front", _png(fig)))
+        plt.close(fig)
+
+    labels = ["best", "chain1", "uniform"]
+    diam = ds["diameter"].values * 1e3
+    length = max(float(np.nansum(d)) for d in diam)
+    fig, ax = plt.subplots(figsize=(9, 3.2))
+    for row, (label, d) in enumerate(zip(labels, diam)):
+        d = d[np.isfinite(d)]
+        x = 0.0
+        y = -row * 40.0
+        for phi in d:
+            ax.add_patch(Circle((x + phi / 2, y), phi / 2, fc="C0" if label == "best" else "0.75", ec="k", lw=0.4))
+            x += phi
+        ax.text(-8, y, label, ha="right", va="center", fontsize=9)
+    ax.set_xlim(-60, length + 10)
+    ax.set_ylim(-100, 20)
+    ax.set_aspect("equal")
+    ax.set_xlabel("position along the chain [mm] (impact end at 0, wall at the right end of each chain)")
+    ax.set_yticks([])
+    figs.append(("Chains to scale", _png(fig)))
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    t = ds["time"].values * 1e3
+    for i, label in enumerate(labels):
+        ax.plot(t, ds["wall_force"].values[i], lw=1.4 if label == "best" else 1.0, label=label)
+    ax.set_xlabel("time [ms]")
+    ax.set_ylabel("wall force [N]")
+    ax.legend(fontsize=8)
+    figs.append(("Wall pulses", _png(fig)))
+    plt.close(fig)
+    return figs
+
+
+def _num(v: float | None, fmt: str, suffix: str = "") -> str:
+    return "pulse not at the wall within the run" if v is None else f"{v:{fmt}}{suffix}"
+
+
+def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
+    cmp = info["comparison"]
+    names = result.problem.objectives
+    rows = ""
+    for ref in ("best", "chain1", "uniform"):
+        cells = "".join(f"<td>{_num(cmp[ref][n], '.5g')}</td>" for n in names)
+        imp = "" if ref == "best" else "; ".join(_num(cmp["improvement_percent"][ref][n], "+.2f", " %") for n in names)
+        ok = "yes" if cmp[ref]["feasible"] else "no"
+        rows += (f"<tr><td>{ref}</td><td>{cmp[ref]['n_beads']}</td><td>{cmp[ref]['length_mm']:.1f}</td><td>{ok}</td>"
+                 f"{cells}<td>{imp}</td></tr>")
+    heads = "".join(f"<th>{n} [{OBJECTIVES[n][0]}]</th>" for n in names)
+    variables = "".join(f"<tr><td><code>{html.escape(k)}</code></td><td>{html.escape(json.dumps(v))}</td></tr>"
+                        for k, v in info["best"]["variables"].items())
+    images = "".join(f"<h2>{html.escape(t)}</h2><img src='data:image/png;base64,{b}'/>" for t, b in figs)
+    robust = "" if info["robust"] is None else ", every chain scored over the same robust scenarios"
+    feasible = "" if info["best"]["feasible"] else "<p><b>No candidate met every constraint; this is the least infeasible.</b></p>"
+    return f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>hertzchain design</title>
+<style>body{{font-family:sans-serif;max-width:60em;margin:auto}} td,th{{padding:2px 8px;border-bottom:1px solid #ddd}}</style>
+</head><body><h1>hertzchain design: {html.escape(info['objective_name'])}</h1>{feasible}
+<p>{info['n_evaluations']} engine runs in {info['generations']} engine calls, {info['elapsed_s']:.1f} s
+({info['evaluations_per_s']:.0f} runs/s), seed {info['seed']}. Improvement = (reference - best) / reference{robust}.</p>
+<table><tr><th>chain</th><th>beads</th><th>length [mm]</th><th>meets the constraints</th>{heads}<th>improvement of the best</th></tr>{rows}</table>
+<h2>Best design</h2><table>{variables}</table>{images}</body></html>"""
+
+
+def write_report(result: DesignResult, figures: bool = True) -> dict:
+    """Write the design outputs into ``result.out_dir`` (each file atomically).
+
+    Parameters
+    ----------
+    result : DesignResult
+        A finished search (:func:`hertzchain.run_design`).
+    figures : bool
+        Also write ``design.html`` (convergence, front, chains to scale, wall pulses).
+
+    Returns
+    -------
+    dict
+        The content of ``design.json``: ``best: {objective, variables, feasible, metrics}``,
+        ``n_evaluations``, ``objective_name``, ``objectives``, ``units``, ``comparison`` (chain 1
+        and the uniform chain, improvement in percent), ``generations``, ``elapsed_s``,
+        ``evaluations_per_s``, ``seed``, ``budget``, ``pareto`` (several objectives), ``hash``.
+    """
+    import tomli_w
+
+    from .. import __version__
+    from ..fileio import write_text
+
+    out = result.out_dir
+    prob = result.problem
+    if result.best is None:
+        raise ValueError("the search evaluated no candidate")
+    comparison, ds = compare_with_references(result)
+    info = {
+        "objective_name": prob.objective_name,
+        "objectives": prob.objectives,
+        "units": {n: OBJECTIVES[n][0] for n in prob.objectives},
+        "best": {k: result.best[k] for k in ("objective", "variables", "feasible", "metrics")},
+        "n_evaluations": int(result.n_evaluations),
+        "budget": prob.section.budget,
+        "generations": result.generations,
+        "seed": prob.section.seed,
+        "elapsed_s": result.elapsed_s,
+        "evaluations_per_s": result.n_evaluations / result.elapsed_s if result.elapsed_s > 0 else math.nan,
+        "robust": None if prob.section.robust is None else prob.section.robust.model_dump(mode="json"),
+        "comparison": comparison,
+        "hash": prob.hash,
+        "hertzchain_version": __version__,
+        "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+    }
+    if len(prob.objectives) > 1:
+        info["pareto"] = [{"objectives": {n: r[n] for n in prob.objectives},
+                           "variables": {g: r[g] for g in prob.space.groups}} for r in result.pareto]
+    header = (f"# Best design found by hertzchain design ({prob.objective_name} = "
+              f"{json.dumps(_json_ready(info['best']['objective']))}); run it with: hertzchain run best.toml --out best.nc\n")
+    write_text(out / "best.toml", header + tomli_w.dumps(_toml_ready(result.best["config"])))
+    write_text(out / "design.json", json.dumps(_json_ready(info), indent=2))
+    df = _history_frame(result)
+    write_text(out / "history.csv", df.to_csv(index=False))
+    if len(prob.objectives) > 1:
+        keep = ["evaluation", "generation", *prob.space.groups, *prob.objectives, *[c for c in (
+            "min_diameter_mm", "length_mm", "mass_kg", "n_beads", "force_over_yield") if c in df]]
+        front = df[df["evaluation"].isin([r["evaluation"] for r in result.pareto])][keep]
+        write_text(out / "pareto.csv", front.to_csv(index=False))
+    if figures:
+        write_text(out / "design.html", _html(result, info, _figures(result, comparison, ds)))
+    return info

@@ -1,0 +1,447 @@
+"""The search: a population method, then a local polish; one engine call per generation, checkpointed.
+
+One objective: a Latin hypercube over the whole space, then CMA-ES (:mod:`cma`) from its best
+point (restarted with a doubled population whenever it converges
+while budget is left: IPOP-CMA-ES) in the unit cube of the design space (bounds [0, 1]; integer,
+catalogue and categorical coordinates are binned, see :mod:`hertzchain.design.space`, and keep a
+minimal step so that they go on exploring), then a batched compass search: all neighbours of the
+best point (+- h on every real coordinate, the next bin up and down on every discrete one) in
+one engine call; move to the best improving neighbour, else halve h, until h < 1e-4 or the
+budget is spent. Several objectives: NSGA-II (:mod:`pymoo`) and the non-dominated feasible
+candidates ever evaluated as the Pareto front.
+
+Every generation (population or polish step) is evaluated in ONE batched engine call
+(:class:`~hertzchain.design.objectives.Evaluator`), then the whole search state (optimiser,
+random streams, history, evaluated candidates) is written to ``checkpoint.pkl`` (at most once
+a second when generations are faster than that); a rerun with
+the same design and output folder resumes from it and ends with the same result as an
+uninterrupted run. The random streams are seeded by ``[design].seed`` only.
+"""
+
+from __future__ import annotations
+
+import math
+import pickle
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import ConfigError, HertzchainError
+from .objectives import INFEASIBLE, Evaluator
+from .problem import DesignProblem
+
+__all__ = ["DesignResult", "run_design", "DesignMismatch", "DesignLocked"]
+
+_CHECKPOINT = "checkpoint.pkl"
+#: Generations without a better best after which the population phase hands over to the polish.
+_STALL_GENERATIONS = 5
+#: Most IPOP restarts: a fully explored discrete space ends the search.
+_MAX_RESTARTS = 6
+#: The population doubles at the first restarts only: a generation is one engine call whose
+#: records (wall force, energies) grow with its size.
+_MAX_DOUBLINGS = 2
+#: Initial and smallest polish step (unit-cube coordinates).
+_POLISH_H0, _POLISH_HMIN = 0.05, 1e-4
+
+
+class DesignMismatch(HertzchainError):
+    """The output folder holds the checkpoint of a different design."""
+
+
+class DesignLocked(HertzchainError):
+    """Another design search is writing into the same output folder."""
+
+
+class _Randn:
+    """Picklable normal sampler for CMA-ES (so the checkpoint carries its random stream)."""
+
+    def __init__(self, seed: int, restart: int):
+        self.rng = np.random.default_rng([seed, 12, restart])
+
+    def __call__(self, *shape: int) -> np.ndarray:
+        return self.rng.standard_normal(shape)
+
+
+@dataclass
+class _State:
+    hash: str
+    phase: str = "population"          # "population" -> "polish" -> "done"
+    generation: int = 0
+    optimiser: Any = None
+    restarts: int = 0
+    stall: int = 0
+    best_f: float = math.inf
+    polish_x: np.ndarray | None = None
+    polish_h: float = _POLISH_H0
+    history: list[dict] = field(default_factory=list)
+    cache: dict = field(default_factory=dict)
+    n_evaluations: int = 0
+    elapsed_s: float = 0.0
+
+
+@dataclass
+class DesignResult:
+    """What :func:`hertzchain.run_design` found.
+
+    Attributes
+    ----------
+    problem : DesignProblem
+        The design.
+    best : dict or None
+        ``{"objective": value or {name: value}, "variables": {PATH: value}, "feasible": bool,
+        "config": run config, "metrics": {...}}`` of the best feasible candidate (the least
+        infeasible one when none is feasible).
+    history : list of dict
+        One row per candidate evaluated (generation, phase, variables, objectives, feasibility).
+    pareto : list of dict
+        Non-dominated feasible rows (several objectives; the best row for one).
+    n_evaluations : int
+        Engine runs made (candidates x scenarios; cached repeats and geometry rejections are free).
+    generations : int
+        Engine calls made (population generations and polish steps).
+    elapsed_s : float
+        Wall-clock time of the search [s], summed over resumed runs.
+    out_dir : Path
+        Output folder.
+    resumed : bool
+        The run continued from a checkpoint.
+    """
+
+    problem: DesignProblem
+    best: dict | None
+    history: list[dict]
+    pareto: list[dict]
+    n_evaluations: int
+    generations: int
+    elapsed_s: float
+    out_dir: Path
+    resumed: bool
+
+
+def _population(problem: DesignProblem) -> int:
+    """Candidates per generation: ``[design].population`` or max(32, CMA-ES's 4 + 3 ln d): a batch
+    of a few dozen chains costs the engine little more than one."""
+    if problem.section.population:
+        return problem.section.population
+    if len(problem.objectives) > 1:
+        return 40
+    return max(32, 4 + int(3 * math.log(max(problem.space.dim, 2))))
+
+
+def _new_optimiser(problem: DesignProblem, restart: int = 0, x0: np.ndarray | None = None):
+    """CMA-ES from ``x0`` (one objective; ``restart`` r > 0: population x 2^r from a random start,
+    IPOP-CMA-ES) or NSGA-II (several)."""
+    sec = problem.section
+    dim = problem.space.dim
+    if len(problem.objectives) == 1:
+        import cma
+
+        pop = _population(problem) * 2 ** min(restart, _MAX_DOUBLINGS)
+        # A discrete coordinate keeps a step of ~1/3 of its bin: otherwise CMA-ES freezes it as
+        # soon as the step is below one bin (a plateau of equal fitness), before it has settled.
+        minstd = [0.3 / v.n_values if v.kind != "real" else 0.0 for v in problem.space.variables]
+        # cma needs two coordinates: a 1-D space gets a dummy one that decodes to nothing (_coords).
+        minstd += [0.0] * (max(dim, 2) - dim)
+        randn = _Randn(sec.seed, restart)
+        start = np.full(max(dim, 2), 0.5)
+        if x0 is not None:
+            start[:dim] = x0
+        elif restart > 0:
+            start = randn.rng.uniform(0.0, 1.0, max(dim, 2))
+        opts = {"bounds": [0.0, 1.0], "seed": sec.seed + 1, "popsize": pop, "randn": randn,
+                "verbose": -9, "verb_log": 0, "verb_disp": 0, "minstd": minstd, "tolfun": 1e-9, "tolx": 1e-6}
+        return cma.CMAEvolutionStrategy(start, 0.2 if x0 is not None else 0.3, opts)
+    try:
+        from pymoo.algorithms.moo.nsga2 import NSGA2
+        from pymoo.core.problem import Problem
+    except ImportError:
+        raise ConfigError("design.objective", "several objectives (a Pareto front) need pymoo: install the "
+                          "'design' extra (pip install -e \".[design]\") or give one objective") from None
+
+    algo = NSGA2(pop_size=_population(problem))
+    algo.setup(Problem(n_var=dim, n_obj=len(problem.objectives), xl=0.0, xu=1.0), seed=sec.seed, verbose=False)
+    return algo
+
+
+def _coords(problem: DesignProblem, x: np.ndarray) -> np.ndarray:
+    """The space's coordinates of an optimiser point (drops the dummy coordinate of a 1-D space)."""
+    return np.asarray(x, float)[: problem.space.dim]
+
+
+def _row(problem: DesignProblem, state: _State, phase: str, x: np.ndarray, ev, values: dict) -> dict:
+    row = {"evaluation": len(state.history), "generation": state.generation, "phase": phase}
+    row.update({k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in values.items()})
+    row.update(ev.objectives)
+    row.update(feasible=ev.feasible, violation=ev.violation, **ev.metrics, engine_runs=ev.engine_runs,
+               x=[float(v) for v in x])
+    return row
+
+
+def _evaluate(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: list[np.ndarray], phase: str,
+              clock: Callable[[], float]):
+    """Evaluate unit-cube points in one engine call; append them to the history; return their fitness."""
+    space = problem.space
+    decoded = [space.decode(x) for x in xs]
+    keys = [space.key(x) for x in xs]
+    evaluator.cache = state.cache
+    evs = evaluator.evaluate(keys, [c for _, c in decoded])
+    elapsed = clock()
+    for x, (vals, _), ev in zip(xs, decoded, evs):
+        state.n_evaluations += ev.engine_runs
+        state.history.append({**_row(problem, state, phase, x, ev, vals), "elapsed_s": elapsed})
+    return [ev.fitness(problem.objectives) for ev in evs]
+
+
+def _best_row(problem: DesignProblem, history: list[dict]) -> dict | None:
+    if not history:
+        return None
+    obj = problem.objectives[0]
+    feasible = [r for r in history if r["feasible"]]
+    if feasible:
+        return min(feasible, key=lambda r: (r[obj], r["evaluation"]))
+    return min(history, key=lambda r: (r["violation"], r["evaluation"]))
+
+
+def pareto_rows(problem: DesignProblem, history: list[dict]) -> list[dict]:
+    """Non-dominated feasible rows (one per distinct design), sorted by the first objective."""
+    names = problem.objectives
+    rows, seen = [], set()
+    for r in history:
+        key = tuple(r[n] for n in names)
+        if r["feasible"] and key not in seen:
+            seen.add(key)
+            rows.append(r)
+    if not rows:
+        return []
+    f = np.array([[r[n] for n in names] for r in rows])
+    # Row i is dominated when another row is no worse in every objective and better in one.
+    front = [r for r, a in zip(rows, f) if not np.any(np.all(f <= a, axis=1) & np.any(f < a, axis=1))]
+    return sorted(front, key=lambda r: r[names[0]])
+
+
+def _save(out: Path, state: _State) -> None:
+    from ..fileio import write_bytes
+
+    # NumPy's global stream too: pymoo draws from it, and cma seeds it.
+    write_bytes(out / _CHECKPOINT, pickle.dumps((state, np.random.get_state()), protocol=pickle.HIGHEST_PROTOCOL))
+
+
+def _load(out: Path, problem: DesignProblem, force: bool) -> _State | None:
+    path = out / _CHECKPOINT
+    if not path.exists():
+        return None
+    try:
+        state, global_random = pickle.loads(path.read_bytes())
+    except Exception:  # an unreadable checkpoint (another version, truncated copy): start afresh
+        return None
+    if getattr(state, "hash", None) != problem.hash:
+        if force:
+            return None
+        raise DesignMismatch(f"{out} holds the checkpoint of a different design (hash {str(state.hash)[:12]}, this one "
+                             f"{problem.hash[:12]}); choose another --out or use --force to start afresh")
+    np.random.set_state(global_random)
+    return state
+
+
+def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float) -> list[np.ndarray]:
+    out = []
+    for j, v in enumerate(problem.space.variables):
+        step = h if v.kind == "real" else 1.0 / v.n_values
+        for s in (-step, step):
+            y = x.copy()
+            y[j] = min(max(y[j] + s, 0.0), 1.0)
+            y = problem.space.centre(y)
+            if not np.array_equal(y, x):
+                out.append(y)
+    return out
+
+
+def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, device: str | None = None,
+               progress: Callable[[int, int], None] | None = None, force: bool = False,
+               checkpoint_interval: float = 1.0) -> DesignResult:
+    """Run (or resume) a design search; the state is checkpointed after engine calls (see checkpoint_interval).
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        From :func:`hertzchain.load_design` / :func:`hertzchain.parse_design`.
+    out_dir : str or Path
+        Output folder: ``checkpoint.pkl`` during the search (see :func:`hertzchain.write_report`
+        for the files written at the end).
+    client : object
+        None: each generation is one local engine call on all cores. A Dask
+        ``distributed.Client`` (or an executor): a generation is split into tasks of
+        ``[design].chunk_size`` members spread over its workers.
+    device : str or None
+        Passed to the engine (``simulate_batch(..., device=)``) when given.
+    progress : callable
+        ``progress(evaluations_done, budget)`` after every engine call.
+    force : bool
+        Start afresh when ``out_dir`` holds the checkpoint of another design.
+    checkpoint_interval : float
+        Least time [s] between two checkpoint saves (0: after every generation); the state is
+        always saved at the end.
+
+    Returns
+    -------
+    DesignResult
+        The best candidate, the history, the Pareto front and the counts.
+
+    Raises
+    ------
+    DesignMismatch
+        ``out_dir`` holds the checkpoint of another design (and ``force`` is false).
+    DesignLocked
+        Another search is writing into ``out_dir``.
+    """
+    from ..sweep import _folder_lock
+
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
+    # Two searches writing one checkpoint would corrupt each other: the folder is locked (flock).
+    with _folder_lock(out, "design", DesignLocked):
+        return _run_design(problem, out, client, device, progress, force, checkpoint_interval)
+
+
+def _run_design(problem: DesignProblem, out: Path, client, device, progress, force: bool,
+                checkpoint_interval: float) -> DesignResult:
+    """:func:`run_design` with the output folder locked."""
+    sec = problem.section
+    evaluator = Evaluator(problem.objectives, sec.constraints, sec.robust,
+                          None if sec.window is None else tuple(sec.window), client, sec.chunk_size, device)
+    state = _load(out, problem, force)
+    resumed = state is not None
+    if state is None:
+        state = _State(problem.hash)
+    budget = sec.budget
+    per_candidate = evaluator.n_scenarios
+    multi = len(problem.objectives) > 1
+    t_start = time.perf_counter()
+    t_saved = state.elapsed_s
+
+    def clock() -> float:
+        return t_saved + time.perf_counter() - t_start
+
+    last_save = [-math.inf]
+
+    def checkpoint(final: bool = False) -> None:
+        state.elapsed_s = clock()
+        # Saving costs a pickle and an fsync (~10 ms): on fast generations, at most one save per
+        # checkpoint_interval seconds, so a kill loses at most that much work.
+        if final or state.elapsed_s - last_save[0] >= checkpoint_interval:
+            _save(out, state)
+            last_save[0] = state.elapsed_s
+        if progress is not None:
+            progress(min(state.n_evaluations, budget), budget)
+
+    if progress is not None:
+        progress(min(state.n_evaluations, budget), budget)
+    def improved() -> bool:
+        """Whether the best fitness improved since the last call (tracks stagnation)."""
+        best = _best_row(problem, state.history)
+        f = best[problem.objectives[0]] if best["feasible"] else INFEASIBLE * (1.0 + best["violation"])
+        if f < state.best_f - 1e-12 * abs(state.best_f):
+            state.best_f = f
+            return True
+        return False
+
+    def next_cycle() -> None:
+        """After a converged or stalled population phase: polish; after a polish: restart (IPOP)."""
+        if state.phase == "population" and sec.polish and not multi:
+            state.phase, state.polish_x = "polish", None
+        elif state.restarts < _MAX_RESTARTS and not multi:
+            state.restarts += 1
+            state.optimiser = _new_optimiser(problem, state.restarts)
+            state.phase, state.stall = "population", 0
+        else:
+            state.phase = "done"
+
+    while state.phase != "done":
+        if state.phase == "population" and state.optimiser is None and not multi:
+            # Generation 0: a Latin hypercube over the whole space (seeded), so that CMA-ES starts
+            # from the best region found rather than from the centre of the box.
+            from scipy.stats import qmc
+
+            pop0 = _population(problem)
+            xs = list(qmc.LatinHypercube(d=problem.space.dim, seed=np.random.default_rng([sec.seed, 11])).random(pop0))
+            if len({problem.space.key(x) for x in xs}) * per_candidate > budget:
+                raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of {pop0} "
+                                  f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
+            _evaluate(problem, evaluator, state, xs, "population", clock)
+            improved()
+            state.optimiser = _new_optimiser(problem, x0=np.asarray(_best_row(problem, state.history)["x"]))
+        elif state.phase == "population":
+            if state.optimiser is None:
+                state.optimiser = _new_optimiser(problem)
+            opt = state.optimiser
+            if multi:
+                pop = opt.ask()
+                xs = [np.asarray(x, float) for x in pop.get("X")]
+            else:
+                xs = [np.asarray(x, float) for x in opt.ask()]
+            # What this generation costs: its candidates not evaluated before (repeats come from the cache).
+            cost = len({problem.space.key(_coords(problem, x)) for x in xs} - state.cache.keys()) * per_candidate
+            if state.n_evaluations + cost > budget:
+                if state.generation == 0:
+                    raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of "
+                                      f"{len(xs)} candidates x {per_candidate} scenarios; raise the budget or lower "
+                                      "design.population")
+                state.phase = "polish" if sec.polish and not multi else "done"
+                if state.phase == "polish":
+                    state.polish_x = None
+                continue
+            fit = _evaluate(problem, evaluator, state, [_coords(problem, x) for x in xs], "population", clock)
+            if multi:
+                pop.set("F", np.array(fit))
+                opt.tell(infills=pop)
+            else:
+                opt.tell(xs, [f[0] for f in fit])
+                state.stall = 0 if improved() else state.stall + 1
+                # Converged, or no progress for a while (e.g. sliding along a constraint): polish the
+                # best point, then restart with a doubled population from a random point.
+                if opt.stop() or state.stall >= _STALL_GENERATIONS:
+                    next_cycle()
+        else:  # polish: batched compass search around the best point
+            if state.polish_x is None:
+                state.polish_x = problem.space.centre(np.asarray(_best_row(problem, state.history)["x"]))
+                state.polish_h = _POLISH_H0
+            x = state.polish_x
+            f0 = state.cache[problem.space.key(x)].fitness(problem.objectives)[0]  # evaluated: the best so far
+            neigh = _polish_neighbours(problem, x, state.polish_h)
+            new = [y for y in neigh if problem.space.key(y) not in state.cache]
+            if not neigh or len(new) * per_candidate > budget - state.n_evaluations:
+                state.phase = "done"  # the budget cannot pay for this step
+                continue
+            fit = _evaluate(problem, evaluator, state, neigh, "polish", clock)
+            improved()
+            j = int(np.argmin([f[0] for f in fit]))
+            if fit[j][0] < f0 - 1e-12 * abs(f0):
+                state.polish_x = neigh[j]
+            else:
+                state.polish_h /= 2.0
+                if state.polish_h < _POLISH_HMIN:
+                    next_cycle()
+        state.generation += 1
+        if state.n_evaluations >= budget:
+            state.phase = "done"
+        checkpoint()
+
+    checkpoint(final=True)
+    best = _best_row(problem, state.history)
+    best_out = None
+    if best is not None:
+        values = problem.space.values(np.asarray(best["x"]))
+        objective: Any = ({n: best[n] for n in problem.objectives} if multi else best[problem.objectives[0]])
+        best_out = {"objective": objective, "variables": values, "feasible": bool(best["feasible"]),
+                    "config": problem.space.config(values),
+                    "metrics": {k: best[k] for k in ("min_diameter_mm", "length_mm", "mass_kg", "n_beads",
+                                                     "force_over_yield", "pulse_at_wall") if k in best}}
+    pareto = pareto_rows(problem, state.history) if multi else ([best] if best and best["feasible"] else [])
+    return DesignResult(problem, best_out, state.history, pareto, state.n_evaluations, state.generation,
+                        t_saved + time.perf_counter() - t_start, out, resumed)

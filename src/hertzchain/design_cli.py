@@ -1,0 +1,87 @@
+"""``hertzchain design``: search for the chain that best meets a goal (registered in cli.py).
+
+Heavy imports (numba, cma, matplotlib) are deferred into the command so that ``hertzchain --help``
+stays quick.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from .cli_options import set_option
+
+
+@click.command("design")
+@click.argument("design_file", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "-o", "out", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Output folder: best.toml, design.json, history.csv, pareto.csv, design.html. Rerunning resumes.")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Dask scheduler address (e.g. tcp://host:8786): each generation is spread over its workers.")
+@click.option("--force", is_flag=True, help="Start afresh when --out holds the checkpoint of a different design.")
+@click.option("--no-html", is_flag=True, help="Skip design.html (figures).")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
+@set_option
+def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_html: bool, quiet: bool,
+           overrides: tuple[str, ...]) -> None:
+    """Search the design space of DESIGN_FILE (TOML: [base] run config + [design] table).
+
+    The search state is saved after every generation, so an interrupted design resumes when
+    rerun with the same --out. --set paths are relative to [base] (e.g. --set striker.velocity=0.3).
+    """
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from .design import load_design, run_design, write_report
+    from .errors import ConfigError
+
+    problem = load_design(design_file, overrides)
+    client = None
+    if scheduler is not None:
+        try:
+            from distributed import Client
+
+            client = Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ConfigError("--scheduler", f"cannot connect to the Dask scheduler at {scheduler!r}: {exc}") from None
+    console = Console(stderr=True)
+    try:
+        if quiet:
+            result = run_design(problem, out, client=client, force=force)
+        else:
+            console.print(f"design {design_file.name}: minimise {problem.objective_name} over {problem.space.dim} "
+                          f"variables, budget {problem.section.budget} engine runs "
+                          f"({'Dask at ' + scheduler if scheduler else 'local, all cores'})")
+            with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                          console=console) as prog:
+                task = prog.add_task("engine runs", total=problem.section.budget)
+
+                def update(done: int, total: int) -> None:
+                    prog.update(task, completed=done, total=total)
+
+                result = run_design(problem, out, client=client, progress=update, force=force)
+    finally:
+        if client is not None:
+            client.close()
+    info = write_report(result, figures=not no_html)
+    if quiet:
+        return
+    best = info["best"]
+    value = best["objective"]
+    units = info["units"]
+    shown = (f"{value:.6g} {units[problem.objectives[0]]}" if not isinstance(value, dict)
+             else ", ".join(f"{k} {v:.6g} {units[k]}" for k, v in value.items()))
+    msg = (f"best {problem.objective_name}: {shown} ({info['n_evaluations']} engine runs, "
+           f"{info['evaluations_per_s']:.0f}/s{', resumed' if result.resumed else ''}); "
+           f"vs chain 1: {_improvement(info, 'chain1')}, vs uniform: {_improvement(info, 'uniform')}; wrote {out}/")
+    if not best["feasible"]:
+        msg += "; warning: no candidate met every constraint (best is the least infeasible)"
+    click.echo(msg)
+
+
+def _improvement(info: dict, ref: str) -> str:
+    imp = info["comparison"]["improvement_percent"][ref]
+    if all(v is None for v in imp.values()):
+        return "n/a (its pulse does not reach the wall within the run)"
+    return ", ".join("n/a" if v is None else f"{v:+.1f} %" for v in imp.values())
