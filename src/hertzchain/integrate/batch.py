@@ -177,90 +177,136 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     return _run(models, duration, plist, dts, progress, n_threads)[0]
 
 
-def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads
-         ) -> tuple[list[RawRun], list, dict[str, np.ndarray]]:
-    """:func:`run_batch` on checked inputs. Also returns every member's ``Model.system()`` and the
-    output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
-    energies always, ``recorded_force`` (member, time, recorded contact) when every member
-    records the same contacts, ``velocity`` when every member records velocities of as many bodies."""
+def _check_threads(n_threads) -> None:
     if n_threads is not None and not (isinstance(n_threads, (int, np.integer))
                                       and 1 <= n_threads <= numba.config.NUMBA_NUM_THREADS):
         raise ConfigError("n_threads", f"must be an integer in 1..{numba.config.NUMBA_NUM_THREADS}, got {n_threads!r}")
-    interval = plist[0].sample_interval
-    nmem = len(models)
-    n_samples = int(math.floor(duration / interval + 1e-9)) + 1
 
-    members: list[_Member] = []
-    for model, p, dti in zip(models, plist, dts):
-        system = model.system()
-        plan = step_plan(system, interval, dti)
-        rec = p.recorded_contacts(model.chain.n_beads, model.wall.present)
-        members.append(_Member(system, rec, plan, bool(p.velocities)))
 
-    # ---- ragged layout: member m owns off[m]:off[m+1] (P + 1 slots) of every body/contact buffer
-    packs = [pack(mb.system) for mb in members]
+@dataclass
+class _Packed:
+    """A batch laid out for the engine: ragged flat buffers (see :func:`_batch_kernel`), per-member
+    step plans and parameters, output buffers (sample 0 written) and the kernel's trackers."""
+
+    interval: float
+    n_samples: int
+    flat: dict[str, np.ndarray]
+    off: np.ndarray
+    n_slots: np.ndarray
+    law: np.ndarray
+    general: np.ndarray
+    wall_slot: np.ndarray
+    stride: np.ndarray
+    n_sub: np.ndarray
+    n_eval: np.ndarray
+    c_steps: np.ndarray
+    relax: np.ndarray
+    plan_dt: np.ndarray
+    rec: np.ndarray
+    rec_off: np.ndarray
+    nrec: np.ndarray
+    out_f: np.ndarray
+    f_off: np.ndarray
+    out_ke: np.ndarray
+    out_pe: np.ndarray
+    out_ed: np.ndarray
+    out_v: np.ndarray
+    v_off: np.ndarray
+    v_rows: np.ndarray
+    nb: np.ndarray
+    record_v: np.ndarray
+    fmax: np.ndarray
+    fmax_off: np.ndarray
+    peak: np.ndarray
+    acc: np.ndarray
+
+    @property
+    def n_members(self) -> int:
+        return self.n_slots.size
+
+
+_NAMES = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
+
+
+def _outputs(interval: float, n_samples: int, n_slots: np.ndarray, nrec: np.ndarray, rec: np.ndarray,
+             nb: np.ndarray, record_v: np.ndarray, n_contacts: np.ndarray, **members) -> _Packed:
+    """Offsets and zeroed buffers of a batch (member m owns P + 1 slots rounded up to cache lines)."""
+    nmem = n_slots.size
     # P + 1 slots rounded up to whole 64-byte cache lines, on an aligned buffer: two threads
     # never write to one cache line (false sharing would cost a line transfer per step).
-    sizes = np.array([-(-(w.n_slots + 1) // _LINE) * _LINE for w in packs], dtype=np.int64)
+    sizes = -(-(n_slots + 1) // _LINE) * _LINE
     off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    n_slots = np.array([w.n_slots for w in packs], dtype=np.int64)
     total = int(off[-1])
-    names = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
-    flat = {k: _aligned_zeros(total) for k in names + ("u", "v", "g", "a")}
+    flat = {k: _aligned_zeros(total) for k in _NAMES + ("u", "v", "g", "a")}
+    rec_off = np.concatenate([[0], np.cumsum(nrec)]).astype(np.int64)
+    f_off = np.concatenate([[0], np.cumsum(nrec * n_samples)]).astype(np.int64)
+    v_rows = np.where(record_v, n_samples, 1).astype(np.int64)
+    v_off = np.concatenate([[0], np.cumsum(v_rows * nb)]).astype(np.int64)
+    fmax_off = np.concatenate([[0], np.cumsum(n_contacts)]).astype(np.int64)
+    return _Packed(interval=interval, n_samples=n_samples, flat=flat, off=off, n_slots=n_slots, rec=rec,
+                   rec_off=rec_off, nrec=nrec, out_f=np.empty(int(f_off[-1])), f_off=f_off,
+                   out_ke=np.empty((nmem, n_samples)), out_pe=np.empty((nmem, n_samples)),
+                   out_ed=np.empty((nmem, n_samples)), out_v=np.empty(int(v_off[-1])), v_off=v_off, v_rows=v_rows,
+                   nb=nb, record_v=record_v, fmax=np.zeros(int(fmax_off[-1])), fmax_off=fmax_off,
+                   # Written every step: one cache line (8 doubles) per member (see ``sizes``).
+                   peak=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE),
+                   acc=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE), **members)
+
+
+def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Packed:
+    """A batch of arbitrary models, member by member (see :func:`_pack_ensemble` for the fast path)."""
+    packs = [pack(mb.system) for mb in members]
+    pk = _outputs(interval, n_samples, n_slots=np.array([w.n_slots for w in packs], dtype=np.int64),
+                  nrec=np.array([mb.rec.size for mb in members], dtype=np.int64),
+                  rec=np.concatenate([mb.rec for mb in members]).astype(np.int64),
+                  nb=np.array([mb.system.n_beads + 1 for mb in members], dtype=np.int64),
+                  record_v=np.array([mb.record_v for mb in members], dtype=np.bool_),
+                  n_contacts=np.array([mb.system.n_contacts for mb in members], dtype=np.int64),
+                  law=np.array([mb.system.law for mb in members], dtype=np.int64),
+                  general=np.array([mb.system.general for mb in members], dtype=np.bool_),
+                  wall_slot=np.array([w.wall_slot for w in packs], dtype=np.int64),
+                  stride=np.array([mb.plan.stride for mb in members], dtype=np.int64),
+                  n_sub=np.array([mb.plan.n_sub for mb in members], dtype=np.int64),
+                  n_eval=np.array([mb.plan.n_eval for mb in members], dtype=np.int64),
+                  c_steps=np.array([mb.plan.c_steps for mb in members], dtype=np.float64),
+                  relax=np.array([mb.plan.relax for mb in members], dtype=np.int64),
+                  plan_dt=np.array([mb.plan.dt for mb in members], dtype=np.float64))
+    flat = pk.flat
     for m, w in enumerate(packs):
-        s, p = off[m], w.n_slots
-        for k in names:
+        s, p = pk.off[m], w.n_slots
+        for k in _NAMES:
             flat[k][s:s + p] = getattr(w, k)
         flat["u"][s:s + p + 1] = w.u
         flat["v"][s:s + p + 1] = w.v
-
-    nrec = np.array([mb.rec.size for mb in members], dtype=np.int64)
-    rec_off = np.concatenate([[0], np.cumsum(nrec)]).astype(np.int64)
-    rec = np.concatenate([mb.rec for mb in members]).astype(np.int64) if rec_off[-1] else np.zeros(0, np.int64)
-    f_off = np.concatenate([[0], np.cumsum(nrec * n_samples)]).astype(np.int64)
-    out_f = np.empty(int(f_off[-1]))
-    out_ke = np.empty((nmem, n_samples))
-    out_pe = np.empty((nmem, n_samples))
-    out_ed = np.empty((nmem, n_samples))
-    nb = np.array([mb.system.n_beads + 1 for mb in members], dtype=np.int64)
-    v_rows = np.array([n_samples if mb.record_v else 1 for mb in members], dtype=np.int64)
-    v_off = np.concatenate([[0], np.cumsum(v_rows * nb)]).astype(np.int64)
-    out_v = np.empty(int(v_off[-1]))
-    n_contacts = np.array([mb.system.n_contacts for mb in members], dtype=np.int64)
-    fmax_off = np.concatenate([[0], np.cumsum(n_contacts)]).astype(np.int64)
-    fmax = np.zeros(int(fmax_off[-1]))
-    # Written every step: one cache line (8 doubles) per member (see ``sizes``).
-    peak = _aligned_zeros(nmem * _LINE).reshape(nmem, _LINE)
-    acc = _aligned_zeros(nmem * _LINE).reshape(nmem, _LINE)
-
     # ---- initial state: the very function run_verlet uses, on per-member views
-    views = []
     for m, (mb, w) in enumerate(zip(members, packs)):
-        s, p = off[m], w.n_slots
+        s, p = pk.off[m], w.n_slots
         u, v, g, a = (flat["u"][s:s + p + 1], flat["v"][s:s + p + 1], flat["g"][s:s + p + 1], flat["a"][s:s + p])
-        f = out_f[f_off[m]:f_off[m + 1]].reshape(n_samples, nrec[m])
-        vv = out_v[v_off[m]:v_off[m + 1]].reshape(v_rows[m], nb[m])
-        initialise(mb.system, w, u, v, g, a, mb.rec, f, out_ke[m], out_pe[m], out_ed[m], vv, mb.record_v,
-                   fmax[fmax_off[m]:fmax_off[m + 1]], peak[m], acc[m])
-        views.append((f, vv))
+        initialise(mb.system, w, u, v, g, a, mb.rec, *_member_outputs(pk, m),
+                   pk.out_ke[m], pk.out_pe[m], pk.out_ed[m], *_member_v(pk, m), mb.record_v,
+                   pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], pk.peak[m], pk.acc[m])
+    return pk
 
-    law = np.array([mb.system.law for mb in members], dtype=np.int64)
-    general = np.array([mb.system.general for mb in members], dtype=np.bool_)
-    wall_slot = np.array([w.wall_slot for w in packs], dtype=np.int64)
-    stride = np.array([mb.plan.stride for mb in members], dtype=np.int64)
-    n_sub = np.array([mb.plan.n_sub for mb in members], dtype=np.int64)
-    n_eval = np.array([mb.plan.n_eval for mb in members], dtype=np.int64)
-    c_steps = np.array([mb.plan.c_steps for mb in members], dtype=np.float64)
-    relax = np.array([mb.plan.relax for mb in members], dtype=np.int64)
-    steps_per_sample = np.array([interval / mb.plan.dt for mb in members])
-    record_v = np.array([mb.record_v for mb in members], dtype=np.bool_)
-    status = np.zeros(nmem, dtype=np.int64)
+
+def _member_outputs(pk: _Packed, m: int) -> tuple[np.ndarray]:
+    return (pk.out_f[pk.f_off[m]:pk.f_off[m + 1]].reshape(pk.n_samples, pk.nrec[m]),)
+
+
+def _member_v(pk: _Packed, m: int) -> tuple[np.ndarray]:
+    return (pk.out_v[pk.v_off[m]:pk.v_off[m + 1]].reshape(pk.v_rows[m], pk.nb[m]),)
+
+
+def _engine(pk: _Packed, progress, n_threads) -> None:
+    """Run the packed batch to the end on the CPU (all cores), in compiled calls of ~CHUNK_SLOT_STEPS."""
+    interval, n_samples = pk.interval, pk.n_samples
+    steps_per_sample = interval / pk.plan_dt
+    status = np.zeros(pk.n_members, dtype=np.int64)
     # Cost of one sample per member (the general force loop is roughly twice the elastic one):
     # the most expensive members go first so that the threads finish together.
-    cost = steps_per_sample * (n_slots + 1) * np.where(general, 2, 1)
+    cost = steps_per_sample * (pk.n_slots + 1) * np.where(pk.general, 2, 1)
     order = np.argsort(-cost, kind="stable").astype(np.int64)
     samples_per_call = max(1, int(CHUNK_SLOT_STEPS * max(1, n_threads or numba.get_num_threads()) // cost.sum()))
-
+    flat = pk.flat
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_call)
@@ -272,11 +318,13 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
                 # Chunk size 1: members are handed out one at a time (dynamic scheduling), since
                 # their costs differ; the default static split would wait for the slowest block.
                 with numba.parallel_chunksize(1):
-                    _batch_kernel(order, off, n_slots, flat["u"], flat["v"], flat["a"], flat["g"], flat["mass"],
+                    _batch_kernel(order, pk.off, pk.n_slots, flat["u"], flat["v"], flat["a"], flat["g"], flat["mass"],
                                   flat["inv_mass"], flat["kappa"], flat["damping"], flat["d0"], flat["de"],
-                                  flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], law, general, wall_slot,
-                                  interval, stride, n_sub, n_eval, c_steps, relax, k, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_v, v_off, v_rows,
-                                  nb, record_v, fmax, fmax_off, peak, acc, status)
+                                  flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], pk.law, pk.general,
+                                  pk.wall_slot, interval, pk.stride, pk.n_sub, pk.n_eval, pk.c_steps, pk.relax, k,
+                                  k_stop, pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed,
+                                  pk.out_v, pk.v_off, pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak,
+                                  pk.acc, status)
             finally:
                 numba.set_num_threads(previous)
         bad = np.flatnonzero(status)
@@ -288,24 +336,45 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
         if progress is not None:
             progress(k - 1, n_samples - 1)
 
+
+def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads
+         ) -> tuple[list[RawRun], list, dict[str, np.ndarray]]:
+    """:func:`run_batch` on checked inputs. Also returns every member's ``Model.system()`` and the
+    output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
+    energies always, ``recorded_force`` (member, time, recorded contact) when every member
+    records the same contacts, ``velocity`` when every member records velocities of as many bodies."""
+    _check_threads(n_threads)
+    interval = plist[0].sample_interval
+    nmem = len(models)
+    n_samples = int(math.floor(duration / interval + 1e-9)) + 1
+
+    members: list[_Member] = []
+    for model, p, dti in zip(models, plist, dts):
+        system = model.system()
+        plan = step_plan(system, interval, dti)
+        rec = p.recorded_contacts(model.chain.n_beads, model.wall.present)
+        members.append(_Member(system, rec, plan, bool(p.velocities)))
+    pk = _pack_models(members, interval, n_samples)
+    _engine(pk, progress, n_threads)
+
     time = np.arange(n_samples) * interval
     runs = []
     for m, mb in enumerate(members):
-        f, vv = views[m]
-        fpk, t_pk = refine_peak(peak[m])
-        dt_min, dt_max = _dt_used(mb.plan, acc[m], interval)
-        runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=out_ke[m], potential_energy=out_pe[m],
-                           dissipated_energy=out_ed[m], velocity=vv if mb.record_v else None,
-                           max_force=fmax[fmax_off[m]:fmax_off[m + 1]], peak_wall_force=fpk, peak_wall_time=t_pk,
-                           dt=dt_min, integrator="verlet", n_steps=int(acc[m, 2]), contacts=mb.rec, dt_max=dt_max,
-                           adaptive=mb.plan.adaptive))
+        (f,), (vv,) = _member_outputs(pk, m), _member_v(pk, m)
+        fpk, t_pk = refine_peak(pk.peak[m])
+        dt_min, dt_max = _dt_used(mb.plan, pk.acc[m], interval)
+        runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=pk.out_ke[m], potential_energy=pk.out_pe[m],
+                           dissipated_energy=pk.out_ed[m], velocity=vv if mb.record_v else None,
+                           max_force=pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], peak_wall_force=fpk,
+                           peak_wall_time=t_pk, dt=dt_min, integrator="verlet", n_steps=int(pk.acc[m, 2]),
+                           contacts=mb.rec, dt_max=dt_max, adaptive=mb.plan.adaptive))
     # The output buffers seen as (member, time, ...) where every member has the same layout: row m
     # is exactly what RawRun m holds (its arrays are views of these rows).
-    stacked = {"kinetic_energy": out_ke, "potential_energy": out_pe, "dissipated_energy": out_ed}
+    stacked = {"kinetic_energy": pk.out_ke, "potential_energy": pk.out_pe, "dissipated_energy": pk.out_ed}
     if all(np.array_equal(mb.rec, members[0].rec) for mb in members):
-        stacked["recorded_force"] = out_f.reshape(nmem, n_samples, nrec[0])
-    if record_v.all() and np.all(nb == nb[0]):
-        stacked["velocity"] = out_v.reshape(nmem, n_samples, nb[0])
+        stacked["recorded_force"] = pk.out_f.reshape(nmem, n_samples, pk.nrec[0])
+    if pk.record_v.all() and np.all(pk.nb == pk.nb[0]):
+        stacked["velocity"] = pk.out_v.reshape(nmem, n_samples, pk.nb[0])
     return runs, [mb.system for mb in members], stacked
 
 
