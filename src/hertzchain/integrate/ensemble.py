@@ -409,13 +409,16 @@ def _scalar_map(fn, x: np.ndarray) -> np.ndarray:
     return np.array([fn(float(v)) for v in vals], dtype=float)[inv.reshape(x.shape)]
 
 
-def systems(ens: Ensemble) -> Systems:
+def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
     """The engine's arrays of every member: :meth:`Model.system` vectorised over the members.
 
     Parameters
     ----------
     ens:
         The members.
+    start, stop:
+        The range of members to compute (default: all). The batched engine computes blocks of
+        a few thousand members, whose arrays stay in the caches.
 
     Returns
     -------
@@ -425,19 +428,25 @@ def systems(ens: Ensemble) -> Systems:
         of paper eq. 1, masses rho pi phi^3 / 6, the precompression overlaps, the offsets'
         geometry), plus ``max_overlap`` and ``max_frequency`` (the step's bounds).
     """
-    m, n = ens.diameters.shape
+    sel = slice(start, stop)
+    d = ens.diameters[sel]
+    m, n = d.shape
+    bead_material, striker_material = ens.bead_material[sel], ens.striker_material[sel]
+    wall_material, striker_diameter = ens.wall_material[sel], ens.striker_diameter[sel]
+    striker_velocity, precompression = ens.striker_velocity[sel], ens.precompression[sel]
+    law_parameter = ens.law_parameter[sel]
     mats = ens.materials
     rho_t = np.array([x.density for x in mats])
     theta_t = np.array([x.theta for x in mats])
     sigma_t = np.array([np.nan if x.yield_stress is None else x.yield_stress for x in mats])
-    d = ens.diameters
 
     # masses: the striker's with scalar arithmetic (Striker.mass), the beads' as Chain.masses
-    sm = np.array([rho_t[k] for k in ens.striker_material])
-    pairs = np.stack([sm, ens.striker_diameter], axis=1)
-    uniq, inv = np.unique(pairs, axis=0, return_inverse=True)
-    striker_mass = np.array([rho * math.pi * dia**3 / 6.0 for rho, dia in uniq.tolist()])[inv.reshape(-1)]
-    bead_mass = np.ascontiguousarray(rho_t[ens.bead_material]) * math.pi * np.ascontiguousarray(d) ** 3 / 6.0
+    striker_mass = np.empty(m)
+    for k in np.unique(striker_material).tolist():
+        rows = striker_material == k
+        rho = float(rho_t[k])
+        striker_mass[rows] = _scalar_map(lambda dia: rho * math.pi * dia**3 / 6.0, striker_diameter[rows])
+    bead_mass = np.ascontiguousarray(rho_t[bead_material]) * math.pi * np.ascontiguousarray(d) ** 3 / 6.0
     mass = np.empty((m, n + 2))
     mass[:, 0] = striker_mass
     mass[:, 1:n + 1] = bead_mass
@@ -446,14 +455,14 @@ def systems(ens: Ensemble) -> Systems:
     inv_mass[:, :n + 1] = 1.0 / mass[:, :n + 1]
 
     r = np.empty((m, n + 1))
-    r[:, 0] = ens.striker_diameter / 2
+    r[:, 0] = striker_diameter / 2
     r[:, 1:] = d / 2.0
     theta = np.empty((m, n + 1))
-    theta[:, 0] = theta_t[ens.striker_material]
-    theta[:, 1:] = theta_t[ens.bead_material]
+    theta[:, 0] = theta_t[striker_material]
+    theta[:, 1:] = theta_t[bead_material]
     sigma = np.empty((m, n + 1))
-    sigma[:, 0] = sigma_t[ens.striker_material]
-    sigma[:, 1:] = sigma_t[ens.bead_material]
+    sigma[:, 0] = sigma_t[striker_material]
+    sigma[:, 1:] = sigma_t[bead_material]
     nk = n + 1 if ens.has_wall else n
     inv_r = np.empty((m, nk))
     t_sum = np.empty((m, nk))
@@ -463,8 +472,8 @@ def systems(ens: Ensemble) -> Systems:
     s_min[:, :n] = np.fmin(sigma[:, :-1], sigma[:, 1:])
     if ens.has_wall:
         inv_r[:, n] = 1.0 / r[:, -1]
-        t_sum[:, n] = theta[:, -1] + theta_t[ens.wall_material]
-        s_min[:, n] = np.fmin(sigma[:, -1], sigma_t[ens.wall_material])
+        t_sum[:, n] = theta[:, -1] + theta_t[wall_material]
+        s_min[:, n] = np.fmin(sigma[:, -1], sigma_t[wall_material])
     kappa = np.zeros((m, n + 1))
     fy = np.full((m, n + 1), np.inf)
     kappa[:, :nk] = 1.0 / (t_sum * np.sqrt(inv_r))
@@ -472,19 +481,19 @@ def systems(ens: Ensemble) -> Systems:
     with np.errstate(invalid="ignore"):
         fy[:, :nk] = np.where(np.isnan(s_min), np.inf, (math.pi * s_min) ** 3 * c**2)
 
-    damping = np.where(kappa > 0, ens.law_parameter[:, None], 0.0)
+    damping = np.where(kappa > 0, law_parameter[:, None], 0.0)
     d0 = np.zeros((m, n + 1))
     fext = np.zeros((m, n + 2))
-    pushed = np.flatnonzero(ens.precompression > 0)
+    pushed = np.flatnonzero(precompression > 0)
     if pushed.size:
-        f0 = ens.precompression[pushed]
+        f0 = precompression[pushed]
         # row by row, as Model.system() does (a contiguous (N,) array to the power 2/3)
         for row, i in zip(f0[:, None] / np.ascontiguousarray(kappa[pushed, 1:]), pushed):
             d0[i, 1:] = np.ascontiguousarray(row) ** (2.0 / 3.0)
         fext[pushed, 1] = f0
 
     e = np.zeros((m, n + 2))
-    e[:, 1:n + 1] = ens.offsets
+    e[:, 1:n + 1] = ens.offsets[sel]
     de = np.diff(e, axis=1)
     de[:, n] = 0.0
     r2 = np.zeros((m, n + 2))
@@ -492,10 +501,10 @@ def systems(ens: Ensemble) -> Systems:
     rsum = r2[:, :-1] + r2[:, 1:]
     dx0 = np.sqrt(np.maximum(rsum**2 - de**2, 0.0))
     v0 = np.zeros((m, n + 2))
-    v0[:, 0] = ens.striker_velocity
+    v0[:, 0] = striker_velocity
 
     # System.max_overlap and System.max_frequency, per member
-    energy = 0.5 * mass[:, 0] * _scalar_map(lambda v: v**2, ens.striker_velocity)
+    energy = 0.5 * mass[:, 0] * _scalar_map(lambda v: v**2, striker_velocity)
     if pushed.size:
         energy = energy + np.sum(0.4 * kappa * d0**2.5, axis=1)
     else:

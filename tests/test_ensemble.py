@@ -1,0 +1,133 @@
+"""Vectorised set-up (Ensemble): members built with array code give exactly the results of
+simulate() on each member alone, and of the member-by-member batch (stacked Dataset identical)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from conftest import assert_same_run
+from test_batch_stacking import assert_identical
+
+from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
+from hertzchain.errors import ConfigError, ElasticLimitWarning
+from hertzchain.integrate.batch import simulate_batch, simulate_many, stack_results
+from hertzchain.integrate.ensemble import Ensemble, same_layout, systems
+
+DURATION = 1.2e-4  # s
+INTERVAL = 1e-6    # s
+M = 4
+
+
+def _perturbed(base: Model, seed: int, offsets: bool = False) -> dict:
+    """Per-member arrays: tolerance-perturbed diameters (and offsets), several impact velocities."""
+    rng = np.random.default_rng(seed)
+    n = base.chain.n_beads
+    out = {"diameters": base.chain.diameters * (1 + 2e-3 * rng.standard_normal((M, n))),
+           "striker_velocity": rng.uniform(0.1, 0.4, M)}
+    if offsets:
+        out["offsets"] = 0.2e-3 * rng.standard_normal((M, n))
+    return out
+
+
+def ensembles() -> dict[str, Ensemble]:
+    """One ensemble per feature the engine supports (each shares a layout across members)."""
+    taper = Chain.uniform(4, 12e-3).append_taper(4, 0.06)
+    mixed = Chain.from_diameters([10e-3, 9e-3, 11e-3, 10e-3], ("AISI52100", "glass", "brass", "AISI52100"))
+    return {
+        "elastic": Ensemble(Model(taper, Striker(8e-3, 0.3)), **_perturbed(Model(taper), 1)),
+        "precompression": Ensemble(Model(Chain.uniform(5, 10e-3), Striker(8e-3, 0.2), precompression=2.0),
+                                   precompression=[0.5, 1.0, 2.0, 4.0], striker_velocity=[0.1, 0.2, 0.3, 0.2]),
+        "misaligned": Ensemble(Model(Chain.uniform(6, 10e-3), Striker(8e-3, 0.1)),
+                               **_perturbed(Model(Chain.uniform(6, 10e-3)), 2, offsets=True)),
+        "viscoelastic": Ensemble(Model(Chain.uniform(5, 8e-3, "brass"), Striker(8e-3, 0.15, "brass"),
+                                       law=Viscoelastic(A=1e-6)), law_parameter=[0.0, 1e-7, 1e-6, 3e-6]),
+        "dashpot_free_end": Ensemble(Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2), wall=Wall("none"),
+                                           law=Dashpot(gamma=5.0)), law_parameter=[1.0, 2.0, 5.0, 10.0],
+                                     striker_diameter=[6e-3, 8e-3, 8e-3, 10e-3]),
+        "materials_wall": Ensemble(Model(mixed, Striker(8e-3, 0.1, "stainless_steel"), wall=Wall("flat", "brass")),
+                                   **_perturbed(Model(mixed), 3)),
+    }
+
+
+@pytest.fixture(scope="module", params=list(ensembles().items()), ids=lambda kv: kv[0])
+def case(request):
+    return request.param[1]
+
+
+def test_systems_rows_are_model_system_bit_for_bit(case):
+    sy = systems(case)
+    for i in range(case.n_members):
+        ref = case.model(i).system()
+        for name in ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "v0", "yield_force"):
+            assert np.array_equal(getattr(sy, name)[i], getattr(ref, name)), name
+        assert np.array_equal(sy.max_overlap[i], ref.max_overlap())
+        assert sy.max_frequency[i] == ref.max_frequency()
+        assert bool(sy.general[i]) == ref.general
+
+
+def test_ensemble_batch_equals_single_runs_and_member_by_member_stack(case):
+    probes = Probes(INTERVAL, sensors=(2,), contacts=(0, 1)) if case.has_wall else Probes(INTERVAL, velocities=True)
+    models = [case.model(i) for i in range(case.n_members)]
+    dts = [None, None, 2e-9, None]  # one member on a fixed user step
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ElasticLimitWarning)
+        fast = simulate_batch(case, DURATION, probes, dt=dts)
+        slow = stack_results(simulate_many(models, DURATION, probes, dt=dts))
+        singles = [simulate(m, DURATION, probes, dt=dt) for m, dt in zip(models, dts)]
+        alone = [simulate_many([m], DURATION, probes, dt=dt)[0] for m, dt in zip(models, dts)]
+    assert_identical(fast, slow)
+    # the members really differ, and the pulse got somewhere
+    assert len(set(fast["dt"].values.tolist())) > 1
+    assert float(np.nanmax(fast["contact_force"].values)) > 1.0
+    for i, single in enumerate(singles):
+        assert_same_run(single, alone[i])
+        assert np.array_equal(fast["kinetic_energy"].values[i], single["kinetic_energy"].values)
+        assert fast["n_steps"].values[i] == single.attrs["n_steps"]
+
+
+def test_list_of_models_of_one_layout_takes_the_array_path_with_same_result():
+    ens = ensembles()["elastic"]
+    models = [ens.model(i) for i in range(M)]
+    assert same_layout(models) and not same_layout(models + [Model(Chain.uniform(3, 10e-3))])
+    from_list = Ensemble.from_models(models)
+    for name in ("diameters", "offsets", "striker_velocity", "striker_diameter", "precompression"):
+        assert np.array_equal(getattr(from_list, name), getattr(ens, name)), name
+    assert from_list.describe() == ens.describe()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ElasticLimitWarning)
+        a = simulate_batch(models, DURATION, [Probes(INTERVAL)] * M)
+        b = simulate_batch(ens, DURATION, Probes(INTERVAL))
+    a.attrs.pop("created_utc"), b.attrs.pop("created_utc")
+    assert a.identical(b)
+
+
+def test_elastic_limit_warnings_name_the_member():
+    base = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.05))
+    with pytest.warns(ElasticLimitWarning, match="member 1"):
+        ds = simulate_batch(Ensemble(base, striker_velocity=[0.05, 3.0]), 4e-5, Probes(INTERVAL))
+    assert ds["elastic_limit_exceeded"].values.tolist() == [0, 1]
+
+
+def test_bad_member_values_name_the_field_and_member():
+    base = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.1))
+    cases = [
+        (dict(diameters=[[10e-3, 10e-3, 10e-3], [10e-3, -1.0, 10e-3]]), "chain.diameters[1]", "member 1"),
+        (dict(striker_velocity=[0.1, 0.0, 0.2]), "striker.velocity", "member 1"),
+        (dict(offsets=[[0, 0, 0], [0, 6e-3, 0]]), "chain.offsets", "member 1"),
+        (dict(precompression=[1.0, -1.0]), "chain.precompression", "member 1"),
+        (dict(law_parameter=[1.0, 2.0]), "contact.law", "elastic"),
+        (dict(diameters=np.full((2, 4), 1e-2)), "chain.diameters", "shape"),
+        (dict(striker_velocity=[0.1, 0.2], precompression=[1.0, 2.0, 3.0]), "n_members", "disagree"),
+    ]
+    for kwargs, field, text in cases:
+        with pytest.raises(ConfigError) as e:
+            Ensemble(base, **kwargs)
+        assert e.value.field == field and text in str(e.value), (kwargs, e.value)
+    with pytest.raises(ConfigError) as e:
+        simulate_batch(Ensemble(base, striker_velocity=[0.1, 0.2]), DURATION, dt=[1e-3, None])
+    assert e.value.field == "run.dt" and "member 0" in str(e.value)
+    with pytest.raises(ConfigError) as e:
+        simulate_batch(Ensemble(base, n_members=2), DURATION, Probes(INTERVAL, sensors=(5,)))
+    assert e.value.field == "probes.sensors[0]"
