@@ -131,3 +131,55 @@ def test_bad_member_values_name_the_field_and_member():
     with pytest.raises(ConfigError) as e:
         simulate_batch(Ensemble(base, n_members=2), DURATION, Probes(INTERVAL, sensors=(5,)))
     assert e.value.field == "probes.sensors[0]"
+
+
+def _tolerance_sweep(n: int = 6, **tol) -> dict:
+    return {"base": {"chain": {"uniform": {"n": 5, "diameter_mm": 10.0}}, "striker": {"velocity": 0.2},
+                     "run": {"duration": 1e-4, "sample_interval": 1e-6}},
+            "sweep": {"mode": "grid", "chunk_size": 4, "parameters": {"striker.velocity": [0.1, 0.2] * (n // 2)},
+                      "tolerances": {"diameter_rel": 1e-3, "offset_mm": 0.05, "seed": 4, **tol}}}
+
+
+def test_sweep_members_as_one_ensemble_are_the_models_number_for_number():
+    from hertzchain.sweep import _member_ensemble, parse_sweep
+
+    cfg = parse_sweep(_tolerance_sweep())
+    ens, dts = _member_ensemble(cfg)
+    models = cfg.models()
+    assert ens is not None and len(ens) == len(models) == 6 and dts == [None] * 6
+    assert ens.describe() == [__import__("json").dumps(m.describe()) for m in models]
+    sy = systems(ens)
+    for i, m in enumerate(models):
+        ref = m.system()
+        for name in ("mass", "kappa", "de", "dx0", "rsum", "v0", "yield_force"):
+            assert np.array_equal(getattr(sy, name)[i], getattr(ref, name)), (i, name)
+    # members of different lengths cannot share arrays: the sweep then builds one Model per member
+    mixed = _tolerance_sweep()
+    mixed["sweep"]["parameters"] = {"chain.uniform.n": [3, 4]}
+    assert _member_ensemble(parse_sweep(mixed))[0] is None
+
+
+def test_sweep_tolerances_out_of_range_name_the_field():
+    from hertzchain.sweep import run_sweep
+
+    with pytest.raises(ConfigError) as e:  # offsets of 6 mm (1 sigma) on 10 mm beads: not head-on contacts
+        run_sweep(_tolerance_sweep(offset_mm=6.0), "/nonexistent/never-written")
+    assert e.value.field == "sweep.tolerances" and "member" in str(e.value)
+
+
+def test_cli_device_option(tmp_path, capsys):
+    """--device is accepted; 'cuda' without a GPU is a user error naming the option (exit 2)."""
+    from hertzchain.cli import main
+    from hertzchain.integrate.cuda import gpu_usable
+
+    sweep = tmp_path / "s.toml"
+    sweep.write_text('[base]\nchain = { uniform = { n = 3, diameter_mm = 10.0 } }\n'
+                     'run = { duration = 1e-4, sample_interval = 1e-6 }\n'
+                     '[sweep]\nparameters = { "striker.velocity" = [0.1, 0.2] }\n')
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "cpu"), "--device", "cpu", "-q"]) in (0, None)
+    assert (tmp_path / "cpu" / "metrics.csv").exists()
+    if not gpu_usable():
+        capsys.readouterr()
+        assert main(["sweep", str(sweep), "--out", str(tmp_path / "gpu"), "--device", "cuda", "-q"]) == 2
+        err = capsys.readouterr().err
+        assert "--device" in err and "Traceback" not in err

@@ -189,6 +189,70 @@ class Ensemble:
         object.__setattr__(self, "_models", list(models))
         return self
 
+    _ROWS = ("bead_material", "striker_material", "wall_material", "diameters", "offsets", "striker_diameter",
+             "striker_velocity", "law_parameter", "precompression")
+
+    def _copy(self, rows=None, **arrays) -> "Ensemble":
+        """A new ensemble: members ``rows`` (all when None) of this one, ``arrays`` replaced."""
+        new = type(self).__new__(type(self))
+        fields = dict(vars(self))
+        models = fields.pop("_models", None)
+        given = fields.pop("wall_given", None)
+        if rows is not None:
+            fields.update({k: np.ascontiguousarray(fields[k][rows]) for k in self._ROWS})
+            given = None if given is None else given[rows]
+            models = None if models is None else [models[i] for i in np.asarray(rows).tolist()]
+        m = fields["diameters"].shape[0]
+        names = {"diameters": "chain.diameters", "offsets": "chain.offsets"}
+        for k, x in arrays.items():
+            fields[k] = _per_bead(x, fields[k][0], m, names[k]) if k in names else \
+                _per_member(x, m, k, 0.0)
+        new._set(**fields)
+        if given is not None:
+            new._set(wall_given=given)
+        if models is not None and not arrays:
+            object.__setattr__(new, "_models", models)
+        if arrays:
+            new._validate()
+        return new
+
+    def subset(self, rows) -> "Ensemble":
+        """The ensemble of some members.
+
+        Parameters
+        ----------
+        rows:
+            Member indices (or a slice or boolean mask) to keep, in that order.
+
+        Returns
+        -------
+        Ensemble
+            Member i is member ``rows[i]`` of this one.
+        """
+        if isinstance(rows, slice):
+            rows = np.arange(self.n_members)[rows]
+        return self._copy(np.asarray(rows))
+
+    def replace(self, **arrays) -> "Ensemble":
+        """The same members with some per-member arrays replaced (checked as in the constructor).
+
+        Parameters
+        ----------
+        **arrays:
+            Any of ``diameters``, ``offsets`` [m] (M, N); ``striker_velocity`` [m/s],
+            ``striker_diameter`` [m], ``law_parameter``, ``precompression`` [N] (M,).
+
+        Returns
+        -------
+        Ensemble
+            A new ensemble (this one is unchanged).
+        """
+        unknown = set(arrays) - {"diameters", "offsets", "striker_velocity", "striker_diameter", "law_parameter",
+                                 "precompression"}
+        if unknown:
+            raise ConfigError(sorted(unknown)[0], "is not a per-member array of an Ensemble")
+        return self._copy(None, **arrays)
+
     # ------------------------------------------------------------------ properties
     @property
     def n_members(self) -> int:
@@ -209,10 +273,10 @@ class Ensemble:
         if bad.any():
             i, j = _first_bad(bad)
             raise ConfigError(f"chain.diameters[{j}]", f"member {i}: diameter of bead {j + 1} must be a positive "
-                              f"finite number, got {d[i, j]!r}")
+                              f"finite number, got {float(d[i, j])!r}")
         if not np.all(np.isfinite(e)):
             i, j = _first_bad(~np.isfinite(e))
-            raise ConfigError("chain.offsets", f"member {i}: offsets must be finite (bead {j + 1}: {e[i, j]!r})")
+            raise ConfigError("chain.offsets", f"member {i}: offsets must be finite (bead {j + 1}: {float(e[i, j])!r})")
         radii = d / 2
         de = np.abs(np.diff(e, axis=1))
         far = de >= 0.5 * (radii[:, :-1] + radii[:, 1:])
@@ -225,17 +289,17 @@ class Ensemble:
             bad = ~np.isfinite(x) | (x <= 0)
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
-                raise ConfigError(field, f"member {i}: the striker {name} must be a positive number, got {x[i]!r}")
+                raise ConfigError(field, f"member {i}: the striker {name} must be a positive number, got {float(x[i])!r}")
         p = self.law_parameter
         bad = ~np.isfinite(p) | (p < 0)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise ConfigError(_LAW_FIELD[self.law_name], f"member {i}: must be a finite number >= 0, got {p[i]!r}")
+            raise ConfigError(_LAW_FIELD[self.law_name], f"member {i}: must be a finite number >= 0, got {float(p[i])!r}")
         f0 = self.precompression
         bad = ~np.isfinite(f0) | (f0 < 0)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise ConfigError("chain.precompression", f"member {i}: must be a force >= 0 in N, got {f0[i]!r}")
+            raise ConfigError("chain.precompression", f"member {i}: must be a force >= 0 in N, got {float(f0[i])!r}")
         pushed = f0 > 0
         if pushed.any() and not self.has_wall:
             raise ConfigError("chain.precompression", "a static precompression needs a wall to push against")
