@@ -25,7 +25,7 @@ _EXPORTS = {
     "Probes": "probes", "simulate": "simulation", "save": "result", "load": "result",
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
     # many chains
-    "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch",
+    "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch", "Ensemble": "integrate.ensemble",
     "run_sweep": "sweep", "load_sweep": "sweep",
     # dissipation
     "calibrate_law": "dissipation", "measure_eps": "dissipation",

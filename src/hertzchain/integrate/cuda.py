@@ -24,6 +24,7 @@ force (1.5-2x); one thread per chain reaches ~5e11 bead-steps/s from 1e5 chains.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Callable
 
@@ -78,13 +79,15 @@ def _simulated() -> bool:
     return bool(config.ENABLE_CUDASIM)
 
 
+@functools.lru_cache(maxsize=1)
 def gpu_usable() -> bool:
     """True when a real CUDA GPU can run the kernels (Numba's simulator does not count).
 
     Returns
     -------
     bool
-        Whether ``device="auto"`` may choose the GPU.
+        Whether ``device="auto"`` may choose the GPU (asked once per process: importing
+        numba.cuda and querying the driver takes ~1 s).
     """
     cuda = _cuda()
     if cuda is None or _simulated():

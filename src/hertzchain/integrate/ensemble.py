@@ -344,33 +344,49 @@ class Ensemble:
             ``json.dumps(self.model(i).describe())`` for every member i, built from the arrays.
         """
         models = getattr(self, "_models", None)
-        if models is not None:
+        if models is not None and not all(
+                type(m.striker.diameter) is float and type(m.striker.velocity) is float  # noqa: E721
+                and type(m.precompression) is float and type(m.law.parameter) is float for m in models):  # noqa: E721
+            # a member holds an int where the arrays hold floats ("1" is not "1.0" in JSON): its own text
             return [json.dumps(m.describe()) for m in models]
-        names = [m.name for m in self.materials]
+        names = [json.dumps(m.name) for m in self.materials]
         law_key = {"viscoelastic": "A", "dashpot": "gamma"}.get(self.law_name)
+        # json.dumps writes a finite float as float.__repr__ does: the lists are joined directly
+        # (~4x faster than json.dumps of the member's dict, the same text).
         d_mm = (self.diameters * 1e3).tolist()
         e_mm = (self.offsets * 1e3).tolist()
+        # rows of +0.0 offsets (every bit zero; -0.0 prints differently) share one text
+        aligned = ~np.any(np.ascontiguousarray(self.offsets).view(np.int64) != 0, axis=1)
+        zeros = "[" + ", ".join(["0.0"] * self.n_beads) + "]"
         sd_mm = (self.striker_diameter * 1e3).tolist()
+        vel = self.striker_velocity.tolist()
+        law_p = self.law_parameter.tolist()
+        pre = self.precompression.tolist()
         given = self._wall_given()
+        wall_type = '"flat"' if self.has_wall else '"none"'
+        mats_text: dict[bytes, str] = {}
         out = []
+        rep = float.__repr__
         for i in range(self.n_members):
             bm = self.bead_material[i]
-            first = bm[0]
-            mats = names[first] if bool(np.all(bm == first)) else [names[k] for k in bm]
-            contact = {"law": self.law_name}
-            if law_key:
-                contact[law_key] = float(self.law_parameter[i])
-            wall_mat = None
+            key = bm.tobytes()
+            mats = mats_text.get(key)
+            if mats is None:
+                first = bm[0]
+                mats = mats_text[key] = names[first] if bool(np.all(bm == first)) else \
+                    "[" + ", ".join(names[k] for k in bm) + "]"
+            contact = f'{{"law": "{self.law_name}", "{law_key}": {rep(law_p[i])}}}' if law_key else \
+                f'{{"law": "{self.law_name}"}}'
+            wall_mat = "null"
             if self.has_wall:
                 wall_mat = names[self.wall_material[i]] if given[i] else names[bm[-1]]
-            out.append(json.dumps({
-                "chain": {"diameters_mm": d_mm[i], "materials": mats, "offsets_mm": e_mm[i]},
-                "striker": {"diameter_mm": sd_mm[i], "velocity": float(self.striker_velocity[i]),
-                            "material": names[self.striker_material[i]]},
-                "wall": {"type": "flat" if self.has_wall else "none", "material": wall_mat},
-                "contact": contact,
-                "precompression": float(self.precompression[i]),
-            }))
+            out.append(
+                '{"chain": {"diameters_mm": [' + ", ".join(map(rep, d_mm[i])) + '], "materials": ' + mats
+                + ', "offsets_mm": ' + (zeros if aligned[i] else "[" + ", ".join(map(rep, e_mm[i])) + "]")
+                + '}, "striker": {"diameter_mm": '
+                + rep(sd_mm[i]) + ', "velocity": ' + rep(vel[i]) + ', "material": ' + names[self.striker_material[i]]
+                + '}, "wall": {"type": ' + wall_type + ', "material": ' + wall_mat + '}, "contact": ' + contact
+                + ', "precompression": ' + rep(pre[i]) + "}")
         return out
 
 
