@@ -18,7 +18,9 @@ by 0.1 % tolerances, 1 sigma, a different draw per member), striker 8 mm at 0.5 
    batch) over ``simulate_batch`` end to end (set-up, engine, stacked Dataset). Target >= 0.85.
    ``cpu_bead_steps_per_s`` is the engine's throughput there (beads x steps / s, all cores).
 3. With a usable CUDA GPU: ``gpu_bead_steps_per_s`` of the CUDA engine (fixed dt = 5 ns, 0.1 ms,
-   transfers included) at 1e3, 1e4, 1e5 and 1e6 members, and ``gpu_max_rel_diff_vs_cpu``: the
+   transfers included; the kernel chosen by batch size) at 1e3, 1e4, 1e5 and 1e6 members, each
+   kernel alone too (one thread per member; one warp per member up to 1e5 members: where they
+   cross sets ``cuda.WARP_PER_MEMBER_BELOW``), and ``gpu_max_rel_diff_vs_cpu``: the
    largest difference GPU vs CPU engine, relative to each member's largest value, of the peak
    wall force and the sampled contact forces, over an elastic and a viscoelastic misaligned
    ensemble. Without a GPU these keys are absent and ``gpu`` says why.
@@ -122,16 +124,18 @@ def measure_end_to_end(m: int, duration: float, repeat: int) -> dict:
 
 
 # ----------------------------------------------------------------------------- 3. GPU
-def measure_gpu(sizes: list[int], repeat: int) -> dict:
+def measure_gpu(sizes: list[int], repeat: int, warp_up_to: int) -> dict:
+    """GPU throughput with the dispatch by batch size (``bead_steps_per_s``), and each kernel
+    alone (``thread_per_member``, ``warp_per_member`` up to ``warp_up_to`` members)."""
     base = base_model()
     probes = Probes(1e-5, contacts=(0,))
     duration = 1e-4
-    out: dict = {"dt_s": GPU_DT, "duration_s": duration, "bead_steps_per_s": {}, "times_s": {}}
-    warm, _ = batch._pack_ensemble(Ensemble(base, n_members=32), probes, np.full(32, GPU_DT), 1e-5, 11)
-    t0 = time.perf_counter()
-    cuda.run_packed(warm)
-    out["first_call_s"] = time.perf_counter() - t0  # compiles the kernel
-    for m in sizes:
+    out: dict = {"dt_s": GPU_DT, "duration_s": duration, "warp_per_member_below": cuda.WARP_PER_MEMBER_BELOW,
+                 "bead_steps_per_s": {}, "thread_per_member": {}, "warp_per_member": {}, "times_s": {}}
+    dispatch = cuda.WARP_PER_MEMBER_BELOW
+
+    def run(m: int, below: int) -> tuple[float, list[float]]:
+        cuda.WARP_PER_MEMBER_BELOW = below
         ens = Ensemble(base, diameters=perturbed(m, 2))
         times = []
         for _ in range(repeat):
@@ -139,10 +143,21 @@ def measure_gpu(sizes: list[int], repeat: int) -> dict:
             t0 = time.perf_counter()
             cuda.run_packed(pk)
             times.append(time.perf_counter() - t0)
-        steps = float(np.sum(pk.acc[:, 2]))
-        out["bead_steps_per_s"][str(m)] = N_BEADS * steps / min(times)
-        out["times_s"][str(m)] = times
-        del pk
+        return N_BEADS * float(np.sum(pk.acc[:, 2])) / min(times), times
+
+    try:
+        t0 = time.perf_counter()
+        run(32, 0)
+        run(32, 10**12)
+        out["first_call_s"] = time.perf_counter() - t0  # compiles both kernels
+        for m in sizes:
+            rate, out["times_s"][str(m)] = run(m, dispatch)
+            out["bead_steps_per_s"][str(m)] = rate
+            out["thread_per_member"][str(m)] = run(m, 0)[0]
+            if m <= warp_up_to:
+                out["warp_per_member"][str(m)] = run(m, 10**12)[0]
+    finally:
+        cuda.WARP_PER_MEMBER_BELOW = dispatch
     return out
 
 
@@ -195,7 +210,7 @@ def main(argv: list[str] | None = None) -> dict:
         res["gpu"] = {"device": nc.get_current_device().name.decode() if isinstance(
             nc.get_current_device().name, bytes) else str(nc.get_current_device().name)}
         sizes = [1_000, 10_000] if args.quick else [1_000, 10_000, 100_000, 1_000_000]
-        res["gpu"].update(measure_gpu(sizes, repeat))
+        res["gpu"].update(measure_gpu(sizes, repeat, 10_000 if args.quick else 100_000))
         res["gpu_bead_steps_per_s"] = res["gpu"]["bead_steps_per_s"]
         res["gpu"]["vs_cpu"] = gpu_vs_cpu(256 if args.quick else 2_000)
         res["gpu_max_rel_diff_vs_cpu"] = res["gpu"]["vs_cpu"]["max"]
@@ -227,7 +242,11 @@ def report(res: dict) -> None:
         ("end_to_end_over_engine", f"{e['end_to_end_over_engine']:.3f}"),
     ]
     for m, r in res.get("gpu_bead_steps_per_s", {}).items():
-        rows.append((f"GPU, {int(m):,} chains", f"{r:.3g} bead-steps/s"))
+        g = res["gpu"]
+        alone = f"thread/member {g['thread_per_member'][m]:.3g}"
+        if m in g["warp_per_member"]:
+            alone += f", warp/member {g['warp_per_member'][m]:.3g}"
+        rows.append((f"GPU, {int(m):,} chains", f"{r:.3g} bead-steps/s ({alone})"))
     if "gpu_max_rel_diff_vs_cpu" in res:
         rows.append(("GPU vs CPU, max relative difference", f"{res['gpu_max_rel_diff_vs_cpu']:.2e}"))
     elif "skipped" in res["gpu"]:

@@ -11,7 +11,7 @@ import warnings
 
 import numpy as np
 
-from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall
+from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall  # noqa: F401
 from hertzchain.errors import ElasticLimitWarning
 from hertzchain.integrate.batch import simulate_batch
 from hertzchain.integrate.ensemble import Ensemble
@@ -55,6 +55,22 @@ def cases(members: int = 3, beads: int = 3) -> dict[str, tuple[Ensemble, Probes,
     }
 
 
+def warp_cases() -> dict[str, tuple[Ensemble, Probes, list, float]]:
+    """Short cases for the warp-per-member kernel under the simulator (every lane is a Python
+    thread there and every barrier costs milliseconds): the elastic fast path (adaptive, with
+    precompression on a fixed step) and the general one (offsets, a dashpot), 5 samples each."""
+    elastic = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2))
+    dash = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2), law=Dashpot(gamma=3.0))
+    return {
+        "warp_elastic_precompression_offsets": (
+            Ensemble(elastic, striker_velocity=[0.1, 0.2, 0.3], offsets=[[0, 0, 0], [0, 1e-4, 0], [0, 0, 0]],
+                     precompression=[0.0, 0.0, 1.0]), Probes(INTERVAL, sensors=(2,)), [None, None, 5e-8], 5e-6),
+        "warp_dashpot_misaligned": (
+            Ensemble(dash, striker_velocity=[0.1, 0.3], offsets=[[0, 1e-4, 0], [0, 0, 0]]),
+            Probes(INTERVAL, velocities=True), [None, None], 5e-6),
+    }
+
+
 def _rel(a: np.ndarray, b: np.ndarray) -> float:
     """Largest difference relative to the variable's largest magnitude in each member (NaN-aware)."""
     a = a.reshape(a.shape[0], -1)
@@ -68,11 +84,22 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
         return float(np.nanmax(np.abs(a - b) / scale))
 
 
-def compare(members: int = 3, beads: int = 3) -> dict:
+def compare(members: int = 3, beads: int = 3, kernel: str = "thread", which=None) -> dict:
     """Per case: max relative difference GPU vs CPU of every compared variable, and whether the
-    step counts, steps and NaN layouts are identical."""
+    step counts, steps and NaN layouts are identical. ``kernel``: "thread" or "warp" per member."""
+    from hertzchain.integrate import cuda as hc_cuda
+
+    saved = hc_cuda.WARP_PER_MEMBER_BELOW
+    hc_cuda.WARP_PER_MEMBER_BELOW = 10**12 if kernel == "warp" else 0
+    try:
+        return _compare(which or cases(members, beads))
+    finally:
+        hc_cuda.WARP_PER_MEMBER_BELOW = saved
+
+
+def _compare(which: dict) -> dict:
     out = {}
-    for name, (ens, probes, dts, duration) in cases(members, beads).items():
+    for name, (ens, probes, dts, duration) in which.items():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ElasticLimitWarning)
             cpu = simulate_batch(ens, duration, probes, dt=dts, device="cpu")
@@ -88,10 +115,11 @@ def compare(members: int = 3, beads: int = 3) -> dict:
                               for v in cpu.data_vars if cpu[v].dtype.kind == "f")
         res["pulse_N"] = float(np.nanmax(cpu["contact_force"].values))
         res["min_peak_wall_N"] = float(np.min(cpu["peak_wall_force"].values)) if ens.has_wall else None
+        res["n_steps"] = cpu["n_steps"].values.tolist()
         res["dissipated_J"] = float(np.nanmax(cpu["dissipated_energy"].values))
         out[name] = res
     return out
 
 
 if __name__ == "__main__":
-    print(json.dumps(compare()))
+    print(json.dumps({"thread": compare(), "warp": compare(kernel="warp", which=warp_cases())}))

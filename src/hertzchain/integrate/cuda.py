@@ -43,8 +43,15 @@ ENGINE = "batched velocity Verlet on the GPU (numba.cuda), one member per thread
 AUTO_MIN_MEMBERS = 4096
 #: Accepted values of ``device``.
 DEVICES = ("auto", "cpu", "cuda")
-#: Threads per block of the kernel.
+#: Threads per block of the thread-per-member kernel.
 THREADS_PER_BLOCK = 128
+#: Threads (lanes) per member in the warp-per-member kernel: one warp, one slot per lane for
+#: chains of up to 30 beads (32 slots).
+LANES = 32
+#: Batches of fewer members run one warp per member: one thread per member leaves most of a GPU
+#: idle below ~1e4 members (H100, 30 beads: 1.7e10 bead-steps/s at 1e3 members, 1.7e11 at 1e4,
+#: 4.9e11 from 1e5). Set from those measurements; benchmarks/ensemble.py times both kernels.
+WARP_PER_MEMBER_BELOW = 10_000
 #: Slot-steps (padded slots x steps, summed over members) per launch: ~0.1 s at 2e11 slot-steps/s,
 #: short enough for progress reports and the display watchdog.
 LAUNCH_SLOT_STEPS = 2e10
@@ -131,18 +138,27 @@ def use_gpu(device: str, n_members: int) -> bool:
     return device == "auto" and n_members >= AUTO_MIN_MEMBERS and gpu_usable()
 
 
+def _lanes() -> int:
+    """Lanes per member of the warp kernel: LANES on a GPU; 4 under the simulator, where every
+    lane is a Python thread (the kernel's arithmetic does not depend on the number of lanes)."""
+    return 4 if _simulated() else LANES
+
+
 _KERNEL = None
-cuda = None  # numba.cuda, imported by _kernel()
+cuda = None  # numba.cuda, imported by _kernels()
 
 
-def _kernel():
-    """Compile (once) and return the CUDA kernel; built lazily so that importing needs no GPU."""
+def _kernels() -> dict:
+    """Compile (once) and return the CUDA kernels by name; built lazily so that importing needs no GPU."""
+    from numba import float64
+
     # ``cuda`` is a module global: Numba's simulator swaps the kernels' global reference to
     # numba.cuda for its fake module (cuda.grid...), and cannot see a local one.
     global _KERNEL, cuda
     if _KERNEL is not None:
         return _KERNEL
     cuda = _cuda()
+    nl = _lanes()  # a compile-time constant of the warp kernel
     # inlined by NVVM on a GPU (the simulator takes no such option)
     inline = {} if _simulated() else {"forceinline": True}
 
@@ -360,7 +376,216 @@ def _kernel():
                 return
         acc[2, m] = step
 
-    _KERNEL = verlet_kernel
+
+    @cuda.jit
+    def warp_kernel(u, v, a, g, vp, sc, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
+                    wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
+                    out_pe, out_ed, out_v, record_v, fmax, peak, acc, status):
+        """verlet_kernel with one block of nl threads per member (m = the block's index).
+
+        Lane l owns slots l, l + nl, ...: forces of its contacts, then (after a barrier) the
+        kick and drift of its bodies, as in kernels.step_elastic; sums are taken by lane 0 in
+        slot order from per-slot terms in ``sc``, maxima through shared memory. The whole block
+        is one member, so every thread takes the same branches and reaches every barrier.
+        """
+        m = cuda.blockIdx.x
+        lane = cuda.threadIdx.x
+        if m >= status.shape[0] or status[m] != 0:
+            return
+        red = cuda.shared.array(nl, float64)
+        n = a.shape[0]
+        nrec = rec.shape[0]
+        lw = law[m]
+        gen = general[m]
+        ws = wall_slot[m] + 1
+        nsub = n_sub[m]
+        neval = n_eval[m]
+        block = interval / nsub
+        adaptive = stride[m] == 0
+        ns = stride[m] if not adaptive else int(acc[3, m])
+        r4 = acc[4, m]
+        r5 = acc[5, m]
+        step = acc[2, m]
+        for k in range(k_start, k_stop):
+            for b in range(nsub):
+                if adaptive and ((k - 1) * nsub + b) % neval == 0:
+                    # kernels.required_stride: tangent stiffness of every contact into sc, then the
+                    # Gershgorin maximum over the bodies (a maximum: the order does not matter)
+                    horizon = neval * block
+                    hh = 0.5 * horizon * horizon
+                    for j in range(lane, n, nl):
+                        if kappa[j, m] == 0.0:
+                            kk = 0.0
+                        else:
+                            if de[j, m] != 0.0:
+                                dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+                                d = rsum[j, m] - math.sqrt(dx * dx + de[j, m] * de[j, m])
+                            else:
+                                d = u[j, m] - u[j + 1, m] + d0[j, m]
+                            rate = v[j, m] - v[j + 1, m]
+                            q = a[j, m] - a[j + 1, m]
+                            dt_ = d + 2.0 * (q if q > 0.0 else 0.0) * hh
+                            if rate > 0.0 and d + 2.0 * rate * horizon > 0.0:
+                                dp = d if d > 0.0 else 0.0
+                                e = 0.4 * kappa[j, m] * dp * dp * math.sqrt(dp) + 0.5 * rate * rate / (
+                                    inv_mass[j, m] + inv_mass[j + 1, m])
+                                de_ = (2.5 * e / kappa[j, m]) ** 0.4
+                                dt_ = de_ if de_ > dt_ else dt_
+                            dt_ = dt_ if dt_ < dcap[j, m] else dcap[j, m]
+                            kk = 1.5 * kappa[j, m] * math.sqrt(dt_) if dt_ > 0.0 else 0.0
+                        sc[j, m] = kk
+                    cuda.syncthreads()
+                    w2 = 0.0
+                    for j in range(lane, n, nl):
+                        kprev = sc[j - 1, m] if j > 0 else 0.0
+                        w2 = max(w2, (kprev + sc[j, m]) * inv_mass[j, m])
+                    red[lane] = w2
+                    cuda.syncthreads()
+                    w2 = 0.0
+                    for i in range(nl):
+                        w2 = max(w2, red[i])
+                    req = max(1, int(math.ceil(block * c_steps[m] * math.sqrt(2.0 * w2) - 1e-9)))
+                    if req > ns:
+                        ns = req
+                        r4 = 0.0
+                        r5 = 0.0
+                    elif req < ns:
+                        r4 += 1.0
+                        r5 = max(r5, req)
+                        if r4 >= relax[m]:
+                            ns = int(r5)
+                            r4 = 0.0
+                            r5 = 0.0
+                    else:
+                        r4 = 0.0
+                        r5 = 0.0
+                    if lane == 0:
+                        acc[3, m] = ns
+                        acc[6, m] = max(acc[6, m], ns)
+                        acc[7, m] = min(acc[7, m], ns)
+                    cuda.syncthreads()  # red is read before the next reduction writes it
+                dt = block / ns
+                half = 0.5 * dt
+                t0 = (k - 1) * interval + b * block
+                for i in range(lane, n, nl):
+                    v[i, m] += half * a[i, m]
+                    u[i, m] += dt * v[i, m]
+                for s in range(ns):
+                    last = s == ns - 1
+                    if gen:
+                        for i in range(lane, n, nl):
+                            vp[i, m] = v[i, m] + half * a[i, m]
+                    cuda.syncthreads()  # positions (and predicted velocities) of the neighbours are written
+                    if gen:
+                        for j in range(lane, n, nl):
+                            # kernels.forces_general for contact j; its dissipated power into sc
+                            if de[j, m] != 0.0:
+                                dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+                                dist = math.sqrt(dx * dx + de[j, m] * de[j, m])
+                                d = rsum[j, m] - dist
+                                c = dx / dist
+                            else:
+                                d = u[j, m] - u[j + 1, m] + d0[j, m]
+                                c = 1.0
+                            pw = 0.0
+                            if d < 0.0:
+                                g[j + 1, m] = 0.0
+                            else:
+                                sd = 0.0
+                                if d > DELTA_MIN:
+                                    sd = math.sqrt(d)
+                                else:
+                                    d = 0.0
+                                fel = kappa[j, m] * d * sd
+                                if lw == LAW_ELASTIC:
+                                    g[j + 1, m] = c * fel
+                                else:
+                                    rate = c * (vp[j, m] - vp[j + 1, m])
+                                    if lw == LAW_VISCOELASTIC:
+                                        f = fel + kappa[j, m] * damping[j, m] * sd * rate
+                                    else:
+                                        f = fel + damping[j, m] * rate
+                                    f = max(f, 0.0)
+                                    pw = (f - fel) * rate
+                                    g[j + 1, m] = c * f
+                            sc[j, m] = pw
+                    else:
+                        for j in range(lane, n, nl):
+                            g[j + 1, m] = hertz(kappa[j, m], u[j, m] - u[j + 1, m] + d0[j, m])
+                    cuda.syncthreads()  # every contact force is written
+                    if lane == 0:
+                        if gen:
+                            p = 0.0
+                            for j in range(n):  # in contact order, as forces_general sums
+                                p += sc[j, m]
+                            acc[0, m] += half * (acc[1, m] + p)
+                            acc[1, m] = p
+                            track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
+                        else:
+                            track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
+                    for i in range(lane, n, nl):
+                        ai = (g[i, m] - g[i + 1, m] + fext[i, m]) * inv_mass[i, m]
+                        a[i, m] = ai
+                        if last:
+                            v[i, m] += half * ai
+                        else:
+                            v[i, m] += dt * ai
+                            u[i, m] += dt * v[i, m]
+                    cuda.syncthreads()  # bodies moved before the next step's forces (and g is read)
+                step += ns
+            # --- probes: per-slot energy terms into sc and vp, summed by lane 0 in slot order
+            row = k - k_start
+            for j in range(lane, nrec, nl):
+                out_f[row, j, m] = g[rec[j] + 1, m]
+            for j in range(lane, fmax.shape[0], nl):
+                x = g[j + 1, m]
+                if x > fmax[j, m]:
+                    fmax[j, m] = x
+            for i in range(lane, n, nl):
+                if gen:
+                    sc[i, m] = 0.5 * mass[i, m] * v[i, m] * v[i, m]
+                    if de[i, m] != 0.0:
+                        dx = dx0[i, m] - (u[i, m] - u[i + 1, m])
+                        d = rsum[i, m] - math.sqrt(dx * dx + de[i, m] * de[i, m])
+                    else:
+                        d = u[i, m] - u[i + 1, m] + d0[i, m]
+                    vp[i, m] = 0.4 * kappa[i, m] * d * d * math.sqrt(d) if d > 0.0 else 0.0
+                else:
+                    sc[i, m] = mass[i, m] * v[i, m] * v[i, m]
+                    vp[i, m] = 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
+            if record_v[m]:
+                for i in range(lane, out_v.shape[1], nl):
+                    out_v[row, i, m] = v[i, m]
+            cuda.syncthreads()
+            if lane == 0:
+                ke = 0.0
+                pe = 0.0
+                for i in range(n):
+                    ke += sc[i, m]
+                    pe += vp[i, m]
+                if gen:
+                    for i in range(n):
+                        pe -= fext[i, m] * u[i, m]
+                else:
+                    ke = 0.5 * ke
+                out_ke[row, m] = ke
+                out_pe[row, m] = pe
+                out_ed[row, m] = acc[0, m]
+                if not (math.isfinite(ke) and math.isfinite(g[1, m])):
+                    status[m] = 1
+            cuda.syncthreads()
+            if status[m] != 0:
+                if lane == 0:
+                    acc[2, m] = step
+                    acc[4, m] = r4
+                    acc[5, m] = r5
+                return
+        if lane == 0:
+            acc[2, m] = step
+            acc[4, m] = r4
+            acc[5, m] = r5
+
+    _KERNEL = {"thread": verlet_kernel, "warp": warp_kernel}
     return _KERNEL
 
 
@@ -385,8 +610,9 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
         When a member's state became non-finite.
     """
     cuda = _cuda()
-    kernel = _kernel()
     nmem = pk.n_members
+    warp = nmem < WARP_PER_MEMBER_BELOW
+    kernel = _kernels()["warp" if warp else "thread"]
     p = int(pk.n_slots[0])
     width = int(pk.off[1])
     if not (np.all(pk.n_slots == p) and np.all(pk.nrec == pk.nrec[0]) and np.all(pk.record_v == pk.record_v[0])):
@@ -404,8 +630,8 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     d = {k: slots(k, p) for k in _SLOT_ARRAYS + ("a",)}
     for k in ("u", "v", "g"):
         d[k] = slots(k, p + 1)
-    d["vp"] = cuda.device_array((p + 1, nmem))
-    d["vp"].copy_to_device(np.zeros((p + 1, nmem)))
+    d["vp"] = cuda.to_device(np.zeros((p + 1, nmem)))
+    d["sc"] = cuda.to_device(np.zeros((p + 1, nmem if warp else 1)))  # the warp kernel's per-slot terms
     ints = {k: cuda.to_device(np.ascontiguousarray(getattr(pk, k), dtype=np.int64))
             for k in ("law", "wall_slot", "stride", "n_sub", "n_eval", "relax")}
     flags = {k: cuda.to_device(np.ascontiguousarray(getattr(pk, k), dtype=np.bool_)) for k in ("general", "record_v")}
@@ -425,13 +651,13 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     out_v = cuda.device_array((per_launch if record_v else 1, nb, nmem))
     host_f = pk.out_f.reshape(nmem, ns, nrec)
     host_v = pk.out_v.reshape(nmem, ns if record_v else 1, nb)
-    blocks = -(-nmem // THREADS_PER_BLOCK)
     k = 1
     while k < ns:
         k_stop = min(ns, k + per_launch)
         rows = k_stop - k
-        kernel[blocks, THREADS_PER_BLOCK](
-            d["u"], d["v"], d["a"], d["g"], d["vp"], d["mass"], d["inv_mass"], d["kappa"], d["damping"], d["d0"],
+        launch = kernel[nmem, _lanes()] if warp else kernel[-(-nmem // THREADS_PER_BLOCK), THREADS_PER_BLOCK]
+        launch(
+            d["u"], d["v"], d["a"], d["g"], d["vp"], *((d["sc"],) if warp else ()), d["mass"], d["inv_mass"], d["kappa"], d["damping"], d["d0"],
             d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["law"], flags["general"], ints["wall_slot"],
             float(pk.interval), ints["stride"], ints["n_sub"], ints["n_eval"], c_steps, ints["relax"], k, k_stop, rec,
             out_f, out_ke, out_pe, out_ed, out_v, flags["record_v"], fmax, peak, acc, status)
