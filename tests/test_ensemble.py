@@ -48,6 +48,11 @@ def ensembles() -> dict[str, Ensemble]:
                                      striker_diameter=[6e-3, 8e-3, 8e-3, 10e-3]),
         "materials_wall": Ensemble(Model(mixed, Striker(8e-3, 0.1, "stainless_steel"), wall=Wall("flat", "brass")),
                                    **_perturbed(Model(mixed), 3)),
+        "materials_per_member": Ensemble.from_models([   # materials differ between members
+            Model(Chain.uniform(4, 10e-3, "brass"), Striker(8e-3, 0.1, "brass")),
+            Model(mixed, Striker(8e-3, 0.1), wall=Wall("flat", "glass")),
+            Model(Chain.uniform(4, 10e-3), Striker(6e-3, 0.2, "stainless_steel")),
+            Model(mixed.substitute(2, material="PTFE"), Striker(8e-3, 0.05))]),
     }
 
 

@@ -520,13 +520,22 @@ def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
     theta_t = np.array([x.theta for x in mats])
     sigma_t = np.array([np.nan if x.yield_stress is None else x.yield_stress for x in mats])
 
+    # Material columns once when every member has the same materials (the usual ensemble): rows
+    # of shape (1, ...) then broadcast against the members' geometry, same numbers.
+    if (bead_material.strides[0] == 0 or bool(np.all(bead_material == bead_material[:1]))) and \
+            bool(np.all(striker_material == striker_material[0])) and bool(np.all(wall_material == wall_material[0])):
+        bead_mat, striker_mat, wall_mat = bead_material[:1], striker_material[:1], wall_material[:1]
+    else:
+        bead_mat, striker_mat, wall_mat = bead_material, striker_material, wall_material
+    mm = striker_mat.size
+
     # masses: the striker's with scalar arithmetic (Striker.mass), the beads' as Chain.masses
     striker_mass = np.empty(m)
     for k in np.unique(striker_material).tolist():
         rows = striker_material == k
         rho = float(rho_t[k])
         striker_mass[rows] = _scalar_map(lambda dia: rho * math.pi * dia**3 / 6.0, striker_diameter[rows])
-    bead_mass = np.ascontiguousarray(rho_t[bead_material]) * math.pi * np.ascontiguousarray(d) ** 3 / 6.0
+    bead_mass = np.ascontiguousarray(rho_t[bead_mat]) * math.pi * np.ascontiguousarray(d) ** 3 / 6.0
     mass = np.empty((m, n + 2))
     mass[:, 0] = striker_mass
     mass[:, 1:n + 1] = bead_mass
@@ -537,23 +546,23 @@ def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
     r = np.empty((m, n + 1))
     r[:, 0] = striker_diameter / 2
     r[:, 1:] = d / 2.0
-    theta = np.empty((m, n + 1))
-    theta[:, 0] = theta_t[striker_material]
-    theta[:, 1:] = theta_t[bead_material]
-    sigma = np.empty((m, n + 1))
-    sigma[:, 0] = sigma_t[striker_material]
-    sigma[:, 1:] = sigma_t[bead_material]
+    theta = np.empty((mm, n + 1))
+    theta[:, 0] = theta_t[striker_mat]
+    theta[:, 1:] = theta_t[bead_mat]
+    sigma = np.empty((mm, n + 1))
+    sigma[:, 0] = sigma_t[striker_mat]
+    sigma[:, 1:] = sigma_t[bead_mat]
     nk = n + 1 if ens.has_wall else n
     inv_r = np.empty((m, nk))
-    t_sum = np.empty((m, nk))
-    s_min = np.empty((m, nk))
+    t_sum = np.empty((mm, nk))
+    s_min = np.empty((mm, nk))
     inv_r[:, :n] = 1.0 / r[:, :-1] + 1.0 / r[:, 1:]
     t_sum[:, :n] = theta[:, :-1] + theta[:, 1:]
     s_min[:, :n] = np.fmin(sigma[:, :-1], sigma[:, 1:])
     if ens.has_wall:
         inv_r[:, n] = 1.0 / r[:, -1]
-        t_sum[:, n] = theta[:, -1] + theta_t[wall_material]
-        s_min[:, n] = np.fmin(sigma[:, -1], sigma_t[wall_material])
+        t_sum[:, n] = theta[:, -1] + theta_t[wall_mat]
+        s_min[:, n] = np.fmin(sigma[:, -1], sigma_t[wall_mat])
     kappa = np.zeros((m, n + 1))
     fy = np.full((m, n + 1), np.inf)
     kappa[:, :nk] = 1.0 / (t_sum * np.sqrt(inv_r))
