@@ -11,7 +11,7 @@ import warnings
 
 import numpy as np
 
-from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall  # noqa: F401
+from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall
 from hertzchain.errors import ElasticLimitWarning
 from hertzchain.integrate.batch import simulate_batch
 from hertzchain.integrate.ensemble import Ensemble

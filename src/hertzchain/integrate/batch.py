@@ -13,6 +13,12 @@ numerical is re-implemented here:
   so the kernel writes straight into the outputs). Velocity Verlet has no cross-member coupling
   and no reductions across members, so the thread that runs a member cannot change its result.
 
+Set-up. Members that share a layout (number of beads, end, contact law kind) and one Probes are
+set up with array code (:class:`~hertzchain.integrate.ensemble.Ensemble`, :func:`_pack_ensemble`:
+a few microseconds per member, the same numbers as the member-by-member :func:`_pack_models`),
+and their stacked Dataset is built from the (member, ...) buffers (:func:`_ensemble_dataset`).
+Such batches can also run on a GPU (``device=``, :mod:`hertzchain.integrate.cuda`).
+
 Public entry points: :func:`simulate_many` (a list of single-run Datasets, identical to
 :func:`~hertzchain.simulation.simulate`'s) and :func:`simulate_batch` (one Dataset stacked along a
 ``member`` dimension, identical to :func:`stack_results` of :func:`simulate_many`'s but built
@@ -791,7 +797,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     ``wall_force`` may then share one buffer).
 
     Members that share a layout (same number of beads, end and contact law kind) and one
-    :class:`Probes` are set up with array code (:class:`~hertzchain.integrate.ensemble.Ensemble`,
+    :class:`Probes` are set up with array code (``hertzchain.Ensemble``,
     ~microseconds per member instead of ~0.2 ms); pass an ``Ensemble`` directly to avoid building
     one :class:`Model` per member at all.
 
@@ -799,7 +805,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     ----------
     models:
         The members: chains of any length, diameters, materials, offsets, contact law, wall; or
-        an :class:`~hertzchain.integrate.ensemble.Ensemble` (a base model plus per-member arrays).
+        an ``hertzchain.Ensemble`` (a base model plus per-member arrays).
     duration:
         Simulated time [s] after impact, shared by all members.
     probes:
@@ -814,9 +820,9 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         Per-member input stored in the ``config`` variable.
     device:
         ``"cpu"`` (the compiled batched engine), ``"cuda"`` (the numba.cuda engine of
-        :mod:`hertzchain.integrate.cuda`: members must share a layout and one Probes; an error
+        ``hertzchain.integrate.cuda``: members must share a layout and one Probes; an error
         when no usable GPU is present) or ``"auto"`` (default: the GPU when one is usable and the
-        batch has at least :data:`hertzchain.integrate.cuda.AUTO_MIN_MEMBERS` members, else the CPU).
+        batch has at least ``hertzchain.integrate.cuda.AUTO_MIN_MEMBERS`` members, else the CPU).
 
     Returns
     -------

@@ -7,9 +7,11 @@ Numba family as the CPU kernels, so it also runs on a CPU through Numba's CUDA s
 What it integrates is exactly what the CPU batch engine integrates (paper eq. 1 with the
 elastic, viscoelastic or dashpot law, misaligned beads, precompression; the adaptive step of
 :func:`kernels.required_stride` or a fixed one; sampled probes, running maximum forces, the wall
-peak tracker refined afterwards; the dissipated energy), in the same order of operations, one
-member per thread. The numbers agree with the CPU engine to ~1e-14 relative, not bit for bit:
-the GPU fuses multiplies and adds (FMA) and the CPU reassociates its energy sums.
+peak tracker refined afterwards; the dissipated energy), in the same order of operations: one
+member per thread for large batches, one warp per member (a lane per slot) below
+``WARP_PER_MEMBER_BELOW`` members, where one thread per member would leave the GPU idle. The
+numbers agree with the CPU engine to ~1e-14 relative, not bit for bit: the GPU fuses
+multiplies and adds (FMA) and the CPU reassociates its energy sums.
 
 Layout: every per-slot array is (slot, member), so that the threads of a warp, which run
 neighbouring members, read neighbouring addresses (coalesced). Inputs are the engine's packed

@@ -2,10 +2,10 @@
 
 A Monte Carlo over manufacturing tolerances or a parameter sweep runs 1e4 to 1e6 chains that
 differ only in a few numbers (bead diameters, offsets, impact velocity...). Building one
-:class:`~hertzchain.model.Model`, one :class:`~hertzchain.model.System` and one packed work array
+:class:`~hertzchain.Model`, one ``System`` and one packed work array
 per member costs ~0.2 ms of Python each, which at 1e5 members is more than the physics. An
-:class:`Ensemble` holds the members as (member, bead) arrays instead, and :func:`systems` turns
-them into the engine's arrays with array code: the formulas of :meth:`Model.system` (Hertz
+:class:`~hertzchain.Ensemble` holds the members as (member, bead) arrays instead, and ``systems`` turns
+them into the engine's arrays with array code: the formulas of ``Model.system()`` (Hertz
 constants, paper eq. 1; masses; precompression; offsets) applied along a leading member axis,
 operation for operation, so that every member's numbers are bit for bit those of
 ``Model.system()`` of that member alone (the batched engine's results stay identical to
@@ -52,7 +52,7 @@ def _first_bad(mask: np.ndarray) -> tuple[int, ...]:
 class Ensemble:
     """Members sharing one layout, described by a base model and per-member arrays.
 
-    Each member is the base :class:`~hertzchain.model.Model` with the fields given here replaced
+    Each member is the base :class:`~hertzchain.Model` with the fields given here replaced
     by its row; fields left out are the base's. The members share the number of beads N, the
     end (wall or free end) and the contact law's kind (elastic, viscoelastic or dashpot).
 
@@ -134,7 +134,7 @@ class Ensemble:
 
     @classmethod
     def from_models(cls, models: Sequence[Model]) -> "Ensemble":
-        """The ensemble of a list of models that share a layout (see :func:`same_layout`).
+        """The ensemble of a list of models that share a layout (see ``same_layout``).
 
         Parameters
         ----------
@@ -310,7 +310,7 @@ class Ensemble:
 
     # ------------------------------------------------------------------ members as objects
     def model(self, i: int) -> Model:
-        """Member ``i`` as a :class:`~hertzchain.model.Model` (for inspection; the engines never need it).
+        """Member ``i`` as a :class:`~hertzchain.Model` (for inspection; the engines never need it).
 
         Parameters
         ----------
@@ -336,7 +336,7 @@ class Ensemble:
                      wall, law, float(self.precompression[i]))
 
     def describe(self) -> list[str]:
-        """Every member's :meth:`Model.describe` as JSON text (the batch result's ``model`` variable).
+        """Every member's ``Model.describe()`` as JSON text (the batch result's ``model`` variable).
 
         Returns
         -------
@@ -428,7 +428,7 @@ def same_layout(models: Sequence[Model]) -> bool:
     Returns
     -------
     bool
-        Whether :meth:`Ensemble.from_models` accepts them.
+        Whether ``Ensemble.from_models`` accepts them.
     """
     if len(models) == 0 or not all(isinstance(m, Model) for m in models):
         return False
@@ -439,7 +439,7 @@ def same_layout(models: Sequence[Model]) -> bool:
 
 @dataclass
 class Systems:
-    """:class:`~hertzchain.model.System` arrays of every member, stacked along a leading member axis.
+    """``System`` arrays of every member, stacked along a leading member axis.
 
     Row i of each array is exactly the corresponding array of ``ensemble.model(i).system()``.
     Shapes: (M, N + 2) for bodies, (M, N + 1) for contact slots, (M,) per member.
@@ -465,14 +465,6 @@ class Systems:
     max_frequency: np.ndarray  # (M,) rad/s, System.max_frequency()
 
     @property
-    def n_beads(self) -> int:
-        return self.mass.shape[1] - 2
-
-    @property
-    def n_contacts(self) -> int:
-        return self.n_beads + (1 if self.has_wall else 0)
-
-    @property
     def general(self) -> np.ndarray:
         """(M,) True where the general force loop is needed (dissipation or offsets)."""
         return (self.law != 0) | self.misaligned
@@ -490,7 +482,7 @@ def _scalar_map(fn, x: np.ndarray) -> np.ndarray:
 
 
 def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
-    """The engine's arrays of every member: :meth:`Model.system` vectorised over the members.
+    """The engine's arrays of every member: ``Model.system()`` vectorised over the members.
 
     Parameters
     ----------
