@@ -15,7 +15,7 @@ from hertzchain.errors import ConfigError, ElasticLimitWarning
 from hertzchain.integrate.batch import simulate_batch, simulate_many, stack_results
 from hertzchain.integrate.ensemble import Ensemble, same_layout, systems
 
-DURATION = 1.2e-4  # s
+DURATION = 2.5e-4  # s: the pulse reaches the wall of every member below
 INTERVAL = 1e-6    # s
 M = 4
 
@@ -86,6 +86,8 @@ def test_ensemble_batch_equals_single_runs_and_member_by_member_stack(case):
     # the members really differ, and the pulse got somewhere
     assert len(set(fast["dt"].values.tolist())) > 1
     assert float(np.nanmax(fast["contact_force"].values)) > 1.0
+    if case.has_wall:
+        assert float(np.min(fast["peak_wall_force"].values)) > 0.1
     for i, single in enumerate(singles):
         assert_same_run(single, alone[i])
         assert np.array_equal(fast["kinetic_energy"].values[i], single["kinetic_energy"].values)

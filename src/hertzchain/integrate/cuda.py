@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import ConfigError, SimulationDiverged
-from .kernels import DELTA_MIN, LAW_ELASTIC, LAW_VISCOELASTIC
+from .kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 
 __all__ = ["ENGINE", "AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable", "use_gpu", "run_packed"]
 
@@ -208,10 +208,13 @@ def _kernels() -> dict:
         return power
 
     @cuda.jit(device=True)
-    def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, n, m):
+    def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, law,
+                        n, m):
         """kernels.required_stride for member m."""
         kprev = 0.0
+        cprev = 0.0
         w2 = 0.0
+        weff = 0.0
         hh = 0.5 * horizon * horizon
         for j in range(n):
             if kappa[j, m] == 0.0:
@@ -233,9 +236,23 @@ def _kernels() -> dict:
                     dt_ = de_ if de_ > dt_ else dt_
                 dt_ = dt_ if dt_ < dcap[j, m] else dcap[j, m]
                 k = 1.5 * kappa[j, m] * math.sqrt(dt_) if dt_ > 0.0 else 0.0
-            w2 = max(w2, (kprev + k) * inv_mass[j, m])
+            if law == LAW_ELASTIC:
+                w2 = max(w2, (kprev + k) * inv_mass[j, m])
+            else:
+                w, cprev = damped_bound(kprev, k, cprev, damping[j, m], inv_mass[j, m], law)
+                weff = max(weff, w)
             kprev = k
-        return max(1, int(math.ceil(block * c_steps * math.sqrt(2.0 * w2) - 1e-9)))
+        w = math.sqrt(2.0 * w2) if law == LAW_ELASTIC else weff
+        return max(1, int(math.ceil(block * c_steps * w - 1e-9)))
+
+    @cuda.jit(device=True, **inline)
+    def damped_bound(kprev, k, cprev, damp, inv_m, law):
+        """kernels.required_stride's bound for a body between contacts of stiffness kprev, k and
+        damping cprev, c (dashpot: gamma; Kuwabara-Kono: (2/3) A k): (omega_eff, c)."""
+        c = damp if law == LAW_DASHPOT else (2.0 / 3.0) * damp * k
+        om2 = 2.0 * (kprev + k) * inv_m
+        beta = 2.0 * (cprev + c) * inv_m
+        return math.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta, c
 
     @cuda.jit(device=True, **inline)
     def track_peak(fw, t, dt, peak, m):
@@ -279,7 +296,7 @@ def _kernels() -> dict:
             for b in range(nsub):
                 if adaptive and ((k - 1) * nsub + b) % neval == 0:
                     req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block,
-                                          c_steps[m], n, m)
+                                          c_steps[m], damping, lw, n, m)
                     if req > ns:
                         ns = req
                         acc[4, m] = 0.0
@@ -437,16 +454,24 @@ def _kernels() -> dict:
                             kk = 1.5 * kappa[j, m] * math.sqrt(dt_) if dt_ > 0.0 else 0.0
                         sc[j, m] = kk
                     cuda.syncthreads()
-                    w2 = 0.0
+                    w2 = 0.0  # elastic: max (k_left + k_right) / m; dissipative: max omega_eff
                     for j in range(lane, n, nl):
                         kprev = sc[j - 1, m] if j > 0 else 0.0
-                        w2 = max(w2, (kprev + sc[j, m]) * inv_mass[j, m])
+                        if lw == LAW_ELASTIC:
+                            w2 = max(w2, (kprev + sc[j, m]) * inv_mass[j, m])
+                        else:
+                            cprev = 0.0
+                            if j > 0:
+                                cprev = damping[j - 1, m] if lw == LAW_DASHPOT else (2.0 / 3.0) * damping[j - 1, m] * kprev
+                            w, _ = damped_bound(kprev, sc[j, m], cprev, damping[j, m], inv_mass[j, m], lw)
+                            w2 = max(w2, w)
                     red[lane] = w2
                     cuda.syncthreads()
                     w2 = 0.0
                     for i in range(nl):
                         w2 = max(w2, red[i])
-                    req = max(1, int(math.ceil(block * c_steps[m] * math.sqrt(2.0 * w2) - 1e-9)))
+                    w = math.sqrt(2.0 * w2) if lw == LAW_ELASTIC else w2
+                    req = max(1, int(math.ceil(block * c_steps[m] * w - 1e-9)))
                     if req > ns:
                         ns = req
                         r4 = 0.0

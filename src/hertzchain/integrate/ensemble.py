@@ -262,6 +262,10 @@ class Ensemble:
     def __len__(self) -> int:
         return self.n_members
 
+    def __iter__(self):
+        """The members as :class:`~hertzchain.Model` objects (built one by one: for inspection)."""
+        return (self.model(i) for i in range(self.n_members))
+
     def _wall_given(self) -> np.ndarray:
         given = getattr(self, "wall_given", None)
         return np.full(self.n_members, bool(self.wall_material_given)) if given is None else given
@@ -284,6 +288,14 @@ class Ensemble:
             i, j = _first_bad(far)
             raise ConfigError("chain.offsets", f"member {i}: beads {j + 1} and {j + 2} are offset by {de[i, j]:.3g} m, "
                               "more than half the sum of their radii; the contact would not be a head-on Hertz contact")
+        # Model: the striker flies along the axis, so bead 1's offset must stay below (R_s + R_1) / 2
+        reach = 0.5 * (self.striker_diameter / 2 + radii[:, 0])
+        miss = np.abs(e[:, 0]) >= reach
+        if miss.any():
+            i = int(np.flatnonzero(miss)[0])
+            raise ConfigError("chain.offsets", f"member {i}: bead 1 is offset by {abs(float(e[i, 0])):.3g} m from the "
+                              f"striker's line of flight, more than half the sum of their radii ({reach[i]:.3g} m); "
+                              "the striker would not hit it head-on (or would miss the chain)")
         for name, x, field in (("diameter", self.striker_diameter, "striker.diameter_mm"),
                                ("velocity", self.striker_velocity, "striker.velocity")):
             bad = ~np.isfinite(x) | (x <= 0)
@@ -592,11 +604,21 @@ def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
         energy = energy + 0.0
     with np.errstate(divide="ignore"):
         dcap = np.where(kappa > 0, (2.5 * energy[:, None] / np.where(kappa > 0, kappa, 1.0)) ** 0.4, 0.0) + d0
+    # System.max_frequency: Gershgorin bounds of stiffness and damping (System.damping_coefficients)
     k = 1.5 * kappa * np.sqrt(dcap)
+    if ens.law_name == "dashpot":
+        c = np.where(kappa > 0, damping, 0.0)
+    elif ens.law_name == "viscoelastic":
+        c = kappa * damping * np.sqrt(np.maximum(dcap, 0.0))
+    else:
+        c = np.zeros_like(kappa)
     k_left = np.zeros((m, n + 1))
     k_left[:, 1:] = k[:, :n]
+    c_left = np.zeros((m, n + 1))
+    c_left[:, 1:] = c[:, :n]
     omega2 = 2.0 * (k_left + k[:, :n + 1]) * inv_mass[:, :n + 1]
-    w = np.sqrt(omega2.max(axis=1))
+    beta = 2.0 * (c_left + c[:, :n + 1]) * inv_mass[:, :n + 1]
+    w = np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta, axis=1)
     return Systems(mass=mass, inv_mass=inv_mass, kappa=kappa, damping=damping, d0=d0, de=de, dx0=dx0, rsum=rsum,
                    fext=fext, u0=np.zeros((m, n + 2)), v0=v0, yield_force=fy, law=LAW_CODES[ens.law_name],
                    misaligned=np.any(de != 0.0, axis=1), has_wall=ens.has_wall, bead_mass=bead_mass,
