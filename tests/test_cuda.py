@@ -62,6 +62,9 @@ def test_simulated_kernels_match_the_cpu_engine():
         assert all(res[k] == 0.0 for k in FORCES if k in res), res
     # the adaptive and the fixed step both ran (the fixed member takes 20 steps a sample)
     assert result["warp"]["warp_elastic_precompression_offsets"]["n_steps"][2] == 100
+    # a run cut into many launches carries its state across them exactly
+    ml = result["multi_launch"]
+    assert ml["launches"] >= 10 and ml["last"] == 30 and ml["forces_equal"] and ml["peaks_equal"]
 
 
 @pytest.mark.skipif(not GPU, reason="no usable CUDA GPU")

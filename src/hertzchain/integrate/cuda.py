@@ -59,6 +59,10 @@ WARP_PER_MEMBER_BELOW = 10_000
 LAUNCH_SLOT_STEPS = 2e10
 
 
+#: Device memory for the probes of one launch (its rows are copied to the host after it).
+LAUNCH_OUTPUT_BYTES = 1 << 30
+
+
 def check_device(device) -> None:
     """Refuse an unknown ``device`` (ConfigError naming ``device``).
 
@@ -670,7 +674,8 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     status = cuda.to_device(np.zeros(nmem, dtype=np.int64))
 
     cost = float(np.sum(pk.interval / pk.plan_dt * (p + 1) * np.where(pk.general, 2, 1)))
-    per_launch = max(1, min(ns - 1, int(LAUNCH_SLOT_STEPS // max(cost, 1.0))))
+    per_launch = max(1, min(ns - 1, int(LAUNCH_SLOT_STEPS // max(cost, 1.0)),
+                            int(LAUNCH_OUTPUT_BYTES // (8 * nmem * (nrec + 3 + (nb if record_v else 0))))))
     out_f = cuda.device_array((per_launch, nrec, nmem))
     out_ke = cuda.device_array((per_launch, nmem))
     out_pe = cuda.device_array((per_launch, nmem))
