@@ -885,8 +885,8 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
     dts = _ensemble_dts(dt, nmem)
     interval = probes.sample_interval
     n_samples = int(math.floor(duration / interval + 1e-9)) + 1
+    on_gpu = _cuda.use_gpu(device, nmem)  # before the set-up: 'cuda' without a GPU fails at once
     pk, arrays = _pack_ensemble(ens, probes, dts, interval, n_samples)
-    on_gpu = _cuda.use_gpu(device, nmem)
     if on_gpu:
         _cuda.run_packed(pk, progress)
     else:
