@@ -208,3 +208,17 @@ def test_configs_and_the_member_by_member_fallback_give_the_same_dataset(monkeyp
     monkeypatch.setattr(batch, "_KNOWN", batch._KNOWN - {"sensor_force"})
     fallback = simulate_batch(ens, DURATION, probes, configs=configs)
     assert_identical(fallback, slow)
+
+
+def test_ensemble_copies_inputs_and_subsets_by_index_slice_or_mask():
+    base = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.1))
+    d = np.full((4, 3), 10e-3)
+    v = np.array([0.1, 0.2, 0.3, 0.4])
+    ens = Ensemble(base, diameters=d, striker_velocity=v)
+    d[0, 0] = 5e-3  # the caller's arrays stay writable and are not shared
+    assert d.flags.writeable and ens.diameters[0, 0] == 10e-3 and not ens.diameters.flags.writeable
+    for rows, want in (([3, 0], [0.4, 0.1]), (slice(1, 3), [0.2, 0.3]), (v > 0.25, [0.3, 0.4])):
+        sub = ens.subset(rows)
+        assert sub.striker_velocity.tolist() == want and [m.striker.velocity for m in sub] == want
+    listed = Ensemble.from_models([base, Model(Chain.uniform(3, 11e-3), Striker(8e-3, 0.1))])
+    assert listed.subset(np.array([False, True])).model(0).chain.diameters.tolist() == [11e-3] * 3

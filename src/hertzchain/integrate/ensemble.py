@@ -36,8 +36,9 @@ _LAW_FIELD = {"elastic": "contact.law", "viscoelastic": "contact.A", "dashpot": 
 
 
 def _per_member(x, n: int, name: str, default: float) -> np.ndarray:
-    """A scalar or None broadcast to ``n`` members, or a length-n vector, as float64."""
-    a = np.asarray(default if x is None else x, dtype=float)
+    """A scalar or None broadcast to ``n`` members, or a length-n vector, as float64 (a copy: the
+    ensemble's arrays are read-only, the caller's stay as they were)."""
+    a = np.array(default if x is None else x, dtype=float)
     if a.ndim == 0:
         return np.full(n, float(a))
     if a.shape != (n,):
@@ -229,9 +230,8 @@ class Ensemble:
         Ensemble
             Member i is member ``rows[i]`` of this one.
         """
-        if isinstance(rows, slice):
-            rows = np.arange(self.n_members)[rows]
-        return self._copy(np.asarray(rows))
+        rows = np.arange(self.n_members)[rows]  # indices, whether given a slice, a mask or indices
+        return self._copy(np.atleast_1d(rows))
 
     def replace(self, **arrays) -> "Ensemble":
         """The same members with some per-member arrays replaced (checked as in the constructor).
@@ -411,7 +411,7 @@ def _per_bead(x, default: np.ndarray, m: int, name: str) -> np.ndarray:
         return np.broadcast_to(a, (m, n))
     if a.shape != (m, n):
         raise ConfigError(name, f"needs shape (members, beads) = ({m}, {n}) or ({n},), got {a.shape}")
-    return np.ascontiguousarray(a)
+    return np.array(a, order="C")  # a copy (see _per_member)
 
 
 def _material_table(mats: list[Material | None]) -> tuple[tuple[Material, ...], np.ndarray]:
