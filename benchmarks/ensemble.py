@@ -123,7 +123,8 @@ def measure_end_to_end(m: int, duration: float, repeat: int) -> dict:
     steps = float(np.sum(eng[0][1].acc[:, 2]))
     assert float(np.sum(ds["n_steps"].values)) == steps  # same work in both
     rate = N_BEADS * steps / t_engine
-    return {"members": m, "duration_s": duration, "first_call_s": t_first, "engine_s": t_engine, "engine_times_s": [t for t, _ in eng],
+    return {"members": m, "duration_s": duration, "first_call_s": t_first, "engine_s": t_engine,
+            "engine_times_s": [t for t, _ in eng],
             "end_to_end_s": t_e2e, "end_to_end_times_s": times_e2e, "total_steps": steps,
             "end_to_end_over_engine": t_engine / t_e2e, "cpu_bead_steps_per_s": rate,
             "end_to_end_bead_steps_per_s": N_BEADS * steps / t_e2e}
@@ -244,7 +245,8 @@ def report(res: dict) -> None:
          f"{s['member_by_member_s_per_member'] * 1e6:.1f} us/member ({s['speedup_vs_member_by_member']:.0f}x slower)"),
         (f"engine alone, {e['members']:,} members x {e['duration_s'] * 1e3:g} ms", f"{e['engine_s']:.2f} s "
          f"({e['cpu_bead_steps_per_s']:.3g} bead-steps/s)"),
-        ("simulate_batch end to end", f"{e['end_to_end_s']:.2f} s ({e['end_to_end_bead_steps_per_s']:.3g} bead-steps/s)"),
+        ("simulate_batch end to end",
+         f"{e['end_to_end_s']:.2f} s ({e['end_to_end_bead_steps_per_s']:.3g} bead-steps/s)"),
         ("end_to_end_over_engine", f"{e['end_to_end_over_engine']:.3f}"),
     ]
     for m, r in res.get("gpu_bead_steps_per_s", {}).items():

@@ -538,7 +538,8 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
         (f,), (vv,) = _member_outputs(pk, m), _member_v(pk, m)
         fpk, t_pk = refine_peak(pk.peak[m])
         dt_min, dt_max = _dt_used(mb.plan, pk.acc[m], interval)
-        runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=pk.out_ke[m], potential_energy=pk.out_pe[m],
+        runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=pk.out_ke[m],
+                           potential_energy=pk.out_pe[m],
                            dissipated_energy=pk.out_ed[m], velocity=vv if mb.record_v else None,
                            max_force=pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], peak_wall_force=fpk,
                            peak_wall_time=t_pk, dt=dt_min, integrator="verlet", n_steps=int(pk.acc[m, 2]),

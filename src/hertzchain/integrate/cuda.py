@@ -465,8 +465,10 @@ def _kernels() -> dict:
                             w2 = max(w2, (kprev + sc[j, m]) * inv_mass[j, m])
                         else:
                             cprev = 0.0
-                            if j > 0:
-                                cprev = damping[j - 1, m] if lw == LAW_DASHPOT else (2.0 / 3.0) * damping[j - 1, m] * kprev
+                            if j > 0 and lw == LAW_DASHPOT:
+                                cprev = damping[j - 1, m]
+                            elif j > 0:
+                                cprev = (2.0 / 3.0) * damping[j - 1, m] * kprev
                             w, _ = damped_bound(kprev, sc[j, m], cprev, damping[j, m], inv_mass[j, m], lw)
                             w2 = max(w2, w)
                     red[lane] = w2
@@ -689,7 +691,8 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
         rows = k_stop - k
         launch = kernel[nmem, _lanes()] if warp else kernel[-(-nmem // THREADS_PER_BLOCK), THREADS_PER_BLOCK]
         launch(
-            d["u"], d["v"], d["a"], d["g"], d["vp"], *((d["sc"],) if warp else ()), d["mass"], d["inv_mass"], d["kappa"], d["damping"], d["d0"],
+            d["u"], d["v"], d["a"], d["g"], d["vp"], *((d["sc"],) if warp else ()), d["mass"], d["inv_mass"],
+            d["kappa"], d["damping"], d["d0"],
             d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["law"], flags["general"], ints["wall_slot"],
             float(pk.interval), ints["stride"], ints["n_sub"], ints["n_eval"], c_steps, ints["relax"], k, k_stop, rec,
             out_f, out_ke, out_pe, out_ed, out_v, flags["record_v"], fmax, peak, acc, status)

@@ -106,7 +106,8 @@ class Ensemble:
             raise ConfigError("n_members", "give the number of members or at least one per-member array")
         m = sizes[0]
         if m < 1 or any(s != m for s in sizes):
-            raise ConfigError("n_members", f"the per-member arrays disagree on the number of members: {sorted(set(sizes))}")
+            raise ConfigError("n_members", "the per-member arrays disagree on the number of members: "
+                              f"{sorted(set(sizes))}")
         materials, index = _material_table([base.striker.material, *base.chain.materials, base.wall_material])
         self._set(n_beads=n, has_wall=base.wall.present, law_name=base.law.name, materials=materials,
                   bead_material=np.broadcast_to(index[1:n + 1], (m, n)),
@@ -301,12 +302,14 @@ class Ensemble:
             bad = ~np.isfinite(x) | (x <= 0)
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
-                raise ConfigError(field, f"member {i}: the striker {name} must be a positive number, got {float(x[i])!r}")
+                raise ConfigError(field, f"member {i}: the striker {name} must be a positive number, "
+                                  f"got {float(x[i])!r}")
         p = self.law_parameter
         bad = ~np.isfinite(p) | (p < 0)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise ConfigError(_LAW_FIELD[self.law_name], f"member {i}: must be a finite number >= 0, got {float(p[i])!r}")
+            raise ConfigError(_LAW_FIELD[self.law_name],
+                              f"member {i}: must be a finite number >= 0, got {float(p[i])!r}")
         f0 = self.precompression
         bad = ~np.isfinite(f0) | (f0 < 0)
         if bad.any():
