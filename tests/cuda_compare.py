@@ -58,16 +58,16 @@ def cases(members: int = 3, beads: int = 3) -> dict[str, tuple[Ensemble, Probes,
 def warp_cases() -> dict[str, tuple[Ensemble, Probes, list, float]]:
     """Short cases for the warp-per-member kernel under the simulator (every lane is a Python
     thread there and every barrier costs milliseconds): the elastic fast path (adaptive, with
-    precompression on a fixed step) and the general one (offsets, a dashpot), 5 samples each."""
+    precompression on a fixed step) and the general one (offsets, a dashpot), 3 samples each."""
     elastic = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2))
     dash = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2), law=Dashpot(gamma=3.0))
     return {
         "warp_elastic_precompression_offsets": (
             Ensemble(elastic, striker_velocity=[0.1, 0.2, 0.3], offsets=[[0, 0, 0], [0, 1e-4, 0], [0, 0, 0]],
-                     precompression=[0.0, 0.0, 1.0]), Probes(INTERVAL, sensors=(2,)), [None, None, 5e-8], 5e-6),
+                     precompression=[0.0, 0.0, 1.0]), Probes(INTERVAL, sensors=(2,)), [None, None, 5e-8], 3e-6),
         "warp_dashpot_misaligned": (
             Ensemble(dash, striker_velocity=[0.1, 0.3], offsets=[[0, 1e-4, 0], [0, 0, 0]]),
-            Probes(INTERVAL, velocities=True), [None, None], 5e-6),
+            Probes(INTERVAL, velocities=True), [None, None], 3e-6),
     }
 
 

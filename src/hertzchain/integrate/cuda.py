@@ -145,9 +145,10 @@ def use_gpu(device: str, n_members: int) -> bool:
 
 
 def _lanes() -> int:
-    """Lanes per member of the warp kernel: LANES on a GPU; 4 under the simulator, where every
-    lane is a Python thread (the kernel's arithmetic does not depend on the number of lanes)."""
-    return 4 if _simulated() else LANES
+    """Lanes per member of the warp kernel: LANES on a GPU; 2 under the simulator, where every
+    lane is a Python thread and every barrier costs milliseconds (the kernel's arithmetic does
+    not depend on the number of lanes; 2 still exchange forces and maxima between lanes)."""
+    return 2 if _simulated() else LANES
 
 
 _KERNEL = None
