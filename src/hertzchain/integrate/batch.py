@@ -292,8 +292,8 @@ def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Pa
     for m, (mb, w) in enumerate(zip(members, packs)):
         s, p = pk.off[m], w.n_slots
         u, v, g, a = (flat["u"][s:s + p + 1], flat["v"][s:s + p + 1], flat["g"][s:s + p + 1], flat["a"][s:s + p])
-        initialise(mb.system, w, u, v, g, a, mb.rec, *_member_outputs(pk, m),
-                   pk.out_ke[m], pk.out_pe[m], pk.out_ed[m], *_member_v(pk, m), mb.record_v,
+        initialise(mb.system, w, u, v, g, a, mb.rec, _member_forces(pk, m),
+                   pk.out_ke[m], pk.out_pe[m], pk.out_ed[m], _member_velocities(pk, m), mb.record_v,
                    pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], pk.peak[m], pk.acc[m])
     return pk
 
@@ -463,12 +463,14 @@ def _pack_ensemble(ens: Ensemble, probes: Probes, dts: np.ndarray, interval: flo
                  pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak, pk.acc)
     return pk, out
 
-def _member_outputs(pk: _Packed, m: int) -> tuple[np.ndarray]:
-    return (pk.out_f[pk.f_off[m]:pk.f_off[m + 1]].reshape(pk.n_samples, pk.nrec[m]),)
+def _member_forces(pk: _Packed, m: int) -> np.ndarray:
+    """Member m's force samples, a (time, recorded contact) view of the flat buffer."""
+    return pk.out_f[pk.f_off[m]:pk.f_off[m + 1]].reshape(pk.n_samples, pk.nrec[m])
 
 
-def _member_v(pk: _Packed, m: int) -> tuple[np.ndarray]:
-    return (pk.out_v[pk.v_off[m]:pk.v_off[m + 1]].reshape(pk.v_rows[m], pk.nb[m]),)
+def _member_velocities(pk: _Packed, m: int) -> np.ndarray:
+    """Member m's velocity samples, a (time or 1, body) view of the flat buffer."""
+    return pk.out_v[pk.v_off[m]:pk.v_off[m + 1]].reshape(pk.v_rows[m], pk.nb[m])
 
 
 def _engine(pk: _Packed, progress, n_threads) -> None:
@@ -535,7 +537,7 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
     time = np.arange(n_samples) * interval
     runs = []
     for m, mb in enumerate(members):
-        (f,), (vv,) = _member_outputs(pk, m), _member_v(pk, m)
+        f, vv = _member_forces(pk, m), _member_velocities(pk, m)
         fpk, t_pk = refine_peak(pk.peak[m])
         dt_min, dt_max = _dt_used(mb.plan, pk.acc[m], interval)
         runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=pk.out_ke[m],
@@ -909,7 +911,7 @@ def _member_runs(pk: _Packed) -> list[RawRun]:
     for m in range(pk.n_members):
         plan = StepPlan(stride=int(pk.stride[m]), dt=float(pk.plan_dt[m]), n_sub=int(pk.n_sub[m]),
                         n_eval=int(pk.n_eval[m]), c_steps=float(pk.c_steps[m]), relax=int(pk.relax[m]))
-        (f,), (vv,) = _member_outputs(pk, m), _member_v(pk, m)
+        f, vv = _member_forces(pk, m), _member_velocities(pk, m)
         dt_min, dt_max = _dt_used(plan, pk.acc[m], pk.interval)
         r0, r1 = pk.rec_off[m], pk.rec_off[m + 1]
         runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=pk.out_ke[m],
