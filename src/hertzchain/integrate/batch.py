@@ -187,6 +187,12 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     return _run(models, duration, plist, dts, progress, n_threads)[0]
 
 
+def _check_no_positions(plist) -> None:
+    if any(p.positions for p in plist):
+        raise ConfigError("probes.positions", "batches and sweeps do not record positions; simulate the run "
+                          "to animate alone (hertzchain run, hertzchain.simulate)")
+
+
 def _check_threads(n_threads) -> None:
     if n_threads is not None and not (isinstance(n_threads, (int, np.integer))
                                       and 1 <= n_threads <= numba.config.NUMBA_NUM_THREADS):
@@ -525,6 +531,7 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
     nmem = len(models)
     n_samples = int(math.floor(duration / interval + 1e-9)) + 1
 
+    _check_no_positions(plist)
     members: list[_Member] = []
     for model, p, dti in zip(models, plist, dts):
         system = model.system()
@@ -884,6 +891,7 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
         raise ConfigError("run.sample_interval",
                           f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     probes.validate(ens.n_beads, ens.has_wall)
+    _check_no_positions([probes])
     cfgs = _as_list(configs, nmem, "configs") if configs is not None else None
     dts = _ensemble_dts(dt, nmem)
     interval = probes.sample_interval
