@@ -543,6 +543,9 @@ def compute_chunk(task: _ChunkTask):
     ds["parameters"] = xr.Variable(("member",), np.array([json.dumps(p) for p in task.params], dtype=object),
                                    attrs={"long_name": "swept parameter values of the member (JSON)"})
     ds.attrs.update(sweep_hash=task.sweep_hash, chunk=task.index, title="hertzchain sweep chunk")
+    # A chunk is a function of the sweep and its index: no creation time (sweep.json has the
+    # sweep's), so that a recomputed chunk has the same bytes and checksum as the first one.
+    ds.attrs.pop("created_utc", None)
     return ds
 
 
