@@ -28,7 +28,7 @@ _EXPORTS = {
     "Probes": "probes", "simulate": "simulation", "auto_duration": "simulation", "save": "result", "load": "result",
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
     # many chains
-    "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch",
+    "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch", "Ensemble": "integrate.ensemble",
     "run_sweep": "sweep", "load_sweep": "sweep", "plot_metrics": "metrics_plot",
     # design search
     "load_design": "design", "parse_design": "design", "run_design": "design", "write_report": "design",

@@ -285,9 +285,7 @@ def _apply_tolerances(model, tol: Tolerances, index: int):
 
     # One stream per (seed, member): a member's deviations do not depend on the others; both
     # rows are always drawn so that changing one tolerance leaves the other's draws alone.
-    rng = np.random.default_rng([tol.seed, index, 1])
-    n = model.chain.n_beads
-    z = rng.standard_normal((2, n)) if tol.distribution == "normal" else rng.uniform(-1.0, 1.0, (2, n))
+    z = _tolerance_draws(tol, index, model.chain.n_beads)
     chain = model.chain
     diameters = chain.diameters * (1.0 + tol.diameter_rel * z[0])
     offsets = chain.offsets + tol.offset_mm * 1e-3 * z[1] if tol.offset_mm > 0 else chain.offsets
@@ -295,6 +293,52 @@ def _apply_tolerances(model, tol: Tolerances, index: int):
         return replace(model, chain=Chain(diameters, chain.materials, offsets))
     except ConfigError as exc:
         raise ConfigError("sweep.tolerances", f"member {index}: {exc.field}: {exc.message}") from None
+
+
+def _tolerance_draws(tol: Tolerances, index: int, n: int) -> np.ndarray:
+    """The (2, n) standard deviates of member ``index`` (diameters, offsets), as _apply_tolerances draws them."""
+    rng = np.random.default_rng([tol.seed, index, 1])
+    return rng.standard_normal((2, n)) if tol.distribution == "normal" else rng.uniform(-1.0, 1.0, (2, n))
+
+
+def _member_ensemble(cfg: SweepConfig) -> tuple[Any, list]:
+    """Every member as one :class:`~hertzchain.integrate.ensemble.Ensemble` (None when their layouts
+    differ) and every member's ``run.dt``.
+
+    Array code instead of a Model per member: one model is built per distinct set of parameter
+    values (a tolerance Monte Carlo builds one), and the tolerances are applied to the stacked
+    diameters and offsets; the members are those of :meth:`SweepConfig.models`, number for number.
+    """
+    from .config import build_model, parse_config
+    from .integrate.ensemble import Ensemble, same_layout
+
+    built: dict[str, tuple] = {}
+    bases, dts = [], []
+    for i, params in enumerate(cfg.members):
+        key = json.dumps(params, sort_keys=True, default=str)
+        hit = built.get(key)
+        if hit is None:
+            try:
+                run_cfg = parse_config(cfg.member_config(i))
+                hit = built[key] = (build_model(run_cfg), run_cfg.run.dt)
+            except ConfigError as exc:
+                raise ConfigError(exc.field, f"{exc.message} (sweep member {i}: {params})") from None
+        bases.append(hit[0])
+        dts.append(hit[1])
+    if not same_layout(bases):
+        return None, dts
+    ens = Ensemble.from_models(bases)
+    tol = cfg.sweep.tolerances
+    if tol is not None:
+        z = np.stack([_tolerance_draws(tol, i, ens.n_beads) for i in range(ens.n_members)])
+        arrays = {"diameters": ens.diameters * (1.0 + tol.diameter_rel * z[:, 0])}
+        if tol.offset_mm > 0:
+            arrays["offsets"] = ens.offsets + tol.offset_mm * 1e-3 * z[:, 1]
+        try:
+            ens = ens.replace(**arrays)
+        except ConfigError as exc:
+            raise ConfigError("sweep.tolerances", f"{exc.field}: {exc.message}") from None
+    return ens, dts
 
 
 def _draw(spec: list | Range, rng: np.random.Generator) -> Any:
@@ -484,13 +528,14 @@ class _ChunkTask:
 
     index: int
     members: list[int]
-    models: list
+    models: Any  # the members: a list of Models, or an Ensemble (array set-up) when they share a layout
     params: list[dict]
     duration: float
     probes: Any
     dt: float | None
     n_threads: int | None
     sweep_hash: str
+    device: str = "auto"
 
 
 def _wall_metrics(time: np.ndarray, force: np.ndarray) -> dict[str, float]:
@@ -519,7 +564,7 @@ def compute_chunk(task: _ChunkTask):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
         ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, n_threads=task.n_threads,
-                            configs=None)
+                            configs=None, device=task.device)
     ds = ds.assign_coords(member=("member", np.asarray(task.members, dtype=np.int64), ds["member"].attrs))
     _check_members_energy(ds, task)
     values = {k: np.full(len(task.members), np.nan) for k in METRIC_COLUMNS}
@@ -543,6 +588,9 @@ def compute_chunk(task: _ChunkTask):
     ds["parameters"] = xr.Variable(("member",), np.array([json.dumps(p) for p in task.params], dtype=object),
                                    attrs={"long_name": "swept parameter values of the member (JSON)"})
     ds.attrs.update(sweep_hash=task.sweep_hash, chunk=task.index, title="hertzchain sweep chunk")
+    # A chunk is a function of the sweep and its index: no creation time (sweep.json has the
+    # sweep's), so that a recomputed chunk has the same bytes and checksum as the first one.
+    ds.attrs.pop("created_utc", None)
     return ds
 
 
@@ -784,7 +832,8 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
 
 
 def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *, client=None,
-              progress: Callable[[int, int], None] | None = None, force: bool = False) -> SweepResult:
+              progress: Callable[[int, int], None] | None = None, force: bool = False,
+              device: str = "auto") -> SweepResult:
     """Run (or resume) a sweep; every finished chunk is on disk at once.
 
     Parameters
@@ -803,6 +852,10 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         (and once at the start with the members found finished on disk).
     force:
         Replace the results of a different sweep found in ``out_dir`` instead of refusing.
+    device:
+        Where the chunks run: ``"cpu"``, ``"cuda"`` (the GPU engine; an error without a usable
+        GPU) or ``"auto"`` (the GPU for chunks large enough to gain, when one is usable); see
+        :func:`hertzchain.simulate_batch`.
 
     Returns
     -------
@@ -834,9 +887,15 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     else:
         cfg = sweep_cfg
     out = Path(out_dir)
+    from .integrate.cuda import check_device
+
+    check_device(device)
     # Everything is validated (every member's model, the memory a chunk needs) before anything is
-    # written: an invalid sweep leaves no sweep.json behind to block the corrected one.
-    models = cfg.models()
+    # written: an invalid sweep leaves no sweep.json behind to block the corrected one. Members
+    # that share a layout are built as one array ensemble (microseconds per member), others as
+    # one Model each.
+    ensemble, member_dts = _member_ensemble(cfg)
+    models = ensemble if ensemble is not None else cfg.models()
     run_cfg = parse_config(cfg.base)
     base_probes = build_probes(run_cfg)
     if cfg.sweep.store == "wall":
@@ -845,7 +904,6 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         probes: Any = Probes(sample_interval=base_probes.sample_interval, sensors=base_probes.sensors, contacts=())
     else:
         probes = base_probes
-    member_dts = [parse_config(cfg.member_config(i)).run.dt for i in range(cfg.n_members)]
     duration = run_cfg.run.duration
     if duration == "auto":
         from .simulation import auto_duration
@@ -862,26 +920,37 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
     with _folder_lock(out):
         chunks_dir = _prepare_out_dir(cfg, out, force)
-        return _run_chunks(cfg, out, chunks_dir, models, duration, probes, member_dts, client, progress)
+        return _run_chunks(cfg, out, chunks_dir, models, duration, probes, member_dts, client, progress, device)
 
 
-def _check_sweep_resources(cfg: SweepConfig, models: list, duration: float, probes, member_dts: list) -> None:
-    """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep."""
+def _check_sweep_resources(cfg: SweepConfig, models, duration: float, probes, member_dts: list) -> None:
+    """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep.
+
+    ``models``: a list of Models, or an Ensemble (members of one length: member 0 stands for all).
+    """
     from dataclasses import replace as _replace
 
     from .checks import check_resources, estimate_resources
 
-    largest = max(range(len(models)), key=lambda i: models[i].chain.n_beads)
+    if isinstance(models, list):
+        largest = max(range(len(models)), key=lambda i: models[i].chain.n_beads)
+        model = models[largest]
+    else:
+        largest, model = 0, models.model(0)
     members = min(cfg.sweep.chunk_size, cfg.n_members)
-    est = estimate_resources(models[largest].system(), duration, probes, dt=member_dts[largest], members=members)
+    est = estimate_resources(model.system(), duration, probes, dt=member_dts[largest], members=members)
     check_resources(_replace(est, seconds=0.0), memory_field="sweep.chunk_size")
     total = _replace(est, members=cfg.n_members, memory_bytes=0, seconds=est.seconds / members * cfg.n_members)
     check_resources(total)
 
 
-def _run_chunks(cfg: SweepConfig, out: Path, chunks_dir: Path, models: list, duration: float, probes,
-                member_dts: list, client, progress) -> SweepResult:
-    """Compute the chunks not yet on disk and write the metrics table (folder lock held)."""
+def _run_chunks(cfg: SweepConfig, out: Path, chunks_dir: Path, models, duration: float, probes,
+                member_dts: list, client, progress, device: str = "auto") -> SweepResult:
+    """Compute the chunks not yet on disk and write the metrics table (folder lock held).
+
+    ``models``: a list of Models, or an Ensemble whose rows are the members; ``device`` as in
+    :func:`run_sweep`.
+    """
     from .fileio import atomic_path
 
     total = cfg.n_members
@@ -892,10 +961,11 @@ def _run_chunks(cfg: SweepConfig, out: Path, chunks_dir: Path, models: list, dur
             skipped.append(index)
             done_members += len(members)
         else:
-            todo.append(_ChunkTask(index=index, members=list(members), models=[models[m] for m in members],
+            chunk_models = [models[m] for m in members] if isinstance(models, list) else models.subset(members)
+            todo.append(_ChunkTask(index=index, members=list(members), models=chunk_models,
                                    params=[cfg.members[m] for m in members], duration=duration,
                                    probes=probes, dt=[member_dts[m] for m in members],
-                                   n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash))
+                                   n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash, device=device))
     if progress is not None:
         progress(done_members, total)
 

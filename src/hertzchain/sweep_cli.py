@@ -21,8 +21,11 @@ from .cli_options import set_option
 @click.option("--force", is_flag=True, help="Replace the results of a different sweep found in --out.")
 @set_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
+              help="Where chunks run: the CPU, the CUDA GPU (pip install \"hertzchain[gpu]\"), or auto (the GPU "
+                   "when one is usable and a chunk is large enough to gain).")
 def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, overrides: tuple[str, ...],
-          quiet: bool) -> None:
+          quiet: bool, device: str) -> None:
     """Run the sweep described by SWEEP_FILE (TOML: [base] run config + [sweep] table).
 
     Finished chunks are written at once, so an interrupted sweep resumes where it stopped when
@@ -37,6 +40,13 @@ def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, overr
     from .sweep import load_sweep, run_sweep
 
     cfg = load_sweep(sweep_file, overrides)
+    if device == "cuda":  # fail now, naming the option, rather than in the first chunk
+        from .integrate.cuda import require_gpu
+
+        try:
+            require_gpu()
+        except ConfigError as exc:
+            raise ConfigError("--device", exc.message) from None
     client = None
     if scheduler is not None:
         try:
@@ -48,7 +58,7 @@ def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, overr
     console = Console(stderr=True)
     try:
         if quiet:
-            result = run_sweep(cfg, out, client=client, force=force)
+            result = run_sweep(cfg, out, client=client, force=force, device=device)
         else:
             console.print(f"sweep {sweep_file.name}: {cfg.n_members} members in {len(cfg.chunks())} chunks "
                           f"({'Dask at ' + scheduler if scheduler else 'local, all cores'})")
@@ -59,7 +69,7 @@ def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, overr
                 def update(done: int, total: int) -> None:
                     prog.update(task, completed=done, total=total)
 
-                result = run_sweep(cfg, out, client=client, progress=update, force=force)
+                result = run_sweep(cfg, out, client=client, progress=update, force=force, device=device)
     finally:
         if client is not None:
             client.close()

@@ -13,6 +13,12 @@ numerical is re-implemented here:
   so the kernel writes straight into the outputs). Velocity Verlet has no cross-member coupling
   and no reductions across members, so the thread that runs a member cannot change its result.
 
+Set-up. Members that share a layout (number of beads, end, contact law kind) and one Probes are
+set up with array code (:class:`~hertzchain.integrate.ensemble.Ensemble`, :func:`_pack_ensemble`:
+a few microseconds per member, the same numbers as the member-by-member :func:`_pack_models`),
+and their stacked Dataset is built from the (member, ...) buffers (:func:`_ensemble_dataset`).
+Such batches can also run on a GPU (``device=``, :mod:`hertzchain.integrate.cuda`).
+
 Public entry points: :func:`simulate_many` (a list of single-run Datasets, identical to
 :func:`~hertzchain.simulation.simulate`'s) and :func:`simulate_batch` (one Dataset stacked along a
 ``member`` dimension, identical to :func:`stack_results` of :func:`simulate_many`'s but built
@@ -23,6 +29,7 @@ have the stacked layout, such as the (member, time) energies, are used without a
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import math
 import threading
 from dataclasses import dataclass
@@ -39,9 +46,11 @@ from ..errors import ConfigError, SimulationDiverged
 from ..model import Model
 from ..probes import Probes
 from ..simulation import warn_elastic_limit
-from . import kernels
-from .layout import pack
-from .verlet import RawRun, StepPlan, _dt_used, initialise, refine_peak, step_plan
+from . import kernels, verlet
+from .ensemble import Ensemble, same_layout, systems
+from .layout import PAD, pack
+from .verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, MAX_OMEGA_DT, RELAX_EVALUATIONS, RawRun, StepPlan,
+                     _dt_used, initialise, refine_peak, step_plan)
 
 __all__ = ["simulate_batch", "simulate_many", "run_batch", "stack_results"]
 
@@ -104,22 +113,23 @@ def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, dampin
 _LAUNCH_LOCK = threading.Lock()
 
 
-def _flush_stale_cache() -> None:
-    """Drop the on-disk cache of :func:`_batch_kernel` when ``kernels.py`` is newer than it.
+def _flush_stale_cache(*kernels_using: object) -> None:
+    """Drop the on-disk cache of these compiled functions when ``kernels.py`` is newer than it.
 
     Numba's cache only checks the source file of the cached function itself, not of the
-    functions it calls; :func:`_batch_kernel` compiles ``kernels.verlet_run`` into itself, so an
-    edit of ``kernels.py`` would otherwise leave the batched engine running the old kernel.
+    functions it calls; :func:`_batch_kernel` and :func:`_init_kernel` compile the functions of
+    ``kernels`` into themselves, so an edit of ``kernels.py`` would otherwise leave the batched
+    engine running the old kernel.
     """
-    try:
-        index = Path(_batch_kernel._cache._cache_file._index_path)
-        if index.exists() and index.stat().st_mtime < Path(kernels.__file__).stat().st_mtime:
-            _batch_kernel._cache.flush()
-    except (AttributeError, OSError):  # private Numba API moved or no cache: nothing to protect
-        pass
+    for fn in kernels_using:
+        try:
+            index = Path(fn._cache._cache_file._index_path)
+            if index.exists() and index.stat().st_mtime < Path(kernels.__file__).stat().st_mtime:
+                fn._cache.flush()
+        except (AttributeError, OSError):  # private Numba API moved or no cache: nothing to protect
+            pass
 
 
-_flush_stale_cache()
 
 
 @dataclass
@@ -177,93 +187,309 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     return _run(models, duration, plist, dts, progress, n_threads)[0]
 
 
-def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads
-         ) -> tuple[list[RawRun], list, dict[str, np.ndarray]]:
-    """:func:`run_batch` on checked inputs. Also returns every member's ``Model.system()`` and the
-    output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
-    energies always, ``recorded_force`` (member, time, recorded contact) when every member
-    records the same contacts, ``velocity`` when every member records velocities of as many bodies."""
-    if n_threads is not None and not (isinstance(n_threads, (int, np.integer))
-                                      and 1 <= n_threads <= numba.config.NUMBA_NUM_THREADS):
-        raise ConfigError("n_threads", f"must be an integer in 1..{numba.config.NUMBA_NUM_THREADS}, got {n_threads!r}")
-    interval = plist[0].sample_interval
-    nmem = len(models)
-    n_samples = int(math.floor(duration / interval + 1e-9)) + 1
-
+def _check_no_positions(plist) -> None:
     if any(p.positions for p in plist):
         raise ConfigError("probes.positions", "batches and sweeps do not record positions; simulate the run "
                           "to animate alone (hertzchain run, hertzchain.simulate)")
-    members: list[_Member] = []
-    for model, p, dti in zip(models, plist, dts):
-        system = model.system()
-        plan = step_plan(system, interval, dti)
-        rec = p.recorded_contacts(model.chain.n_beads, model.wall.present)
-        members.append(_Member(system, rec, plan, bool(p.velocities)))
 
-    # ---- ragged layout: member m owns off[m]:off[m+1] (P + 1 slots) of every body/contact buffer
-    packs = [pack(mb.system) for mb in members]
+
+def _check_threads(n_threads) -> None:
+    if n_threads is not None and not (isinstance(n_threads, (int, np.integer))
+                                      and 1 <= n_threads <= numba.config.NUMBA_NUM_THREADS):
+        raise ConfigError("n_threads", f"must be an integer in 1..{numba.config.NUMBA_NUM_THREADS}, got {n_threads!r}")
+
+
+@dataclass
+class _Packed:
+    """A batch laid out for the engine: ragged flat buffers (see :func:`_batch_kernel`), per-member
+    step plans and parameters, output buffers (sample 0 written) and the kernel's trackers."""
+
+    interval: float
+    n_samples: int
+    flat: dict[str, np.ndarray]
+    off: np.ndarray
+    n_slots: np.ndarray
+    law: np.ndarray
+    general: np.ndarray
+    wall_slot: np.ndarray
+    stride: np.ndarray
+    n_sub: np.ndarray
+    n_eval: np.ndarray
+    c_steps: np.ndarray
+    relax: np.ndarray
+    plan_dt: np.ndarray
+    rec: np.ndarray
+    rec_off: np.ndarray
+    nrec: np.ndarray
+    out_f: np.ndarray
+    f_off: np.ndarray
+    out_ke: np.ndarray
+    out_pe: np.ndarray
+    out_ed: np.ndarray
+    out_v: np.ndarray
+    v_off: np.ndarray
+    v_rows: np.ndarray
+    nb: np.ndarray
+    record_v: np.ndarray
+    fmax: np.ndarray
+    fmax_off: np.ndarray
+    peak: np.ndarray
+    acc: np.ndarray
+
+    @property
+    def n_members(self) -> int:
+        return self.n_slots.size
+
+
+_NAMES = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
+
+
+def _outputs(interval: float, n_samples: int, n_slots: np.ndarray, nrec: np.ndarray, rec: np.ndarray,
+             nb: np.ndarray, record_v: np.ndarray, n_contacts: np.ndarray, **members) -> _Packed:
+    """Offsets and zeroed buffers of a batch (member m owns P + 1 slots rounded up to cache lines)."""
+    nmem = n_slots.size
     # P + 1 slots rounded up to whole 64-byte cache lines, on an aligned buffer: two threads
     # never write to one cache line (false sharing would cost a line transfer per step).
-    sizes = np.array([-(-(w.n_slots + 1) // _LINE) * _LINE for w in packs], dtype=np.int64)
+    sizes = -(-(n_slots + 1) // _LINE) * _LINE
     off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    n_slots = np.array([w.n_slots for w in packs], dtype=np.int64)
     total = int(off[-1])
-    names = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
-    flat = {k: _aligned_zeros(total) for k in names + ("u", "v", "g", "a")}
+    flat = {k: _aligned_zeros(total) for k in _NAMES + ("u", "v", "g", "a")}
+    rec_off = np.concatenate([[0], np.cumsum(nrec)]).astype(np.int64)
+    f_off = np.concatenate([[0], np.cumsum(nrec * n_samples)]).astype(np.int64)
+    v_rows = np.where(record_v, n_samples, 1).astype(np.int64)
+    v_off = np.concatenate([[0], np.cumsum(v_rows * nb)]).astype(np.int64)
+    fmax_off = np.concatenate([[0], np.cumsum(n_contacts)]).astype(np.int64)
+    return _Packed(interval=interval, n_samples=n_samples, flat=flat, off=off, n_slots=n_slots, rec=rec,
+                   rec_off=rec_off, nrec=nrec, out_f=np.empty(int(f_off[-1])), f_off=f_off,
+                   out_ke=np.empty((nmem, n_samples)), out_pe=np.empty((nmem, n_samples)),
+                   out_ed=np.empty((nmem, n_samples)), out_v=np.empty(int(v_off[-1])), v_off=v_off, v_rows=v_rows,
+                   nb=nb, record_v=record_v, fmax=np.zeros(int(fmax_off[-1])), fmax_off=fmax_off,
+                   # Written every step: one cache line (8 doubles) per member (see ``sizes``).
+                   peak=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE),
+                   acc=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE), **members)
+
+
+def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Packed:
+    """A batch of arbitrary models, member by member (see :func:`_pack_ensemble` for the fast path)."""
+    packs = [pack(mb.system) for mb in members]
+    pk = _outputs(interval, n_samples, n_slots=np.array([w.n_slots for w in packs], dtype=np.int64),
+                  nrec=np.array([mb.rec.size for mb in members], dtype=np.int64),
+                  rec=np.concatenate([mb.rec for mb in members]).astype(np.int64),
+                  nb=np.array([mb.system.n_beads + 1 for mb in members], dtype=np.int64),
+                  record_v=np.array([mb.record_v for mb in members], dtype=np.bool_),
+                  n_contacts=np.array([mb.system.n_contacts for mb in members], dtype=np.int64),
+                  law=np.array([mb.system.law for mb in members], dtype=np.int64),
+                  general=np.array([mb.system.general for mb in members], dtype=np.bool_),
+                  wall_slot=np.array([w.wall_slot for w in packs], dtype=np.int64),
+                  stride=np.array([mb.plan.stride for mb in members], dtype=np.int64),
+                  n_sub=np.array([mb.plan.n_sub for mb in members], dtype=np.int64),
+                  n_eval=np.array([mb.plan.n_eval for mb in members], dtype=np.int64),
+                  c_steps=np.array([mb.plan.c_steps for mb in members], dtype=np.float64),
+                  relax=np.array([mb.plan.relax for mb in members], dtype=np.int64),
+                  plan_dt=np.array([mb.plan.dt for mb in members], dtype=np.float64))
+    flat = pk.flat
     for m, w in enumerate(packs):
-        s, p = off[m], w.n_slots
-        for k in names:
+        s, p = pk.off[m], w.n_slots
+        for k in _NAMES:
             flat[k][s:s + p] = getattr(w, k)
         flat["u"][s:s + p + 1] = w.u
         flat["v"][s:s + p + 1] = w.v
-
-    nrec = np.array([mb.rec.size for mb in members], dtype=np.int64)
-    rec_off = np.concatenate([[0], np.cumsum(nrec)]).astype(np.int64)
-    rec = np.concatenate([mb.rec for mb in members]).astype(np.int64) if rec_off[-1] else np.zeros(0, np.int64)
-    f_off = np.concatenate([[0], np.cumsum(nrec * n_samples)]).astype(np.int64)
-    out_f = np.empty(int(f_off[-1]))
-    out_ke = np.empty((nmem, n_samples))
-    out_pe = np.empty((nmem, n_samples))
-    out_ed = np.empty((nmem, n_samples))
-    nb = np.array([mb.system.n_beads + 1 for mb in members], dtype=np.int64)
-    v_rows = np.array([n_samples if mb.record_v else 1 for mb in members], dtype=np.int64)
-    v_off = np.concatenate([[0], np.cumsum(v_rows * nb)]).astype(np.int64)
-    out_v = np.empty(int(v_off[-1]))
-    n_contacts = np.array([mb.system.n_contacts for mb in members], dtype=np.int64)
-    fmax_off = np.concatenate([[0], np.cumsum(n_contacts)]).astype(np.int64)
-    fmax = np.zeros(int(fmax_off[-1]))
-    # Written every step: one cache line (8 doubles) per member (see ``sizes``).
-    peak = _aligned_zeros(nmem * _LINE).reshape(nmem, _LINE)
-    acc = _aligned_zeros(nmem * _LINE).reshape(nmem, _LINE)
-
     # ---- initial state: the very function run_verlet uses, on per-member views
-    views = []
     for m, (mb, w) in enumerate(zip(members, packs)):
-        s, p = off[m], w.n_slots
+        s, p = pk.off[m], w.n_slots
         u, v, g, a = (flat["u"][s:s + p + 1], flat["v"][s:s + p + 1], flat["g"][s:s + p + 1], flat["a"][s:s + p])
-        f = out_f[f_off[m]:f_off[m + 1]].reshape(n_samples, nrec[m])
-        vv = out_v[v_off[m]:v_off[m + 1]].reshape(v_rows[m], nb[m])
-        initialise(mb.system, w, u, v, g, a, mb.rec, f, out_ke[m], out_pe[m], out_ed[m], vv, mb.record_v,
-                   fmax[fmax_off[m]:fmax_off[m + 1]], peak[m], acc[m])
-        views.append((f, vv))
+        initialise(mb.system, w, u, v, g, a, mb.rec, _member_forces(pk, m),
+                   pk.out_ke[m], pk.out_pe[m], pk.out_ed[m], _member_velocities(pk, m), mb.record_v,
+                   pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], pk.peak[m], pk.acc[m])
+    return pk
 
-    law = np.array([mb.system.law for mb in members], dtype=np.int64)
-    general = np.array([mb.system.general for mb in members], dtype=np.bool_)
-    wall_slot = np.array([w.wall_slot for w in packs], dtype=np.int64)
-    stride = np.array([mb.plan.stride for mb in members], dtype=np.int64)
-    n_sub = np.array([mb.plan.n_sub for mb in members], dtype=np.int64)
-    n_eval = np.array([mb.plan.n_eval for mb in members], dtype=np.int64)
-    c_steps = np.array([mb.plan.c_steps for mb in members], dtype=np.float64)
-    relax = np.array([mb.plan.relax for mb in members], dtype=np.int64)
-    steps_per_sample = np.array([interval / mb.plan.dt for mb in members])
-    record_v = np.array([mb.record_v for mb in members], dtype=np.bool_)
-    status = np.zeros(nmem, dtype=np.int64)
+
+@njit(cache=True)
+def _init_kernel(off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
+                 wall_slot, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_v, v_off, v_rows, nbody,
+                 record_v, fmax, fmax_off, peak, acc):
+    """:func:`hertzchain.integrate.verlet.initialise` of every member (same kernel calls, same order)."""
+    nk = out_ke.shape[1]
+    for m in range(n_slots.shape[0]):
+        s = off[m]
+        p = n_slots[m]
+        uu, vv, gg, aa = u[s:s + p + 1], v[s:s + p + 1], g[s:s + p + 1], a[s:s + p]
+        power0 = 0.0
+        if general[m]:
+            power0 = kernels.forces_general(uu, vv, kappa[s:s + p], damping[s:s + p], d0[s:s + p], de[s:s + p],
+                                            dx0[s:s + p], rsum[s:s + p], law[m], gg)
+        else:
+            kernels.forces_elastic(uu, kappa[s:s + p], d0[s:s + p], gg)
+        kernels.accelerations(gg, fext[s:s + p], inv_mass[s:s + p], aa)
+        r0 = rec_off[m]
+        nr = rec_off[m + 1] - r0
+        f = out_f[f_off[m]:f_off[m + 1]].reshape((nk, nr))
+        for j in range(nr):
+            f[0, j] = gg[rec[r0 + j] + 1]
+        out_ke[m, 0] = kernels.kinetic_energy(vv, mass[s:s + p])
+        out_pe[m, 0] = kernels.potential_energy(uu, gg, kappa[s:s + p], d0[s:s + p], de[s:s + p], dx0[s:s + p],
+                                                rsum[s:s + p], fext[s:s + p], False)
+        out_ed[m, 0] = 0.0
+        if record_v[m]:
+            for i in range(nbody[m]):
+                out_v[v_off[m] + i] = vv[i]
+        for j in range(fmax_off[m + 1] - fmax_off[m]):
+            fmax[fmax_off[m] + j] = gg[j + 1]
+        fw0 = gg[wall_slot[m] + 1]
+        peak[m, 0] = fw0
+        peak[m, 5] = fw0
+        for i in (1, 2, 3, 4, 6, 7):
+            peak[m, i] = 0.0
+        for i in range(7):
+            acc[m, i] = 0.0
+        acc[m, 1] = power0
+        acc[m, 7] = np.inf
+
+
+_flush_stale_cache(_batch_kernel, _init_kernel)
+
+
+def _step_plans(w: np.ndarray, interval: float, dts: np.ndarray, check) -> dict[str, np.ndarray]:
+    """:func:`hertzchain.integrate.verlet.step_plan` of every member (``dts``: NaN = adaptive step).
+
+    ``check(i, dt)`` is :func:`hertzchain.integrate.verlet.check_time_step` on member i: called
+    for the members whose user step is not positive or too large for their omega_max, it raises
+    the single run's error (the bound is tested here with array code, the message comes from there).
+    """
+    nmem = w.size
+    fixed = ~np.isnan(dts)
+    with np.errstate(invalid="ignore"):
+        suspect = fixed & ~((dts > 0) & np.isfinite(dts) & (w * dts <= MAX_OMEGA_DT))
+    for i in np.flatnonzero(suspect).tolist():
+        try:
+            check(i, float(dts[i]))
+        except ConfigError as exc:
+            raise ConfigError(exc.field, f"member {i}: {exc.message}") from None
+    stride = np.zeros(nmem, dtype=np.int64)
+    plan_dt = np.empty(nmem)
+    n_sub = np.ones(nmem, dtype=np.int64)
+    n_eval = np.ones(nmem, dtype=np.int64)
+    c_steps = np.zeros(nmem)
+    relax = np.zeros(nmem, dtype=np.int64)
+    # fixed step, shortened to divide the sample interval (verlet._stride)
+    sf = np.maximum(1, np.ceil(interval / dts[fixed] - 1e-9)).astype(np.int64)
+    stride[fixed] = sf
+    plan_dt[fixed] = interval / sf
+    still = ~fixed & (w <= 0.0)  # nothing moves: any step is exact
+    stride[still] = 1
+    plan_dt[still] = interval
+    ad = ~fixed & (w > 0.0)
+    wa = w[ad]
+    with np.errstate(divide="ignore"):
+        bmax = HORIZON_RADIANS / wa
+    short = interval <= bmax
+    ns = np.where(short, 1, np.ceil(interval / bmax - 1e-9)).astype(np.int64)
+    ne = np.where(short, np.maximum(1, np.floor(bmax / interval)), 1).astype(np.int64)
+    block = interval / ns
+    plan_dt[ad] = block / np.ceil(block * ADAPTIVE_STEPS_PER_RADIAN * wa - 1e-9)
+    n_sub[ad] = ns
+    n_eval[ad] = ne
+    c_steps[ad] = ADAPTIVE_STEPS_PER_RADIAN
+    relax[ad] = RELAX_EVALUATIONS
+    return {"stride": stride, "plan_dt": plan_dt, "n_sub": n_sub, "n_eval": n_eval, "c_steps": c_steps,
+            "relax": relax}
+
+
+def _ensemble_dts(dt, nmem: int) -> np.ndarray:
+    """Per-member user steps [s] as floats, NaN where the step is automatic."""
+    if dt is None:
+        return np.full(nmem, np.nan)
+    if isinstance(dt, (int, float)):
+        return np.full(nmem, float(dt))
+    vals = list(dt)
+    if len(vals) != nmem:
+        raise ConfigError("run.dt", f"needs one value per member ({nmem}), got {len(vals)}")
+    return np.array([np.nan if x is None else x for x in vals], dtype=float)
+
+
+#: Members whose System arrays are computed at once by :func:`_pack_ensemble`: ~0.5 MB per
+#: array for 30 beads, so the temporaries stay in the caches (one pass over 1e5 members at once
+#: was ~4x slower, mostly page faults on fresh 25 MB temporaries).
+SETUP_BLOCK = 2048
+
+
+@dataclass
+class _EnsembleArrays:
+    """What the stacked result needs of the members' System arrays (member, ...)."""
+
+    bead_mass: np.ndarray
+    kappa: np.ndarray        # (M, n_contacts)
+    yield_force: np.ndarray  # (M, n_contacts)
+    n_contacts: int
+
+
+def _pack_ensemble(ens: Ensemble, probes: Probes, dts: np.ndarray, interval: float,
+                   n_samples: int) -> tuple[_Packed, _EnsembleArrays]:
+    """The batch of an ensemble with array code: what :func:`_pack_models` builds member by member."""
+    nmem, n = ens.n_members, ens.n_beads
+    p = -(-(n + 2) // PAD) * PAD  # layout.pack: moving bodies + wall ghost, rounded up
+    rec = probes.recorded_contacts(n, ens.has_wall)
+    nc = n + (1 if ens.has_wall else 0)
+    zeros_i, zeros_f = np.zeros(nmem, dtype=np.int64), np.zeros(nmem)
+    pk = _outputs(interval, n_samples, n_slots=np.full(nmem, p, dtype=np.int64),
+                  nrec=np.full(nmem, rec.size, dtype=np.int64), rec=np.tile(rec.astype(np.int64), nmem),
+                  nb=np.full(nmem, n + 1, dtype=np.int64), record_v=np.full(nmem, bool(probes.velocities)),
+                  n_contacts=np.full(nmem, nc, dtype=np.int64), law=np.zeros(nmem, dtype=np.int64),
+                  general=np.zeros(nmem, dtype=np.bool_), wall_slot=np.full(nmem, n, dtype=np.int64),
+                  stride=zeros_i, plan_dt=zeros_f, n_sub=zeros_i, n_eval=zeros_i, c_steps=zeros_f, relax=zeros_i)
+    out = _EnsembleArrays(bead_mass=np.empty((nmem, n)), kappa=np.empty((nmem, nc)),
+                          yield_force=np.empty((nmem, nc)), n_contacts=nc)
+    w = np.empty(nmem)
+    width = int(pk.off[1])
+    nb = n + 1
+    flat2d = {k: x.reshape(nmem, width) for k, x in pk.flat.items()}
+    for lo in range(0, nmem, SETUP_BLOCK):
+        hi = min(nmem, lo + SETUP_BLOCK)
+        sy = systems(ens, lo, hi)
+        cols = {"mass": sy.mass[:, :nb], "inv_mass": sy.inv_mass[:, :nb], "kappa": sy.kappa, "damping": sy.damping,
+                "d0": sy.d0, "de": sy.de, "dx0": sy.dx0, "rsum": sy.rsum, "fext": sy.fext[:, :nb],
+                "dcap": sy.max_overlap, "u": sy.u0[:, :nb], "v": sy.v0[:, :nb]}
+        for k, x in cols.items():
+            flat2d[k][lo:hi, :x.shape[1]] = x
+        pk.law[lo:hi] = sy.law
+        pk.general[lo:hi] = sy.general
+        w[lo:hi] = sy.max_frequency
+        out.bead_mass[lo:hi] = sy.bead_mass
+        out.kappa[lo:hi] = sy.kappa[:, :nc]
+        out.yield_force[lo:hi] = sy.yield_force[:, :nc]
+    def check(i: int, dt: float) -> None:
+        verlet.check_time_step(ens.model(i).system(), dt)
+
+    for k, x in _step_plans(w, interval, dts, check).items():
+        setattr(pk, k, x)
+    f = pk.flat
+    _init_kernel(pk.off, pk.n_slots, f["u"], f["v"], f["a"], f["g"], f["mass"], f["inv_mass"], f["kappa"],
+                 f["damping"], f["d0"], f["de"], f["dx0"], f["rsum"], f["fext"], pk.law, pk.general, pk.wall_slot,
+                 pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed, pk.out_v, pk.v_off,
+                 pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak, pk.acc)
+    return pk, out
+
+def _member_forces(pk: _Packed, m: int) -> np.ndarray:
+    """Member m's force samples, a (time, recorded contact) view of the flat buffer."""
+    return pk.out_f[pk.f_off[m]:pk.f_off[m + 1]].reshape(pk.n_samples, pk.nrec[m])
+
+
+def _member_velocities(pk: _Packed, m: int) -> np.ndarray:
+    """Member m's velocity samples, a (time or 1, body) view of the flat buffer."""
+    return pk.out_v[pk.v_off[m]:pk.v_off[m + 1]].reshape(pk.v_rows[m], pk.nb[m])
+
+
+def _engine(pk: _Packed, progress, n_threads) -> None:
+    """Run the packed batch to the end on the CPU (all cores), in compiled calls of ~CHUNK_SLOT_STEPS."""
+    interval, n_samples = pk.interval, pk.n_samples
+    steps_per_sample = interval / pk.plan_dt
+    status = np.zeros(pk.n_members, dtype=np.int64)
     # Cost of one sample per member (the general force loop is roughly twice the elastic one):
     # the most expensive members go first so that the threads finish together.
-    cost = steps_per_sample * (n_slots + 1) * np.where(general, 2, 1)
+    cost = steps_per_sample * (pk.n_slots + 1) * np.where(pk.general, 2, 1)
     order = np.argsort(-cost, kind="stable").astype(np.int64)
     samples_per_call = max(1, int(CHUNK_SLOT_STEPS * max(1, n_threads or numba.get_num_threads()) // cost.sum()))
-
+    flat = pk.flat
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_call)
@@ -275,11 +501,13 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
                 # Chunk size 1: members are handed out one at a time (dynamic scheduling), since
                 # their costs differ; the default static split would wait for the slowest block.
                 with numba.parallel_chunksize(1):
-                    _batch_kernel(order, off, n_slots, flat["u"], flat["v"], flat["a"], flat["g"], flat["mass"],
+                    _batch_kernel(order, pk.off, pk.n_slots, flat["u"], flat["v"], flat["a"], flat["g"], flat["mass"],
                                   flat["inv_mass"], flat["kappa"], flat["damping"], flat["d0"], flat["de"],
-                                  flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], law, general, wall_slot,
-                                  interval, stride, n_sub, n_eval, c_steps, relax, k, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_v, v_off, v_rows,
-                                  nb, record_v, fmax, fmax_off, peak, acc, status)
+                                  flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], pk.law, pk.general,
+                                  pk.wall_slot, interval, pk.stride, pk.n_sub, pk.n_eval, pk.c_steps, pk.relax, k,
+                                  k_stop, pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed,
+                                  pk.out_v, pk.v_off, pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak,
+                                  pk.acc, status)
             finally:
                 numba.set_num_threads(previous)
         bad = np.flatnonzero(status)
@@ -291,24 +519,47 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
         if progress is not None:
             progress(k - 1, n_samples - 1)
 
+
+def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads
+         ) -> tuple[list[RawRun], list, dict[str, np.ndarray]]:
+    """:func:`run_batch` on checked inputs. Also returns every member's ``Model.system()`` and the
+    output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
+    energies always, ``recorded_force`` (member, time, recorded contact) when every member
+    records the same contacts, ``velocity`` when every member records velocities of as many bodies."""
+    _check_threads(n_threads)
+    interval = plist[0].sample_interval
+    nmem = len(models)
+    n_samples = int(math.floor(duration / interval + 1e-9)) + 1
+
+    _check_no_positions(plist)
+    members: list[_Member] = []
+    for model, p, dti in zip(models, plist, dts):
+        system = model.system()
+        plan = step_plan(system, interval, dti)
+        rec = p.recorded_contacts(model.chain.n_beads, model.wall.present)
+        members.append(_Member(system, rec, plan, bool(p.velocities)))
+    pk = _pack_models(members, interval, n_samples)
+    _engine(pk, progress, n_threads)
+
     time = np.arange(n_samples) * interval
     runs = []
     for m, mb in enumerate(members):
-        f, vv = views[m]
-        fpk, t_pk = refine_peak(peak[m])
-        dt_min, dt_max = _dt_used(mb.plan, acc[m], interval)
-        runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=out_ke[m], potential_energy=out_pe[m],
-                           dissipated_energy=out_ed[m], velocity=vv if mb.record_v else None,
-                           max_force=fmax[fmax_off[m]:fmax_off[m + 1]], peak_wall_force=fpk, peak_wall_time=t_pk,
-                           dt=dt_min, integrator="verlet", n_steps=int(acc[m, 2]), contacts=mb.rec, dt_max=dt_max,
-                           adaptive=mb.plan.adaptive))
+        f, vv = _member_forces(pk, m), _member_velocities(pk, m)
+        fpk, t_pk = refine_peak(pk.peak[m])
+        dt_min, dt_max = _dt_used(mb.plan, pk.acc[m], interval)
+        runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=pk.out_ke[m],
+                           potential_energy=pk.out_pe[m],
+                           dissipated_energy=pk.out_ed[m], velocity=vv if mb.record_v else None,
+                           max_force=pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], peak_wall_force=fpk,
+                           peak_wall_time=t_pk, dt=dt_min, integrator="verlet", n_steps=int(pk.acc[m, 2]),
+                           contacts=mb.rec, dt_max=dt_max, adaptive=mb.plan.adaptive))
     # The output buffers seen as (member, time, ...) where every member has the same layout: row m
     # is exactly what RawRun m holds (its arrays are views of these rows).
-    stacked = {"kinetic_energy": out_ke, "potential_energy": out_pe, "dissipated_energy": out_ed}
+    stacked = {"kinetic_energy": pk.out_ke, "potential_energy": pk.out_pe, "dissipated_energy": pk.out_ed}
     if all(np.array_equal(mb.rec, members[0].rec) for mb in members):
-        stacked["recorded_force"] = out_f.reshape(nmem, n_samples, nrec[0])
-    if record_v.all() and np.all(nb == nb[0]):
-        stacked["velocity"] = out_v.reshape(nmem, n_samples, nb[0])
+        stacked["recorded_force"] = pk.out_f.reshape(nmem, n_samples, pk.nrec[0])
+    if pk.record_v.all() and np.all(pk.nb == pk.nb[0]):
+        stacked["velocity"] = pk.out_v.reshape(nmem, n_samples, pk.nb[0])
     return runs, [mb.system for mb in members], stacked
 
 
@@ -356,6 +607,9 @@ def simulate_many(models: Sequence[Model], duration: float, probes: Probes | Seq
         out.append(ds)
     return out
 
+
+#: The ``engine`` attribute of a batch computed on the CPU.
+_ENGINE_CPU = "batched compiled velocity Verlet (numba prange), bit-identical to single runs"
 
 #: Per-member scalar attributes of a single run that become variables along ``member``.
 _MEMBER_ATTRS = {
@@ -508,7 +762,7 @@ def _stack(parts: Sequence[_Part], time, n_time: int, member, ready: dict[str, n
         "title": "hertzchain batch simulation",
         "hertzchain_version": a0["hertzchain_version"],
         "integrator": a0["integrator"],
-        "engine": "batched compiled velocity Verlet (numba prange), bit-identical to single runs",
+        "engine": _ENGINE_CPU,
         "duration": a0["duration"],
         "sample_interval": a0["sample_interval"],
         "n_members": nmem,
@@ -538,25 +792,34 @@ def stack_results(datasets: Sequence[xr.Dataset], member: Sequence[int] | None =
     return _stack([_part_of_dataset(ds) for ds in datasets], time.variable, time.size, member)
 
 
-def simulate_batch(models: Sequence[Model], duration: float, probes: Probes | Sequence[Probes] | None = None, *,
+def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
+                   probes: Probes | Sequence[Probes] | None = None, *,
                    dt: float | Sequence[float | None] | None = None, progress: Callable[[int, int], None] | None = None,
-                   n_threads: int | None = None, configs: Sequence[dict | None] | None = None) -> xr.Dataset:
+                   n_threads: int | None = None, configs: Sequence[dict | None] | None = None,
+                   device: str = "auto") -> xr.Dataset:
     """Simulate many independent chains in one parallel compiled call; results stacked along ``member``.
 
     Every member's arrays are bit-identical to :func:`hertzchain.simulate` run on it alone (see
-    the module docstring for why). Layout: the variables of a single run with a leading
-    ``member`` dimension; ``contact`` / ``bead`` / ``sensor`` / ``body`` are the union over the
-    members, NaN where a member has no such item (see :func:`stack_results`, which also lists the
-    per-member variables ``dt``, ``n_steps``, ``peak_wall_force``, ``peak_wall_time``,
-    ``n_beads``, ``n_contacts``, ``has_wall``, ``model``, ``config``). The Dataset is the one
-    ``stack_results(simulate_many(...))`` gives (but for ``created_utc``), built without a
-    Dataset per member; where the members share a layout, variables are views of the engine's
-    output buffers (``contact_force`` and ``wall_force`` may then share one buffer).
+    the module docstring for why; on the GPU they agree to ~1e-14 instead, see ``device``).
+    Layout: the variables of a single run with a leading ``member`` dimension; ``contact`` /
+    ``bead`` / ``sensor`` / ``body`` are the union over the members, NaN where a member has no
+    such item (see :func:`stack_results`, which also lists the per-member variables ``dt``,
+    ``n_steps``, ``peak_wall_force``, ``peak_wall_time``, ``n_beads``, ``n_contacts``,
+    ``has_wall``, ``model``, ``config``). The Dataset is the one ``stack_results(simulate_many(...))``
+    gives (but for ``created_utc``), built without a Dataset per member; variables are views of
+    the engine's output buffers where the members share a layout (``contact_force`` and
+    ``wall_force`` may then share one buffer).
+
+    Members that share a layout (same number of beads, end and contact law kind) and one
+    :class:`Probes` are set up with array code (``hertzchain.Ensemble``,
+    ~microseconds per member instead of ~0.2 ms); pass an ``Ensemble`` directly to avoid building
+    one :class:`Model` per member at all.
 
     Parameters
     ----------
     models:
-        The members: chains of any length, diameters, materials, offsets, contact law, wall.
+        The members: chains of any length, diameters, materials, offsets, contact law, wall; or
+        an ``hertzchain.Ensemble`` (a base model plus per-member arrays).
     duration:
         Simulated time [s] after impact, shared by all members.
     probes:
@@ -566,24 +829,125 @@ def simulate_batch(models: Sequence[Model], duration: float, probes: Probes | Se
     progress:
         ``progress(done, total)`` in samples, between compiled calls.
     n_threads:
-        Threads of the parallel loop (default: every core Numba sees).
+        Threads of the parallel loop on the CPU (default: every core Numba sees).
     configs:
         Per-member input stored in the ``config`` variable.
+    device:
+        ``"cpu"`` (the compiled batched engine), ``"cuda"`` (the numba.cuda engine of
+        ``hertzchain.integrate.cuda``: members must share a layout and one Probes; an error
+        when no usable GPU is present) or ``"auto"`` (default: the GPU when one is usable and the
+        batch has at least ``hertzchain.integrate.cuda.AUTO_MIN_MEMBERS`` members, else the CPU).
+
+    Returns
+    -------
+    xarray.Dataset
+        The members' results stacked along ``member``.
 
     Warns
     -----
     ElasticLimitWarning
         Once per member whose contact forces pass the elastic limit.
     """
-    from ..result import run_fields
+    from . import cuda as _cuda
 
+    _cuda.check_device(device)
+    ens = None
+    if isinstance(models, Ensemble):
+        ens = models
+    elif isinstance(models, Sequence) and same_layout(models) and _one_probes(probes, len(models)) is not None:
+        ens = Ensemble.from_models(models)
+    if ens is not None:
+        return _simulate_ensemble(ens, duration, _one_probes(probes, ens.n_members), dt, progress, n_threads,
+                                  configs, device)
+    if device == "cuda":
+        _cuda.require_gpu()
+        raise ConfigError("device", "the CUDA engine runs batches whose members share one layout (number of "
+                          "beads, end, contact law kind) and one Probes; this batch mixes them: split it, or use "
+                          "device='cpu'")
+    return _simulate_models(models, duration, probes, dt, progress, n_threads, configs)
+
+
+def _one_probes(probes, n: int) -> Probes | None:
+    """The one Probes all ``n`` members use, or None when they differ."""
+    if probes is None or isinstance(probes, Probes):
+        return probes or Probes()
+    plist = list(probes)
+    if len(plist) != n or not all(isinstance(p, Probes) for p in plist):
+        return None
+    first = plist[0] or Probes()
+    return first if all((p or Probes()) == first for p in plist) else None
+
+
+def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progress, n_threads, configs,
+                       device: str) -> xr.Dataset:
+    """:func:`simulate_batch` of an ensemble: set up, run and stacked with array code."""
+    from . import cuda as _cuda
+
+    _check_threads(n_threads)
+    nmem = ens.n_members
+    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+        raise ConfigError("run.duration", f"must be a positive time in s, got {duration!r}")
+    if probes.sample_interval > duration:
+        raise ConfigError("run.sample_interval",
+                          f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
+    probes.validate(ens.n_beads, ens.has_wall)
+    _check_no_positions([probes])
+    cfgs = _as_list(configs, nmem, "configs") if configs is not None else None
+    dts = _ensemble_dts(dt, nmem)
+    interval = probes.sample_interval
+    n_samples = int(math.floor(duration / interval + 1e-9)) + 1
+    on_gpu = _cuda.use_gpu(device, nmem)  # before the set-up: 'cuda' without a GPU fails at once
+    pk, arrays = _pack_ensemble(ens, probes, dts, interval, n_samples)
+    if on_gpu:
+        _cuda.run_packed(pk, progress)
+    else:
+        _engine(pk, progress, n_threads)
+    ds = _ensemble_dataset(ens, arrays, pk, probes, duration, cfgs)
+    if ds is None:  # member 0's results hold a variable the array path does not know: stack member by member
+        ds = _stack_members(_member_runs(pk), [ens.model(i) for i in range(nmem)], [probes] * nmem,
+                            cfgs or [None] * nmem, duration, None)
+    if on_gpu:
+        ds.attrs["engine"] = _cuda.ENGINE
+    return ds
+
+
+def _member_runs(pk: _Packed) -> list[RawRun]:
+    """Every member's :class:`RawRun`, views of the packed outputs."""
+    time = np.arange(pk.n_samples) * pk.interval
+    fpk, tpk = _refine_peaks(pk.peak)
+    runs = []
+    for m in range(pk.n_members):
+        plan = StepPlan(stride=int(pk.stride[m]), dt=float(pk.plan_dt[m]), n_sub=int(pk.n_sub[m]),
+                        n_eval=int(pk.n_eval[m]), c_steps=float(pk.c_steps[m]), relax=int(pk.relax[m]))
+        f, vv = _member_forces(pk, m), _member_velocities(pk, m)
+        dt_min, dt_max = _dt_used(plan, pk.acc[m], pk.interval)
+        r0, r1 = pk.rec_off[m], pk.rec_off[m + 1]
+        runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=pk.out_ke[m],
+                           potential_energy=pk.out_pe[m], dissipated_energy=pk.out_ed[m],
+                           velocity=vv if pk.record_v[m] else None,
+                           max_force=pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], peak_wall_force=float(fpk[m]),
+                           peak_wall_time=float(tpk[m]), dt=dt_min, integrator="verlet", n_steps=int(pk.acc[m, 2]),
+                           contacts=pk.rec[r0:r1], dt_max=dt_max, adaptive=plan.adaptive))
+    return runs
+
+
+def _simulate_models(models, duration, probes, dt, progress, n_threads, configs) -> xr.Dataset:
+    """:func:`simulate_batch` of arbitrary models (members of different layouts or probes)."""
     # What stack_results(simulate_many(...)) gives, without one Dataset per member: every member's
     # run_fields (the arrays and attributes build_dataset would wrap) go straight into the stack.
     plist, dts = _check_inputs(models, duration, probes, dt)
     cfgs = _as_list(configs, len(models), "configs") if configs is not None else [None] * len(models)
-    runs, systems, stacked = _run(models, duration, plist, dts, progress, n_threads)
+    runs, sys_list, stacked = _run(models, duration, plist, dts, progress, n_threads)
+    return _stack_members(runs, models, plist, cfgs, duration, sys_list, stacked)
+
+
+def _stack_members(runs, models, plist, cfgs, duration, sys_list, stacked=None) -> xr.Dataset:
+    """The stacked Dataset from every member's RawRun (run_fields per member, then :func:`_stack`)."""
+    from ..result import run_fields
+
     parts, time = [], None
-    for i, (raw, model, p, cfg, system) in enumerate(zip(runs, models, plist, cfgs, systems)):
+    sys_list = sys_list or [None] * len(models)
+    for i, (raw, model, p, cfg, system) in enumerate(zip(runs, models, plist, cfgs, sys_list)):
         fields = run_fields(raw, model, p, duration=duration, config=cfg, system=system)
         if time is None:
             time = fields.coords["time"]  # every member has this time axis (shared duration and interval)
@@ -592,9 +956,142 @@ def simulate_batch(models: Sequence[Model], duration: float, probes: Probes | Se
             # What warn_elastic_limit reads of a member's Dataset (building one per member costs ~0.2 ms).
             warn_elastic_limit(SimpleNamespace(attrs=part.attrs, max_contact_force=part.data["max_contact_force"][1],
                                                yield_force=part.data["yield_force"][1]),
-                               f"member {i}: " if len(models) > 1 else "")
+                               f"member {i}: " if len(models) > 1 else "", stacklevel=4)
         parts.append(part)
-    return _stack(parts, time, runs[0].time.size, None, ready=_ready(stacked, runs[0], models[0], parts[0]))
+    ready = _ready(stacked, runs[0], models[0], parts[0]) if stacked else None
+    return _stack(parts, time, runs[0].time.size, None, ready=ready)
+
+
+def _refine_peaks(peak: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hertzchain.integrate.verlet.refine_peak` of every row of ``peak`` (same arithmetic)."""
+    fpk, t_pk, fb, fa, h0, h1 = (peak[:, i] for i in (0, 1, 2, 3, 6, 7))
+    ok = (t_pk > 0) & (peak[:, 4] == 0.0) & (h0 > 0) & (h1 > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s01 = (fpk - fb) / h0
+        s12 = (fa - fpk) / h1
+        c = (s12 - s01) / (h0 + h1)
+        ok &= c < 0.0
+        b = s12 - c * h1
+        return np.where(ok, fpk - 0.25 * b * b / c, fpk), np.where(ok, t_pk - 0.5 * b / c, t_pk)
+
+
+#: Variables of a single run that :func:`_ensemble_dataset` knows how to stack.
+_KNOWN = {"contact_force", "kinetic_energy", "potential_energy", "dissipated_energy", "diameter", "mass", "offset",
+          "kappa", "yield_force", "max_contact_force", "wall_force", "sensor_force", "velocity"}
+
+
+def _ensemble_dataset(ens: Ensemble, sy: _EnsembleArrays, pk: _Packed, probes: Probes, duration: float,
+                      configs) -> xr.Dataset | None:
+    """The stacked Dataset of :func:`simulate_batch` for an ensemble, straight from the buffers.
+
+    Same variables, order, coordinates and attributes as :func:`_stack` of every member's
+    :func:`hertzchain.result.run_fields` (member 0's is built as the template), with the values
+    taken from the (member, ...) buffers by array code. None when member 0's fields hold a
+    variable this function does not know (the caller then stacks member by member).
+    """
+    from ..result import run_fields
+
+    nmem, n = ens.n_members, ens.n_beads
+    ns, nc = pk.n_samples, sy.n_contacts
+    interval = pk.interval
+    fpk, tpk = _refine_peaks(pk.peak)
+    adaptive = pk.stride == 0
+    block = interval / pk.n_sub
+    with np.errstate(divide="ignore"):
+        dt_min = np.where(adaptive & (pk.acc[:, 6] != 0), block / pk.acc[:, 6], pk.plan_dt)
+        dt_max = np.where(adaptive & (pk.acc[:, 7] != 0), block / pk.acc[:, 7], pk.plan_dt)
+    rec = pk.rec[:pk.nrec[0]]
+    forces = pk.out_f.reshape(nmem, ns, rec.size)
+    velocity = pk.out_v.reshape(nmem, ns, n + 1) if probes.velocities else None
+    fmax = pk.fmax.reshape(nmem, nc)
+    time = np.arange(ns) * interval
+    raw0 = RawRun(time=time, contact_force=forces[0], kinetic_energy=pk.out_ke[0], potential_energy=pk.out_pe[0],
+                  dissipated_energy=pk.out_ed[0], velocity=None if velocity is None else velocity[0],
+                  max_force=fmax[0], peak_wall_force=float(fpk[0]), peak_wall_time=float(tpk[0]), dt=float(dt_min[0]),
+                  integrator="verlet", n_steps=int(pk.acc[0, 2]), contacts=rec, dt_max=float(dt_max[0]),
+                  adaptive=bool(adaptive[0]))
+    cfg0 = None if configs is None else configs[0]
+    fields0 = run_fields(raw0, ens.model(0), probes, duration=duration, config=cfg0)
+    template = _part_of_fields(fields0)
+    if not set(template.data) <= _KNOWN:
+        return None
+
+    wanted = template.dims["contact"][0]
+    cols = np.searchsorted(rec, wanted)
+    if cols.size and np.array_equal(cols, np.arange(cols[0], cols[0] + cols.size)):
+        cf = forces[:, :, cols[0]:cols[0] + cols.size]
+    else:
+        cf = forces[:, :, cols]
+    values = {"contact_force": cf, "kinetic_energy": pk.out_ke, "potential_energy": pk.out_pe,
+              "dissipated_energy": pk.out_ed, "diameter": np.array(ens.diameters, dtype=float),
+              "mass": sy.bead_mass, "offset": np.array(ens.offsets, dtype=float), "kappa": sy.kappa,
+              "yield_force": sy.yield_force, "max_contact_force": fmax}
+    if ens.has_wall:
+        values["wall_force"] = forces[:, :, int(np.searchsorted(rec, n))]
+    sensors = np.unique(np.array(probes.sensors, dtype=np.int64))
+    if sensors.size:
+        index = {int(c): i for i, c in enumerate(rec)}
+        sf = np.empty((nmem, ns, sensors.size))
+        for k, s in enumerate(sensors.tolist()):  # probes.sensor_forces, F_s = (F_{n-1} + F_n) / 2
+            left = forces[:, :, index[s - 1]]
+            right = forces[:, :, index[s]] if s in index else 0.0
+            sf[:, :, k] = 0.5 * (left + right)
+        values["sensor_force"] = sf
+    if velocity is not None:
+        values["velocity"] = velocity
+
+    data = {}
+    for name, (dims, _, attrs) in template.data.items():
+        data[name] = xr.Variable(("member",) + tuple(dims), values[name], attrs=dict(attrs))
+    ratio = fmax / sy.yield_force
+    over = ratio > 1.0
+    exceeded = over.any(axis=1)
+    member_vals = {"dt": dt_min, "n_steps": pk.acc[:, 2].copy(), "peak_wall_force": fpk, "peak_wall_time": tpk,
+                   "elastic_limit_exceeded": exceeded.astype(float)}
+    for key, (units, long_name) in _MEMBER_ATTRS.items():
+        vals = member_vals[key]
+        if key.startswith("peak_wall") and not ens.has_wall:
+            vals = np.full(nmem, np.nan)
+        data[key] = xr.Variable(("member",), vals, attrs={"units": units, "long_name": long_name})
+    data["n_beads"] = xr.Variable(("member",), np.full(nmem, n, dtype=np.int64),
+                                  attrs={"units": "1", "long_name": "number of beads N"})
+    data["n_contacts"] = xr.Variable(("member",), np.full(nmem, nc, dtype=np.int64), attrs={
+        "units": "1", "long_name": "number of real contacts (N + 1 with a wall, N without)"})
+    data["has_wall"] = xr.Variable(("member",), np.full(nmem, int(ens.has_wall), dtype=np.int8),
+                                   attrs={"units": "1", "long_name": "1 when the chain ends on a wall"})
+    described = ens.describe()
+    if configs is None:
+        config_text = ['{"model": ' + d + "}" for d in described]  # json.dumps({"model": described})
+    else:
+        config_text = [json.dumps(c if c is not None else {"model": json.loads(d)}) for c, d in zip(configs, described)]
+    data["model"] = xr.Variable(("member",), np.array(described, dtype=object),
+                                attrs={"long_name": "model description (JSON)"})
+    data["config"] = xr.Variable(("member",), np.array(config_text, dtype=object),
+                                 attrs={"long_name": "input of the member (JSON)"})
+
+    for i in np.flatnonzero(exceeded).tolist():
+        attrs = {"elastic_limit_exceeded": 1, "elastic_limit_contacts": json.dumps(np.flatnonzero(over[i]).tolist()),
+                 "elastic_limit_ratio": float(ratio[i].max())}
+        warn_elastic_limit(SimpleNamespace(attrs=attrs, max_contact_force=fmax[i], yield_force=sy.yield_force[i]),
+                           f"member {i}: " if nmem > 1 else "", stacklevel=4)
+
+    coords = {"member": ("member", np.arange(nmem), {"long_name": "member of the batch"}),
+              "time": fields0.coords["time"]}
+    for d, (vals, attrs) in template.dims.items():
+        coords[d] = (d, np.unique(vals), dict(attrs))
+    a0 = template.attrs
+    attrs = {
+        "title": "hertzchain batch simulation",
+        "hertzchain_version": a0["hertzchain_version"],
+        "integrator": a0["integrator"],
+        "engine": _ENGINE_CPU,
+        "duration": a0["duration"],
+        "sample_interval": a0["sample_interval"],
+        "n_members": nmem,
+        "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "conventions": a0["conventions"],
+    }
+    return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
 def _ready(stacked: dict[str, np.ndarray], raw: RawRun, model: Model, part: _Part) -> dict[str, np.ndarray]:

@@ -1,0 +1,717 @@
+"""CUDA backend of the batched engine: the velocity Verlet of :func:`kernels.verlet_run` on a GPU.
+
+Written with ``numba.cuda`` (the ``gpu`` extra, ``pip install "hertzchain[gpu]"``), the same
+Numba family as the CPU kernels, so it also runs on a CPU through Numba's CUDA simulator
+(``NUMBA_ENABLE_CUDASIM=1``; that is how the tests check it without a GPU).
+
+What it integrates is exactly what the CPU batch engine integrates (paper eq. 1 with the
+elastic, viscoelastic or dashpot law, misaligned beads, precompression; the adaptive step of
+:func:`kernels.required_stride` or a fixed one; sampled probes, running maximum forces, the wall
+peak tracker refined afterwards; the dissipated energy), in the same order of operations: one
+member per thread for large batches, one warp per member (a lane per slot) below
+``WARP_PER_MEMBER_BELOW`` members, where one thread per member would leave the GPU idle. The
+numbers agree with the CPU engine to ~1e-14 relative, not bit for bit: the GPU fuses
+multiplies and adds (FMA) and the CPU reassociates its energy sums.
+
+Layout: every per-slot array is (slot, member), so that the threads of a warp, which run
+neighbouring members, read neighbouring addresses (coalesced). Inputs are the engine's packed
+batch (:class:`hertzchain.integrate.batch._Packed`, built by the vectorised set-up) for members
+that share a layout; outputs stay on the device for a whole launch (a chunk of samples) and are
+copied into the packed batch's buffers after it.
+
+Measured facts behind the choices (NVIDIA H100, 30-bead chains): ``sqrt(0)`` takes CUDA's slow
+path, so overlaps below :data:`kernels.DELTA_MIN` take the square root of a dummy 1.0 and a zero
+force (1.5-2x); one thread per chain reaches ~5e11 bead-steps/s from 1e5 chains.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Callable
+
+import numpy as np
+
+from ..errors import ConfigError, SimulationDiverged
+from .kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
+
+__all__ = ["ENGINE", "AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable", "use_gpu", "run_packed"]
+
+#: The ``engine`` attribute of a batch computed on the GPU.
+ENGINE = "batched velocity Verlet on the GPU (numba.cuda), one member per thread"
+#: ``device="auto"`` uses the GPU from this many members: below ~1e4 chains one thread per chain
+#: leaves most of an H100 idle (1.7e10 bead-steps/s at 1e3 chains, against ~1.5e9 on 2 CPU cores
+#: and ~1e10 on 16), so smaller batches stay on the CPU.
+AUTO_MIN_MEMBERS = 4096
+#: Accepted values of ``device``.
+DEVICES = ("auto", "cpu", "cuda")
+#: Threads per block of the thread-per-member kernel.
+THREADS_PER_BLOCK = 128
+#: Threads (lanes) per member in the warp-per-member kernel: one warp, one slot per lane for
+#: chains of up to 30 beads (32 slots).
+LANES = 32
+#: Batches of fewer members run one warp per member: one thread per member leaves most of a GPU
+#: idle below ~1e4 members (H100, 30 beads: 1.7e10 bead-steps/s at 1e3 members, 1.7e11 at 1e4,
+#: 4.9e11 from 1e5). Set from those measurements; benchmarks/ensemble.py times both kernels.
+WARP_PER_MEMBER_BELOW = 10_000
+#: Slot-steps (padded slots x steps, summed over members) per launch: ~0.1 s at 2e11 slot-steps/s,
+#: short enough for progress reports and the display watchdog.
+LAUNCH_SLOT_STEPS = 2e10
+
+
+#: Device memory for the probes of one launch (its rows are copied to the host after it).
+LAUNCH_OUTPUT_BYTES = 1 << 30
+
+
+def check_device(device) -> None:
+    """Refuse an unknown ``device`` (ConfigError naming ``device``).
+
+    Parameters
+    ----------
+    device:
+        ``"auto"``, ``"cpu"`` or ``"cuda"``.
+    """
+    if device not in DEVICES:
+        raise ConfigError("device", f"must be one of {', '.join(repr(d) for d in DEVICES)}, got {device!r}")
+
+
+def _cuda():
+    """numba.cuda, or None when the ``numba-cuda`` package is missing."""
+    if not hasattr(np, "row_stack"):  # numba-cuda 0.30 still calls it; NumPy 2.5 removed the alias
+        np.row_stack = np.vstack
+    try:
+        from numba import cuda
+    except ImportError:
+        return None
+    return cuda
+
+
+def _simulated() -> bool:
+    from numba import config
+
+    return bool(config.ENABLE_CUDASIM)
+
+
+@functools.lru_cache(maxsize=1)
+def gpu_usable() -> bool:
+    """True when a real CUDA GPU can run the kernels (Numba's simulator does not count).
+
+    Returns
+    -------
+    bool
+        Whether ``device="auto"`` may choose the GPU (asked once per process: importing
+        numba.cuda and querying the driver takes ~1 s).
+    """
+    cuda = _cuda()
+    if cuda is None or _simulated():
+        return False
+    try:
+        return bool(cuda.is_available()) and len(cuda.gpus) > 0
+    except Exception:  # driver or toolkit libraries missing or broken: no usable GPU
+        return False
+
+
+def require_gpu() -> None:
+    """Raise a ConfigError naming ``device`` unless a GPU (or Numba's CUDA simulator) is usable."""
+    if _cuda() is None:
+        raise ConfigError("device", "'cuda' needs the numba-cuda package: pip install \"hertzchain[gpu]\" "
+                          "(or use device='cpu' / 'auto')")
+    if not (_simulated() or gpu_usable()):
+        raise ConfigError("device", "'cuda' needs a usable CUDA GPU and driver, and none was found; "
+                          "use device='cpu' or 'auto'")
+
+
+def use_gpu(device: str, n_members: int) -> bool:
+    """Whether a batch of ``n_members`` runs on the GPU for this ``device`` choice.
+
+    Parameters
+    ----------
+    device:
+        ``"cpu"``: never; ``"cuda"``: always (an error when no GPU is usable); ``"auto"``: when a
+        GPU is usable and ``n_members >= AUTO_MIN_MEMBERS``.
+    n_members:
+        Members in the batch.
+
+    Returns
+    -------
+    bool
+        True for the GPU.
+    """
+    check_device(device)
+    if device == "cuda":
+        require_gpu()
+        return True
+    return device == "auto" and n_members >= AUTO_MIN_MEMBERS and gpu_usable()
+
+
+def _lanes() -> int:
+    """Lanes per member of the warp kernel: LANES on a GPU; 2 under the simulator, where every
+    lane is a Python thread and every barrier costs milliseconds (the kernel's arithmetic does
+    not depend on the number of lanes; 2 still exchange forces and maxima between lanes)."""
+    return 2 if _simulated() else LANES
+
+
+_KERNEL = None
+cuda = None  # numba.cuda, imported by _kernels()
+
+
+def _kernels() -> dict:
+    """Compile (once) and return the CUDA kernels by name; built lazily so that importing needs no GPU."""
+    from numba import float64
+
+    # ``cuda`` is a module global: Numba's simulator swaps the kernels' global reference to
+    # numba.cuda for its fake module (cuda.grid...), and cannot see a local one.
+    global _KERNEL, cuda
+    if _KERNEL is not None:
+        return _KERNEL
+    cuda = _cuda()
+    nl = _lanes()  # a compile-time constant of the warp kernel
+    # inlined by NVVM on a GPU (the simulator takes no such option)
+    inline = {} if _simulated() else {"forceinline": True}
+
+    @cuda.jit(device=True, **inline)
+    def hertz(kap, d):
+        # kappa d^(3/2), 0 for d <= DELTA_MIN; sqrt of a dummy 1.0 there, not of 0 (CUDA's slow path)
+        ok = d > DELTA_MIN
+        dd = d if ok else 1.0
+        f = kap * dd * math.sqrt(dd)
+        return f if ok else 0.0
+
+    @cuda.jit(device=True)
+    def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, n, m):
+        """kernels.forces_general for member m (returns the dissipated power [W])."""
+        power = 0.0
+        for j in range(n):
+            if de[j, m] != 0.0:
+                dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+                dist = math.sqrt(dx * dx + de[j, m] * de[j, m])
+                d = rsum[j, m] - dist
+                c = dx / dist
+            else:
+                d = u[j, m] - u[j + 1, m] + d0[j, m]
+                c = 1.0
+            if d < 0.0:
+                g[j + 1, m] = 0.0
+                continue
+            sd = 0.0
+            if d > DELTA_MIN:
+                sd = math.sqrt(d)
+            else:
+                d = 0.0
+            fel = kappa[j, m] * d * sd
+            if law == LAW_ELASTIC:
+                g[j + 1, m] = c * fel
+                continue
+            rate = c * (v[j, m] - v[j + 1, m])
+            if law == LAW_VISCOELASTIC:
+                f = fel + kappa[j, m] * damping[j, m] * sd * rate
+            else:
+                f = fel + damping[j, m] * rate
+            f = max(f, 0.0)
+            power += (f - fel) * rate
+            g[j + 1, m] = c * f
+        return power
+
+    @cuda.jit(device=True)
+    def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, law,
+                        n, m):
+        """kernels.required_stride for member m."""
+        kprev = 0.0
+        cprev = 0.0
+        w2 = 0.0
+        weff = 0.0
+        hh = 0.5 * horizon * horizon
+        for j in range(n):
+            if kappa[j, m] == 0.0:
+                k = 0.0
+            else:
+                if de[j, m] != 0.0:
+                    dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+                    d = rsum[j, m] - math.sqrt(dx * dx + de[j, m] * de[j, m])
+                else:
+                    d = u[j, m] - u[j + 1, m] + d0[j, m]
+                rate = v[j, m] - v[j + 1, m]
+                q = a[j, m] - a[j + 1, m]
+                dt_ = d + 2.0 * (q if q > 0.0 else 0.0) * hh
+                if rate > 0.0 and d + 2.0 * rate * horizon > 0.0:
+                    dp = d if d > 0.0 else 0.0
+                    e = 0.4 * kappa[j, m] * dp * dp * math.sqrt(dp) + 0.5 * rate * rate / (
+                        inv_mass[j, m] + inv_mass[j + 1, m])
+                    de_ = (2.5 * e / kappa[j, m]) ** 0.4
+                    dt_ = de_ if de_ > dt_ else dt_
+                dt_ = dt_ if dt_ < dcap[j, m] else dcap[j, m]
+                k = 1.5 * kappa[j, m] * math.sqrt(dt_) if dt_ > 0.0 else 0.0
+            if law == LAW_ELASTIC:
+                w2 = max(w2, (kprev + k) * inv_mass[j, m])
+            else:
+                w, cprev = damped_bound(kprev, k, cprev, damping[j, m], inv_mass[j, m], law)
+                weff = max(weff, w)
+            kprev = k
+        w = math.sqrt(2.0 * w2) if law == LAW_ELASTIC else weff
+        return max(1, int(math.ceil(block * c_steps * w - 1e-9)))
+
+    @cuda.jit(device=True, **inline)
+    def damped_bound(kprev, k, cprev, damp, inv_m, law):
+        """kernels.required_stride's bound for a body between contacts of stiffness kprev, k and
+        damping cprev, c (dashpot: gamma; Kuwabara-Kono: (2/3) A k): (omega_eff, c)."""
+        c = damp if law == LAW_DASHPOT else (2.0 / 3.0) * damp * k
+        om2 = 2.0 * (kprev + k) * inv_m
+        beta = 2.0 * (cprev + c) * inv_m
+        return math.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta, c
+
+    @cuda.jit(device=True, **inline)
+    def track_peak(fw, t, dt, peak, m):
+        """kernels._track_peak for member m (peak is (8, M))."""
+        if fw > peak[0, m]:
+            peak[0, m] = fw
+            peak[1, m] = t
+            peak[2, m] = peak[5, m]
+            peak[6, m] = dt
+            peak[4, m] = 1.0
+        elif peak[4, m] != 0.0:
+            peak[3, m] = fw
+            peak[7, m] = dt
+            peak[4, m] = 0.0
+        peak[5, m] = fw
+
+    @cuda.jit
+    def verlet_kernel(u, v, a, g, vp, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
+                      wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
+                      out_pe, out_ed, out_v, record_v, fmax, peak, acc, status):
+        """kernels.verlet_run for member m = the thread's index, samples k_start..k_stop - 1.
+
+        Sample k is written at row k - k_start of out_f (rows, rec, M), out_ke/pe/ed (rows, M)
+        and out_v (rows, bodies, M).
+        """
+        m = cuda.grid(1)
+        if m >= status.shape[0] or status[m] != 0:
+            return
+        n = a.shape[0]
+        nrec = rec.shape[0]
+        lw = law[m]
+        gen = general[m]
+        ws = wall_slot[m] + 1
+        nsub = n_sub[m]
+        neval = n_eval[m]
+        block = interval / nsub
+        adaptive = stride[m] == 0
+        ns = stride[m] if not adaptive else int(acc[3, m])
+        step = acc[2, m]
+        for k in range(k_start, k_stop):
+            for b in range(nsub):
+                if adaptive and ((k - 1) * nsub + b) % neval == 0:
+                    req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block,
+                                          c_steps[m], damping, lw, n, m)
+                    if req > ns:
+                        ns = req
+                        acc[4, m] = 0.0
+                        acc[5, m] = 0.0
+                    elif req < ns:
+                        acc[4, m] += 1.0
+                        acc[5, m] = max(acc[5, m], req)
+                        if acc[4, m] >= relax[m]:
+                            ns = int(acc[5, m])
+                            acc[4, m] = 0.0
+                            acc[5, m] = 0.0
+                    else:
+                        acc[4, m] = 0.0
+                        acc[5, m] = 0.0
+                    acc[3, m] = ns
+                    acc[6, m] = max(acc[6, m], ns)
+                    acc[7, m] = min(acc[7, m], ns)
+                dt = block / ns
+                half = 0.5 * dt
+                t0 = (k - 1) * interval + b * block
+                for i in range(n):
+                    v[i, m] += half * a[i, m]
+                    u[i, m] += dt * v[i, m]
+                if gen:
+                    for s in range(ns):
+                        for i in range(n):
+                            vp[i, m] = v[i, m] + half * a[i, m]
+                        p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, n, m)
+                        acc[0, m] += half * (acc[1, m] + p)  # trapezoidal integral of the dissipated power
+                        acc[1, m] = p
+                        track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
+                        last = s == ns - 1
+                        for i in range(n):
+                            ai = (g[i, m] - g[i + 1, m] + fext[i, m]) * inv_mass[i, m]
+                            a[i, m] = ai
+                            if last:
+                                v[i, m] += half * ai
+                            else:
+                                v[i, m] += dt * ai
+                                u[i, m] += dt * v[i, m]
+                else:
+                    for s in range(ns):
+                        # kernels.step_elastic (final_step_elastic on the last step: closing half kick)
+                        last = s == ns - 1
+                        fprev = 0.0
+                        for i in range(n):
+                            f = hertz(kappa[i, m], u[i, m] - u[i + 1, m] + d0[i, m])
+                            g[i + 1, m] = f
+                            ai = (fprev - f + fext[i, m]) * inv_mass[i, m]
+                            a[i, m] = ai
+                            if last:
+                                v[i, m] += half * ai
+                            else:
+                                v[i, m] += dt * ai
+                                u[i, m] += dt * v[i, m]
+                            fprev = f
+                        track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
+                step += ns
+            # --- probes, sampled on the device
+            row = k - k_start
+            for j in range(nrec):
+                out_f[row, j, m] = g[rec[j] + 1, m]
+            for j in range(fmax.shape[0]):
+                x = g[j + 1, m]
+                if x > fmax[j, m]:
+                    fmax[j, m] = x
+            ke = 0.0
+            pe = 0.0
+            if gen:  # kernels.kinetic_energy and kernels.potential_energy
+                for i in range(n):
+                    ke += 0.5 * mass[i, m] * v[i, m] * v[i, m]
+                for j in range(n):
+                    if de[j, m] != 0.0:
+                        dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+                        d = rsum[j, m] - math.sqrt(dx * dx + de[j, m] * de[j, m])
+                    else:
+                        d = u[j, m] - u[j + 1, m] + d0[j, m]
+                    if d > 0.0:
+                        pe += 0.4 * kappa[j, m] * d * d * math.sqrt(d)
+                for i in range(n):
+                    pe -= fext[i, m] * u[i, m]
+            else:  # kernels.energies_elastic
+                for i in range(n):
+                    ke += mass[i, m] * v[i, m] * v[i, m]
+                    pe += 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
+                ke = 0.5 * ke
+            out_ke[row, m] = ke
+            out_pe[row, m] = pe
+            out_ed[row, m] = acc[0, m]
+            if record_v[m]:
+                for i in range(out_v.shape[1]):
+                    out_v[row, i, m] = v[i, m]
+            if not (math.isfinite(ke) and math.isfinite(g[1, m])):
+                acc[2, m] = step
+                status[m] = 1
+                return
+        acc[2, m] = step
+
+
+    @cuda.jit
+    def warp_kernel(u, v, a, g, vp, sc, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
+                    wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
+                    out_pe, out_ed, out_v, record_v, fmax, peak, acc, status):
+        """verlet_kernel with one block of nl threads per member (m = the block's index).
+
+        Lane l owns slots l, l + nl, ...: forces of its contacts, then (after a barrier) the
+        kick and drift of its bodies, as in kernels.step_elastic; sums are taken by lane 0 in
+        slot order from per-slot terms in ``sc``, maxima through shared memory. The whole block
+        is one member, so every thread takes the same branches and reaches every barrier.
+        """
+        m = cuda.blockIdx.x
+        lane = cuda.threadIdx.x
+        if m >= status.shape[0] or status[m] != 0:
+            return
+        red = cuda.shared.array(nl, float64)
+        n = a.shape[0]
+        nrec = rec.shape[0]
+        lw = law[m]
+        gen = general[m]
+        ws = wall_slot[m] + 1
+        nsub = n_sub[m]
+        neval = n_eval[m]
+        block = interval / nsub
+        adaptive = stride[m] == 0
+        ns = stride[m] if not adaptive else int(acc[3, m])
+        r4 = acc[4, m]
+        r5 = acc[5, m]
+        step = acc[2, m]
+        for k in range(k_start, k_stop):
+            for b in range(nsub):
+                if adaptive and ((k - 1) * nsub + b) % neval == 0:
+                    # kernels.required_stride: tangent stiffness of every contact into sc, then the
+                    # Gershgorin maximum over the bodies (a maximum: the order does not matter)
+                    horizon = neval * block
+                    hh = 0.5 * horizon * horizon
+                    for j in range(lane, n, nl):
+                        if kappa[j, m] == 0.0:
+                            kk = 0.0
+                        else:
+                            if de[j, m] != 0.0:
+                                dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+                                d = rsum[j, m] - math.sqrt(dx * dx + de[j, m] * de[j, m])
+                            else:
+                                d = u[j, m] - u[j + 1, m] + d0[j, m]
+                            rate = v[j, m] - v[j + 1, m]
+                            q = a[j, m] - a[j + 1, m]
+                            dt_ = d + 2.0 * (q if q > 0.0 else 0.0) * hh
+                            if rate > 0.0 and d + 2.0 * rate * horizon > 0.0:
+                                dp = d if d > 0.0 else 0.0
+                                e = 0.4 * kappa[j, m] * dp * dp * math.sqrt(dp) + 0.5 * rate * rate / (
+                                    inv_mass[j, m] + inv_mass[j + 1, m])
+                                de_ = (2.5 * e / kappa[j, m]) ** 0.4
+                                dt_ = de_ if de_ > dt_ else dt_
+                            dt_ = dt_ if dt_ < dcap[j, m] else dcap[j, m]
+                            kk = 1.5 * kappa[j, m] * math.sqrt(dt_) if dt_ > 0.0 else 0.0
+                        sc[j, m] = kk
+                    cuda.syncthreads()
+                    w2 = 0.0  # elastic: max (k_left + k_right) / m; dissipative: max omega_eff
+                    for j in range(lane, n, nl):
+                        kprev = sc[j - 1, m] if j > 0 else 0.0
+                        if lw == LAW_ELASTIC:
+                            w2 = max(w2, (kprev + sc[j, m]) * inv_mass[j, m])
+                        else:
+                            cprev = 0.0
+                            if j > 0 and lw == LAW_DASHPOT:
+                                cprev = damping[j - 1, m]
+                            elif j > 0:
+                                cprev = (2.0 / 3.0) * damping[j - 1, m] * kprev
+                            w, _ = damped_bound(kprev, sc[j, m], cprev, damping[j, m], inv_mass[j, m], lw)
+                            w2 = max(w2, w)
+                    red[lane] = w2
+                    cuda.syncthreads()
+                    w2 = 0.0
+                    for i in range(nl):
+                        w2 = max(w2, red[i])
+                    w = math.sqrt(2.0 * w2) if lw == LAW_ELASTIC else w2
+                    req = max(1, int(math.ceil(block * c_steps[m] * w - 1e-9)))
+                    if req > ns:
+                        ns = req
+                        r4 = 0.0
+                        r5 = 0.0
+                    elif req < ns:
+                        r4 += 1.0
+                        r5 = max(r5, req)
+                        if r4 >= relax[m]:
+                            ns = int(r5)
+                            r4 = 0.0
+                            r5 = 0.0
+                    else:
+                        r4 = 0.0
+                        r5 = 0.0
+                    if lane == 0:
+                        acc[3, m] = ns
+                        acc[6, m] = max(acc[6, m], ns)
+                        acc[7, m] = min(acc[7, m], ns)
+                    cuda.syncthreads()  # red is read before the next reduction writes it
+                dt = block / ns
+                half = 0.5 * dt
+                t0 = (k - 1) * interval + b * block
+                for i in range(lane, n, nl):
+                    v[i, m] += half * a[i, m]
+                    u[i, m] += dt * v[i, m]
+                for s in range(ns):
+                    last = s == ns - 1
+                    if gen:
+                        for i in range(lane, n, nl):
+                            vp[i, m] = v[i, m] + half * a[i, m]
+                    cuda.syncthreads()  # positions (and predicted velocities) of the neighbours are written
+                    if gen:
+                        for j in range(lane, n, nl):
+                            # kernels.forces_general for contact j; its dissipated power into sc
+                            if de[j, m] != 0.0:
+                                dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+                                dist = math.sqrt(dx * dx + de[j, m] * de[j, m])
+                                d = rsum[j, m] - dist
+                                c = dx / dist
+                            else:
+                                d = u[j, m] - u[j + 1, m] + d0[j, m]
+                                c = 1.0
+                            pw = 0.0
+                            if d < 0.0:
+                                g[j + 1, m] = 0.0
+                            else:
+                                sd = 0.0
+                                if d > DELTA_MIN:
+                                    sd = math.sqrt(d)
+                                else:
+                                    d = 0.0
+                                fel = kappa[j, m] * d * sd
+                                if lw == LAW_ELASTIC:
+                                    g[j + 1, m] = c * fel
+                                else:
+                                    rate = c * (vp[j, m] - vp[j + 1, m])
+                                    if lw == LAW_VISCOELASTIC:
+                                        f = fel + kappa[j, m] * damping[j, m] * sd * rate
+                                    else:
+                                        f = fel + damping[j, m] * rate
+                                    f = max(f, 0.0)
+                                    pw = (f - fel) * rate
+                                    g[j + 1, m] = c * f
+                            sc[j, m] = pw
+                    else:
+                        for j in range(lane, n, nl):
+                            g[j + 1, m] = hertz(kappa[j, m], u[j, m] - u[j + 1, m] + d0[j, m])
+                    cuda.syncthreads()  # every contact force is written
+                    if lane == 0:
+                        if gen:
+                            p = 0.0
+                            for j in range(n):  # in contact order, as forces_general sums
+                                p += sc[j, m]
+                            acc[0, m] += half * (acc[1, m] + p)
+                            acc[1, m] = p
+                            track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
+                        else:
+                            track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
+                    for i in range(lane, n, nl):
+                        ai = (g[i, m] - g[i + 1, m] + fext[i, m]) * inv_mass[i, m]
+                        a[i, m] = ai
+                        if last:
+                            v[i, m] += half * ai
+                        else:
+                            v[i, m] += dt * ai
+                            u[i, m] += dt * v[i, m]
+                    cuda.syncthreads()  # bodies moved before the next step's forces (and g is read)
+                step += ns
+            # --- probes: per-slot energy terms into sc and vp, summed by lane 0 in slot order
+            row = k - k_start
+            for j in range(lane, nrec, nl):
+                out_f[row, j, m] = g[rec[j] + 1, m]
+            for j in range(lane, fmax.shape[0], nl):
+                x = g[j + 1, m]
+                if x > fmax[j, m]:
+                    fmax[j, m] = x
+            for i in range(lane, n, nl):
+                if gen:
+                    sc[i, m] = 0.5 * mass[i, m] * v[i, m] * v[i, m]
+                    if de[i, m] != 0.0:
+                        dx = dx0[i, m] - (u[i, m] - u[i + 1, m])
+                        d = rsum[i, m] - math.sqrt(dx * dx + de[i, m] * de[i, m])
+                    else:
+                        d = u[i, m] - u[i + 1, m] + d0[i, m]
+                    vp[i, m] = 0.4 * kappa[i, m] * d * d * math.sqrt(d) if d > 0.0 else 0.0
+                else:
+                    sc[i, m] = mass[i, m] * v[i, m] * v[i, m]
+                    vp[i, m] = 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
+            if record_v[m]:
+                for i in range(lane, out_v.shape[1], nl):
+                    out_v[row, i, m] = v[i, m]
+            cuda.syncthreads()
+            if lane == 0:
+                ke = 0.0
+                pe = 0.0
+                for i in range(n):
+                    ke += sc[i, m]
+                    pe += vp[i, m]
+                if gen:
+                    for i in range(n):
+                        pe -= fext[i, m] * u[i, m]
+                else:
+                    ke = 0.5 * ke
+                out_ke[row, m] = ke
+                out_pe[row, m] = pe
+                out_ed[row, m] = acc[0, m]
+                if not (math.isfinite(ke) and math.isfinite(g[1, m])):
+                    status[m] = 1
+            cuda.syncthreads()
+            if status[m] != 0:
+                if lane == 0:
+                    acc[2, m] = step
+                    acc[4, m] = r4
+                    acc[5, m] = r5
+                return
+        if lane == 0:
+            acc[2, m] = step
+            acc[4, m] = r4
+            acc[5, m] = r5
+
+    _KERNEL = {"thread": verlet_kernel, "warp": warp_kernel}
+    return _KERNEL
+
+
+_SLOT_ARRAYS = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
+
+
+def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
+    """Run a packed batch (members of one layout) to the end on the GPU, results into ``pk``'s buffers.
+
+    Parameters
+    ----------
+    pk:
+        The engine's packed batch (``hertzchain.integrate.batch._Packed``) after set-up: every
+        member with the same slot count, recorded contacts and velocity recording. Its output
+        buffers, trackers and maximum forces receive the results, as the CPU engine leaves them.
+    progress:
+        ``progress(done, total)`` in samples, after each launch.
+
+    Raises
+    ------
+    SimulationDiverged
+        When a member's state became non-finite.
+    """
+    cuda = _cuda()
+    nmem = pk.n_members
+    warp = nmem < WARP_PER_MEMBER_BELOW
+    kernel = _kernels()["warp" if warp else "thread"]
+    p = int(pk.n_slots[0])
+    width = int(pk.off[1])
+    if not (np.all(pk.n_slots == p) and np.all(pk.nrec == pk.nrec[0]) and np.all(pk.record_v == pk.record_v[0])):
+        raise ConfigError("device", "the CUDA engine runs members of one layout (same number of beads and probes)")
+    ns = pk.n_samples
+    nrec = int(pk.nrec[0])
+    nb = int(pk.nb[0])
+    nc = int(pk.fmax_off[1])
+    record_v = bool(pk.record_v[0])
+
+    def slots(name: str, rows: int):
+        """A flat ragged buffer as a (rows, member) device array."""
+        return cuda.to_device(np.ascontiguousarray(pk.flat[name].reshape(nmem, width)[:, :rows].T))
+
+    d = {k: slots(k, p) for k in _SLOT_ARRAYS + ("a",)}
+    for k in ("u", "v", "g"):
+        d[k] = slots(k, p + 1)
+    d["vp"] = cuda.to_device(np.zeros((p + 1, nmem)))
+    d["sc"] = cuda.to_device(np.zeros((p + 1, nmem if warp else 1)))  # the warp kernel's per-slot terms
+    ints = {k: cuda.to_device(np.ascontiguousarray(getattr(pk, k), dtype=np.int64))
+            for k in ("law", "wall_slot", "stride", "n_sub", "n_eval", "relax")}
+    flags = {k: cuda.to_device(np.ascontiguousarray(getattr(pk, k), dtype=np.bool_)) for k in ("general", "record_v")}
+    c_steps = cuda.to_device(np.ascontiguousarray(pk.c_steps, dtype=np.float64))
+    rec = cuda.to_device(np.ascontiguousarray(pk.rec[:nrec]))
+    fmax = cuda.to_device(np.ascontiguousarray(pk.fmax.reshape(nmem, nc).T))
+    peak = cuda.to_device(np.ascontiguousarray(pk.peak[:, :8].T))
+    acc = cuda.to_device(np.ascontiguousarray(pk.acc[:, :8].T))
+    status = cuda.to_device(np.zeros(nmem, dtype=np.int64))
+
+    cost = float(np.sum(pk.interval / pk.plan_dt * (p + 1) * np.where(pk.general, 2, 1)))
+    per_launch = max(1, min(ns - 1, int(LAUNCH_SLOT_STEPS // max(cost, 1.0)),
+                            int(LAUNCH_OUTPUT_BYTES // (8 * nmem * (nrec + 3 + (nb if record_v else 0))))))
+    out_f = cuda.device_array((per_launch, nrec, nmem))
+    out_ke = cuda.device_array((per_launch, nmem))
+    out_pe = cuda.device_array((per_launch, nmem))
+    out_ed = cuda.device_array((per_launch, nmem))
+    out_v = cuda.device_array((per_launch if record_v else 1, nb, nmem))
+    host_f = pk.out_f.reshape(nmem, ns, nrec)
+    host_v = pk.out_v.reshape(nmem, ns if record_v else 1, nb)
+    k = 1
+    while k < ns:
+        k_stop = min(ns, k + per_launch)
+        rows = k_stop - k
+        launch = kernel[nmem, _lanes()] if warp else kernel[-(-nmem // THREADS_PER_BLOCK), THREADS_PER_BLOCK]
+        launch(
+            d["u"], d["v"], d["a"], d["g"], d["vp"], *((d["sc"],) if warp else ()), d["mass"], d["inv_mass"],
+            d["kappa"], d["damping"], d["d0"],
+            d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["law"], flags["general"], ints["wall_slot"],
+            float(pk.interval), ints["stride"], ints["n_sub"], ints["n_eval"], c_steps, ints["relax"], k, k_stop, rec,
+            out_f, out_ke, out_pe, out_ed, out_v, flags["record_v"], fmax, peak, acc, status)
+        # probes stay on the device for the whole launch; one copy per chunk
+        host_f[:, k:k_stop, :] = out_f.copy_to_host()[:rows].transpose(2, 0, 1)
+        pk.out_ke[:, k:k_stop] = out_ke.copy_to_host()[:rows].T
+        pk.out_pe[:, k:k_stop] = out_pe.copy_to_host()[:rows].T
+        pk.out_ed[:, k:k_stop] = out_ed.copy_to_host()[:rows].T
+        if record_v:
+            host_v[:, k:k_stop, :] = out_v.copy_to_host()[:rows].transpose(2, 0, 1)
+        bad = np.flatnonzero(status.copy_to_host())
+        if bad.size:
+            raise SimulationDiverged(
+                f"the integration of member(s) {bad.tolist()[:10]} diverged (non-finite state) before "
+                f"t = {k_stop * pk.interval:.4g} s; use a smaller run.dt (or the automatic one) or check their inputs")
+        k = k_stop
+        if progress is not None:
+            progress(k - 1, ns - 1)
+    pk.fmax.reshape(nmem, nc)[:] = fmax.copy_to_host().T
+    pk.peak[:, :8] = peak.copy_to_host().T
+    pk.acc[:, :8] = acc.copy_to_host().T

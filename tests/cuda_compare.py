@@ -1,0 +1,144 @@
+"""CPU engine vs CUDA engine on small ensembles covering every feature the batch engine supports.
+
+Used by tests/test_cuda.py in-process on a GPU, and as a script under Numba's CUDA simulator
+(``NUMBA_ENABLE_CUDASIM=1 python tests/cuda_compare.py``), printing the comparison as JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+
+from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall
+from hertzchain.errors import ElasticLimitWarning
+from hertzchain.integrate.batch import simulate_batch
+from hertzchain.integrate.ensemble import Ensemble
+
+INTERVAL = 1e-6  # s
+
+
+def cases(members: int = 3, beads: int = 3) -> dict[str, tuple[Ensemble, Probes, list, float]]:
+    """(ensemble, probes, per-member dt, duration [s]) for each feature group.
+
+    ``members`` >= 3; the first three members carry the special features, the rest are
+    tolerance-perturbed copies of the base.
+    """
+    rng = np.random.default_rng(7)
+
+    def diam(base: Model) -> np.ndarray:
+        return base.chain.diameters * (1 + 2e-3 * rng.standard_normal((members, base.chain.n_beads)))
+
+    elastic = Model(Chain.uniform(beads, 10e-3), Striker(8e-3, 0.2))
+    pre = np.zeros(members)
+    pre[0] = 1.0                              # member 0: precompressed
+    off = np.zeros((members, beads))
+    off[1, 1] = 0.3e-3                        # member 1: a misaligned bead (general force loop)
+    dts = [None] * members
+    dts[2] = 5e-9                             # member 2: a fixed user step
+    visco = Model(Chain.uniform(beads, 8e-3, "brass"), Striker(8e-3, 0.15, "brass"), law=Viscoelastic(A=1e-6))
+    voff = np.zeros((members, beads))
+    voff[0, 2] = -0.2e-3
+    dash = Model(Chain.uniform(beads, 10e-3), Striker(8e-3, 0.2), wall=Wall("none"), law=Dashpot(gamma=5.0))
+    return {
+        "elastic_precompression_offsets_fixed_dt": (
+            Ensemble(elastic, diameters=diam(elastic), precompression=pre, offsets=off,
+                     striker_velocity=rng.uniform(0.1, 0.3, members)),
+            Probes(INTERVAL, sensors=(2,), contacts=(0, 1)), dts, 6e-5),
+        "viscoelastic_misaligned": (
+            Ensemble(visco, diameters=diam(visco), offsets=voff, law_parameter=rng.uniform(0, 2e-6, members)),
+            Probes(INTERVAL), [None] * members, 6e-5),
+        "dashpot_free_end_velocities": (
+            Ensemble(dash, diameters=diam(dash), law_parameter=rng.uniform(1, 10, members)),
+            Probes(INTERVAL, velocities=True), [None] * members, 3e-5),
+    }
+
+
+def warp_cases() -> dict[str, tuple[Ensemble, Probes, list, float]]:
+    """Short cases for the warp-per-member kernel under the simulator (every lane is a Python
+    thread there and every barrier costs milliseconds): the elastic fast path (adaptive, with
+    precompression on a fixed step) and the general one (offsets, a dashpot), 3 samples each."""
+    elastic = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2))
+    dash = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2), law=Dashpot(gamma=3.0))
+    return {
+        "warp_elastic_precompression_offsets": (
+            Ensemble(elastic, striker_velocity=[0.1, 0.2, 0.3], offsets=[[0, 0, 0], [0, 1e-4, 0], [0, 0, 0]],
+                     precompression=[0.0, 0.0, 1.0]), Probes(INTERVAL, sensors=(2,)), [None, None, 5e-8], 3e-6),
+        "warp_dashpot_misaligned": (
+            Ensemble(dash, striker_velocity=[0.1, 0.3], offsets=[[0, 1e-4, 0], [0, 0, 0]]),
+            Probes(INTERVAL, velocities=True), [None, None], 3e-6),
+    }
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest difference relative to the variable's largest magnitude in each member (NaN-aware)."""
+    a = a.reshape(a.shape[0], -1)
+    b = b.reshape(b.shape[0], -1)
+    if not np.isfinite(a).any():
+        return 0.0 if np.array_equal(np.isnan(a), np.isnan(b)) else float("inf")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # members without the variable (all NaN)
+        scale = np.nanmax(np.abs(a), axis=1, keepdims=True)
+        scale[~(scale > 0)] = 1.0
+        return float(np.nanmax(np.abs(a - b) / scale))
+
+
+def compare(members: int = 3, beads: int = 3, kernel: str = "thread", which=None) -> dict:
+    """Per case: max relative difference GPU vs CPU of every compared variable, and whether the
+    step counts, steps and NaN layouts are identical. ``kernel``: "thread" or "warp" per member."""
+    from hertzchain.integrate import cuda as hc_cuda
+
+    saved = hc_cuda.WARP_PER_MEMBER_BELOW
+    hc_cuda.WARP_PER_MEMBER_BELOW = 10**12 if kernel == "warp" else 0
+    try:
+        return _compare(which or cases(members, beads))
+    finally:
+        hc_cuda.WARP_PER_MEMBER_BELOW = saved
+
+
+def _compare(which: dict) -> dict:
+    out = {}
+    for name, (ens, probes, dts, duration) in which.items():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ElasticLimitWarning)
+            cpu = simulate_batch(ens, duration, probes, dt=dts, device="cpu")
+            gpu = simulate_batch(ens, duration, probes, dt=dts, device="cuda")
+        res = {"engine": gpu.attrs["engine"]}
+        for v in ("peak_wall_force", "peak_wall_time", "contact_force", "wall_force", "sensor_force", "velocity",
+                  "kinetic_energy", "potential_energy", "dissipated_energy", "max_contact_force"):
+            if v in cpu:
+                res[v] = _rel(cpu[v].values, gpu[v].values)
+        res["same_steps"] = bool(np.array_equal(cpu["n_steps"].values, gpu["n_steps"].values)
+                                 and np.array_equal(cpu["dt"].values, gpu["dt"].values))
+        res["same_nan"] = all(np.array_equal(np.isnan(cpu[v].values), np.isnan(gpu[v].values))
+                              for v in cpu.data_vars if cpu[v].dtype.kind == "f")
+        res["pulse_N"] = float(np.nanmax(cpu["contact_force"].values))
+        res["min_peak_wall_N"] = float(np.min(cpu["peak_wall_force"].values)) if ens.has_wall else None
+        res["n_steps"] = cpu["n_steps"].values.tolist()
+        res["dissipated_J"] = float(np.nanmax(cpu["dissipated_energy"].values))
+        out[name] = res
+    return out
+
+
+def multi_launch() -> dict:
+    """A run cut into ~10 launches (small output budget): state carried across launches exactly."""
+    from hertzchain.integrate import cuda as hc_cuda
+
+    ens = Ensemble(Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2)), striker_velocity=[0.1, 0.2])
+    saved = hc_cuda.LAUNCH_OUTPUT_BYTES, hc_cuda.WARP_PER_MEMBER_BELOW
+    hc_cuda.LAUNCH_OUTPUT_BYTES, hc_cuda.WARP_PER_MEMBER_BELOW = 8 * 2 * (5 + 3) * 3, 0  # 3 samples a launch
+    reports: list = []
+    try:
+        one = simulate_batch(ens, 3e-5, Probes(INTERVAL), device="cpu")
+        many = simulate_batch(ens, 3e-5, Probes(INTERVAL), device="cuda", progress=lambda d, t: reports.append(d))
+    finally:
+        hc_cuda.LAUNCH_OUTPUT_BYTES, hc_cuda.WARP_PER_MEMBER_BELOW = saved
+    return {"launches": len(reports), "last": reports[-1],
+            "forces_equal": bool(np.array_equal(one["contact_force"].values, many["contact_force"].values)),
+            "peaks_equal": bool(np.array_equal(one["peak_wall_force"].values, many["peak_wall_force"].values))}
+
+
+if __name__ == "__main__":
+    print(json.dumps({"thread": compare(), "warp": compare(kernel="warp", which=warp_cases()),
+                      "multi_launch": multi_launch()}))

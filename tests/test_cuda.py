@@ -1,0 +1,110 @@
+"""CUDA backend: the kernels against the CPU engine (Numba's CUDA simulator in CI, the GPU where
+there is one), and the device choice (auto / cpu / cuda) with its errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hertzchain import Chain, Model, Probes, Striker
+from hertzchain.errors import ConfigError
+from hertzchain.integrate import cuda as hc_cuda
+from hertzchain.integrate.batch import simulate_batch
+from hertzchain.integrate.ensemble import Ensemble
+
+pytest.importorskip("numba.cuda", reason="the CUDA backend needs numba-cuda (the 'gpu' / 'test' extras)")
+
+HERE = Path(__file__).resolve().parent
+GPU = hc_cuda.gpu_usable()
+#: The issue's bound: GPU results equal the CPU engine's within 1e-12 relative (FMA and the order
+#: of the energy sums differ; the simulator, which has neither, matches the forces bit for bit).
+REL = 1e-12
+FORCES = ("peak_wall_force", "peak_wall_time", "contact_force", "wall_force", "sensor_force", "velocity",
+          "max_contact_force")
+
+
+def _check(result: dict, short: bool = False) -> None:
+    for name, res in result.items():
+        assert res["engine"].startswith("batched velocity Verlet on the GPU"), name
+        # the comparison is not vacuous: pulses reach the wall, the dissipative laws dissipate
+        assert res["pulse_N"] > (0.1 if short else 1.0), name
+        if res["min_peak_wall_N"] is not None and not short:
+            assert res["min_peak_wall_N"] > 0.5, name
+        if "elastic" not in name:
+            assert res["dissipated_J"] > 0, name
+        assert res["same_steps"] and res["same_nan"], name
+        for key in FORCES + ("kinetic_energy", "potential_energy", "dissipated_energy"):
+            if key in res:
+                assert res[key] <= REL, (name, key, res[key])
+
+
+def test_simulated_kernels_match_the_cpu_engine():
+    """Every feature through Numba's CUDA simulator, in a fresh process (the simulator is chosen
+    when numba.cuda is first imported)."""
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    proc = subprocess.run([sys.executable, str(HERE / "cuda_compare.py")], capture_output=True, text=True, env=env,
+                          timeout=600, cwd=HERE)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert set(result["thread"]) == {"elastic_precompression_offsets_fixed_dt", "viscoelastic_misaligned",
+                                     "dashpot_free_end_velocities"}
+    assert set(result["warp"]) == {"warp_elastic_precompression_offsets", "warp_dashpot_misaligned"}
+    _check(result["thread"])
+    _check(result["warp"], short=True)
+    for res in [*result["thread"].values(), *result["warp"].values()]:
+        # without FMA the simulator does the CPU's arithmetic: forces bit for bit
+        assert all(res[k] == 0.0 for k in FORCES if k in res), res
+    # the adaptive and the fixed step both ran (the fixed member takes 20 steps a sample)
+    assert result["warp"]["warp_elastic_precompression_offsets"]["n_steps"][2] == 60
+    # a run cut into many launches carries its state across them exactly
+    ml = result["multi_launch"]
+    assert ml["launches"] >= 10 and ml["last"] == 30 and ml["forces_equal"] and ml["peaks_equal"]
+
+
+@pytest.mark.skipif(not GPU, reason="no usable CUDA GPU")
+def test_gpu_matches_the_cpu_engine():
+    sys.path.insert(0, str(HERE))
+    from cuda_compare import compare
+
+    for kernel in ("thread", "warp"):
+        result = compare(members=300, beads=30, kernel=kernel)
+        assert set(result) == {"elastic_precompression_offsets_fixed_dt", "viscoelastic_misaligned",
+                               "dashpot_free_end_velocities"}
+        _check(result)
+
+
+@pytest.mark.skipif(not GPU, reason="no usable CUDA GPU")
+def test_auto_takes_the_gpu_for_large_batches():
+    base = Model(Chain.uniform(5, 10e-3), Striker(8e-3, 0.2))
+    big = simulate_batch(Ensemble(base, n_members=hc_cuda.AUTO_MIN_MEMBERS), 2e-5, Probes(1e-6))
+    small = simulate_batch(Ensemble(base, n_members=8), 2e-5, Probes(1e-6))
+    assert big.attrs["engine"] == hc_cuda.ENGINE and small.attrs["engine"] != hc_cuda.ENGINE
+    assert np.allclose(big["contact_force"].values[:8], small["contact_force"].values, rtol=REL, atol=0)
+
+
+def test_device_choice_and_errors():
+    base = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2))
+    ens = Ensemble(base, striker_velocity=[0.1, 0.2])
+    with pytest.raises(ConfigError) as e:
+        simulate_batch(ens, 2e-5, Probes(1e-6), device="gpu")
+    assert e.value.field == "device" and "'cuda'" in str(e.value)
+    # mixed layouts cannot go to the CUDA engine: an error, never a silent CPU run
+    mixed = [base, Model(Chain.uniform(4, 10e-3), Striker(8e-3, 0.2))]
+    with pytest.raises(ConfigError) as e:
+        simulate_batch(mixed, 2e-5, Probes(1e-6), device="cuda")
+    assert e.value.field == "device"
+    if not GPU:
+        # 'auto' runs a small batch (and any batch without a GPU) on the CPU, with its bit-identical engine
+        ds = simulate_batch(ens, 2e-5, Probes(1e-6))
+        assert ds.attrs["engine"].startswith("batched compiled velocity Verlet")
+        assert not hc_cuda.use_gpu("auto", 10**7)
+        if not hc_cuda._simulated():
+            with pytest.raises(ConfigError) as e:
+                simulate_batch(ens, 2e-5, Probes(1e-6), device="cuda")
+            assert e.value.field == "device" and "GPU" in str(e.value)
