@@ -17,7 +17,7 @@ _EXPORTS = {
     # model
     "Material": "materials", "CATALOGUE": "materials", "get_material": "materials",
     "register_material": "materials",
-    "Elastic": "contact", "Viscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
+    "Elastic": "contact", "Viscoelastic": "contact", "ScaledViscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
     "yield_force": "contact",
     "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain",
     "Striker": "model", "Wall": "model", "Model": "model",

@@ -48,7 +48,7 @@ def _chain_summary(study: ChainStudy) -> dict:
 
 def _law_desc(law) -> dict:
     out = {"law": law.name}
-    if law.name == "viscoelastic":
+    if law.name in ("viscoelastic", "viscoelastic_scaled"):
         out["A"] = law.A
     elif law.name == "dashpot":
         out["gamma"] = law.gamma
