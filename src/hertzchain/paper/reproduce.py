@@ -12,7 +12,8 @@ import numpy as np
 
 from .. import __version__, theory
 from ..result import save as _save
-from . import protocol
+from . import fidelity, protocol
+from .claims import build_claims
 from .protocol import ChainStudy, Settings
 from .values import PAPER
 
@@ -23,7 +24,9 @@ def count_runs(settings: Settings) -> int:
     """Number of simulations a reproduction makes (for the progress bar)."""
     n1 = PAPER["chain1"]["n_beads"] - PAPER["n0"] + 1
     n2 = PAPER["chain2"]["n_beads"] - PAPER["n0"] + 1
-    return n1 + n2 + 6 + 3 + 1 + 10
+    from .fidelity import count_variant_runs
+
+    return n1 + n2 + 6 + 3 + 1 + 10 + count_variant_runs(settings)
 
 
 def _chain_summary(study: ChainStudy) -> dict:
@@ -169,6 +172,7 @@ def redraw(out_dir: str | Path) -> dict:
                         elastic=summary["settings"]["law"] == "elastic")
     studies, mis, subs, _ = load_data(out, settings)
     paths = draw(out, studies, mis, subs, settings)
+    paths.update(draw_fidelity(out, summary, mis, _load_lateral(out)))
     summary["figures"] = _figure_numbers(studies, mis, subs, settings)
     write_report(out, summary, paths, summary["settings"])
     return summary
@@ -197,20 +201,72 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     speed = protocol.run_speed_check(settings)
     for _ in range(10):
         tick("two-speed check")
+    # where the model and the paper disagree: other contact laws, lateral freedom (paper/fidelity.py)
+    variants = fidelity.run_law_variants(settings, studies, tick)
+    lateral, cost = fidelity.run_lateral_misalignment(settings, progress=tick)
     t_sim = time.perf_counter() - t0
     _save_data(out, studies, mis, subs, ratio)
+    for (label, b, frac), ds in lateral.items():
+        _save(ds, out / "data" / f"fig3_lateral_{label}_bead{b}_e{frac:.2f}.nc", single_precision=True)
     summary = build_summary(studies, ratio, speed, settings, {"simulation_s": t_sim})
+    summary["fidelity"] = _finite({"laws": fidelity.law_numbers(variants, settings),
+                                   "misalignment": fidelity.misalignment_numbers(mis, lateral),
+                                   "tracks": {k: t.describe() for k, t in fidelity.TRACKS.items()},
+                                   "lateral_cost": cost})
+    summary["claims"] = build_claims(summary)
     fig_paths: dict[str, Path] = {}
     if figures:
         from .report import write_report
 
         fig_paths = draw(out, studies, mis, subs, settings)
+        fig_paths.update(draw_fidelity(out, summary, mis, lateral))
         summary["figures"] = _figure_numbers(studies, mis, subs, settings)
         summary["timing"]["total_s"] = time.perf_counter() - t0
         write_report(out, summary, fig_paths, settings.describe())
     summary["timing"]["total_s"] = time.perf_counter() - t0
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False, default=_json_default))
     return summary
+
+
+def draw_fidelity(out_dir: str | Path, summary: dict, mis: dict, lateral: dict) -> dict[str, Path]:
+    """Draw the model-variant figures (claims.FIGURES) that the summary and data allow; {name: png}."""
+    from .figures import save_figure
+
+    out: dict[str, Path] = {}
+    laws = (summary.get("fidelity") or {}).get("laws")
+    if laws:
+        eps = summary["settings"].get("eps_target") or PAPER["eps"]
+        out["fig5_laws"] = save_figure(fidelity.fig_laws(laws, eps), Path(out_dir), "fig5_laws")
+    if lateral and mis:
+        out["fig3_lateral"] = save_figure(fidelity.fig3_lateral(mis, lateral), Path(out_dir), "fig3_lateral")
+    return out
+
+
+def _load_lateral(out: Path) -> dict:
+    """The lateral-freedom Fig. 3 records of a reproduction ({(track, bead, fraction): dataset})."""
+    import re
+
+    from ..result import load
+
+    found = {}
+    for p in sorted((out / "data").glob("fig3_lateral_*_bead*_e*.nc")):
+        m = re.fullmatch(r"fig3_lateral_(\w+)_bead(\d+)_e([\d.]+)\.nc", p.name)
+        if m:
+            found[(m.group(1), int(m.group(2)), float(m.group(3)))] = load(p)
+    return found
+
+
+def _finite(obj):
+    """The same data with every non-finite float as None (summary.json is strict JSON)."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
 
 
 def _json_default(x):
