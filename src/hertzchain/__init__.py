@@ -21,6 +21,8 @@ _EXPORTS = {
     "yield_force": "contact",
     "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain",
     "Striker": "model", "Wall": "model", "Model": "model",
+    # lateral freedom (the 2D path)
+    "Track": "track", "simulate_lateral": "track",
     # running and results
     "Probes": "probes", "simulate": "simulation", "save": "result", "load": "result",
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",

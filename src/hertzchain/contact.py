@@ -197,13 +197,33 @@ class ScaledViscoelastic:
         return self.A
 
     def reference_time_scale(self) -> float:
-        """(mu / kappa)^(2/5) of two reference beads (mu = m / 2)."""
+        """Collision time scale of two reference beads.
+
+        Returns
+        -------
+        float
+            (mu / kappa)^(2/5) with mu = m / 2 and kappa of paper eq. 1 for two beads of the
+            reference diameter and material.
+        """
         r = self.diameter / 2
         mu = 0.5 * self.material.density * math.pi * self.diameter**3 / 6.0
         return collision_time_scale(mu, hertz_constant(r, r, self.material, self.material))
 
     def contact_damping(self, mu, kappa):
-        """Per-contact A_j [s] for reduced masses ``mu`` [kg] and Hertz constants ``kappa`` (0 where kappa = 0)."""
+        """Per-contact time constants A_j = A t_j / t_ref.
+
+        Parameters
+        ----------
+        mu : numpy.ndarray
+            Reduced mass of every contact [kg].
+        kappa : numpy.ndarray
+            Hertz constant of every contact [N/m^1.5]; 0 where there is no contact.
+
+        Returns
+        -------
+        numpy.ndarray
+            A_j [s], 0 where kappa = 0.
+        """
         import numpy as np
 
         mu = np.asarray(mu, dtype=float)
