@@ -104,3 +104,19 @@ def test_track_restoring_force_from_the_groove_and_the_spring():
     assert lat.rest[3] == pytest.approx(2.2e-3) and lat.stiffness[-1] == 0.0
     with pytest.raises(hc.ConfigError):
         lateral_arrays(model, Track(groove_radius=0.01))
+
+
+def test_a_stiff_track_spring_recovers_the_rigid_1d_offset_model():
+    """The 1D model holds the offset bead on its line: the limit of an infinitely stiff spring.
+    The difference falls ~1/k (the transverse give of the bead under the pulse)."""
+    model = _offset_chain(hc.Elastic())
+    probes = hc.Probes(1e-6)
+    rigid = hc.simulate(model, 8e-4, probes)
+    f1 = rigid.wall_force.values
+    errs = []
+    for k in (1e8, 1e10):
+        ds = simulate_lateral(model, Track(spring=k), 8e-4, probes)
+        errs.append(np.max(np.abs(ds.wall_force.values - f1)) / f1.max())
+    free = simulate_lateral(model, Track(), 8e-4, probes)
+    assert np.max(np.abs(free.wall_force.values - f1)) / f1.max() > 0.01  # free: a different chain
+    assert errs[1] < 1e-4 and errs[1] < errs[0] / 30

@@ -24,6 +24,7 @@ from .integrate.lateral import LateralArrays, LateralRun, run_lateral, run_later
 from .model import Model
 from .probes import Probes
 from .result import build_dataset
+from .simulation import warn_elastic_limit
 
 __all__ = ["Track", "simulate_lateral", "lateral_arrays"]
 
@@ -151,10 +152,17 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
     -------
     xarray.Dataset
         The run, SI units.
+
+    Warns
+    -----
+    ElasticLimitWarning
+        When a recorded contact force passes the contact's elastic limit (paper Sec. II).
     """
     probes = probes or Probes()
     if not (math.isfinite(duration) and duration > 0):
         raise ConfigError("run.duration", f"must be a positive time in s, got {duration!r}")
+    if probes.sample_interval > duration:
+        raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     if model.precompression > 0:
         raise ConfigError("chain.precompression", "is not supported with lateral freedom")
     system = model.system()
@@ -183,4 +191,5 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
         units, long_name = _LATERAL_VARIABLES[name]
         ds[name] = xr.Variable(dims, arr, attrs={"units": units, "long_name": long_name})
     ds = ds.assign_coords(body=np.arange(n + 1), component=["axial", "transverse"])
+    warn_elastic_limit(ds, stacklevel=3)
     return ds

@@ -260,8 +260,10 @@ def report_blocks(summary: dict, figures: dict) -> list[tuple]:
                    ("table", ["variant", "bead", "offset e/phi", "change of F_m", "change of T [µs]",
                               "tail peak prominence [N]", "max transverse KE [J]", "friction loss [J]"], rows)]
         if _num(cost.get("ns_per_bead_step")) is not None:
-            blocks.append(("p", f"The 2D path cost {cost['ns_per_bead_step']:.2f} ns per bead-step in this run "
-                                f"({cost['bead_steps']:.3g} bead-steps in {cost['seconds']:.2f} s)."))
+            blocks.append(("p", f"The 2D runs took {cost['seconds']:.2f} s for {cost['bead_steps']:.3g} bead-steps "
+                                f"({cost['ns_per_bead_step']:.1f} ns each, sampling every "
+                                f"{(summary.get('settings') or {}).get('sample_interval', 0) * 1e9:g} ns and building the "
+                                "results included; the stepping alone: benchmarks/lateral.py)."))
     for name, title in FIGURES.items():
         if name in figures:
             blocks.append(("figure", name, title, _png(figures[name]), FIGURE_NOTES[name],
