@@ -263,6 +263,11 @@ def fig_laws(numbers: dict, eps: float = PAPER["eps"]) -> Figure:
         :func:`law_numbers` output (``summary["fidelity"]["laws"]``).
     eps : float
         eps of the dissipative predictions.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        2 x 2 panels (force, duration; chain 1, chain 2).
     """
     from .figures import STYLE, _figure
 
@@ -313,6 +318,11 @@ def fig3_lateral(rigid: dict, lateral: dict) -> Figure:
         {(bead, fraction): dataset} (fraction 0 = aligned).
     lateral : dict
         {(track, bead, fraction): dataset}.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One row per bead, one column per variant.
     """
     from .figures import PULSE_WINDOW_MS, STYLE, _figure
 
