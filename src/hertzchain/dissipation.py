@@ -22,7 +22,9 @@ Two consequences worth knowing (26 mm AISI 52100 beads, 8 mm striker at 0.2 m/s,
 - the same law also acts on the short, stiff striker contact: the pulse leaves the striker
   ~22 % (Kuwabara-Kono) or ~17 % (dashpot) weaker than in the elastic chain and loses more than
   eps^(6/5) per bead over the first few beads, so at bead 12 it is 0.60 (0.65) of the elastic
-  amplitude, not 0.982^12 = 0.80; likewise smaller beads (shorter pulses) lose more per bead;
+  amplitude, not 0.982^12 = 0.80; likewise smaller beads (shorter pulses) lose more per bead
+  (the size-scaled :class:`~hertzchain.contact.ScaledViscoelastic`, A_j ~ (mu_j/kappa_j)^(2/5),
+  keeps eps the same in geometrically similar chains: calibrate it as ``"viscoelastic_scaled"``);
 - the loss per bead is not monotonic in the parameter: it peaks (eps ~ 0.970 near A ~ 2.5e-5 s;
   eps ~ 0.963 near gamma ~ 150 N s/m) and falls again as heavy damping spreads the pulse. Only
   the weak-damping branch is searched; a smaller eps is refused with a ConfigError.

@@ -19,7 +19,6 @@ and :func:`fig_laws` / :func:`fig3_lateral` draw (``--from-data`` redraws them).
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 import warnings
 from typing import Callable
