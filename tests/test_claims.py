@@ -13,7 +13,7 @@ def _chain(f_ratio=0.6, eq7=0.6, eq7_q0=0.8, tau=0.35, eq8=0.35, eq8_q0=0.44, Q=
     return {"peak_force_ratio": f_ratio, "eq7_peak_force_ratio": eq7, "eq7_peak_force_ratio_q0": eq7_q0,
             "duration_ratio": tau, "eq8_duration_ratio": eq8, "eq8_duration_ratio_q0": eq8_q0,
             "Q_fit": Q, "Q_fit_err": 0.001, "tail_to_front": 1.0, "tail_to_front_at": {"28": 1.0},
-            "momentum_spread": 0.02, "peak_force": [1.0, f_ratio], "duration": [1.0, tau], "beads": [16, 30]}
+            "momentum_spread": 0.02, "reflection_at_sensor": 0.01, "peak_force": [1.0, f_ratio], "duration": [1.0, tau], "beads": [16, 30]}
 
 
 def _law(**kw):

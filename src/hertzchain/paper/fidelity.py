@@ -100,6 +100,23 @@ def run_law_variants(settings: protocol.Settings, studies: dict, progress: Calla
     return out
 
 
+def _reflection(study, bead: int = 12) -> float:
+    """Largest force at the sensor in ``bead`` after its pulse has passed, over that pulse's F_m.
+
+    Window: from T_b + 3 tau_b (the pulse is over) until T_w + (T_w - T_b) / 2, T_w the wall
+    pulse's time of flight: a wave reflected by the taper would cross the sensor there, the
+    wall's echo cannot yet (it needs ~T_w - T_b to come back).
+    """
+    n = int(study.truncations[-1])
+    ds = study.wall[n]
+    fit, wall = study.sensor_fits.get(bead), study.wall_fits.get(n)
+    if fit is None or wall is None or "sensor_force" not in ds:
+        return float("nan")
+    t, f = ds.time.values, ds.sensor_force.sel(sensor=bead).values
+    sel = (t > fit.time_of_flight + 3 * fit.duration) & (t < wall.time_of_flight + 0.5 * (wall.time_of_flight - fit.time_of_flight))
+    return float(f[sel].max() / fit.peak_force) if sel.any() else float("nan")
+
+
 def _chain_numbers(study, eps: float) -> dict:
     """F_m and tau along the chain, their ratios N/n0 and the eq. 7-8 predictions (paper Sec. III)."""
     F, tau = study.series("peak_force"), study.series("duration")
@@ -121,6 +138,7 @@ def _chain_numbers(study, eps: float) -> dict:
         "tail_to_front": float(qt[-1] / qf[-1]),
         "tail_to_front_at": {str(int(n)): float(b / a) for n, a, b in zip(beads, qf, qt)},
         "momentum_spread": float(np.std(total, ddof=1) / np.mean(total)),
+        "reflection_at_sensor": _reflection(study),
     }
 
 
@@ -130,7 +148,8 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
     Per chain: F_m and tau along the chain and their ratios F_m(N)/F_m(16), tau(N)/tau(16)
     beside eq. 7 (forces) and eq. 8 (durations) with the chain's q and with q = 0, eps of the
     variant (1 elastic, else the calibrated target); Q_fit, eps measured back, the tail's share
-    Q_T/Q_F, the spread of Q_F + Q_T; ``figures`` holds the spectral centroids, the time-of-flight
+    Q_T/Q_F, the spread of Q_F + Q_T, the force left at the sensor in bead 12 after the pulse
+    (a reflected wave would show there); ``figures`` holds the spectral centroids, the time-of-flight
     gain and the Fig. 4 collapse of :func:`hertzchain.paper.figures.figure_summary`.
     """
     from .figures import figure_summary
