@@ -23,6 +23,7 @@ from .errors import ConfigError
 from .integrate.lateral import LateralArrays, LateralRun, run_lateral, run_lateral_reference
 from .model import Model
 from .probes import Probes
+from .checks import check_after_run, check_before_run
 from .result import build_dataset
 from .simulation import warn_elastic_limit
 
@@ -153,6 +154,13 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
     xarray.Dataset
         The run, SI units.
 
+    Raises
+    ------
+    ConfigError
+        A bad input (precompression, integrator, track) or records that cannot fit in memory.
+    SimulationDiverged
+        The integration became non-finite or gained energy (:mod:`hertzchain.checks`).
+
     Warns
     -----
     ElasticLimitWarning
@@ -167,18 +175,19 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
         raise ConfigError("chain.precompression", "is not supported with lateral freedom")
     system = model.system()
     probes.validate(model.chain.n_beads, model.wall.present)
+    if integrator not in ("verlet", "dop853"):
+        raise ConfigError("run.integrator", f"must be 'verlet' or 'dop853' with lateral freedom, got {integrator!r}")
+    check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # the 1D run's checks
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     lat = lateral_arrays(model, track)
     if integrator == "verlet":
         run: LateralRun = run_lateral(system, lat, duration, probes.sample_interval, dt=dt, contacts=rec)
-    elif integrator == "dop853":
+    else:
         run = run_lateral_reference(system, lat, duration, probes.sample_interval, rtol=rtol)
         keep = np.searchsorted(run.raw.contacts, rec)
         run.raw.contact_force = run.raw.contact_force[:, keep]
         run.raw.contacts = np.asarray(rec)
         run.raw.velocity = None
-    else:
-        raise ConfigError("run.integrator", f"must be 'verlet' or 'dop853' with lateral freedom, got {integrator!r}")
     ds = build_dataset(run.raw, model, probes, duration=duration, system=system,
                        extra_attrs={"lateral_freedom": 1, "track": json.dumps(track.describe())})
     n = model.chain.n_beads
@@ -191,5 +200,7 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
         units, long_name = _LATERAL_VARIABLES[name]
         ds[name] = xr.Variable(dims, arr, attrs={"units": units, "long_name": long_name})
     ds = ds.assign_coords(body=np.arange(n + 1), component=["axial", "transverse"])
+    # energy balance (friction losses counted as dissipated), Hertz range, pulse arrival
+    check_after_run(ds, model, system, dt=dt, integrator=integrator, rtol=rtol, stacklevel=3)
     warn_elastic_limit(ds, stacklevel=3)
     return ds

@@ -160,12 +160,14 @@ def _potential_2d(u, y, kappa, d0, dx0, rsum, flat, stiffness, rest, n):
 
 
 @njit(cache=True, nogil=True)
-def _stride_2d(u, v, a, y, kappa, d0, de_now, dx0, rsum, flat, dcap, inv_mass, stiffness, horizon, block, c_steps):
-    """kernels.required_stride on the present transverse geometry, and at least enough steps for
-    the stiffest track spring (omega^2 = k / m)."""
+def _stride_2d(u, v, a, y, kappa, d0, de_now, dx0, rsum, flat, dcap, inv_mass, stiffness, horizon, block, c_steps,
+               damping, law):
+    """kernels.required_stride on the present transverse geometry (contact damping included), and
+    at least enough steps for the stiffest track spring (omega^2 = k / m)."""
     for j in range(kappa.shape[0]):
         de_now[j] = 0.0 if flat[j] else y[j + 1] - y[j]
-    ns = kernels.required_stride(u, v, a, kappa, d0, de_now, dx0, rsum, dcap, inv_mass, horizon, block, c_steps)
+    ns = kernels.required_stride(u, v, a, kappa, d0, de_now, dx0, rsum, dcap, inv_mass, horizon, block, c_steps,
+                                 damping, law)
     w2 = 0.0
     for i in range(stiffness.shape[0]):
         w2 = max(w2, stiffness[i] * inv_mass[i])
@@ -201,7 +203,7 @@ def lateral_run(u, v, a, g, y, w, ay, gy, fy, mass, inv_mass, kappa, damping, d0
         for b in range(n_sub):
             if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
                 req = _stride_2d(u, v, a, y, kappa, d0, de_now, dx0, rsum, flat, dcap, inv_mass, stiffness,
-                                 n_eval * block, block, c_steps)
+                                 n_eval * block, block, c_steps, damping, law)
                 if req > ns:
                     ns = req
                     acc[4] = 0.0
