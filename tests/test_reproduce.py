@@ -117,6 +117,27 @@ def test_normalised_results_do_not_depend_on_striker_speed(summary):
     assert s["speed_check"]["max_duration_norm_deviation"] < 1e-3
 
 
+def test_claims_table_is_generated_from_the_run(summary):
+    """Contract: summary.json 'claims' rows with claim, quantity, values per variant and a verdict."""
+    from hertzchain.paper.claims import VERDICTS, build_claims
+    from hertzchain.paper.reproduce import _round
+
+    _, s = summary
+    claims = s["claims"]
+    assert len(claims) >= 10
+    for row in claims:
+        assert row["claim"] and row["quantity"] and row["verdict"] in VERDICTS
+        assert isinstance(row["values"], dict) and any(v is not None for v in row["values"].values())
+    # the table follows from the stored numbers alone (rebuilt from summary.json: the same rows)
+    assert _round(build_claims(s)) == claims
+    variants = {k for row in claims for k in row["values"]}
+    assert {"elastic", "viscoelastic", "viscoelastic_scaled", "rigid", "lateral"} <= variants
+    # the issue's numbers: a rigid offset barely moves F_m; a bead free across the axis lowers it
+    mis = s["fidelity"]["misalignment"]
+    assert abs(mis["rigid"]["28:0.1"]["peak_force_change"]) < 0.005
+    assert mis["lateral"]["22:0.1"]["peak_force_change"] < -0.01
+
+
 def _floats(x):
     if isinstance(x, dict):
         for v in x.values():

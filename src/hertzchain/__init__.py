@@ -20,10 +20,12 @@ _EXPORTS = {
     # model
     "Material": "materials", "CATALOGUE": "materials", "get_material": "materials",
     "register_material": "materials",
-    "Elastic": "contact", "Viscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
+    "Elastic": "contact", "Viscoelastic": "contact", "ScaledViscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
     "yield_force": "contact",
     "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain",
     "Striker": "model", "Wall": "model", "Model": "model",
+    # lateral freedom (the 2D path)
+    "Track": "track", "simulate_lateral": "track",
     # running and results
     "Probes": "probes", "simulate": "simulation", "auto_duration": "simulation", "save": "result", "load": "result",
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",

@@ -158,9 +158,10 @@ class WallConfig(_Section):
 class ContactConfig(_Section):
     """``[contact]``: law and either its parameter (A [s] or gamma [N s/m]) or a target ``eps``."""
 
-    law: Literal["elastic", "viscoelastic", "dashpot"] = "elastic"
+    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot"] = "elastic"
     eps: float | None = Field(default=None, gt=0, le=1, description="per-bead factor of the paper")
-    A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s")
+    A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s "
+                                  "(viscoelastic_scaled: between two beads like the chain's first)")
     gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m")
 
     @model_validator(mode="after")
@@ -168,7 +169,7 @@ class ContactConfig(_Section):
         if self.law == "elastic" and (self.A is not None or self.gamma is not None or
                                       (self.eps is not None and self.eps != 1.0)):
             raise ValueError("the elastic law takes no A, gamma or eps < 1; set law = 'viscoelastic' or 'dashpot'")
-        own = {"viscoelastic": "A", "dashpot": "gamma"}.get(self.law)
+        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma"}.get(self.law)
         if own is not None:
             other = "gamma" if own == "A" else "A"
             if getattr(self, other) is not None:
@@ -470,7 +471,7 @@ def _offsets_key(cfg: RunConfig) -> str:
 
 def build_model(cfg: RunConfig):
     """The :class:`~hertzchain.model.Model` of a config (calibrating the law when ``eps`` is given)."""
-    from .contact import Dashpot, Elastic, Viscoelastic
+    from .contact import Dashpot, Elastic, ScaledViscoelastic, Viscoelastic
     from .model import Model, Striker, Wall
 
     chain = build_chain(cfg)
@@ -486,6 +487,8 @@ def build_model(cfg: RunConfig):
         law = calibrate_law(k.law, k.eps, chain=chain, striker=striker)
     elif k.law == "viscoelastic":
         law = Viscoelastic(k.A)
+    elif k.law == "viscoelastic_scaled":
+        law = ScaledViscoelastic(k.A, float(chain.diameters[0]), chain.materials[0])
     else:
         law = Dashpot(k.gamma)
     with _as_written("chain.offsets", _offsets_key(cfg)):

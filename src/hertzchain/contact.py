@@ -18,7 +18,7 @@ from .materials import Material, get_material
 
 __all__ = [
     "hertz_constant", "effective_radius", "effective_modulus", "yield_force", "Elastic",
-    "Viscoelastic", "Dashpot", "ContactLaw", "LAW_CODES",
+    "Viscoelastic", "ScaledViscoelastic", "Dashpot", "ContactLaw", "LAW_CODES",
 ]
 
 
@@ -72,7 +72,8 @@ def yield_force(radius1: float, radius2: float | None, mat1: str | Material, mat
 
 # --- dissipative laws ------------------------------------------------------------------------
 # Integer codes select the compiled force function (see integrate/kernels.py).
-LAW_CODES = {"elastic": 0, "viscoelastic": 1, "dashpot": 2}
+# The size-scaled Kuwabara-Kono law is the Kuwabara-Kono force with a per-contact A (code 1).
+LAW_CODES = {"elastic": 0, "viscoelastic": 1, "dashpot": 2, "viscoelastic_scaled": 1}
 
 
 @dataclass(frozen=True)
@@ -132,4 +133,103 @@ class Dashpot:
         return self.gamma
 
 
-ContactLaw = Elastic | Viscoelastic | Dashpot
+def collision_time_scale(mu, kappa):
+    """Time scale (mu / kappa)^(2/5) [s m^(1/5)] of a Hertz contact of reduced mass ``mu`` [kg] and stiffness ``kappa``.
+
+    A two-body Hertz collision at speed v lasts t_c ~ (mu / kappa)^(2/5) v^(-1/5) (paper eq. 1
+    made dimensionless with delta* = (mu v^2 / kappa)^(2/5) and t* = delta* / v). In these units
+    the Kuwabara-Kono force reads x^(3/2) + (A / t*) x^(1/2) dx/ds, so the restitution of a pair
+    depends on A only through A / t*.
+
+    Parameters
+    ----------
+    mu : float or numpy.ndarray
+        Reduced mass m m' / (m + m') [kg] (m for a bead against an immovable wall).
+    kappa : float or numpy.ndarray
+        Hertz constant [N/m^1.5] (paper eq. 1).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        (mu / kappa)^(2/5).
+    """
+    return (mu / kappa) ** 0.4
+
+
+@dataclass(frozen=True)
+class ScaledViscoelastic:
+    """Kuwabara-Kono contact whose time constant follows each contact's collision time.
+
+    F_j = kappa_j (delta^(3/2) + A_j delta^(1/2) d(delta)/dt), clipped at zero, with
+    A_j = A t_j / t_ref and t = (mu / kappa)^(2/5) (:func:`collision_time_scale`; mu the pair's
+    reduced mass): every pair then has the same two-body restitution at a given impact speed, and
+    a geometrically similar chain hit at the same speed (all lengths times s) has every time and
+    every A_j times s, hence exactly the same per-bead factor eps. This is the size-independent
+    eps that the paper's eq. 6 assumes; a constant A (:class:`Viscoelastic`, a material constant
+    in Kuwabara and Kono's theory) loses more per bead as beads and pulses get smaller. Between
+    equal beads of one material t ~ R, so A_j ~ R.
+
+    Parameters
+    ----------
+    A : float
+        Time constant [s] of a contact between two beads of the reference ``diameter`` and
+        ``material``.
+    diameter : float
+        Reference bead diameter [m] (a calibration's uniform chain, e.g. 26 mm).
+    material : Material or str
+        Reference bead material.
+    """
+
+    A: float
+    diameter: float
+    material: Material | str = "AISI52100"
+    name = "viscoelastic_scaled"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.A) and self.A >= 0):
+            raise ConfigError("contact.A", f"must be a finite number >= 0 (s), got {self.A!r}")
+        if not (math.isfinite(self.diameter) and self.diameter > 0):
+            raise ConfigError("contact.diameter", f"must be a positive reference diameter (m), got {self.diameter!r}")
+        object.__setattr__(self, "material", get_material(self.material))
+
+    @property
+    def parameter(self) -> float:
+        return self.A
+
+    def reference_time_scale(self) -> float:
+        """Collision time scale of two reference beads.
+
+        Returns
+        -------
+        float
+            (mu / kappa)^(2/5) with mu = m / 2 and kappa of paper eq. 1 for two beads of the
+            reference diameter and material.
+        """
+        r = self.diameter / 2
+        mu = 0.5 * self.material.density * math.pi * self.diameter**3 / 6.0
+        return collision_time_scale(mu, hertz_constant(r, r, self.material, self.material))
+
+    def contact_damping(self, mu, kappa):
+        """Per-contact time constants A_j = A t_j / t_ref.
+
+        Parameters
+        ----------
+        mu : numpy.ndarray
+            Reduced mass of every contact [kg].
+        kappa : numpy.ndarray
+            Hertz constant of every contact [N/m^1.5]; 0 where there is no contact.
+
+        Returns
+        -------
+        numpy.ndarray
+            A_j [s], 0 where kappa = 0.
+        """
+        import numpy as np
+
+        mu = np.asarray(mu, dtype=float)
+        kappa = np.asarray(kappa, dtype=float)
+        safe = np.where(kappa > 0, kappa, 1.0)
+        return np.where(kappa > 0, self.A * collision_time_scale(mu, safe) / self.reference_time_scale(), 0.0)
+
+
+ContactLaw = Elastic | Viscoelastic | ScaledViscoelastic | Dashpot

@@ -22,7 +22,9 @@ Two consequences worth knowing (26 mm AISI 52100 beads, 8 mm striker at 0.2 m/s,
 - the same law also acts on the short, stiff striker contact: the pulse leaves the striker
   ~22 % (Kuwabara-Kono) or ~17 % (dashpot) weaker than in the elastic chain and loses more than
   eps^(6/5) per bead over the first few beads, so at bead 12 it is 0.60 (0.65) of the elastic
-  amplitude, not 0.982^12 = 0.80; likewise smaller beads (shorter pulses) lose more per bead;
+  amplitude, not 0.982^12 = 0.80; likewise smaller beads (shorter pulses) lose more per bead
+  (the size-scaled :class:`~hertzchain.contact.ScaledViscoelastic`, A_j ~ (mu_j/kappa_j)^(2/5),
+  keeps eps the same in geometrically similar chains: calibrate it as ``"viscoelastic_scaled"``);
 - the loss per bead is not monotonic in the parameter: it peaks (eps ~ 0.970 near A ~ 2.5e-5 s;
   eps ~ 0.963 near gamma ~ 150 N s/m) and falls again as heavy damping spreads the pulse. Only
   the weak-damping branch is searched; a smaller eps is refused with a ConfigError.
@@ -42,7 +44,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .chain import Chain
-from .contact import Dashpot, Elastic, Viscoelastic, hertz_constant
+from .contact import Dashpot, Elastic, ScaledViscoelastic, Viscoelastic, hertz_constant
 from .errors import ConfigError
 from .integrate.verlet import run_verlet
 from .materials import Material, get_material
@@ -241,8 +243,17 @@ def measure_eps(law: Elastic | Viscoelastic | Dashpot, chain_or_diameter: Chain 
                           contacts=contacts, peak_force=f_pk, peak_time=t_pk, duration=float(duration))
 
 
-def _make_law(kind: str, parameter: float) -> Viscoelastic | Dashpot:
-    return Viscoelastic(parameter) if kind == "viscoelastic" else Dashpot(parameter)
+#: Laws that :func:`calibrate_law` can calibrate, with the name of their parameter.
+CALIBRATED_LAWS = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma"}
+
+
+def _make_law(kind: str, parameter: float, diameter: float, material: Material):
+    """The law ``kind`` with ``parameter``; a size-scaled law takes the calibration beads as reference."""
+    if kind == "viscoelastic":
+        return Viscoelastic(parameter)
+    if kind == "viscoelastic_scaled":
+        return ScaledViscoelastic(parameter, diameter, material)
+    return Dashpot(parameter)
 
 
 @functools.lru_cache(maxsize=256)
@@ -262,13 +273,13 @@ def _calibrate_cached(kind: str, eps: float, diameter: float, material: Material
     def loss(z: float) -> float:
         """-ln eps measured with the parameter p = exp(z) (memoised: Brent re-reads its ends)."""
         if z not in cache:
-            m = measure_eps(_make_law(kind, math.exp(z)), chain, striker=striker, beads=beads, duration=duration[0])
+            m = measure_eps(_make_law(kind, math.exp(z), diameter, material), chain, striker=striker, beads=beads, duration=duration[0])
             duration[0] = max(duration[0], m.duration)
             cache[z] = -math.log(m.eps)
         return cache[z]
 
     def unreachable(best: float, z: float) -> ConfigError:
-        name = "A" if kind == "viscoelastic" else "gamma"
+        name = CALIBRATED_LAWS[kind]
         return ConfigError("contact.eps", f"the {kind} law cannot give eps = {eps} in a uniform chain of "
                            f"{diameter * 1e3:g} mm beads hit by this striker: the smallest eps found is {math.exp(-best):.4f} "
                            f"(near {name} = {math.exp(z):.3g}); stronger damping spreads the pulse and lowers "
@@ -281,7 +292,7 @@ def _calibrate_cached(kind: str, eps: float, diameter: float, material: Material
     v = diameter / float(np.mean(np.diff(t)))
     tau = 0.5 * diameter * math.sqrt(10.0) / v
     a0 = 0.5 * tau * loss_target
-    if kind == "viscoelastic":
+    if kind != "dashpot":
         p0 = a0
     else:
         kap = hertz_constant(diameter / 2, diameter / 2, material, material)
@@ -327,7 +338,7 @@ def _calibrate_cached(kind: str, eps: float, diameter: float, material: Material
 def calibrate_law(law: str, eps: float, chain: Chain | None = None, striker: Striker | None = None, *,
                   diameter: float | None = None, material: Material | str | None = None,
                   n_beads: int | None = None, beads: tuple[int, int] = DEFAULT_BEADS,
-                  xtol: float = 1e-5) -> Viscoelastic | Dashpot:
+                  xtol: float = 1e-5) -> Viscoelastic | ScaledViscoelastic | Dashpot:
     """Contact law whose per-bead factor in a uniform chain is ``eps`` (paper Sec. III).
 
     The paper measures eps ~ 0.985 in the 26 mm monodisperse part of its chains, so the uniform
@@ -339,8 +350,11 @@ def calibrate_law(law: str, eps: float, chain: Chain | None = None, striker: Str
     Parameters
     ----------
     law:
-        ``"viscoelastic"`` (Kuwabara-Kono, returns :class:`Viscoelastic` with A [s]) or
-        ``"dashpot"`` (returns :class:`Dashpot` with gamma [N s/m]).
+        ``"viscoelastic"`` (Kuwabara-Kono, returns :class:`Viscoelastic` with A [s]),
+        ``"viscoelastic_scaled"`` (Kuwabara-Kono with A_j following each contact's collision time,
+        returns :class:`ScaledViscoelastic` whose reference beads are the calibration chain's, so
+        that every uniform chain of similar beads hit at the same speed by a similar striker
+        measures the same eps) or ``"dashpot"`` (returns :class:`Dashpot` with gamma [N s/m]).
     eps:
         Target factor, 0 < eps <= 1; eps = 1 returns the parameter 0 (elastic).
     chain:
@@ -359,22 +373,26 @@ def calibrate_law(law: str, eps: float, chain: Chain | None = None, striker: Str
         (field ``contact.eps``) when eps is out of (0, 1], smaller than the law can give on its
         weak-damping branch, or closer to 1 than the striker transient lets the fit resolve.
     """
-    if law not in ("viscoelastic", "dashpot"):
-        raise ConfigError("contact.law", f"calibration needs 'viscoelastic' or 'dashpot', got {law!r}")
+    if law not in CALIBRATED_LAWS:
+        raise ConfigError("contact.law", f"calibration needs one of {', '.join(map(repr, CALIBRATED_LAWS))}, got {law!r}")
     eps = float(eps)
     if not (0.0 < eps <= 1.0):
         raise ConfigError("contact.eps", f"must lie in (0, 1], got {eps!r}")
-    if eps == 1.0:
-        return _make_law(law, 0.0)
     if diameter is None:
         if chain is None:
-            raise ConfigError("contact.eps", "calibration needs a chain or a bead diameter")
-        diameter = float(chain.diameters[0])
+            if eps == 1.0:  # nothing to calibrate; the reference beads of a scaled law: the paper's
+                diameter = 26e-3
+            else:
+                raise ConfigError("contact.eps", "calibration needs a chain or a bead diameter")
+        else:
+            diameter = float(chain.diameters[0])
     if material is None:
         material = chain.materials[0] if chain is not None else "AISI52100"
+    if eps == 1.0:
+        return _make_law(law, 0.0, float(diameter), get_material(material))
     striker = striker if striker is not None else Striker()
     first, last = int(beads[0]), int(beads[1])
     n = int(n_beads) if n_beads is not None else last + DEFAULT_TRAILING_BEADS
     param = _calibrate_cached(law, eps, float(diameter), get_material(material), striker, n, (first, last),
                               float(xtol))
-    return _make_law(law, param)
+    return _make_law(law, param, float(diameter), get_material(material))

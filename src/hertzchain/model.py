@@ -17,7 +17,7 @@ from typing import Literal
 import numpy as np
 
 from .chain import Chain
-from .contact import LAW_CODES, Dashpot, Elastic, Viscoelastic
+from .contact import LAW_CODES, Dashpot, Elastic, ScaledViscoelastic, Viscoelastic
 from .errors import ConfigError
 from .materials import Material, get_material
 
@@ -190,7 +190,8 @@ class Model:
     wall:
         The end condition (default: immovable flat of the chain's material).
     law:
-        Contact law: :class:`Elastic` (paper eq. 1), :class:`Viscoelastic` or :class:`Dashpot`.
+        Contact law: :class:`Elastic` (paper eq. 1), :class:`Viscoelastic`, :class:`ScaledViscoelastic`
+        or :class:`Dashpot`.
     precompression:
         Static force [N] squeezing beads 1..N against the wall before impact (0 = the paper's
         "barely touching" chain). Needs a wall.
@@ -199,7 +200,7 @@ class Model:
     chain: Chain
     striker: Striker = field(default_factory=Striker)
     wall: Wall = field(default_factory=Wall)
-    law: Elastic | Viscoelastic | Dashpot = field(default_factory=Elastic)
+    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot = field(default_factory=Elastic)
     precompression: float = 0.0
 
     def __post_init__(self) -> None:
@@ -271,6 +272,10 @@ class Model:
         # No damping where there is no contact (the free end's slot has kappa = 0): a dashpot there
         # would push the last bead against a wall that does not exist (F = gamma d(delta)/dt).
         damping = np.where(kappa > 0, float(self.law.parameter), 0.0)
+        if hasattr(self.law, "contact_damping"):
+            # Size-scaled law: A_j from the pair's reduced mass (the wall is immovable: mu = m_N).
+            mu = 1.0 / (inv_mass[: n + 1] + inv_mass[1:])
+            damping = self.law.contact_damping(mu, kappa)
         # Precompression: every contact of the chain (not the striker's) carries F0 statically.
         d0 = np.zeros(n + 1)
         fext = np.zeros(n + 2)
@@ -297,6 +302,9 @@ class Model:
         law = {"law": self.law.name}
         if self.law.name == "viscoelastic":
             law["A"] = self.law.A
+        elif self.law.name == "viscoelastic_scaled":
+            law.update(A=self.law.A, reference_diameter_mm=self.law.diameter * 1e3,
+                       reference_material=self.law.material.name)
         elif self.law.name == "dashpot":
             law["gamma"] = self.law.gamma
         return {

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import theory
+from . import claims
 from .values import PAPER
 
 __all__ = ["Row", "comparison_rows", "figure_notes", "speed_sentence", "write_report", "FIGURE_TITLES"]
@@ -589,9 +590,10 @@ def _blocks(summary: dict, figures: dict, settings_desc: dict | None) -> list[tu
         ("p", speed_sentence(summary)),
         ("h2", "Figures"),
     ]
-    for name in sorted(figures, key=lambda n: (n not in FIGURE_TITLES, n)):
+    for name in sorted((n for n in figures if n not in claims.FIGURES), key=lambda n: (n not in FIGURE_TITLES, n)):
         what, agree = notes.get(name, ("", ""))
         blocks.append(("figure", name, FIGURE_TITLES.get(name, name), _figure_png(figures[name]), what, agree))
+    blocks += claims.report_blocks(summary, figures)  # claims table and model variants (paper/claims.py)
     blocks.append(("h2", "Wall pulse along the chains"))
     for chain in CHAINS:
         table = _bead_table(summary, chain)

@@ -14,7 +14,8 @@ import numpy as np
 
 from .. import __version__, theory
 from ..result import save as _save
-from . import protocol
+from . import fidelity, protocol
+from .claims import build_claims
 from .protocol import ChainStudy, Settings
 from .values import PAPER
 
@@ -40,6 +41,11 @@ SUMMARY_UNITS = {
     "q, q_std, Q_*, eps*, *_ratio, max_force_over_yield, *_deviation, offset_fraction, collapse_rms": "1 (dimensionless)",
     "law.A": "s (Kuwabara-Kono time constant)",
     "law.gamma": "N s/m",
+    "fidelity.misalignment.*.tail_oscillation": "N",
+    "fidelity.misalignment.*.max_lateral_kinetic_energy, friction_loss, striker_energy": "J",
+    "fidelity.misalignment.*.time_of_flight_change_s, fidelity.lateral_cost.seconds": "s",
+    "fidelity.tracks.*: groove_radius / spring / slip_velocity / gravity": "m / N/m / m/s / m/s^2",
+    "claims[].values": "the unit of the row's quantity",
 }
 
 #: Significant digits kept in summary.json: the automatic step keeps peak forces within 1e-6 of
@@ -51,7 +57,9 @@ def count_runs(settings: Settings) -> int:
     """Number of simulations a reproduction makes (for the progress bar)."""
     n1 = PAPER["chain1"]["n_beads"] - PAPER["n0"] + 1
     n2 = PAPER["chain2"]["n_beads"] - PAPER["n0"] + 1
-    return n1 + n2 + 6 + 3 + 1 + 10
+    from .fidelity import count_variant_runs
+
+    return n1 + n2 + 6 + 3 + 1 + 10 + count_variant_runs(settings)
 
 
 def count_steps(settings: Settings, figures: bool = True) -> int:
@@ -119,7 +127,7 @@ def _chain_summary(study: ChainStudy) -> dict:
 
 def _law_desc(law) -> dict:
     out = {"law": law.name}
-    if law.name == "viscoelastic":
+    if law.name in ("viscoelastic", "viscoelastic_scaled"):
         out["A"] = law.A
     elif law.name == "dashpot":
         out["gamma"] = law.gamma
@@ -369,6 +377,7 @@ def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -
     summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
     tick("read the data")
     paths = draw(out, studies, mis, subs, settings, tick)
+    paths.update(draw_fidelity(out, summary, mis, _load_lateral(out)))
     summary["figures"] = _figure_numbers(studies, mis, subs, settings)
     write_report(out, _round(summary), paths, summary["settings"])
     tick("wrote the report")
@@ -400,14 +409,28 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     speed = protocol.run_speed_check(settings)
     for _ in range(10):
         tick("two-speed check")
+    # where the model and the paper disagree: other contact laws, lateral freedom (paper/fidelity.py)
+    variants = fidelity.run_law_variants(settings, studies, tick)
+    lateral, cost = fidelity.run_lateral_misalignment(settings, progress=tick)
     t_sim = time.perf_counter() - t0
     _save_data(out, studies, mis, subs, ratio)
+    for (label, b, frac), ds in lateral.items():
+        # the figure needs the wall force; the per-body transverse records would add ~2 MB a run
+        _save(ds.drop_vars(["lateral_displacement", "momentum"]),
+              out / "data" / f"fig3_lateral_{label}_bead{b}_e{frac:.2f}.nc", single_precision=True)
     summary = build_summary(studies, ratio, speed, settings, {"simulation_s": t_sim})
     summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
+    summary["fidelity"] = {"laws": fidelity.law_numbers(variants, settings),
+                           "misalignment": fidelity.misalignment_numbers(mis, lateral),
+                           "tracks": {k: t.describe() for k, t in fidelity.TRACKS.items()},
+                           "lateral_cost": cost}
+    # the verdicts read the numbers as summary.json stores them (rounded), so they rebuild exactly
+    summary["claims"] = build_claims(_round(summary))
     if figures:
         from .report import write_report
 
         fig_paths = draw(out, studies, mis, subs, settings, tick)
+        fig_paths.update(draw_fidelity(out, summary, mis, lateral))
         summary["figures"] = _figure_numbers(studies, mis, subs, settings)
         summary["timing"]["total_s"] = time.perf_counter() - t0
         write_report(out, _round(summary), fig_paths, settings.describe())
@@ -415,6 +438,34 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     summary["timing"]["total_s"] = time.perf_counter() - t0
     _write_summary(out, summary)
     return summary
+
+
+def draw_fidelity(out_dir: str | Path, summary: dict, mis: dict, lateral: dict) -> dict[str, Path]:
+    """Draw the model-variant figures (claims.FIGURES) that the summary and data allow; {name: png}."""
+    from .figures import save_figure
+
+    out: dict[str, Path] = {}
+    laws = (summary.get("fidelity") or {}).get("laws")
+    if laws:
+        eps = summary["settings"].get("eps_target") or PAPER["eps"]
+        out["fig5_laws"] = save_figure(fidelity.fig_laws(laws, eps), Path(out_dir), "fig5_laws")
+    if lateral and mis:
+        out["fig3_lateral"] = save_figure(fidelity.fig3_lateral(mis, lateral), Path(out_dir), "fig3_lateral")
+    return out
+
+
+def _load_lateral(out: Path) -> dict:
+    """The lateral-freedom Fig. 3 records of a reproduction ({(track, bead, fraction): dataset})."""
+    import re
+
+    from ..result import load
+
+    found = {}
+    for p in sorted((out / "data").glob("fig3_lateral_*_bead*_e*.nc")):
+        m = re.fullmatch(r"fig3_lateral_(\w+)_bead(\d+)_e([\d.]+)\.nc", p.name)
+        if m:
+            found[(m.group(1), int(m.group(2)), float(m.group(3)))] = load(p)
+    return found
 
 
 def _json_default(x):

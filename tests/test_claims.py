@@ -1,0 +1,89 @@
+"""The claims table: verdicts follow the numbers (synthetic summaries, no simulation)."""
+
+from __future__ import annotations
+
+import copy
+
+import pytest
+
+from hertzchain.paper.claims import VERDICTS, build_claims, report_blocks
+
+
+def _chain(f_ratio=0.6, eq7=0.6, eq7_q0=0.8, tau=0.35, eq8=0.35, eq8_q0=0.44, Q=1.02):
+    return {"peak_force_ratio": f_ratio, "eq7_peak_force_ratio": eq7, "eq7_peak_force_ratio_q0": eq7_q0,
+            "duration_ratio": tau, "eq8_duration_ratio": eq8, "eq8_duration_ratio_q0": eq8_q0,
+            "Q_fit": Q, "Q_fit_err": 0.001, "tail_to_front": 1.0, "tail_to_front_at": {"28": 1.0},
+            "momentum_spread": 0.02, "reflection_at_sensor": 0.01, "peak_force": [1.0, f_ratio], "duration": [1.0, tau], "beads": [16, 30]}
+
+
+def _law(**kw):
+    c2 = _chain(**kw)
+    c2["tail_to_front_at"] = {"28": 2.0}
+    return {"chain1": _chain(**kw), "chain2": c2,
+            "figures": {"tof_gain_s": {"chain1": 1e-4, "chain2": 1e-4}, "collapse_rms": 0.004,
+                        "spectra": {"chain1": {"centroid_in_hz": 5e3, "centroid_out_hz": 6e3},
+                                    "chain2": {"centroid_in_hz": 5e3, "centroid_out_hz": 7e3}}}}
+
+
+def _mis(drop=0.0009, tail=0.044):
+    ref = {"peak_force_change": 0.0, "time_of_flight_change_s": 0.0, "tail_oscillation": 0.045}
+    return {"22:0": ref, "22:0.1": {"peak_force_change": -drop, "time_of_flight_change_s": 1e-6,
+                                    "tail_oscillation": tail}}
+
+
+def _summary(main="viscoelastic"):
+    return {"settings": {"law": main},
+            "fidelity": {"laws": {"viscoelastic": _law(f_ratio=0.44), "viscoelastic_scaled": _law(f_ratio=0.58),
+                                  "elastic": _law(f_ratio=0.67, eq7=0.8, eq7_q0=1.0)},
+                         "misalignment": {"rigid": _mis(), "lateral": _mis(0.05, 0.02)}}}
+
+
+def _row(claims, start):
+    return next(c for c in claims if c["claim"].startswith(start))
+
+
+def test_at_least_ten_rows_with_the_contract_keys():
+    claims = build_claims(_summary())
+    assert len(claims) >= 10
+    for c in claims:
+        assert {"claim", "quantity", "values", "verdict"} <= set(c) and c["verdict"] in VERDICTS
+
+
+def test_verdicts_follow_the_numbers():
+    claims = build_claims(_summary())
+    eq7 = _row(claims, "The peak force follows eq. 7 with tapering reasonably well (chain 1)")
+    assert eq7["values"]["viscoelastic"] == pytest.approx(0.44 / 0.6)
+    assert eq7["verdicts"] == {"viscoelastic": "not reproduced", "viscoelastic_scaled": "reproduced",
+                               "elastic": "partly"}
+    # the run's own law does not reproduce it, another does: partly, and it says which
+    assert eq7["verdict"] == "partly" and eq7["reproduced_by"] == ["viscoelastic_scaled"]
+    # ... and with the size-scaled law as the run's own law, the same numbers reproduce it
+    assert _row(build_claims(_summary("viscoelastic_scaled")), "The peak force follows eq. 7")["verdict"] == "reproduced"
+    amp = _row(claims, "A misaligned bead lowers the amplitude slightly")
+    assert amp["values"]["rigid"] == pytest.approx(0.09) and amp["verdicts"]["lateral"] == "reproduced"
+    assert amp["verdict"] == "partly"
+    tail = _row(claims, "A misaligned bead damps the tail")
+    assert tail["values"]["lateral"] == pytest.approx(0.02 / 0.045)
+    s = _summary()
+    s["fidelity"]["misalignment"]["lateral"] = _mis(0.05, 0.045)
+    assert _row(build_claims(s), "A misaligned bead damps the tail")["verdict"] == "not reproduced"
+
+
+def test_missing_numbers_leave_rows_out_never_fail():
+    s = _summary()
+    del s["fidelity"]["misalignment"]
+    partial = build_claims(s)
+    assert len(partial) == len(build_claims(_summary())) - 3
+    s2 = copy.deepcopy(_summary())
+    del s2["fidelity"]["laws"]["elastic"]["chain1"]["Q_fit"]
+    row = _row(build_claims(s2), "The pulse speeds up along the taper, v_n = Q^(n-n') v_n' with Q1")
+    assert "elastic" not in row["verdicts"] and row["values"]["elastic"] is None
+    assert build_claims({}) == []
+
+
+def test_report_blocks_hold_the_table():
+    s = _summary()
+    s["claims"] = build_claims(s)
+    blocks = report_blocks(s, {})
+    table = next(b for b in blocks if b[0] == "table")
+    assert len(table[2]) == len(s["claims"]) and table[1][-1] == "verdict"
