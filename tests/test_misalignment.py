@@ -1,7 +1,7 @@
 """Robustness checks of the paper's Fig. 3 (Melo et al. 2006, Sec. II): off-axis beads (a, b)
 and local changes of the tapering factor (c).
 
-Offsets follow DESIGN.md section 2: bead n sits off the axis by e_n (held by its track), the
+Offsets follow docs/conventions.rst (misalignment): bead n sits off the axis by e_n (held by its track), the
 distance of centres is d = sqrt(dx^2 + de^2), delta = R_n + R_{n+1} - d and the axial force is
 F(delta) dx / d. To first order an offset softens the two contacts of the bead by
 (dx0/d0)^(5/2) ~ 1 - (5/4)(de/d0)^2, about 1.2 % for e = 10 % of the bead diameter: the

@@ -27,21 +27,29 @@ def simulate(model: Model, duration: float, probes: Probes | None = None, *,
 
     Parameters
     ----------
-    model:
+    model
         Chain, striker, wall and contact law.
-    duration:
+    duration
         Simulated time [s] after impact.
-    probes:
+    probes
         What to record (default: every contact force and the energies every 100 ns).
-    integrator:
+    integrator
         ``"verlet"`` (compiled, fixed step; default) or the scipy reference ``"dop853"``
         (``"rk45"`` also accepted), adaptive with relative tolerance ``rtol``.
-    dt:
+    dt
         Verlet time step [s]; automatic when None (see :func:`hertzchain.integrate.verlet.auto_time_step`).
-    progress:
+    progress
         Called as ``progress(done, total)`` between chunks of a Verlet run.
-    config:
+    rtol
+        Relative tolerance of the scipy reference integrators (unused by ``"verlet"``).
+    config
         The input it came from, stored in the result's attributes.
+
+    Returns
+    -------
+    xarray.Dataset
+        Forces [N], energies [J] and the model on the ``time`` [s] axis; every variable and
+        attribute is described in the user guide's "Results" page.
 
     Warns
     -----

@@ -33,7 +33,7 @@ member is the same whatever ``n`` or ``chunk_size`` is.
   swept parameter values and the wall-pulse metrics of the paper (Sec. III), SI units:
   ``F_m`` [N], ``T`` [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s].
 
-Parallelism is passed in (DESIGN.md section 4): locally each chunk already uses every core
+Parallelism is passed in: locally each chunk already uses every core
 (Numba ``prange``); with a Dask ``distributed.Client`` (or any executor with ``submit``, or
 anything with ``map``) the chunks are farmed out and written as they finish.
 """
@@ -392,7 +392,18 @@ def parse_sweep(data: dict) -> SweepConfig:
 
 
 def load_sweep(path: str | Path) -> SweepConfig:
-    """Read and validate a TOML sweep file (see the module docstring)."""
+    """Read and validate a TOML sweep file (see the module docstring).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The sweep file: a ``[base]`` run config and a ``[sweep]`` table.
+
+    Returns
+    -------
+    SweepConfig
+        The validated sweep (members are drawn lazily).
+    """
     from .config import read_toml
 
     return parse_sweep(read_toml(path, "sweep file"))
@@ -642,19 +653,19 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
 
     Parameters
     ----------
-    sweep_cfg:
+    sweep_cfg
         A :class:`SweepConfig`, a sweep mapping, or the path of a TOML sweep file.
-    out_dir:
+    out_dir
         Output folder (see the module docstring for its content).
-    client:
+    client
         None: chunks are computed here, one after the other, each across all cores. A Dask
         ``distributed.Client``, a ``concurrent.futures.Executor``, anything with ``submit`` +
         ``gather`` or with ``map``: chunks are sent to it and written here as they come back (the
         workers need no access to ``out_dir``).
-    progress:
+    progress
         Called as ``progress(done_members, total_members)`` after each chunk file is written
         (and once at the start with the members found finished on disk).
-    force:
+    force
         Replace the results of a different sweep found in ``out_dir`` instead of refusing.
 
     Returns

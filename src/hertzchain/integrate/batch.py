@@ -319,22 +319,27 @@ def simulate_many(models: Sequence[Model], duration: float, probes: Probes | Seq
 
     Parameters
     ----------
-    models:
+    models
         The members (any mix of chains, strikers, walls and contact laws).
-    duration:
+    duration
         Simulated time [s] after impact, shared by all members.
-    probes:
+    probes
         One :class:`Probes` for all members or one per member (default: every contact force and
         the energies every 100 ns). All members must share the sample interval [s].
-    dt:
+    dt
         Verlet time step [s]: None (each member's automatic step), one value for all, or one per
         member (None entries are automatic).
-    progress:
+    progress
         Called as ``progress(done, total)`` in samples between compiled calls.
-    n_threads:
+    n_threads
         Threads of the parallel loop (default: Numba's, i.e. every core).
-    configs:
+    configs
         Per-member input stored in each result's ``config`` attribute (as ``simulate(config=)``).
+
+    Returns
+    -------
+    list of xarray.Dataset
+        One result per member, in the order of ``models``.
 
     Warns
     -----
@@ -552,20 +557,25 @@ def simulate_batch(models: Sequence[Model], duration: float, probes: Probes | Se
 
     Parameters
     ----------
-    models:
+    models
         The members: chains of any length, diameters, materials, offsets, contact law, wall.
-    duration:
+    duration
         Simulated time [s] after impact, shared by all members.
-    probes:
+    probes
         One :class:`Probes` or one per member; all must share ``sample_interval`` [s].
-    dt:
+    dt
         Verlet step [s]: None (each member's own automatic step), one value, or one per member.
-    progress:
+    progress
         ``progress(done, total)`` in samples, between compiled calls.
-    n_threads:
+    n_threads
         Threads of the parallel loop (default: every core Numba sees).
-    configs:
+    configs
         Per-member input stored in the ``config`` variable.
+
+    Returns
+    -------
+    xarray.Dataset
+        The members' results stacked along the leading ``member`` dimension (SI units).
 
     Warns
     -----

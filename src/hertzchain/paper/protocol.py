@@ -1,6 +1,6 @@
 """The runs of the paper's measurement protocol, and their analysis (data only, no plotting).
 
-Protocol (paper Sec. II, DESIGN.md "Measurement protocol"): the tapered-chain pulses are the wall
+Protocol (paper Sec. II; docs/guide/reproduction.rst): the tapered-chain pulses are the wall
 force at the end of the chain truncated after bead n, n = n0..N, one run per truncation; the pulse
 in the uniform part comes from sensors embedded in beads 1..n0 (of the full chain's run, which is
 identical there until reflections come back). Dissipation, when on, is calibrated to the paper's

@@ -1,0 +1,153 @@
+"""Sphinx configuration of the hertzchain documentation.
+
+Build (from the repository root, after ``pip install -e ".[docs]"``)::
+
+    python -m sphinx -W -b html docs docs/_build/html
+
+``-D plot_gallery=0`` skips running the gallery scripts (the figures are then missing); the test
+suite builds that way by default and runs the gallery only with ``-m slow``.
+
+The API reference is generated here from ``hertzchain.__all__`` at every build, so a name added
+to the package's public list gets its page without any edit of the docs.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT / "src"))  # a plain checkout builds too (the editable install is preferred)
+
+import hertzchain  # noqa: E402
+
+project = "hertzchain"
+author = "the hertzchain developers"
+copyright = "the hertzchain developers"
+release = version = hertzchain.__version__
+
+extensions = [
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.mathjax",
+    "numpydoc",
+    "sphinx_gallery.gen_gallery",
+]
+
+exclude_patterns = ["_build", "**.ipynb_checkpoints", "gallery/*.py", "gallery/*.ipynb", "gallery/*.zip",
+                    "gallery/*.md5", "gallery/*.json", "gallery/*.pickle"]
+templates_path: list[str] = []
+nitpicky = False
+root_doc = "index"
+
+# -- API reference -------------------------------------------------------------------------------
+autosummary_generate = False  # pages are written below, one per public name
+autodoc_typehints = "none"    # the numpydoc sections give the types (with units)
+autodoc_member_order = "bysource"
+numpydoc_show_class_members = False
+numpydoc_class_members_toctree = False
+numpydoc_attributes_as_param_list = False
+
+
+def _kind(obj) -> str:
+    import inspect
+
+    if inspect.isclass(obj):
+        return "class"
+    if callable(obj):
+        return "function"
+    return "data"
+
+
+def _data_doc(name: str) -> str | None:
+    """The ``#:`` comment documenting a public constant in the module that defines it."""
+    import pkgutil
+
+    from sphinx.pycode import ModuleAnalyzer
+
+    modules = ["hertzchain"] + [m.name for m in pkgutil.walk_packages(hertzchain.__path__, "hertzchain.")]
+    for module in modules:
+        try:
+            docs = ModuleAnalyzer.for_module(module).find_attr_docs()
+        except Exception:  # noqa: BLE001 - a module the analyzer cannot read has no doc comments
+            continue
+        if ("", name) in docs:
+            return "\n".join(docs[("", name)]).strip()
+    return None
+
+
+def _write_if_changed(path: Path, text: str) -> None:
+    # Rewriting an unchanged page would make Sphinx rebuild it every time.
+    if not path.exists() or path.read_text() != text:
+        path.write_text(text)
+
+
+def _generate_api_pages(app) -> None:
+    """One page per name of ``hertzchain.__all__`` plus the summary table of the API index."""
+    from sphinx.util import logging
+
+    log = logging.getLogger("hertzchain.docs")
+    out = HERE / "api" / "generated"
+    out.mkdir(parents=True, exist_ok=True)
+    names = [n for n in hertzchain.__all__ if not n.startswith("_")]
+    wanted = set()
+    for name in names:
+        obj = getattr(hertzchain, name)
+        kind = _kind(obj)
+        title = f"hertzchain.{name}"
+        if kind == "class":
+            body = f".. autoclass:: hertzchain.{name}\n   :members:\n   :show-inheritance:\n"
+        elif kind == "function":
+            body = f".. autofunction:: hertzchain.{name}\n"
+        else:
+            doc = _data_doc(name)
+            if doc is None:
+                log.warning(f"public name hertzchain.{name} has no '#:' doc comment where it is defined")
+                doc = ""
+            body = f".. data:: hertzchain.{name}\n\n" + "".join(f"   {line}\n" for line in doc.splitlines())
+        page = f"{title}\n{'=' * len(title)}\n\n.. currentmodule:: hertzchain\n\n{body}"
+        _write_if_changed(out / f"hertzchain.{name}.rst", page)
+        wanted.add(f"hertzchain.{name}.rst")
+    for stale in out.glob("hertzchain.*.rst"):
+        if stale.name not in wanted:
+            stale.unlink()
+    table = ".. autosummary::\n\n" + "".join(f"   {name}\n" for name in names)
+    _write_if_changed(HERE / "api" / "summary.inc", table)
+
+
+def setup(app) -> None:
+    app.connect("builder-inited", _generate_api_pages)
+
+
+# Every public function and class documents each parameter (PR01) and what it returns (RT01);
+# their methods and attributes are checked only for valid RST.
+numpydoc_validation_checks = {"PR01", "RT01"}
+numpydoc_validation_exclude = {r"^hertzchain\.\w+\.\w+$"}
+# A result record documents its fields under "Attributes"; nobody builds one by hand.
+numpydoc_validation_overrides = {"PR01": [r"^Result of "]}
+
+# -- gallery -------------------------------------------------------------------------------------
+sphinx_gallery_conf = {
+    "examples_dirs": str(ROOT / "examples" / "gallery"),
+    "gallery_dirs": "gallery",
+    "filename_pattern": r"/plot_",
+    "within_subsection_order": "FileNameSortKey",
+    "download_all_examples": False,
+    "remove_config_comments": True,
+    "matplotlib_animations": False,
+    "image_scrapers": ("matplotlib",),
+    "reset_modules": ("matplotlib",),
+}
+
+# -- HTML ----------------------------------------------------------------------------------------
+html_theme = "pydata_sphinx_theme"
+html_title = f"hertzchain {release}"
+html_theme_options = {
+    "navigation_with_keys": False,
+    "show_toc_level": 2,
+    "secondary_sidebar_items": ["page-toc"],
+}
+html_sidebars = {"**": ["sidebar-nav-bs"]}
+html_static_path: list[str] = []
+html_show_sourcelink = False
