@@ -118,6 +118,7 @@ def _generate_api_pages(app) -> None:
 
 def setup(app) -> None:
     app.connect("builder-inited", _generate_api_pages)
+    app.connect("builder-inited", _generate_config_reference)
 
 
 # Every public function and class documents each parameter (PR01) and what it returns (RT01);
@@ -151,3 +152,79 @@ html_theme_options = {
 html_sidebars = {"**": ["sidebar-nav-bs"]}
 html_static_path: list[str] = []
 html_show_sourcelink = False
+
+
+# -- config reference generated from the one schema (hertzchain.config.RunConfig) ----------------
+def _type_text(annotation) -> str:
+    """Allowed values of a field, in words, from its type annotation."""
+    import types
+    import typing
+
+    from pydantic import BaseModel
+
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin is typing.Literal:
+        return " or ".join(f'``"{a}"``' if isinstance(a, str) else f"``{a}``" for a in args)
+    if origin in (typing.Union, types.UnionType):
+        parts = [_type_text(a) for a in args if a is not type(None)]
+        return " or ".join(parts)
+    if origin is list:
+        return f"list of {_type_text(args[0])}"
+    if origin is dict:
+        return f"table of {_type_text(args[1])}"
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return "table"
+    return {float: "number", int: "integer", bool: "true/false", str: "string"}.get(annotation, str(annotation))
+
+
+def _bounds_text(field) -> str:
+    words = []
+    for m in field.metadata:
+        for attr, sym in (("gt", ">"), ("ge", ">="), ("lt", "<"), ("le", "<=")):
+            value = getattr(m, attr, None)
+            if value is not None:
+                words.append(f"{sym} {value:g}")
+    return ", ".join(words)
+
+
+def _schema_rows(model, prefix: str, rows: list) -> None:
+    import typing
+
+    from pydantic import BaseModel
+    from pydantic_core import PydanticUndefined
+
+    for name, field in model.model_fields.items():
+        path = f"{prefix}.{name}" if prefix else name
+        annotation = field.annotation
+        inner = [a for a in (annotation, *typing.get_args(annotation))
+                 if isinstance(a, type) and issubclass(a, BaseModel)]
+        allowed = _type_text(annotation)
+        bounds = _bounds_text(field)
+        if bounds:
+            allowed += f" ({bounds})"
+        if field.default is PydanticUndefined or field.default_factory is not None:
+            default = "required" if field.is_required() else ""
+        elif isinstance(field.default, BaseModel):
+            default = ""
+        elif field.default is None:
+            default = "absent"
+        else:
+            default = f"``{field.default!r}``".replace("'", '"')
+        rows.append((f"``{path}``", allowed, default, field.description or ""))
+        if inner:
+            origin = typing.get_origin(annotation)
+            sub = {dict: f"{path}.NAME", list: f"{path}[i]"}.get(origin, path)
+            _schema_rows(inner[0], sub, rows)
+
+
+def _generate_config_reference(app) -> None:
+    from hertzchain.config import RunConfig
+
+    rows: list = []
+    _schema_rows(RunConfig, "", rows)
+    header = ("key", "allowed values", "default", "unit / meaning")
+    lines = [".. list-table::", "   :header-rows: 1", "   :widths: 28 32 14 26", ""]
+    for row in (header, *rows):
+        lines.append(f"   * - {row[0]}")
+        lines.extend(f"     - {cell}" for cell in row[1:])
+    _write_if_changed(HERE / "guide" / "config_keys.inc", "\n".join(lines) + "\n")
