@@ -119,6 +119,7 @@ def _generate_api_pages(app) -> None:
 def setup(app) -> None:
     app.connect("builder-inited", _generate_api_pages)
     app.connect("builder-inited", _generate_config_reference)
+    app.connect("builder-inited", _generate_result_reference)
 
 
 # Every public function and class documents each parameter (PR01) and what it returns (RT01);
@@ -228,3 +229,18 @@ def _generate_config_reference(app) -> None:
         lines.append(f"   * - {row[0]}")
         lines.extend(f"     - {cell}" for cell in row[1:])
     _write_if_changed(HERE / "guide" / "config_keys.inc", "\n".join(lines) + "\n")
+
+
+def _generate_result_reference(app) -> None:
+    """Tables of the variables and coordinates a result may hold, from ``hertzchain.result``."""
+    from hertzchain.result import COORDINATES, VARIABLES
+
+    lines = [".. list-table:: Variables", "   :header-rows: 1", "   :widths: 22 12 66", "",
+             "   * - name", "     - units", "     - long_name"]
+    for name, (units, long_name) in VARIABLES.items():
+        lines += [f"   * - ``{name}``", f"     - {units}", f"     - {long_name}"]
+    lines += ["", ".. list-table:: Coordinates", "   :header-rows: 1", "   :widths: 22 12 66", "",
+              "   * - name", "     - units", "     - long_name"]
+    for name, attrs in COORDINATES.items():
+        lines += [f"   * - ``{name}``", f"     - {attrs.get('units', '')}", f"     - {attrs.get('long_name', '')}"]
+    _write_if_changed(HERE / "guide" / "result_variables.inc", "\n".join(lines) + "\n")
