@@ -120,6 +120,8 @@ def setup(app) -> None:
     app.connect("builder-inited", _generate_api_pages)
     app.connect("builder-inited", _generate_config_reference)
     app.connect("builder-inited", _generate_result_reference)
+    app.connect("builder-inited", _generate_benchmarks_page)
+    app.connect("builder-inited", _generate_test_catalogue)
 
 
 # Every public function and class documents each parameter (PR01) and what it returns (RT01);
@@ -244,3 +246,160 @@ def _generate_result_reference(app) -> None:
     for name, attrs in COORDINATES.items():
         lines += [f"   * - ``{name}``", f"     - {attrs.get('units', '')}", f"     - {attrs.get('long_name', '')}"]
     _write_if_changed(HERE / "guide" / "result_variables.inc", "\n".join(lines) + "\n")
+
+
+# -- benchmarks and validation pages, generated from benchmarks/README.md and tests/ --------------
+def _inline(text: str) -> str:
+    """Markdown inline text -> RST: code spans, bold and links kept, RST markup characters escaped."""
+    import re
+
+    out = ""
+    parts = re.split(r"(`[^`]*`)", text)
+    for i, part in enumerate(parts):
+        if i % 2:
+            code = part[1:-1]
+            if not code.strip():
+                out += "\\`" * 2
+                continue
+            # Inline markup must not touch a word character: separate it with an escaped space.
+            glue_before = "\\ " if out[-1:].isalnum() else ""
+            glue_after = "\\ " if parts[i + 1][:1].isalnum() else ""
+            out += f"{glue_before}``{code}``{glue_after}"
+            continue
+        part = part.replace("\\", "\\\\")
+        links: list[str] = []
+
+        def keep_link(m):
+            links.append(f"`{m.group(1)} <{m.group(2)}>`__")
+            return f"\x00{len(links) - 1}\x00"
+
+        part = re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", keep_link, part)
+        bold: list[str] = []
+
+        def keep_bold(m):
+            bold.append(m.group(1))
+            return f"\x01{len(bold) - 1}\x01"
+
+        part = re.sub(r"\*\*([^*]+)\*\*", keep_bold, part)
+        for ch in "*_|`":
+            part = part.replace(ch, "\\" + ch)
+
+        def put_bold(m):
+            before = "\\ " if m.group(1) else ""
+            after = "\\ " if m.group(3) else ""
+            return f"{m.group(1)}{before}**{bold[int(m.group(2))].replace(chr(92), '')}**{after}{m.group(3)}"
+
+        part = re.sub(r"(\w?)\x01(\d+)\x01(\w?)", put_bold, part)
+        part = re.sub(r"\x00(\d+)\x00", lambda m: links[int(m.group(1))], part)
+        out += part
+    return out
+
+
+def _markdown_to_rst(md: str, skip_title: bool = True) -> str:
+    """The subset of Markdown that benchmarks/README.md uses: headings, paragraphs, lists,
+    fenced code and pipe tables."""
+    import re
+
+    lines, out, i = md.splitlines(), [], 0
+    underline = {2: "-", 3: "~", 4: "^"}
+    while i < len(lines):
+        line = lines[i]
+        if line.startswith("```"):
+            lang = line[3:].strip() or "text"
+            body = []
+            i += 1
+            while i < len(lines) and not lines[i].startswith("```"):
+                body.append(lines[i])
+                i += 1
+            out += [f".. code-block:: {lang}", ""] + [f"   {b}" for b in body] + [""]
+            i += 1
+            continue
+        m = re.match(r"(#+)\s+(.*)", line)
+        if m:
+            level = len(m.group(1))
+            if level == 1 and skip_title:
+                i += 1
+                continue
+            title = _inline(m.group(2))
+            out += [title, underline.get(level, "^") * len(title), ""]
+            i += 1
+            continue
+        if line.startswith("|"):
+            rows = []
+            while i < len(lines) and lines[i].startswith("|"):
+                cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
+                if not all(re.fullmatch(r":?-+:?", c) for c in cells):
+                    rows.append(cells)
+                i += 1
+            out += [".. list-table::", "   :header-rows: 1", ""]
+            for row in rows:
+                out.append(f"   * - {_inline(row[0])}")
+                out += [f"     - {_inline(c)}" for c in row[1:]]
+            out.append("")
+            continue
+        m = re.match(r"(\s*)[-*]\s+(.*)", line)
+        if m and not m.group(1):
+            item = [m.group(2)]
+            i += 1
+            while i < len(lines) and lines[i].startswith("  ") and not re.match(r"\s*[-*]\s", lines[i]):
+                item.append(lines[i].strip())
+                i += 1
+            out.append("- " + _inline(" ".join(item)))
+            # nested items
+            while i < len(lines) and re.match(r"\s+[-*]\s+", lines[i]):
+                sub = [re.sub(r"^\s+[-*]\s+", "", lines[i])]
+                i += 1
+                while i < len(lines) and lines[i].startswith("    ") and not re.match(r"\s*[-*]\s", lines[i]):
+                    sub.append(lines[i].strip())
+                    i += 1
+                out += ["", "  - " + _inline(" ".join(sub))]
+            if i < len(lines) and re.match(r"[-*]\s", lines[i]):
+                continue
+            out.append("")
+            continue
+        if not line.strip():
+            out.append("")
+            i += 1
+            continue
+        para = []
+        while i < len(lines) and lines[i].strip() and not re.match(r"(#|```|\||[-*]\s)", lines[i]):
+            para.append(lines[i].strip())
+            i += 1
+        out += [_inline(" ".join(para)), ""]
+    return "\n".join(out) + "\n"
+
+
+def _generate_benchmarks_page(app) -> None:
+    readme = ROOT / "benchmarks" / "README.md"
+    text = readme.read_text() if readme.exists() else "No benchmarks in this tree.\n"
+    _write_if_changed(HERE / "benchmarks_readme.inc", _markdown_to_rst(text))
+
+
+def _generate_test_catalogue(app) -> None:
+    """Every test module of tests/: its docstring and each test with its docstring's first line."""
+    import ast
+
+    out = []
+    for path in sorted((ROOT / "tests").glob("test_*.py")):
+        tree = ast.parse(path.read_text())
+        doc = ast.get_docstring(tree) or ""
+        title = f"``tests/{path.name}``"
+        out += [title, "~" * len(title), ""]
+        if doc:
+            out += [_inline(" ".join(doc.split("\n\n")[0].split())), ""]
+        for node in tree.body:
+            tests = []
+            if isinstance(node, ast.FunctionDef) and node.name.startswith("test_"):
+                tests = [node]
+            elif isinstance(node, ast.ClassDef) and node.name.startswith("Test"):
+                tests = [n for n in node.body if isinstance(n, ast.FunctionDef) and n.name.startswith("test_")]
+            for fn in tests:
+                slow = any("slow" in ast.unparse(d) for d in fn.decorator_list) or any(
+                    "slow" in ast.unparse(d) for d in getattr(node, "decorator_list", []))
+                first = (ast.get_docstring(fn) or "").split("\n\n")[0]
+                line = f"- ``{fn.name}``" + (" (slow)" if slow else "")
+                if first:
+                    line += ": " + _inline(" ".join(first.split()))
+                out.append(line)
+        out.append("")
+    _write_if_changed(HERE / "validation_tests.inc", "\n".join(out) + "\n")
