@@ -342,7 +342,7 @@ def calibrate_law(law: str, eps: float, chain: Chain | None = None, striker: Str
         ``"viscoelastic"`` (Kuwabara-Kono, returns :class:`Viscoelastic` with A [s]) or
         ``"dashpot"`` (returns :class:`Dashpot` with gamma [N s/m]).
     eps
-        Target factor, 0 < eps <= 1; eps = 1 returns the parameter 0 (elastic).
+        Target per-bead factor [-], 0 < eps <= 1; eps = 1 returns the parameter 0 (elastic).
     chain
         The chain to be simulated; only its first bead is used.
     striker

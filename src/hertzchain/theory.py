@@ -381,7 +381,7 @@ def predict_chain(diameters: Sequence[float], material: str | Material, peak_for
     T0
         Time of flight [s] assigned to "bead 0" (the origin of the T_n sum).
     q
-        None: local tapering q_n = 1 - phi_n / phi_n-1 (the chain as built). A number: that
+        Tapering factor [-]. None: local tapering q_n = 1 - phi_n / phi_n-1 (the chain as built). A number: that
         constant factor for every bead n > n0 (0 there elsewhere); ``q=0`` gives the paper's
         "restitution only" prediction (dashed lines of Fig. 5b).
 
