@@ -78,9 +78,12 @@ def _data_doc(name: str) -> str | None:
 
 
 def _write_if_changed(path: Path, text: str) -> None:
-    # Rewriting an unchanged page would make Sphinx rebuild it every time.
+    # Rewriting an unchanged page would make Sphinx rebuild it every time; a build stopped
+    # half-way leaves no half-written page (atomic replace).
+    from hertzchain.fileio import write_text
+
     if not path.exists() or path.read_text() != text:
-        path.write_text(text)
+        write_text(path, text)
 
 
 def _generate_api_pages(app) -> None:
