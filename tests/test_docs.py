@@ -132,6 +132,14 @@ def test_nothing_points_to_the_old_design_notes():
     assert not offenders
 
 
+def test_result_conventions_attribute_names_the_conventions_page():
+    model = hc.Model(hc.Chain.uniform(3, 26e-3), hc.Striker(8e-3, 0.1))
+    ds = hc.simulate(model, 2e-5, probes=hc.Probes(sample_interval=1e-6))
+    text = ds.attrs["conventions"]
+    assert "Conventions page" in text and "docs/conventions.rst" in text
+    assert (DOCS / "conventions.rst").is_file()
+
+
 @pytest.mark.slow
 def test_gallery_runs_and_makes_its_figures(tmp_path):
     run = _build(tmp_path)
