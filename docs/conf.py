@@ -375,7 +375,14 @@ def _markdown_to_rst(md: str, skip_title: bool = True) -> str:
 def _generate_benchmarks_page(app) -> None:
     readme = ROOT / "benchmarks" / "README.md"
     text = readme.read_text() if readme.exists() else "No benchmarks in this tree.\n"
-    _write_if_changed(HERE / "benchmarks_readme.inc", _markdown_to_rst(text))
+    figure = ROOT / "benchmarks" / "results" / "scaling.png"
+    if figure.exists():
+        text += ("\n## Scaling figure\n\n`benchmarks/results/scaling.png` from the latest `compare.py` run: "
+                 "ns per bead-step against chain length and against batch size.\n")
+    rst = _markdown_to_rst(text)
+    if figure.exists():
+        rst += "\n.. image:: ../benchmarks/results/scaling.png\n   :width: 100%\n"
+    _write_if_changed(HERE / "benchmarks_readme.inc", rst)
 
 
 def _generate_test_catalogue(app) -> None:
