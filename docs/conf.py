@@ -115,8 +115,44 @@ def _generate_api_pages(app) -> None:
     for stale in out.glob("hertzchain.*.rst"):
         if stale.name not in wanted:
             stale.unlink()
-    table = ".. autosummary::\n\n" + "".join(f"   {name}\n" for name in names)
+    # One table per defining module, in the order the modules first appear in __all__.
+    groups: dict[str, list[str]] = {}
+    for name in names:
+        module = getattr(getattr(hertzchain, name), "__module__", None) or "hertzchain"
+        if not module.startswith("hertzchain."):
+            module = _defining_module(name)
+        groups.setdefault(".".join(module.split(".")[:2]), []).append(name)
+    table = ""
+    for module, members in groups.items():
+        title = _GROUP_TITLES.get(module, f"``{module}``")
+        table += f"{title}\n{'-' * len(title)}\n\n.. autosummary::\n\n" + "".join(f"   {m}\n" for m in members) + "\n"
     _write_if_changed(HERE / "api" / "summary.inc", table)
+
+
+#: Section titles of the API index, by defining module (a module not listed is titled by its name).
+_GROUP_TITLES = {
+    "hertzchain.errors": "Errors and warnings",
+    "hertzchain.materials": "Materials",
+    "hertzchain.contact": "Contact laws",
+    "hertzchain.chain": "Chains",
+    "hertzchain.model": "Model",
+    "hertzchain.probes": "Probes",
+    "hertzchain.simulation": "Running",
+    "hertzchain.result": "Results",
+    "hertzchain.config": "Configuration files",
+    "hertzchain.integrate": "Many chains at once",
+    "hertzchain.sweep": "Sweeps",
+    "hertzchain.dissipation": "Dissipation",
+    "hertzchain.instrument": "Instrument",
+    "hertzchain.analysis": "Analysis",
+    "hertzchain.theory": "Theory",
+}
+
+
+def _defining_module(name: str) -> str:
+    """Module whose source defines a public constant (constants carry no ``__module__``)."""
+    exports = getattr(hertzchain, "_EXPORTS", {})
+    return f"hertzchain.{exports[name]}" if name in exports else "hertzchain"
 
 
 def setup(app) -> None:
