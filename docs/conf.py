@@ -155,7 +155,30 @@ def _defining_module(name: str) -> str:
     return f"hertzchain.{exports[name]}" if name in exports else "hertzchain"
 
 
+_SECTIONS_WITH_NAMES = {"Parameters", "Other Parameters", "Attributes", "Returns", "Yields", "Raises", "Warns"}
+
+
+def _accept_colon_headers(app, what, name, obj, options, lines) -> None:
+    """Read ``name:`` entry lines of numpydoc sections as ``name``.
+
+    Much of the code base writes ``x:`` above the description of parameter ``x``; numpydoc reads
+    ``x : type`` or ``x``, and would otherwise take the colon as part of the name. Runs before
+    numpydoc (priority 400 < 500), so its validation sees the names.
+    """
+    import re
+
+    section = None
+    for i, line in enumerate(lines):
+        nxt = lines[i + 1] if i + 1 < len(lines) else ""
+        if line.strip() and re.fullmatch(r"-{3,}", nxt.strip()):
+            section = line.strip()
+            continue
+        if section in _SECTIONS_WITH_NAMES and re.fullmatch(r"[\w*(][\w*, ()\[\]]*:\s*", line):
+            lines[i] = line.rstrip()[:-1]
+
+
 def setup(app) -> None:
+    app.connect("autodoc-process-docstring", _accept_colon_headers, priority=400)
     app.connect("builder-inited", _generate_api_pages)
     app.connect("builder-inited", _generate_config_reference)
     app.connect("builder-inited", _generate_result_reference)
