@@ -114,6 +114,15 @@ def test_result_page_lists_every_variable(site):
         assert name in text, name
 
 
+def test_result_page_describes_every_attribute():
+    """Every attribute of a result (a run with a wall, sensors and velocities) is described."""
+    model = hc.Model(hc.Chain.uniform(4, 26e-3), hc.Striker(8e-3, 0.1))
+    ds = hc.simulate(model, 2e-5, probes=hc.Probes(sample_interval=1e-6, sensors=(2,), velocities=True))
+    page = (DOCS / "guide" / "results.rst").read_text()
+    missing = [name for name in ds.attrs if f"``{name}``" not in page]
+    assert not missing
+
+
 def test_nothing_points_to_the_old_design_notes():
     """Conventions live on docs/conventions.rst; no file may send readers to notes outside the repo
     (the CI's own script aside)."""
