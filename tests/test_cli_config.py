@@ -69,7 +69,7 @@ BAD_INPUTS = [
     (lambda d: d["chain"].update(diametres_mm=[1.0]), "chain.diametres_mm", "unknown key"),
     (lambda d: d["chain"]["diameters_mm"].__setitem__(3, -26.0), "chain.diameters_mm", "bead 4"),
     (lambda d: d["chain"]["diameters_mm"].__setitem__(3, 0.0), "chain.diameters_mm", "positive"),
-    (lambda d: d["chain"]["diameters_mm"].__setitem__(5, float("nan")), "chain.diameters_mm", "bead 6"),
+    (lambda d: d["chain"]["diameters_mm"].__setitem__(5, float("nan")), "chain.diameters_mm[5]", "finite"),
     (lambda d: d["chain"].update(material="unobtainium"), "chain.material", "unknown material"),
     (lambda d: d["run"].update(duration=-2.5e-3), "run.duration", "greater than 0"),
     (lambda d: d["run"].update(dt=1e-5, sample_interval=1e-5), "run.dt", "too large"),

@@ -58,7 +58,7 @@ def test_grid_sweep_table_and_files(reference):
     assert (df["T"] > 0).all() and (df["tau"] > 0).all() and (df["Q_F"] > 0).all()
     # Files: one chunk file per chunk, the definition and its hash, and the table on disk.
     files = sorted(p.name for p in (reference.out_dir / "chunks").iterdir())
-    assert files == [f"chunk_{i:05d}.nc" for i in range(4)]
+    assert files == sorted([f"chunk_{i:05d}.nc" for i in range(4)] + [f"chunk_{i:05d}.nc.sha256" for i in range(4)])
     meta = json.loads((reference.out_dir / "sweep.json").read_text())
     assert meta["hash"] == cfg.hash and meta["n_members"] == 8
     on_disk = pd.read_csv(reference.metrics_path, keep_default_na=False, na_values=[""])
@@ -82,7 +82,8 @@ def test_killed_sweep_resumes_without_recomputing(tmp_path, reference, monkeypat
     with pytest.raises(Killed):
         run_sweep(grid_sweep(), out, progress=kill_after_two_chunks)
     chunks = out / "chunks"
-    assert sorted(p.name for p in chunks.iterdir()) == ["chunk_00000.nc", "chunk_00001.nc"]
+    assert sorted(p.name for p in chunks.iterdir()) == ["chunk_00000.nc", "chunk_00000.nc.sha256",
+                                                        "chunk_00001.nc", "chunk_00001.nc.sha256"]
     assert not (out / "metrics.csv").exists()
     stamps = {p.name: p.stat().st_mtime_ns for p in chunks.iterdir()}
     # What a kill can leave behind: a half-written temporary file and, worse, an unreadable file
@@ -236,9 +237,9 @@ BAD = [
     ({"parameters": {"striker.velocity": {"low": 0.1, "high": 0.2}}}, 'sweep.parameters["striker.velocity"]'),
     ({"parameters": {"striker.velocity": []}}, 'sweep.parameters["striker.velocity"]'),
     ({"parameters": {"run.duration": [1e-4]}}, 'sweep.parameters["run.duration"]'),
-    ({"parameters": {"striker.velocity": [0.1, -0.2]}}, "striker.velocity"),
-    ({"parameters": {"chain.uniform.n": [3, 0]}}, "chain.uniform.n"),
-    ({"parameters": {"chain.taper.q": [0.05]}}, "chain.taper.n"),
+    ({"parameters": {"striker.velocity": [0.1, -0.2]}}, 'sweep.parameters["striker.velocity"]'),
+    ({"parameters": {"chain.uniform.n": [3, 0]}}, 'sweep.parameters["chain.uniform.n"]'),
+    ({"parameters": {"chain.taper.q": [0.05]}}, "base.chain.taper.n"),
     ({"parameters": {"chain.diameters_mm[2]": [9.0]}}, 'sweep.parameters["chain.diameters_mm[2]"]'),
     ({"parameters": {}}, "sweep.parameters"),
     ({"tolerances": {"diameter_rel": -1e-3}}, "sweep.tolerances.diameter_rel"),

@@ -13,7 +13,10 @@ __version__ = "0.1.0"
 _EXPORTS = {
     # errors
     "HertzchainError": "errors", "ConfigError": "errors", "SimulationDiverged": "errors",
-    "PulseNotFound": "errors", "ElasticLimitWarning": "errors",
+    "PulseNotFound": "errors", "ElasticLimitWarning": "errors", "HertzRangeWarning": "errors",
+    "PulseNotReachedWarning": "errors", "LongRunWarning": "errors",
+    # checks
+    "estimate_resources": "checks", "ResourceEstimate": "checks",
     # model
     "Material": "materials", "CATALOGUE": "materials", "get_material": "materials",
     "register_material": "materials",

@@ -15,22 +15,38 @@ import click
 
 
 @contextmanager
-def progress_bar(description: str, enabled: bool = True):
-    """A Rich progress bar on stderr; yields ``update(done, total)``."""
+def progress_bar(description: str, enabled: bool = True, lazy: bool = False):
+    """A Rich progress bar on stderr; yields ``update(done, total)``.
+
+    With ``lazy`` the bar appears at the first update, so a job refused by its checks before any
+    work (bad input, not enough memory) prints only its error message.
+    """
     if not enabled:
         yield None
         return
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                  TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=False) as prog:
-        task = prog.add_task(description, total=None)
+    state: dict = {}
 
-        def update(done: int, total: int) -> None:
-            prog.update(task, completed=done, total=total)
+    def start() -> None:
+        prog = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                        TimeElapsedColumn(), TimeRemainingColumn(), console=Console(stderr=True), transient=False)
+        prog.start()
+        state.update(prog=prog, task=prog.add_task(description, total=None))
 
+    def update(done: int, total: int) -> None:
+        if not state:
+            start()
+        state["prog"].update(state["task"], completed=done, total=total)
+
+    if not lazy:
+        start()
+    try:
         yield update
+    finally:
+        if state:
+            state["prog"].stop()
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -50,10 +66,12 @@ def run(config: Path, out: Path, quiet: bool) -> None:
 
     from .config import apply_instruments, build_instruments, build_model, build_probes, load_config
     from .errors import ElasticLimitWarning
+    from .fileio import check_target
     from .result import save
     from .simulation import simulate
 
     cfg = load_config(config)
+    check_target(out)  # refuse a FIFO, a link or a device as --out before any work
     model = build_model(cfg)
     probes = build_probes(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run
@@ -64,7 +82,7 @@ def run(config: Path, out: Path, quiet: bool) -> None:
     work = cfg.run.duration / dt * model.chain.n_beads
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ElasticLimitWarning)
-        with progress_bar("simulating", enabled=not quiet and work > 1e8) as update:
+        with progress_bar("simulating", enabled=not quiet and work > 1e8, lazy=True) as update:
             ds = simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                           rtol=cfg.run.rtol, progress=update, config=cfg.model_dump(mode="json"))
     for w in caught:
@@ -91,9 +109,16 @@ def _open_result(path: Path):
     if not path.exists():
         raise ConfigError(str(path), "no such file")
     try:
-        return load(path)
-    except (OSError, ValueError) as exc:
-        raise ConfigError(str(path), f"is not a hertzchain NetCDF result ({exc})") from None
+        ds = load(path)
+    except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
+        raise ConfigError(str(path), f"is not a hertzchain NetCDF result, or is damaged "
+                          f"({type(exc).__name__}: {exc})") from None
+    # What every command reads: a time axis and at least one force signal.
+    forces = [v for v in ("wall_force", "sensor_force", "contact_force") if v in ds]
+    if "time" not in ds.coords or ds.time.ndim != 1 or ds.time.size < 2 or not forces:
+        raise ConfigError(str(path), "is not a hertzchain result: it needs a 'time' axis of at least 2 samples and "
+                          "one of wall_force, sensor_force, contact_force")
+    return ds
 
 
 @cli.command()
@@ -104,8 +129,9 @@ def _open_result(path: Path):
 @click.option("--contact", "contacts", multiple=True, type=int, help="Contacts to draw with --signal contact_force.")
 def plot(result: Path, out: Path, signals: tuple[str, ...], contacts: tuple[int, ...]) -> None:
     """Draw the force signals of RESULT against time, one panel per signal."""
-    from .plotting import plot_signals
+    from .plotting import image_format, plot_signals
 
+    image_format(out)  # an unknown --out suffix is refused before the file is read
     ds = _open_result(result)
     click.echo(f"wrote {plot_signals(ds, out, signals or None, contacts or None)}")
 
@@ -121,8 +147,6 @@ def analyze(source: Path, signals: tuple[str, ...], as_json: bool) -> None:
     The loading part of each pulse is fitted with F_m cos^6((t - T)/tau) (paper Sec. III); the front
     and tail momenta Q_F, Q_T are the integrals before and after T + tau.
     """
-    import json
-
     from .analysis import analyze_signals
     from .errors import ConfigError
 
@@ -135,7 +159,9 @@ def analyze(source: Path, signals: tuple[str, ...], as_json: bool) -> None:
         chosen = signals or tuple(s for s in ("wall_force", "sensor_force") if s in ds) or ("contact_force",)
         rows = analyze_signals(ds, signals=chosen)
     if as_json:
-        click.echo(json.dumps(rows, indent=2, default=float))
+        from .fileio import json_text
+
+        click.echo(json_text(rows))  # NaN (a failed fit) becomes null: valid JSON
         return
     from rich.console import Console
     from rich.table import Table
@@ -222,8 +248,38 @@ def _register_subcommands() -> None:
 _register_subcommands()
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings reach the user as one line ``warning: ...`` on stderr (no file name or code line)."""
+    click.echo(f"warning: {message}", err=True)
+
+
+def _user_warnings(func):
+    """Run ``func`` with warnings shown as :func:`_show_warning` lines and NumPy's floating-point
+    RuntimeWarnings (overflow, invalid value...) silenced: every result is checked by
+    :mod:`hertzchain.checks`, which raises or warns in the user's terms."""
+    import functools
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            warnings.showwarning = _show_warning
+            return func(*args, **kwargs)
+
+    return wrapper
+
+
+@_user_warnings
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: run the CLI, turning user errors into a message and exit status 2."""
+    """Entry point: run the CLI, turning user errors into a message and exit status 2.
+
+    The one error path of the command line: a :class:`~hertzchain.errors.HertzchainError` (bad
+    config, bad file, a run that diverged), a usage error, an unreadable or unwritable file
+    (OSError) or a lack of memory ends with one paragraph naming what is wrong and exit status
+    2; anything else is a bug, reported as such with exit status 1.
+    """
     from .errors import HertzchainError
 
     try:
@@ -240,6 +296,14 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         click.echo("interrupted", err=True)
         return 130
+    except MemoryError:
+        click.echo("error: not enough memory for this job; shorten run.duration, raise run.sample_interval "
+                   "or record fewer contacts (probes.contacts)", err=True)
+        return 2
+    except OSError as exc:  # a file the job needed could not be read or written
+        where = exc.filename if exc.filename is not None else "a file"
+        click.echo(f"error: {where}: {exc.strerror or exc}", err=True)
+        return 2
     except Exception as exc:  # a bug: say so plainly, full traceback on request
         if os.environ.get("HERTZCHAIN_DEBUG"):
             raise

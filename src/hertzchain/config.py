@@ -1,8 +1,12 @@
 """Run configuration (TOML): schema, validation and translation into model objects.
 
-Validation uses pydantic; every problem is reported as a :class:`~hertzchain.errors.ConfigError`
-naming the field (``chain.diameters_mm[3]``), what was wrong and what is allowed. Keys that take
-non-SI units say so in their name (``diameter_mm``); all others are SI.
+Validation uses pydantic in strict mode; every problem is reported as a
+:class:`~hertzchain.errors.ConfigError` naming the field as the user wrote it
+(``chain.diameters_mm[3]``, ``chain.uniform.diameter_mm``), what was wrong and what is allowed.
+Types are strict (``true`` or ``"0.5"`` is not a number, ``1.0`` is not a bead count) and every
+number has physical bounds (:data:`BOUNDS`), so values such as 1e300 or 1e-300 are refused before
+they reach the engine. Keys that take non-SI units say so in their name (``diameter_mm``); all
+others are SI.
 
 A minimal config (the contract of the core-engine issue)::
 
@@ -25,9 +29,10 @@ from __future__ import annotations
 
 import math
 import tomllib
-from pathlib import Path
 from collections.abc import Iterable
-from typing import Any, Literal
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -37,31 +42,64 @@ __all__ = ["RunConfig", "load_config", "parse_config", "build_model", "build_pro
 
 
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # strict: TOML booleans and strings are not numbers, floats are not counts (issue: ``velocity =
+    # true`` ran at 1 m/s); integers are still accepted where a float is expected.
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+#: Physical bounds of the config's numbers (inclusive unless said otherwise), generous enough for
+#: any granular-chain experiment and tight enough that nothing reaches the engine as 0, inf or an
+#: overflowing product (1e300 m/s, 1e-300 mm, 1e30 beads).
+BOUNDS = {
+    "diameter_mm": (1e-3, 1e4),       # 1 um .. 10 m
+    "beads": (1, 10_000_000),         # bead counts and numbers (memory is checked separately)
+    "velocity": (0.0, 1e3),           # m/s, > 0; far beyond yield already
+    "density": (1.0, 1e5),            # kg/m^3
+    "young": (1e3, 1e13),             # Pa
+    "yield_stress": (1e3, 1e12),      # Pa
+    "precompression": (0.0, 1e9),     # N (and the Hertz-range check on the static overlap)
+    "offset_mm": (-1e4, 1e4),
+    "A": (0.0, 1.0),                  # s (the paper's eps = 0.985 needs A ~ 4.5e-6 s)
+    "gamma": (0.0, 1e9),              # N s/m
+    "duration": (0.0, 100.0),         # s, > 0 (memory and run time are checked separately)
+    "sample_interval": (1e-12, 1.0),  # s
+    "dt": (1e-15, 1.0),               # s
+    "rtol": (1e-14, 0.1),
+}
+
+
+def _bounded(kind: str, *, open_low: bool = False, **kw: Any) -> Any:
+    lo, hi = BOUNDS[kind]
+    return Field(gt=lo, le=hi, **kw) if open_low else Field(ge=lo, le=hi, **kw)
+
+
+_Diameter = Annotated[float, _bounded("diameter_mm")]
+_BeadNumber = Annotated[int, _bounded("beads")]
+_Offset = Annotated[float, _bounded("offset_mm")]
 
 
 class MaterialConfig(_Section):
     """A user material under ``[materials.NAME]`` (SI units)."""
 
-    density: float = Field(gt=0, description="kg/m^3")
-    young: float = Field(gt=0, description="Young's modulus, Pa")
+    density: float = _bounded("density", description="kg/m^3")
+    young: float = _bounded("young", description="Young's modulus, Pa")
     poisson: float = Field(gt=-1, lt=0.5)
-    yield_stress: float | None = Field(default=None, gt=0, description="Pa")
+    yield_stress: float | None = _bounded("yield_stress", default=None, description="Pa")
 
 
 class UniformBlock(_Section):
-    n: int = Field(ge=1)
-    diameter_mm: float = Field(gt=0)
+    n: _BeadNumber
+    diameter_mm: _Diameter
 
 
 class TaperBlock(_Section):
-    n: int = Field(ge=1)
+    n: _BeadNumber
     q: float = Field(ge=0, lt=1, description="tapering factor as a fraction (0.056 = 5.6 %)")
 
 
 class Substitution(_Section):
-    bead: int = Field(ge=1)
-    diameter_mm: float | None = Field(default=None, gt=0)
+    bead: _BeadNumber
+    diameter_mm: _Diameter | None = None
     material: str | None = None
 
 
@@ -74,11 +112,11 @@ class ChainConfig(_Section):
     preset: Literal["chain1", "chain2"] | None = None
     uniform: UniformBlock | None = None
     taper: TaperBlock | None = None
-    truncate: int | None = Field(default=None, ge=1)
+    truncate: _BeadNumber | None = None
     substitutions: list[Substitution] = []
-    offsets_mm: list[float] | None = None
-    offsets_fraction: list[float] | None = None
-    precompression: float = Field(default=0.0, ge=0, description="static force, N")
+    offsets_mm: list[_Offset] | None = None
+    offsets_fraction: list[Annotated[float, Field(ge=-0.5, le=0.5)]] | None = None
+    precompression: float = _bounded("precompression", default=0.0, description="static force, N")
 
     @field_validator("diameters_mm")
     @classmethod
@@ -86,10 +124,13 @@ class ChainConfig(_Section):
         if v is not None:
             if not v:
                 raise ValueError("must list at least one diameter")
+            if len(v) > BOUNDS["beads"][1]:
+                raise ValueError(f"lists {len(v)} beads; at most {BOUNDS['beads'][1]} are allowed")
+            lo, hi = BOUNDS["diameter_mm"]
             for i, d in enumerate(v):
-                if not (math.isfinite(d) and d > 0):
+                if not (math.isfinite(d) and lo <= d <= hi):
                     raise ValueError(f"diameter of bead {i + 1} (item [{i}]) must be a positive finite number "
-                                     f"in mm, got {d!r}")
+                                     f"in mm, from {lo:g} to {hi:g}, got {d!r}")
         return v
 
     @model_validator(mode="after")
@@ -104,8 +145,8 @@ class ChainConfig(_Section):
 
 
 class StrikerConfig(_Section):
-    diameter_mm: float = Field(default=8.0, gt=0)
-    velocity: float = Field(default=0.5, gt=0, description="m/s towards the chain")
+    diameter_mm: _Diameter = 8.0
+    velocity: float = _bounded("velocity", open_low=True, default=0.5, description="m/s towards the chain")
     material: str | None = None
 
 
@@ -119,8 +160,8 @@ class ContactConfig(_Section):
 
     law: Literal["elastic", "viscoelastic", "dashpot"] = "elastic"
     eps: float | None = Field(default=None, gt=0, le=1, description="per-bead factor of the paper")
-    A: float | None = Field(default=None, ge=0, description="Kuwabara-Kono time constant, s")
-    gamma: float | None = Field(default=None, ge=0, description="dashpot coefficient, N s/m")
+    A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s")
+    gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m")
 
     @model_validator(mode="after")
     def _parameter(self) -> "ContactConfig":
@@ -138,23 +179,16 @@ class ContactConfig(_Section):
 
 
 class RunSection(_Section):
-    duration: float = Field(default=2.5e-3, gt=0, description="s")
-    sample_interval: float = Field(default=1e-7, gt=0, description="s")
-    dt: float | None = Field(default=None, gt=0, description="s; automatic when absent")
+    duration: float = _bounded("duration", open_low=True, default=2.5e-3, description="s")
+    sample_interval: float = _bounded("sample_interval", default=1e-7, description="s")
+    dt: float | None = _bounded("dt", default=None, description="s; automatic when absent")
     integrator: Literal["verlet", "dop853", "rk45"] = "verlet"
-    rtol: float = Field(default=1e-10, gt=0, lt=1)
-
-    @field_validator("duration", "sample_interval", "dt")
-    @classmethod
-    def _finite(cls, v: float | None) -> float | None:
-        if v is not None and not math.isfinite(v):
-            raise ValueError("must be finite")
-        return v
+    rtol: float = _bounded("rtol", default=1e-10)
 
 
 class ProbesConfig(_Section):
-    sensors: list[int] = []
-    contacts: Literal["all"] | list[int] = "all"
+    sensors: list[_BeadNumber] = []
+    contacts: Literal["all"] | list[Annotated[int, Field(ge=0, le=BOUNDS["beads"][1])]] = "all"
     velocities: bool = False
 
 
@@ -162,18 +196,18 @@ class InstrumentChannel(_Section):
     """One measured channel: a sensor preset plus any :class:`hertzchain.instrument.Instrument` field."""
 
     preset: Literal["pcb_208a11", "pcb_200b02"] | None = None
-    sensitivity_mV_per_N: float | None = None
-    noise_rms_mV: float | None = None
-    sample_rate: float | None = None
-    record_length: int | None = None
-    trigger_level_N: float | None = None
-    pretrigger_fraction: float | None = None
-    bits: int | None = None
-    full_scale_V: float | None = None
-    offset_V: float | None = None
-    n_average: int | None = None
+    sensitivity_mV_per_N: float | None = Field(default=None, gt=0, le=1e6)
+    noise_rms_mV: float | None = Field(default=None, ge=0, le=1e6)
+    sample_rate: float | None = Field(default=None, ge=1.0, le=1e12, description="Hz")
+    record_length: int | None = Field(default=None, ge=2, le=100_000_000)
+    trigger_level_N: float | None = Field(default=None, ge=-1e9, le=1e9)
+    pretrigger_fraction: float | None = Field(default=None, ge=0, lt=1)
+    bits: int | None = Field(default=None, ge=1, le=48)
+    full_scale_V: float | None = Field(default=None, gt=0, le=1e4)
+    offset_V: float | None = Field(default=None, ge=-1e4, le=1e4)
+    n_average: int | None = Field(default=None, ge=1, le=1_000_000)
     trigger_jitter: bool | None = None
-    seed: int | None = None
+    seed: int | None = Field(default=None, ge=0, le=2**63 - 1)
 
 
 class InstrumentConfig(_Section):
@@ -248,10 +282,16 @@ def parse_config(data: dict) -> RunConfig:
             raise ConfigError(name, f"unknown key; allowed keys here: {allowed}") from None
         if err["type"] == "missing":
             raise ConfigError(name, "is required") from None
-        msg = err["msg"].removeprefix("Value error, ")
+        msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
         value = err.get("input")
         if not isinstance(value, (dict, list)):
             msg += f" (got {value!r})"
+        if err["type"] in ("float_type", "int_type", "int_from_float", "bool_type", "string_type"):
+            msg += "; write it as a TOML " + {"float_type": "number such as 0.5 (not true or a quoted string)",
+                                               "int_type": "whole number such as 12 (not 12.0 or a quoted string)",
+                                               "int_from_float": "whole number such as 12 (not 12.0)",
+                                               "bool_type": "boolean, true or false",
+                                               "string_type": "quoted string"}[err["type"]]
         raise ConfigError(name or "config", msg) from None
 
 
@@ -259,9 +299,12 @@ def read_toml(path: str | Path, what: str = "config file") -> dict:
     """Read a TOML file; a missing file or bad TOML is a ConfigError naming the path."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8")
     except OSError as exc:
         raise ConfigError(str(path), f"cannot read the {what}: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(str(path), f"is not UTF-8 text (byte {exc.start} cannot be decoded); "
+                          f"a {what} is a TOML text file saved as UTF-8") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -373,6 +416,18 @@ def _check_material_names(cfg: RunConfig) -> None:
             raise ConfigError(field_name, exc.message) from None
 
 
+@contextmanager
+def _as_written(internal: str, written: str):
+    """Report a model-level ConfigError on ``internal`` (``chain.offsets``) under the key the user
+    wrote (``chain.offsets_mm``), so that every message names a field of the input."""
+    try:
+        yield
+    except ConfigError as exc:
+        if exc.field == internal or exc.field.startswith(internal + "["):
+            raise ConfigError(written + exc.field[len(internal):], exc.message) from None
+        raise
+
+
 def build_chain(cfg: RunConfig):
     """The :class:`~hertzchain.chain.Chain` described by ``[chain]``."""
     import numpy as np
@@ -383,6 +438,7 @@ def build_chain(cfg: RunConfig):
     _register_materials(cfg)
     _check_material_names(cfg)
     mats: Any = c.material
+    n_max = BOUNDS["beads"][1]
     if c.preset is not None:
         chain = paper_chain(c.preset, c.material)
     elif c.uniform is not None:
@@ -390,6 +446,13 @@ def build_chain(cfg: RunConfig):
     else:
         chain = Chain.from_diameters(np.array(c.diameters_mm) * 1e-3, c.material)
     if c.taper is not None:
+        if chain.n_beads + c.taper.n > n_max:
+            raise ConfigError("chain.taper.n", f"makes a chain of {chain.n_beads + c.taper.n} beads; "
+                              f"at most {n_max} are allowed")
+        smallest_mm = chain.diameters[-1] * 1e3 * (1.0 - c.taper.q) ** c.taper.n
+        if smallest_mm < BOUNDS["diameter_mm"][0]:
+            raise ConfigError("chain.taper", f"q = {c.taper.q:g} over n = {c.taper.n} beads makes the last bead "
+                              f"{smallest_mm:.3g} mm; beads must be at least {BOUNDS['diameter_mm'][0]:g} mm")
         chain = chain.append_taper(c.taper.n, c.taper.q)
     if c.truncate is not None:
         if c.truncate > chain.n_beads:
@@ -404,18 +467,19 @@ def build_chain(cfg: RunConfig):
         if sub.bead > chain.n_beads:
             raise ConfigError(f"chain.substitutions[{i}].bead", f"bead {sub.bead} does not exist (1..{chain.n_beads})")
         chain = chain.substitute(sub.bead, None if sub.diameter_mm is None else sub.diameter_mm * 1e-3, sub.material)
-    offsets = None
-    if c.offsets_mm is not None:
-        offsets = np.array(c.offsets_mm) * 1e-3
-        name = "chain.offsets_mm"
-    elif c.offsets_fraction is not None:
-        offsets = np.array(c.offsets_fraction) * chain.diameters[: len(c.offsets_fraction)]
-        name = "chain.offsets_fraction"
-    if offsets is not None:
-        if offsets.size != chain.n_beads:
-            raise ConfigError(name, f"needs one value per bead ({chain.n_beads}), got {offsets.size}")
-        chain = chain.with_offsets(offsets)
+    name, values = ("chain.offsets_mm", c.offsets_mm) if c.offsets_mm is not None else \
+        ("chain.offsets_fraction", c.offsets_fraction)
+    if values is not None:
+        if len(values) != chain.n_beads:
+            raise ConfigError(name, f"needs one value per bead ({chain.n_beads}), got {len(values)}")
+        scale = 1e-3 if name == "chain.offsets_mm" else chain.diameters
+        with _as_written("chain.offsets", name):
+            chain = chain.with_offsets(np.asarray(values, dtype=float) * scale)
     return chain
+
+
+def _offsets_key(cfg: RunConfig) -> str:
+    return "chain.offsets_fraction" if cfg.chain.offsets_fraction is not None else "chain.offsets_mm"
 
 
 def build_model(cfg: RunConfig):
@@ -450,7 +514,8 @@ def build_model(cfg: RunConfig):
         law = Viscoelastic(k.A)
     else:
         law = Dashpot(k.gamma)
-    return Model(chain, striker, wall, law, precompression=cfg.chain.precompression)
+    with _as_written("chain.offsets", _offsets_key(cfg)):
+        return Model(chain, striker, wall, law, precompression=cfg.chain.precompression)
 
 
 def build_probes(cfg: RunConfig):
@@ -459,6 +524,10 @@ def build_probes(cfg: RunConfig):
     p = cfg.probes
     return Probes(sample_interval=cfg.run.sample_interval, sensors=tuple(p.sensors),
                   contacts=None if p.contacts == "all" else tuple(p.contacts), velocities=p.velocities)
+
+
+#: Most oscilloscope samples (record_length x n_average) a measured channel may draw.
+MAX_SCOPE_SAMPLES = 1e8
 
 
 def build_instruments(cfg: RunConfig) -> dict:
@@ -476,6 +545,14 @@ def build_instruments(cfg: RunConfig) -> dict:
             out[channel] = getattr(Instrument, ch.preset or default)(**fields)
         except ConfigError as exc:
             raise ConfigError(exc.field.replace("instrument.", f"instrument.{channel}.", 1), exc.message) from None
+        # Resources before any work (as hertzchain.checks does for the run): every averaged
+        # acquisition draws record_length samples of noise and digitises them.
+        inst = out[channel]
+        drawn = inst.record_length * inst.n_average
+        if drawn > MAX_SCOPE_SAMPLES:
+            raise ConfigError(f"instrument.{channel}.n_average", f"{inst.n_average} acquisitions of record_length = "
+                              f"{inst.record_length} points are {drawn:.3g} samples; at most {MAX_SCOPE_SAMPLES:.0e} "
+                              "(the oscilloscope of the paper records 1000 points)")
     return out
 
 

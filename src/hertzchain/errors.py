@@ -38,3 +38,15 @@ class PulseNotFound(HertzchainError, ValueError):
 
 class ElasticLimitWarning(UserWarning):
     """Contact forces passed the elastic limit (yield) estimated as in the paper, Sec. II."""
+
+
+class HertzRangeWarning(UserWarning):
+    """A contact overlap passed the range of Hertz theory (a fraction of the smaller radius, paper eq. 1)."""
+
+
+class PulseNotReachedWarning(UserWarning):
+    """The record ended before the pulse reached the wall (the wall force is 0 for want of time)."""
+
+
+class LongRunWarning(UserWarning):
+    """A run is projected to take more than a few minutes (the estimate is in the message)."""

@@ -2,17 +2,90 @@
 
 A file is written under a unique temporary name in its target folder, flushed to disk, then
 renamed over the target in one step (``os.replace``), so a reader never sees half a file and two
-writers never share a temporary name. A failed write leaves the target as it was and removes the
-temporary file.
+writers never share a temporary name (the last one to finish wins, with a whole file). A failed
+write leaves the target as it was and removes the temporary file.
+
+Guarantees, and the :class:`~hertzchain.errors.ConfigError` (its ``field`` is the path) otherwise:
+
+- only a regular file is ever replaced: an existing target that is a symbolic link, a FIFO, a
+  device, a socket or a folder is refused, and left alone;
+- a full disk (ENOSPC), a missing permission (EACCES, EPERM, a read-only file system) or a busy
+  or locked file ends in one message saying so, with the partial file removed;
+- the new file gets the permissions a plain ``open()`` would give it (or those of the file it
+  replaces), not the private mode of a temporary file.
 """
 
 from __future__ import annotations
 
+import errno
+import json
+import math
 import os
+import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
+from typing import Any, Iterator
+
+from .errors import ConfigError
+
+__all__ = ["atomic_path", "write_text", "write_bytes", "check_target", "json_text"]
+
+_REASONS = {
+    errno.ENOSPC: "no space left on the device",
+    errno.EDQUOT: "the disk quota is exhausted",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "operation not permitted",
+    errno.EROFS: "the file system is read-only",
+    errno.EBUSY: "the file is busy or locked by another program",
+    errno.ETXTBSY: "the file is busy or locked by another program",
+    errno.ENOENT: "its folder does not exist",
+    errno.ENOTDIR: "a part of its folder path is not a folder",
+    errno.ENAMETOOLONG: "the name is too long",
+    errno.EFBIG: "the file is too large for the file system",
+}
+
+
+def _kind(mode: int) -> str:
+    for test, name in ((stat.S_ISLNK, "a symbolic link"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket"), (stat.S_ISDIR, "a folder")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def check_target(path: str | os.PathLike) -> None:
+    """Refuse to replace ``path`` unless it is absent or a regular file (ConfigError naming it).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file about to be written.
+    """
+    path = Path(path)
+    try:
+        st = os.lstat(path)  # lstat: a symlink is reported as itself, not as what it points to
+    except FileNotFoundError:  # absent (or its folder is): writing will create it, or say why not
+        return
+    except OSError as exc:
+        raise ConfigError(str(path), f"cannot be written: {_reason(exc)}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ConfigError(str(path), f"exists and is {_kind(st.st_mode)}; hertzchain only replaces regular files, "
+                          "so it was left alone: choose another output name")
+
+
+def _reason(exc: OSError) -> str:
+    return _REASONS.get(exc.errno, exc.strerror or str(exc))
+
+
+def _new_file_mode(path: Path) -> int:
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
 
 
 @contextmanager
@@ -22,7 +95,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     Parameters
     ----------
     path : str or os.PathLike
-        Final file name. Its folder must exist.
+        Final file name. Its folder must exist; an existing ``path`` must be a regular file.
 
     Yields
     ------
@@ -30,19 +103,55 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         Where the caller writes (e.g. ``ds.to_netcdf(tmp)``, ``fig.savefig(tmp, format="png")``).
         Pass the format explicitly to writers that guess it from the suffix: the temporary
         name ends in ``.tmp``.
+
+    Raises
+    ------
+    ConfigError
+        The target is not a regular file, or the write failed (full disk, permissions, a locked
+        file): the message names the path and the reason; the temporary file is removed and the
+        target left as it was.
     """
     path = Path(path)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    check_target(path)
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise ConfigError(str(path), f"cannot be written: {_reason(exc)}") from None
     os.close(fd)
     tmp = Path(tmp_name)
     try:
-        yield tmp
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        try:
+            yield tmp
+            with open(tmp, "rb+") as fh:
+                os.fsync(fh.fileno())
+            os.chmod(tmp, _new_file_mode(path))
+            check_target(path)  # it may have been replaced by a FIFO or a link meanwhile
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise ConfigError(str(path), f"cannot be written: {_reason(exc)}; nothing was written "
+                              "(the partial file was removed)") from None
+        _fsync_folder(path.parent)
     finally:
-        if tmp.exists():
+        try:
             tmp.unlink()
+        except FileNotFoundError:
+            pass
+        except OSError:  # pragma: no cover - a folder gone read-only meanwhile: nothing more to do
+            pass
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Flush the rename itself to disk (best effort: not every system can open a folder)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:
@@ -55,3 +164,42 @@ def write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically (see :func:`atomic_path`)."""
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
+
+
+def _finite_or_none(obj: Any) -> Any:
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_or_none(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_or_none(v) for v in obj]
+    return obj
+
+
+def _plain(x: Any) -> Any:
+    """NumPy scalars and arrays as plain Python (then NaN/inf become null)."""
+    if hasattr(x, "tolist"):
+        return _finite_or_none(x.tolist())
+    if isinstance(x, Path):
+        return str(x)
+    raise TypeError(f"{type(x).__name__} is not JSON serialisable")
+
+
+def json_text(obj: Any, indent: int | None = 2) -> str:
+    """Valid JSON text of ``obj``: NaN and infinities become ``null`` (bare ``NaN`` is not JSON).
+
+    Parameters
+    ----------
+    obj : Any
+        Plain data (dicts, lists, numbers, strings; NumPy scalars and arrays are converted).
+    indent : int or None
+        Passed to :func:`json.dumps`.
+
+    Returns
+    -------
+    str
+        Text that any JSON parser reads.
+    """
+    clean = _finite_or_none(obj)
+    # default= sees NumPy values only after the walk above; convert them and clean again.
+    return json.dumps(clean, indent=indent, allow_nan=False, default=_plain)

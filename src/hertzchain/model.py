@@ -134,19 +134,38 @@ class System:
         with np.errstate(divide="ignore"):
             return np.where(kap > 0, (2.5 * energy / np.where(kap > 0, kap, 1.0)) ** 0.4, 0.0) + self.d0
 
+    def damping_coefficients(self, overlap: np.ndarray) -> np.ndarray:
+        """Linear damping coefficient c_j [N s/m] of every contact at overlaps ``overlap`` [m], (N+1,).
+
+        The dissipative force is c_j d(delta)/dt: c = gamma for the dashpot, c = kappa A delta^(1/2)
+        for Kuwabara-Kono (zero for the elastic law and where kappa = 0).
+        """
+        if self.law == LAW_CODES["dashpot"]:
+            return np.where(self.kappa > 0, self.damping, 0.0)
+        if self.law == LAW_CODES["viscoelastic"]:
+            return self.kappa * self.damping * np.sqrt(np.maximum(overlap, 0.0))
+        return np.zeros_like(self.kappa)
+
     def max_frequency(self) -> float:
-        """Upper estimate of the highest angular frequency omega_max [rad/s] the run can reach.
+        """Upper estimate of the highest angular frequency omega_max [rad/s] the run can reach,
+        damping included: the time step must satisfy omega_max dt < 2 for Verlet to be stable.
 
         Each contact's overlap is bounded by :meth:`max_overlap`; the tangent stiffness
         k = (3/2) kappa delta^(1/2) then bounds the linearised stiffness matrix, and Gershgorin's
-        theorem bounds its highest eigenvalue: omega^2 <= max_i 2 (k_left + k_right) / m_i.
+        theorem bounds its highest eigenvalue: omega^2 <= max_i 2 (k_left + k_right) / m_i. The
+        damping coefficients c (:meth:`damping_coefficients`) are bounded the same way,
+        beta_i = 2 (c_left + c_right) / m_i, and explicit damping lowers the stable step of a
+        damped oscillator to 2 / (sqrt(omega^2 + beta^2 / 4) + beta / 2) (central differences
+        with damping ratio beta / (2 omega)), which is 2 m / gamma for a bead held only by
+        dashpots: omega_max is taken as max_i sqrt(omega_i^2 + beta_i^2 / 4) + beta_i / 2.
         """
-        k = 1.5 * self.kappa * np.sqrt(self.max_overlap())
+        dmax = self.max_overlap()
+        k = 1.5 * self.kappa * np.sqrt(dmax)
+        c = self.damping_coefficients(dmax)
         nb = self.n_beads + 1
-        k_left = np.concatenate([[0.0], k[: nb - 1]])
-        k_right = k[:nb]
-        omega2 = 2.0 * (k_left + k_right) * self.inv_mass[:nb]
-        return float(np.sqrt(omega2.max()))
+        omega2 = 2.0 * (np.concatenate([[0.0], k[: nb - 1]]) + k[:nb]) * self.inv_mass[:nb]
+        beta = 2.0 * (np.concatenate([[0.0], c[: nb - 1]]) + c[:nb]) * self.inv_mass[:nb]
+        return float(np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta))
 
 
 def _material_columns(materials: list[Material]) -> tuple[np.ndarray, np.ndarray]:
@@ -196,6 +215,14 @@ class Model:
             raise ConfigError("chain.precompression", "a static precompression needs a wall to push against")
         if self.precompression > 0 and not self.chain.is_aligned:
             raise ConfigError("chain.precompression", "precompression together with bead offsets is not supported")
+        # The striker's contact obeys the same head-on rule as the chain's (Chain checks beads n, n+1):
+        # the striker flies along the axis, so bead 1's offset e_1 must stay below (R_s + R_1) / 2;
+        # past R_s + R_1 it would miss the chain and the run would report 0 N.
+        e1, reach = abs(float(self.chain.offsets[0])), 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])
+        if e1 >= reach:
+            raise ConfigError("chain.offsets", f"bead 1 is offset by {e1:.3g} m from the striker's line of flight, "
+                              f"more than half the sum of their radii ({reach:.3g} m); the striker would not "
+                              "hit it head-on (or would miss the chain)")
 
     @property
     def wall_material(self) -> Material | None:

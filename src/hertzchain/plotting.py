@@ -8,7 +8,9 @@ from typing import Sequence
 import numpy as np
 import xarray as xr
 
-__all__ = ["plot_signals", "signal_list"]
+from .fileio import atomic_path
+
+__all__ = ["plot_signals", "signal_list", "image_format"]
 
 SIGNALS = ("wall_force", "sensor_force", "contact_force")
 
@@ -41,6 +43,42 @@ def signal_list(ds: xr.Dataset, signals: Sequence[str] | None = None,
     return out
 
 
+#: Image formats the figures can be written in (by file suffix).
+IMAGE_FORMATS = ("png", "pdf", "svg", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
+
+
+def image_format(out: str | Path, option: str = "--out") -> str:
+    """The image format of ``out`` from its suffix (ConfigError naming ``option`` when unknown)."""
+    from .errors import ConfigError
+
+    fmt = Path(out).suffix.lower().lstrip(".")
+    if fmt not in IMAGE_FORMATS:
+        raise ConfigError(option, f"{str(out)!r} has no image suffix Matplotlib can write; "
+                          f"use one of {', '.join('.' + f for f in IMAGE_FORMATS)}")
+    return fmt
+
+
+def _title(ds: xr.Dataset) -> str:
+    """'N beads, striker D mm at V m/s' from the result's ``model`` attribute ('?' where a result
+    written elsewhere lacks it or holds something else)."""
+    import json
+
+    def table(x) -> dict:
+        return x if isinstance(x, dict) else {}
+
+    def num(x) -> str:
+        return f"{x:g}" if isinstance(x, (int, float)) and not isinstance(x, bool) else "?"
+
+    try:
+        model = table(json.loads(ds.attrs.get("model", "{}")))
+    except (TypeError, ValueError):
+        model = {}
+    diameters = table(model.get("chain")).get("diameters_mm")
+    s = table(model.get("striker"))
+    n = len(diameters) if isinstance(diameters, list) else "?"
+    return f"{n} beads, striker {num(s.get('diameter_mm'))} mm at {num(s.get('velocity'))} m/s"
+
+
 def plot_signals(ds: xr.Dataset, out: str | Path, signals: Sequence[str] | None = None,
                  contacts: Sequence[int] | None = None, title: str | None = None) -> Path:
     """Draw each signal in its own panel (force [N] against time [ms]) and save to ``out``."""
@@ -49,6 +87,7 @@ def plot_signals(ds: xr.Dataset, out: str | Path, signals: Sequence[str] | None 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    fmt = image_format(out)
     panels = signal_list(ds, signals, contacts)
     t_ms = ds.time.values * 1e3
     fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(6.5, 1.2 + 1.6 * len(panels)), squeeze=False)
@@ -59,16 +98,14 @@ def plot_signals(ds: xr.Dataset, out: str | Path, signals: Sequence[str] | None 
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("t [ms]")
     if title is None:
-        import json
-
-        model = json.loads(ds.attrs.get("model", "{}"))
-        n = len(model.get("chain", {}).get("diameters_mm", []))
-        s = model.get("striker", {})
-        title = f"{n} beads, striker {s.get('diameter_mm', '?'):g} mm at {s.get('velocity', '?'):g} m/s"
+        title = _title(ds)
     axes[0, 0].set_title(title)
     fig.tight_layout()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=150)
-    plt.close(fig)
+    try:
+        with atomic_path(out) as tmp:  # unique temporary file, fsync, atomic rename (hertzchain.fileio)
+            fig.savefig(tmp, dpi=150, format=fmt)
+    finally:
+        plt.close(fig)
     return out

@@ -21,7 +21,7 @@ from .integrate.verlet import RawRun
 from .model import Model
 from .probes import Probes, sensor_forces
 
-__all__ = ["build_dataset", "run_fields", "RunFields", "save", "load"]
+__all__ = ["build_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes"]
 
 ENGINE = "h5netcdf"
 
@@ -158,8 +158,42 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
     return xr.Dataset(data, coords=f.coords, attrs=f.attrs)
 
 
+def to_netcdf_bytes(ds: xr.Dataset, compress: bool = True, single_precision: bool = False) -> bytes:
+    """The NetCDF (HDF5) file of ``ds`` as bytes, built in memory (see :func:`save` for the options).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result.
+    compress : bool
+        gzip the variables of more than 1000 values (lossless).
+    single_precision : bool
+        Store time-dependent variables as float32.
+
+    Returns
+    -------
+    bytes
+        The file's content.
+    """
+    encoding = {}
+    for name, var in ds.data_vars.items():
+        enc = {"compression": "gzip", "compression_opts": 4, "shuffle": True} if compress and var.size > 1000 else {}
+        if single_precision and "time" in var.dims:
+            enc["dtype"] = "float32"
+        if enc:
+            encoding[name] = enc
+    return bytes(ds.to_netcdf(None, engine=ENGINE, encoding=encoding))
+
+
 def save(ds: xr.Dataset, path: str | Path, compress: bool = True, single_precision: bool = False) -> Path:
     """Write a result to NetCDF (HDF5 based, gzip-compressed); parent folders are created.
+
+    ``single_precision`` stores the time-dependent variables as float32 (7 significant digits,
+    enough to redraw figures; halves the size); the default keeps every bit. The file is built
+    in memory and written with :func:`hertzchain.fileio.write_bytes` (unique temporary file,
+    fsync, atomic rename): a full disk or a missing permission is a clean
+    :class:`~hertzchain.errors.ConfigError` (HDF5 writing straight to a full disk could crash the
+    process), and an existing ``path`` that is not a regular file is refused before any work.
 
     Parameters
     ----------
@@ -170,26 +204,23 @@ def save(ds: xr.Dataset, path: str | Path, compress: bool = True, single_precisi
     compress : bool
         gzip level 4 with byte shuffling for variables of more than 1000 values.
     single_precision : bool
-        Store the time-dependent variables as float32 (7 significant digits, enough to redraw
-        figures; halves the size); the default keeps every bit.
+        Store the time-dependent variables as float32 (7 significant digits); halves the size.
 
     Returns
     -------
     pathlib.Path
         The path written.
     """
+    from .errors import ConfigError
+    from .fileio import check_target, write_bytes
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".part")
-    encoding = {}
-    for name, var in ds.data_vars.items():
-        enc = {"compression": "gzip", "compression_opts": 4, "shuffle": True} if compress and var.size > 1000 else {}
-        if single_precision and "time" in var.dims:
-            enc["dtype"] = "float32"
-        if enc:
-            encoding[name] = enc
-    ds.to_netcdf(tmp, engine=ENGINE, encoding=encoding)
-    tmp.replace(path)  # never leave a half-written file under the final name
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(str(path), f"cannot create its folder: {exc.strerror}") from None
+    check_target(path)
+    write_bytes(path, to_netcdf_bytes(ds, compress, single_precision))
     return path
 
 

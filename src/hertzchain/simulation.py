@@ -9,6 +9,7 @@ from typing import Callable, Literal
 
 import xarray as xr
 
+from .checks import check_after_run, check_before_run
 from .errors import ConfigError, ElasticLimitWarning
 from .integrate.reference import run_reference
 from .integrate.verlet import run_verlet
@@ -51,10 +52,21 @@ def simulate(model: Model, duration: float, probes: Probes | None = None, *,
         Forces [N], energies [J] and the model on the ``time`` [s] axis; every variable and
         attribute is described in the user guide's "Results" page.
 
+    Raises
+    ------
+    ConfigError
+        A bad input, a precompression beyond the range of Hertz theory, or records that cannot
+        fit in memory (naming the field to change; nothing is allocated before these checks).
+    SimulationDiverged
+        The integration became non-finite or gained energy (:mod:`hertzchain.checks`).
+
     Warns
     -----
     ElasticLimitWarning
         When a recorded contact force passes the contact's elastic limit (paper Sec. II).
+    HertzRangeWarning, PulseNotReachedWarning, LongRunWarning
+        Overlaps beyond Hertz theory; a record that ends before the pulse reaches the wall; a run
+        projected to take more than a few minutes.
     """
     probes = probes or Probes()
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
@@ -63,16 +75,18 @@ def simulate(model: Model, duration: float, probes: Probes | None = None, *,
         raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     system = model.system()
     probes.validate(model.chain.n_beads, model.wall.present)
+    if integrator not in ("verlet", "dop853", "rk45"):
+        raise ConfigError("run.integrator", f"must be 'verlet', 'dop853' or 'rk45', got {integrator!r}")
+    check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # before any allocation
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     if integrator == "verlet":
         raw = run_verlet(system, duration, probes.sample_interval, dt=dt, record_velocities=probes.velocities,
                          contacts=rec, progress=progress)
-    elif integrator in ("dop853", "rk45"):
+    else:
         raw = run_reference(system, duration, probes.sample_interval, method=integrator.upper(), rtol=rtol,
                             record_velocities=probes.velocities)
-    else:
-        raise ConfigError("run.integrator", f"must be 'verlet', 'dop853' or 'rk45', got {integrator!r}")
     ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system)
+    check_after_run(ds, model, system, dt=dt, integrator=integrator, rtol=rtol, stacklevel=3)
     warn_elastic_limit(ds, stacklevel=3)
     return ds
 

@@ -27,8 +27,12 @@ member is the same whatever ``n`` or ``chunk_size`` is.
 - ``sweep.json``: the sweep definition and its hash (a rerun with a different sweep is refused
   unless ``force``);
 - ``chunks/chunk_00012.nc``: one file per finished chunk (the batched results stacked along
-  ``member`` plus the pulse metrics), written to a temporary name and renamed, so a killed sweep
-  never leaves a half chunk, and a rerun skips every chunk already on disk (resumption);
+  ``member`` plus the pulse metrics), written through :mod:`hertzchain.fileio` (unique temporary
+  name, fsync, rename), so a killed sweep never leaves a half chunk, and a rerun skips every
+  chunk already on disk (resumption); beside it ``chunk_00012.nc.sha256``, the SHA-256 of the
+  file, checked before a chunk is skipped: a chunk damaged on disk is computed again;
+- ``.sweep.lock``: held (``flock``) while a sweep writes into the folder; a second sweep on the
+  same folder is refused (:class:`SweepLocked`) instead of mixing files with the first;
 - ``metrics.csv`` (and ``metrics.parquet`` when pyarrow is installed): one row per member, the
   swept parameter values and the wall-pulse metrics of the paper (Sec. III), SI units:
   ``F_m`` [N], ``T`` [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s].
@@ -50,6 +54,7 @@ import math
 import os
 import re
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Iterator, Literal
@@ -57,9 +62,9 @@ from typing import Any, Callable, Iterator, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from .errors import ConfigError, HertzchainError
+from .errors import ConfigError, HertzchainError, SimulationDiverged
 
-__all__ = ["SweepConfig", "SweepMismatch", "SweepResult", "load_sweep", "parse_sweep", "run_sweep",
+__all__ = ["SweepConfig", "SweepMismatch", "SweepLocked", "SweepResult", "load_sweep", "parse_sweep", "run_sweep",
            "compute_chunk", "METRIC_COLUMNS"]
 
 #: Wall-pulse metrics of each member (paper Sec. III), in SI units, with their PulseFit attribute.
@@ -79,9 +84,19 @@ class SweepMismatch(HertzchainError):
     """``out_dir`` already holds the results of a different sweep."""
 
 
+class SweepLocked(HertzchainError):
+    """Another sweep is writing into ``out_dir`` now."""
+
+
 # ------------------------------------------------------------------------------ schema
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # strict like the run config (hertzchain.config): no booleans or strings as numbers, no NaN
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+#: Most members a sweep may have (a grid's product of list lengths, or random mode's n).
+MAX_MEMBERS = 1_000_000
+_SEED = Field(default=0, ge=0, le=2**63 - 1)
 
 
 class Range(_Section):
@@ -98,9 +113,9 @@ class Tolerances(_Section):
     """Per-bead random deviations (manufacturing tolerances), seeded per member index."""
 
     diameter_rel: float = Field(default=0.0, ge=0, lt=0.1, description="relative diameter deviation (1 sigma)")
-    offset_mm: float = Field(default=0.0, ge=0, description="perpendicular offset deviation, mm (1 sigma)")
+    offset_mm: float = Field(default=0.0, ge=0, le=1e3, description="perpendicular offset deviation, mm (1 sigma)")
     distribution: Literal["normal", "uniform"] = "normal"
-    seed: int = 0
+    seed: int = _SEED
 
 
 class SweepSection(_Section):
@@ -108,12 +123,12 @@ class SweepSection(_Section):
 
     mode: Literal["grid", "random"] = "grid"
     parameters: dict[str, Any] = {}
-    n: int | None = Field(default=None, ge=1, description="members drawn in random mode")
-    seed: int = 0
-    chunk_size: int = Field(default=32, ge=1, description="members per chunk file")
+    n: int | None = Field(default=None, ge=1, le=MAX_MEMBERS, description="members drawn in random mode")
+    seed: int = _SEED
+    chunk_size: int = Field(default=32, ge=1, le=MAX_MEMBERS, description="members per chunk file")
     tolerances: Tolerances | None = None
     store: Literal["wall", "probes"] = "wall"
-    n_threads: int | None = Field(default=None, ge=1)
+    n_threads: int | None = Field(default=None, ge=1, le=4096)
 
 
 class _SweepFile(_Section):
@@ -242,12 +257,23 @@ class SweepConfig:
                 try:
                     model = build_model(parse_config(self.member_config(i)))
                 except ConfigError as exc:
-                    raise ConfigError(exc.field, f"{exc.message} (sweep member {i}: {self.members[i]})") from None
+                    raise _member_error(exc, i, self.members[i]) from None
                 if self.sweep.tolerances is not None:
                     model = _apply_tolerances(model, self.sweep.tolerances, i)
                 out.append(model)
             self._models = out
         return self._models
+
+
+def _member_error(exc: ConfigError, index: int, values: dict[str, Any]) -> ConfigError:
+    """A member's config error under the key the user wrote: ``sweep.parameters["PATH"]`` when the
+    bad field is a swept value, ``base.FIELD`` otherwise (a base value the member's values made
+    invalid, e.g. ``base.chain.taper.n`` when only ``chain.taper.q`` is swept)."""
+    if exc.field.startswith("sweep."):  # already named in the sweep table (a path that does not fit the base)
+        return ConfigError(exc.field, f"{exc.message} (sweep member {index}: {values})")
+    swept = next((p for p in values if exc.field == p or exc.field.startswith((p + ".", p + "["))), None)
+    field_name = f'sweep.parameters["{swept}"]' if swept is not None else f"base.{exc.field}"
+    return ConfigError(field_name, f"{exc.field}: {exc.message} (sweep member {index}: {values})")
 
 
 def _apply_tolerances(model, tol: Tolerances, index: int):
@@ -368,6 +394,10 @@ def parse_sweep(data: dict) -> SweepConfig:
 
     names = list(sw.parameters)
     if sw.mode == "grid":
+        size = math.prod(len(specs[k]) for k in names)
+        if size > MAX_MEMBERS:
+            raise ConfigError("sweep.parameters", f"the grid has {size:,} members (the product of the list "
+                              f"lengths); at most {MAX_MEMBERS:,} are allowed: use fewer values or mode = 'random'")
         combos = itertools.product(*(specs[k] for k in names)) if names else [()]
         members = [dict(zip(names, c)) for c in combos]
     else:
@@ -387,7 +417,7 @@ def parse_sweep(data: dict) -> SweepConfig:
         try:
             parse_config(cfg.member_config(i))
         except ConfigError as exc:
-            raise ConfigError(exc.field, f"{exc.message} (sweep member {i}: {members[i]})") from None
+            raise _member_error(exc, i, members[i]) from None
     return cfg
 
 
@@ -453,6 +483,7 @@ def compute_chunk(task: _ChunkTask):
         ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, n_threads=task.n_threads,
                             configs=None)
     ds = ds.assign_coords(member=("member", np.asarray(task.members, dtype=np.int64), ds["member"].attrs))
+    _check_members_energy(ds, task)
     values = {k: np.full(len(task.members), np.nan) for k in METRIC_COLUMNS}
     errors = [""] * len(task.members)
     time = ds["time"].values
@@ -477,27 +508,62 @@ def compute_chunk(task: _ChunkTask):
     return ds
 
 
-def _write_atomic_netcdf(ds, path: Path) -> None:
-    """Write to a temporary name in the same folder, then rename: never a half file under ``path``."""
+def _check_members_energy(ds, task: _ChunkTask) -> None:
+    """The energy balance of every member (hertzchain.checks), which the batched engine does not
+    check itself: a member that gains energy stops the sweep, naming the member and the cause."""
+    from .checks import check_energy_balance, energy_cause, energy_tolerance
+
+    time = ds["time"].values
+    ke, pe, ed = (ds[v].values for v in ("kinetic_energy", "potential_energy", "dissipated_energy"))
+    for i, model in enumerate(task.models):
+        dt = task.dt[i] if isinstance(task.dt, list) else task.dt
+        # the adaptive step's largest step is not stored per member: the minimum allowance then
+        tol = energy_tolerance(model.system(), dt) if dt is not None else energy_tolerance(model.system(), 0.0)
+        try:
+            check_energy_balance(time, ke[i], pe[i], ed[i], tolerance=tol, cause=energy_cause(model, dt))
+        except SimulationDiverged as exc:
+            raise SimulationDiverged(f"sweep member {task.members[i]} ({task.params[i]}): {exc}") from None
+
+
+def _write_chunk(ds, path: Path) -> None:
+    """Write a chunk (hertzchain.fileio: never a half file under ``path``) and its SHA-256 beside it.
+
+    The file is built in memory so that the checksum is that of the bytes written; the checksum
+    file comes second, so a chunk without one (killed in between) is simply computed again.
+    """
+    from .fileio import write_bytes, write_text
     from .result import ENGINE
 
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     # Force records are mostly zeros before the pulse arrives: gzip shrinks them ~5-10x, losslessly.
     encoding = {name: {"compression": "gzip", "compression_opts": 4, "shuffle": True}
                 for name, var in ds.data_vars.items() if var.dtype.kind == "f" and var.size > 1000}
+    data = bytes(ds.to_netcdf(None, engine=ENGINE, encoding=encoding))
+    write_bytes(path, data)
+    write_text(_checksum_path(path), hashlib.sha256(data).hexdigest() + "\n")
+
+
+def _checksum_path(path: Path) -> Path:
+    return path.with_name(path.name + ".sha256")
+
+
+def _checksum_ok(path: Path) -> bool:
+    """True when ``path`` has the SHA-256 recorded beside it (a damaged or unrecorded chunk: False)."""
     try:
-        ds.to_netcdf(tmp, engine=ENGINE, encoding=encoding)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+        recorded = _checksum_path(path).read_text(encoding="ascii").strip()
+        digest = hashlib.sha256()
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                digest.update(block)
+    except (OSError, ValueError):
+        return False
+    return digest.hexdigest() == recorded
 
 
 def _chunk_is_done(path: Path, sweep_hash: str, members: range) -> bool:
-    """True when ``path`` is a complete chunk of this sweep holding exactly ``members``."""
+    """True when ``path`` is a complete, undamaged chunk of this sweep holding exactly ``members``."""
     import h5netcdf
 
-    if not path.exists():
+    if not path.exists() or not _checksum_ok(path):
         return False
     try:
         # h5netcdf directly: ~10x faster than xarray.open_dataset, which decodes every variable.
@@ -589,8 +655,39 @@ def _sweep_json(cfg: SweepConfig) -> dict:
             "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
 
 
+@contextmanager
+def _folder_lock(out: Path) -> Iterator[None]:
+    """Hold ``out/.sweep.lock`` (``flock``, released by the system even if the process is killed);
+    refuse with :class:`SweepLocked` when another sweep holds it."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        yield
+        return
+    path = out / ".sweep.lock"
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise ConfigError(str(out), f"cannot create the sweep lock file: {exc.strerror}") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.pread(fd, 64, 0).decode("ascii", "replace").strip() or "?"
+            raise SweepLocked(f"{out} is in use by another sweep (process {holder}); wait for it to finish "
+                              "(rerunning afterwards resumes it) or choose another --out") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock
+
+
 def _prepare_out_dir(cfg: SweepConfig, out: Path, force: bool) -> Path:
-    """Create ``out``; refuse (or, with ``force``, clear) the results of a different sweep."""
+    """Create ``out``'s chunk folder; refuse (or, with ``force``, clear) the results of a different sweep.
+    Called with the folder lock held."""
+    from .fileio import write_text
+
     chunks = out / "chunks"
     meta = out / "sweep.json"
     if meta.exists():
@@ -599,24 +696,24 @@ def _prepare_out_dir(cfg: SweepConfig, out: Path, force: bool) -> Path:
             if not force:
                 raise SweepMismatch(f"{out} holds the results of a different sweep (hash {str(old)[:12]}, this one "
                                     f"{cfg.hash[:12]}); choose another output folder or use --force to replace them")
-            for p in list(chunks.glob("chunk_*.nc")) + [out / "metrics.csv", out / "metrics.parquet"]:
+            for p in [*chunks.glob("chunk_*.nc"), *chunks.glob("chunk_*.nc.sha256"),
+                      out / "metrics.csv", out / "metrics.parquet"]:
                 p.unlink(missing_ok=True)
     elif chunks.exists() and any(chunks.glob("chunk_*.nc")) and not force:
         raise SweepMismatch(f"{chunks} holds chunk files but no sweep.json; use --force to replace them")
     chunks.mkdir(parents=True, exist_ok=True)
-    for p in chunks.glob(".chunk_*.tmp"):  # left by a killed run; never a finished chunk
+    # Temporary files left by a killed run (never a finished file); safe to remove under the lock.
+    for p in [*chunks.glob(".chunk_*.tmp"), *out.glob(".metrics.*.tmp"), *out.glob(".sweep.json.*.tmp")]:
         p.unlink(missing_ok=True)
     if not meta.exists() or _recorded_hash(meta) != cfg.hash:  # a resumed sweep keeps its original record
-        tmp = meta.with_name(".sweep.json.tmp")
-        tmp.write_text(json.dumps(_sweep_json(cfg), indent=2, default=str))
-        os.replace(tmp, meta)
+        write_text(meta, json.dumps(_sweep_json(cfg), indent=2, default=str))
     return chunks
 
 
 def _recorded_hash(meta: Path) -> str | None:
     """The hash recorded in ``sweep.json`` (None when unreadable)."""
     try:
-        return json.loads(meta.read_text()).get("hash")
+        return json.loads(meta.read_bytes().decode("utf-8")).get("hash")
     except (OSError, ValueError, AttributeError):
         return None
 
@@ -681,7 +778,12 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     Raises
     ------
     ConfigError
-        Invalid sweep (naming the field). SweepMismatch: ``out_dir`` holds another sweep.
+        Invalid sweep (naming the field), or a chunk that cannot fit in memory
+        (``sweep.chunk_size``); nothing is written then.
+    SweepMismatch
+        ``out_dir`` holds another sweep.
+    SweepLocked
+        Another sweep is writing into ``out_dir``.
     """
     from .config import build_probes, parse_config
     from .probes import Probes
@@ -693,9 +795,9 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     else:
         cfg = sweep_cfg
     out = Path(out_dir)
-    chunks_dir = _prepare_out_dir(cfg, out, force)
-
-    models = cfg.models()  # builds and validates every member before any work starts
+    # Everything is validated (every member's model, the memory a chunk needs) before anything is
+    # written: an invalid sweep leaves no sweep.json behind to block the corrected one.
+    models = cfg.models()
     run_cfg = parse_config(cfg.base)
     base_probes = build_probes(run_cfg)
     if cfg.sweep.store == "wall":
@@ -705,6 +807,37 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     else:
         probes = base_probes
     member_dts = [parse_config(cfg.member_config(i)).run.dt for i in range(cfg.n_members)]
+    _check_sweep_resources(cfg, models, run_cfg.run.duration, probes, member_dts)
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError(str(out), "exists and is not a folder; --out names the sweep's output folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
+    with _folder_lock(out):
+        chunks_dir = _prepare_out_dir(cfg, out, force)
+        return _run_chunks(cfg, out, chunks_dir, models, run_cfg.run.duration, probes, member_dts, client, progress)
+
+
+def _check_sweep_resources(cfg: SweepConfig, models: list, duration: float, probes, member_dts: list) -> None:
+    """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep."""
+    from dataclasses import replace as _replace
+
+    from .checks import check_resources, estimate_resources
+
+    largest = max(range(len(models)), key=lambda i: models[i].chain.n_beads)
+    members = min(cfg.sweep.chunk_size, cfg.n_members)
+    est = estimate_resources(models[largest].system(), duration, probes, dt=member_dts[largest], members=members)
+    check_resources(_replace(est, seconds=0.0), memory_field="sweep.chunk_size")
+    total = _replace(est, members=cfg.n_members, memory_bytes=0, seconds=est.seconds / members * cfg.n_members)
+    check_resources(total)
+
+
+def _run_chunks(cfg: SweepConfig, out: Path, chunks_dir: Path, models: list, duration: float, probes,
+                member_dts: list, client, progress) -> SweepResult:
+    """Compute the chunks not yet on disk and write the metrics table (folder lock held)."""
+    from .fileio import atomic_path
 
     total = cfg.n_members
     done_members = 0
@@ -715,7 +848,7 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
             done_members += len(members)
         else:
             todo.append(_ChunkTask(index=index, members=list(members), models=[models[m] for m in members],
-                                   params=[cfg.members[m] for m in members], duration=run_cfg.run.duration,
+                                   params=[cfg.members[m] for m in members], duration=duration,
                                    probes=probes, dt=[member_dts[m] for m in members],
                                    n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash))
     if progress is not None:
@@ -724,16 +857,16 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     computed = []
     for ds in _results(client, compute_chunk, todo):
         index = int(ds.attrs["chunk"])
-        _write_atomic_netcdf(ds, chunks_dir / _CHUNK_NAME.format(index))
+        _write_chunk(ds, chunks_dir / _CHUNK_NAME.format(index))
         computed.append(index)
         done_members += ds.sizes["member"]
         if progress is not None:
             progress(done_members, total)
 
     df = _metrics_table(cfg, chunks_dir)
-    tmp = out / ".metrics.csv.tmp"
-    df.to_csv(tmp, index=False)
-    os.replace(tmp, out / "metrics.csv")
+    with atomic_path(out / "metrics.csv") as tmp:
+        df.to_csv(tmp, index=False)
     if importlib.util.find_spec("pyarrow") is not None:
-        df.to_parquet(out / "metrics.parquet", index=False)
+        with atomic_path(out / "metrics.parquet") as tmp:
+            df.to_parquet(tmp, index=False)
     return SweepResult(metrics=df, out_dir=out, computed=sorted(computed), skipped=skipped)

@@ -106,6 +106,9 @@ def _read_csv(path, time_column=None, force_column=None) -> tuple[np.ndarray, np
         text = path.read_text(encoding="utf-8-sig")
     except OSError as exc:
         raise ConfigError(where, f"cannot read the file: {exc.strerror or exc}") from exc
+    except UnicodeDecodeError as exc:
+        raise ConfigError(where, f"is not UTF-8 text (byte {exc.start} cannot be decoded); save the CSV "
+                          "as UTF-8 (plain ASCII numbers are fine)") from None
     lines = [(i + 1, ln) for i, ln in enumerate(text.splitlines())
              if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:

@@ -226,7 +226,7 @@ def kinetic_energy(v, mass):
 
 
 @njit(cache=True, nogil=True)
-def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps):
+def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, law):
     """Steps needed in a block of ``block`` seconds so that omega dt <= 1 / c_steps over the next ``horizon``.
 
     omega is a Gershgorin bound (omega^2 <= max_i 2 (k_left + k_right) / m_i) on the linearised
@@ -244,9 +244,16 @@ def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, 
 
     never above the run's bound ``dcap`` (System.max_overlap). State at a synchronised time
     (u, v, a of the same instant).
+
+    Dissipative laws add their damping coefficients c_j (dashpot: gamma; Kuwabara-Kono:
+    kappa A delta^(1/2) = (2/3) A k_j) bounded the same way, beta_i = 2 (c_left + c_right) / m_i,
+    and omega becomes sqrt(omega_i^2 + beta_i^2 / 4) + beta_i / 2, the frequency whose stable
+    step 2 / omega is that of the explicitly damped oscillator (System.max_frequency).
     """
     kprev = 0.0
+    cprev = 0.0
     w2 = 0.0
+    weff = 0.0
     hh = 0.5 * horizon * horizon
     for j in range(kappa.shape[0]):
         if kappa[j] == 0.0:
@@ -267,9 +274,17 @@ def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, 
                 dt_ = de_ if de_ > dt_ else dt_
             dt_ = dt_ if dt_ < dcap[j] else dcap[j]
             k = 1.5 * kappa[j] * np.sqrt(dt_) if dt_ > 0.0 else 0.0
-        w2 = max(w2, (kprev + k) * inv_mass[j])
+        if law == LAW_ELASTIC:
+            w2 = max(w2, (kprev + k) * inv_mass[j])
+        else:
+            c = damping[j] if law == LAW_DASHPOT else (2.0 / 3.0) * damping[j] * k
+            om2 = 2.0 * (kprev + k) * inv_mass[j]
+            beta = 2.0 * (cprev + c) * inv_mass[j]
+            weff = max(weff, np.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta)
+            cprev = c
         kprev = k
-    return max(1, int(np.ceil(block * c_steps * np.sqrt(2.0 * w2) - 1e-9)))
+    w = np.sqrt(2.0 * w2) if law == LAW_ELASTIC else weff
+    return max(1, int(np.ceil(block * c_steps * w - 1e-9)))
 
 
 @njit(cache=True, nogil=True)
@@ -340,7 +355,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
         for b in range(n_sub):
             if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
                 req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, n_eval * block, block,
-                                      c_steps)
+                                      c_steps, damping, law)
                 if req > ns:
                     ns = req
                     acc[4] = 0.0

@@ -69,7 +69,7 @@ def check_time_step(system: System, dt: float) -> None:
         raise ConfigError("run.dt", f"must be a positive time step in s, got {dt!r}")
     w = system.max_frequency()
     if w * dt > MAX_OMEGA_DT:
-        raise ConfigError("run.dt", f"time step {dt:.3g} s is too large for the stiffest contact "
+        raise ConfigError("run.dt", f"time step {dt:.3g} s is too large for the stiffest contact and its damping "
                           f"(omega_max = {w:.3g} rad/s): it must be below {MAX_OMEGA_DT / w:.3g} s; "
                           f"leave it out to use the automatic step ({auto_time_step(system):.3g} s)")
 
@@ -193,6 +193,8 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc)
 
     samples_per_chunk = max(1, round(chunk_steps * plan.dt / sample_interval))
+    if progress is not None:
+        progress(0, n_samples - 1)  # the checks passed and the work starts
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_chunk)
@@ -202,9 +204,12 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
                                     k, k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax,
                                     peak, acc)
         if status != 0:
-            raise SimulationDiverged(
-                f"the integration diverged (non-finite state) before t = {k_stop * sample_interval:.4g} s "
-                f"with dt = {_dt_used(plan, acc, sample_interval)[0]:.3g} s; use a smaller run.dt (or the automatic one) or check the inputs")
+            used = _dt_used(plan, acc, sample_interval)[0]
+            advice = (f"with run.dt = {dt:.3g} s; use a smaller run.dt (or leave it out for the automatic step)"
+                      if dt is not None else f"with the automatic step (down to {used:.3g} s); check the inputs "
+                      "(contact law parameters, masses, velocities) and report the case")
+            raise SimulationDiverged(f"the integration diverged (non-finite state) before "
+                                     f"t = {k_stop * sample_interval:.4g} s {advice}")
         k = k_stop
         if progress is not None:
             progress(k - 1, n_samples - 1)

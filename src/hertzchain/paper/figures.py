@@ -39,6 +39,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .. import analysis, theory
+from ..fileio import atomic_path
 from .values import FIG12_TRUNCATIONS, PAPER
 
 __all__ = ["fig1", "fig2", "fig3", "fig4", "fig5", "fig6", "save_figure", "figure_summary",
@@ -107,8 +108,11 @@ def save_figure(fig: Figure, out_dir: str | Path, name: str, dpi: int = 200) -> 
     with matplotlib.rc_context(STYLE):
         if not isinstance(fig.canvas, FigureCanvasAgg):
             FigureCanvasAgg(fig)
-        fig.savefig(png, dpi=dpi)
-        fig.savefig(png.with_suffix(".pdf"))
+        # written through hertzchain.fileio: a killed or failed save never leaves half a figure
+        with atomic_path(png) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png")
+        with atomic_path(png.with_suffix(".pdf")) as tmp:
+            fig.savefig(tmp, format="pdf")
     return png
 
 

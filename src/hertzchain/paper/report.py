@@ -644,7 +644,9 @@ def write_report(out_dir: str | Path, summary: dict, figures: dict[str, Any],
     out.mkdir(parents=True, exist_ok=True)
     blocks = _blocks(summary, dict(figures or {}), settings_desc)
     md, page = out / "report.md", out / "report.html"
-    md.write_text(_to_markdown(blocks, out.resolve()), encoding="utf-8")
-    page.write_text(_to_html(blocks), encoding="utf-8")
+    from ..fileio import write_text
+
+    write_text(md, _to_markdown(blocks, out.resolve()))
+    write_text(page, _to_html(blocks))
     return {"md": md, "html": page}
 

@@ -110,17 +110,38 @@ def _save_data(out: Path, studies, mis, subs, ratio) -> None:
 
 def load_data(out_dir: str | Path, settings: Settings):
     """Read back the traces of a reproduction: (studies, misalignment, substitutions, ratio)."""
-    import re
-
     from ..errors import ConfigError
     from ..result import load
 
     data = Path(out_dir) / "data"
     if not data.is_dir():
         raise ConfigError(str(data), "no data folder: run 'hertzchain reproduce' first")
+    try:
+        return _load_data(data, settings, load)
+    except ConfigError:
+        raise
+    except (OSError, ValueError, KeyError, AttributeError, IndexError, TypeError, RuntimeError) as exc:
+        # A trace that is readable NetCDF but lacks what the protocol needs (damaged, foreign)
+        raise ConfigError(str(data), f"holds a damaged or foreign trace ({type(exc).__name__}: {exc}); "
+                          "rerun 'hertzchain reproduce' without --from-data") from None
+
+
+def _load_data(data: Path, settings: Settings, load):
+    import re
+
+    from ..errors import ConfigError
+
+    def read(p: Path):
+        if not p.is_file():
+            raise ConfigError(str(p), "is missing: rerun 'hertzchain reproduce' without --from-data")
+        try:
+            return load(p)
+        except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
+            raise ConfigError(str(p), f"is damaged or not a hertzchain result ({type(exc).__name__}: {exc})") from None
+
     studies = {}
     for name in ("chain1", "chain2"):
-        wall = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): load(p)
+        wall = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p)
                 for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
         if not wall:
             raise ConfigError(str(data), f"holds no {name} traces")
@@ -128,9 +149,9 @@ def load_data(out_dir: str | Path, settings: Settings):
     mis = {}
     for p in sorted(data.glob("fig3_chain2_offset_bead*_e*.nc")):
         m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
-        mis[(int(m.group(1)), float(m.group(2)))] = load(p)
-    subs = {label: load(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
-    ratio = protocol.wall_chain_ratio_from_dataset(load(data / "uniform16_elastic_wall_chain_ratio.nc"))
+        mis[(int(m.group(1)), float(m.group(2)))] = read(p)
+    subs = {label: read(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
+    ratio = protocol.wall_chain_ratio_from_dataset(read(data / "uniform16_elastic_wall_chain_ratio.nc"))
     return studies, mis, subs, ratio
 
 
@@ -161,12 +182,16 @@ def redraw(out_dir: str | Path) -> dict:
 
     out = Path(out_dir)
     try:
-        summary = json.loads((out / "summary.json").read_text())
+        summary = json.loads((out / "summary.json").read_bytes().decode("utf-8"))
     except (OSError, ValueError) as exc:
         raise ConfigError(str(out / "summary.json"), f"cannot read it ({exc})") from None
-    known = {k: v for k, v in summary["settings"].items() if k in Settings.__dataclass_fields__}
-    settings = Settings(**known, eps=summary["settings"].get("eps_target") or PAPER["eps"],
-                        elastic=summary["settings"]["law"] == "elastic")
+    try:
+        known = {k: v for k, v in summary["settings"].items() if k in Settings.__dataclass_fields__}
+        settings = Settings(**known, eps=summary["settings"].get("eps_target") or PAPER["eps"],
+                            elastic=summary["settings"]["law"] == "elastic")
+    except (KeyError, TypeError, AttributeError, ValueError) as exc:
+        raise ConfigError(str(out / "summary.json"), f"is not the summary of a reproduction: its 'settings' "
+                          f"are missing or damaged ({type(exc).__name__}: {exc})") from None
     studies, mis, subs, _ = load_data(out, settings)
     paths = draw(out, studies, mis, subs, settings)
     summary["figures"] = _figure_numbers(studies, mis, subs, settings)
@@ -209,7 +234,9 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
         summary["timing"]["total_s"] = time.perf_counter() - t0
         write_report(out, summary, fig_paths, settings.describe())
     summary["timing"]["total_s"] = time.perf_counter() - t0
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False, default=_json_default))
+    from ..fileio import write_text
+
+    write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_json_default))
     return summary
 
 

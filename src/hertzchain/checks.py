@@ -1,0 +1,369 @@
+"""Checks that keep a run from giving a silent wrong answer or from failing late.
+
+Before a run (:func:`check_before_run`): the static overlap of a precompressed chain must stay in
+the range of Hertz theory, and the records must fit in memory (:func:`estimate_resources`; a run
+projected to take more than a few minutes is allowed with a :class:`~hertzchain.errors.LongRunWarning`).
+After it (:func:`check_after_run`): the energy balance (kinetic + elastic + dissipated must not
+grow: a run that gains energy is stopped with :class:`~hertzchain.errors.SimulationDiverged`
+naming the cause), the overlaps the run reached (:class:`~hertzchain.errors.HertzRangeWarning`)
+and whether the pulse reached the wall before the record ended
+(:class:`~hertzchain.errors.PulseNotReachedWarning`).
+
+The time step's own stability bound, damping included, is in
+:meth:`hertzchain.model.System.max_frequency` and ``integrate.kernels.required_stride``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError, HertzRangeWarning, LongRunWarning, PulseNotReachedWarning, SimulationDiverged
+
+__all__ = ["ResourceEstimate", "estimate_resources", "check_resources", "check_before_run", "check_after_run",
+           "check_energy_balance", "energy_tolerance", "energy_cause", "available_memory", "HERTZ_MAX_OVERLAP", "LONG_RUN_S"]
+
+#: Largest overlap delta / R_min (R_min the smaller radius of the pair) taken as inside the range of
+#: Hertz theory (paper eq. 1 assumes a contact radius a = sqrt(R* delta) much smaller than R;
+#: delta / R = 0.1 is a / R ~ 0.3 already). Independent of any yield stress.
+HERTZ_MAX_OVERLAP = 0.1
+#: A run projected to take longer than this [s] gets a LongRunWarning with the estimate.
+LONG_RUN_S = 180.0
+#: Cost of one bead-step of the compiled Verlet [s] (benchmarks/kernel.py: ~1.2 ns aligned
+#: elastic; the general loop for dissipation or offsets is a few times slower), on one core.
+NS_PER_BEAD_STEP = {"elastic": 1.5e-9, "general": 6e-9}
+#: solve_ivp (DOP853 at rtol ~1e-10) advances about this many radians of omega_max per step, at
+#: about SCIPY_S_PER_STEP of Python overhead per step (plus the compiled forces).
+SCIPY_RADIANS_PER_STEP = 0.05
+SCIPY_S_PER_STEP = 2e-5
+#: Share of the available memory a run may plan to use (the result is copied once when it is
+#: assembled and written).
+MEMORY_SHARE = 0.8
+#: Bytes kept per recorded number: the float64 record plus one copy while the result is built.
+BYTES_PER_VALUE = 16
+
+
+def available_memory() -> int | None:
+    """Memory available to a new allocation [bytes] (Linux MemAvailable), or None when unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+@dataclass(frozen=True)
+class ResourceEstimate:
+    """What a run will need, computed before anything is allocated.
+
+    Attributes
+    ----------
+    samples : int
+        Recorded time samples per member.
+    signals : int
+        Recorded numbers per sample and member (forces, energies, velocities, sensors).
+    members : int
+        Runs held in memory at once (1, or a sweep chunk).
+    memory_bytes : int
+        Memory the records need [bytes] (with one copy while the result is built).
+    steps : float
+        Time steps of one member (an upper estimate for the adaptive step).
+    seconds : float
+        Projected run time [s] on one core.
+    """
+
+    samples: int
+    signals: int
+    members: int
+    memory_bytes: int
+    steps: float
+    seconds: float
+
+
+def estimate_resources(system, duration: float, probes, dt: float | None = None, members: int = 1,
+                       integrator: str = "verlet") -> ResourceEstimate:
+    """Samples x recorded signals x members and the steps for ``duration``, before any allocation.
+
+    Parameters
+    ----------
+    system : hertzchain.model.System
+        The model's arrays (``Model.system()``).
+    duration : float
+        Simulated time [s].
+    probes : hertzchain.probes.Probes
+        What is recorded, and how often.
+    dt : float or None
+        Fixed time step [s], or None for the adaptive one (its smallest step is used: an upper
+        estimate of the step count).
+    members : int
+        Runs held in memory together (a sweep chunk).
+    integrator : str
+        ``"verlet"``, or a scipy method (``"dop853"``, ``"rk45"``; a rougher estimate).
+
+    Returns
+    -------
+    ResourceEstimate
+    """
+    from .integrate.verlet import step_plan
+
+    n = system.n_beads
+    samples = int(math.floor(duration / probes.sample_interval + 1e-9)) + 1
+    recorded = probes.recorded_contacts(n, system.has_wall).size
+    signals = recorded + 4 + len(probes.sensors) + (n + 1 if probes.velocities else 0)  # + 3 energies, time, wall
+    memory = BYTES_PER_VALUE * samples * signals * members
+    if integrator == "verlet":
+        plan = step_plan(system, probes.sample_interval, dt)
+        steps = duration / plan.dt
+        per = NS_PER_BEAD_STEP["general" if system.general else "elastic"]
+        seconds = steps * (n + 1) * members * per
+    else:
+        # solve_ivp: about SCIPY_RADIANS_PER_STEP of the fastest motion per step, each step a few
+        # Python-level right-hand-side calls
+        steps = duration * system.max_frequency() / SCIPY_RADIANS_PER_STEP
+        seconds = steps * (SCIPY_S_PER_STEP + (n + 1) * NS_PER_BEAD_STEP["general"]) * members
+    return ResourceEstimate(samples=samples, signals=signals, members=members, memory_bytes=int(memory),
+                            steps=steps, seconds=seconds)
+
+
+def _gib(x: float) -> str:
+    return f"{x / 2**30:.3g} GiB"
+
+
+def check_resources(est: ResourceEstimate, *, memory_field: str = "run.duration",
+                    available: int | None = None) -> None:
+    """Refuse a run whose records cannot fit in memory (ConfigError naming ``memory_field``); warn
+    (:class:`~hertzchain.errors.LongRunWarning`) when it is projected to take more than LONG_RUN_S.
+
+    Parameters
+    ----------
+    est : ResourceEstimate
+        From :func:`estimate_resources`.
+    memory_field : str
+        The input field to change when the records do not fit.
+    available : int or None
+        Memory available [bytes]; :func:`available_memory` when None.
+    """
+    available = available_memory() if available is None else available
+    if available is not None and est.memory_bytes > MEMORY_SHARE * available:
+        raise ConfigError(memory_field, f"the run would record {est.samples:,} samples x {est.signals:,} signals"
+                          + (f" x {est.members} members" if est.members > 1 else "")
+                          + f", about {_gib(est.memory_bytes)}, more than the {_gib(available)} of memory "
+                          "available; shorten run.duration, raise run.sample_interval or record fewer "
+                          "contacts (probes.contacts)")
+    if est.seconds > LONG_RUN_S:
+        warnings.warn(LongRunWarning(
+            f"this run is projected to take about {est.seconds / 60:.0f} min ({est.steps:.3g} time steps, "
+            f"{est.members} member(s)); it goes on, but a shorter run.duration or a smaller model would be faster"),
+            stacklevel=3)
+
+
+def _smaller_radius(model) -> np.ndarray:
+    """Smaller radius of the two bodies of every contact 0..N [m] (the wall is a flat)."""
+    r = np.concatenate([[model.striker.diameter / 2], model.chain.radii])
+    return np.append(np.minimum(r[:-1], r[1:]), r[-1])
+
+
+def check_before_run(model, system, duration: float, probes, *, dt: float | None = None,
+                     integrator: str = "verlet") -> ResourceEstimate:
+    """Hertz range of the static overlaps and the resources, before anything is allocated.
+
+    Parameters
+    ----------
+    model : hertzchain.model.Model
+        The model (for the radii).
+    system : hertzchain.model.System
+        ``model.system()``.
+    duration : float
+        Simulated time [s].
+    probes : hertzchain.probes.Probes
+        What is recorded.
+    dt : float or None
+        Fixed step [s] or None (adaptive).
+    integrator : str
+        ``"verlet"``, ``"dop853"`` or ``"rk45"``.
+
+    Returns
+    -------
+    ResourceEstimate
+        The estimate the checks used.
+    """
+    if np.any(system.d0 > 0):
+        ratio = system.d0 / _smaller_radius(model)
+        j = int(np.argmax(ratio))
+        if ratio[j] > HERTZ_MAX_OVERLAP:
+            raise ConfigError("chain.precompression", f"{model.precompression:g} N squeezes contact {j} by "
+                              f"{ratio[j]:.3g} times the smaller bead radius; Hertz contact (paper eq. 1) holds for "
+                              f"overlaps below {HERTZ_MAX_OVERLAP:g} R. Lower the precompression")
+    est = estimate_resources(system, duration, probes, dt=dt, integrator=integrator)
+    check_resources(est)
+    return est
+
+
+def check_energy_balance(time: np.ndarray, kinetic: np.ndarray, potential: np.ndarray, dissipated: np.ndarray,
+                         *, tolerance: float, cause: str) -> None:
+    """Stop a run whose energy balance grows (SimulationDiverged, naming ``cause``).
+
+    Kinetic + elastic (Hertz potential, paper Sec. III) + dissipated energy is constant for the
+    exact motion; a numerical gain larger than ``tolerance`` times the initial energy means the
+    integration is wrong (a step too large for the stiffness or the damping).
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Sample times [s].
+    kinetic, potential, dissipated : numpy.ndarray
+        Energies [J] at the samples.
+    tolerance : float
+        Allowed relative gain.
+    cause : str
+        What to change, named as the user wrote it (``run.dt``, ``contact.gamma``...).
+    """
+    total = kinetic + potential + dissipated
+    scale = abs(kinetic[0]) + abs(potential[0])
+    if not (scale > 0):
+        return
+    with np.errstate(invalid="ignore"):
+        gain = (total - total[0]) / scale
+    bad = ~np.isfinite(gain) | (gain > tolerance)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        what = "became non-finite" if not np.isfinite(gain[k]) else f"grew by {gain[k]:.3g} of its initial value"
+        raise SimulationDiverged(f"the run gains energy: kinetic + elastic + dissipated energy {what} at "
+                                 f"t = {time[k]:.4g} s (allowed: {tolerance:.2g}); the results would be wrong. "
+                                 f"Cause: {cause}")
+
+
+def energy_tolerance(system, dt_max: float, integrator: str = "verlet", rtol: float = 1e-10) -> float:
+    """Relative energy gain a correct run may show (see :func:`check_energy_balance`).
+
+    Verlet conserves a shadow energy; the true one oscillates by O((omega dt)^2) (about 1 % at the
+    largest user step allowed, omega dt = MAX_OMEGA_DT = 0.5; ~1e-7 with the adaptive step), so
+    the allowance follows the largest step used, up to that of the largest step allowed, and is
+    at least 1e-3. The scipy integrators are stable but their error control lets the energy
+    wander by 10-100 ``rtol`` (chain 1: RK45 at rtol 1e-5 gains 1e-3), so there the allowance is
+    1000 ``rtol``, at least 1e-2: only a gross failure is stopped.
+
+    Parameters
+    ----------
+    system : hertzchain.model.System
+        The model's arrays.
+    dt_max : float
+        Largest Verlet step used [s].
+    integrator : str
+        ``"verlet"``, ``"dop853"`` or ``"rk45"``.
+    rtol : float
+        Relative tolerance of the scipy integrators.
+
+    Returns
+    -------
+    float
+        The tolerance, relative to the initial energy.
+    """
+    if integrator != "verlet":
+        return max(1e-2, 1e3 * rtol)
+    from .integrate.verlet import MAX_OMEGA_DT
+
+    return max(1e-3, 0.1 * min(system.max_frequency() * dt_max, MAX_OMEGA_DT) ** 2)
+
+
+def energy_cause(model, dt: float | None, integrator: str = "verlet") -> str:
+    """What to change when a run gains energy, named as the user wrote it.
+
+    Parameters
+    ----------
+    model : hertzchain.model.Model
+        The model.
+    dt : float or None
+        The user's fixed step [s] (None: automatic).
+    integrator : str
+        ``"verlet"``, ``"dop853"`` or ``"rk45"``.
+
+    Returns
+    -------
+    str
+        A sentence naming ``run.dt``, ``contact.gamma``, ``contact.A`` or ``run.rtol``.
+    """
+    if integrator != "verlet":
+        return "the solver tolerance run.rtol is too loose; lower it"
+    if dt is not None:
+        return f"the time step run.dt = {dt:g} s is too large for this model; lower it or leave it out"
+    law = model.law.name
+    if law in ("dashpot", "viscoelastic"):
+        key = "contact.gamma" if law == "dashpot" else "contact.A"
+        return (f"the automatic step could not follow the damping of {key} = {model.law.parameter:g}; "
+                "lower it or give a smaller run.dt")
+    return "the automatic step could not follow the model; give a smaller run.dt and report the case"
+
+
+def check_after_run(ds, model, system, *, dt: float | None = None, integrator: str = "verlet",
+                    rtol: float = 1e-10, stacklevel: int = 2) -> None:
+    """Energy balance, Hertz range of the overlaps reached, and the pulse's arrival at the wall.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The result (:func:`hertzchain.simulate`).
+    model : hertzchain.model.Model
+        The model it came from.
+    system : hertzchain.model.System
+        ``model.system()``.
+    dt : float or None
+        The user's fixed step [s] (None: automatic).
+    integrator : str
+        ``"verlet"``, ``"dop853"`` or ``"rk45"``.
+    rtol : float
+        Relative tolerance of the scipy integrators.
+    stacklevel : int
+        Passed to :func:`warnings.warn`.
+
+    Raises
+    ------
+    SimulationDiverged
+        The run gained energy (see :func:`check_energy_balance`).
+    """
+    tolerance = energy_tolerance(system, float(ds.attrs.get("dt_max") or ds.attrs["dt"]), integrator, rtol)
+    check_energy_balance(ds.time.values, ds.kinetic_energy.values, ds.potential_energy.values,
+                         ds.dissipated_energy.values, tolerance=tolerance, cause=energy_cause(model, dt, integrator))
+
+    nc = system.n_contacts
+    fmax = ds.max_contact_force.values
+    kap = system.kappa[:nc]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        overlap = np.where(kap > 0, (np.maximum(fmax, 0.0) / np.where(kap > 0, kap, 1.0)) ** (2.0 / 3.0), 0.0)
+    ratio = overlap / _smaller_radius(model)[:nc]
+    if ratio.size and ratio.max() > HERTZ_MAX_OVERLAP:
+        j = int(np.argmax(ratio))
+        warnings.warn(HertzRangeWarning(
+            f"contact {j} was compressed by {ratio[j]:.3g} times the smaller bead radius, beyond the range of "
+            f"Hertz contact (overlaps below {HERTZ_MAX_OVERLAP:g} R, paper eq. 1): the forces are not physical; "
+            "lower striker.velocity"), stacklevel=stacklevel + 1)
+
+    if model.wall.present and nc > 1:
+        _warn_pulse_not_reached(ds, fmax, nc, stacklevel + 1)
+
+
+def _warn_pulse_not_reached(ds, fmax: np.ndarray, nc: int, stacklevel: int) -> None:
+    """Warn when the wall contact never carried a pulse: the record ended before it arrived."""
+    loaded = fmax > 1e-6 * fmax.max() if fmax.max() > 0 else np.zeros(nc, bool)
+    if loaded[nc - 1]:
+        return
+    reached = int(np.flatnonzero(loaded).max()) if loaded.any() else 0
+    duration = float(ds.attrs.get("duration", ds.time.values[-1]))
+    estimate = ""
+    if reached > 0:
+        # the front moved `reached` contacts in `duration`: the wall is about (nc - 1) / reached as far
+        estimate = f" (at this pace it would arrive near t = {duration * (nc - 1) / reached:.3g} s)"
+    warnings.warn(PulseNotReachedWarning(
+        f"the record ends (run.duration = {duration:g} s) before the pulse reaches the wall: the front got to "
+        f"contact {reached} of {nc - 1}{estimate}; the wall force is 0 N because nothing arrived yet. "
+        "Lengthen run.duration"), stacklevel=stacklevel + 1)
