@@ -20,8 +20,10 @@ from hertzchain.paper import protocol
 from hertzchain.paper.report import comparison_rows, figure_notes, write_report
 from hertzchain.paper.values import PAPER
 
+from figure_checks import text_overlaps, uncovered
+
 #: name -> (number of panels, figure width [in]) expected for each figure.
-EXPECTED = {"fig1": (8, 7.0), "fig2": (8, 7.0), "fig3": (3, 3.4), "fig4": (1, 3.4), "fig5": (8, 7.0),
+EXPECTED = {"fig1": (8, 7.0), "fig2": (8, 7.0), "fig3": (5, 3.4), "fig4": (1, 3.4), "fig5": (8, 7.0),
             "fig6": (6, 7.0)}
 
 
@@ -131,12 +133,66 @@ def test_figure_text_uses_paper_symbols(drawn):
 
 def test_fig3_legends_give_offsets_in_mm(drawn):
     fig, _ = drawn["fig3"]
-    a, b, c = _panels(fig)
+    a, _, b, _, c = _panels(fig)
     for ax in (a, b):
         texts = [t.get_text() for t in ax.get_legend().get_texts()]
         assert len(texts) == 3 and all(re.match(r"e = \d+\.\d\d mm", t) for t in texts)
     texts = [t.get_text() for t in c.get_legend().get_texts()]
     assert texts[0] == "reference" and any("+1" in t for t in texts) and any("-1" in t for t in texts)
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_figures_checked_by_data(drawn, name):
+    """No text box or legend covers a drawn data point; every axis range covers its curves."""
+    fig, _ = drawn[name]
+    assert text_overlaps(fig) == []
+    assert uncovered(fig) == []
+
+
+def test_fig1h_spectrum_axis_is_used_and_centroids_apart(drawn, data):
+    for name, study in (("fig1", data["chain1"]), ("fig2", data["chain2"])):
+        fig, _ = drawn[name]
+        ax = _panels(fig)[7]
+        renderer = fig.canvas.get_renderer()
+        fig.draw(renderer)
+        # the outgoing spectrum reaches the bottom (1e-8) in the right part of the frequency axis
+        out = [l for l in ax.get_lines() if l.get_label().startswith("out")][0]
+        f, p = out.get_data()
+        last = f[p >= 1e-8][-1]
+        lo, hi = ax.get_xlim()
+        assert 0.6 < np.log(last / lo) / np.log(hi / lo) <= 1.0
+        # the two centroid lines are at least 5 points apart on the page
+        spec = figs.figure_summary(data["chain1"], data["chain2"])["spectra"][study.name]
+        xs = ax.transData.transform([[spec["centroid_in_hz"] * 1e-3, 1.0], [spec["centroid_out_hz"] * 1e-3, 1.0]])
+        assert abs(xs[1, 0] - xs[0, 0]) > 5 * fig.dpi / 72
+
+
+def test_fig3_shows_the_misalignment_difference(drawn, data):
+    """(a'): F(10 % offset) - F(aligned) on its own scale, sample by sample."""
+    from hertzchain import analysis
+
+    fig, _ = drawn["fig3"]
+    diff = _panels(fig)[1]
+    ref, big = data["misalignment"][(22, 0.0)], data["misalignment"][(22, 0.1)]
+    t = ref.time.values
+    x = (t - analysis.fit_pulse(t, ref.wall_force.values).time_of_flight) * 1e3
+    sel = (x >= figs.PULSE_WINDOW_MS[0]) & (x <= figs.PULSE_WINDOW_MS[1])
+    line = [l for l in diff.get_lines() if len(l.get_xdata()) > 2][-1]
+    assert np.allclose(line.get_xdata(), x[sel])
+    assert np.allclose(line.get_ydata(), (big.wall_force.values - ref.wall_force.values)[sel] * 1e3)
+    lo, hi = diff.get_ylim()
+    y = line.get_ydata()
+    # its own scale: a few times the largest difference, far below the force scale of (a)
+    assert lo <= y.min() and y.max() <= hi and (hi - lo) < 4 * np.ptp(y)
+
+
+def test_fig4_curves_peak_at_one(drawn):
+    fig, _ = drawn["fig4"]
+    ax = _panels(fig)[0]
+    curves = [l.get_ydata() for l in ax.get_lines() if len(l.get_ydata()) > 100]
+    assert len(curves) == 16  # 15 pulses and cos^6
+    for y in curves:
+        assert abs(np.max(y) - 1.0) < 2e-3
 
 
 def test_fig6_legend_quotes_q(drawn, data):
@@ -161,24 +217,36 @@ def test_report_md_and_html(drawn, summary, settings, tmp_path):
     md, page = out["md"].read_text(encoding="utf-8"), out["html"].read_text(encoding="utf-8")
     # the comparison table
     for row in ("tapering factor q1", "standard deviation of q1", "tapering factor q2", "standard deviation of q2",
-                "Q1 (fit", "Q2 (fit", "Q1^th", "Q2^th", "eps measured back", "wall/chain peak-force ratio",
-                "wall/chain duration ratio", "yield force", "yield overlap"):
-        assert row in md and row in page, row
+                "Q1 (fit", "Q2 (fit", "$Q_1^{th}$", "$Q_2^{th}$", "$\\varepsilon$ measured back",
+                "wall/chain peak-force ratio", "wall/chain duration ratio", "yield force", "yield overlap"):
+        assert row in md and re.sub(r"\$([^$]+)\$", r"\\(\1\\)", row) in page, row
     assert "| quantity | simulated | paper | relative difference | verdict |" in md
     assert "the paper's error bar 1.025 ± 0.016" in md
-    assert re.search(r"Q_fit = 1\.\d{3} ± 0\.\d{3} lies (inside|outside) the paper's error bar", md)
+    assert re.search(r"\$Q_\{fit\}\$ = 1\.\d{3} ± 0\.\d{3} lies (inside|outside) the paper's error bar", md)
+    # maths as maths: no ASCII formula left in the notes; MathJax delimiters in the page
+    assert "\\(F_m\\)" in page and "$F_m$" in md and "\\(\\tau\\)" in page
+    notes = md.split("## Parameters")[0]
+    for ascii_formula in (r"F_m\^\(n\+1\)", r"Q\^\(n-n'\)", r" tau ", r"T\(eps", r"(?<!\\)cos\^6"):
+        assert not re.search(ascii_formula, notes), ascii_formula
     # the two-speed check and the run's parameters
     assert "do not depend on the striker speed" in md or "DEPEND on the striker speed" in md
     assert "striker_velocity" in md and "0.2 m/s" in md and "sample_interval" in page
     # every figure linked (md) and embedded byte for byte (html), nothing external
     for name, png in paths.items():
-        assert f"{png.name})" in md
+        assert re.search(rf'<img src="[^"]*{png.name}"', md)
         notes = figure_notes(summary, settings.describe())[name]
         assert notes[0] and notes[1]
     embedded = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
     assert len(embedded) == len(paths)
     assert {base64.b64decode(e) for e in embedded} == {p.read_bytes() for p in paths.values()}
-    assert not re.search(r'(src|href)="(https?:)?//', page) and "<script" not in page and "<link" not in page
+    # nothing external but MathJax, which only typesets the formulas (TeX source when offline)
+    external = re.findall(r'(?:src|href)="((?:https?:)?//[^"]+)"', page)
+    assert external == ["https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-chtml.js"] and "<link" not in page
+    # one scale: each figure shown at its size in inches (a one-column figure at 3.4/7 of the page)
+    widths = {name: float(w) for name, w in re.findall(r'<h3 id="(fig\d)">.*?style="width: ([\d.]+)%"', page,
+                                                      flags=re.S)}
+    for name, (fig, _) in drawn.items():
+        assert widths[name] == pytest.approx(100 * fig.get_figwidth() / 7.0, abs=0.2)
 
 
 def test_report_without_optional_keys(tmp_path):

@@ -115,3 +115,69 @@ def test_normalised_results_do_not_depend_on_striker_speed(summary):
     assert s["speed_check"]["velocities"] == [0.2, 0.4]
     assert s["speed_check"]["max_peak_norm_deviation"] < 1e-3
     assert s["speed_check"]["max_duration_norm_deviation"] < 1e-3
+
+
+def _floats(x):
+    if isinstance(x, dict):
+        for v in x.values():
+            yield from _floats(v)
+    elif isinstance(x, list):
+        for v in x:
+            yield from _floats(v)
+    elif isinstance(x, float):
+        yield x
+
+
+def test_summary_is_rounded_and_documented(summary):
+    out, s = summary
+    values = list(_floats({k: v for k, v in s.items() if k != "units"}))
+    assert len(values) > 200
+    assert all(float(f"{v:.6g}") == v for v in values)  # no float noise such as 26.000000000000004
+    assert "26.000000000000004" not in (out / "summary.json").read_text()
+    assert s["chain1"]["diameter_mm"][0] == 26.0
+    assert any("N s" == u for u in s["units"].values()) and any("front_momentum" in k for k in s["units"])
+    # the elastic-limit check of every run (0.2 m/s stays elastic, as in the paper)
+    assert s["elastic_limit"]["runs"] == 15 + 13 + 6 + 3 and s["elastic_limit"]["message"] is None
+    assert 0 < s["elastic_limit"]["max_force_over_yield"] < 1
+
+
+def test_traces_read_back_like_hertzchain_load(summary):
+    import xarray as xr
+
+    from hertzchain import load
+    from hertzchain.paper.reproduce import _TRACE_VARIABLES, load_trace
+
+    out, _ = summary
+    for path in sorted((out / "data").glob("chain2_truncated_2*.nc"))[:2] + [out / "data" / "chain1_truncated_30.nc"]:
+        full = load(path)
+        names = [n for n in _TRACE_VARIABLES if n in full]
+        fast = load_trace(path)
+        xr.testing.assert_identical(fast, full[names].drop_vars([c for c in full[names].coords
+                                                                 if c not in fast.coords]))
+
+
+def test_redraw_reports_progress_and_elastic_limit(summary, tmp_path, capsys):
+    """--from-data: every figure and the report, a progress step each, no simulation."""
+    import shutil
+    from types import SimpleNamespace
+
+    import hertzchain as hc
+    from hertzchain.cli import _echo_elastic_limit
+    from hertzchain.paper.reproduce import FIGURE_NAMES, elastic_limit_summary, redraw
+
+    out, _ = summary
+    shutil.copytree(out, tmp_path / "r")
+    steps = []
+    s = redraw(tmp_path / "r", progress=steps.append)
+    assert len(steps) == len(FIGURE_NAMES) + 2 and steps[-1] == "wrote the report"
+    assert all((tmp_path / "r" / f"{n}.pdf").stat().st_size > 10_000 for n in FIGURE_NAMES)
+    assert (tmp_path / "r" / "report.html").exists() and s["elastic_limit"]["message"] is None
+    # a striker fast enough to pass the limit: one line naming the run, the contact and the ratio
+    model = hc.Model(hc.Chain.uniform(16, 26e-3), hc.Striker(8e-3, 1.5), hc.Wall("flat"), hc.Elastic())
+    with pytest.warns(hc.ElasticLimitWarning):
+        ds = hc.simulate(model, 1e-3, hc.Probes(sample_interval=1e-6, contacts=()))
+    check = elastic_limit_summary({"chain1": SimpleNamespace(wall={16: ds})}, {}, {})
+    assert check["runs_past_limit"] == 1 and check["max_force_over_yield"] > 1
+    assert check["message"].startswith("chain 1 cut after bead 16: contact forces pass the elastic limit")
+    _echo_elastic_limit({"elastic_limit": check})
+    assert capsys.readouterr().err.strip() == f"warning: {check['message']}"

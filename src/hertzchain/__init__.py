@@ -25,7 +25,7 @@ _EXPORTS = {
     "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain",
     "Striker": "model", "Wall": "model", "Model": "model",
     # running and results
-    "Probes": "probes", "simulate": "simulation", "save": "result", "load": "result",
+    "Probes": "probes", "simulate": "simulation", "auto_duration": "simulation", "save": "result", "load": "result",
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
     # many chains
     "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch",
@@ -37,6 +37,8 @@ _EXPORTS = {
     "fit_pulse": "analysis", "PulseFit": "analysis", "power_spectrum": "analysis",
     "tapering_factor": "theory", "ballistic_ratios": "theory", "solitary_wave_speed": "theory",
     "yield_limit": "theory", "predict_chain": "theory", "nesterenko_force": "theory",
+    # pictures of results
+    "plot_signals": "plotting", "plot_spacetime": "plotting", "plot_energy": "plotting", "animate": "animation",
 }
 
 __all__ = ["__version__", *_EXPORTS]

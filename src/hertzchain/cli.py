@@ -1,4 +1,4 @@
-"""Command line: ``hertzchain run | plot | analyze | materials | reproduce | sweep``.
+"""Command line: ``hertzchain run | plot | animate | analyze | materials | reproduce | sweep``.
 
 Every user error (bad config, bad file, bad option) ends with a one-paragraph message and exit
 status 2, never a traceback. Heavy imports are deferred into the commands so ``--help`` is quick.
@@ -12,6 +12,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import click
+
+from .cli_options import set_option
 
 
 @contextmanager
@@ -59,18 +61,19 @@ def cli() -> None:
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="NetCDF file to write (e.g. result.nc).")
+@set_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
-def run(config: Path, out: Path, quiet: bool) -> None:
+def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> None:
     """Simulate the chain described by CONFIG (TOML) and save the result as NetCDF."""
     import warnings
 
     from .config import apply_instruments, build_instruments, build_model, build_probes, load_config
-    from .errors import ElasticLimitWarning
+    from .errors import DurationWarning, ElasticLimitWarning
     from .fileio import check_target
     from .result import save
-    from .simulation import simulate
+    from .simulation import auto_duration, simulate
 
-    cfg = load_config(config)
+    cfg = load_config(config, overrides)
     check_target(out)  # refuse a FIFO, a link or a device as --out before any work
     model = build_model(cfg)
     probes = build_probes(cfg)
@@ -79,9 +82,11 @@ def run(config: Path, out: Path, quiet: bool) -> None:
     from .integrate.verlet import auto_time_step
 
     dt = cfg.run.dt or auto_time_step(model.system())
-    work = cfg.run.duration / dt * model.chain.n_beads
+    duration = auto_duration(model) if cfg.run.duration == "auto" else cfg.run.duration
+    work = duration / dt * model.chain.n_beads
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ElasticLimitWarning)
+        warnings.simplefilter("always", DurationWarning)
         with progress_bar("simulating", enabled=not quiet and work > 1e8, lazy=True) as update:
             ds = simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                           rtol=cfg.run.rtol, progress=update, config=cfg.model_dump(mode="json"))
@@ -96,7 +101,8 @@ def run(config: Path, out: Path, quiet: bool) -> None:
             step = f"{ds.attrs['integrator']}, {ds.attrs['n_steps']} right-hand-side calls"
         else:
             step = f"dt = {ds.attrs['dt']:.3g} s"
-        msg = f"wrote {out} ({ds.sizes['time']} samples, {ds.sizes['contact']} contacts, {step})"
+        span = f"{ds.attrs['duration'] * 1e3:.3g} ms" + (" (automatic)" if ds.attrs.get("duration_mode") == "auto" else "")
+        msg = f"wrote {out} ({span}, {ds.sizes['time']} samples, {ds.sizes['contact']} contacts, {step})"
         if "wall_force" in ds:
             msg += f"; peak wall force {ds.attrs['peak_wall_force']:.4g} N at {ds.attrs['peak_wall_time'] * 1e3:.4g} ms"
         click.echo(msg)
@@ -119,21 +125,6 @@ def _open_result(path: Path):
         raise ConfigError(str(path), "is not a hertzchain result: it needs a 'time' axis of at least 2 samples and "
                           "one of wall_force, sensor_force, contact_force")
     return ds
-
-
-@cli.command()
-@click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Image file (PNG, PDF or SVG).")
-@click.option("--signal", "signals", multiple=True, help="wall_force, sensor_force or contact_force (repeatable).")
-@click.option("--contact", "contacts", multiple=True, type=int, help="Contacts to draw with --signal contact_force.")
-def plot(result: Path, out: Path, signals: tuple[str, ...], contacts: tuple[int, ...]) -> None:
-    """Draw the force signals of RESULT against time, one panel per signal."""
-    from .plotting import image_format, plot_signals
-
-    image_format(out)  # an unknown --out suffix is refused before the file is read
-    ds = _open_result(result)
-    click.echo(f"wrote {plot_signals(ds, out, signals or None, contacts or None)}")
 
 
 @cli.command()
@@ -198,9 +189,17 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
     from .errors import ConfigError
 
     if from_data:
-        from .paper.reproduce import redraw
+        from .paper.reproduce import FIGURE_NAMES, redraw
 
-        redraw(out)
+        with progress_bar("redrawing figures and report", lazy=True) as update:  # errors first, no bar
+            done = [0]
+
+            def step(msg: str) -> None:
+                done[0] += 1
+                update(done[0], len(FIGURE_NAMES) + 2)
+
+            summary = redraw(out, progress=step)
+        _echo_elastic_limit(summary)
         click.echo(f"redrew the figures and the report in {out}/ from {out}/data")
         return
 
@@ -209,10 +208,10 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
     if not (0 < eps <= 1):
         raise ConfigError("--eps", f"must lie in (0, 1], got {eps}")
     from .paper.protocol import Settings
-    from .paper.reproduce import count_runs, reproduce as run_reproduction
+    from .paper.reproduce import count_steps, reproduce as run_reproduction
 
     settings = Settings(striker_velocity=velocity, elastic=elastic, law=law, eps=eps)
-    total = count_runs(settings)
+    total = count_steps(settings, figures=not no_figures)
     with progress_bar("reproducing the paper") as update:
         done = [0]
 
@@ -221,11 +220,19 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
             update(done[0], total)
 
         summary = run_reproduction(out, settings, progress=tick, figures=not no_figures)
+    _echo_elastic_limit(summary)
     c1, c2 = summary["chain1"], summary["chain2"]
     click.echo(f"wrote {out}/ in {summary['timing']['total_s']:.1f} s: "
                f"Q1 = {c1['Q_fit']:.4f} +- {c1['Q_fit_err']:.4f} (theory {c1['Q_theory']:.4f}, paper 1.025 +- 0.016), "
                f"Q2 = {c2['Q_fit']:.4f} +- {c2['Q_fit_err']:.4f} (theory {c2['Q_theory']:.4f}, paper 1.049 +- 0.044), "
                f"eps = {summary['eps']:.4f}")
+
+
+def _echo_elastic_limit(summary: dict) -> None:
+    """Say on the console when a reproduction's contact forces pass the elastic limit."""
+    msg = (summary.get("elastic_limit") or {}).get("message")
+    if msg:
+        click.echo(f"warning: {msg}", err=True)
 
 
 @cli.command()
@@ -240,9 +247,13 @@ def materials() -> None:
 
 def _register_subcommands() -> None:
     # One line per subcommand module (each command lives in its own module).
+    from .animate_cli import animate
+    from .plot_cli import plot
     from .sweep_cli import sweep
 
     cli.add_command(sweep)
+    cli.add_command(plot)
+    cli.add_command(animate)
 
 
 _register_subcommands()

@@ -19,7 +19,7 @@ A minimal config (the contract of the core-engine issue)::
     [wall]
     type = "flat"           # or "none"
     [run]
-    duration = 2.5e-3       # s
+    duration = 2.5e-3       # s, or "auto" (the default)
     sample_interval = 1e-7  # s
     [probes]
     sensors = [2]
@@ -179,17 +179,33 @@ class ContactConfig(_Section):
 
 
 class RunSection(_Section):
-    duration: float = _bounded("duration", open_low=True, default=2.5e-3, description="s")
+    duration: float | Literal["auto"] = Field(
+        default="auto", description="s, or 'auto': until the front has crossed the chain and its tail passed "
+                                    "(hertzchain.simulation.auto_duration)")
     sample_interval: float = _bounded("sample_interval", default=1e-7, description="s")
     dt: float | None = _bounded("dt", default=None, description="s; automatic when absent")
     integrator: Literal["verlet", "dop853", "rk45"] = "verlet"
     rtol: float = _bounded("rtol", default=1e-10)
+
+    @field_validator("duration", mode="before")
+    @classmethod
+    def _auto_or_time(cls, v: Any) -> Any:
+        # Checked here in full, so that an error names run.duration (not a branch of the union).
+        if v == "auto":
+            return v
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError("must be a time in s (a number) or 'auto'")
+        lo, hi = BOUNDS["duration"]
+        if not (math.isfinite(v) and lo < v <= hi):
+            raise ValueError(f"must be greater than {lo:g} and at most {hi:g} (a time in s), or 'auto'")
+        return float(v)
 
 
 class ProbesConfig(_Section):
     sensors: list[_BeadNumber] = []
     contacts: Literal["all"] | list[Annotated[int, Field(ge=0, le=BOUNDS["beads"][1])]] = "all"
     velocities: bool = False
+    positions: bool = False
 
 
 class InstrumentChannel(_Section):
@@ -523,7 +539,8 @@ def build_probes(cfg: RunConfig):
 
     p = cfg.probes
     return Probes(sample_interval=cfg.run.sample_interval, sensors=tuple(p.sensors),
-                  contacts=None if p.contacts == "all" else tuple(p.contacts), velocities=p.velocities)
+                  contacts=None if p.contacts == "all" else tuple(p.contacts), velocities=p.velocities,
+                  positions=p.positions)
 
 
 #: Most oscilloscope samples (record_length x n_average) a measured channel may draw.

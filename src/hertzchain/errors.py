@@ -40,6 +40,10 @@ class ElasticLimitWarning(UserWarning):
     """Contact forces passed the elastic limit (yield) estimated as in the paper, Sec. II."""
 
 
+class DurationWarning(UserWarning):
+    """An automatic run duration (``duration = "auto"``) may be too short for the wall pulse."""
+
+
 class HertzRangeWarning(UserWarning):
     """A contact overlap passed the range of Hertz theory (a fraction of the smaller radius, paper eq. 1)."""
 

@@ -32,12 +32,16 @@ class Probes:
         and the two contacts of every sensor bead are always computed.
     velocities
         Also store the velocity of every body (0 = striker, 1..N beads).
+    positions:
+        Also store the displacement of every body from its place at impact [m] (what
+        ``hertzchain animate`` draws; off by default, so ordinary results stay small).
     """
 
     sample_interval: float = 1e-7
     sensors: tuple[int, ...] = field(default=())
     contacts: tuple[int, ...] | None = None
     velocities: bool = False
+    positions: bool = False
 
     def __post_init__(self) -> None:
         if not (isinstance(self.sample_interval, (int, float)) and math.isfinite(self.sample_interval)

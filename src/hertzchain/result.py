@@ -12,14 +12,17 @@ import datetime as _dt
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
 
 from . import __version__
-from .integrate.verlet import RawRun
 from .model import Model
 from .probes import Probes, sensor_forces
+
+if TYPE_CHECKING:  # the compiled kernels load only when a run is made, not to read a result
+    from .integrate.verlet import RawRun
 
 __all__ = ["build_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes"]
 
@@ -42,6 +45,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "wall_force": ("N", "force on the wall sensor (contact N)"),
     "sensor_force": ("N", "force read by the sensor embedded in the bead, (F_{n-1} + F_n)/2"),
     "velocity": ("m s-1", "velocity of body (0 = striker)"),
+    "displacement": ("m", "displacement of body (0 = striker) from its place at impact, along the chain"),
 }
 
 #: The ``conventions`` attribute of every result: where units and numbering are defined.
@@ -107,6 +111,8 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         arrays["sensor_force"] = (("time", "sensor"), sensor_forces(raw.contact_force, raw.contacts, probes.sensors))
     if raw.velocity is not None:
         arrays["velocity"] = (("time", "body"), raw.velocity)
+    if raw.displacement is not None:
+        arrays["displacement"] = (("time", "body"), raw.displacement)
     data = {}
     for name, (dims, values) in arrays.items():
         units, long_name = VARIABLES[name]
@@ -115,7 +121,7 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
     coord_values = {"time": raw.time, "contact": wanted, "contact_all": np.arange(nc), "bead": np.arange(1, n + 1)}
     if probes.sensors:
         coord_values["sensor"] = np.array(probes.sensors)
-    if raw.velocity is not None:
+    if raw.velocity is not None or raw.displacement is not None:
         coord_values["body"] = np.arange(n + 1)
     coords = {name: (name, values, dict(COORDINATES[name])) for name, values in coord_values.items()}
 

@@ -7,20 +7,61 @@ import math
 import warnings
 from typing import Callable, Literal
 
+import numpy as np
 import xarray as xr
 
 from .checks import check_after_run, check_before_run
-from .errors import ConfigError, ElasticLimitWarning
-from .integrate.reference import run_reference
-from .integrate.verlet import run_verlet
+from .errors import ConfigError, DurationWarning, ElasticLimitWarning
 from .model import Model
 from .probes import Probes
-from .result import build_dataset
 
-__all__ = ["simulate", "warn_elastic_limit"]
+__all__ = ["simulate", "warn_elastic_limit", "auto_duration", "elastic_limit_message"]
+
+#: Bead masses a solitary wave sets in motion, in units of its peak bead velocity: the particle
+#: velocity of Nesterenko's wave is V_m cos^4 over 5 pi / sqrt(10) bead diameters (paper eq. 3-4),
+#: whose sum over beads is (3/8) 5 pi / sqrt(10) = 1.86 V_m.
+WAVE_MASS_BEADS = 1.86
+#: Margin of the automatic duration over the ballistic estimate (dissipation slows the pulse:
+#: eps = 0.985 costs 9 % of the speed over 30 beads, paper eq. 8 with q = 0).
+AUTO_MARGIN = 1.25
+#: Pulse durations allowed after the front's arrival for the pulse and its tail to pass.
+AUTO_TAIL_DURATIONS = 6.0
 
 
-def simulate(model: Model, duration: float, probes: Probes | None = None, *,
+def auto_duration(model: Model) -> float:
+    """Simulated time [s] long enough for the front to cross the chain and its tail to pass.
+
+    From the slowest pulse the striker can launch: the chain receives at least the striker's
+    momentum m_s v_0, carried by a solitary wave that moves WAVE_MASS_BEADS bead masses, so its
+    peak bead velocity in bead n is at least V_n = v_0 min(m_s, m_n) / (1.86 m_n) (a heavier
+    striker launches waves no slower than one of the bead's own mass). Eq. 5 (second form) turns
+    V_n into the speed c_n; the front arrives after T = sum phi_n / c_n and the pulse lasts
+    tau = sqrt(10) phi_N / (2 c_N) (paper Sec. III). The duration is
+    AUTO_MARGIN (T + AUTO_TAIL_DURATIONS tau).
+
+    Parameters
+    ----------
+    model : Model
+        Chain, striker, wall and law (precompression only makes the pulse faster).
+
+    Returns
+    -------
+    float
+        Duration [s].
+    """
+    from .theory import pulse_duration, solitary_wave_speed_from_velocity
+
+    chain = model.chain
+    m = chain.masses
+    v0 = model.striker.velocity
+    vm = v0 * np.minimum(model.striker.mass, m) / (WAVE_MASS_BEADS * m)
+    speed = np.array([solitary_wave_speed_from_velocity(mat, v) for mat, v in zip(chain.materials, vm)])
+    arrival = float(np.sum(chain.diameters / speed))
+    tau = float(pulse_duration(chain.diameters[-1], speed[-1]))
+    return AUTO_MARGIN * (arrival + AUTO_TAIL_DURATIONS * tau)
+
+
+def simulate(model: Model, duration: float | str = "auto", probes: Probes | None = None, *,
              integrator: Literal["verlet", "dop853", "rk45"] = "verlet", dt: float | None = None,
              rtol: float = 1e-10, progress: Callable[[int, int], None] | None = None,
              config: dict | None = None) -> xr.Dataset:
@@ -31,7 +72,8 @@ def simulate(model: Model, duration: float, probes: Probes | None = None, *,
     model
         Chain, striker, wall and contact law.
     duration
-        Simulated time [s] after impact.
+        Simulated time [s] after impact, or ``"auto"`` (:func:`auto_duration`; the result's
+        attribute ``duration`` holds the value, and ``duration_mode = "auto"`` says how it came).
     probes
         What to record (default: every contact force and the energies every 100 ns).
     integrator
@@ -68,7 +110,13 @@ def simulate(model: Model, duration: float, probes: Probes | None = None, *,
         Overlaps beyond Hertz theory; a record that ends before the pulse reaches the wall; a run
         projected to take more than a few minutes.
     """
+    from .integrate.verlet import run_verlet
+    from .result import build_dataset
+
     probes = probes or Probes()
+    mode = "given"
+    if isinstance(duration, str) and duration == "auto":
+        duration, mode = auto_duration(model), "auto"
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise ConfigError("run.duration", f"must be a positive time in s, got {duration!r}")
     if probes.sample_interval > duration:
@@ -81,24 +129,88 @@ def simulate(model: Model, duration: float, probes: Probes | None = None, *,
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     if integrator == "verlet":
         raw = run_verlet(system, duration, probes.sample_interval, dt=dt, record_velocities=probes.velocities,
-                         contacts=rec, progress=progress)
+                         contacts=rec, progress=progress, record_positions=probes.positions)
     else:
+        from .integrate.reference import run_reference  # scipy.integrate: loaded only for these
+
         raw = run_reference(system, duration, probes.sample_interval, method=integrator.upper(), rtol=rtol,
-                            record_velocities=probes.velocities)
-    ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system)
+                            record_velocities=probes.velocities, record_positions=probes.positions)
+    ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system,
+                       extra_attrs={"duration_mode": "auto"} if mode == "auto" else None)
     check_after_run(ds, model, system, dt=dt, integrator=integrator, rtol=rtol, stacklevel=3)
     warn_elastic_limit(ds, stacklevel=3)
+    if mode == "auto" and "wall_force" in ds and ds.attrs["peak_wall_time"] > 0.8 * duration:
+        warnings.warn(DurationWarning(
+            f"the automatic duration ({duration * 1e3:.3g} ms) may cut the wall pulse (its peak comes at "
+            f"{ds.attrs['peak_wall_time'] * 1e3:.3g} ms); set run.duration longer"), stacklevel=2)
     return ds
 
 
+def _ranges(indices: list[int]) -> str:
+    """``[0, 1, 2, 5, 7, 8]`` -> ``"0-2, 5, 7-8"``."""
+    parts, start = [], None
+    for k, c in enumerate(indices):
+        if start is None:
+            start = c
+        if k + 1 == len(indices) or indices[k + 1] != c + 1:
+            parts.append(f"{start}" if c == start else f"{start}-{c}")
+            start = None
+    return ", ".join(parts)
+
+
+def elastic_limit_message(ds: xr.Dataset, where: str = "") -> str | None:
+    """One line on the contacts past the elastic limit of a result, or None when there are none.
+
+    Names the worst contact and its ratio F_max / F_Y, and the range(s) of contacts past the
+    limit (F_Y: mean contact pressure = yield stress, paper Sec. II).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result of :func:`simulate` (uses ``max_contact_force`` and ``yield_force``).
+    where : str
+        Prefix naming the run (e.g. ``"chain 1 cut after bead 20: "``).
+
+    Returns
+    -------
+    str or None
+        The message.
+    """
+    fmax, fy = getattr(ds, "max_contact_force", None), getattr(ds, "yield_force", None)
+    if fmax is None or fy is None:
+        return None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.asarray(getattr(fmax, "values", fmax), dtype=float) / np.asarray(getattr(fy, "values", fy), dtype=float)
+    ratio = np.where(np.isfinite(ratio), ratio, 0.0)
+    over = np.flatnonzero(ratio > 1.0).tolist()
+    if not over:
+        return None
+    worst = int(np.argmax(ratio))
+    try:
+        n = len(json.loads(ds.attrs["model"])["chain"]["diameters_mm"])
+    except (KeyError, TypeError, ValueError):
+        n = -1
+    name = ("striker-bead 1" if worst == 0 else "bead N-wall" if worst == n else f"bead {worst}-bead {worst + 1}")
+    return (f"{where}contact forces pass the elastic limit F_Y of the paper (Sec. II) at {len(over)} of "
+            f"{ratio.size} contacts ({_ranges(over)}); worst: contact {worst} ({name}) at "
+            f"{ratio[worst]:.2f} x F_Y. Beads would yield plastically: lower the striker velocity")
+
+
 def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> None:
-    """Warn (ElasticLimitWarning) when the result records forces past the elastic limit."""
+    """Warn (ElasticLimitWarning, :func:`elastic_limit_message`) when the result records forces
+    past the elastic limit.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result of :func:`simulate`.
+    where : str
+        Prefix naming the run in the message.
+    stacklevel : int
+        Passed on to :func:`warnings.warn`.
+    """
     if not ds.attrs.get("elastic_limit_exceeded", 1):
         return
-    over = json.loads(ds.attrs["elastic_limit_contacts"])
-    if over:
-        ratio = ds.attrs.get("elastic_limit_ratio") or float((ds.max_contact_force / ds.yield_force).max())
-        warnings.warn(ElasticLimitWarning(
-            f"{where}contact forces pass the elastic limit of the paper (Sec. II) at contacts {over} "
-            f"(up to {ratio:.2f} x F_Y); beads would yield plastically: lower the striker velocity"),
-            stacklevel=stacklevel + 1)
+    msg = elastic_limit_message(ds, where)
+    if msg:
+        warnings.warn(ElasticLimitWarning(msg), stacklevel=stacklevel + 1)

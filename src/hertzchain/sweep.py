@@ -57,7 +57,7 @@ import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Iterator, Literal
+from typing import Any, Callable, Iterable, Iterator, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -421,22 +421,25 @@ def parse_sweep(data: dict) -> SweepConfig:
     return cfg
 
 
-def load_sweep(path: str | Path) -> SweepConfig:
+def load_sweep(path: str | Path, overrides: Iterable[str] = ()) -> SweepConfig:
     """Read and validate a TOML sweep file (see the module docstring).
 
     Parameters
     ----------
     path : str or pathlib.Path
         The sweep file: a ``[base]`` run config and a ``[sweep]`` table.
+    overrides : iterable of str
+        ``--set DOTTED.PATH=VALUE`` assignments relative to ``[base]``
+        (:func:`hertzchain.config.apply_overrides`), in the keys' own units, validated like the file.
 
     Returns
     -------
     SweepConfig
         The validated sweep (members are drawn lazily).
     """
-    from .config import read_toml
+    from .config import apply_overrides, read_toml
 
-    return parse_sweep(read_toml(path, "sweep file"))
+    return parse_sweep(apply_overrides(read_toml(path, "sweep file"), overrides, prefix="base"))
 
 
 # ------------------------------------------------------------------------------ computing chunks
@@ -807,7 +810,13 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     else:
         probes = base_probes
     member_dts = [parse_config(cfg.member_config(i)).run.dt for i in range(cfg.n_members)]
-    _check_sweep_resources(cfg, models, run_cfg.run.duration, probes, member_dts)
+    duration = run_cfg.run.duration
+    if duration == "auto":
+        from .simulation import auto_duration
+
+        # Members share one time axis (the batched engine): the slowest member's duration.
+        duration = max(auto_duration(m) for m in models)
+    _check_sweep_resources(cfg, models, duration, probes, member_dts)
 
     if out.exists() and not out.is_dir():
         raise ConfigError(str(out), "exists and is not a folder; --out names the sweep's output folder")
@@ -817,7 +826,7 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
     with _folder_lock(out):
         chunks_dir = _prepare_out_dir(cfg, out, force)
-        return _run_chunks(cfg, out, chunks_dir, models, run_cfg.run.duration, probes, member_dts, client, progress)
+        return _run_chunks(cfg, out, chunks_dir, models, duration, probes, member_dts, client, progress)
 
 
 def _check_sweep_resources(cfg: SweepConfig, models: list, duration: float, probes, member_dts: list) -> None:

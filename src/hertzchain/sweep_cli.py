@@ -10,6 +10,7 @@ from pathlib import Path
 
 import click
 
+from .cli_options import set_option
 
 @click.command("sweep")
 @click.argument("sweep_file", type=click.Path(dir_okay=False, path_type=Path))
@@ -18,12 +19,14 @@ import click
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Dask scheduler address (e.g. tcp://host:8786); chunks run here when absent.")
 @click.option("--force", is_flag=True, help="Replace the results of a different sweep found in --out.")
+@set_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
-def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, quiet: bool) -> None:
+def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, overrides: tuple[str, ...],
+          quiet: bool) -> None:
     """Run the sweep described by SWEEP_FILE (TOML: [base] run config + [sweep] table).
 
     Finished chunks are written at once, so an interrupted sweep resumes where it stopped when
-    rerun with the same --out. The table OUT/metrics.csv has one row per member: the swept values
+    rerun with the same --out. --set paths are relative to [base] (e.g. --set striker.diameter_mm=10). The table OUT/metrics.csv has one row per member: the swept values
     and the wall-pulse metrics F_m [N], T [s], tau [s], Q_F [N s], Q_T [N s] (paper Sec. III).
     """
     from rich.console import Console
@@ -33,7 +36,7 @@ def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, quiet
     from .errors import ConfigError
     from .sweep import load_sweep, run_sweep
 
-    cfg = load_sweep(sweep_file)
+    cfg = load_sweep(sweep_file, overrides)
     client = None
     if scheduler is not None:
         try:

@@ -190,6 +190,9 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
     nmem = len(models)
     n_samples = int(math.floor(duration / interval + 1e-9)) + 1
 
+    if any(p.positions for p in plist):
+        raise ConfigError("probes.positions", "batches and sweeps do not record positions; simulate the run "
+                          "to animate alone (hertzchain run, hertzchain.simulate)")
     members: list[_Member] = []
     for model, p, dti in zip(models, plist, dts):
         system = model.system()

@@ -64,7 +64,7 @@ def _wall_force(system: System, y: np.ndarray) -> float:
 
 def run_reference(system: System, duration: float, sample_interval: float, method: str = "DOP853",
                   rtol: float = 1e-10, atol_scale: float | None = None,
-                  record_velocities: bool = False) -> RawRun:
+                  record_velocities: bool = False, record_positions: bool = False) -> RawRun:
     """Integrate with ``solve_ivp(method=method, rtol=rtol)`` and sample like :func:`run_verlet`.
 
     ``atol`` is set per component from ``rtol`` and natural scales (overlap of the striker
@@ -116,4 +116,5 @@ def run_reference(system: System, duration: float, sample_interval: float, metho
     return RawRun(time=time, contact_force=forces, kinetic_energy=ke, potential_energy=pe, max_force=forces.max(axis=0),
                   dissipated_energy=sol.y[-1].copy(), velocity=vel if record_velocities else None,
                   peak_wall_force=peak_f, peak_wall_time=peak_t, dt=0.0,
-                  integrator=f"scipy.solve_ivp({method}, rtol={rtol:g})", n_steps=int(sol.nfev), contacts=np.arange(nc))
+                  integrator=f"scipy.solve_ivp({method}, rtol={rtol:g})", n_steps=int(sol.nfev), contacts=np.arange(nc),
+                  displacement=u[:, :nb].copy() if record_positions else None)

@@ -53,6 +53,7 @@ class RawRun:
     contacts: np.ndarray        # contact numbers of the columns of contact_force
     dt_max: float = 0.0         # s, the largest step used (= dt for a fixed step)
     adaptive: bool = False      # True when the step was chosen as the run went
+    displacement: np.ndarray | None = None  # (K, N+1) m, bodies 0..N, when positions were asked for
 
 
 def auto_time_step(system: System, sample_interval: float | None = None) -> float:
@@ -165,7 +166,8 @@ def refine_peak(peak: np.ndarray) -> tuple[float, float]:
 
 def run_verlet(system: System, duration: float, sample_interval: float, dt: float | None = None,
                record_velocities: bool = False, contacts: np.ndarray | None = None,
-               progress: Callable[[int, int], None] | None = None, chunk_steps: int = 2_000_000) -> RawRun:
+               progress: Callable[[int, int], None] | None = None, chunk_steps: int = 2_000_000,
+               record_positions: bool = False) -> RawRun:
     """Integrate ``system`` for ``duration`` [s] with the compiled velocity Verlet.
 
     Probes are sampled every ``sample_interval`` [s]; the step is ``dt`` [s], shortened if needed
@@ -192,7 +194,12 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     acc = np.zeros(8)
     initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc)
 
-    samples_per_chunk = max(1, round(chunk_steps * plan.dt / sample_interval))
+    samples_per_chunk = 1 if record_positions else max(1, round(chunk_steps * plan.dt / sample_interval))
+    out_u = np.empty((n_samples, nb)) if record_positions else None
+    if out_u is not None:
+        out_u[0] = u[:nb]
+    report_every = max(1, round(chunk_steps * plan.dt / sample_interval))
+    reported = 1
     if progress is not None:
         progress(0, n_samples - 1)  # the checks passed and the work starts
     k = 1
@@ -210,8 +217,11 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
                       "(contact law parameters, masses, velocities) and report the case")
             raise SimulationDiverged(f"the integration diverged (non-finite state) before "
                                      f"t = {k_stop * sample_interval:.4g} s {advice}")
+        if out_u is not None:
+            out_u[k] = u[:nb]
         k = k_stop
-        if progress is not None:
+        if progress is not None and (k - reported >= report_every or k == n_samples):
+            reported = k
             progress(k - 1, n_samples - 1)
 
     fpk, t_pk = refine_peak(peak)
@@ -220,7 +230,7 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     return RawRun(time=time, contact_force=out_f, kinetic_energy=out_ke, potential_energy=out_pe,
                   dissipated_energy=out_ed, velocity=out_v if record_velocities else None, max_force=fmax,
                   peak_wall_force=fpk, peak_wall_time=t_pk, dt=dt_min, integrator="verlet",
-                  n_steps=int(acc[2]), contacts=rec, dt_max=dt_max, adaptive=plan.adaptive)
+                  n_steps=int(acc[2]), contacts=rec, dt_max=dt_max, adaptive=plan.adaptive, displacement=out_u)
 
 
 def _dt_used(plan: StepPlan, acc: np.ndarray, sample_interval: float) -> tuple[float, float]:

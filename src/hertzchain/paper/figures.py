@@ -66,7 +66,10 @@ STYLE = {
     "axes.linewidth": 0.6, "xtick.major.width": 0.6, "ytick.major.width": 0.6,
     "xtick.direction": "in", "ytick.direction": "in", "xtick.top": True, "ytick.right": True,
     "legend.frameon": False, "legend.handlelength": 1.8, "legend.borderaxespad": 0.3,
-    "mathtext.default": "regular", "pdf.fonttype": 42, "savefig.dpi": 200,
+    "mathtext.default": "regular", "savefig.dpi": 200,
+    # Type 3 fonts in the PDFs: embedding TrueType (type 42) subsets each font with fontTools,
+    # ~0.3 s per font and figure, most of the time --from-data took.
+    "pdf.fonttype": 3,
 }
 
 C1, C2, C3, CK = "#1f77b4", "#d62728", "#2ca02c", "0.2"
@@ -100,8 +103,12 @@ def _tag(ax, text: str, loc: str = "upper left") -> None:
 def save_figure(fig: Figure, out_dir: str | Path, name: str, dpi: int = 200) -> Path:
     """Write ``name.png`` (raster, ``dpi`` dots per inch) and ``name.pdf`` (vector) into ``out_dir``.
 
-    The directory is created if needed. Returns the PNG path (the PDF lies beside it, same stem).
+    The directory is created if needed; both files are written atomically. The layout is
+    computed once, for the PNG, and kept for the PDF (the same figure, half the drawing time).
+    Returns the PNG path (the PDF lies beside it, same stem).
     """
+    from ..fileio import atomic_path
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     png = out / f"{name}.png"
@@ -111,6 +118,7 @@ def save_figure(fig: Figure, out_dir: str | Path, name: str, dpi: int = 200) -> 
         # written through hertzchain.fileio: a killed or failed save never leaves half a figure
         with atomic_path(png) as tmp:
             fig.savefig(tmp, dpi=dpi, format="png")
+        fig.set_layout_engine("none")
         with atomic_path(png.with_suffix(".pdf")) as tmp:
             fig.savefig(tmp, format="pdf")
     return png
@@ -156,6 +164,22 @@ def _spectra(study):
     spec = analysis.compare_spectra(cuts[0][0], cuts[0][1], cuts[1][0], cuts[1][1], nfft=nfft,
                                     window="hann", normalize="max")
     return spec, n_in, n_out
+
+
+def _in_window(x_ms: np.ndarray, f: np.ndarray, window: tuple[float, float] = PULSE_WINDOW_MS, margin: float = 0.05):
+    """The samples of a pulse inside the shown window [ms] (a little beyond): drawing the whole
+    8 ms record in every panel cost most of the drawing time."""
+    sel = (x_ms >= window[0] - margin) & (x_ms <= window[1] + margin)
+    return x_ms[sel], f[sel]
+
+
+def _spectrum_extent(freq: np.ndarray, power: np.ndarray, level: float) -> float:
+    """Frequency [Hz] beyond which the max-normalised ``power`` stays below ``level``, rounded up
+    to 1, 2 or 5 times a power of ten."""
+    above = np.nonzero(power >= level * power.max())[0]
+    f = float(freq[above[-1]]) if above.size else float(freq[-1])
+    p = 10 ** math.floor(math.log10(f))
+    return next(m * p for m in (1, 2, 5, 10) if m * p >= f)
 
 
 def _bandwidth(freq: np.ndarray, power: np.ndarray, level: float = BANDWIDTH_LEVEL) -> float:
@@ -233,15 +257,14 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
     ax = flat[0]
     t, f = _wall_signal(study, n0)
     fit = study.wall_fits[n0]
-    ax.plot(t_ms(t, fit.time_of_flight), f, color=CK, label=f"wall, chain of {n0} beads")
+    ax.plot(*_in_window(t_ms(t, fit.time_of_flight), f), color=CK, label=f"wall (n = {n0})")
     ts, fs = _sensor_signal(study, SENSOR_BEAD)
     sfit = study.sensor_fits[SENSOR_BEAD]
-    ax.plot(t_ms(ts, sfit.time_of_flight), fs, color=C1, ls="--",
-            label=f"sensor in bead {SENSOR_BEAD}")
+    ax.plot(*_in_window(t_ms(ts, sfit.time_of_flight), fs), color=C1, ls="--", label=f"sensor, bead {SENSOR_BEAD}")
     ax.text(0.97, 0.95, f"$\\phi$ = {study.chain.diameters[0] * 1e3:.0f} mm\n"
             f"$F_m$ = {fit.peak_force:.2f} N\n$\\tau$ = {fit.duration * 1e6:.0f} $\\mu$s",
             transform=ax.transAxes, ha="right", va="top")
-    ax.legend(loc="center right", bbox_to_anchor=(1.0, 0.38))
+    ax.legend(loc="upper right", bbox_to_anchor=(1.0, 0.66))  # right of the pulse, under the numbers
     _tag(ax, "(a)")
     fmax = max(float(np.max(f)), float(np.max(fs)))
 
@@ -251,8 +274,7 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
         ax = flat[k + 1]
         t, f = _wall_signal(study, n)
         fit = study.wall_fits[n]
-        x = t_ms(t, fit.time_of_flight)
-        ax.plot(x, f, color=CK)
+        ax.plot(*_in_window(t_ms(t, fit.time_of_flight), f), color=CK)
         xm = np.linspace(-math.pi / 2 * fit.duration, 0.0, 80)
         ax.plot(xm * 1e3, fit.model(xm + fit.time_of_flight), color=C2, ls="--", lw=0.9)
         ax.text(0.97, 0.95, f"n = {n}, $\\phi_{{{n}}}$ = {study.chain.diameters[n - 1] * 1e3:g} mm\n"
@@ -272,22 +294,26 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
     # (h) power spectra: incoming (uniform chain) and outgoing (full tapered chain)
     ax = flat[7]
     spec, n_in, n_out = _spectra(study)
-    for freq, power, c, col, lab in ((spec.freq_in, spec.power_in, spec.centroid_in, C1,
-                                      f"in: n = {n_in} (uniform)"),
-                                     (spec.freq_out, spec.power_out, spec.centroid_out, C2,
-                                      f"out: n = {n_out}")):
-        ax.semilogy(freq * 1e-3, power, color=col, label=lab)
-        ax.axvline(c * 1e-3, color=col, ls="--", lw=0.8)
-    ax.set_xlim(0, 40)
+    # Log frequency axis from 0.2 kHz to where the outgoing spectrum leaves the plot (1e-8): the
+    # two centroids, ~20 % apart, stay distinguishable and no part of the axis is empty.
+    f_hi = _spectrum_extent(spec.freq_out, spec.power_out, 1e-8)
+    for freq, power, c, col, ls, lab in ((spec.freq_in, spec.power_in, spec.centroid_in, C1, "--",
+                                          f"in: n = {n_in} (uniform)"),
+                                         (spec.freq_out, spec.power_out, spec.centroid_out, C2, ":",
+                                          f"out: n = {n_out}")):
+        keep = (freq > 0) & (freq <= f_hi)
+        ax.loglog(freq[keep] * 1e-3, power[keep], color=col, label=lab)
+        ax.axvline(c * 1e-3, color=col, ls=ls, lw=0.9)
+    ax.set_xlim(0.2, f_hi * 1e-3)
     ax.set_ylim(1e-8, 3)
     ax.set_xlabel("f [kHz]")
     ax.set_ylabel("power [arb. units]")
-    ax.legend(loc="upper right")
     bw_in, bw_out = _bandwidth(spec.freq_in, spec.power_in), _bandwidth(spec.freq_out, spec.power_out)
-    ax.text(0.97, 0.66, f"centroid (dashed): {spec.centroid_in * 1e-3:.1f} $\\to$ "
-            f"{spec.centroid_out * 1e-3:.1f} kHz\n-20 dB bandwidth: {bw_in * 1e-3:.1f} $\\to$ "
-            f"{bw_out * 1e-3:.1f} kHz", transform=ax.transAxes, ha="right", va="top")
-    _tag(ax, "(h)", "lower right")
+    # One box in the empty lower left (low frequencies, low power): the numbers, then the key.
+    ax.legend(loc="lower left", title=f"centroids (vertical lines):\n{spec.centroid_in * 1e-3:.2f} $\\to$ "
+              f"{spec.centroid_out * 1e-3:.2f} kHz\n-20 dB bandwidth:\n{bw_in * 1e-3:.1f} $\\to$ "
+              f"{bw_out * 1e-3:.1f} kHz", title_fontsize=7, alignment="left")
+    _tag(ax, "(h)", "upper right")
     desc = settings.describe() if hasattr(settings, "describe") else {}
     run = (f"; {desc.get('law', '?')} contacts, striker {desc.get('striker_diameter', math.nan) * 1e3:g} mm at "
            f"{desc.get('striker_velocity', math.nan):g} m/s") if desc else ""
@@ -306,7 +332,8 @@ def fig1(study1, settings) -> Figure:
     22, 24, 26, 28 against t - T, with the cos^6 fit of the loading part (dotted); all force
     panels share one force scale so the decay is visible; (h) power spectra (arbitrary units,
     each normalised to its maximum) of the wall pulse of the uniform chain (in) and of the full
-    chain (out), cut to T +- 0.6 ms with a Hann window, with their spectral centroids (dashed).
+    chain (out), cut to T +- 0.6 ms with a Hann window, on log-log axes up to where the outgoing
+    spectrum falls below 1e-8, with their spectral centroids (vertical lines).
 
     Parameters
     ----------
@@ -336,7 +363,9 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
     28 (phi = 9 mm), the bead touching the wall; (c) wall force of chain 1 cut after bead 24
     (reference) and with the dq/q = +1 and -1 single-bead substitutions. In each panel the time
     axis is t - T with T the time of flight of the panel's reference (aligned / unmodified)
-    chain, so arrival-time shifts stay visible.
+    chain, so arrival-time shifts stay visible. The offsets change F by less than 0.1 % of F_m,
+    so below (a) and (b) the difference from the aligned chain, F - F(aligned) [mN], is drawn on
+    its own scale (a', b'), titled with the changes of the cos^6 fits (F_m, tau, T).
 
     Parameters
     ----------
@@ -347,8 +376,13 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
     settings:
         The run's settings (unused beyond the title; kept for a uniform signature).
     """
-    fig = _figure(3.4, 7.2)
-    axes = fig.subplots(3, 1)
+    fig = _figure(3.4, 8.6)
+    # (a), (b): the forces, and below each the difference from the aligned chain on its own
+    # scale (the effect is < 0.1 % of F_m: the curves above coincide); (c) differs visibly.
+    grid = fig.add_gridspec(5, 1, height_ratios=[2.0, 1.15, 2.0, 1.15, 2.3])
+    axes = [fig.add_subplot(grid[i]) for i in range(5)]
+    force_axes = [axes[0], axes[2], axes[4]]
+    diff_axes = [axes[1], axes[3], None]
     beads = sorted({b for b, _ in misalignment})
     colours = [CK, C1, C2, C3, "#9467bd", "#8c564b"]
     styles = ["-", "--", "-.", ":", "-", "--"]
@@ -375,31 +409,45 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
         short.append(lab.split(" (")[0].replace("dq/q = ", ""))
     panels.append((f"chain 1 cut after bead {ref_phi.size}: one bead substituted", labelled, short))
 
-    for k, (ax, (title, entries, short)) in enumerate(zip(axes, panels)):
+    for k, (ax, dax, (title, entries, short)) in enumerate(zip(force_axes, diff_axes, panels)):
         ref_ds = entries[0][1]
         ref_fit = analysis.fit_pulse(ref_ds.time.values, ref_ds.wall_force.values)
+        t_ref = ref_fit.time_of_flight
+        shown = lambda t: (t - t_ref >= PULSE_WINDOW_MS[0] * 1e-3) & (t - t_ref <= PULSE_WINDOW_MS[1] * 1e-3)  # noqa: E731
         fmax = 0.0
         deltas = []
         for j, (lab, ds) in enumerate(entries):
             t, f = ds.time.values, ds.wall_force.values
+            sel = shown(t)
             if j > 0:  # the changes are small: quote them (cos^6 fit of each pulse)
                 fit = analysis.fit_pulse(t, f)
-                deltas.append(f"{short[j]}:  {100 * (fit.peak_force / ref_fit.peak_force - 1):+.2f}   "
-                              f"{100 * (fit.duration / ref_fit.duration - 1):+.2f}   "
-                              f"{1e6 * (fit.time_of_flight - ref_fit.time_of_flight):+.1f}")
-            ax.plot((t - ref_fit.time_of_flight) * 1e3, f, color=colours[j % 6], ls=styles[j % 6],
-                    label=lab)
-            fmax = max(fmax, float(np.max(f[(t - ref_fit.time_of_flight) < PULSE_WINDOW_MS[1] * 1e-3])))
+                deltas.append(f"{short[j]}: $\\Delta F_m$ {100 * (fit.peak_force / ref_fit.peak_force - 1):+.2f} %, "
+                              f"$\\Delta\\tau$ {100 * (fit.duration / ref_fit.duration - 1):+.2f} %, "
+                              f"$\\Delta T$ {1e6 * (fit.time_of_flight - t_ref):+.1f} $\\mu$s")
+                if dax is not None:
+                    diff = (f - np.interp(t, ref_ds.time.values, ref_ds.wall_force.values)) * 1e3
+                    dax.plot((t[sel] - t_ref) * 1e3, diff[sel], color=colours[j % 6], ls=styles[j % 6])
+            ax.plot((t[sel] - t_ref) * 1e3, f[sel], color=colours[j % 6], ls=styles[j % 6], label=lab)
+            fmax = max(fmax, float(np.max(f[sel])))
         ax.set_xlim(*PULSE_WINDOW_MS)
-        ax.set_ylim(-0.04 * fmax, 1.62 * fmax)
-        ax.set_xlabel("t - T [ms]")
+        ax.set_ylim(-0.04 * fmax, 1.7 * fmax)
         ax.set_ylabel("F [N]")
-        ax.set_title(title, pad=3)
-        ax.legend(loc="upper left", bbox_to_anchor=(0.0, 0.9))
-        ax.text(0.99, 0.97, "vs. " + short[0] + ":  $\\Delta F_m$ [%]  $\\Delta\\tau$ [%]  "
-                "$\\Delta T$ [$\\mu$s]\n" + "\n".join(deltas), transform=ax.transAxes, ha="right",
-                va="top", fontsize=7, linespacing=1.5)
+        table = f"vs. {short[0]}:\n" + "\n".join(deltas)
+        ax.set_title(title + ("\n" + table if dax is None else ""), pad=3, fontsize=7.5)
+        ax.legend(loc="upper right")
         _tag(ax, f"({'abc'[k]})")
+        if dax is None:
+            ax.set_xlabel("t - T [ms]")
+            continue
+        ax.tick_params(labelbottom=False)
+        dax.sharex(ax)
+        dax.axhline(0.0, color=CK, lw=0.6)
+        dax.set_ylabel("F - F(aligned)\n[mN]")
+        dax.set_xlabel("t - T [ms]")
+        dax.set_title(table, fontsize=7, pad=2, loc="left")
+        lo, hi = dax.get_ylim()
+        dax.set_ylim(lo, hi + 0.25 * (hi - lo))  # room for the panel tag
+        _tag(dax, f"({'ab'[k]}')")
     return fig
 
 
@@ -407,7 +455,8 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
 # Fig. 4
 # ------------------------------------------------------------------------------------------
 def _collapse_records(study1, study2):
-    """(label, bead, chain index, x, y) of every pulse of Figs. 1-2, rescaled by its fit."""
+    """(label, bead, chain index, x, y) of every pulse of Figs. 1-2, rescaled by its fit
+    (x = (t - T)/tau, y = (F - baseline)/F_m of the cos^6 fit)."""
     out = []
     for ci, study in enumerate((study1, study2)):
         n0 = _n0(study)
@@ -422,6 +471,17 @@ def _collapse_records(study1, study2):
             x, y = analysis.collapse(t, f, study.sensor_fits[SENSOR_BEAD])
             out.append((f"sensor, bead {SENSOR_BEAD}", SENSOR_BEAD, -1, x, y))
     return out
+
+
+def _peak_normalised(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Divide a collapsed pulse by its maximum near (t - T)/tau = 0, so F_m is the pulse's peak.
+
+    The cos^6 fit of the loading part gives T and tau; its amplitude is the peak of the wall
+    pulses within ~0.5 %, but the embedded sensor reads the mean of two contacts a little
+    apart in time, whose peak the loading fit misses by ~3 % (it showed as a curve peaking at 1.03).
+    """
+    near = np.abs(x) < 1.0
+    return x, y / float(np.max(y[near]))
 
 
 def _collapse_rms(records) -> float:
@@ -439,7 +499,8 @@ def fig4(study1, study2) -> Figure:
 
     Every pulse of Figs. 1-2 (wall force of both chains cut after beads 16, 18, ..., 28 and the
     embedded sensor of the uniform part) is plotted as (F - baseline)/F_m against (t - T)/tau,
-    with F_m, T, tau from its own cos^6 fit of the loading part. Colour: bead number n; solid:
+    with T, tau (and the baseline) from its own cos^6 fit of the loading part and F_m its peak
+    (the text quotes the rms deviation of the fits themselves). Colour: bead number n; solid:
     chain 1, dashed: chain 2, dotted: the sensor. The thick black curve is Nesterenko's cos^6
     over the loading part, the fitted range.
     """
@@ -451,6 +512,7 @@ def fig4(study1, study2) -> Figure:
     lo, hi = min(beads), max(beads)
     norm = matplotlib.colors.Normalize(lo, hi)
     for lab, n, ci, x, y in records:
+        x, y = _peak_normalised(x, y)
         sel = (x > -2.5) & (x < 3.5)
         ls = {0: "-", 1: "--", -1: ":"}[ci]
         ax.plot(x[sel], y[sel], color=cmap(norm(n)), ls=ls, lw=0.8)
@@ -467,8 +529,8 @@ def fig4(study1, study2) -> Figure:
     sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
     cb = fig.colorbar(sm, ax=ax, pad=0.01, fraction=0.05)
     cb.set_label("bead n")
-    ax.text(0.03, 0.95, f"max rms deviation\nfrom $\\cos^6$ on the\nloading part: {_collapse_rms(records):.3f}",
-            transform=ax.transAxes, ha="left", va="top", fontsize=7)
+    ax.text(0.03, 0.95, f"rms deviation of\nthe $\\cos^6$ fits\n(loading part)\n$\\leq$ {_collapse_rms(records):.3f}",
+            transform=ax.transAxes, ha="left", va="top", fontsize=7)  # above the rise, left of the peak
     return fig
 
 
@@ -589,13 +651,16 @@ def fig6(study1, study2, settings) -> Figure:
 
         ax = axes[0, col]
         ax.plot(n_s, T_s * 1e3, "o", color=CK, mfc="none", label="embedded sensors")
-        ax.plot(n_w, T_w * 1e3, "o", color=CK, label=f"wall, shifted {shift_us:+.0f} $\\mu$s")
+        ax.plot(n_w, T_w * 1e3, "o", color=CK, label=f"wall, shifted {shift_us:+.0f} $\\mu$s\n"
+                f"(to meet the sensors at n = {n0})")
         ax.plot(beads0, T_q0 * 1e3, color=C2, ls="--", label="T($\\epsilon$; q = 0)")
         ax.plot(beads0[n0:], T_q[n0:] * 1e3, color=C1, label=f"ballistic, q = {study.q * 100:.2f} %")
         ax.set_ylabel("T [ms]")
-        ax.legend(loc="upper left")
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo - 0.2 * (hi - lo), hi)  # room below the data for the key
+        ax.legend(loc="lower right")  # the empty corner: late beads, short times
         ax.set_title(f"chain {label} ($q_{label}$)")
-        _tag(ax, f"(a{label})", "lower right")
+        _tag(ax, f"(a{label})", "upper left")
 
         ax = axes[1, col]
         ax.axhline(0, color=C2, ls="--", lw=0.8)
@@ -646,8 +711,8 @@ def figure_summary(study1, study2, misalignment: dict | None = None,
     (largest rms deviation from cos^6 on the loading part, Fig. 4) and ``collapse_pulses`` (how many
     pulses Fig. 4 draws), ``wall_tof_shift_s``
     {chain: shift of Fig. 6a}, ``tof_gain_s`` {chain: T(eps; q=0) - T at the last bead};
-    with the Fig. 3 data also ``misalignment`` {"bead:fraction": {offset_m, peak_force,
-    duration, time_of_flight}} and ``substitutions`` {label: {peak_force, duration,
+    with the Fig. 3 data also ``misalignment`` [{bead, offset_fraction, offset_m, peak_force,
+    duration, time_of_flight}] (one entry per run) and ``substitutions`` {label: {peak_force, duration,
     time_of_flight}} (from the cos^6 fit of each wall pulse).
     """
     out: dict = {"spectra": {}, "wall_tof_shift_s": {}, "tof_gain_s": {}}
@@ -667,13 +732,13 @@ def figure_summary(study1, study2, misalignment: dict | None = None,
     out["collapse_rms"] = _collapse_rms(records)
     out["collapse_pulses"] = len(records)
     if misalignment:
-        rows = {}
+        rows = []
         for (b, fr), ds in sorted(misalignment.items()):
             fit = analysis.fit_pulse(ds.time.values, ds.wall_force.values)
-            rows[f"{b}:{fr:g}"] = {"bead": int(b), "fraction": float(fr),
-                                   "offset_m": float(fr * ds.diameter.sel(bead=b)),
-                                   "peak_force": fit.peak_force, "duration": fit.duration,
-                                   "time_of_flight": fit.time_of_flight}
+            rows.append({"bead": int(b), "offset_fraction": float(fr),
+                         "offset_m": float(fr * ds.diameter.sel(bead=b)),
+                         "peak_force": fit.peak_force, "duration": fit.duration,
+                         "time_of_flight": fit.time_of_flight})
         out["misalignment"] = rows
     if substitutions:
         out["substitutions"] = {}

@@ -11,7 +11,10 @@
 - per-bead tables of the wall pulse and the exact parameters of the run.
 
 The HTML file embeds the figures as base64 PNG and has its CSS inline: it opens anywhere with no
-other file. Both documents are generated from one list of blocks, so they always say the same.
+other file; MathJax (loaded from its CDN) typesets the formulas, which read as TeX source offline.
+Formulas are written as ASCII in the notes (``F_m``, ``tau``, ``Q^(n-n')``) and turned into TeX
+(``$F_m$``, ``$\\tau$``) for both documents; figures are shown at one scale (their size in
+inches). Both documents are generated from one list of blocks, so they always say the same.
 
 Summary keys read (missing ones are skipped, never fatal): ``chain1``/``chain2`` {q, q_std,
 Q_theory, Q_fit, Q_fit_err, beads, peak_force, duration, time_of_flight, front_momentum,
@@ -30,6 +33,7 @@ import base64
 import html
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -231,8 +235,9 @@ def _pulse_note(summary: dict, chain: str, other: str | None) -> tuple[str, str]
               "tau decreases": t_a is not None and t_b is not None and t_b < t_a,
               "a tail grows": qf is not None and qt is not None and qt > 0.2 * qf}
     parts = [f"F_m falls from {_f(f_a, '.2f', 1, 'N')} (n = {n_a}) to {_f(f_b, '.2f', 1, 'N')} (n = {n_b}) "
-             f"and tau from {_f(t_a, '.0f', 1e6)} to {_f(t_b, '.0f', 1e6, 'µs')}, while the tail carries "
-             f"Q_T/Q_F = {_f(qt / qf if qf and qt is not None else None, '.2f')} of the front's momentum at n = {n_b}"]
+             f"and tau from {_f(t_a, '.0f', 1e6)} to {_f(t_b, '.0f', 1e6, 'µs')}, while at n = {n_b} the tail "
+             f"carries {_f(qt / qf if qf and qt is not None else None, '.2f')} times the front's momentum "
+             f"(Q_T/Q_F)"]
     spec = ((summary.get("figures") or {}).get("spectra") or {}).get(chain)
     if spec:
         ci, co = _num(spec.get("centroid_in_hz")), _num(spec.get("centroid_out_hz"))
@@ -274,17 +279,17 @@ def _fig3_note(summary: dict) -> tuple[str, str]:
                       "summary['figures']); compare the curves by eye.")
     parts, verdicts = [], []
     if mis:
-        ref = {r["bead"]: r for r in mis.values() if _num(r.get("fraction")) == 0}
+        ref = {r["bead"]: r for r in mis if _num(r.get("offset_fraction")) == 0}
         worst_dT, worst_dF = 0.0, 0.0
-        for b in sorted({r["bead"] for r in mis.values()}):
-            rows = sorted((r for r in mis.values() if r["bead"] == b), key=lambda r: r["fraction"])
+        for b in sorted({r["bead"] for r in mis}):
+            rows = sorted((r for r in mis if r["bead"] == b), key=lambda r: r["offset_fraction"])
             big, base = rows[-1], ref.get(b)
             if base is None or big is base:
                 continue
             dF = big["peak_force"] / base["peak_force"] - 1
             dT = big["time_of_flight"] - base["time_of_flight"]
             worst_dT, worst_dF = max(worst_dT, abs(dT)), max(worst_dF, abs(dF))
-            parts.append(f"e = {big['offset_m'] * 1e3:.2f} mm ({100 * big['fraction']:.0f} %) at bead {b} changes "
+            parts.append(f"e = {big['offset_m'] * 1e3:.2f} mm ({100 * big['offset_fraction']:.0f} %) at bead {b} changes "
                          f"F_m by {100 * dF:+.2f} % and T by {dT * 1e6:+.1f} µs")
         verdicts.append(f"as in the paper the front pulse speed is unchanged (|dT| <= {worst_dT * 1e6:.1f} µs); "
                         f"the paper's slight amplitude loss and damped tail oscillations are barely present "
@@ -359,7 +364,7 @@ def _fig5_note(summary: dict, settings_desc: dict | None) -> tuple[str, str]:
         spread = _relative_spread([a + b for a, b in zip(qf, qt) if a is not None and b is not None])
         parts.append(f"chain {k}: F_m({N})/F_m({n0}) = {_f(f_sim)} (eq. 7: {f_pred:.3f} with q, {f_pred0:.3f} "
                      f"with q = 0), tau({N})/tau({n0}) = {_f(t_sim)} (eq. 8: {_f(tau_pred)} with q, "
-                     f"{_f(tau_pred0)} with q = 0), Q_F + Q_T constant to {_f(spread, '.0f', 100)} %")
+                     f"{_f(tau_pred0)} with q = 0), Q_F + Q_T constant to {_f(spread, '.0f', 100)} % (relative standard deviation)")
         if f_sim is not None:
             f_dev.append((k, f_sim / f_pred - 1, f_sim < f_pred0))
         if t_sim is not None and tau_pred is not None:
@@ -384,8 +389,10 @@ def _fig5_note(summary: dict, settings_desc: dict | None) -> tuple[str, str]:
                                                   "tapered" if all(c == "tapered" for c in tau_closer) else
                                                   "mixed") + " prediction (the paper: close to the tapered one)")
     if spreads:
-        verdict.append("the total momentum is " + ("conserved to within 10 %, as in the paper" if max(spreads) < 0.1
-                                                   else "not conserved within 10 %, unlike the paper"))
+        worst = 100 * max(spreads)
+        verdict.append(f"the total momentum Q_F + Q_T is conserved to {worst:.0f} % along the chains, as in the paper"
+                       if worst < 10 else f"the total momentum Q_F + Q_T varies by {worst:.0f} % along the chains, "
+                       "unlike the paper (conserved)")
     text = "; ".join(verdict) + f" (predictions with eps = {eps:g})."
     return what, "; ".join(parts) + ". " + text[:1].upper() + text[1:]
 
@@ -445,6 +452,67 @@ def speed_sentence(summary: dict) -> str:
              f"most {100 * dp:.3f} %") + (f" and the normalised durations tau_n / tau_n0 by at most {100 * dt:.3f} %"
                                           if dt is not None else "") +
             (" (Hertz chains have no force scale: F_m ~ v^(6/5), times ~ v^(-1/5))." if ok else "."))
+
+
+# ------------------------------------------------------------------------------------------
+# maths: the notes are written with ASCII formulas (F_m, tau, Q^(n-n')); both documents show
+# them as maths ($...$ for Markdown renderers, MathJax in the HTML page)
+# ------------------------------------------------------------------------------------------
+_GREEK = {"tau": r"\tau", "eps": r"\varepsilon", "phi": r"\phi", "delta": r"\delta", "sigma": r"\sigma",
+          "kappa": r"\kappa", "omega": r"\omega"}
+#: Whole ASCII formulas and their TeX (matched before the single symbols).
+_FORMULAS = [
+    ("(F_m^(n+1)/F_m^n)^(5/6)", r"(F_m^{n+1}/F_m^{n})^{5/6}"),
+    ("v_n = Q^(n-n') v_n'", r"v_n = Q^{n-n'} v_{n'}"),
+    ("phi_0 (1-q)^(n-n0)", r"\phi_0 (1-q)^{n-n_0}"),
+    ("F_m cos^6((t-T)/tau)", r"F_m \cos^6((t-T)/\tau)"),
+    ("T(eps; q = 0)", r"T(\varepsilon; q = 0)"),
+    ("F_m ~ v^(6/5), times ~ v^(-1/5)", r"F_m \propto v^{6/5}$, times $\propto v^{-1/5}"),
+    ("(t - T)/tau", r"(t - T)/\tau"),
+    ("|dT|", r"|\Delta T|"),
+    ("|dF_m|", r"|\Delta F_m|"),
+    ("F/F_m", r"F/F_m"),
+    ("Q_F + Q_T", r"Q_F + Q_T"),
+    ("Q_T/Q_F", r"Q_T/Q_F"),
+    ("F_m,n / F_m,n0", r"F_{m,n} / F_{m,n_0}"),
+    ("tau_n / tau_n0", r"\tau_n / \tau_{n_0}"),
+    ("F_m^wall / F_m^chain", r"F_m^{wall} / F_m^{chain}"),
+    ("tau_wall / tau_chain", r"\tau_{wall} / \tau_{chain}"),
+    ("cos^6", r"\cos^6"),
+]
+_SYMBOL = re.compile(r"(?<![\w$\\])(Q(\d)\^th|[A-Za-z]{1,5}(?:_[A-Za-z0-9']{1,5}|\^\([^)\s]*\)|\^[A-Za-z0-9]+)+"
+                     r"|(?:tau|eps|phi|delta|sigma)(?![\w]))(?![\w(])")
+
+
+def _tex_symbol(token: str) -> str:
+    m = re.fullmatch(r"Q(\d)\^th", token)
+    if m:
+        return f"Q_{m.group(1)}^{{th}}"
+    head = re.match(r"[A-Za-z]+", token).group(0)
+    out = _GREEK.get(head, head)
+    for kind, part in re.findall(r"([_^])(\([^)]*\)|[A-Za-z0-9']+)", token[len(head):]):
+        part = part.strip("()")
+        part = _GREEK.get(part, part)
+        out += f"{kind}{{{part}}}" if len(part) > 1 else f"{kind}{part}"
+    return out
+
+
+def _texify(text: str) -> str:
+    """ASCII formulas of a note -> TeX between $...$ (text already holding $ is left alone)."""
+    if "$" in text:
+        return text
+    marks: list[str] = []
+
+    def keep(tex: str) -> str:
+        marks.append(f"${tex}$")
+        return f"\x00{len(marks) - 1}\x00"
+
+    for ascii_, tex in _FORMULAS:
+        text = text.replace(ascii_, keep(tex))
+    text = re.sub(r"(?<![\w$\\])([A-Za-z]+_[A-Za-z0-9]+|tau|eps)\((\d+)\)",
+                  lambda m: keep(f"{_tex_symbol(m.group(1))}({m.group(2)})"), text)
+    text = _SYMBOL.sub(lambda m: keep(_tex_symbol(m.group(0))), text)
+    return re.sub("\x00(\\d+)\x00", lambda m: marks[int(m.group(1))], text)
 
 
 # ------------------------------------------------------------------------------------------
@@ -531,7 +599,7 @@ def _blocks(summary: dict, figures: dict, settings_desc: dict | None) -> list[tu
             blocks.append(("h3", f"Chain {chain[-1]}"))
             blocks.append(("table",) + table)
     blocks.append(("h2", "Parameters of this run"))
-    blocks.append(("table", ["parameter", "value"], _settings_rows(settings_desc, summary)))
+    blocks.append(("table", ["parameter", "value"], _settings_rows(settings_desc, summary), "verbatim"))
     return blocks
 
 
@@ -546,19 +614,23 @@ def _to_markdown(blocks: list[tuple], out_dir: Path) -> str:
         if kind in ("h1", "h2", "h3"):
             lines += ["#" * int(kind[1]) + " " + b[1], ""]
         elif kind == "p":
-            lines += [b[1], ""]
+            lines += [_texify(b[1]), ""]
         elif kind == "table":
             header, rows = b[1], b[2]
-            lines.append("| " + " | ".join(_md_cell(h) for h in header) + " |")
+            tex = (lambda x: x) if b[3:] == ("verbatim",) else _texify  # parameter names stay code
+            lines.append("| " + " | ".join(_md_cell(tex(h)) for h in header) + " |")
             lines.append("|" + "|".join("---" for _ in header) + "|")
-            lines += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in rows]
+            lines += ["| " + " | ".join(_md_cell(tex(c)) for c in row) + " |" for row in rows]
             lines.append("")
         elif kind == "figure":
             _, name, title, png, what, agree = b
+            what, agree = _texify(what), _texify(agree)
             lines += [f"### {title}", ""]
             if png is not None:
                 rel = os.path.relpath(png.resolve(), out_dir).replace(os.sep, "/")
-                lines += [f"![{title}]({rel})", ""]
+                width = _display_width(png)
+                size = f' width="{width}"' if width else ""
+                lines += [f'<img src="{rel}" alt="{html.escape(title)}"{size}>', ""]
                 pdf = png.with_suffix(".pdf")
                 if pdf.exists():
                     pdf_rel = os.path.relpath(pdf.resolve(), out_dir).replace(os.sep, "/")
@@ -578,14 +650,43 @@ th, td { border: 1px solid #ccd; padding: .25em .6em; text-align: left; vertical
 th { background: #eef0f6; }
 tr:nth-child(even) td { background: #fafbfd; }
 figure { margin: 1em 0 2em 0; }
-figure img { max-width: 100%; border: 1px solid #ddd; }
+figure img { max-width: 100%; border: 1px solid #ddd; box-sizing: border-box; }
 figcaption { font-size: .92em; margin-top: .4em; }
 .missing { color: #a00; }
 """
 
 
+#: Figures are shown at one scale: a full-width figure (7 in, the paper's two columns) spans
+#: the page (_PAGE_PX pixels), a one-column one (3.4 in) half of it.
+_FIGURE_DPI, _PX_PER_INCH = 200, 100
+_PAGE_PX = 7.0 * _PX_PER_INCH
+
+
+def _display_width(png: Path) -> int | None:
+    """Width [px] to show a figure at, from its PNG size (written at _FIGURE_DPI)."""
+    try:
+        head = png.read_bytes()[:24]
+    except OSError:
+        return None
+    if head[:8] != b"\x89PNG\r\n\x1a\n":
+        return None
+    return round(int.from_bytes(head[16:20], "big") / _FIGURE_DPI * _PX_PER_INCH)
+
+
+#: MathJax typesets the $...$ formulas of the page (shown as TeX source when offline).
+_MATHJAX = ("<script>window.MathJax = {tex: {inlineMath: [['\\\\(', '\\\\)']]}};</script>"
+            '<script id="MathJax-script" async src="https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-chtml.js">'
+            "</script>")
+
+
+def _html_math(text: str) -> str:
+    """Escape a note for HTML and mark its formulas \\(...\\) for MathJax."""
+    return re.sub(r"\$([^$]+)\$", lambda mm: f"\\({mm.group(1)}\\)", html.escape(_texify(str(text))))
+
+
 def _to_html(blocks: list[tuple]) -> str:
     e = html.escape
+    m = _html_math
     body: list[str] = []
     title = "hertzchain reproduction"
     for b in blocks:
@@ -595,25 +696,28 @@ def _to_html(blocks: list[tuple]) -> str:
                 title = b[1]
             body.append(f"<{kind}>{e(b[1])}</{kind}>")
         elif kind == "p":
-            body.append(f"<p>{e(b[1])}</p>")
+            body.append(f"<p>{m(b[1])}</p>")
         elif kind == "table":
             header, rows = b[1], b[2]
-            body.append("<table><thead><tr>" + "".join(f"<th>{e(str(h))}</th>" for h in header)
+            cell = e if b[3:] == ("verbatim",) else m
+            body.append("<table><thead><tr>" + "".join(f"<th>{cell(str(h))}</th>" for h in header)
                         + "</tr></thead><tbody>")
-            body += ["<tr>" + "".join(f"<td>{e(str(c))}</td>" for c in row) + "</tr>" for row in rows]
+            body += ["<tr>" + "".join(f"<td>{cell(str(c))}</td>" for c in row) + "</tr>" for row in rows]
             body.append("</tbody></table>")
         elif kind == "figure":
             _, name, ftitle, png, what, agree = b
             body.append(f'<h3 id="{e(name)}">{e(ftitle)}</h3><figure>')
             if png is not None and png.is_file():
                 data = base64.b64encode(png.read_bytes()).decode("ascii")
-                body.append(f'<img alt="{e(ftitle)}" src="data:image/png;base64,{data}">')
+                width = _display_width(png)
+                size = f' style="width: {100 * width / _PAGE_PX:.1f}%"' if width else ""
+                body.append(f'<img alt="{e(ftitle)}" src="data:image/png;base64,{data}"{size}>')
             else:
                 body.append(f'<p class="missing">figure file missing: {e(str(png))}</p>')
-            body.append(f"<figcaption><b>Shows:</b> {e(what)}<br><b>Against the paper:</b> {e(agree)}"
+            body.append(f"<figcaption><b>Shows:</b> {m(what)}<br><b>Against the paper:</b> {m(agree)}"
                         "</figcaption></figure>")
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-            f"<title>{e(title)}</title><style>{_CSS}</style></head><body>\n"
+            f"<title>{e(title)}</title><style>{_CSS}</style>{_MATHJAX}</head><body>\n"
             + "\n".join(body) + "\n</body></html>\n")
 
 

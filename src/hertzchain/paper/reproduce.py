@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import multiprocessing
+import os
 import time
 from pathlib import Path
 from typing import Callable
@@ -16,7 +18,33 @@ from . import protocol
 from .protocol import ChainStudy, Settings
 from .values import PAPER
 
-__all__ = ["reproduce", "redraw", "load_data", "draw", "count_runs", "build_summary"]
+__all__ = ["reproduce", "redraw", "load_data", "draw", "count_runs", "count_steps", "build_summary",
+           "elastic_limit_summary", "FIGURE_NAMES", "SUMMARY_UNITS"]
+
+#: The figures drawn (one progress step each, then one for the report).
+FIGURE_NAMES = ("fig1", "fig2", "fig3", "fig4", "fig5", "fig6")
+#: Order in which the drawing processes take the figures: the costliest first (Fig. 5, then the
+#: eight-panel Figs. 1-2), so that two processes finish together.
+_DRAW_ORDER = ("fig5", "fig1", "fig2", "fig6", "fig3", "fig4")
+
+#: Units of the summary.json values (SI), written into the file under ``"units"``.
+SUMMARY_UNITS = {
+    "peak_force, uniform_peak_force, yield_force, figures.misalignment[].peak_force": "N",
+    "duration, time_of_flight, T0, uniform_time_of_flight, figures.*.duration, figures.*.time_of_flight, "
+    "figures.wall_tof_shift_s, figures.tof_gain_s, timing (s)": "s",
+    "front_momentum, tail_momentum": "N s",
+    "v1, local_velocity, speed_check.velocities": "m/s",
+    "yield_overlap, figures.misalignment[].offset_m": "m",
+    "diameter_mm": "mm",
+    "figures.spectra.*_hz": "Hz",
+    "q, q_std, Q_*, eps*, *_ratio, max_force_over_yield, *_deviation, offset_fraction, collapse_rms": "1 (dimensionless)",
+    "law.A": "s (Kuwabara-Kono time constant)",
+    "law.gamma": "N s/m",
+}
+
+#: Significant digits kept in summary.json: the automatic step keeps peak forces within 1e-6 of
+#: a DOP853 reference (README), so digits beyond the sixth are noise (e.g. 26.000000000000004).
+SUMMARY_DIGITS = 6
 
 
 def count_runs(settings: Settings) -> int:
@@ -24,6 +52,49 @@ def count_runs(settings: Settings) -> int:
     n1 = PAPER["chain1"]["n_beads"] - PAPER["n0"] + 1
     n2 = PAPER["chain2"]["n_beads"] - PAPER["n0"] + 1
     return n1 + n2 + 6 + 3 + 1 + 10
+
+
+def count_steps(settings: Settings, figures: bool = True) -> int:
+    """Progress steps of a reproduction: every simulation, then each figure and the report."""
+    return count_runs(settings) + (len(FIGURE_NAMES) + 1 if figures else 0)
+
+
+def _round(x, digits: int = SUMMARY_DIGITS):
+    """Round every float of a JSON-like structure to ``digits`` significant digits."""
+    if isinstance(x, dict):
+        return {k: _round(v, digits) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_round(v, digits) for v in x]
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        v = float(x)
+        if not math.isfinite(v) or v == 0:
+            return v if math.isfinite(v) else None
+        return round(v, digits - 1 - math.floor(math.log10(abs(v))))
+    return x
+
+
+def elastic_limit_summary(studies: dict, mis: dict, subs: dict) -> dict:
+    """The elastic-limit check over every run of a reproduction (paper Sec. II).
+
+    Returns ``{"max_force_over_yield", "runs_past_limit", "runs", "message"}``; ``message`` is
+    :func:`hertzchain.simulation.elastic_limit_message` of the worst run (None when no run passes
+    the limit).
+    """
+    from ..simulation import elastic_limit_message
+
+    runs = [(f"{name.replace('chain', 'chain ')} cut after bead {n}: ", ds)
+            for name, s in studies.items() for n, ds in sorted(s.wall.items())]
+    runs += [(f"Fig. 3, chain 2 with bead {b} offset by {100 * fr:g} %: ", ds) for (b, fr), ds in sorted(mis.items())]
+    runs += [(f"Fig. 3c, chain 1 cut after bead 24 ({label}): ", ds) for label, ds in subs.items()]
+    ratios = [float(np.max(ds.max_contact_force.values / ds.yield_force.values)) for _, ds in runs]
+    worst = int(np.argmax(ratios))
+    past = sum(r > 1 for r in ratios)
+    msg = elastic_limit_message(runs[worst][1], runs[worst][0]) if past else None
+    if msg and past > 1:
+        msg += f" ({past} of {len(runs)} runs pass the limit)"
+    return {"max_force_over_yield": ratios[worst], "runs_past_limit": past, "runs": len(runs), "message": msg}
 
 
 def _chain_summary(study: ChainStudy) -> dict:
@@ -65,6 +136,7 @@ def build_summary(studies: dict[str, ChainStudy], ratio: dict, speed: dict, sett
     max_ratio = max(float((ds.max_contact_force / ds.yield_force).max()) for s in studies.values()
                     for ds in s.wall.values())
     return {
+        "units": SUMMARY_UNITS,
         "hertzchain_version": __version__,
         "chain1": _chain_summary(studies["chain1"]),
         "chain2": _chain_summary(studies["chain2"]),
@@ -108,6 +180,47 @@ def _save_data(out: Path, studies, mis, subs, ratio) -> None:
     save(ratio["dataset"], data / "uniform16_elastic_wall_chain_ratio.nc")
 
 
+#: Variables of a trace that the analysis and the figures read (the rest stays on disk).
+_TRACE_VARIABLES = ("wall_force", "sensor_force", "diameter", "offset", "max_contact_force", "yield_force")
+_H5_INTERNAL = {"DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME", "_Netcdf4Dimid", "_Netcdf4Coordinates",
+                "_nc3_strict", "_FillValue", "_NCProperties"}
+
+
+def _h5_attr(v):
+    if isinstance(v, bytes):
+        return v.decode("utf-8")
+    if isinstance(v, np.ndarray) and v.size == 1 and v.dtype.kind != "O":
+        return v[0]  # netCDF stores scalar attributes as 1-element arrays
+    return v
+
+
+def load_trace(path: str | Path, names=_TRACE_VARIABLES):
+    """Read the variables ``names`` (and their coordinates) of a result file, straight with h5py.
+
+    The same numbers, units and attributes as ``hertzchain.load(path)[names]``, without opening
+    the whole file through xarray (~0.1 s a file, most of ``--from-data``'s time) nor
+    decompressing the energies and contact forces the figures do not draw.
+    """
+    import h5py
+    import xarray as xr
+
+    with h5py.File(path, "r") as f:
+        def read(name):
+            d = f[name]
+            if d.attrs.get("CLASS") == b"DIMENSION_SCALE":
+                dims = (name,)
+            else:
+                dims = tuple(f[refs[0]].name.lstrip("/") for refs in d.attrs.get("DIMENSION_LIST", []))
+            attrs = {k: _h5_attr(v) for k, v in d.attrs.items() if k not in _H5_INTERNAL}
+            return xr.Variable(dims, d[()], attrs=attrs)
+
+        data = {n: read(n) for n in names if n in f}
+        dims = {d for v in data.values() for d in v.dims}
+        coords = {d: read(d) for d in sorted(dims) if d in f}
+        attrs = {k: _h5_attr(v) for k, v in f.attrs.items() if k not in _H5_INTERNAL}
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
 def load_data(out_dir: str | Path, settings: Settings):
     """Read back the traces of a reproduction: (studies, misalignment, substitutions, ratio)."""
     from ..errors import ConfigError
@@ -131,11 +244,12 @@ def _load_data(data: Path, settings: Settings, load):
 
     from ..errors import ConfigError
 
-    def read(p: Path):
+    def read(p: Path, whole: bool = False):
+        """A trace: the variables the figures draw (:func:`load_trace`), or the whole result."""
         if not p.is_file():
             raise ConfigError(str(p), "is missing: rerun 'hertzchain reproduce' without --from-data")
         try:
-            return load(p)
+            return load(p) if whole else load_trace(p)
         except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
             raise ConfigError(str(p), f"is damaged or not a hertzchain result ({type(exc).__name__}: {exc})") from None
 
@@ -151,21 +265,68 @@ def _load_data(data: Path, settings: Settings, load):
         m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
         mis[(int(m.group(1)), float(m.group(2)))] = read(p)
     subs = {label: read(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
-    ratio = protocol.wall_chain_ratio_from_dataset(read(data / "uniform16_elastic_wall_chain_ratio.nc"))
+    ratio = protocol.wall_chain_ratio_from_dataset(read(data / "uniform16_elastic_wall_chain_ratio.nc", whole=True))
     return studies, mis, subs, ratio
 
 
-def draw(out_dir: str | Path, studies, mis, subs, settings: Settings) -> dict[str, Path]:
-    """Draw Figs. 1-6 (PNG + PDF) into ``out_dir``; returns {name: png path}."""
+def _figure_makers(studies, mis, subs, settings) -> dict:
     from . import figures as figs
 
-    drawn = {
+    return {
         "fig1": lambda: figs.fig1(studies["chain1"], settings), "fig2": lambda: figs.fig2(studies["chain2"], settings),
         "fig3": lambda: figs.fig3(mis, subs, settings), "fig4": lambda: figs.fig4(studies["chain1"], studies["chain2"]),
         "fig5": lambda: figs.fig5(studies["chain1"], studies["chain2"], settings),
         "fig6": lambda: figs.fig6(studies["chain1"], studies["chain2"], settings),
     }
-    return {name: figs.save_figure(make(), Path(out_dir), name) for name, make in drawn.items()}
+
+
+#: What the forked drawing processes draw from (set by :func:`draw` just before it forks, so the
+#: children inherit the data instead of receiving a pickled copy).
+_DRAW_JOB: tuple | None = None
+
+
+def _draw_one(name: str) -> tuple[str, Path]:
+    from . import figures as figs
+
+    out_dir, makers = _DRAW_JOB
+    return name, figs.save_figure(makers[name](), Path(out_dir), name)
+
+
+def _usable_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
+         progress: Callable[[str], None] | None = None, workers: int | None = None) -> dict[str, Path]:
+    """Draw Figs. 1-6 (PNG + PDF) into ``out_dir``; returns {name: png path}.
+
+    Text layout makes drawing CPU-bound, so the figures are drawn by ``workers`` forked processes
+    (default: one per usable core, at most six; sequentially where fork is unavailable or with
+    one core). ``progress(message)`` is called after each figure is written.
+    """
+    global _DRAW_JOB
+    makers = _figure_makers(studies, mis, subs, settings)
+    workers = min(len(FIGURE_NAMES), _usable_cores()) if workers is None else workers
+    drawn: dict[str, Path] = {}
+    _DRAW_JOB = (out_dir, makers)
+    try:
+        if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
+            with multiprocessing.get_context("fork").Pool(workers) as pool:
+                for name, path in pool.imap_unordered(_draw_one, _DRAW_ORDER):
+                    drawn[name] = path
+                    if progress is not None:
+                        progress(f"drew {name}")
+        else:
+            for name in FIGURE_NAMES:
+                drawn[name] = _draw_one(name)[1]
+                if progress is not None:
+                    progress(f"drew {name}")
+    finally:
+        _DRAW_JOB = None
+    return {name: drawn[name] for name in FIGURE_NAMES}
 
 
 def _figure_numbers(studies, mis, subs, settings) -> dict:
@@ -175,11 +336,23 @@ def _figure_numbers(studies, mis, subs, settings) -> dict:
     return figure_summary(studies["chain1"], studies["chain2"], mis, subs, settings)
 
 
-def redraw(out_dir: str | Path) -> dict:
-    """Redraw the figures and the report of an existing reproduction from its data/ (no simulation)."""
+def _write_summary(out: Path, summary: dict) -> None:
+    from ..fileio import write_text
+
+    write_text(out / "summary.json", json.dumps(_round(summary), indent=2, allow_nan=False, default=_json_default))
+
+
+def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -> dict:
+    """Redraw the figures and the report of an existing reproduction from its data/ (no simulation).
+
+    ``progress(message)`` is called after loading the data, after each figure and after the
+    report (:func:`count_steps` minus the simulations: 8 calls). Returns the summary, with the
+    elastic-limit check of the data under ``"elastic_limit"``.
+    """
     from ..errors import ConfigError
     from .report import write_report
 
+    tick = progress or (lambda msg: None)
     out = Path(out_dir)
     try:
         summary = json.loads((out / "summary.json").read_bytes().decode("utf-8"))
@@ -193,9 +366,12 @@ def redraw(out_dir: str | Path) -> dict:
         raise ConfigError(str(out / "summary.json"), f"is not the summary of a reproduction: its 'settings' "
                           f"are missing or damaged ({type(exc).__name__}: {exc})") from None
     studies, mis, subs, _ = load_data(out, settings)
-    paths = draw(out, studies, mis, subs, settings)
+    summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
+    tick("read the data")
+    paths = draw(out, studies, mis, subs, settings, tick)
     summary["figures"] = _figure_numbers(studies, mis, subs, settings)
-    write_report(out, summary, paths, summary["settings"])
+    write_report(out, _round(summary), paths, summary["settings"])
+    tick("wrote the report")
     return summary
 
 
@@ -203,7 +379,9 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
               progress: Callable[[str], None] | None = None, figures: bool = True) -> dict:
     """Run the whole paper and write figures, data, summary.json and the report into ``out_dir``.
 
-    Returns the summary dict (also written to ``summary.json``).
+    ``progress(message)`` is called after each simulation, each figure and the report
+    (:func:`count_steps` calls). Returns the summary dict (also written, rounded to
+    SUMMARY_DIGITS significant digits, to ``summary.json``).
     """
     settings = settings or Settings()
     out = Path(out_dir)
@@ -225,18 +403,17 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     t_sim = time.perf_counter() - t0
     _save_data(out, studies, mis, subs, ratio)
     summary = build_summary(studies, ratio, speed, settings, {"simulation_s": t_sim})
-    fig_paths: dict[str, Path] = {}
+    summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
     if figures:
         from .report import write_report
 
-        fig_paths = draw(out, studies, mis, subs, settings)
+        fig_paths = draw(out, studies, mis, subs, settings, tick)
         summary["figures"] = _figure_numbers(studies, mis, subs, settings)
         summary["timing"]["total_s"] = time.perf_counter() - t0
-        write_report(out, summary, fig_paths, settings.describe())
+        write_report(out, _round(summary), fig_paths, settings.describe())
+        tick("wrote the report")
     summary["timing"]["total_s"] = time.perf_counter() - t0
-    from ..fileio import write_text
-
-    write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_json_default))
+    _write_summary(out, summary)
     return summary
 
 

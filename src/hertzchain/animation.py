@@ -1,0 +1,266 @@
+"""Animations of a result: the chain drawn to scale, beads coloured by force, the wall force growing.
+
+The frames are rendered with Matplotlib's Agg canvas and written as a GIF by Pillow (which
+Matplotlib already needs, so nothing extra to install) or, when ``ffmpeg`` is on the PATH, as an
+MP4. Beads sit at their places at rest, or displaced when the run recorded positions
+(``[probes] positions = true``), with the displacement exaggerated by a stated factor (they are
+micrometres against centimetre beads).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import xarray as xr
+
+from .errors import ConfigError
+
+__all__ = ["ChainFrames", "chain_frames", "animate"]
+
+
+@dataclass
+class ChainFrames:
+    """What each frame of :func:`animate` shows (SI units).
+
+    Attributes
+    ----------
+    time : numpy.ndarray
+        (F,) time of each frame [s] (a recorded sample).
+    index : numpy.ndarray
+        (F,) sample index of each frame.
+    centre : numpy.ndarray
+        (F, N + 1) drawn centre of the striker (column 0) and beads 1..N along the chain [m]:
+        place at rest plus ``exaggeration`` times the displacement.
+    force : numpy.ndarray
+        (F, N + 1) colour of each body [N]: the striker's contact force F_0 and, for bead n,
+        (F_{n-1} + F_n) / 2, what a sensor embedded in it would read.
+    diameter : numpy.ndarray
+        (N + 1,) striker and bead diameters [m].
+    offset : numpy.ndarray
+        (N + 1,) perpendicular offsets [m] (0 for the striker).
+    exaggeration : float
+        Factor applied to the displacements (0: beads drawn at rest, no positions recorded).
+    wall_x : float or None
+        Wall position [m], None for a free end.
+    """
+
+    time: np.ndarray
+    index: np.ndarray
+    centre: np.ndarray
+    force: np.ndarray
+    diameter: np.ndarray
+    offset: np.ndarray
+    exaggeration: float
+    wall_x: float | None
+
+
+def _nice(x: float) -> float:
+    """1, 2 or 5 times a power of ten, at most ``x`` (a readable exaggeration factor)."""
+    if x <= 1:
+        return 1.0
+    p = 10 ** math.floor(math.log10(x))
+    return max(m * p for m in (1, 2, 5) if m * p <= x)
+
+
+def chain_frames(ds: xr.Dataset, n_frames: int = 100, *, window: Sequence[float] | None = None,
+                 member: int | None = None, exaggeration: float | None = None) -> ChainFrames:
+    """The data of an animation: frame times, drawn bead centres and bead forces.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result with every contact force stored (batches: give ``member``).
+    n_frames : int
+        Number of frames, spread evenly over the record (or ``window``).
+    window : (float, float) or None
+        Time range [s].
+    member : int or None
+        Member of a batch.
+    exaggeration : float or None
+        Factor on the displacements; default: the 1-2-5 value that makes the largest one a
+        quarter of the smallest bead. Ignored (0) when the result holds no displacements.
+
+    Returns
+    -------
+    ChainFrames
+        The frames' data.
+    """
+    from .plotting import bead_centres, contact_positions, select_member, time_window
+
+    run = select_member(ds, member)
+    if not (isinstance(n_frames, (int, np.integer)) and 2 <= n_frames <= 2000):
+        raise ConfigError("--frames", f"must be an integer in 2..2000, got {n_frames!r}")
+    if ("contact_force" not in run or "diameter" not in run
+            or run.sizes.get("contact", 0) != run.sizes.get("contact_all", -1)):
+        raise ConfigError("RESULT", "an animation needs every contact force: run with [probes] contacts = \"all\" "
+                          "(the default)")
+    t = run.time.values
+    sel = np.flatnonzero(time_window(window, t))
+    index = sel[np.round(np.linspace(0, sel.size - 1, min(n_frames, sel.size))).astype(int)]
+    if index.size < n_frames:
+        raise ConfigError("--frames", f"the time range holds only {sel.size} samples, fewer than {n_frames} frames")
+    raw = run["model"].values.item() if "model" in run.data_vars else run.attrs.get("model", "{}")
+    try:
+        striker_d = float(json.loads(raw)["striker"]["diameter_mm"]) * 1e-3
+    except (KeyError, TypeError, ValueError):  # a result written elsewhere: draw the paper's 8 mm striker
+        striker_d = 8e-3
+    phi = run.diameter.values
+    n = phi.size
+    f = run.contact_force.values[index]  # (F, contacts), contacts 0..N (or N-1 without a wall)
+    has_wall = f.shape[1] == n + 1
+    right = f[:, 1:] if has_wall else np.concatenate([f[:, 1:], np.zeros((f.shape[0], 1))], axis=1)
+    force = np.concatenate([f[:, :1], 0.5 * (f[:, :n] + right)], axis=1)
+    rest = np.concatenate([[-0.5 * striker_d], bead_centres(run)])
+    if "displacement" in run:
+        u = run.displacement.values[index]
+        if exaggeration is None:
+            biggest = float(np.max(np.abs(u)))
+            exaggeration = _nice(0.25 * float(phi.min()) / biggest) if biggest > 0 else 1.0
+        if not (math.isfinite(exaggeration) and exaggeration > 0):
+            raise ConfigError("--exaggeration", f"must be a positive factor, got {exaggeration!r}")
+        centre = rest + exaggeration * u
+    else:
+        if exaggeration is not None:
+            raise ConfigError("--exaggeration", "the result holds no positions: run with "
+                              "--set probes.positions=true to draw the beads displaced")
+        exaggeration = 0.0
+        centre = np.broadcast_to(rest, force.shape).copy()
+    return ChainFrames(time=t[index], index=index, centre=centre, force=force,
+                       diameter=np.concatenate([[striker_d], phi]),
+                       offset=np.concatenate([[0.0], run.offset.values]), exaggeration=float(exaggeration),
+                       wall_x=float(contact_positions(run)[n]) if has_wall else None)
+
+
+#: Frame size [in] and resolution [dpi]: 800 x 450 pixels (even, as MP4's yuv420p needs).
+FRAME_INCHES, FRAME_DPI = (8.0, 4.5), 100
+
+
+def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float = 20.0,
+            window: Sequence[float] | None = None, member: int | None = None,
+            exaggeration: float | None = None, progress: Callable[[int, int], None] | None = None) -> Path:
+    """Write an animation of a result: the chain to scale, coloured by force, and the wall force.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result with every contact force (see :func:`chain_frames`).
+    out : str or pathlib.Path
+        ``.gif`` (Pillow) or ``.mp4`` (needs ``ffmpeg`` on the PATH); written atomically.
+    n_frames : int
+        Number of frames.
+    fps : float
+        Frames per second of the file.
+    window, member, exaggeration
+        See :func:`chain_frames`.
+    progress : callable or None
+        Called as ``progress(done, total)`` after each frame.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out``. Every frame is FRAME_INCHES x FRAME_DPI = 800 x 450 pixels.
+    """
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
+
+    from .fileio import atomic_path
+    from .plotting import _title, select_member
+
+    out = Path(out)
+    kind = out.suffix.lower()
+    if kind not in (".gif", ".mp4"):
+        raise ConfigError("--out", f"cannot write an animation as {out.suffix or 'a file without suffix'!r}; "
+                          "use .gif or .mp4")
+    ffmpeg = shutil.which("ffmpeg") if kind == ".mp4" else None
+    if kind == ".mp4" and ffmpeg is None:
+        raise ConfigError("--out", "an MP4 needs ffmpeg on the PATH, which was not found; write a .gif instead")
+    if not (math.isfinite(fps) and 0 < fps <= 100):
+        raise ConfigError("--fps", f"must lie in (0, 100], got {fps!r}")
+    fr = chain_frames(ds, n_frames, window=window, member=member, exaggeration=exaggeration)
+    run = select_member(ds, member)
+
+    fig = Figure(figsize=FRAME_INCHES, dpi=FRAME_DPI)
+    canvas = FigureCanvasAgg(fig)
+    ax_chain, ax_wall = fig.subplots(2, 1, gridspec_kw={"height_ratios": [1.0, 1.0]})
+    fig.subplots_adjust(left=0.09, right=0.88, top=0.88, bottom=0.12, hspace=0.45)
+    norm = Normalize(0.0, max(float(fr.force.max()), 1e-30))
+    r = 0.5 * fr.diameter
+    colours = ScalarMappable(norm=norm, cmap=matplotlib.colormaps["magma_r"])
+    circles = [ax_chain.add_patch(Circle((x, e), rad, edgecolor="0.3", linewidth=0.5))
+               for x, e, rad in zip(fr.centre[0], fr.offset, r)]
+    left = float(fr.centre[:, 0].min() - r[0])
+    right = float(fr.wall_x if fr.wall_x is not None else fr.centre[:, -1].max() + r[-1])
+    if fr.wall_x is not None:
+        ax_chain.axvline(fr.wall_x, color="0.2", lw=3)
+    ax_chain.set_xlim(left - 0.02 * (right - left), right + 0.02 * (right - left))
+    ax_chain.set_ylim(-1.2 * r.max(), 1.2 * r.max())
+    ax_chain.set_aspect("equal")
+    ax_chain.set_yticks([])
+    ax_chain.set_xlabel("position along the chain [m]")
+    cax = fig.add_axes((0.90, 0.58, 0.015, 0.28))
+    cb = fig.colorbar(colours, cax=cax)
+    cb.set_label("F [N]")
+    shown = ("beads at rest (no positions recorded)" if fr.exaggeration == 0 else
+             f"displacements x {fr.exaggeration:g}")
+    fig.suptitle(f"{_title(run, member if 'member' in ds.dims else None)}; colour: force on each bead; {shown}",
+                 fontsize=9)
+    clock = ax_chain.set_title("", loc="left", fontsize=9)
+
+    wall = run.wall_force.values if "wall_force" in run else None
+    t_ms = run.time.values * 1e3
+    span = slice(int(fr.index[0]), int(fr.index[-1]) + 1)
+    ax_wall.set_xlim(t_ms[span][0], t_ms[span][-1])
+    if wall is not None:
+        top = float(wall[span].max())
+        ax_wall.set_ylim(-0.05 * max(top, 1e-30), 1.1 * max(top, 1e-30))
+        ax_wall.set_ylabel("wall force [N]")
+    else:
+        ax_wall.set_ylabel("(free end: no wall force)")
+    (trace,) = ax_wall.plot([], [], lw=1.0, color="C3")
+    ax_wall.set_xlabel("t [ms]")
+    ax_wall.grid(alpha=0.3)
+
+    frames: list = []
+    width, height = canvas.get_width_height()
+    proc = None
+    with atomic_path(out) as tmp:
+        if ffmpeg is not None:
+            proc = subprocess.Popen([ffmpeg, "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgba",
+                                     "-s", f"{width}x{height}", "-r", f"{fps:g}", "-i", "-", "-pix_fmt", "yuv420p",
+                                     "-f", "mp4", str(tmp)], stdin=subprocess.PIPE)
+        for k in range(fr.time.size):
+            for circle, x, e, rgba_k in zip(circles, fr.centre[k], fr.offset, colours.to_rgba(fr.force[k])):
+                circle.center = (x, e)
+                circle.set_facecolor(rgba_k)
+            clock.set_text(f"t = {fr.time[k] * 1e3:.3f} ms")
+            if wall is not None:
+                trace.set_data(t_ms[span.start: fr.index[k] + 1], wall[span.start: fr.index[k] + 1])
+            canvas.draw()
+            rgba = np.asarray(canvas.buffer_rgba())
+            if proc is not None:
+                proc.stdin.write(rgba.tobytes())
+            else:
+                from PIL import Image
+
+                frames.append(Image.fromarray(rgba[..., :3].copy()))
+            if progress is not None:
+                progress(k + 1, fr.time.size)
+        if proc is not None:
+            proc.stdin.close()
+            if proc.wait() != 0:
+                raise ConfigError("--out", f"ffmpeg failed to write {out}")
+        else:
+            frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:],
+                           duration=round(1000 / fps), loop=0)
+    return out

@@ -1,0 +1,66 @@
+"""``hertzchain plot``: draw a result (registered in cli.py's ``_register_subcommands``).
+
+Heavy imports (matplotlib, xarray) are deferred into the command so that ``--help`` is quick.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+def parse_window(text: str | None) -> tuple[float, float] | None:
+    """``"T0,T1"`` in ms -> (t0, t1) in s (None when not given)."""
+    from .errors import ConfigError
+
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        t0, t1 = (float(p) for p in parts)
+    except ValueError:
+        raise ConfigError("--window", f"{text!r} is not T0,T1 (two times in ms, e.g. --window 1.5,2.5)") from None
+    if not t1 > t0:
+        raise ConfigError("--window", f"needs T0 < T1 (ms), got {text!r}")
+    return t0 * 1e-3, t1 * 1e-3
+
+
+@click.command("plot")
+@click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Image file (PNG, PDF or SVG).")
+@click.option("--kind", type=click.Choice(["signals", "spacetime", "energy"]), default="signals", show_default=True,
+              help="signals: one panel per signal; spacetime: contact forces, contact against time; "
+                   "energy: kinetic, potential, dissipated and total.")
+@click.option("--window", metavar="T0,T1", default=None, help="Time range to show [ms], e.g. 1.5,2.5.")
+@click.option("--member", type=int, default=None,
+              help="Run of a batch or sweep chunk to draw (the member number of metrics.csv).")
+@click.option("--signal", "signals", multiple=True,
+              help="--kind signals: wall_force, sensor_force, contact_force, measured_wall_force, "
+                   "measured_sensor_force, velocity, displacement (repeatable).")
+@click.option("--contact", "contacts", multiple=True, type=int, help="Contacts to draw with --signal contact_force.")
+@click.option("--scale", type=click.Choice(["linear", "log"]), default="linear", show_default=True,
+              help="--kind spacetime: colour scale of the force.")
+@click.option("--to-scale", is_flag=True, help="--kind spacetime: contacts at their positions along the chain [mm].")
+def plot(result: Path, out: Path, kind: str, window: str | None, member: int | None, signals: tuple[str, ...],
+         contacts: tuple[int, ...], scale: str, to_scale: bool) -> None:
+    """Draw RESULT (a hertzchain .nc: a run, a batch or a sweep chunk) into an image."""
+    from .cli import _open_result
+    from .errors import ConfigError
+    from . import plotting
+
+    plotting.image_format(out)  # an unknown --out suffix is refused before the file is read
+    span = parse_window(window)
+    if kind != "signals" and (signals or contacts):
+        raise ConfigError("--signal", f"--signal and --contact go with --kind signals, not --kind {kind}")
+    if kind != "spacetime" and (scale != "linear" or to_scale):
+        raise ConfigError("--scale", f"--scale and --to-scale go with --kind spacetime, not --kind {kind}")
+    ds = _open_result(result)
+    if kind == "signals":
+        plotting.plot_signals(ds, out, signals or None, contacts or None, window=span, member=member)
+    elif kind == "spacetime":
+        plotting.plot_spacetime(ds, out, scale=scale, to_scale=to_scale, window=span, member=member)
+    else:
+        plotting.plot_energy(ds, out, window=span, member=member)
+    click.echo(f"wrote {out}")
