@@ -6,7 +6,7 @@ writes a JSON result on stdout. Not meant to be run by hand, but it can be::
 
     LD_LIBRARY_PATH=<folder of libmpi.so.12> python benchmarks/_lammps_chain.py < job.json
 
-The LAMMPS model is the same as hertzchain's (DESIGN.md section 2):
+The LAMMPS model is the same as hertzchain's (docs/conventions.rst):
 
 - ``atom_style sphere``, one atom per body (1 = striker, 2..N+1 = beads), centres on the x axis,
   neighbours touching (distance R_i + R_j), masses from ``density`` (m = rho pi phi^3 / 6);

@@ -28,13 +28,13 @@ def test_pulse_speed_agrees_with_eq5_within_discrete_offset(uniform_run):
     peak = np.mean([f.peak_force for f in fits])
     v_eq5 = theory.solitary_wave_speed("AISI52100", 26e-3, peak)
     # The discrete solitary wave is ~1.2 % faster than the continuum formula at equal F_m
-    # (DESIGN.md section 3); it must not be off by more than a few per cent either way.
+    # (docs/theory.rst); it must not be off by more than a few per cent either way.
     assert speed / v_eq5 - 1 == pytest.approx(0.012, abs=0.01)
 
 
 def test_equal_mass_impact_settles_to_068_of_striker_speed(uniform_run):
     _, ds = uniform_run
-    # V_m ~ 0.68 of the striker speed (DESIGN.md section 3), read off the beads themselves;
+    # V_m ~ 0.68 of the striker speed (docs/theory.rst), read off the beads themselves;
     # the wave has settled: the same at bead 15 and bead 25.
     v_m = ds.velocity.sel(body=[15, 25]).max("time").values
     assert v_m / 0.1 == pytest.approx([0.68, 0.68], abs=0.01)

@@ -1,4 +1,4 @@
-"""Conservation laws of the elastic chain (DESIGN.md section 3)."""
+"""Conservation laws of the elastic chain (docs/validation.rst)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Robustness checks of the paper's Fig. 3 (Melo et al. 2006, Sec. II): off-axis beads (a, b)
 and local changes of the tapering factor (c).
 
-Offsets follow DESIGN.md section 2: bead n sits off the axis by e_n (held by its track), the
+Offsets follow docs/conventions.rst (misalignment): bead n sits off the axis by e_n (held by its track), the
 distance of centres is d = sqrt(dx^2 + de^2), delta = R_n + R_{n+1} - d and the axial force is
 F(delta) dx / d. To first order an offset softens the two contacts of the bead by
 (dx0/d0)^(5/2) ~ 1 - (5/4)(de/d0)^2, about 1.2 % for e = 10 % of the bead diameter: the
@@ -196,7 +196,7 @@ def _fig3c(name: str, law: str | None = None):
 
 @pytest.mark.parametrize("law", [None, "elastic", "dashpot"])
 def test_fig3c_local_taper_changes(law):
-    """Paper Fig. 3c (reading of docs/fig3c_substitutions.md): "for dq/q = +1, the front pulse is
+    """Paper Fig. 3c (reading of docs/guide/reproduction.rst (section "Fig. 3c")): "for dq/q = +1, the front pulse is
     slightly steeper and narrower. In contrast, for dq/q = -1, a smoother and slightly wider front
     pulse is produced." ``law=None`` runs the example configs as they are (Kuwabara-Kono
     calibrated to eps = 0.985); the elastic and dashpot variants show the effect is geometric.
@@ -221,7 +221,7 @@ def test_fig3c_local_taper_changes(law):
 
 def test_fig3c_caption_literal_reading_is_no_change():
     """The caption's "bead 18 replaced by phi_18 = phi_19 = 23.0 mm" is Table I's own bead 18:
-    read literally it changes nothing, which is why docs/fig3c_substitutions.md does not use it."""
+    read literally it changes nothing, which is why docs/guide/reproduction.rst (section "Fig. 3c") does not use it."""
     data = tomllib.loads((EXAMPLES / "fig3c_reference.toml").read_text())
     data["contact"] = {"law": "elastic"}
     data["run"]["duration"] = 2.5e-3

@@ -1,6 +1,6 @@
 """Chains of beads: diameters, materials and perpendicular offsets, with the paper's builders.
 
-Numbering follows DESIGN.md section 2: beads 1..N from the impact end; in arrays bead n sits at
+Numbering follows docs/conventions.rst: beads 1..N from the impact end; in arrays bead n sits at
 index n - 1. Masses are m = rho pi phi^3 / 6.
 """
 
@@ -42,13 +42,13 @@ class Chain:
 
     Parameters
     ----------
-    diameters:
+    diameters
         Bead diameters phi_n [m], shape (N,).
-    materials:
+    materials
         One :class:`Material` per bead (a single material or name is broadcast).
-    offsets:
+    offsets
         Perpendicular offsets e_n of the bead centres from the chain axis [m], shape (N,);
-        zeros for an aligned chain (DESIGN.md section 2, misalignment).
+        zeros for an aligned chain (see the conventions page, misalignment).
     """
 
     diameters: np.ndarray
@@ -170,7 +170,7 @@ class Chain:
 
     @property
     def masses(self) -> np.ndarray:
-        """Bead masses m_n = rho pi phi^3 / 6 [kg] (DESIGN.md section 2)."""
+        """Bead masses m_n = rho pi phi^3 / 6 [kg]."""
         return self.densities * math.pi * self.diameters**3 / 6.0
 
     @property
@@ -188,7 +188,20 @@ class Chain:
 
 
 def paper_chain(name: str, material: str | Material = "AISI52100") -> Chain:
-    """The paper's Table I chains by name: ``"chain1"`` (q ~ 5.60 %) or ``"chain2"`` (q ~ 8.27 %)."""
+    """The paper's Table I chains by name: ``"chain1"`` (q ~ 5.60 %) or ``"chain2"`` (q ~ 8.27 %).
+
+    Parameters
+    ----------
+    name : str
+        ``"chain1"`` (30 beads, 26 mm down to 11 mm) or ``"chain2"`` (28 beads, 26 mm down to 9 mm).
+    material : str or Material
+        Material of every bead (default: the paper's AISI 52100 steel).
+
+    Returns
+    -------
+    Chain
+        The beads 1..N from the impact end, diameters in m (:data:`TABLE_I_MM` divided by 1000).
+    """
     key = name.lower().replace("_", "").replace(" ", "")
     if key not in TABLE_I_MM:
         raise ConfigError("chain.preset", f"unknown paper chain {name!r}; known: {', '.join(TABLE_I_MM)}")

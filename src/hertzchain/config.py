@@ -276,7 +276,18 @@ def _allowed_keys(loc: tuple[Any, ...]) -> str:
 
 
 def parse_config(data: dict) -> RunConfig:
-    """Validate a config mapping; raise :class:`ConfigError` naming the first bad field."""
+    """Validate a config mapping; raise :class:`ConfigError` naming the first bad field.
+
+    Parameters
+    ----------
+    data : dict
+        The mapping as read from a TOML run file (keys in the units their names say, else SI).
+
+    Returns
+    -------
+    RunConfig
+        The validated, immutable config.
+    """
     try:
         return RunConfig.model_validate(data)
     except ValidationError as exc:
@@ -375,7 +386,26 @@ def apply_overrides(data: dict, assignments: Iterable[str], prefix: str = "") ->
 
 
 def load_config(path: str | Path, overrides: Iterable[str] = ()) -> RunConfig:
-    """Read and validate a TOML run file, after applying ``--set`` overrides (:func:`apply_overrides`)."""
+    """Read and validate a TOML run file, after applying ``--set`` overrides (:func:`apply_overrides`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The TOML run file (sections and keys: the user guide's "Configuration files" page).
+    overrides : iterable of str
+        ``DOTTED.PATH=VALUE`` assignments applied before validation (``"striker.velocity=0.3"``,
+        value in the key's own unit).
+
+    Returns
+    -------
+    RunConfig
+        The validated config.
+
+    Raises
+    ------
+    ConfigError
+        Naming the first bad field (``chain.diameters_mm[3]``), what was wrong and what is allowed.
+    """
     return parse_config(apply_overrides(read_toml(path), overrides))
 
 
@@ -470,7 +500,19 @@ def _offsets_key(cfg: RunConfig) -> str:
 
 
 def build_model(cfg: RunConfig):
-    """The :class:`~hertzchain.model.Model` of a config (calibrating the law when ``eps`` is given)."""
+    """The :class:`~hertzchain.model.Model` of a config (calibrating the law when ``eps`` is given).
+
+    Parameters
+    ----------
+    cfg : RunConfig
+        A validated config (:func:`load_config`, :func:`parse_config`); lengths in mm where the
+        key says so (``diameter_mm``), everything else SI.
+
+    Returns
+    -------
+    Model
+        Chain, striker, wall and contact law in SI units (diameters [m], speeds [m/s]).
+    """
     from .contact import Dashpot, Elastic, ScaledViscoelastic, Viscoelastic
     from .model import Model, Striker, Wall
 
@@ -546,7 +588,20 @@ def apply_instruments(ds, cfg: RunConfig):
 
 
 def run_config(cfg: RunConfig | dict | str | Path, progress=None):
-    """Build and simulate a config; returns the result :class:`xarray.Dataset`."""
+    """Build and simulate a config; returns the result :class:`xarray.Dataset`.
+
+    Parameters
+    ----------
+    cfg : RunConfig, dict, str or pathlib.Path
+        A validated config, a mapping as read from TOML, or the path of a TOML file.
+    progress : callable, optional
+        Called as ``progress(done, total)`` during a Verlet run.
+
+    Returns
+    -------
+    xarray.Dataset
+        The result (SI units), with the measured signals of ``[instrument]`` when configured.
+    """
     from .simulation import simulate
 
     if isinstance(cfg, (str, Path)):

@@ -3,7 +3,7 @@
 Geometry helpers here are plain Python (used to build a model and by :mod:`hertzchain.theory`);
 the compiled force evaluations live in :mod:`hertzchain.integrate.kernels`.
 
-Conventions (DESIGN.md section 2): overlap delta > 0 in compression, force
+Conventions (docs/conventions.rst): overlap delta > 0 in compression, force
 F = kappa * delta^(3/2) for delta > 0 and 0 otherwise (never attractive), with
 1/kappa = (theta + theta') * sqrt(1/R + 1/R'), theta = 3 (1 - nu^2) / (4 Y), 1/R' = 0 for a flat.
 """
@@ -39,10 +39,15 @@ def hertz_constant(radius1: float, radius2: float | None, mat1: str | Material, 
 
     Parameters
     ----------
-    radius1, radius2:
+    radius1, radius2 : float
         Radii of curvature [m] of the two bodies; ``radius2=None`` is a flat (wall cap).
-    mat1, mat2:
-        Materials (catalogue names or :class:`Material`).
+    mat1, mat2 : str or Material
+        Materials (catalogue names or :class:`Material`; Young's modulus [Pa], Poisson ratio [-]).
+
+    Returns
+    -------
+    float
+        kappa [N/m^1.5], so that F = kappa delta^(3/2) with the overlap delta [m].
     """
     m1, m2 = get_material(mat1), get_material(mat2)
     inv_r = 1.0 / radius1 + (0.0 if radius2 is None or math.isinf(radius2) else 1.0 / radius2)
@@ -55,7 +60,19 @@ def yield_force(radius1: float, radius2: float | None, mat1: str | Material, mat
     Yield is taken when the mean contact pressure F / (pi a^2) reaches sigma_Y, with the Hertz
     contact radius a^3 = 3 F R* / (4 E*) (a^3 = theta R F for two equal spheres, as in the paper).
     Solving gives F_Y = (pi sigma_Y)^3 (3 R* / (4 E*))^2 and delta_Y = a_Y^2 / R*. The weaker of
-    the two materials sets sigma_Y. Returns (inf, inf) when neither material has a yield stress.
+    the two materials sets sigma_Y.
+
+    Parameters
+    ----------
+    radius1, radius2 : float
+        Radii of curvature [m] of the two bodies; ``radius2=None`` is a flat (wall cap).
+    mat1, mat2 : str or Material
+        Materials (catalogue names or :class:`Material`); their ``yield_stress`` [Pa] sets sigma_Y.
+
+    Returns
+    -------
+    tuple of float
+        (F_Y [N], delta_Y [m]); (inf, inf) when neither material has a yield stress.
     """
     m1, m2 = get_material(mat1), get_material(mat2)
     stresses = [s for s in (m1.yield_stress, m2.yield_stress) if s is not None]
@@ -95,7 +112,7 @@ class Viscoelastic:
 
     Parameters
     ----------
-    A:
+    A
         Dissipative time constant [s] (same for every contact of the run).
     """
 
@@ -117,7 +134,7 @@ class Dashpot:
 
     Parameters
     ----------
-    gamma:
+    gamma
         Damping coefficient [N s/m] (same for every contact of the run).
     """
 

@@ -6,7 +6,7 @@ monodisperse chain as
     eps = (F_m^{n+1} / F_m^n)^(5/6)  (= V_m^{n+1} / V_m^n),
 
 and find eps ~ 0.985. This is an empirical per-bead decay factor of the travelling pulse, not a
-two-body restitution coefficient (DESIGN.md section 2). The engine's dissipative contact laws
+two-body restitution coefficient (see the conventions page, dissipation). The engine's dissipative contact laws
 (:class:`~hertzchain.contact.Viscoelastic`, Kuwabara-Kono, time constant A [s], and
 :class:`~hertzchain.contact.Dashpot`, gamma [N s/m]) are therefore calibrated the way the paper
 measures eps: a uniform chain is hit by the given striker, the peak force of the pulse is taken
@@ -187,24 +187,24 @@ def measure_eps(law: Elastic | Viscoelastic | Dashpot, chain_or_diameter: Chain 
 
     Parameters
     ----------
-    law:
+    law
         Contact law, e.g. ``Viscoelastic(A=3e-6)`` (A [s]) or ``Dashpot(gamma=20.0)`` (gamma [N s/m]).
-    chain_or_diameter:
+    chain_or_diameter
         A :class:`Chain` used as given (it should be uniform: the decay of a tapered chain also
         holds the (1 - q)^2 geometric factor of paper eq. 5), or a bead diameter [m] for a
         uniform chain of ``n_beads`` beads of ``material``.
-    material:
+    material
         Bead material when a diameter is given.
-    striker:
+    striker
         The impacting sphere (default :class:`Striker`: 8 mm AISI 52100 at 0.5 m/s); its speed
         matters, since both laws dissipate a fraction of the pulse that depends on amplitude.
-    n_beads:
+    n_beads
         Chain length for a diameter; default ``last + DEFAULT_TRAILING_BEADS``.
-    beads:
+    beads
         (first, last) contact numbers fitted, away from the striker transient (default (12, 30)).
-    sample_interval:
+    sample_interval
         Sampling interval [s] of the contact forces (default 1 us).
-    duration:
+    duration
         First guess of the simulated time [s] (default: estimated from the solitary-wave speed);
         the run is repeated 1.5 times longer until the pulse has passed contact ``last``.
 
@@ -349,23 +349,30 @@ def calibrate_law(law: str, eps: float, chain: Chain | None = None, striker: Str
 
     Parameters
     ----------
-    law:
+    law
         ``"viscoelastic"`` (Kuwabara-Kono, returns :class:`Viscoelastic` with A [s]),
         ``"viscoelastic_scaled"`` (Kuwabara-Kono with A_j following each contact's collision time,
         returns :class:`ScaledViscoelastic` whose reference beads are the calibration chain's, so
         that every uniform chain of similar beads hit at the same speed by a similar striker
         measures the same eps) or ``"dashpot"`` (returns :class:`Dashpot` with gamma [N s/m]).
-    eps:
-        Target factor, 0 < eps <= 1; eps = 1 returns the parameter 0 (elastic).
-    chain:
+    eps
+        Target per-bead factor [-], 0 < eps <= 1; eps = 1 returns the parameter 0 (elastic).
+    chain
         The chain to be simulated; only its first bead is used.
-    striker:
+    striker
         The striker of the run to be simulated (default :class:`Striker`). Its mass and speed set
         the pulse amplitude, on which both laws' dissipation depends.
-    diameter, material:
+    diameter, material
         Bead diameter [m] and material of the calibration chain, overriding ``chain``.
-    n_beads, beads:
+    n_beads, beads
         Calibration chain length and fitted contacts (see :func:`measure_eps`).
+    xtol
+        Relative tolerance on the law parameter (dimensionless).
+
+    Returns
+    -------
+    Viscoelastic or Dashpot
+        The calibrated law (A [s] or gamma [N s/m]).
 
     Raises
     ------

@@ -16,9 +16,9 @@ class ConfigError(HertzchainError, ValueError):
 
     Parameters
     ----------
-    field:
+    field
         Dotted name of the offending field, e.g. ``"chain.diameters_mm[3]"``.
-    message:
+    message
         What was wrong and what is allowed.
     """
 

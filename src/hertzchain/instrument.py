@@ -110,33 +110,33 @@ class Instrument:
 
     Parameters
     ----------
-    sensitivity_mV_per_N:
+    sensitivity_mV_per_N
         Sensor (and conditioner) sensitivity [mV/N], > 0. Default: PCB 208A11, 112.40 mV/N.
-    noise_rms_mV:
+    noise_rms_mV
         Rms of the additive gaussian white noise at the conditioner output [mV], >= 0,
         drawn independently for every sample of every acquisition.
-    sample_rate:
+    sample_rate
         Oscilloscope sampling rate [Hz], > 0. The simulation must be recorded at least as
         finely (time step <= 1/sample_rate), since the scope samples are linearly interpolated.
-    record_length:
+    record_length
         Number of points in a record, >= 2 (TDS340: 1000).
-    trigger_level_N:
+    trigger_level_N
         Trigger level [N] of the triggering signal (in that signal's own newtons); the record is
         aligned on its first upward crossing.
-    pretrigger_fraction:
+    pretrigger_fraction
         Fraction of the record taken before the trigger, in [0, 1).
-    bits:
+    bits
         Vertical resolution [bits], integer in 1..48 (TDS340: 8).
-    full_scale_V:
+    full_scale_V
         Height of the vertical window [V], > 0 (8 divisions x volts/div).
-    offset_V:
+    offset_V
         Voltage at the centre of the vertical window [V].
-    n_average:
+    n_average
         Number of acquisitions averaged, >= 1 (the paper averages nine).
-    trigger_jitter:
+    trigger_jitter
         If True each acquisition's sample clock is shifted by a random phase, uniform in
         [0, 1/sample_rate), with respect to the trigger.
-    seed:
+    seed
         Seed (integer >= 0, or None for fresh entropy) of the random generator used when
         :meth:`acquire` gets no ``rng``. With a fixed seed every call draws the same noise.
     """

@@ -34,18 +34,18 @@ class Material:
 
     Parameters
     ----------
-    name:
+    name
         Catalogue or user name.
-    density:
+    density
         Mass density rho [kg/m^3].
-    young:
+    young
         Young's modulus Y [Pa].
-    poisson:
+    poisson
         Poisson ratio nu [-], -1 < nu < 0.5.
-    yield_stress:
+    yield_stress
         Yield stress sigma_Y [Pa] used for the paper's elastic-limit estimate, or None when the
         material has no meaningful plastic yield (brittle glass).
-    source:
+    source
         Where the numbers come from.
     """
 
@@ -77,6 +77,8 @@ class Material:
         return self.young / (1.0 - self.poisson**2)
 
 
+#: The material catalogue, name -> :class:`Material` (SI units: density [kg/m^3], Young's modulus
+#: [Pa], Poisson ratio, yield stress [Pa]), each with its source; ``hertzchain materials`` lists it.
 CATALOGUE: dict[str, Material] = {
     m.name: m
     for m in (
@@ -94,12 +96,30 @@ _ALIASES = {"steel": "AISI52100", "52100": "AISI52100", "chrome_steel": "AISI521
 
 
 def register_material(material: Material) -> None:
-    """Add a user material to the catalogue so that it can be named in configs."""
+    """Add a user material to the catalogue so that it can be named in configs.
+
+    Parameters
+    ----------
+    material : Material
+        The material (density [kg/m^3], Young's modulus [Pa], Poisson ratio, yield stress [Pa]);
+        its ``name`` becomes usable wherever a material is named. A same-named entry is replaced.
+    """
     CATALOGUE[material.name] = material
 
 
 def get_material(material: str | Material) -> Material:
-    """Return a :class:`Material` from a catalogue name (case-insensitive) or pass one through."""
+    """Return a :class:`Material` from a catalogue name (case-insensitive) or pass one through.
+
+    Parameters
+    ----------
+    material : str or Material
+        A catalogue name (``"AISI52100"``, aliases such as ``"steel"``) or a :class:`Material`.
+
+    Returns
+    -------
+    Material
+        The catalogue entry (SI units) or ``material`` itself.
+    """
     if isinstance(material, Material):
         return material
     if not isinstance(material, str):

@@ -4,7 +4,7 @@
 (:class:`System`) that the compiled integrators and the scipy reference share, so both integrate
 exactly the same equations (paper eq. 1 with per-contact Hertz constants).
 
-Bodies (DESIGN.md section 2): 0 = striker, 1..N = beads, N + 1 = wall (a ghost body that never
+Bodies (see docs/conventions.rst): 0 = striker, 1..N = beads, N + 1 = wall (a ghost body that never
 moves; with no wall its contact has kappa = 0). Contact j joins bodies j and j + 1, j = 0..N.
 """
 
@@ -30,11 +30,11 @@ class Striker:
 
     Parameters
     ----------
-    diameter:
+    diameter
         Striker diameter [m] (the paper uses 8 mm).
-    velocity:
+    velocity
         Impact velocity [m/s], towards the chain (> 0).
-    material:
+    material
         Striker material (default: AISI 52100).
     """
 
@@ -57,10 +57,16 @@ class Striker:
 
 @dataclass(frozen=True)
 class Wall:
-    """What ends the chain after bead N.
+    """What ends the chain after bead N (contact N joins bead N and the wall).
 
-    ``kind="flat"`` (default) is an immovable flat whose cap is ``material`` (the chain's last
-    bead material when None, like the paper's sensor cap); ``kind="none"`` is a free end.
+    Parameters
+    ----------
+    kind : {"flat", "none"}
+        ``"flat"`` (default): an immovable flat (radius of curvature infinite, 1/R' = 0 in paper
+        eq. 1); ``"none"``: a free end (contact N carries no force).
+    material : str or Material, optional
+        Material of the flat's cap (Young's modulus [Pa], Poisson ratio); the chain's last bead
+        material when None, like the paper's sensor cap.
     """
 
     kind: Literal["flat", "none"] = "flat"
@@ -183,16 +189,16 @@ class Model:
 
     Parameters
     ----------
-    chain:
+    chain
         The beads.
-    striker:
+    striker
         The impacting sphere (body 0).
-    wall:
+    wall
         The end condition (default: immovable flat of the chain's material).
-    law:
+    law
         Contact law: :class:`Elastic` (paper eq. 1), :class:`Viscoelastic`, :class:`ScaledViscoelastic`
         or :class:`Dashpot`.
-    precompression:
+    precompression
         Static force [N] squeezing beads 1..N against the wall before impact (0 = the paper's
         "barely touching" chain). Needs a wall.
     """
@@ -285,10 +291,10 @@ class Model:
 
         e = np.concatenate([[0.0], self.chain.offsets, [0.0]])
         de = np.diff(e)
-        de[n] = 0.0  # a flat wall is unaffected by the last bead's offset (DESIGN.md)
+        de[n] = 0.0  # a flat wall is unaffected by the last bead's offset (docs/conventions.rst)
         r = np.concatenate([[self.striker.diameter / 2], self.chain.radii, [0.0]])
         rsum = r[:-1] + r[1:]
-        # Misaligned neighbours start touching along their line of centres (DESIGN.md).
+        # Misaligned neighbours start touching along their line of centres (docs/conventions.rst).
         dx0 = np.sqrt(np.maximum(rsum**2 - de**2, 0.0))
 
         v0 = np.zeros(n + 2)

@@ -1,6 +1,6 @@
 """What is recorded and when: the laboratory's sensors and the simulation's own probes.
 
-Sensors follow DESIGN.md section 2: the wall sensor reads the wall contact force F_N; a sensor
+Sensors follow docs/conventions.rst: the wall sensor reads the wall contact force F_N; a sensor
 embedded in bead n (bead cut in two halves around a stiff piezo, mass compensated) reads, in the
 rigid limit, F_s = (F_{n-1} + F_n) / 2.
 """
@@ -23,14 +23,14 @@ class Probes:
 
     Parameters
     ----------
-    sample_interval:
+    sample_interval
         Time between samples [s], like an oscilloscope's (default 100 ns).
-    sensors:
+    sensors
         Beads (1..N) with an embedded sensor.
-    contacts:
+    contacts
         Contact numbers (0..N) whose forces are stored, or None for all of them. The wall contact
         and the two contacts of every sensor bead are always computed.
-    velocities:
+    velocities
         Also store the velocity of every body (0 = striker, 1..N beads).
     positions:
         Also store the displacement of every body from its place at impact [m] (what

@@ -1,6 +1,6 @@
 """Results as one self-describing :class:`xarray.Dataset`, saved as NetCDF.
 
-Dimensions: ``time`` [s], ``contact`` (0..N, DESIGN.md numbering), ``sensor`` (bead numbers of
+Dimensions: ``time`` [s], ``contact`` (0..N, numbered as in docs/conventions.rst), ``sensor`` (bead numbers of
 embedded sensors), ``bead`` (1..N) and ``body`` (0 = striker, 1..N). Every variable carries
 ``units`` and ``long_name``; the full input, the package version, the integrator and the time
 step are in the attributes.
@@ -47,6 +47,11 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "velocity": ("m s-1", "velocity of body (0 = striker)"),
     "displacement": ("m", "displacement of body (0 = striker) from its place at impact, along the chain"),
 }
+
+#: The ``conventions`` attribute of every result: where units and numbering are defined.
+CONVENTIONS = ("SI units; beads 1..N from the impact end, body 0 = striker, contact j joins body j and "
+               "body j+1 (contact N = bead N-wall); defined on the Conventions page of the hertzchain "
+               "documentation (docs/conventions.rst in the source)")
 
 #: Attributes of every coordinate a run may hold.
 COORDINATES: dict[str, dict[str, str]] = {
@@ -141,7 +146,7 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "elastic_limit_contacts": json.dumps(over),
         "elastic_limit_ratio": float(ratio.max()) if ratio.size else 0.0,
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "conventions": "SI units; numbering of DESIGN.md section 2 (beads 1..N from the impact end)",
+        "conventions": CONVENTIONS,
     }
     attrs.update(extra_attrs or {})
     return RunFields(data, coords, attrs)
@@ -195,6 +200,22 @@ def save(ds: xr.Dataset, path: str | Path, compress: bool = True, single_precisi
     fsync, atomic rename): a full disk or a missing permission is a clean
     :class:`~hertzchain.errors.ConfigError` (HDF5 writing straight to a full disk could crash the
     process), and an existing ``path`` that is not a regular file is refused before any work.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A result of :func:`simulate` (or :func:`simulate_batch`).
+    path : str or pathlib.Path
+        The file to write (``.nc``); replaced only once the new file is complete.
+    compress : bool
+        gzip level 4 with byte shuffling for variables of more than 1000 values.
+    single_precision : bool
+        Store the time-dependent variables as float32 (7 significant digits); halves the size.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
     """
     from .errors import ConfigError
     from .fileio import check_target, write_bytes
@@ -210,6 +231,17 @@ def save(ds: xr.Dataset, path: str | Path, compress: bool = True, single_precisi
 
 
 def load(path: str | Path) -> xr.Dataset:
-    """Read a result written by :func:`save` (fully loaded, file closed)."""
+    """Read a result written by :func:`save` (fully loaded, file closed).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A NetCDF file written by :func:`save` or ``hertzchain run``.
+
+    Returns
+    -------
+    xarray.Dataset
+        The result, with its units [SI] in each variable's ``units`` attribute.
+    """
     with xr.open_dataset(path, engine=ENGINE) as ds:
         return ds.load()

@@ -69,22 +69,30 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
 
     Parameters
     ----------
-    model:
+    model
         Chain, striker, wall and contact law.
-    duration:
+    duration
         Simulated time [s] after impact, or ``"auto"`` (:func:`auto_duration`; the result's
         attribute ``duration`` holds the value, and ``duration_mode = "auto"`` says how it came).
-    probes:
+    probes
         What to record (default: every contact force and the energies every 100 ns).
-    integrator:
+    integrator
         ``"verlet"`` (compiled, fixed step; default) or the scipy reference ``"dop853"``
         (``"rk45"`` also accepted), adaptive with relative tolerance ``rtol``.
-    dt:
+    dt
         Verlet time step [s]; automatic when None (see :func:`hertzchain.integrate.verlet.auto_time_step`).
-    progress:
+    progress
         Called as ``progress(done, total)`` between chunks of a Verlet run.
-    config:
+    rtol
+        Relative tolerance of the scipy reference integrators (unused by ``"verlet"``).
+    config
         The input it came from, stored in the result's attributes.
+
+    Returns
+    -------
+    xarray.Dataset
+        Forces [N], energies [J] and the model on the ``time`` [s] axis; every variable and
+        attribute is described in the user guide's "Results" page.
 
     Raises
     ------

@@ -39,7 +39,7 @@ member is the same whatever ``n`` or ``chunk_size`` is.
   swept parameter values and the wall-pulse metrics of the paper (Sec. III), SI units:
   ``F_m`` [N], ``T`` [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s].
 
-Parallelism is passed in (DESIGN.md section 4): locally each chunk already uses every core
+Parallelism is passed in: locally each chunk already uses every core
 (Numba ``prange``); with a Dask ``distributed.Client`` (or any executor with ``submit``, or
 anything with ``map``) the chunks are farmed out and written as they finish.
 """
@@ -513,8 +513,18 @@ def _zip_axes(sw: SweepSection, specs: dict[str, list | Range]) -> list[list[str
 def load_sweep(path: str | Path, overrides: Iterable[str] = ()) -> SweepConfig:
     """Read and validate a TOML sweep file (see the module docstring).
 
-    ``overrides`` are ``--set DOTTED.PATH=VALUE`` assignments relative to ``[base]``
-    (:func:`hertzchain.config.apply_overrides`), validated like the file.
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The sweep file: a ``[base]`` run config and a ``[sweep]`` table.
+    overrides : iterable of str
+        ``--set DOTTED.PATH=VALUE`` assignments relative to ``[base]``
+        (:func:`hertzchain.config.apply_overrides`), in the keys' own units, validated like the file.
+
+    Returns
+    -------
+    SweepConfig
+        The validated sweep (members are drawn lazily).
     """
     from .config import apply_overrides, read_toml
 
@@ -838,19 +848,19 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
 
     Parameters
     ----------
-    sweep_cfg:
+    sweep_cfg
         A :class:`SweepConfig`, a sweep mapping, or the path of a TOML sweep file.
-    out_dir:
+    out_dir
         Output folder (see the module docstring for its content).
-    client:
+    client
         None: chunks are computed here, one after the other, each across all cores. A Dask
         ``distributed.Client``, a ``concurrent.futures.Executor``, anything with ``submit`` +
         ``gather`` or with ``map``: chunks are sent to it and written here as they come back (the
         workers need no access to ``out_dir``).
-    progress:
+    progress
         Called as ``progress(done_members, total_members)`` after each chunk file is written
         (and once at the start with the members found finished on disk).
-    force:
+    force
         Replace the results of a different sweep found in ``out_dir`` instead of refusing.
     device:
         Where the chunks run: ``"cpu"``, ``"cuda"`` (the GPU engine; an error without a usable

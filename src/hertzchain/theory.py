@@ -84,9 +84,9 @@ def tapering_factor(diameters: Sequence[float], n0: int = PAPER_N0) -> tuple[flo
 
     Parameters
     ----------
-    diameters:
+    diameters
         Bead diameters phi_1..phi_N in any unit (only ratios enter); phi_0 = ``diameters[0]``.
-    n0:
+    n0
         Number of beads of the uniform part; beads n > n0 are the tapered part.
 
     Returns
@@ -141,9 +141,9 @@ def ballistic_ratios(q: float | np.ndarray, eps: float = 1.0) -> BallisticRatios
 
     Parameters
     ----------
-    q:
+    q
         Tapering factor [-] (phi_(n+1) = (1 - q) phi_n); scalar or array.
-    eps:
+    eps
         Per-bead restitution factor [-] (the paper measures 0.985; 1 = elastic).
 
     Returns
@@ -171,16 +171,21 @@ def solitary_wave_speed(material: str | Material, diameter: float | np.ndarray,
 
     v = (6 / (5 pi rho))^(1/2) (F_m / (theta^2 R^2))^(1/6), with R = diameter / 2 and
     theta = 3 (1 - nu^2) / (4 Y). This is the long-wavelength (continuum) result; the discrete
-    chain's wave is about 1 % faster at the same F_m (DESIGN.md section 3).
+    chain's wave is about 1 % faster at the same F_m (see the theory page of the documentation).
 
     Parameters
     ----------
-    material:
+    material
         Bead material (catalogue name or :class:`~hertzchain.materials.Material`).
-    diameter:
+    diameter
         Bead diameter phi [m].
-    peak_force:
+    peak_force
         Peak contact force F_m [N] of the wave.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        Wave speed v [m/s], with the broadcast shape of ``diameter`` and ``peak_force``.
     """
     mat = get_material(material)
     radius = np.asarray(diameter, dtype=float) / 2.0
@@ -239,24 +244,25 @@ def peak_bead_velocity(material: str | Material, diameter: float | np.ndarray,
 
 def nesterenko_force(xi_or_t: float | np.ndarray, peak_force: float,
                      width: float) -> float | np.ndarray:
-    """One hump of Nesterenko's solitary wave, F = F_m cos^6(x / width) (paper eq. 4).
+    """One hump of Nesterenko's solitary wave, F = F_m cos^6(x / w) (paper eq. 4), w = ``width``.
 
     The periodic solution of the continuum equation (eq. 3) is cut to a single hump,
-    |x / width| < pi/2, and is exactly zero outside (a compacton), as the paper does.
+    abs(x / w) < pi/2, and is exactly zero outside (a compacton), as the paper does.
 
     Parameters
     ----------
-    xi_or_t:
+    xi_or_t
         Position in the wave frame xi = x - v t [m] with ``width`` = R sqrt(10) [m], or a time
         offset t - T [s] with ``width`` = tau [s] (the form fitted to signals, Sec. III).
-    peak_force:
+    peak_force
         F_m [N].
-    width:
+    width
         R sqrt(10) [m] in space, or tau [s] in time; must be positive.
 
     Returns
     -------
-    Force [N], with the shape of ``xi_or_t``.
+    float or numpy.ndarray
+        Force [N], with the shape of ``xi_or_t``.
     """
     width = _positive("width", width)
     phase = np.asarray(xi_or_t, dtype=float) / width
@@ -273,9 +279,9 @@ def yield_limit(material: str | Material, diameter: float) -> tuple[float, float
 
     Parameters
     ----------
-    material:
+    material
         Bead material (must have a ``yield_stress``; otherwise (inf, inf) is returned).
-    diameter:
+    diameter
         Bead diameter [m].
 
     Returns
@@ -362,20 +368,20 @@ def predict_chain(diameters: Sequence[float], material: str | Material, peak_for
 
     Parameters
     ----------
-    diameters:
+    diameters
         phi_1..phi_N [m] from the impact end.
-    material:
+    material
         Bead material (the same for all beads).
-    peak_force0:
+    peak_force0
         Peak force F_m [N] of the pulse at bead 1 (the uniform part).
-    eps:
+    eps
         Per-bead restitution factor [-] (1 = elastic; the paper uses 0.985).
-    n0:
+    n0
         Beads 1..n0 form the uniform part; a constant ``q`` acts only for n > n0.
-    T0:
+    T0
         Time of flight [s] assigned to "bead 0" (the origin of the T_n sum).
-    q:
-        None: local tapering q_n = 1 - phi_n / phi_n-1 (the chain as built). A number: that
+    q
+        Tapering factor [-]. None: local tapering q_n = 1 - phi_n / phi_n-1 (the chain as built). A number: that
         constant factor for every bead n > n0 (0 there elsewhere); ``q=0`` gives the paper's
         "restitution only" prediction (dashed lines of Fig. 5b).
 

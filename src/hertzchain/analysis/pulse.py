@@ -59,32 +59,32 @@ class PulseFit:
 
     Attributes
     ----------
-    peak_force, peak_force_err:
+    peak_force, peak_force_err
         F_m and its standard error [N].
-    time_of_flight, time_of_flight_err:
+    time_of_flight, time_of_flight_err
         T, the time of the fitted maximum, and its standard error [s] (same origin as the input
         time axis).
-    duration, duration_err:
+    duration, duration_err
         tau and its standard error [s].
-    front_momentum:
+    front_momentum
         Q_F = integral of (F - baseline) from the start of the record to T + tau [N s].
-    tail_momentum:
+    tail_momentum
         Q_T = integral of (F - baseline) from T + tau to the end of the record [N s].
-    total_momentum:
+    total_momentum
         Q_F + Q_T, the integral of the whole baseline-corrected record [N s].
-    baseline:
+    baseline
         Offset removed from the signal before fitting [N].
-    noise:
+    noise
         Robust estimate of the sample-to-sample noise standard deviation [N].
-    window:
+    window
         (start, end) [s] of the samples used in the final fit.
-    n_points:
+    n_points
         Number of samples in the final fit.
-    residual_rms:
+    residual_rms
         Root-mean-square residual of the final fit [N].
-    peak_index:
+    peak_index
         Index of the sample at the detected maximum of the first pulse.
-    iterations:
+    iterations
         Number of window updates until the fitted window stopped changing.
     """
 
@@ -288,22 +288,22 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
 
     Parameters
     ----------
-    time:
+    time
         Sample times [s], strictly increasing.
-    force:
+    force
         Force [N] at those times (compression positive).
-    baseline:
+    baseline
         Known offset [N] to remove; None estimates it (step 1).
-    min_prominence:
+    min_prominence
         Fraction of the record's largest excursion above the baseline that the first pulse must
         reach to be detected (0.2: the front pulse is found even when a later pulse is up to five
         times larger).
-    snr_min:
+    snr_min
         The first pulse must also rise above ``snr_min`` times the noise standard deviation
         (estimated from second differences); a noise-only record then has no pulse.
-    fit_window:
+    fit_window
         Fitted range of (t - T)/tau; the paper's loading part is (-1, 0).
-    max_iter:
+    max_iter
         Most window updates.
 
     Returns

@@ -42,18 +42,18 @@ def power_spectrum(time: ArrayLike, force: ArrayLike, *, nfft: int | None = None
 
     Parameters
     ----------
-    time:
+    time
         Sample times [s], uniformly spaced.
-    force:
+    force
         Force [N]. Remove any baseline first (e.g. ``PulseFit.baseline``): the mean of a pulse
         is part of its spectrum, so no detrending is done by default.
-    nfft:
+    nfft
         FFT length (zero padding refines the frequency grid); default: the record length.
-    window:
+    window
         scipy window name. "hann" suppresses the leakage of a record cut inside the pulse tail
         (as in the paper's high-rate records); "boxcar" keeps Parseval's relation exact for a
         pulse that fits entirely in the record.
-    detrend:
+    detrend
         Passed to scipy ("constant", "linear" or False).
 
     Returns

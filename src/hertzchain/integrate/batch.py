@@ -573,22 +573,27 @@ def simulate_many(models: Sequence[Model], duration: float, probes: Probes | Seq
 
     Parameters
     ----------
-    models:
+    models
         The members (any mix of chains, strikers, walls and contact laws).
-    duration:
+    duration
         Simulated time [s] after impact, shared by all members.
-    probes:
+    probes
         One :class:`Probes` for all members or one per member (default: every contact force and
         the energies every 100 ns). All members must share the sample interval [s].
-    dt:
+    dt
         Verlet time step [s]: None (each member's automatic step), one value for all, or one per
         member (None entries are automatic).
-    progress:
+    progress
         Called as ``progress(done, total)`` in samples between compiled calls.
-    n_threads:
+    n_threads
         Threads of the parallel loop (default: Numba's, i.e. every core).
-    configs:
+    configs
         Per-member input stored in each result's ``config`` attribute (as ``simulate(config=)``).
+
+    Returns
+    -------
+    list of xarray.Dataset
+        One result per member, in the order of ``models``.
 
     Warns
     -----
@@ -817,22 +822,22 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
 
     Parameters
     ----------
-    models:
+    models
         The members: chains of any length, diameters, materials, offsets, contact law, wall; or
         an ``hertzchain.Ensemble`` (a base model plus per-member arrays).
-    duration:
+    duration
         Simulated time [s] after impact, shared by all members.
-    probes:
+    probes
         One :class:`Probes` or one per member; all must share ``sample_interval`` [s].
-    dt:
+    dt
         Verlet step [s]: None (each member's own automatic step), one value, or one per member.
-    progress:
+    progress
         ``progress(done, total)`` in samples, between compiled calls.
-    n_threads:
-        Threads of the parallel loop on the CPU (default: every core Numba sees).
-    configs:
+    n_threads
+        Threads of the parallel loop (default: every core Numba sees).
+    configs
         Per-member input stored in the ``config`` variable.
-    device:
+    device
         ``"cpu"`` (the compiled batched engine), ``"cuda"`` (the numba.cuda engine of
         ``hertzchain.integrate.cuda``: members must share a layout and one Probes; an error
         when no usable GPU is present) or ``"auto"`` (default: the GPU when one is usable and the
@@ -841,7 +846,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     Returns
     -------
     xarray.Dataset
-        The members' results stacked along ``member``.
+        The members' results stacked along the leading ``member`` dimension (SI units).
 
     Warns
     -----

@@ -121,7 +121,7 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g):
     """Axial contact forces with dissipation and/or misalignment; returns the dissipated power [W].
 
     For a misaligned pair (de_j != 0) the distance of centres is d = sqrt(dx^2 + de^2),
-    delta = R_j + R_{j+1} - d and the axial force is F(delta) dx / d (DESIGN.md section 2).
+    delta = R_j + R_{j+1} - d and the axial force is F(delta) dx / d (docs/conventions.rst, misalignment).
     Kuwabara-Kono: F = kappa (delta^(3/2) + A delta^(1/2) ddelta/dt); dashpot:
     F = kappa delta^(3/2) + gamma ddelta/dt; both clipped at zero (never attractive).
     """

@@ -1,6 +1,6 @@
 """The runs of the paper's measurement protocol, and their analysis (data only, no plotting).
 
-Protocol (paper Sec. II, DESIGN.md "Measurement protocol"): the tapered-chain pulses are the wall
+Protocol (paper Sec. II; docs/guide/reproduction.rst): the tapered-chain pulses are the wall
 force at the end of the chain truncated after bead n, n = n0..N, one run per truncation; the pulse
 in the uniform part comes from sensors embedded in beads 1..n0 (of the full chain's run, which is
 identical there until reflections come back). Dissipation, when on, is calibrated to the paper's
@@ -198,7 +198,7 @@ def run_misalignment(settings: Settings, beads=(22, 28), fractions=(0.0, 0.05, 0
     return out
 
 
-#: Fig. 3c substitutions in chain 1 truncated after bead 24 (see docs/fig3c_substitutions.md):
+#: Fig. 3c substitutions in chain 1 truncated after bead 24 (see docs/guide/reproduction.rst (section "Fig. 3c")):
 #: dq/q = +1: bead 18 replaced by one equal to its smaller neighbour (phi_18 = phi_19 = 22 mm);
 #: dq/q = -1: bead 19 replaced by one equal to its bigger neighbour (phi_19 = phi_18 = 23 mm).
 SUBSTITUTIONS = {"reference": None, "dq/q = +1": (18, 22.0e-3), "dq/q = -1": (19, 23.0e-3)}
