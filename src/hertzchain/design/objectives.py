@@ -34,7 +34,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from ..errors import ConfigError, PulseNotFound
+from ..errors import PulseNotFound
 from .constraints import Constraints, geometric_violation, geometry, run_violation
 
 __all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "member_metrics"]

@@ -15,12 +15,11 @@ import html
 import io
 import json
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .objectives import OBJECTIVES, member_metrics
+from .objectives import OBJECTIVES
 from .search import DesignResult
 
 __all__ = ["write_report", "compare_with_references"]

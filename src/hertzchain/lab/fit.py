@@ -416,7 +416,6 @@ class _Problem:
     def start(self) -> np.ndarray:
         """Starting vector: config values as given; time offsets by cross-correlation, gain and
         baseline by linear least squares on the starting model."""
-        K = len(self.traces)
         x = np.zeros(len(self.names))
         x[:len(self.cfg_paths)] = self.x_cfg0
         # The starting model over the config's own run.duration (at least one record long),

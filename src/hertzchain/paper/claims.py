@@ -105,7 +105,7 @@ def _chain_claims(laws: dict, main: str) -> list[dict]:
         paper_q, paper_err = PAPER[chain]["Q_fit"], PAPER[chain]["Q_fit_err"]
         rows.append(_row(
             f"The pulse speeds up along the taper, v_n = Q^(n-n') v_n' with Q{k} = {paper_q} +- {paper_err}",
-            "Sec. III, Fig. 6c", f"fitted Q{k}", f"inside the paper's error bar (partly: within two of them)",
+            "Sec. III, Fig. 6c", f"fitted Q{k}", "inside the paper's error bar (partly: within two of them)",
             _per_law(laws, lambda r: r[chain]["Q_fit"]), main,
             lambda v: abs(v - paper_q) <= paper_err, lambda v: abs(v - paper_q) <= 2 * paper_err))
     rows.append(_row(

@@ -39,7 +39,6 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .. import analysis, theory
-from ..fileio import atomic_path
 from .values import FIG12_TRUNCATIONS, PAPER
 
 __all__ = ["fig1", "fig2", "fig3", "fig4", "fig5", "fig6", "save_figure", "figure_summary",
