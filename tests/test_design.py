@@ -242,3 +242,14 @@ def test_a_generation_too_large_for_memory_is_refused_naming_the_population(tmp_
     _write_design(f, _nq_design(budget=400, population=200))
     assert main(["design", str(f), "--out", str(tmp_path / "out"), "-q", "--no-html"]) == 2
     assert "design.population" in capsys.readouterr().err
+
+
+def test_device_option_reaches_the_engine(tmp_path, capsys):
+    from hertzchain.integrate import cuda
+
+    f = tmp_path / "d.toml"
+    _write_design(f, _nq_design(budget=40, polish=False, population=8))
+    assert main(["design", str(f), "--out", str(tmp_path / "cpu"), "-q", "--no-html", "--device", "cpu"]) == 0
+    if not cuda.gpu_usable():
+        assert main(["design", str(f), "--out", str(tmp_path / "gpu"), "-q", "--no-html", "--device", "cuda"]) == 2
+        assert "--device" in capsys.readouterr().err

@@ -9,3 +9,30 @@ import click
 set_option = click.option(
     "--set", "overrides", multiple=True, metavar="DOTTED.PATH=VALUE",
     help="Override one config field, e.g. --set striker.velocity=0.3 (repeatable; TOML values).")
+
+
+def require_device(device: str) -> None:
+    """Fail at once, naming ``--device``, when ``cuda`` is asked for and no GPU is usable."""
+    if device != "cuda":
+        return
+    from .errors import ConfigError
+    from .integrate.cuda import require_gpu
+
+    try:
+        require_gpu()
+    except ConfigError as exc:
+        raise ConfigError("--device", exc.message) from None
+
+
+def dask_client(scheduler: str | None):
+    """A Dask ``Client`` connected to ``--scheduler`` (None when absent); a clean error naming it."""
+    if scheduler is None:
+        return None
+    from .errors import ConfigError
+
+    try:
+        from distributed import Client
+
+        return Client(scheduler, timeout="20s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ConfigError("--scheduler", f"cannot connect to the Dask scheduler at {scheduler!r}: {exc}") from None

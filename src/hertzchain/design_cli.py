@@ -22,9 +22,12 @@ from .cli_options import set_option
 @click.option("--force", is_flag=True, help="Start afresh when --out holds the checkpoint of a different design.")
 @click.option("--no-html", is_flag=True, help="Skip design.html (figures).")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
+              help="Where generations run: the CPU, the CUDA GPU (pip install \"hertzchain[gpu]\"), or auto (the "
+                   "GPU when one is usable and a generation is large enough to gain).")
 @set_option
 def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_html: bool, quiet: bool,
-           overrides: tuple[str, ...]) -> None:
+           device: str, overrides: tuple[str, ...]) -> None:
     """Search the design space of DESIGN_FILE (TOML: [base] run config + [design] table).
 
     The search state is saved after every generation, so an interrupted design resumes when
@@ -34,21 +37,15 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from .design import load_design, run_design, write_report
-    from .errors import ConfigError
+    from .cli_options import dask_client, require_device
 
     problem = load_design(design_file, overrides)
-    client = None
-    if scheduler is not None:
-        try:
-            from distributed import Client
-
-            client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise ConfigError("--scheduler", f"cannot connect to the Dask scheduler at {scheduler!r}: {exc}") from None
+    require_device(device)  # fail now, naming the option, rather than in the first generation
+    client = dask_client(scheduler)
     console = Console(stderr=True)
     try:
         if quiet:
-            result = run_design(problem, out, client=client, force=force)
+            result = run_design(problem, out, client=client, force=force, device=device)
         else:
             console.print(f"design {design_file.name}: minimise {problem.objective_name} over {problem.space.dim} "
                           f"variables, budget {problem.section.budget} engine runs "
@@ -60,7 +57,7 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
                 def update(done: int, total: int) -> None:
                     prog.update(task, completed=done, total=total)
 
-                result = run_design(problem, out, client=client, progress=update, force=force)
+                result = run_design(problem, out, client=client, progress=update, force=force, device=device)
     finally:
         if client is not None:
             client.close()

@@ -36,25 +36,12 @@ def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, overr
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
                                TimeRemainingColumn)
 
-    from .errors import ConfigError
+    from .cli_options import dask_client, require_device
     from .sweep import load_sweep, run_sweep
 
     cfg = load_sweep(sweep_file, overrides)
-    if device == "cuda":  # fail now, naming the option, rather than in the first chunk
-        from .integrate.cuda import require_gpu
-
-        try:
-            require_gpu()
-        except ConfigError as exc:
-            raise ConfigError("--device", exc.message) from None
-    client = None
-    if scheduler is not None:
-        try:
-            from distributed import Client
-
-            client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise ConfigError("--scheduler", f"cannot connect to the Dask scheduler at {scheduler!r}: {exc}") from None
+    require_device(device)  # fail now, naming the option, rather than in the first chunk
+    client = dask_client(scheduler)
     console = Console(stderr=True)
     try:
         if quiet:
