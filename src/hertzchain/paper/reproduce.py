@@ -24,9 +24,11 @@ __all__ = ["reproduce", "redraw", "load_data", "draw", "count_runs", "count_step
 
 #: The figures drawn (one progress step each, then one for the report).
 FIGURE_NAMES = ("fig1", "fig2", "fig3", "fig4", "fig5", "fig6")
-#: Order in which the drawing processes take the figures: the costliest first (Fig. 5, then the
-#: eight-panel Figs. 1-2), so that two processes finish together.
-_DRAW_ORDER = ("fig5", "fig1", "fig2", "fig6", "fig3", "fig4")
+#: Order in which the drawing processes take the figures, the model-variant ones included: the
+#: costliest first (measured: the eight-panel Figs. 1-2 ~1.2 s each, Fig. 3 lateral ~1.1 s with
+#: its traces read in the worker, Fig. 5 ~0.9 s, ..., Fig. 4 ~0.3 s), so that two processes
+#: finish together.
+_DRAW_ORDER = ("fig1", "fig3_lateral", "fig2", "fig5", "fig6", "fig3", "fig5_laws", "fig4")
 
 #: Units of the summary.json values (SI), written into the file under ``"units"``.
 SUMMARY_UNITS = {
@@ -308,33 +310,39 @@ def _usable_cores() -> int:
 
 
 def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
-         progress: Callable[[str], None] | None = None, workers: int | None = None) -> dict[str, Path]:
+         progress: Callable[[str], None] | None = None, workers: int | None = None,
+         extra: dict[str, Callable] | None = None) -> dict[str, Path]:
     """Draw Figs. 1-6 (PNG + PDF) into ``out_dir``; returns {name: png path}.
 
     Text layout makes drawing CPU-bound, so the figures are drawn by ``workers`` forked processes
     (default: one per usable core, at most six; sequentially where fork is unavailable or with
-    one core). ``progress(message)`` is called after each figure is written.
+    one core). ``extra`` ({name: function returning a figure}, e.g. :func:`_fidelity_makers`) is
+    drawn in the same processes, so that every figure shares the cores; ``progress(message)`` is
+    called after each of Figs. 1-6 is written (not after the extra ones: :func:`count_steps`).
     """
     global _DRAW_JOB
-    makers = _figure_makers(studies, mis, subs, settings)
+    makers = {**_figure_makers(studies, mis, subs, settings), **(extra or {})}
+    order = [n for n in _DRAW_ORDER if n in makers] + [n for n in makers if n not in _DRAW_ORDER]
     workers = min(len(FIGURE_NAMES), _usable_cores()) if workers is None else workers
     drawn: dict[str, Path] = {}
+
+    def done(name, path):
+        drawn[name] = path
+        if progress is not None and name in FIGURE_NAMES:
+            progress(f"drew {name}")
+
     _DRAW_JOB = (out_dir, makers)
     try:
         if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
             with multiprocessing.get_context("fork").Pool(workers) as pool:
-                for name, path in pool.imap_unordered(_draw_one, _DRAW_ORDER):
-                    drawn[name] = path
-                    if progress is not None:
-                        progress(f"drew {name}")
+                for name, path in pool.imap_unordered(_draw_one, order):
+                    done(name, path)
         else:
-            for name in FIGURE_NAMES:
-                drawn[name] = _draw_one(name)[1]
-                if progress is not None:
-                    progress(f"drew {name}")
+            for name in order:
+                done(*_draw_one(name))
     finally:
         _DRAW_JOB = None
-    return {name: drawn[name] for name in FIGURE_NAMES}
+    return {name: drawn[name] for name in [*FIGURE_NAMES, *(n for n in makers if n not in FIGURE_NAMES)]}
 
 
 def _figure_numbers(studies, mis, subs, settings) -> dict:
@@ -376,8 +384,9 @@ def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -
     studies, mis, subs, _ = load_data(out, settings)
     summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
     tick("read the data")
-    paths = draw(out, studies, mis, subs, settings, tick)
-    paths.update(draw_fidelity(out, summary, mis, _load_lateral(out)))
+    lateral = _lateral_files(out)
+    paths = draw(out, studies, mis, subs, settings, tick,
+                 extra=_fidelity_makers(summary, mis, lateral and (lambda: _load_lateral(lateral))))
     summary["figures"] = _figure_numbers(studies, mis, subs, settings)
     write_report(out, _round(summary), paths, summary["settings"])
     tick("wrote the report")
@@ -429,8 +438,7 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     if figures:
         from .report import write_report
 
-        fig_paths = draw(out, studies, mis, subs, settings, tick)
-        fig_paths.update(draw_fidelity(out, summary, mis, lateral))
+        fig_paths = draw(out, studies, mis, subs, settings, tick, extra=_fidelity_makers(summary, mis, lateral))
         summary["figures"] = _figure_numbers(studies, mis, subs, settings)
         summary["timing"]["total_s"] = time.perf_counter() - t0
         write_report(out, _round(summary), fig_paths, settings.describe())
@@ -440,32 +448,37 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     return summary
 
 
-def draw_fidelity(out_dir: str | Path, summary: dict, mis: dict, lateral: dict) -> dict[str, Path]:
-    """Draw the model-variant figures (claims.FIGURES) that the summary and data allow; {name: png}."""
-    from .figures import save_figure
+def _fidelity_makers(summary: dict, mis: dict, lateral: dict | Callable[[], dict]) -> dict[str, Callable]:
+    """The model-variant figures (claims.FIGURES) that the summary and data allow, for :func:`draw`.
 
-    out: dict[str, Path] = {}
+    ``lateral`` is the lateral-freedom records or a function reading them: called in the drawing
+    process, so that reading them overlaps the other figures.
+    """
+    makers: dict[str, Callable] = {}
     laws = (summary.get("fidelity") or {}).get("laws")
     if laws:
         eps = summary["settings"].get("eps_target") or PAPER["eps"]
-        out["fig5_laws"] = save_figure(fidelity.fig_laws(laws, eps), Path(out_dir), "fig5_laws")
+        makers["fig5_laws"] = lambda: fidelity.fig_laws(laws, eps)
     if lateral and mis:
-        out["fig3_lateral"] = save_figure(fidelity.fig3_lateral(mis, lateral), Path(out_dir), "fig3_lateral")
-    return out
+        makers["fig3_lateral"] = lambda: fidelity.fig3_lateral(mis, lateral() if callable(lateral) else lateral)
+    return makers
 
 
-def _load_lateral(out: Path) -> dict:
-    """The lateral-freedom Fig. 3 records of a reproduction ({(track, bead, fraction): dataset})."""
+def _lateral_files(out: Path) -> dict:
+    """The lateral-freedom Fig. 3 records of a reproduction: {(track, bead, fraction): path}."""
     import re
-
-    from ..result import load
 
     found = {}
     for p in sorted((out / "data").glob("fig3_lateral_*_bead*_e*.nc")):
         m = re.fullmatch(r"fig3_lateral_(\w+)_bead(\d+)_e([\d.]+)\.nc", p.name)
         if m:
-            found[(m.group(1), int(m.group(2)), float(m.group(3)))] = load(p)
+            found[(m.group(1), int(m.group(2)), float(m.group(3)))] = p
     return found
+
+
+def _load_lateral(files: dict) -> dict:
+    """Read the records of :func:`_lateral_files` ({key: dataset}; the wall force is all Fig. 3 draws)."""
+    return {key: load_trace(p, ("wall_force",)) for key, p in files.items()}
 
 
 def _json_default(x):
