@@ -233,6 +233,11 @@ def load_trace(path: str | Path, names=_TRACE_VARIABLES):
 
 def load_data(out_dir: str | Path, settings: Settings):
     """Read back the traces of a reproduction: (studies, misalignment, substitutions, ratio)."""
+    return _load_data_checked(out_dir, settings)
+
+
+def _load_data_checked(out_dir: str | Path, settings: Settings, after_fig3: Callable | None = None):
+    """:func:`load_data`, calling ``after_fig3(mis, subs)`` once the Fig. 3 traces are read."""
     from ..errors import ConfigError
     from ..result import load
 
@@ -240,7 +245,7 @@ def load_data(out_dir: str | Path, settings: Settings):
     if not data.is_dir():
         raise ConfigError(str(data), "no data folder: run 'hertzchain reproduce' first")
     try:
-        return _load_data(data, settings, load)
+        return _load_data(data, settings, load, after_fig3)
     except ConfigError:
         raise
     except (OSError, ValueError, KeyError, AttributeError, IndexError, TypeError, RuntimeError) as exc:
@@ -249,7 +254,7 @@ def load_data(out_dir: str | Path, settings: Settings):
                           "rerun 'hertzchain reproduce' without --from-data") from None
 
 
-def _load_data(data: Path, settings: Settings, load):
+def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None = None):
     import re
 
     from ..errors import ConfigError
@@ -263,6 +268,13 @@ def _load_data(data: Path, settings: Settings, load):
         except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
             raise ConfigError(str(p), f"is damaged or not a hertzchain result ({type(exc).__name__}: {exc})") from None
 
+    mis = {}
+    for p in sorted(data.glob("fig3_chain2_offset_bead*_e*.nc")):
+        m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
+        mis[(int(m.group(1)), float(m.group(2)))] = read(p)
+    subs = {label: read(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
+    if after_fig3 is not None:
+        after_fig3(mis, subs)
     studies = {}
     for name in ("chain1", "chain2"):
         wall = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p)
@@ -270,11 +282,6 @@ def _load_data(data: Path, settings: Settings, load):
         if not wall:
             raise ConfigError(str(data), f"holds no {name} traces")
         studies[name] = protocol.study_from_datasets(name, wall, settings)
-    mis = {}
-    for p in sorted(data.glob("fig3_chain2_offset_bead*_e*.nc")):
-        m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
-        mis[(int(m.group(1)), float(m.group(2)))] = read(p)
-    subs = {label: read(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
     ratio = protocol.wall_chain_ratio_from_dataset(read(data / "uniform16_elastic_wall_chain_ratio.nc", whole=True))
     return studies, mis, subs, ratio
 
@@ -345,6 +352,41 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     return {name: drawn[name] for name in [*FIGURE_NAMES, *(n for n in makers if n not in FIGURE_NAMES)]}
 
 
+def _draw_early(out_dir: str | Path, makers: dict[str, Callable]) -> Callable[..., dict[str, Path]]:
+    """Start drawing ``makers`` in one process forked now (in this one where fork is unavailable).
+
+    Returns ``finish(cancel=False)``: waits for the figures and returns {name: png path};
+    ``cancel=True`` stops the process instead (after a failure elsewhere).
+    """
+    global _DRAW_JOB
+    order = [n for n in _DRAW_ORDER if n in makers] + [n for n in makers if n not in _DRAW_ORDER]
+    if _usable_cores() < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        _DRAW_JOB = (out_dir, makers)
+        try:
+            drawn = dict(_draw_one(n) for n in order)
+        finally:
+            _DRAW_JOB = None
+        return lambda cancel=False: {} if cancel else drawn
+    _DRAW_JOB = (out_dir, makers)
+    try:
+        pool = multiprocessing.get_context("fork").Pool(1)
+    finally:
+        _DRAW_JOB = None
+    pending = pool.map_async(_draw_one, order)
+
+    def finish(cancel: bool = False) -> dict[str, Path]:
+        if cancel:
+            pool.terminate()
+            pool.join()
+            return {}
+        drawn = dict(pending.get())
+        pool.close()
+        pool.join()
+        return {n: drawn[n] for n in makers}
+
+    return finish
+
+
 def _figure_numbers(studies, mis, subs, settings) -> dict:
     """The numbers the figures show (spectral centroids, collapse quality, Fig. 3 changes)."""
     from .figures import figure_summary
@@ -381,12 +423,23 @@ def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -
     except (KeyError, TypeError, AttributeError, ValueError) as exc:
         raise ConfigError(str(out / "summary.json"), f"is not the summary of a reproduction: its 'settings' "
                           f"are missing or damaged ({type(exc).__name__}: {exc})") from None
-    studies, mis, subs, _ = load_data(out, settings)
-    summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
-    tick("read the data")
     lateral = _lateral_files(out)
-    paths = draw(out, studies, mis, subs, settings, tick,
-                 extra=_fidelity_makers(summary, mis, lateral and (lambda: _load_lateral(lateral))))
+    early: list = []
+
+    def start_fidelity(mis, subs):
+        # the model-variant figures need no pulse fit: drawn by a process forked now, while
+        # this one reads the chains' traces and refits their pulses (~1 s)
+        early.append(_draw_early(out, _fidelity_makers(summary, mis, lateral and (lambda: _load_lateral(lateral)))))
+
+    try:
+        studies, mis, subs, _ = _load_data_checked(out, settings, start_fidelity)
+        summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
+        tick("read the data")
+        paths = draw(out, studies, mis, subs, settings, tick)
+        paths.update(early.pop()())
+    finally:
+        for job in early:
+            job(cancel=True)
     summary["figures"] = _figure_numbers(studies, mis, subs, settings)
     write_report(out, _round(summary), paths, summary["settings"])
     tick("wrote the report")
