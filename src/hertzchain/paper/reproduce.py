@@ -268,6 +268,12 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
         except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
             raise ConfigError(str(p), f"is damaged or not a hertzchain result ({type(exc).__name__}: {exc})") from None
 
+    walls = {}
+    for name in ("chain1", "chain2"):
+        walls[name] = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p)
+                       for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
+        if not walls[name]:
+            raise ConfigError(str(data), f"holds no {name} traces")
     mis = {}
     for p in sorted(data.glob("fig3_chain2_offset_bead*_e*.nc")):
         m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
@@ -275,13 +281,7 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
     subs = {label: read(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
     if after_fig3 is not None:
         after_fig3(mis, subs)
-    studies = {}
-    for name in ("chain1", "chain2"):
-        wall = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p)
-                for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
-        if not wall:
-            raise ConfigError(str(data), f"holds no {name} traces")
-        studies[name] = protocol.study_from_datasets(name, wall, settings)
+    studies = {name: protocol.study_from_datasets(name, wall, settings) for name, wall in walls.items()}
     ratio = protocol.wall_chain_ratio_from_dataset(read(data / "uniform16_elastic_wall_chain_ratio.nc", whole=True))
     return studies, mis, subs, ratio
 
