@@ -14,18 +14,20 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import xarray as xr
 
 from .errors import ConfigError
-from .integrate.lateral import LateralArrays, LateralRun, run_lateral, run_lateral_reference
 from .model import Model
 from .probes import Probes
 from .checks import check_after_run, check_before_run
 from .result import build_dataset
 from .simulation import warn_elastic_limit
+
+if TYPE_CHECKING:  # the compiled 2D path (Numba) loads only when a lateral run is made
+    from .integrate.lateral import LateralArrays
 
 __all__ = ["Track", "simulate_lateral", "lateral_arrays"]
 
@@ -96,6 +98,8 @@ def lateral_arrays(model: Model, track: Track) -> LateralArrays:
     LateralArrays
         (N+2,) arrays (bodies 0..N and the wall ghost, which gets zeros).
     """
+    from .integrate.lateral import LateralArrays
+
     n = model.chain.n_beads
     mass = np.concatenate([[model.striker.mass], model.chain.masses, [0.0]])
     radius = np.concatenate([[model.striker.diameter / 2], model.chain.radii, [0.0]])
@@ -177,6 +181,8 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
     probes.validate(model.chain.n_beads, model.wall.present)
     if integrator not in ("verlet", "dop853"):
         raise ConfigError("run.integrator", f"must be 'verlet' or 'dop853' with lateral freedom, got {integrator!r}")
+    from .integrate.lateral import LateralRun, run_lateral, run_lateral_reference
+
     check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # the 1D run's checks
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     lat = lateral_arrays(model, track)
