@@ -424,19 +424,24 @@ def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -
         raise ConfigError(str(out / "summary.json"), f"is not the summary of a reproduction: its 'settings' "
                           f"are missing or damaged ({type(exc).__name__}: {exc})") from None
     lateral = _lateral_files(out)
-    early: list = []
+    # The model-variant figures need no pulse fit: each is drawn by a process forked as soon as
+    # its data is in memory (Fig. 5 laws: summary.json; Fig. 3 lateral: the Fig. 3 traces), on
+    # the core this one leaves idle while it reads the chains' traces and refits their pulses.
+    early = [_draw_early(out, makers) for makers in [_fidelity_makers(summary, {}, {})] if makers]
 
-    def start_fidelity(mis, subs):
-        # the model-variant figures need no pulse fit: drawn by a process forked now, while
-        # this one reads the chains' traces and refits their pulses (~1 s)
-        early.append(_draw_early(out, _fidelity_makers(summary, mis, lateral and (lambda: _load_lateral(lateral)))))
+    def start_lateral(mis, subs):
+        makers = _fidelity_makers({}, mis, lateral and (lambda: _load_lateral(lateral)))
+        if makers:
+            early.append(_draw_early(out, makers))
 
     try:
-        studies, mis, subs, _ = _load_data_checked(out, settings, start_fidelity)
+        studies, mis, subs, _ = _load_data_checked(out, settings, start_lateral)
         summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
         tick("read the data")
         paths = draw(out, studies, mis, subs, settings, tick)
-        paths.update(early.pop()())
+        while early:
+            paths.update(early[0]())
+            early.pop(0)
     finally:
         for job in early:
             job(cancel=True)
