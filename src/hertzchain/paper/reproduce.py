@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import math
 import multiprocessing
@@ -341,7 +342,7 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     _DRAW_JOB = (out_dir, makers)
     try:
         if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
-            with multiprocessing.get_context("fork").Pool(workers) as pool:
+            with multiprocessing.get_context("fork").Pool(workers, initializer=gc.freeze) as pool:
                 for name, path in pool.imap_unordered(_draw_one, order):
                     done(name, path)
         else:
@@ -369,7 +370,7 @@ def _draw_early(out_dir: str | Path, makers: dict[str, Callable]) -> Callable[..
         return lambda cancel=False: {} if cancel else drawn
     _DRAW_JOB = (out_dir, makers)
     try:
-        pool = multiprocessing.get_context("fork").Pool(1)
+        pool = multiprocessing.get_context("fork").Pool(1, initializer=gc.freeze)
     finally:
         _DRAW_JOB = None
     pending = pool.map_async(_draw_one, order)
