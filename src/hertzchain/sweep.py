@@ -170,10 +170,12 @@ def _parse_path(path: str) -> list[str | int]:
     return tokens
 
 
-def _set_path(cfg: dict, path: str, value: Any) -> None:
-    """Set ``value`` at dotted ``path`` in ``cfg`` (tables are created when missing)."""
-    name = f'sweep.parameters["{path}"]'
-    tokens = _parse_path(path)
+def set_path(cfg: dict, tokens: list[str | int], value: Any, name: str) -> None:
+    """Set ``value`` at ``tokens`` (from a dotted path) in ``cfg``; missing tables are created.
+
+    Shared by sweeps and the design search; a path that does not fit the base config is a
+    ConfigError naming ``name`` (the field as the user wrote it).
+    """
     node: Any = cfg
     for tok, nxt in zip(tokens[:-1], tokens[1:]):
         if isinstance(tok, int):
@@ -194,7 +196,12 @@ def _set_path(cfg: dict, path: str, value: Any) -> None:
             raise ConfigError(name, f"index [{last}] is outside the base list")
     elif not isinstance(node, dict):
         raise ConfigError(name, f"'{last}' is not inside a table of the base config")
-    node[last] = copy.deepcopy(value)
+    node[last] = value
+
+
+def _set_path(cfg: dict, path: str, value: Any) -> None:
+    """Set ``value`` at dotted ``path`` in ``cfg`` (tables are created when missing)."""
+    set_path(cfg, _parse_path(path), copy.deepcopy(value), f'sweep.parameters["{path}"]')
 
 
 # ------------------------------------------------------------------------------ the sweep

@@ -32,6 +32,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from ..errors import ConfigError
+from ..sweep import set_path
 from .catalogues import catalogue_sizes
 
 __all__ = ["Variable", "Shape", "Space", "parse_variables"]
@@ -60,31 +61,6 @@ def get_path(cfg: dict, tokens: list[str | int]) -> Any:
     for tok in tokens:
         node = node[tok]
     return node
-
-
-def set_path(cfg: dict, tokens: list[str | int], value: Any, name: str) -> None:
-    """Set ``value`` at ``tokens`` in ``cfg`` (missing tables are created); ConfigError ``name`` otherwise."""
-    node: Any = cfg
-    for tok, nxt in zip(tokens[:-1], tokens[1:]):
-        if isinstance(tok, int):
-            if not isinstance(node, list) or tok >= len(node):
-                raise ConfigError(name, f"index [{tok}] is outside the base list")
-            node = node[tok]
-        else:
-            if not isinstance(node, dict):
-                raise ConfigError(name, f"'{tok}' is not inside a table of the base config")
-            if tok not in node:
-                if isinstance(nxt, int):
-                    raise ConfigError(name, f"the base config has no list '{tok}' to index")
-                node[tok] = {}
-            node = node[tok]
-    last = tokens[-1]
-    if isinstance(last, int):
-        if not isinstance(node, list) or last >= len(node):
-            raise ConfigError(name, f"index [{last}] is outside the base list")
-    elif not isinstance(node, dict):
-        raise ConfigError(name, f"'{last}' is not inside a table of the base config")
-    node[last] = value
 
 
 class _Spec(BaseModel):

@@ -763,7 +763,12 @@ def _stack(parts: Sequence[_Part], time, n_time: int, member, ready: dict[str, n
     for d, vals in dims.items():
         coords[d] = (d, vals, coord_attrs[d])
     a0 = parts[0].attrs
-    attrs = {
+    return xr.Dataset(data, coords=coords, attrs=_batch_attrs(a0, nmem))
+
+
+def _batch_attrs(a0, nmem: int) -> dict:
+    """Attributes of a stacked batch, from one member's (or the template's) attributes ``a0``."""
+    return {
         "title": "hertzchain batch simulation",
         "hertzchain_version": a0["hertzchain_version"],
         "integrator": a0["integrator"],
@@ -774,7 +779,6 @@ def _stack(parts: Sequence[_Part], time, n_time: int, member, ready: dict[str, n
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "conventions": a0["conventions"],
     }
-    return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
 def stack_results(datasets: Sequence[xr.Dataset], member: Sequence[int] | None = None) -> xr.Dataset:
@@ -1085,18 +1089,7 @@ def _ensemble_dataset(ens: Ensemble, sy: _EnsembleArrays, pk: _Packed, probes: P
     for d, (vals, attrs) in template.dims.items():
         coords[d] = (d, np.unique(vals), dict(attrs))
     a0 = template.attrs
-    attrs = {
-        "title": "hertzchain batch simulation",
-        "hertzchain_version": a0["hertzchain_version"],
-        "integrator": a0["integrator"],
-        "engine": _ENGINE_CPU,
-        "duration": a0["duration"],
-        "sample_interval": a0["sample_interval"],
-        "n_members": nmem,
-        "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "conventions": a0["conventions"],
-    }
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    return xr.Dataset(data, coords=coords, attrs=_batch_attrs(a0, nmem))
 
 
 def _ready(stacked: dict[str, np.ndarray], raw: RawRun, model: Model, part: _Part) -> dict[str, np.ndarray]:
