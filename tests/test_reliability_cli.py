@@ -5,6 +5,7 @@ exit 2, never a traceback; JSON output is valid JSON; NumPy warnings do not reac
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import warnings
 
 import numpy as np
@@ -216,3 +217,13 @@ def test_oscilloscope_work_is_bounded_before_the_run():
         build_instruments(parse_config(data))
     data["instrument"]["wall"]["n_average"] = int(MAX_SCOPE_SAMPLES // 10_000_000)
     assert build_instruments(parse_config(data))["wall"].n_average == 10
+
+
+def test_run_refuses_an_out_name_that_is_not_netcdf(tmp_path, capsys):
+    """A result is NetCDF: --out result.csv is refused before the run, naming --out, nothing written."""
+    out = tmp_path / "result.csv"
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    assert main(["run", str(examples / "contract.toml"), "--out", str(out), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out:") and "*.nc" in err
+    assert not out.exists()

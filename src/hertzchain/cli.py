@@ -73,6 +73,11 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     from .result import save
     from .simulation import auto_duration, simulate
 
+    from .errors import ConfigError
+
+    if out.suffix.lower() not in (".nc", ".nc4", ".h5"):
+        # A result is NetCDF-4 whatever the name; a .csv or .png name is a mistake to catch before the run.
+        raise ConfigError("--out", f"a result is a NetCDF file: name it *.nc (got {out.name!r})")
     cfg = load_config(config, overrides)
     check_not_input(out, config)
     check_target(out)  # refuse a FIFO, a link or a device as --out before any work
