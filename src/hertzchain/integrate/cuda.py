@@ -177,39 +177,103 @@ def _kernels() -> dict:
         f = kap * dd * math.sqrt(dd)
         return f if ok else 0.0
 
+    # The per-contact and per-body pieces below are shared by both kernels (one thread per member,
+    # one warp per member), so that they integrate with the very same arithmetic; inlined, they
+    # compile to what the kernels held written out.
+
+    @cuda.jit(device=True, **inline)
+    def overlap(u, d0, de, dx0, rsum, j, m):
+        """Overlap [m] of contact j of member m, as kernels.required_stride and
+        kernels.potential_energy take it: along the line of centres of a misaligned pair."""
+        if de[j, m] != 0.0:
+            dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+            return rsum[j, m] - math.sqrt(dx * dx + de[j, m] * de[j, m])
+        return u[j, m] - u[j + 1, m] + d0[j, m]
+
+    @cuda.jit(device=True, **inline)
+    def contact_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, j, m, power):
+        """kernels.forces_general for contact j of member m: writes its axial force g[j + 1, m]
+        and returns ``power`` plus the contact's dissipated power [W] (the running sum)."""
+        if de[j, m] != 0.0:
+            dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+            dist = math.sqrt(dx * dx + de[j, m] * de[j, m])
+            d = rsum[j, m] - dist
+            c = dx / dist
+        else:
+            d = u[j, m] - u[j + 1, m] + d0[j, m]
+            c = 1.0
+        if d < 0.0:
+            g[j + 1, m] = 0.0
+            return power
+        sd = 0.0
+        if d > DELTA_MIN:
+            sd = math.sqrt(d)
+        else:
+            d = 0.0
+        fel = kappa[j, m] * d * sd
+        if law == LAW_ELASTIC:
+            g[j + 1, m] = c * fel
+            return power
+        rate = c * (v[j, m] - v[j + 1, m])
+        if law == LAW_VISCOELASTIC:
+            f = fel + kappa[j, m] * damping[j, m] * sd * rate
+        else:
+            f = fel + damping[j, m] * rate
+        f = max(f, 0.0)
+        g[j + 1, m] = c * f
+        return power + (f - fel) * rate
+
+    @cuda.jit(device=True, **inline)
+    def tangent_stiffness(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, hh, j, m):
+        """kernels.required_stride's tangent stiffness [N/m] of contact j of member m over the
+        horizon [s] (hh = horizon^2 / 2)."""
+        if kappa[j, m] == 0.0:
+            return 0.0
+        d = overlap(u, d0, de, dx0, rsum, j, m)
+        rate = v[j, m] - v[j + 1, m]
+        q = a[j, m] - a[j + 1, m]
+        dt_ = d + 2.0 * (q if q > 0.0 else 0.0) * hh
+        if rate > 0.0 and d + 2.0 * rate * horizon > 0.0:
+            dp = d if d > 0.0 else 0.0
+            e = 0.4 * kappa[j, m] * dp * dp * math.sqrt(dp) + 0.5 * rate * rate / (
+                inv_mass[j, m] + inv_mass[j + 1, m])
+            de_ = (2.5 * e / kappa[j, m]) ** 0.4
+            dt_ = de_ if de_ > dt_ else dt_
+        dt_ = dt_ if dt_ < dcap[j, m] else dcap[j, m]
+        return 1.5 * kappa[j, m] * math.sqrt(dt_) if dt_ > 0.0 else 0.0
+
+    @cuda.jit(device=True, **inline)
+    def adapt_stride(req, ns, relax, r4, r5):
+        """kernels._adapt_stride on the controller state (r4, r5) = (acc[4], acc[5]) of a member:
+        returns the new (ns, r4, r5)."""
+        if req > ns:
+            return req, 0.0, 0.0
+        if req < ns:
+            r4 += 1.0
+            r5 = max(r5, req)
+            if r4 >= relax:
+                return int(r5), 0.0, 0.0
+            return ns, r4, r5
+        return ns, 0.0, 0.0
+
+    @cuda.jit(device=True, **inline)
+    def kick_drift(u, v, a, fl, fr, fext, inv_mass, dt, half, last, i, m):
+        """Body i of member m between contact forces fl (left) and fr (right): its acceleration,
+        then kernels.step_elastic's kick and drift, or the closing half kick on the last step."""
+        ai = (fl - fr + fext[i, m]) * inv_mass[i, m]
+        a[i, m] = ai
+        if last:
+            v[i, m] += half * ai
+        else:
+            v[i, m] += dt * ai
+            u[i, m] += dt * v[i, m]
+
     @cuda.jit(device=True)
     def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, n, m):
         """kernels.forces_general for member m (returns the dissipated power [W])."""
         power = 0.0
         for j in range(n):
-            if de[j, m] != 0.0:
-                dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
-                dist = math.sqrt(dx * dx + de[j, m] * de[j, m])
-                d = rsum[j, m] - dist
-                c = dx / dist
-            else:
-                d = u[j, m] - u[j + 1, m] + d0[j, m]
-                c = 1.0
-            if d < 0.0:
-                g[j + 1, m] = 0.0
-                continue
-            sd = 0.0
-            if d > DELTA_MIN:
-                sd = math.sqrt(d)
-            else:
-                d = 0.0
-            fel = kappa[j, m] * d * sd
-            if law == LAW_ELASTIC:
-                g[j + 1, m] = c * fel
-                continue
-            rate = c * (v[j, m] - v[j + 1, m])
-            if law == LAW_VISCOELASTIC:
-                f = fel + kappa[j, m] * damping[j, m] * sd * rate
-            else:
-                f = fel + damping[j, m] * rate
-            f = max(f, 0.0)
-            power += (f - fel) * rate
-            g[j + 1, m] = c * f
+            power = contact_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, j, m, power)
         return power
 
     @cuda.jit(device=True)
@@ -222,25 +286,7 @@ def _kernels() -> dict:
         weff = 0.0
         hh = 0.5 * horizon * horizon
         for j in range(n):
-            if kappa[j, m] == 0.0:
-                k = 0.0
-            else:
-                if de[j, m] != 0.0:
-                    dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
-                    d = rsum[j, m] - math.sqrt(dx * dx + de[j, m] * de[j, m])
-                else:
-                    d = u[j, m] - u[j + 1, m] + d0[j, m]
-                rate = v[j, m] - v[j + 1, m]
-                q = a[j, m] - a[j + 1, m]
-                dt_ = d + 2.0 * (q if q > 0.0 else 0.0) * hh
-                if rate > 0.0 and d + 2.0 * rate * horizon > 0.0:
-                    dp = d if d > 0.0 else 0.0
-                    e = 0.4 * kappa[j, m] * dp * dp * math.sqrt(dp) + 0.5 * rate * rate / (
-                        inv_mass[j, m] + inv_mass[j + 1, m])
-                    de_ = (2.5 * e / kappa[j, m]) ** 0.4
-                    dt_ = de_ if de_ > dt_ else dt_
-                dt_ = dt_ if dt_ < dcap[j, m] else dcap[j, m]
-                k = 1.5 * kappa[j, m] * math.sqrt(dt_) if dt_ > 0.0 else 0.0
+            k = tangent_stiffness(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, hh, j, m)
             if law == LAW_ELASTIC:
                 w2 = max(w2, (kprev + k) * inv_mass[j, m])
             else:
@@ -302,20 +348,9 @@ def _kernels() -> dict:
                 if adaptive and ((k - 1) * nsub + b) % neval == 0:
                     req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block,
                                           c_steps[m], damping, lw, n, m)
-                    if req > ns:
-                        ns = req
-                        acc[4, m] = 0.0
-                        acc[5, m] = 0.0
-                    elif req < ns:
-                        acc[4, m] += 1.0
-                        acc[5, m] = max(acc[5, m], req)
-                        if acc[4, m] >= relax[m]:
-                            ns = int(acc[5, m])
-                            acc[4, m] = 0.0
-                            acc[5, m] = 0.0
-                    else:
-                        acc[4, m] = 0.0
-                        acc[5, m] = 0.0
+                    ns, r4, r5 = adapt_stride(req, ns, relax[m], acc[4, m], acc[5, m])
+                    acc[4, m] = r4
+                    acc[5, m] = r5
                     acc[3, m] = ns
                     acc[6, m] = max(acc[6, m], ns)
                     acc[7, m] = min(acc[7, m], ns)
@@ -335,13 +370,7 @@ def _kernels() -> dict:
                         track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
                         last = s == ns - 1
                         for i in range(n):
-                            ai = (g[i, m] - g[i + 1, m] + fext[i, m]) * inv_mass[i, m]
-                            a[i, m] = ai
-                            if last:
-                                v[i, m] += half * ai
-                            else:
-                                v[i, m] += dt * ai
-                                u[i, m] += dt * v[i, m]
+                            kick_drift(u, v, a, g[i, m], g[i + 1, m], fext, inv_mass, dt, half, last, i, m)
                 else:
                     for s in range(ns):
                         # kernels.step_elastic (final_step_elastic on the last step: closing half kick)
@@ -350,13 +379,7 @@ def _kernels() -> dict:
                         for i in range(n):
                             f = hertz(kappa[i, m], u[i, m] - u[i + 1, m] + d0[i, m])
                             g[i + 1, m] = f
-                            ai = (fprev - f + fext[i, m]) * inv_mass[i, m]
-                            a[i, m] = ai
-                            if last:
-                                v[i, m] += half * ai
-                            else:
-                                v[i, m] += dt * ai
-                                u[i, m] += dt * v[i, m]
+                            kick_drift(u, v, a, fprev, f, fext, inv_mass, dt, half, last, i, m)
                             fprev = f
                         track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
                 step += ns
@@ -374,11 +397,7 @@ def _kernels() -> dict:
                 for i in range(n):
                     ke += 0.5 * mass[i, m] * v[i, m] * v[i, m]
                 for j in range(n):
-                    if de[j, m] != 0.0:
-                        dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
-                        d = rsum[j, m] - math.sqrt(dx * dx + de[j, m] * de[j, m])
-                    else:
-                        d = u[j, m] - u[j + 1, m] + d0[j, m]
+                    d = overlap(u, d0, de, dx0, rsum, j, m)
                     if d > 0.0:
                         pe += 0.4 * kappa[j, m] * d * d * math.sqrt(d)
                 for i in range(n):
@@ -438,26 +457,8 @@ def _kernels() -> dict:
                     horizon = neval * block
                     hh = 0.5 * horizon * horizon
                     for j in range(lane, n, nl):
-                        if kappa[j, m] == 0.0:
-                            kk = 0.0
-                        else:
-                            if de[j, m] != 0.0:
-                                dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
-                                d = rsum[j, m] - math.sqrt(dx * dx + de[j, m] * de[j, m])
-                            else:
-                                d = u[j, m] - u[j + 1, m] + d0[j, m]
-                            rate = v[j, m] - v[j + 1, m]
-                            q = a[j, m] - a[j + 1, m]
-                            dt_ = d + 2.0 * (q if q > 0.0 else 0.0) * hh
-                            if rate > 0.0 and d + 2.0 * rate * horizon > 0.0:
-                                dp = d if d > 0.0 else 0.0
-                                e = 0.4 * kappa[j, m] * dp * dp * math.sqrt(dp) + 0.5 * rate * rate / (
-                                    inv_mass[j, m] + inv_mass[j + 1, m])
-                                de_ = (2.5 * e / kappa[j, m]) ** 0.4
-                                dt_ = de_ if de_ > dt_ else dt_
-                            dt_ = dt_ if dt_ < dcap[j, m] else dcap[j, m]
-                            kk = 1.5 * kappa[j, m] * math.sqrt(dt_) if dt_ > 0.0 else 0.0
-                        sc[j, m] = kk
+                        sc[j, m] = tangent_stiffness(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, hh,
+                                                     j, m)
                     cuda.syncthreads()
                     w2 = 0.0  # elastic: max (k_left + k_right) / m; dissipative: max omega_eff
                     for j in range(lane, n, nl):
@@ -479,20 +480,7 @@ def _kernels() -> dict:
                         w2 = max(w2, red[i])
                     w = math.sqrt(2.0 * w2) if lw == LAW_ELASTIC else w2
                     req = max(1, int(math.ceil(block * c_steps[m] * w - 1e-9)))
-                    if req > ns:
-                        ns = req
-                        r4 = 0.0
-                        r5 = 0.0
-                    elif req < ns:
-                        r4 += 1.0
-                        r5 = max(r5, req)
-                        if r4 >= relax[m]:
-                            ns = int(r5)
-                            r4 = 0.0
-                            r5 = 0.0
-                    else:
-                        r4 = 0.0
-                        r5 = 0.0
+                    ns, r4, r5 = adapt_stride(req, ns, relax[m], r4, r5)
                     if lane == 0:
                         acc[3, m] = ns
                         acc[6, m] = max(acc[6, m], ns)
@@ -511,38 +499,8 @@ def _kernels() -> dict:
                             vp[i, m] = v[i, m] + half * a[i, m]
                     cuda.syncthreads()  # positions (and predicted velocities) of the neighbours are written
                     if gen:
-                        for j in range(lane, n, nl):
-                            # kernels.forces_general for contact j; its dissipated power into sc
-                            if de[j, m] != 0.0:
-                                dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
-                                dist = math.sqrt(dx * dx + de[j, m] * de[j, m])
-                                d = rsum[j, m] - dist
-                                c = dx / dist
-                            else:
-                                d = u[j, m] - u[j + 1, m] + d0[j, m]
-                                c = 1.0
-                            pw = 0.0
-                            if d < 0.0:
-                                g[j + 1, m] = 0.0
-                            else:
-                                sd = 0.0
-                                if d > DELTA_MIN:
-                                    sd = math.sqrt(d)
-                                else:
-                                    d = 0.0
-                                fel = kappa[j, m] * d * sd
-                                if lw == LAW_ELASTIC:
-                                    g[j + 1, m] = c * fel
-                                else:
-                                    rate = c * (vp[j, m] - vp[j + 1, m])
-                                    if lw == LAW_VISCOELASTIC:
-                                        f = fel + kappa[j, m] * damping[j, m] * sd * rate
-                                    else:
-                                        f = fel + damping[j, m] * rate
-                                    f = max(f, 0.0)
-                                    pw = (f - fel) * rate
-                                    g[j + 1, m] = c * f
-                            sc[j, m] = pw
+                        for j in range(lane, n, nl):  # contact j's dissipated power into sc
+                            sc[j, m] = contact_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, j, m, 0.0)
                     else:
                         for j in range(lane, n, nl):
                             g[j + 1, m] = hertz(kappa[j, m], u[j, m] - u[j + 1, m] + d0[j, m])
@@ -558,13 +516,7 @@ def _kernels() -> dict:
                         else:
                             track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
                     for i in range(lane, n, nl):
-                        ai = (g[i, m] - g[i + 1, m] + fext[i, m]) * inv_mass[i, m]
-                        a[i, m] = ai
-                        if last:
-                            v[i, m] += half * ai
-                        else:
-                            v[i, m] += dt * ai
-                            u[i, m] += dt * v[i, m]
+                        kick_drift(u, v, a, g[i, m], g[i + 1, m], fext, inv_mass, dt, half, last, i, m)
                     cuda.syncthreads()  # bodies moved before the next step's forces (and g is read)
                 step += ns
             # --- probes: per-slot energy terms into sc and vp, summed by lane 0 in slot order
@@ -578,11 +530,7 @@ def _kernels() -> dict:
             for i in range(lane, n, nl):
                 if gen:
                     sc[i, m] = 0.5 * mass[i, m] * v[i, m] * v[i, m]
-                    if de[i, m] != 0.0:
-                        dx = dx0[i, m] - (u[i, m] - u[i + 1, m])
-                        d = rsum[i, m] - math.sqrt(dx * dx + de[i, m] * de[i, m])
-                    else:
-                        d = u[i, m] - u[i + 1, m] + d0[i, m]
+                    d = overlap(u, d0, de, dx0, rsum, i, m)
                     vp[i, m] = 0.4 * kappa[i, m] * d * d * math.sqrt(d) if d > 0.0 else 0.0
                 else:
                     sc[i, m] = mass[i, m] * v[i, m] * v[i, m]

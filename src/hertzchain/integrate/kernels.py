@@ -303,6 +303,36 @@ def _track_peak(fw, t, dt, peak):
     peak[5] = fw
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _adapt_stride(req, ns, relax, acc):
+    """Next steps per block from the required ``req`` and the current ``ns`` (see verlet_run).
+
+    A larger requirement is taken at once (stability); a smaller one only after ``relax``
+    evaluations in a row all asked for less, then the largest of them, so that the step does
+    not flicker. Updates the controller state acc[3:8] (ns, count, largest smaller request,
+    largest and smallest ns used) and returns the new ns. Shared with the 2D kernel of
+    :mod:`hertzchain.integrate.lateral`.
+    """
+    if req > ns:
+        ns = req
+        acc[4] = 0.0
+        acc[5] = 0.0
+    elif req < ns:
+        acc[4] += 1.0
+        acc[5] = max(acc[5], req)
+        if acc[4] >= relax:
+            ns = int(acc[5])
+            acc[4] = 0.0
+            acc[5] = 0.0
+    else:
+        acc[4] = 0.0
+        acc[5] = 0.0
+    acc[3] = ns
+    acc[6] = max(acc[6], ns)
+    acc[7] = min(acc[7], ns)
+    return ns
+
+
 @njit(cache=True, nogil=True)
 def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
                wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
@@ -356,23 +386,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
             if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
                 req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, n_eval * block, block,
                                       c_steps, damping, law)
-                if req > ns:
-                    ns = req
-                    acc[4] = 0.0
-                    acc[5] = 0.0
-                elif req < ns:
-                    acc[4] += 1.0
-                    acc[5] = max(acc[5], req)
-                    if acc[4] >= relax:
-                        ns = int(acc[5])
-                        acc[4] = 0.0
-                        acc[5] = 0.0
-                else:
-                    acc[4] = 0.0
-                    acc[5] = 0.0
-                acc[3] = ns
-                acc[6] = max(acc[6], ns)
-                acc[7] = min(acc[7], ns)
+                ns = _adapt_stride(req, ns, relax, acc)
             dt = block / ns
             half = 0.5 * dt
             t0 = (k - 1) * interval + b * block

@@ -204,23 +204,7 @@ def lateral_run(u, v, a, g, y, w, ay, gy, fy, mass, inv_mass, kappa, damping, d0
             if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
                 req = _stride_2d(u, v, a, y, kappa, d0, de_now, dx0, rsum, flat, dcap, inv_mass, stiffness,
                                  n_eval * block, block, c_steps, damping, law)
-                if req > ns:
-                    ns = req
-                    acc[4] = 0.0
-                    acc[5] = 0.0
-                elif req < ns:
-                    acc[4] += 1.0
-                    acc[5] = max(acc[5], req)
-                    if acc[4] >= relax:
-                        ns = int(acc[5])
-                        acc[4] = 0.0
-                        acc[5] = 0.0
-                else:
-                    acc[4] = 0.0
-                    acc[5] = 0.0
-                acc[3] = ns
-                acc[6] = max(acc[6], ns)
-                acc[7] = min(acc[7], ns)
+                ns = kernels._adapt_stride(req, ns, relax, acc)
             dt = block / ns
             half = 0.5 * dt
             t0 = (k - 1) * interval + b * block
