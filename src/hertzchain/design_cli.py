@@ -71,7 +71,8 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
              else ", ".join(f"{k} {v:.6g} {units[k]}" for k, v in value.items()))
     msg = (f"best {problem.objective_name}: {shown} ({info['n_evaluations']} engine runs, "
            f"{info['evaluations_per_s']:.0f}/s{', resumed' if result.resumed else ''}); "
-           f"vs chain 1: {_improvement(info, 'chain1')}, vs uniform: {_improvement(info, 'uniform')}; wrote {out}/")
+           f"lower than chain 1 by {_improvement(info, 'chain1')}, than the uniform chain by "
+           f"{_improvement(info, 'uniform')}; wrote {out}/")
     if not best["feasible"]:
         msg += "; warning: no candidate met every constraint (best is the least infeasible)"
     click.echo(msg)
@@ -81,4 +82,5 @@ def _improvement(info: dict, ref: str) -> str:
     imp = info["comparison"]["improvement_percent"][ref]
     if all(v is None for v in imp.values()):
         return "n/a (its pulse does not reach the wall within the run)"
-    return ", ".join("n/a" if v is None else f"{v:+.1f} %" for v in imp.values())
+    # (reference - best) / reference: positive when the design transmits less than the reference.
+    return ", ".join("n/a" if v is None else f"{v:.1f} %" for v in imp.values())
