@@ -28,6 +28,7 @@ A minimal config (the contract of the core-engine issue)::
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from collections.abc import Iterable
 from contextlib import contextmanager
@@ -328,6 +329,53 @@ def read_toml(path: str | Path, what: str = "config file") -> dict:
         raise ConfigError(str(path), f"is not valid TOML: {exc}") from None
 
 
+_TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
+
+
+def parse_path(path: str) -> list[str | int]:
+    """``"chain.diameters_mm[3]"`` -> ``["chain", "diameters_mm", 3]``; ValueError when malformed."""
+    tokens: list[str | int] = []
+    pos = 0
+    for m in _TOKEN.finditer(path):
+        gap = path[pos:m.start()]
+        if gap not in ("", "."):
+            raise ValueError
+        tokens.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
+        pos = m.end()
+    if pos != len(path) or not tokens or not isinstance(tokens[0], str) or path.endswith("."):
+        raise ValueError
+    return tokens
+
+
+def set_path(cfg: dict, tokens: list[str | int], value: Any, name: str) -> None:
+    """Set ``value`` at ``tokens`` (from a dotted path) in ``cfg``; missing tables are created.
+
+    Shared by sweeps and the design search; a path that does not fit the base config is a
+    ConfigError naming ``name`` (the field as the user wrote it).
+    """
+    node: Any = cfg
+    for tok, nxt in zip(tokens[:-1], tokens[1:]):
+        if isinstance(tok, int):
+            if not isinstance(node, list) or tok >= len(node):
+                raise ConfigError(name, f"index [{tok}] is outside the base list")
+            node = node[tok]
+        else:
+            if not isinstance(node, dict):
+                raise ConfigError(name, f"'{tok}' is not inside a table of the base config")
+            if tok not in node:
+                if isinstance(nxt, int):
+                    raise ConfigError(name, f"the base config has no list '{tok}' to index")
+                node[tok] = {}
+            node = node[tok]
+    last = tokens[-1]
+    if isinstance(last, int):
+        if not isinstance(node, list) or last >= len(node):
+            raise ConfigError(name, f"index [{last}] is outside the base list")
+    elif not isinstance(node, dict):
+        raise ConfigError(name, f"'{last}' is not inside a table of the base config")
+    node[last] = value
+
+
 def apply_overrides(data: dict, assignments: Iterable[str], prefix: str = "") -> dict:
     """Apply ``--set DOTTED.PATH=VALUE`` assignments to a config mapping read from TOML.
 
@@ -348,7 +396,6 @@ def apply_overrides(data: dict, assignments: Iterable[str], prefix: str = "") ->
         The new mapping, to be validated by the same schema as the file itself.
     """
     import copy
-    import re
 
     out = copy.deepcopy(data)
     for item in assignments:
@@ -359,29 +406,12 @@ def apply_overrides(data: dict, assignments: Iterable[str], prefix: str = "") ->
             value = tomllib.loads(f"v = {raw}")["v"]
         except tomllib.TOMLDecodeError:
             value = raw  # a bare word such as elastic: a string
-        keys = ([prefix] if prefix else []) + path.split(".")
-        node: Any = out
-        for depth, key in enumerate(keys):
-            m = re.fullmatch(r"([A-Za-z_][A-Za-z0-9_]*)(?:\[(\d+)\])?", key)
-            if not m:
-                raise ConfigError(f"--set {path}", f"{key!r} is not a field name (letters, digits, _; list items as key[i])")
-            name, index = m.group(1), m.group(2)
-            last = depth == len(keys) - 1
-            if not isinstance(node, dict):
-                raise ConfigError(f"--set {path}", f"{'.'.join(keys[:depth])} is not a section")
-            if index is None:
-                if last:
-                    node[name] = value
-                else:
-                    node = node.setdefault(name, {})
-            else:
-                seq = node.get(name)
-                if not isinstance(seq, list) or int(index) >= len(seq):
-                    raise ConfigError(f"--set {path}", f"{name} has no item {index} in this config")
-                if last:
-                    seq[int(index)] = value
-                else:
-                    node = seq[int(index)]
+        try:
+            tokens = parse_path(path)
+        except ValueError:
+            raise ConfigError(f"--set {path}", "is not a dotted field path (names joined by '.', list items "
+                              "as key[i])") from None
+        set_path(out, ([prefix] if prefix else []) + tokens, value, f"--set {path}")
     return out
 
 

@@ -54,7 +54,6 @@ import itertools
 import json
 import math
 import os
-import re
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
@@ -64,6 +63,7 @@ from typing import Any, Callable, Iterable, Iterator, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from .config import parse_path, set_path
 from .errors import ConfigError, HertzchainError, SimulationDiverged
 
 __all__ = ["SweepConfig", "SweepMismatch", "SweepLocked", "SweepResult", "load_sweep", "parse_sweep", "run_sweep",
@@ -152,56 +152,9 @@ def _loc_name(loc: tuple[Any, ...]) -> str:
 
 
 # ------------------------------------------------------------------------------ paths
-_TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
-
-
-def _parse_path(path: str) -> list[str | int]:
-    """``"chain.diameters_mm[3]"`` -> ``["chain", "diameters_mm", 3]``."""
-    tokens: list[str | int] = []
-    pos = 0
-    for m in _TOKEN.finditer(path):
-        gap = path[pos:m.start()]
-        if gap not in ("", "."):
-            raise ValueError
-        tokens.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
-        pos = m.end()
-    if pos != len(path) or not tokens or not isinstance(tokens[0], str) or path.endswith("."):
-        raise ValueError
-    return tokens
-
-
-def set_path(cfg: dict, tokens: list[str | int], value: Any, name: str) -> None:
-    """Set ``value`` at ``tokens`` (from a dotted path) in ``cfg``; missing tables are created.
-
-    Shared by sweeps and the design search; a path that does not fit the base config is a
-    ConfigError naming ``name`` (the field as the user wrote it).
-    """
-    node: Any = cfg
-    for tok, nxt in zip(tokens[:-1], tokens[1:]):
-        if isinstance(tok, int):
-            if not isinstance(node, list) or tok >= len(node):
-                raise ConfigError(name, f"index [{tok}] is outside the base list")
-            node = node[tok]
-        else:
-            if not isinstance(node, dict):
-                raise ConfigError(name, f"'{tok}' is not inside a table of the base config")
-            if tok not in node:
-                if isinstance(nxt, int):
-                    raise ConfigError(name, f"the base config has no list '{tok}' to index")
-                node[tok] = {}
-            node = node[tok]
-    last = tokens[-1]
-    if isinstance(last, int):
-        if not isinstance(node, list) or last >= len(node):
-            raise ConfigError(name, f"index [{last}] is outside the base list")
-    elif not isinstance(node, dict):
-        raise ConfigError(name, f"'{last}' is not inside a table of the base config")
-    node[last] = value
-
-
 def _set_path(cfg: dict, path: str, value: Any) -> None:
     """Set ``value`` at dotted ``path`` in ``cfg`` (tables are created when missing)."""
-    set_path(cfg, _parse_path(path), copy.deepcopy(value), f'sweep.parameters["{path}"]')
+    set_path(cfg, parse_path(path), copy.deepcopy(value), f'sweep.parameters["{path}"]')
 
 
 # ------------------------------------------------------------------------------ the sweep
@@ -415,7 +368,7 @@ def parse_sweep(data: dict) -> SweepConfig:
     for path, spec in sw.parameters.items():
         name = f'sweep.parameters["{path}"]'
         try:
-            tokens = _parse_path(path)
+            tokens = parse_path(path)
         except ValueError:
             raise ConfigError(name, "is not a dotted path into the base config (e.g. 'striker.velocity', "
                               "'chain.diameters_mm[3]')") from None

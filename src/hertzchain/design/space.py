@@ -32,27 +32,12 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from ..errors import ConfigError
-from ..sweep import set_path
+from ..config import parse_path, set_path
 from .catalogues import catalogue_sizes
 
 __all__ = ["Variable", "Shape", "Space", "parse_variables"]
 
 _SLICE = re.compile(r"^(?P<head>.*)\[(?P<start>\d+):(?P<stop>\d+)\]$")
-_TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
-
-
-def parse_path(path: str) -> list[str | int]:
-    """``"chain.diameters_mm[3]"`` -> ``["chain", "diameters_mm", 3]``; ValueError when malformed."""
-    tokens: list[str | int] = []
-    pos = 0
-    for m in _TOKEN.finditer(path):
-        if path[pos:m.start()] not in ("", "."):
-            raise ValueError(path)
-        tokens.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
-        pos = m.end()
-    if pos != len(path) or not tokens or not isinstance(tokens[0], str) or path.endswith("."):
-        raise ValueError(path)
-    return tokens
 
 
 def get_path(cfg: dict, tokens: list[str | int]) -> Any:
