@@ -26,10 +26,10 @@ __all__ = ["reproduce", "redraw", "load_data", "draw", "count_runs", "count_step
 #: The figures drawn (one progress step each, then one for the report).
 FIGURE_NAMES = ("fig1", "fig2", "fig3", "fig4", "fig5", "fig6")
 #: Order in which the drawing processes take the figures, the model-variant ones included: the
-#: costliest first (measured: the eight-panel Figs. 1-2 ~1.2 s each, Fig. 3 lateral ~1.1 s with
-#: its traces read in the worker, Fig. 5 ~0.9 s, ..., Fig. 4 ~0.3 s), so that two processes
+#: costliest first (measured, PNG + PDF: Fig. 1 1.3 s, Fig. 2 1.0 s, Figs. 5-6 0.9 s, Fig. 3
+#: 0.75 s, Fig. 3 lateral 0.7 s, Fig. 5 laws 0.55 s, Fig. 4 0.45 s), so that two processes
 #: finish together.
-_DRAW_ORDER = ("fig1", "fig3_lateral", "fig2", "fig5", "fig6", "fig3", "fig5_laws", "fig4")
+_DRAW_ORDER = ("fig1", "fig2", "fig6", "fig5", "fig3", "fig3_lateral", "fig5_laws", "fig4")
 
 #: Units of the summary.json values (SI), written into the file under ``"units"``.
 SUMMARY_UNITS = {
@@ -238,7 +238,8 @@ def load_data(out_dir: str | Path, settings: Settings):
 
 
 def _load_data_checked(out_dir: str | Path, settings: Settings, after_fig3: Callable | None = None):
-    """:func:`load_data`, calling ``after_fig3(mis, subs)`` once the Fig. 3 traces are read."""
+    """:func:`load_data`, calling ``after_fig3(mis, subs)`` once the Fig. 3 traces are read (they
+    are read first, before the chains' traces)."""
     from ..errors import ConfigError
     from ..result import load
 
@@ -269,12 +270,6 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
         except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
             raise ConfigError(str(p), f"is damaged or not a hertzchain result ({type(exc).__name__}: {exc})") from None
 
-    walls = {}
-    for name in ("chain1", "chain2"):
-        walls[name] = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p)
-                       for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
-        if not walls[name]:
-            raise ConfigError(str(data), f"holds no {name} traces")
     mis = {}
     for p in sorted(data.glob("fig3_chain2_offset_bead*_e*.nc")):
         m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
@@ -282,6 +277,12 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
     subs = {label: read(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
     if after_fig3 is not None:
         after_fig3(mis, subs)
+    walls = {}
+    for name in ("chain1", "chain2"):
+        walls[name] = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p)
+                       for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
+        if not walls[name]:
+            raise ConfigError(str(data), f"holds no {name} traces")
     studies = {name: protocol.study_from_datasets(name, wall, settings) for name, wall in walls.items()}
     ratio = protocol.wall_chain_ratio_from_dataset(read(data / "uniform16_elastic_wall_chain_ratio.nc", whole=True))
     return studies, mis, subs, ratio
@@ -319,7 +320,7 @@ def _usable_cores() -> int:
 
 def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
          progress: Callable[[str], None] | None = None, workers: int | None = None,
-         extra: dict[str, Callable] | None = None) -> dict[str, Path]:
+         extra: dict[str, Callable] | None = None, figures=FIGURE_NAMES) -> dict[str, Path]:
     """Draw Figs. 1-6 (PNG + PDF) into ``out_dir``; returns {name: png path}.
 
     Text layout makes drawing CPU-bound, so the figures are drawn by ``workers`` forked processes
@@ -327,9 +328,11 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     one core). ``extra`` ({name: function returning a figure}, e.g. :func:`_fidelity_makers`) is
     drawn in the same processes, so that every figure shares the cores; ``progress(message)`` is
     called after each of Figs. 1-6 is written (not after the extra ones: :func:`count_steps`).
+    ``figures`` names the ones of Figs. 1-6 to draw (default all).
     """
     global _DRAW_JOB
-    makers = {**_figure_makers(studies, mis, subs, settings), **(extra or {})}
+    makers = {name: make for name, make in _figure_makers(studies, mis, subs, settings).items() if name in figures}
+    makers.update(extra or {})
     order = [n for n in _DRAW_ORDER if n in makers] + [n for n in makers if n not in _DRAW_ORDER]
     workers = min(len(FIGURE_NAMES), _usable_cores()) if workers is None else workers
     drawn: dict[str, Path] = {}
@@ -350,7 +353,7 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
                 done(*_draw_one(name))
     finally:
         _DRAW_JOB = None
-    return {name: drawn[name] for name in [*FIGURE_NAMES, *(n for n in makers if n not in FIGURE_NAMES)]}
+    return {name: drawn[name] for name in makers}
 
 
 def _draw_early(out_dir: str | Path, makers: dict[str, Callable]) -> Callable[..., dict[str, Path]]:
@@ -425,28 +428,37 @@ def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -
         raise ConfigError(str(out / "summary.json"), f"is not the summary of a reproduction: its 'settings' "
                           f"are missing or damaged ({type(exc).__name__}: {exc})") from None
     lateral = _lateral_files(out)
-    # The model-variant figures need no pulse fit: each is drawn by a process forked as soon as
-    # its data is in memory (Fig. 5 laws: summary.json; Fig. 3 lateral: the Fig. 3 traces), on
-    # the core this one leaves idle while it reads the chains' traces and refits their pulses.
+    # The figures that need no chain's pulse fit are drawn by a process forked as soon as their
+    # data is in memory (Fig. 5 laws: summary.json; Figs. 3 and 3 lateral: the Fig. 3 traces,
+    # read first), on the core this one leaves idle while it reads the chains' traces and refits
+    # their pulses; then two processes draw Figs. 1, 2, 4-6 (measured: 5.6 s wall with Fig. 3 in
+    # those two, 5.3 s here, on two idle cores).
     early = [_draw_early(out, makers) for makers in [_fidelity_makers(summary, {}, {})] if makers]
 
-    def start_lateral(mis, subs):
-        makers = _fidelity_makers({}, mis, lateral and (lambda: _load_lateral(lateral)))
-        if makers:
-            early.append(_draw_early(out, makers))
+    def start_fig3(mis, subs):
+        from . import figures as figs
+
+        makers = {"fig3": lambda: figs.fig3(mis, subs, settings),
+                  **_fidelity_makers({}, mis, lateral and (lambda: _load_lateral(lateral)))}
+        early.append(_draw_early(out, makers))
 
     try:
-        studies, mis, subs, _ = _load_data_checked(out, settings, start_lateral)
+        studies, mis, subs, _ = _load_data_checked(out, settings, start_fig3)
         summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
         tick("read the data")
-        paths = draw(out, studies, mis, subs, settings, tick)
+        # the report's numbers now, while the early process still draws, not after every figure
+        summary["figures"] = _figure_numbers(studies, mis, subs, settings)
+        paths = draw(out, studies, mis, subs, settings, tick, figures=[n for n in FIGURE_NAMES if n != "fig3"])
         while early:
-            paths.update(early[0]())
+            drawn = early[0]()
             early.pop(0)
+            paths.update(drawn)
+            if "fig3" in drawn:
+                tick("drew fig3")
     finally:
         for job in early:
             job(cancel=True)
-    summary["figures"] = _figure_numbers(studies, mis, subs, settings)
+    paths = {name: paths[name] for name in [*FIGURE_NAMES, *(n for n in paths if n not in FIGURE_NAMES)]}
     write_report(out, _round(summary), paths, summary["settings"])
     tick("wrote the report")
     return summary
