@@ -89,3 +89,31 @@ def test_animate_cli_and_errors(tmp_path, with_positions, capsys, monkeypatch):
     assert main(["animate", str(tmp_path / "w.nc"), "--out", str(tmp_path / "b.gif"), "-q"]) == 2
     assert "every contact force" in capsys.readouterr().err
     assert not (tmp_path / "b.gif").exists()
+
+
+def test_wall_force_grows_beside_the_chain_drawn_to_scale(with_positions):
+    """Side by side: the trace's axes lies right of the chain's, the chain keeps one scale on both
+    axes, and at frame k the trace is the recorded wall force up to the frame's time."""
+    from hertzchain.plotting import _title
+
+    ds = with_positions
+    fr = animation.chain_frames(ds, 9, window=(0.1e-3, 1.1e-3))
+    view = animation._frame_figure(ds, fr, _title(ds, None))
+    view.figure.canvas.draw()  # applies the equal aspect to the chain's box
+    chain, trace_ax = view.chain_axes.get_position(), view.trace_axes.get_position()
+    assert trace_ax.x0 > chain.x1  # beside, not below: the trace starts right of the chain's end
+    assert trace_ax.y0 < chain.y1 and chain.y0 < trace_ax.y1  # and the two overlap in height
+    # to scale: metres per pixel equal along and across the chain
+    (x0, y0), (x1, y1) = view.chain_axes.transData.transform([(0.0, 0.0), (0.1, 0.1)])
+    assert x1 - x0 == pytest.approx(y1 - y0, rel=1e-9)
+    t_ms, wall = ds.time.values * 1e3, ds.wall_force.values
+    for k in (0, 4, 8):
+        view.show(k)
+        x, y = view.trace.get_data()
+        assert x[-1] == pytest.approx(fr.time[k] * 1e3, rel=1e-12)  # ends at the frame's time
+        assert x[0] == pytest.approx(fr.time[0] * 1e3, rel=1e-12)
+        span = slice(int(fr.index[0]), int(fr.index[k]) + 1)
+        assert np.array_equal(x, t_ms[span]) and np.array_equal(y, wall[span])
+    # the axis holds the whole window, so the trace grows inside a fixed frame
+    assert view.trace_axes.get_xlim() == pytest.approx((fr.time[0] * 1e3, fr.time[-1] * 1e3))
+    assert view.trace_axes.get_ylim()[1] >= wall[int(fr.index[0]): int(fr.index[-1]) + 1].max()

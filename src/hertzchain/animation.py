@@ -1,4 +1,4 @@
-"""Animations of a result: the chain drawn to scale, beads coloured by force, the wall force growing.
+"""Animations of a result: the chain drawn to scale, beads coloured by force, the wall force growing beside it.
 
 The frames are rendered with Matplotlib's Agg canvas and written as a GIF by Pillow (which
 Matplotlib already needs, so nothing extra to install) or, when ``ffmpeg`` is on the PATH, as an
@@ -142,6 +142,81 @@ def chain_frames(ds: xr.Dataset, n_frames: int = 100, *, window: Sequence[float]
 FRAME_INCHES, FRAME_DPI = (8.0, 4.5), 100
 
 
+@dataclass
+class _FrameFigure:
+    """The figure of an animation: ``show(k)`` sets it to frame ``k`` (the caller draws it)."""
+
+    figure: object            # matplotlib Figure with the Agg canvas attached
+    chain_axes: object        # the chain, to scale (equal aspect), on the left
+    trace_axes: object        # the wall force against time [ms], on the right
+    trace: object             # the Line2D of the wall force up to the frame's time
+    show: Callable[[int], None]
+
+
+def _frame_figure(run: xr.Dataset, fr: ChainFrames, title: str) -> _FrameFigure:
+    """Lay out the frames (FRAME_INCHES at FRAME_DPI) of ``run``: the chain to scale on the
+    left, its colour scale below it, the wall force growing beside it on the right."""
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
+
+    fig = Figure(figsize=FRAME_INCHES, dpi=FRAME_DPI)
+    FigureCanvasAgg(fig)
+    # Side by side (figure fractions): a chain is ~10-20 times longer than it is wide, so drawn
+    # to scale it is a thin strip; the left 55 % of the frame keeps it as long as possible and
+    # leaves the trace a panel of its own height on the right.
+    ax_chain = fig.add_axes((0.05, 0.42, 0.55, 0.38))
+    ax_wall = fig.add_axes((0.72, 0.14, 0.26, 0.68))
+    cax = fig.add_axes((0.12, 0.24, 0.41, 0.035))
+    norm = Normalize(0.0, max(float(fr.force.max()), 1e-30))
+    r = 0.5 * fr.diameter
+    colours = ScalarMappable(norm=norm, cmap=matplotlib.colormaps["magma_r"])
+    circles = [ax_chain.add_patch(Circle((x, e), rad, edgecolor="0.3", linewidth=0.5))
+               for x, e, rad in zip(fr.centre[0], fr.offset, r)]
+    left = float(fr.centre[:, 0].min() - r[0])
+    right = float(fr.wall_x if fr.wall_x is not None else fr.centre[:, -1].max() + r[-1])
+    if fr.wall_x is not None:
+        ax_chain.axvline(fr.wall_x, color="0.2", lw=3)
+    ax_chain.set_xlim(left - 0.02 * (right - left), right + 0.02 * (right - left))
+    ax_chain.set_ylim(-1.2 * r.max(), 1.2 * r.max())
+    ax_chain.set_aspect("equal", anchor="S")  # to scale: the box shrinks to the chain's height, down to its scale
+    ax_chain.set_yticks([])
+    ax_chain.set_xlabel("position along the chain [m]")
+    cb = fig.colorbar(colours, cax=cax, orientation="horizontal")
+    cb.set_label("force on each bead [N]")
+    shown = ("beads at rest (no positions recorded)" if fr.exaggeration == 0 else
+             f"displacements x {fr.exaggeration:g}")
+    fig.suptitle(f"{title}; colour: force on each bead; {shown}", fontsize=9)
+    clock = ax_chain.set_title("", loc="left", fontsize=9)
+
+    wall = run.wall_force.values if "wall_force" in run else None
+    t_ms = run.time.values * 1e3
+    span = slice(int(fr.index[0]), int(fr.index[-1]) + 1)
+    ax_wall.set_xlim(t_ms[span][0], t_ms[span][-1])
+    if wall is not None:
+        top = float(wall[span].max())
+        ax_wall.set_ylim(-0.05 * max(top, 1e-30), 1.1 * max(top, 1e-30))
+        ax_wall.set_ylabel("wall force [N]")
+    else:
+        ax_wall.set_ylabel("(free end: no wall force)")
+    (trace,) = ax_wall.plot([], [], lw=1.0, color="C3")
+    ax_wall.set_xlabel("t [ms]")
+    ax_wall.grid(alpha=0.3)
+
+    def show(k: int) -> None:
+        for circle, x, e, rgba_k in zip(circles, fr.centre[k], fr.offset, colours.to_rgba(fr.force[k])):
+            circle.center = (x, e)
+            circle.set_facecolor(rgba_k)
+        clock.set_text(f"t = {fr.time[k] * 1e3:.3f} ms")
+        if wall is not None:  # the trace up to the frame's sample
+            trace.set_data(t_ms[span.start: fr.index[k] + 1], wall[span.start: fr.index[k] + 1])
+
+    return _FrameFigure(fig, ax_chain, ax_wall, trace, show)
+
+
 def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float = 20.0,
             window: Sequence[float] | None = None, member: int | None = None,
             exaggeration: float | None = None, progress: Callable[[int, int], None] | None = None) -> Path:
@@ -167,13 +242,6 @@ def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float 
     pathlib.Path
         ``out``. Every frame is FRAME_INCHES x FRAME_DPI = 800 x 450 pixels.
     """
-    import matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import Normalize
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Circle
-
     from .fileio import atomic_path
     from .plotting import _title, select_member
 
@@ -189,47 +257,8 @@ def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float 
         raise ConfigError("--fps", f"must lie in (0, 100], got {fps!r}")
     fr = chain_frames(ds, n_frames, window=window, member=member, exaggeration=exaggeration)
     run = select_member(ds, member)
-
-    fig = Figure(figsize=FRAME_INCHES, dpi=FRAME_DPI)
-    canvas = FigureCanvasAgg(fig)
-    ax_chain, ax_wall = fig.subplots(2, 1, gridspec_kw={"height_ratios": [1.0, 1.0]})
-    fig.subplots_adjust(left=0.09, right=0.88, top=0.88, bottom=0.12, hspace=0.45)
-    norm = Normalize(0.0, max(float(fr.force.max()), 1e-30))
-    r = 0.5 * fr.diameter
-    colours = ScalarMappable(norm=norm, cmap=matplotlib.colormaps["magma_r"])
-    circles = [ax_chain.add_patch(Circle((x, e), rad, edgecolor="0.3", linewidth=0.5))
-               for x, e, rad in zip(fr.centre[0], fr.offset, r)]
-    left = float(fr.centre[:, 0].min() - r[0])
-    right = float(fr.wall_x if fr.wall_x is not None else fr.centre[:, -1].max() + r[-1])
-    if fr.wall_x is not None:
-        ax_chain.axvline(fr.wall_x, color="0.2", lw=3)
-    ax_chain.set_xlim(left - 0.02 * (right - left), right + 0.02 * (right - left))
-    ax_chain.set_ylim(-1.2 * r.max(), 1.2 * r.max())
-    ax_chain.set_aspect("equal")
-    ax_chain.set_yticks([])
-    ax_chain.set_xlabel("position along the chain [m]")
-    cax = fig.add_axes((0.90, 0.58, 0.015, 0.28))
-    cb = fig.colorbar(colours, cax=cax)
-    cb.set_label("F [N]")
-    shown = ("beads at rest (no positions recorded)" if fr.exaggeration == 0 else
-             f"displacements x {fr.exaggeration:g}")
-    fig.suptitle(f"{_title(run, member if 'member' in ds.dims else None)}; colour: force on each bead; {shown}",
-                 fontsize=9)
-    clock = ax_chain.set_title("", loc="left", fontsize=9)
-
-    wall = run.wall_force.values if "wall_force" in run else None
-    t_ms = run.time.values * 1e3
-    span = slice(int(fr.index[0]), int(fr.index[-1]) + 1)
-    ax_wall.set_xlim(t_ms[span][0], t_ms[span][-1])
-    if wall is not None:
-        top = float(wall[span].max())
-        ax_wall.set_ylim(-0.05 * max(top, 1e-30), 1.1 * max(top, 1e-30))
-        ax_wall.set_ylabel("wall force [N]")
-    else:
-        ax_wall.set_ylabel("(free end: no wall force)")
-    (trace,) = ax_wall.plot([], [], lw=1.0, color="C3")
-    ax_wall.set_xlabel("t [ms]")
-    ax_wall.grid(alpha=0.3)
+    view = _frame_figure(run, fr, _title(run, member if "member" in ds.dims else None))
+    canvas = view.figure.canvas
 
     frames: list = []
     width, height = canvas.get_width_height()
@@ -240,12 +269,7 @@ def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float 
                                      "-s", f"{width}x{height}", "-r", f"{fps:g}", "-i", "-", "-pix_fmt", "yuv420p",
                                      "-f", "mp4", str(tmp)], stdin=subprocess.PIPE)
         for k in range(fr.time.size):
-            for circle, x, e, rgba_k in zip(circles, fr.centre[k], fr.offset, colours.to_rgba(fr.force[k])):
-                circle.center = (x, e)
-                circle.set_facecolor(rgba_k)
-            clock.set_text(f"t = {fr.time[k] * 1e3:.3f} ms")
-            if wall is not None:
-                trace.set_data(t_ms[span.start: fr.index[k] + 1], wall[span.start: fr.index[k] + 1])
+            view.show(k)
             canvas.draw()
             rgba = np.asarray(canvas.buffer_rgba())
             if proc is not None:
