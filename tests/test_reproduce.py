@@ -202,3 +202,28 @@ def test_redraw_reports_progress_and_elastic_limit(summary, tmp_path, capsys):
     assert check["message"].startswith("chain 1 cut after bead 16: contact forces pass the elastic limit")
     _echo_elastic_limit({"elastic_limit": check})
     assert capsys.readouterr().err.strip() == f"warning: {check['message']}"
+
+
+def test_laws_figure_drawn_early_without_the_analysis_stack(summary, tmp_path):
+    """--from-data starts the laws figure before its heavy imports: what that process imports
+    (Matplotlib, hertzchain.theory) loads neither SciPy nor xarray, and the figure it writes is
+    the one drawn in this process, byte for byte."""
+    import subprocess
+    import sys
+
+    from hertzchain.paper import fidelity
+    from hertzchain.paper.early import start_laws_figure
+    from hertzchain.paper.figures import save_figure
+
+    code = ("import sys, hertzchain.paper.early, hertzchain.paper.law_figure, hertzchain.paper.style; "
+            "print(sorted(m for m in ('scipy', 'xarray', 'pandas', 'numba') if m in sys.modules))")
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True).stdout.strip() == "[]"
+    assert start_laws_figure(tmp_path) is None  # no summary.json: nothing started, redraw reports it
+    out, s = summary
+    finish = start_laws_figure(out)
+    if finish is None:
+        pytest.skip("one usable core or no fork: redraw draws the figure itself")
+    early = finish()["fig5_laws"]
+    here = save_figure(fidelity.fig_laws(s["fidelity"]["laws"], s["settings"]["eps_target"]), tmp_path, "fig5_laws")
+    assert early == out / "fig5_laws.png" and early.read_bytes() == here.read_bytes()

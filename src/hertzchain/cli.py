@@ -151,6 +151,9 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
     from .errors import ConfigError
 
     if from_data:
+        from .paper.early import start_laws_figure
+
+        laws_figure = start_laws_figure(out)  # drawn on the idle core while the imports below run
         from .paper.reproduce import FIGURE_NAMES, redraw
 
         _freeze_imports()
@@ -161,7 +164,7 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
                 done[0] += 1
                 update(done[0], len(FIGURE_NAMES) + 2)
 
-            summary = redraw(out, progress=step)
+            summary = redraw(out, progress=step, laws_figure=laws_figure)
         _echo_elastic_limit(summary)
         click.echo(f"redrew the figures and the report in {out}/ from {out}/data")
         return

@@ -33,6 +33,7 @@ from ..model import Model, Wall
 from ..probes import Probes
 from ..track import Track, simulate_lateral
 from . import protocol
+from .law_figure import LAW_STYLE, fig_laws  # noqa: F401 - drawn apart, re-exported here
 from .values import PAPER
 
 __all__ = ["LAW_VARIANTS", "TRACKS", "TAIL_WINDOW_S", "run_law_variants", "law_numbers",
@@ -263,65 +264,6 @@ def misalignment_numbers(rigid: dict, lateral: dict) -> dict:
 # ------------------------------------------------------------------------------------------
 # figures
 # ------------------------------------------------------------------------------------------
-LAW_STYLE = {"elastic": ("s", "0.45", "elastic"), "viscoelastic": ("o", "#1f77b4", "Kuwabara-Kono, constant A"),
-             "viscoelastic_scaled": ("^", "#d62728", "Kuwabara-Kono, A ~ collision time")}
-
-
-def fig_laws(numbers: dict, eps: float = PAPER["eps"]) -> Figure:
-    """F_m(n)/F_m(16) and tau(n)/tau(16) along both chains under each contact law, with eqs. 7-8.
-
-    Top: peak wall force of the chain truncated after bead n over that of the uniform part
-    (n = 16), for the elastic, constant-A and size-scaled laws (markers), with eq. 7 for the
-    chain's q and eps = 1 (dotted), q and ``eps`` (solid) and q = 0, ``eps`` (dashed, dissipation
-    alone). Bottom: the same for the duration tau with eq. 8 (tau_n = (phi_n/2) sqrt(10) / v_n).
-
-    Parameters
-    ----------
-    numbers : dict
-        :func:`law_numbers` output (``summary["fidelity"]["laws"]``).
-    eps : float
-        eps of the dissipative predictions.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        2 x 2 panels (force, duration; chain 1, chain 2).
-    """
-    from .figures import STYLE, _figure
-
-    import matplotlib
-
-    with matplotlib.rc_context(STYLE):
-        fig = _figure(7.0, 4.8)
-        axes = fig.subplots(2, 2, sharex="col")
-        for col, chain in enumerate(("chain1", "chain2")):
-            any_row = next(iter(numbers.values()))[chain]
-            beads = np.asarray(any_row["beads"])
-            n0 = int(beads[0])
-            q = theory.tapering_factor(np.asarray(theory.PAPER_CHAINS[chain]) * 1e-3, n0)[0]
-            phi = np.asarray(theory.PAPER_CHAINS[chain], dtype=float)[beads - 1]
-            for law, row in numbers.items():
-                marker, colour, label = LAW_STYLE.get(law, ("x", "k", law))
-                c = row[chain]
-                F, tau = np.asarray(c["peak_force"]), np.asarray(c["duration"])
-                axes[0, col].plot(beads, F / F[0], marker, color=colour, mfc="none", label=label)
-                axes[1, col].plot(beads, tau / tau[0], marker, color=colour, mfc="none", label=label)
-            k = beads - n0
-            for e, qq, ls, lab in ((1.0, q, ":", "q, eps = 1"), (eps, q, "-", f"q, eps = {eps:g}"),
-                                   (eps, 0.0, "--", f"q = 0, eps = {eps:g}")):
-                r = theory.ballistic_ratios(qq, e)
-                axes[0, col].plot(beads, r.force ** k, color="k", ls=ls, lw=0.8, label=f"eq. 7, {lab}")
-                axes[1, col].plot(beads, phi / phi[0] / r.speed ** k, color="k", ls=ls, lw=0.8,
-                                  label=f"eq. 8, {lab}")
-            axes[0, col].set_title(f"chain {chain[-1]} (q = {100 * q:.2f} %)")
-            axes[0, col].set_ylabel(f"$F_m(n) / F_m({n0})$")
-            axes[1, col].set_ylabel(f"$\\tau(n) / \\tau({n0})$")
-            axes[1, col].set_xlabel("bead n (chain truncated after n)")
-        axes[0, 0].legend(loc="lower left", fontsize=6)
-        axes[1, 0].legend(loc="lower left", fontsize=6)
-    return fig
-
-
 def fig3_lateral(rigid: dict, lateral: dict) -> Figure:
     """Paper Fig. 3a-b with the offset bead held on its line (rigid) and free across the axis.
 

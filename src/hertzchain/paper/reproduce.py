@@ -404,18 +404,35 @@ def _write_summary(out: Path, summary: dict) -> None:
     write_text(out / "summary.json", json.dumps(_round(summary), indent=2, allow_nan=False, default=_json_default))
 
 
-def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -> dict:
+def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None,
+           laws_figure: Callable[..., dict[str, Path]] | None = None) -> dict:
     """Redraw the figures and the report of an existing reproduction from its data/ (no simulation).
 
     ``progress(message)`` is called after loading the data, after each figure and after the
-    report (:func:`count_steps` minus the simulations: 8 calls). Returns the summary, with the
+    report (:func:`count_steps` minus the simulations: 8 calls). ``laws_figure`` is what
+    :func:`hertzchain.paper.early.start_laws_figure` returned when the caller started the laws
+    figure before importing this module (default: started here). Returns the summary, with the
     elastic-limit check of the data under ``"elastic_limit"``.
     """
+    from .early import start_laws_figure
+
+    # Scheduling (CPU-bound on two cores): the figures that need no chain's pulse fit are drawn
+    # by processes forked as soon as their data is in memory, on the core this one leaves idle:
+    # Fig. 5 laws (summary.json) while the imports run, Figs. 3 and 3 lateral once the Fig. 3
+    # traces, read first, are in, while this process reads the chains' traces and refits their
+    # pulses; then two processes draw Figs. 1, 2, 4-6.
+    early = [job for job in [laws_figure or start_laws_figure(out_dir)] if job]
+    try:
+        return _redraw(Path(out_dir), progress or (lambda msg: None), early)
+    finally:
+        for job in early:
+            job(cancel=True)
+
+
+def _redraw(out: Path, tick: Callable[[str], None], early: list) -> dict:
     from ..errors import ConfigError
     from .report import write_report
 
-    tick = progress or (lambda msg: None)
-    out = Path(out_dir)
     try:
         summary = json.loads((out / "summary.json").read_bytes().decode("utf-8"))
     except (OSError, ValueError) as exc:
@@ -428,12 +445,8 @@ def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -
         raise ConfigError(str(out / "summary.json"), f"is not the summary of a reproduction: its 'settings' "
                           f"are missing or damaged ({type(exc).__name__}: {exc})") from None
     lateral = _lateral_files(out)
-    # The figures that need no chain's pulse fit are drawn by a process forked as soon as their
-    # data is in memory (Fig. 5 laws: summary.json; Figs. 3 and 3 lateral: the Fig. 3 traces,
-    # read first), on the core this one leaves idle while it reads the chains' traces and refits
-    # their pulses; then two processes draw Figs. 1, 2, 4-6 (measured: 5.6 s wall with Fig. 3 in
-    # those two, 5.3 s here, on two idle cores).
-    early = [_draw_early(out, makers) for makers in [_fidelity_makers(summary, {}, {})] if makers]
+    if not early:  # not started early (one core, no fork): drawn here, or not at all without its numbers
+        early += [_draw_early(out, makers) for makers in [_fidelity_makers(summary, {}, {})] if makers]
 
     def start_fig3(mis, subs):
         from . import figures as figs
@@ -442,22 +455,18 @@ def redraw(out_dir: str | Path, progress: Callable[[str], None] | None = None) -
                   **_fidelity_makers({}, mis, lateral and (lambda: _load_lateral(lateral)))}
         early.append(_draw_early(out, makers))
 
-    try:
-        studies, mis, subs, _ = _load_data_checked(out, settings, start_fig3)
-        summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
-        tick("read the data")
-        # the report's numbers now, while the early process still draws, not after every figure
-        summary["figures"] = _figure_numbers(studies, mis, subs, settings)
-        paths = draw(out, studies, mis, subs, settings, tick, figures=[n for n in FIGURE_NAMES if n != "fig3"])
-        while early:
-            drawn = early[0]()
-            early.pop(0)
-            paths.update(drawn)
-            if "fig3" in drawn:
-                tick("drew fig3")
-    finally:
-        for job in early:
-            job(cancel=True)
+    studies, mis, subs, _ = _load_data_checked(out, settings, start_fig3)
+    summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
+    tick("read the data")
+    # the report's numbers now, while the early processes still draw, not after every figure
+    summary["figures"] = _figure_numbers(studies, mis, subs, settings)
+    paths = draw(out, studies, mis, subs, settings, tick, figures=[n for n in FIGURE_NAMES if n != "fig3"])
+    while early:
+        drawn = early[0]()
+        early.pop(0)
+        paths.update(drawn)
+        if "fig3" in drawn:
+            tick("drew fig3")
     paths = {name: paths[name] for name in [*FIGURE_NAMES, *(n for n in paths if n not in FIGURE_NAMES)]}
     write_report(out, _round(summary), paths, summary["settings"])
     tick("wrote the report")
