@@ -8,6 +8,13 @@ nothing), which issue 14 found faster than redrawing (6.2 s against 14.6 s). The
 processes) are saved too: on a shared machine they vary less than the wall clock. About 2.5
 minutes on 2 cores.
 
+``--baseline-src DIR`` also times ``--from-data`` with another version's ``src`` folder first on
+``PYTHONPATH`` (the same reproduction, the two versions alternated so that both see the same
+load), e.g. the version before a change:
+
+    git archive COMMIT src | tar -x -C /tmp/base
+    .venv/bin/python benchmarks/ux_timings.py --baseline-src /tmp/base/src
+
     .venv/bin/python benchmarks/ux_timings.py [--json benchmarks/results/ux_timings.json] [--repeat 3]
 """
 
@@ -66,6 +73,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", type=Path, default=RESULTS / "ux_timings.json")
     parser.add_argument("--repeat", type=int, default=3, help="repetitions of the warm timings (best is kept)")
+    parser.add_argument("--baseline-src", type=Path, default=None,
+                        help="src folder of another version: its --from-data is timed alternately with this one's")
     args = parser.parse_args()
 
     cli = _cli()
@@ -82,9 +91,18 @@ def main() -> None:
         no_fig = [_run([*cli, "reproduce", "--out", str(work / "nofig"), "--no-figures"], cold_env, "no_figures")
                   for _ in range(max(1, args.repeat - 1))]
         results["reproduce_no_figures_warm_s"] = min(no_fig)
-        redraw = [_run([*cli, "reproduce", "--out", str(out), "--from-data"], cold_env, "from_data") for _ in range(args.repeat)]
+        redraw, base = [], []
+        for _ in range(args.repeat):
+            if args.baseline_src is not None:
+                base_env = {**cold_env, "PYTHONPATH": str(args.baseline_src.resolve())}
+                base.append(_run([*cli, "reproduce", "--out", str(out), "--from-data"], base_env, "from_data_baseline"))
+            redraw.append(_run([*cli, "reproduce", "--out", str(out), "--from-data"], cold_env, "from_data"))
         results["from_data_s"] = min(redraw)
         results["from_data_all_s"] = redraw
+        if base:
+            results["from_data_baseline_s"] = min(base)
+            results["from_data_baseline_all_s"] = base
+            results["baseline_src"] = str(args.baseline_src)
         first = []
         for k in range(args.repeat + 1):
             env = {**os.environ, "NUMBA_CACHE_DIR": str(work / ("first_cold" if k == 0 else "numba_cache"))}
@@ -105,6 +123,8 @@ def main() -> None:
             ("reproduce --no-figures, warm (baseline): wall / CPU",
              f"{results['reproduce_no_figures_warm_s']:.1f} s / {cpu['no_figures']:.1f} s"),
             ("reproduce --from-data: wall / CPU", f"{results['from_data_s']:.1f} s / {cpu['from_data']:.1f} s"),
+            *([("reproduce --from-data, baseline src: wall / CPU",
+                f"{results['from_data_baseline_s']:.1f} s / {cpu['from_data_baseline']:.1f} s")] if base else []),
             ("import hertzchain", f"{results['import_s']:.2f} s"),
             ("first simulate after import, cold / warm cache",
              f"{results['first_simulate_cold_s']:.2f} s / {results['first_simulate_warm_s']:.2f} s"),
