@@ -237,9 +237,11 @@ def load_data(out_dir: str | Path, settings: Settings):
     return _load_data_checked(out_dir, settings)
 
 
-def _load_data_checked(out_dir: str | Path, settings: Settings, after_fig3: Callable | None = None):
+def _load_data_checked(out_dir: str | Path, settings: Settings, after_fig3: Callable | None = None,
+                       ratio: bool = True):
     """:func:`load_data`, calling ``after_fig3(mis, subs)`` once the Fig. 3 traces are read (they
-    are read first, before the chains' traces)."""
+    are read first, before the chains' traces); ``ratio=False`` leaves the wall/chain ratio run
+    unread (None: the figures do not draw it)."""
     from ..errors import ConfigError
     from ..result import load
 
@@ -247,7 +249,7 @@ def _load_data_checked(out_dir: str | Path, settings: Settings, after_fig3: Call
     if not data.is_dir():
         raise ConfigError(str(data), "no data folder: run 'hertzchain reproduce' first")
     try:
-        return _load_data(data, settings, load, after_fig3)
+        return _load_data(data, settings, load, after_fig3, ratio)
     except ConfigError:
         raise
     except (OSError, ValueError, KeyError, AttributeError, IndexError, TypeError, RuntimeError) as exc:
@@ -256,7 +258,11 @@ def _load_data_checked(out_dir: str | Path, settings: Settings, after_fig3: Call
                           "rerun 'hertzchain reproduce' without --from-data") from None
 
 
-def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None = None):
+#: The first bytes of every HDF5 file (NetCDF-4, as hertzchain writes its results).
+_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None = None, with_ratio: bool = True):
     import re
 
     from ..errors import ConfigError
@@ -270,21 +276,31 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
         except Exception as exc:  # noqa: BLE001 - a damaged HDF5 file raises anything (RuntimeError, OSError, ...)
             raise ConfigError(str(p), f"is damaged or not a hertzchain result ({type(exc).__name__}: {exc})") from None
 
+    chains = {name: sorted(data.glob(f"{name}_truncated_*.nc")) for name in ("chain1", "chain2")}
+    mis_files = sorted(data.glob("fig3_chain2_offset_bead*_e*.nc"))
+    sub_files = {label: data / f"fig3c_chain1_24_{tag}.nc" for label, tag in _SUB_TAGS.items()}
+    ratio_file = data / "uniform16_elastic_wall_chain_ratio.nc"
+    # A truncated or foreign file is named before anything is read (and before the Fig. 3
+    # traces, read first, set a drawing process going); a missing one when its turn comes.
+    for p in [*chains["chain1"], *chains["chain2"], *mis_files, *sub_files.values(), *[ratio_file][:with_ratio]]:
+        if p.is_file():
+            with open(p, "rb") as f:
+                if f.read(len(_HDF5_SIGNATURE)) != _HDF5_SIGNATURE:
+                    raise ConfigError(str(p), "is damaged or not a hertzchain result (not a NetCDF-4/HDF5 file)")
+    for name, files in chains.items():
+        if not files:
+            raise ConfigError(str(data), f"holds no {name} traces")
     mis = {}
-    for p in sorted(data.glob("fig3_chain2_offset_bead*_e*.nc")):
+    for p in mis_files:
         m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
         mis[(int(m.group(1)), float(m.group(2)))] = read(p)
-    subs = {label: read(data / f"fig3c_chain1_24_{tag}.nc") for label, tag in _SUB_TAGS.items()}
+    subs = {label: read(p) for label, p in sub_files.items()}
     if after_fig3 is not None:
         after_fig3(mis, subs)
-    walls = {}
-    for name in ("chain1", "chain2"):
-        walls[name] = {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p)
-                       for p in sorted(data.glob(f"{name}_truncated_*.nc"))}
-        if not walls[name]:
-            raise ConfigError(str(data), f"holds no {name} traces")
+    walls = {name: {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p) for p in files}
+             for name, files in chains.items()}
     studies = {name: protocol.study_from_datasets(name, wall, settings) for name, wall in walls.items()}
-    ratio = protocol.wall_chain_ratio_from_dataset(read(data / "uniform16_elastic_wall_chain_ratio.nc", whole=True))
+    ratio = protocol.wall_chain_ratio_from_dataset(read(ratio_file, whole=True)) if with_ratio else None
     return studies, mis, subs, ratio
 
 
@@ -455,7 +471,7 @@ def _redraw(out: Path, tick: Callable[[str], None], early: list) -> dict:
                   **_fidelity_makers({}, mis, lateral and (lambda: _load_lateral(lateral)))}
         early.append(_draw_early(out, makers))
 
-    studies, mis, subs, _ = _load_data_checked(out, settings, start_fig3)
+    studies, mis, subs, _ = _load_data_checked(out, settings, start_fig3, ratio=False)
     summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
     tick("read the data")
     # the report's numbers now, while the early processes still draw, not after every figure
