@@ -39,7 +39,7 @@ def power_spectrum(time: ArrayLike, force: ArrayLike, *, nfft: int | None = None
     """One-sided power spectral density of a uniformly sampled force record.
 
     The periodogram of :func:`scipy.signal.periodogram` with ``scaling="density"`` (equal to
-    it to rounding): P(f_k) = c |sum_n w_n F_n exp(-2 pi i k n / nfft)|^2 / (fs sum_n w_n^2),
+    it to rounding): ``P(f_k) = c abs(sum_n w_n F_n exp(-2 pi i k n / nfft))^2 / (fs sum_n w_n^2)``
     with c = 2 except at 0 Hz and the Nyquist frequency (one-sided density). It is computed
     with :func:`numpy.fft.rfft` so that importing :mod:`hertzchain.analysis` does not load
     :mod:`scipy.signal` (~0.45 s, most of it scipy.stats); windows other than "hann" and
