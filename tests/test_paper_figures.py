@@ -264,3 +264,23 @@ def test_comparison_rows_verdicts():
     assert by_name["chain 1: Q1"].verdict.startswith("inside the paper's error bar")
     assert by_name["chain 2: Q2"].verdict.startswith("outside the paper's error bar")
     assert np.isclose(by_name["chain 1: Q1"].rel, 1.021 / 1.025 - 1)
+
+
+def test_save_figure_draws_the_pdf_once_with_the_pngs_layout(data, tmp_path, monkeypatch):
+    """The constrained layout is computed for the PNG and kept for the PDF, which is drawn once:
+    a leftover layout engine (even the placeholder of "none") makes savefig run a dry-run draw
+    on a renderer of its own first, 40 % of the PDF's time."""
+    from matplotlib.backends.backend_agg import RendererAgg
+    from matplotlib.figure import Figure
+
+    fig = figs.fig4(data["chain1"], data["chain2"])
+    draws = []
+    real_draw = Figure.draw
+    monkeypatch.setattr(Figure, "draw", lambda self, renderer: (draws.append(renderer), real_draw(self, renderer))[1])
+    png = figs.save_figure(fig, tmp_path, "fig4")
+    assert len([r for r in draws if not isinstance(r, RendererAgg)]) == 1  # the PDF: one draw
+    assert fig.get_layout_engine() is None
+    positions = [ax.get_position().bounds for ax in fig.axes]
+    fig.draw(draws[-2])  # drawing again (the PNG's renderer) moves nothing: the layout is fixed
+    assert [ax.get_position().bounds for ax in fig.axes] == positions
+    assert png.with_suffix(".pdf").read_bytes()[:5] == b"%PDF-"

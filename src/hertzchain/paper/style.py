@@ -64,7 +64,7 @@ def save_figure(fig: Figure, out_dir: str | Path, name: str, dpi: int = 200) -> 
     """Write ``name.png`` (raster, ``dpi`` dots per inch) and ``name.pdf`` (vector) into ``out_dir``.
 
     The directory is created if needed; both files are written atomically. The layout is
-    computed once, for the PNG, and kept for the PDF (the same figure, half the drawing time).
+    computed for the PNG and kept for the PDF; the figure is left without a layout engine.
     Returns the PNG path (the PDF lies beside it, same stem).
     """
     from ..fileio import atomic_path
@@ -78,7 +78,14 @@ def save_figure(fig: Figure, out_dir: str | Path, name: str, dpi: int = 200) -> 
         # written through hertzchain.fileio: a killed or failed save never leaves half a figure
         with atomic_path(png) as tmp:
             fig.savefig(tmp, dpi=dpi, format="png")
-        fig.set_layout_engine("none")
+        # The PDF keeps the PNG's layout. No layout engine at all, not "none": that leaves a
+        # placeholder engine, and with any engine savefig first runs a whole dry-run draw (text
+        # layout and mathtext on a renderer of its own) before the real one: 40 % of the PDF's
+        # time, 0.8 s CPU over the reproduction's eight figures, for byte-identical files (but
+        # for the PDF's date). None means "no engine" only while the rc parameters ask for no
+        # automatic layout, hence the context.
+        with matplotlib.rc_context({"figure.autolayout": False, "figure.constrained_layout.use": False}):
+            fig.set_layout_engine(None)
         with atomic_path(png.with_suffix(".pdf")) as tmp:
             fig.savefig(tmp, format="pdf")
     return png
