@@ -26,9 +26,9 @@ __all__ = ["reproduce", "redraw", "load_data", "draw", "count_runs", "count_step
 #: The figures drawn (one progress step each, then one for the report).
 FIGURE_NAMES = ("fig1", "fig2", "fig3", "fig4", "fig5", "fig6")
 #: Order in which the drawing processes take the figures, the model-variant ones included: the
-#: costliest first (measured, PNG + PDF: Fig. 1 1.3 s, Fig. 2 1.0 s, Figs. 5-6 0.9 s, Fig. 3
-#: 0.75 s, Fig. 3 lateral 0.7 s, Fig. 5 laws 0.55 s, Fig. 4 0.45 s), so that two processes
-#: finish together.
+#: costliest first (measured, PNG + PDF: Fig. 1 1.0 s, Fig. 2 0.9 s, Fig. 5 0.8 s, Fig. 6 0.7 s,
+#: Figs. 3 and 3 lateral 0.6 s, Fig. 5 laws 0.5 s, Fig. 4 0.25 s; Fig. 6 before Fig. 5 lets the
+#: two processes of --from-data, which draws Figs. 1, 2, 4-6, finish together).
 _DRAW_ORDER = ("fig1", "fig2", "fig6", "fig5", "fig3", "fig3_lateral", "fig5_laws", "fig4")
 
 #: Units of the summary.json values (SI), written into the file under ``"units"``.
@@ -282,7 +282,7 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
     ratio_file = data / "uniform16_elastic_wall_chain_ratio.nc"
     # A truncated or foreign file is named before anything is read (and before the Fig. 3
     # traces, read first, set a drawing process going); a missing one when its turn comes.
-    for p in [*chains["chain1"], *chains["chain2"], *mis_files, *sub_files.values(), *[ratio_file][:with_ratio]]:
+    for p in [*chains["chain1"], *chains["chain2"], *mis_files, *sub_files.values(), *([ratio_file] if with_ratio else [])]:
         if p.is_file():
             with open(p, "rb") as f:
                 if f.read(len(_HDF5_SIGNATURE)) != _HDF5_SIGNATURE:
