@@ -157,15 +157,15 @@ def test_materials_are_categorical_variables_and_the_example_parses():
 def test_a_member_that_gains_energy_is_flagged():
     """The batched engine has no energy check: the design's own (hertzchain.checks) flags a member
     whose kinetic + elastic + dissipated energy grows, so it can never be the best design."""
-    from hertzchain.design.objectives import _energy_ok, _Task
+    from hertzchain.design.objectives import _energy_ok, _records_of_dataset, _Task
 
     models = [hc.Model(hc.Chain.uniform(4, 26e-3), hc.Striker(8e-3, 0.2), hc.Wall("flat"), hc.Elastic())] * 2
     probes = hc.Probes(sample_interval=1e-6, contacts=())
     ds = simulate_batch(models, 5e-4, probes)
     task = _Task(models, 5e-4, probes, None, ["peak_wall_force"], None)
-    assert _energy_ok(ds, task).tolist() == [True, True]
+    assert _energy_ok(_records_of_dataset(ds), task).tolist() == [True, True]
     ds["kinetic_energy"].values[1, 200:] *= 1.01  # a 1 % gain, as a too-large step would give
-    assert _energy_ok(ds, task).tolist() == [True, False]
+    assert _energy_ok(_records_of_dataset(ds), task).tolist() == [True, False]
 
 
 @pytest.mark.parametrize("design, field", [

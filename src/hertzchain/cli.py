@@ -95,7 +95,8 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
         warnings.simplefilter("always", DurationWarning)
         with progress_bar("simulating", enabled=not quiet and work > 1e8, lazy=True) as update:
             ds = simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
-                          rtol=cfg.run.rtol, progress=update, config=cfg.model_dump(mode="json"))
+                          rtol=cfg.run.rtol, progress=update, config=cfg.model_dump(mode="json"),
+                          steps_per_radian=cfg.run.steps_per_radian)
     for w in caught:
         click.echo(f"warning: {w.message}", err=True)
     ds = apply_instruments(ds, cfg)
