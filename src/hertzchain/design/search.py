@@ -10,6 +10,15 @@ one engine call; move to the best improving neighbour, else halve h, until h < 1
 budget is spent. Several objectives: NSGA-II (:mod:`pymoo`) and the non-dominated feasible
 candidates ever evaluated as the Pareto front.
 
+Multi-fidelity: the search runs candidates at the coarse accuracy of
+:func:`~hertzchain.design.problem.search_fidelity` (``design.search_steps_per_radian``); when it
+ends, the ``design.verify_top`` best distinct feasible candidates are run again at the base
+config's own accuracy in one engine call (phase ``verify``), and the best is chosen among those
+values only, so that ``best.toml`` run by ``hertzchain run`` gives the reported objective. A
+candidate feasible at search accuracy but not at full accuracy is dropped (the next best ones are
+verified while the budget allows). Those runs are set aside from the budget before the search
+starts; ``history.csv`` says which fidelity each row has.
+
 Every generation (population or polish step) is evaluated in ONE batched engine call
 (:class:`~hertzchain.design.objectives.Evaluator`), then the whole search state (optimiser,
 random streams, history, evaluated candidates) is written to ``checkpoint.pkl`` (at most once
@@ -30,8 +39,8 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import ConfigError, HertzchainError
-from .objectives import INFEASIBLE, Evaluator
-from .problem import DesignProblem
+from .objectives import INFEASIBLE, Evaluator, Fidelity
+from .problem import DesignProblem, search_fidelity
 
 __all__ = ["DesignResult", "run_design", "DesignMismatch", "DesignLocked"]
 
@@ -78,6 +87,8 @@ class _State:
     polish_h: float = _POLISH_H0
     history: list[dict] = field(default_factory=list)
     cache: dict = field(default_factory=dict)
+    full_cache: dict = field(default_factory=dict)  # candidates run again at full accuracy (verify)
+    verified: bool = False
     n_evaluations: int = 0
     elapsed_s: float = 0.0
 
@@ -95,7 +106,9 @@ class DesignResult:
         "config": run config, "metrics": {...}}`` of the best feasible candidate (the least
         infeasible one when none is feasible).
     history : list of dict
-        One row per candidate evaluated (generation, phase, variables, objectives, feasibility).
+        One row per candidate evaluated (generation, phase, variables, objectives, feasibility,
+        ``fidelity``: ``"search"`` for the coarse search runs, ``"full"`` for runs at the base
+        config's accuracy).
     pareto : list of dict
         Non-dominated feasible rows (several objectives; the best row for one).
     n_evaluations : int
@@ -176,7 +189,7 @@ def _row(problem: DesignProblem, state: _State, phase: str, x: np.ndarray, ev, v
     row.update({k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in values.items()})
     row.update(ev.objectives)
     row.update(feasible=ev.feasible, violation=ev.violation, **ev.metrics, engine_runs=ev.engine_runs,
-               x=[float(v) for v in x])
+               fidelity=ev.fidelity, x=[float(v) for v in x])
     return row
 
 
@@ -186,7 +199,7 @@ def _evaluate(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: l
     space = problem.space
     decoded = [space.decode(x) for x in xs]
     keys = [space.key(x) for x in xs]
-    evaluator.cache = state.cache
+    evaluator.cache = state.full_cache if evaluator.fidelity.name == "full" and phase == "verify" else state.cache
     evs = evaluator.evaluate(keys, [c for _, c in decoded])
     elapsed = clock()
     for x, (vals, _), ev in zip(xs, decoded, evs):
@@ -195,7 +208,10 @@ def _evaluate(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: l
     return [ev.fitness(problem.objectives) for ev in evs]
 
 
-def _best_row(problem: DesignProblem, history: list[dict]) -> dict | None:
+def _best_row(problem: DesignProblem, history: list[dict], fidelity: str | None = None) -> dict | None:
+    """Best feasible row (least infeasible when none is), among the rows of ``fidelity`` when given."""
+    if fidelity is not None:
+        history = [r for r in history if r["fidelity"] == fidelity]
     if not history:
         return None
     obj = problem.objectives[0]
@@ -259,6 +275,42 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float) -> list[
     return out
 
 
+def _verify(problem: DesignProblem, search: Evaluator, state: _State, budget: int, clock) -> None:
+    """Run the best distinct candidates of the search again at full accuracy (phase ``verify``).
+
+    The ``verify_top`` best feasible search rows go to one engine call; when none of them is
+    feasible at full accuracy (a constraint the coarse runs met only just), the next ones are
+    run while the budget allows. Without any feasible search row, the least infeasible one is
+    run, so that the reported best always has a full-accuracy value.
+    """
+    from dataclasses import replace as _replace
+
+    full = _replace(search, fidelity=Fidelity(), cache=state.full_cache)
+    space = problem.space
+    obj = problem.objectives[0]
+    rows = sorted((r for r in state.history if r["fidelity"] == "search" and r["feasible"]),
+                  key=lambda r: (r[obj], r["evaluation"]))
+    if not rows:
+        least = _best_row(problem, state.history, "search")
+        rows = [least] if least is not None else []
+    queue, seen = [], set()
+    for r in rows:
+        key = space.key(np.asarray(r["x"]))
+        if key not in seen:
+            seen.add(key)
+            queue.append(np.asarray(r["x"], float))
+    k = problem.section.verify_top
+    per = full.n_scenarios
+    while queue:
+        batch, queue = queue[:k], queue[k:]
+        _evaluate(problem, full, state, batch, "verify", clock)
+        if any(r["feasible"] for r in state.history if r["fidelity"] == "full"):
+            return
+        k = min(k, (budget - state.n_evaluations) // per)
+        if k < 1:
+            return
+
+
 def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, device: str | None = None,
                progress: Callable[[int, int], None] | None = None, force: bool = False,
                checkpoint_interval: float = 1.0) -> DesignResult:
@@ -313,14 +365,24 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
                 checkpoint_interval: float) -> DesignResult:
     """:func:`run_design` with the output folder locked."""
     sec = problem.section
+    fidelity = search_fidelity(problem)
+    coarse = fidelity.name != "full"
     evaluator = Evaluator(problem.objectives, sec.constraints, sec.robust,
-                          None if sec.window is None else tuple(sec.window), client, sec.chunk_size, device)
+                          None if sec.window is None else tuple(sec.window), client, sec.chunk_size, device,
+                          fidelity=fidelity)
     state = _load(out, problem, force)
     resumed = state is not None
     if state is None:
         state = _State(problem.hash)
-    budget = sec.budget
     per_candidate = evaluator.n_scenarios
+    # The full-accuracy runs of the best candidates are set aside from the budget of the search.
+    reserve = sec.verify_top * per_candidate if coarse else 0
+    if coarse and sec.budget <= reserve:
+        raise ConfigError("design.budget", f"{sec.budget} engine runs leave nothing to search with after the "
+                          f"{reserve} set aside to run the design.verify_top = {sec.verify_top} best candidates "
+                          "again at full accuracy; raise the budget, lower design.verify_top, or set "
+                          "design.search_steps_per_radian = \"full\"")
+    budget = sec.budget - reserve
     multi = len(problem.objectives) > 1
     t_start = time.perf_counter()
     t_saved = state.elapsed_s
@@ -328,7 +390,9 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
     def clock() -> float:
         return t_saved + time.perf_counter() - t_start
 
-    last_save = [-math.inf]
+    # The first save comes after checkpoint_interval too: a kill loses at most that much work,
+    # and a search shorter than that saves once, at the end.
+    last_save = [t_saved]
 
     def checkpoint(final: bool = False) -> None:
         state.elapsed_s = clock()
@@ -432,8 +496,11 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
             state.phase = "done"
         checkpoint()
 
+    if coarse and not state.verified:
+        _verify(problem, evaluator, state, sec.budget, clock)
+        state.verified = True
     checkpoint(final=True)
-    best = _best_row(problem, state.history)
+    best = _best_row(problem, state.history, "full" if coarse else None)
     best_out = None
     if best is not None:
         values = problem.space.values(np.asarray(best["x"]))
