@@ -406,6 +406,19 @@ class Evaluator:
         check_resources(replace(est, seconds=0.0),
                         memory_field="design.population" if self.client is None else "design.chunk_size")
 
+    @property
+    def has_geometric_constraints(self) -> bool:
+        """Whether any constraint is checked on the geometry (before a run)."""
+        c = self.constraints
+        return any(v is not None for v in (c.min_diameter_mm, c.max_length_mm, c.max_mass_kg, c.min_beads,
+                                            c.max_beads))
+
+    def geometric_violation(self, config: dict) -> float:
+        """Summed relative violation of the geometric constraints by a candidate's run config (no run)."""
+        from ..config import build_chain, parse_config
+
+        return geometric_violation(self.constraints, geometry(build_chain(parse_config(config))))
+
     def evaluate(self, keys: list, configs: list[dict]) -> list[Evaluation]:
         """Evaluate candidates (``keys`` identify equal candidates: each is simulated once, ever)."""
         from ..config import build_model, build_probes, parse_config

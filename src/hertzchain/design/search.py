@@ -54,6 +54,9 @@ _MAX_RESTARTS = 6
 _MAX_DOUBLINGS = 2
 #: Initial and smallest polish step (unit-cube coordinates).
 _POLISH_H0, _POLISH_HMIN = 0.05, 1e-4
+#: Bisection steps on geometry that move a population candidate which breaks a geometric
+#: constraint onto the constraint's boundary (1/256 of its distance to the best point).
+_REPAIR_STEPS = 6
 
 
 class DesignMismatch(HertzchainError):
@@ -262,16 +265,55 @@ def _load(out: Path, problem: DesignProblem, force: bool) -> _State | None:
     return state
 
 
-def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float) -> list[np.ndarray]:
+def _to_boundary(problem: DesignProblem, evaluator: Evaluator, good: np.ndarray, bad: np.ndarray,
+                 steps: int) -> np.ndarray:
+    """The last point of the segment from ``good`` (meets the geometric constraints) to ``bad``
+    (breaks one) that still meets them, to 2^-steps of its length, by bisection on the geometry
+    alone (no engine run). Optima often lie on such a boundary (the smallest bead allowed, the
+    longest chain): a candidate that crosses it is moved onto it rather than thrown away."""
+    lo, hi = 0.0, 1.0
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        y = problem.space.centre(good + mid * (bad - good))
+        if evaluator.geometric_violation(problem.space.decode(y)[1]) > 0:
+            hi = mid
+        else:
+            lo = mid
+    return problem.space.centre(good + lo * (bad - good))
+
+
+def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float, evaluator: Evaluator) -> list[np.ndarray]:
+    """Compass neighbours of ``x``: +- h on every real coordinate, the next bin on every discrete
+    one; a real step that breaks a geometric constraint stops on its boundary instead."""
     out = []
+    repair = evaluator.has_geometric_constraints
     for j, v in enumerate(problem.space.variables):
         step = h if v.kind == "real" else 1.0 / v.n_values
         for s in (-step, step):
             y = x.copy()
             y[j] = min(max(y[j] + s, 0.0), 1.0)
             y = problem.space.centre(y)
+            if repair and v.kind == "real" and evaluator.geometric_violation(problem.space.decode(y)[1]) > 0:
+                y = _to_boundary(problem, evaluator, x, y, max(1, math.ceil(math.log2(h / _POLISH_HMIN))))
             if not np.array_equal(y, x):
                 out.append(y)
+    return out
+
+
+def _repair(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: list[np.ndarray]) -> list[np.ndarray]:
+    """Population candidates that break a geometric constraint, moved onto its boundary on their
+    way to the best feasible point so far (:func:`_to_boundary`); the others unchanged."""
+    best = _best_row(problem, state.history)
+    if best is None or not best["feasible"] or not evaluator.has_geometric_constraints:
+        return xs
+    good = np.asarray(best["x"], float)
+    out = []
+    for x in xs:
+        c = _coords(problem, x)
+        if evaluator.geometric_violation(problem.space.decode(c)[1]) > 0:
+            c = _to_boundary(problem, evaluator, good, c, _REPAIR_STEPS)
+            x = np.concatenate([c, np.asarray(x, float)[problem.space.dim:]])
+        out.append(x)
     return out
 
 
@@ -448,7 +490,9 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
                 pop = opt.ask()
                 xs = [np.asarray(x, float) for x in pop.get("X")]
             else:
-                xs = [np.asarray(x, float) for x in opt.ask()]
+                # Candidates past a geometric constraint are moved onto its boundary and told to
+                # CMA-ES where they were moved (it accepts repaired solutions).
+                xs = _repair(problem, evaluator, state, [np.asarray(x, float) for x in opt.ask()])
             # What this generation costs: its candidates not evaluated before (repeats come from the cache).
             cost = len({problem.space.key(_coords(problem, x)) for x in xs} - state.cache.keys()) * per_candidate
             if state.n_evaluations + cost > budget:
@@ -477,7 +521,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
                 state.polish_h = _POLISH_H0
             x = state.polish_x
             f0 = state.cache[problem.space.key(x)].fitness(problem.objectives)[0]  # evaluated: the best so far
-            neigh = _polish_neighbours(problem, x, state.polish_h)
+            neigh = _polish_neighbours(problem, x, state.polish_h, evaluator)
             new = [y for y in neigh if problem.space.key(y) not in state.cache]
             if not neigh or len(new) * per_candidate > budget - state.n_evaluations:
                 state.phase = "done"  # the budget cannot pay for this step
