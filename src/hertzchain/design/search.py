@@ -317,6 +317,24 @@ def _repair(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: lis
     return out
 
 
+def _repair_initial(problem: DesignProblem, evaluator: Evaluator, xs: list[np.ndarray]) -> list[np.ndarray]:
+    """The initial sample with every point that breaks a geometric constraint moved onto its
+    boundary on its way to the nearest point that meets them (:func:`_to_boundary`): a point
+    beyond the boundary says nothing the boundary itself does not."""
+    if not evaluator.has_geometric_constraints:
+        return xs
+    bad = np.array([evaluator.geometric_violation(problem.space.decode(x)[1]) > 0 for x in xs])
+    if bad.all() or not bad.any():
+        return xs
+    pts = np.asarray(xs, float)
+    good = pts[~bad]
+    out = list(xs)
+    for i in np.flatnonzero(bad):
+        near = good[int(np.argmin(np.sum((good - pts[i]) ** 2, axis=1)))]
+        out[i] = _to_boundary(problem, evaluator, near, pts[i], _REPAIR_STEPS)
+    return out
+
+
 def _verify(problem: DesignProblem, search: Evaluator, state: _State, budget: int, clock) -> None:
     """Run the best distinct candidates of the search again at full accuracy (phase ``verify``).
 
@@ -476,6 +494,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
 
             pop0 = _population(problem)
             xs = list(qmc.LatinHypercube(d=problem.space.dim, seed=np.random.default_rng([sec.seed, 11])).random(pop0))
+            xs = _repair_initial(problem, evaluator, xs)
             if len({problem.space.key(x) for x in xs}) * per_candidate > budget:
                 raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of {pop0} "
                                   f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
