@@ -72,7 +72,7 @@ def throughput(budget: int, search) -> dict:
         res = run_design(problem, Path(tmp) / "run")
         wall = time.perf_counter() - t
     fid = search_fidelity(problem)
-    return {"search_steps_per_radian": search, "search_sample_interval_s": fid.sample_interval,
+    return {"search_steps_per_radian": search, "search_coarse_sampling": fid.coarse_sampling,
             "engine_runs": res.n_evaluations, "full_accuracy_runs": sum(r["engine_runs"] for r in res.history
                                                                        if r["fidelity"] == "full"),
             "wall_s": wall, "evaluations_per_s": res.n_evaluations / wall,

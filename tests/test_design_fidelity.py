@@ -12,7 +12,8 @@ import hertzchain as hc
 from hertzchain.cli import main
 from hertzchain.config import parse_config
 from hertzchain.design import parse_design, run_design
-from hertzchain.design.objectives import Fidelity, _records, _records_of_dataset, _Task, member_metrics, run_task
+from hertzchain.design.objectives import (Fidelity, _records, _records_of_dataset, _Task, member_metrics, run_task,
+                                         search_interval)
 from hertzchain.design.problem import search_fidelity
 from hertzchain.errors import ConfigError
 from hertzchain.integrate.batch import run_batch, simulate_batch
@@ -89,22 +90,40 @@ def test_a_budget_that_only_pays_for_the_verification_is_refused(tmp_path):
 
 def test_search_fidelity_is_coarse_only_where_it_cannot_change_the_answer():
     p = parse_design(_nq())
-    assert search_fidelity(p) == Fidelity("search", 20.0, None)  # 1 us is already the block length here
-    # A finer base record is sampled once per adaptive block in the search (peak_wall_force needs no samples).
-    fine = _nq()
-    fine["base"]["run"]["sample_interval"] = 1e-7
-    fid = search_fidelity(parse_design(fine))
-    assert fid.name == "search" and fid.sample_interval == pytest.approx(7e-7, rel=1e-12)
-    # Objectives read off sampled records, sampled constraints, a fixed step, "full", Pareto fronts: base sampling.
-    assert search_fidelity(parse_design({**fine, "design": {**fine["design"], "objective": "peak_contact_force"}})
-                           ).sample_interval is None
-    capped = {**fine, "design": {**fine["design"], "constraints": {"max_force_over_yield": 1.0}}}
-    assert search_fidelity(parse_design(capped)).sample_interval is None
+    assert search_fidelity(p) == Fidelity("search", 20.0, True)
+    # Objectives read off sampled records, sampled constraints: the base sampling.
+    assert not search_fidelity(parse_design(_nq(objective="peak_contact_force"))).coarse_sampling
+    assert not search_fidelity(parse_design(_nq(constraints={"max_force_over_yield": 1.0}))).coarse_sampling
+    # "full", a fixed step, Pareto fronts: the search runs at the base config's accuracy.
     assert search_fidelity(parse_design(_nq(search_steps_per_radian="full"))) == Fidelity()
     fixed = _nq()
     fixed["base"]["run"]["dt"] = 2e-8
     assert search_fidelity(parse_design(fixed)) == Fidelity()
     assert search_fidelity(parse_design(_nq(objective=["peak_wall_force", "front_momentum_at_wall"]))) == Fidelity()
+
+
+def test_coarse_sampling_keeps_the_wall_pulse_resolved():
+    """A coarse search call samples every k base intervals, k leaving >= 10 samples in the shortest
+    wall pulse its members can give (all the striker's energy in the last bead); the pulse-arrival
+    check then judges every member as it does at the base sampling."""
+    models = [_model(n, q) for n, q in ((2, 0.0), (4, 0.1285), (12, 0.0448), (12, 0.15))]
+    probes = hc.Probes(sample_interval=1e-6, contacts=())
+    assert search_interval(models[:3], 1e-6, 2e-3) == 5 * 1e-6  # last beads >= 15 mm
+    assert search_interval(models, 1e-6, 2e-3) == 1e-6  # a 3.7 mm last bead: no room to coarsen
+    interval = search_interval(models[:3], 1e-6, 2e-3)
+    fine = simulate_batch(models[:3], 2e-3, probes)
+    coarse = simulate_batch(models[:3], 2e-3, hc.Probes(sample_interval=interval, contacts=()), steps_per_radian=20)
+    wall = fine["wall_force"].values
+    for i in range(3):
+        # the measured half-width of the wall pulse holds more than 10 coarse samples
+        above = np.flatnonzero(wall[i] >= 0.5 * wall[i].max())
+        assert (above[-1] - above[0]) * 1e-6 > 10 * interval
+    task = _Task(models[:3], 2e-3, hc.Probes(sample_interval=interval, contacts=()), None, ["peak_wall_force"], None,
+                 steps_per_radian=20)
+    out = run_task(task)
+    assert out["pulse_at_wall"].all() and out["energy_ok"].all()
+    np.testing.assert_allclose(out["peak_wall_force"], fine["peak_wall_force"].values, rtol=1e-4)
+    np.testing.assert_array_equal(out["peak_wall_force"], coarse["peak_wall_force"].values)
 
 
 def test_engine_arrays_give_the_metrics_of_the_stacked_result():

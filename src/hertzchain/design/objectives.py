@@ -44,7 +44,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..errors import PulseNotFound
 from .constraints import Constraints, geometric_violation, geometry, run_violation
 
-__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Fidelity", "member_metrics"]
+__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Fidelity", "member_metrics", "search_interval"]
 
 #: Objective names with their units and meaning.
 OBJECTIVES: dict[str, tuple[str, str]] = {
@@ -66,6 +66,10 @@ INFEASIBLE = 1e12
 SAMPLING_FREE = frozenset({"peak_wall_force"})
 
 
+#: Samples per wall pulse that coarse search records keep (the pulse-arrival check needs a few).
+SEARCH_SAMPLES_PER_PULSE = 10
+
+
 @dataclass(frozen=True)
 class Fidelity:
     """The accuracy candidates are run at.
@@ -77,13 +81,37 @@ class Fidelity:
         gives) or ``"search"`` (coarser, for the search only).
     steps_per_radian : float or None
         Adaptive-step accuracy (``run.steps_per_radian``); None: the config's own.
-    sample_interval : float or None
-        Sample interval [s]; None: the config's own ``run.sample_interval``.
+    coarse_sampling : bool
+        Sample each engine call every whole multiple of ``run.sample_interval`` that still
+        leaves SEARCH_SAMPLES_PER_PULSE samples in the shortest wall pulse its members can give
+        (:func:`search_interval`); False: every ``run.sample_interval``.
     """
 
     name: str = "full"
     steps_per_radian: float | None = None
-    sample_interval: float | None = None
+    coarse_sampling: bool = False
+
+
+def search_interval(models: list, interval: float, duration: float) -> float:
+    """Sample interval [s] of a coarse search call: the largest multiple of ``interval`` that
+    leaves SEARCH_SAMPLES_PER_PULSE samples in the shortest wall pulse of ``models``.
+
+    A pulse of speed v lasts tau = sqrt(10) phi_N / (2 v) at the last bead (paper Sec. III),
+    v from the last bead's largest possible velocity V (paper eq. 5, second form): all the
+    striker's energy in bead N, V = v_0 sqrt(m_s / m_N), bounds it (the wave is faster, so
+    shorter, at larger V).
+    """
+    from ..theory import pulse_duration, solitary_wave_speed_from_velocity
+
+    tau = math.inf
+    for m in models:
+        chain = m.chain
+        vmax = m.striker.velocity * math.sqrt(m.striker.mass / chain.masses[-1])
+        if vmax > 0:
+            speed = float(solitary_wave_speed_from_velocity(chain.materials[-1], vmax))
+            tau = min(tau, float(pulse_duration(chain.diameters[-1], speed)))
+    k = max(1, math.floor(tau / (SEARCH_SAMPLES_PER_PULSE * interval))) if math.isfinite(tau) else 1
+    return k * interval if k * interval <= duration else interval
 
 
 class Robust(BaseModel):
@@ -445,7 +473,10 @@ class Evaluator:
         if pending:
             run0 = parse_config(next(iter(pending.values()))[1])
             fid = self.fidelity
-            probes = Probes(sample_interval=fid.sample_interval or build_probes(run0).sample_interval, contacts=())
+            interval = build_probes(run0).sample_interval
+            if fid.coarse_sampling:
+                interval = search_interval([p[3] for p in pending.values()], interval, run0.run.duration)
+            probes = Probes(sample_interval=interval, contacts=())
             spr = fid.steps_per_radian or run0.run.steps_per_radian
             models, owner = [], []
             for key, (i, cfg, geo, model) in pending.items():

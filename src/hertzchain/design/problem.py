@@ -27,7 +27,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -128,9 +127,10 @@ def search_fidelity(problem: DesignProblem) -> Fidelity:
     there is one objective: candidates are then run with that many steps per radian (peak error
     ~ (1 / steps_per_radian)^2), and, when the objective and constraints read no sampled record
     (objective ``peak_wall_force``, refined at every step; no ``max_force_over_yield``
-    constraint), sampled once per adaptive block (HORIZON_RADIANS / omega_max, at least the base
-    interval) instead of every ``run.sample_interval``: still ~10 samples per wall pulse for the
-    pulse-arrival check. The best ``verify_top`` candidates are then run again at full accuracy.
+    constraint), sampled more coarsely (``coarse_sampling``: still
+    :data:`~hertzchain.design.objectives.SEARCH_SAMPLES_PER_PULSE` samples per wall pulse for
+    the pulse-arrival check, :func:`~hertzchain.design.objectives.search_interval`). The best
+    ``verify_top`` candidates are then run again at full accuracy.
     Otherwise (``"full"``, a fixed step, several objectives: a Pareto front's values are all
     reported) the search runs at the base config's own accuracy.
 
@@ -142,27 +142,17 @@ def search_fidelity(problem: DesignProblem) -> Fidelity:
     Returns
     -------
     Fidelity
-        ``Fidelity("full")`` or ``Fidelity("search", steps_per_radian, sample_interval)``
-        (``sample_interval`` [s] None: the base's).
+        ``Fidelity("full")`` or ``Fidelity("search", steps_per_radian, coarse_sampling)``.
     """
-    from ..config import build_model, parse_config
-    from ..integrate.verlet import HORIZON_RADIANS
+    from ..config import parse_config
 
     sec = problem.section
     run = parse_config(problem.base).run
     if (sec.search_steps_per_radian == "full" or run.dt is not None or len(problem.objectives) > 1
             or sec.search_steps_per_radian >= run.steps_per_radian):
         return Fidelity()
-    interval = None
-    if set(problem.objectives) <= SAMPLING_FREE and sec.constraints.max_force_over_yield is None:
-        # omega_max of the stiffest chain among the space's corners and centre (smaller beads are stiffer)
-        w = max(build_model(parse_config(problem.space.config(problem.space.values(x)))).system().max_frequency()
-                for x in (np.zeros(problem.space.dim), np.ones(problem.space.dim), np.full(problem.space.dim, 0.5)))
-        base = run.sample_interval
-        k = max(1, math.floor(HORIZON_RADIANS / (w * base))) if w > 0 else 1
-        if k > 1 and k * base <= run.duration:
-            interval = k * base
-    return Fidelity("search", float(sec.search_steps_per_radian), interval)
+    coarse_sampling = set(problem.objectives) <= SAMPLING_FREE and sec.constraints.max_force_over_yield is None
+    return Fidelity("search", float(sec.search_steps_per_radian), coarse_sampling)
 
 
 def _loc(prefix: tuple, loc: tuple) -> str:

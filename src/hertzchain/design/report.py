@@ -114,7 +114,7 @@ def _fidelity_info(prob) -> dict:
     from .problem import search_fidelity
 
     fid = search_fidelity(prob)
-    return {"name": fid.name, "steps_per_radian": fid.steps_per_radian, "sample_interval": fid.sample_interval,
+    return {"name": fid.name, "steps_per_radian": fid.steps_per_radian, "coarse_sampling": fid.coarse_sampling,
             "verify_top": prob.section.verify_top if fid.name != "full" else None}
 
 
@@ -264,8 +264,8 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
         ``n_evaluations``, ``objective_name``, ``objectives``, ``units``, ``comparison`` (chain 1
         and the uniform chain, improvement in percent), ``generations``, ``elapsed_s``,
         ``evaluations_per_s``, ``seed``, ``budget``, ``pareto`` (several objectives), ``hash``,
-        ``search_fidelity`` (``name``: ``"search"`` or ``"full"``, ``steps_per_radian``,
-        ``sample_interval`` [s] of the search runs, ``verify_top``).
+        ``search_fidelity`` (``name``: ``"search"`` or ``"full"``, ``steps_per_radian`` and
+        ``coarse_sampling`` of the search runs, ``verify_top``).
     """
     import tomli_w
 
