@@ -10,6 +10,12 @@ one engine call; move to the best improving neighbour, else halve h, until h < 1
 budget is spent. Several objectives: NSGA-II (:mod:`pymoo`) and the non-dominated feasible
 candidates ever evaluated as the Pareto front.
 
+Geometric constraints (smallest bead, length, mass, bead count) are checked without a run, and
+optima often lie on them: a candidate that breaks one is moved onto its boundary by bisection on
+the geometry (:func:`_to_boundary`), towards the nearest feasible point of the initial sample,
+towards the best feasible point in CMA-ES (which is told the moved point), or along its
+coordinate in the polish.
+
 Multi-fidelity: the search runs candidates at the coarse accuracy of
 :func:`~hertzchain.design.problem.search_fidelity` (``design.search_steps_per_radian``); when it
 ends, the ``design.verify_top`` best distinct feasible candidates are run again at the base
@@ -55,7 +61,7 @@ _MAX_DOUBLINGS = 2
 #: Initial and smallest polish step (unit-cube coordinates).
 _POLISH_H0, _POLISH_HMIN = 0.05, 1e-4
 #: Bisection steps on geometry that move a population candidate which breaks a geometric
-#: constraint onto the constraint's boundary (1/256 of its distance to the best point).
+#: constraint onto the constraint's boundary (to 1/64 of its distance to the anchor point).
 _REPAIR_STEPS = 6
 
 
