@@ -199,3 +199,23 @@ def test_a_candidate_infeasible_at_full_accuracy_is_dropped(tmp_path, monkeypatc
     assert len(full) == 2 and sum(not r["feasible"] for r in full) == 1
     assert res.best["feasible"] and res.best["objective"] > dropped[0]
     assert res.best["objective"] == min(r["peak_wall_force"] for r in full if r["feasible"])
+
+
+def test_a_candidate_past_a_geometric_constraint_moves_onto_its_boundary():
+    """Bisection on the geometry alone: from a feasible taper (n = 4, q = 0.05) towards one whose last
+    bead is below 15 mm, the point found meets the constraint and lies within 2^-steps of the exact
+    boundary q* = 1 - (15/26)^(1/4) (26 (1 - q)^4 = 15 mm)."""
+    from hertzchain.design.objectives import Evaluator
+    from hertzchain.design.search import _to_boundary
+
+    p = parse_design(_nq())
+    ev = Evaluator(p.objectives, p.section.constraints)
+    n_bin = (4 - 2 + 0.5) / 11  # unit coordinate of the integer bin n = 4 (2..12)
+    good, bad = np.array([n_bin, 0.05 / 0.15]), np.array([n_bin, 1.0])
+    steps = 12
+    x = _to_boundary(p, ev, good, bad, steps)
+    vals = p.space.values(x)
+    q_star = 1 - (15 / 26) ** 0.25
+    assert vals["chain.taper.n"] == 4
+    assert 26 * (1 - vals["chain.taper.q"]) ** 4 >= 15.0
+    assert q_star - (0.15 - 0.05) * 2.0 ** -steps <= vals["chain.taper.q"] <= q_star
