@@ -472,17 +472,17 @@ class Evaluator:
                 pending[key] = (i, cfg, geo, model)
         if pending:
             run0 = parse_config(next(iter(pending.values()))[1])
-            fid = self.fidelity
-            interval = build_probes(run0).sample_interval
-            if fid.coarse_sampling:
-                interval = search_interval([p[3] for p in pending.values()], interval, run0.run.duration)
-            probes = Probes(sample_interval=interval, contacts=())
-            spr = fid.steps_per_radian or run0.run.steps_per_radian
             models, owner = [], []
             for key, (i, cfg, geo, model) in pending.items():
                 ms = self._scenario_models(cfg, model)
                 models += ms
                 owner += [key] * len(ms)
+            fid = self.fidelity
+            interval = build_probes(run0).sample_interval
+            if fid.coarse_sampling:  # from every scenario: a faster striker gives a shorter pulse
+                interval = search_interval(models, interval, run0.run.duration)
+            probes = Probes(sample_interval=interval, contacts=())
+            spr = fid.steps_per_radian or run0.run.steps_per_radian
             self._check_memory(models, run0.run.duration, probes, run0.run.dt)
             tasks = [_Task(models[s:s + self.chunk_size], run0.run.duration, probes, run0.run.dt, self.objectives,
                            self.window, self.device, spr)
