@@ -110,6 +110,9 @@ def test_coarse_sampling_keeps_the_wall_pulse_resolved():
     probes = hc.Probes(sample_interval=1e-6, contacts=())
     assert search_interval(models[:3], 1e-6, 2e-3) == 5 * 1e-6  # last beads >= 15 mm
     assert search_interval(models, 1e-6, 2e-3) == 1e-6  # a 3.7 mm last bead: no room to coarsen
+    from dataclasses import replace
+
+    assert search_interval([replace(models[0], precompression=1.0)], 1e-6, 2e-3) == 1e-6  # faster waves
     interval = search_interval(models[:3], 1e-6, 2e-3)
     fine = simulate_batch(models[:3], 2e-3, probes)
     coarse = simulate_batch(models[:3], 2e-3, hc.Probes(sample_interval=interval, contacts=()), steps_per_radian=20)

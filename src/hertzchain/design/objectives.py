@@ -99,10 +99,13 @@ def search_interval(models: list, interval: float, duration: float) -> float:
     A pulse of speed v lasts tau = sqrt(10) phi_N / (2 v) at the last bead (paper Sec. III),
     v from the last bead's largest possible velocity V (paper eq. 5, second form): all the
     striker's energy in bead N, V = v_0 sqrt(m_s / m_N), bounds it (the wave is faster, so
-    shorter, at larger V).
+    shorter, at larger V). A precompressed chain carries faster waves than this bound knows of:
+    its records keep the base interval.
     """
     from ..theory import pulse_duration, solitary_wave_speed_from_velocity
 
+    if any(m.precompression for m in models):
+        return interval
     tau = math.inf
     for m in models:
         chain = m.chain
