@@ -222,3 +222,25 @@ def test_a_candidate_past_a_geometric_constraint_moves_onto_its_boundary():
     assert vals["chain.taper.n"] == 4
     assert 26 * (1 - vals["chain.taper.q"]) ** 4 >= 15.0
     assert q_star - (0.15 - 0.05) * 2.0 ** -steps <= vals["chain.taper.q"] <= q_star
+
+
+def test_sweeps_run_at_the_base_steps_per_radian_and_refuse_to_vary_it(tmp_path):
+    """run.steps_per_radian is a shared run setting of a sweep (one batched engine call per chunk)."""
+    import xarray as xr
+
+    from hertzchain.sweep import parse_sweep, run_sweep
+
+    base = {"chain": {"uniform": {"n": 3, "diameter_mm": 10.0}}, "striker": {"diameter_mm": 8.0, "velocity": 0.2},
+            "run": {"duration": 2e-4, "sample_interval": 1e-6, "steps_per_radian": 20.0}}
+    sweep = {"mode": "grid", "chunk_size": 4, "parameters": {"striker.velocity": [0.1, 0.3]}}
+    res = run_sweep({"base": base, "sweep": sweep}, tmp_path / "s")
+    with xr.open_mfdataset(sorted((res.out_dir / "chunks").glob("*.nc")), combine="by_coords") as ds:
+        peaks = ds["peak_wall_force"].values
+    for v, peak in zip((0.1, 0.3), peaks):
+        model = hc.Model(hc.Chain.uniform(3, 10e-3), hc.Striker(8e-3, v), hc.Wall("flat"), hc.Elastic())
+        ref = hc.simulate(model, 2e-4, hc.Probes(sample_interval=1e-6), steps_per_radian=20)
+        assert peak == ref.attrs["peak_wall_force"]
+        assert peak != hc.simulate(model, 2e-4, hc.Probes(sample_interval=1e-6)).attrs["peak_wall_force"]
+    with pytest.raises(ConfigError) as exc:
+        parse_sweep({"base": base, "sweep": {**sweep, "parameters": {"run.steps_per_radian": [20.0, 40.0]}}})
+    assert "run.steps_per_radian" in exc.value.field
