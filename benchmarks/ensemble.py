@@ -18,9 +18,10 @@ by 0.1 % tolerances, 1 sigma, a different draw per member), striker 8 mm at 0.5 
    batch) over ``simulate_batch`` end to end (set-up, engine, stacked Dataset). Target >= 0.85.
    ``cpu_bead_steps_per_s`` is the engine's throughput there (beads x steps / s, all cores).
 3. With a usable CUDA GPU: ``gpu_bead_steps_per_s`` of the CUDA engine (fixed dt = 5 ns, 0.1 ms,
-   transfers included; the kernel chosen by batch size) at 1e3, 1e4, 1e5 and 1e6 members, each
-   kernel alone too (one thread per member; one warp per member up to 1e5 members: where they
-   cross sets ``cuda.WARP_PER_MEMBER_BELOW``), and ``gpu_max_rel_diff_vs_cpu``: the
+   transfers included; the engine's kernel choice: the register kernel for these aligned elastic
+   chains) at 1e3, 1e4, 1e5 and 1e6 members, each kernel alone too (register; the general kernel
+   with one thread per member; one warp per member up to 1e5 members: where those two cross sets
+   ``cuda.WARP_PER_MEMBER_BELOW``), and ``gpu_max_rel_diff_vs_cpu``: the
    largest difference GPU vs CPU engine, relative to each member's largest value, of the peak
    wall force and the sampled contact forces, over an elastic and a viscoelastic misaligned
    ensemble. Without a GPU these keys are absent and ``gpu`` says why.
@@ -132,17 +133,20 @@ def measure_end_to_end(m: int, duration: float, repeat: int) -> dict:
 
 # ----------------------------------------------------------------------------- 3. GPU
 def measure_gpu(sizes: list[int], repeat: int, warp_up_to: int) -> dict:
-    """GPU throughput with the dispatch by batch size (``bead_steps_per_s``), and each kernel
-    alone (``thread_per_member``, ``warp_per_member`` up to ``warp_up_to`` members)."""
+    """GPU throughput with the engine's own kernel choice (``bead_steps_per_s``: the register
+    kernel for these aligned elastic chains), and each kernel alone: ``register``,
+    ``thread_per_member``, ``warp_per_member`` (up to ``warp_up_to`` members)."""
     base = base_model()
     probes = Probes(1e-5, contacts=(0,))
     duration = 1e-4
     out: dict = {"dt_s": GPU_DT, "duration_s": duration, "warp_per_member_below": cuda.WARP_PER_MEMBER_BELOW,
-                 "bead_steps_per_s": {}, "thread_per_member": {}, "warp_per_member": {}, "times_s": {}}
-    dispatch = cuda.WARP_PER_MEMBER_BELOW
+                 "bead_steps_per_s": {}, "register": {}, "thread_per_member": {}, "warp_per_member": {},
+                 "times_s": {}}
+    saved = cuda.WARP_PER_MEMBER_BELOW, cuda.USE_REGISTER_KERNEL
+    settings = {"dispatch": saved, "register": (saved[0], True), "thread": (0, False), "warp": (10**12, False)}
 
-    def run(m: int, below: int) -> tuple[float, list[float]]:
-        cuda.WARP_PER_MEMBER_BELOW = below
+    def run(m: int, kernel: str) -> tuple[float, list[float]]:
+        cuda.WARP_PER_MEMBER_BELOW, cuda.USE_REGISTER_KERNEL = settings[kernel]
         ens = Ensemble(base, diameters=perturbed(m, 2))
         times = []
         for _ in range(repeat):
@@ -154,17 +158,29 @@ def measure_gpu(sizes: list[int], repeat: int, warp_up_to: int) -> dict:
 
     try:
         t0 = time.perf_counter()
-        run(32, 0)
-        run(32, 10**12)
-        out["first_call_s"] = time.perf_counter() - t0  # compiles both kernels
+        for kernel in ("register", "thread", "warp"):
+            run(32, kernel)
+        out["first_call_s"] = time.perf_counter() - t0  # compiles the three kernels
         for m in sizes:
-            rate, out["times_s"][str(m)] = run(m, dispatch)
+            rate, out["times_s"][str(m)] = run(m, "dispatch")
             out["bead_steps_per_s"][str(m)] = rate
-            out["thread_per_member"][str(m)] = run(m, 0)[0]
+            out["register"][str(m)] = run(m, "register")[0]
+            out["thread_per_member"][str(m)] = run(m, "thread")[0]
             if m <= warp_up_to:
-                out["warp_per_member"][str(m)] = run(m, 10**12)[0]
+                out["warp_per_member"][str(m)] = run(m, "warp")[0]
+        # the register kernel's block size (its shared memory holds slots x threads parameters)
+        tpb = cuda.REGISTER_THREADS
+        out["register_threads_per_block"] = {}
+        m = min(100_000, max(sizes))
+        for threads in (32, 64):
+            cuda.REGISTER_THREADS = threads
+            cuda._register_kernel.cache_clear()
+            run(32, "register")
+            out["register_threads_per_block"][str(threads)] = run(m, "register")[0]
+        cuda.REGISTER_THREADS = tpb
+        cuda._register_kernel.cache_clear()
     finally:
-        cuda.WARP_PER_MEMBER_BELOW = dispatch
+        cuda.WARP_PER_MEMBER_BELOW, cuda.USE_REGISTER_KERNEL = saved
     return out
 
 
@@ -251,7 +267,7 @@ def report(res: dict) -> None:
     ]
     for m, r in res.get("gpu_bead_steps_per_s", {}).items():
         g = res["gpu"]
-        alone = f"thread/member {g['thread_per_member'][m]:.3g}"
+        alone = f"register {g['register'][m]:.3g}, thread/member {g['thread_per_member'][m]:.3g}"
         if m in g["warp_per_member"]:
             alone += f", warp/member {g['warp_per_member'][m]:.3g}"
         rows.append((f"GPU, {int(m):,} chains", f"{r:.3g} bead-steps/s ({alone})"))

@@ -26,6 +26,8 @@ def cases(members: int = 3, beads: int = 3) -> dict[str, tuple[Ensemble, Probes,
     tolerance-perturbed copies of the base.
     """
     rng = np.random.default_rng(7)
+    # long enough for the wall to see the pulse: ~26 us a 10 mm bead at 0.1 m/s (0.79 ms for 30)
+    span = 6e-5 * max(1.0, beads / 3) * (1.0 if beads <= 3 else 2.0)
 
     def diam(base: Model) -> np.ndarray:
         return base.chain.diameters * (1 + 2e-3 * rng.standard_normal((members, base.chain.n_beads)))
@@ -36,7 +38,9 @@ def cases(members: int = 3, beads: int = 3) -> dict[str, tuple[Ensemble, Probes,
     off = np.zeros((members, beads))
     off[1, 1] = 0.3e-3                        # member 1: a misaligned bead (general force loop)
     dts = [None] * members
-    dts[2] = 5e-9                             # member 2: a fixed user step
+    # member 2: a fixed user step, near the automatic one for longer chains (5 ns there would take
+    # 240,000 steps, and the GPU's fused multiply-adds would drift from the CPU's sums by ~1e-12)
+    dts[2] = 5e-9 if beads <= 3 else 4e-8
     visco = Model(Chain.uniform(beads, 8e-3, "brass"), Striker(8e-3, 0.15, "brass"), law=Viscoelastic(A=1e-6))
     voff = np.zeros((members, beads))
     voff[0, 2] = -0.2e-3
@@ -45,13 +49,34 @@ def cases(members: int = 3, beads: int = 3) -> dict[str, tuple[Ensemble, Probes,
         "elastic_precompression_offsets_fixed_dt": (
             Ensemble(elastic, diameters=diam(elastic), precompression=pre, offsets=off,
                      striker_velocity=rng.uniform(0.1, 0.3, members)),
-            Probes(INTERVAL, sensors=(2,), contacts=(0, 1)), dts, 6e-5),
+            Probes(INTERVAL, sensors=(2,), contacts=(0, 1)), dts, span),
         "viscoelastic_misaligned": (
             Ensemble(visco, diameters=diam(visco), offsets=voff, law_parameter=rng.uniform(0, 2e-6, members)),
-            Probes(INTERVAL), [None] * members, 6e-5),
+            Probes(INTERVAL), [None] * members, span),
         "dashpot_free_end_velocities": (
             Ensemble(dash, diameters=diam(dash), law_parameter=rng.uniform(1, 10, members)),
-            Probes(INTERVAL, velocities=True), [None] * members, 3e-5),
+            Probes(INTERVAL, velocities=True), [None] * members, span / 2),
+    }
+
+
+def register_cases(members: int = 3, beads: int = 3) -> dict[str, tuple[Ensemble, Probes, list, float]]:
+    """Aligned elastic ensembles, the register kernel's domain: with precompression (its d0 and
+    end-force variant) and a fixed-step member, and without (adaptive step, wall peak tracked)."""
+    rng = np.random.default_rng(8)
+    span = 6e-5 * max(1.0, beads / 3) * (1.0 if beads <= 3 else 2.0)
+    base = Model(Chain.uniform(beads, 10e-3), Striker(8e-3, 0.2))
+    diam = base.chain.diameters * (1 + 2e-3 * rng.standard_normal((members, beads)))
+    pre = np.zeros(members)
+    pre[0] = 1.0
+    dts = [None] * members
+    dts[1] = 5e-9 if beads <= 3 else 4e-8
+    return {
+        "register_elastic_precompression_fixed_dt": (
+            Ensemble(base, diameters=diam, precompression=pre, striker_velocity=rng.uniform(0.1, 0.3, members)),
+            Probes(INTERVAL, sensors=(2,), contacts=(0, 1)), dts, span),
+        "register_elastic": (
+            Ensemble(base, diameters=diam, striker_velocity=rng.uniform(0.1, 0.3, members)),
+            Probes(INTERVAL, velocities=True), [None] * members, span),
     }
 
 
@@ -86,15 +111,17 @@ def _rel(a: np.ndarray, b: np.ndarray) -> float:
 
 def compare(members: int = 3, beads: int = 3, kernel: str = "thread", which=None) -> dict:
     """Per case: max relative difference GPU vs CPU of every compared variable, and whether the
-    step counts, steps and NaN layouts are identical. ``kernel``: "thread" or "warp" per member."""
+    step counts, steps and NaN layouts are identical. ``kernel``: "thread" or "warp" per member over
+    :func:`cases`, or "register" (the register kernel) over :func:`register_cases`."""
     from hertzchain.integrate import cuda as hc_cuda
 
-    saved = hc_cuda.WARP_PER_MEMBER_BELOW
+    saved = hc_cuda.WARP_PER_MEMBER_BELOW, hc_cuda.USE_REGISTER_KERNEL
     hc_cuda.WARP_PER_MEMBER_BELOW = 10**12 if kernel == "warp" else 0
+    hc_cuda.USE_REGISTER_KERNEL = kernel == "register"
     try:
-        return _compare(which or cases(members, beads))
+        return _compare(which or (register_cases if kernel == "register" else cases)(members, beads))
     finally:
-        hc_cuda.WARP_PER_MEMBER_BELOW = saved
+        hc_cuda.WARP_PER_MEMBER_BELOW, hc_cuda.USE_REGISTER_KERNEL = saved
 
 
 def _compare(which: dict) -> dict:
@@ -140,5 +167,6 @@ def multi_launch() -> dict:
 
 
 if __name__ == "__main__":
-    print(json.dumps({"thread": compare(), "warp": compare(kernel="warp", which=warp_cases()),
+    print(json.dumps({"thread": compare(), "register": compare(kernel="register"),
+                      "warp": compare(kernel="warp", which=warp_cases()),
                       "multi_launch": multi_launch()}))

@@ -9,9 +9,13 @@ elastic, viscoelastic or dashpot law, misaligned beads, precompression; the adap
 :func:`kernels.required_stride` or a fixed one; sampled probes, running maximum forces, the wall
 peak tracker refined afterwards; the dissipated energy), in the same order of operations: one
 member per thread for large batches, one warp per member (a lane per slot) below
-``WARP_PER_MEMBER_BELOW`` members, where one thread per member would leave the GPU idle. The
-numbers agree with the CPU engine to ~1e-14 relative, not bit for bit: the GPU fuses
-multiplies and adds (FMA) and the CPU reassociates its energy sums.
+``WARP_PER_MEMBER_BELOW`` members, where one thread per member would leave the GPU idle; and,
+for aligned elastic chains of up to ``REGISTER_MAX_SLOTS`` slots, whatever the batch size, the
+register kernel (:func:`_register_kernel`), which keeps a member's state on the chip. The numbers
+agree with the CPU engine, not bit for bit: the GPU fuses multiplies and adds (FMA) and the CPU
+reassociates its energy sums. Measured on an H100 (30 beads, 1.2 ms, ~60,000 steps): peak wall
+forces within 1.4e-14 relative, sampled forces, velocities and energies within 3.3e-12, the
+rounding differences of every step adding up (tests/test_cuda.py).
 
 Layout: every per-slot array is (slot, member), so that the threads of a warp, which run
 neighbouring members, read neighbouring addresses (coalesced). Inputs are the engine's packed
@@ -19,9 +23,13 @@ batch (:class:`hertzchain.integrate.batch._Packed`, built by the vectorised set-
 that share a layout; outputs stay on the device for a whole launch (a chunk of samples) and are
 copied into the packed batch's buffers after it.
 
-Measured facts behind the choices (NVIDIA H100, 30-bead chains): ``sqrt(0)`` takes CUDA's slow
-path, so overlaps below :data:`kernels.DELTA_MIN` take the square root of a dummy 1.0 and a zero
-force (1.5-2x); one thread per chain reaches ~5e11 bead-steps/s from 1e5 chains.
+Measured facts behind the choices (NVIDIA H100, 30-bead chains, fixed 5 ns step,
+benchmarks/ensemble.py): ``sqrt(0)`` takes CUDA's slow path, so overlaps below
+:data:`kernels.DELTA_MIN` take the square root of a dummy 1.0 and a zero force (1.5-2x). The
+general kernels stream the state through global memory every step, which bounds them by memory
+bandwidth: 1.7e10 bead-steps/s (thread per member, from 1e4 chains) and 1e10 (warp per member).
+The register kernel reads and writes global memory once per block instead: 1.3e10 at 1e3 chains,
+1.0e11 at 1e4, 1.3e11 at 1e5, 1.1e11 at 1e6.
 """
 
 from __future__ import annotations
@@ -39,9 +47,10 @@ __all__ = ["ENGINE", "AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable"
 
 #: The ``engine`` attribute of a batch computed on the GPU.
 ENGINE = "batched velocity Verlet on the GPU (numba.cuda), one member per thread"
-#: ``device="auto"`` uses the GPU from this many members: below ~1e4 chains one thread per chain
-#: leaves most of an H100 idle (1.7e10 bead-steps/s at 1e3 chains, against ~1.5e9 on 2 CPU cores
-#: and ~1e10 on 16), so smaller batches stay on the CPU.
+#: ``device="auto"`` uses the GPU from this many members. Smaller batches stay on the CPU: a GPU
+#: launch costs ~0.1 s of set-up and copies, and a few thousand chains leave an H100 mostly idle
+#: (1.3e10 bead-steps/s at 1e3 chains with the register kernel, 8e9 with the general ones, against
+#: ~1.3e9 on 2 CPU cores and ~5.6e9 on 16).
 AUTO_MIN_MEMBERS = 4096
 #: Accepted values of ``device``.
 DEVICES = ("auto", "cpu", "cuda")
@@ -50,10 +59,11 @@ THREADS_PER_BLOCK = 128
 #: Threads (lanes) per member in the warp-per-member kernel: one warp, one slot per lane for
 #: chains of up to 30 beads (32 slots).
 LANES = 32
-#: Batches of fewer members run one warp per member: one thread per member leaves most of a GPU
-#: idle below ~1e4 members (H100, 30 beads: 1.7e10 bead-steps/s at 1e3 members, 1.7e11 at 1e4,
-#: 4.9e11 from 1e5). Set from those measurements; benchmarks/ensemble.py times both kernels.
-WARP_PER_MEMBER_BELOW = 10_000
+#: Batches of fewer members run the general kernel with one warp per member: one thread per
+#: member leaves most of a GPU idle there (H100, 30 beads: thread per member 1.5e9 bead-steps/s at
+#: 1e3 members, 1.5e10 at 1e4; warp per member 7.8e9 and 9.6e9). They cross near 5,000 members;
+#: benchmarks/ensemble.py times both kernels.
+WARP_PER_MEMBER_BELOW = 5_000
 #: Slot-steps (padded slots x steps, summed over members) per launch: ~0.1 s at 2e11 slot-steps/s,
 #: short enough for progress reports and the display watchdog.
 LAUNCH_SLOT_STEPS = 2e10
@@ -567,8 +577,168 @@ def _kernels() -> dict:
             acc[4, m] = r4
             acc[5, m] = r5
 
-    _KERNEL = {"thread": verlet_kernel, "warp": warp_kernel}
+    _KERNEL = {"thread": verlet_kernel, "warp": warp_kernel, "required_stride": required_stride,
+               "adapt_stride": adapt_stride}
     return _KERNEL
+
+
+#: The register kernel (:func:`_register_kernel`) takes layouts of up to this many slots: its
+#: positions and velocities live in registers (2 x 33 doubles at 32 slots); longer chains would
+#: spill them to local memory, where the general kernel does as well.
+REGISTER_MAX_SLOTS = 40
+#: Whether aligned elastic batches take the register kernel (off: the general kernels, to compare).
+USE_REGISTER_KERNEL = True
+#: Threads per block of the register kernel: its per-member parameters sit in shared memory,
+#: (slots x threads) doubles per array, under the 48 KiB of static shared memory a block may use.
+REGISTER_THREADS = 64
+
+
+@functools.lru_cache(maxsize=None)
+def _register_kernel(p: int, pre: bool):
+    """The thread-per-member kernel for aligned elastic members of ``p`` slots, compiled for that p.
+
+    Same integration, same order of operations as ``verlet_kernel``'s elastic branch (so the same
+    numbers), but what a step touches stays on the chip: with p known at compile time NVVM
+    unrolls the loops over the bodies and keeps positions and velocities in registers, and the
+    per-member parameters (kappa, 1/m; d0 and the end forces only when a member is precompressed,
+    ``pre``) are read from shared memory. Global memory is read and written once per block (the
+    adaptive step's evaluation and the probes read the state there), not once per step: the
+    general kernel's state, streamed through global memory every step, held an H100 to ~1.6e10
+    bead-steps/s at 1e5 chains (benchmarks/ensemble.py), bound by memory bandwidth.
+    """
+    from numba import float64
+
+    kern = _kernels()
+    required_stride = kern["required_stride"]
+    adapt_stride = kern["adapt_stride"]
+    inline = {} if _simulated() else {"forceinline": True}
+    tpb = REGISTER_THREADS if not pre else REGISTER_THREADS // 2
+    # array shapes must be compile-time constants (an expression inside the kernel is not)
+    p1 = p + 1
+    pp = p if pre else 1
+
+    @cuda.jit(device=True, **inline)
+    def track(fw, t, dt, pk):
+        # kernels._track_peak on a per-thread copy of the member's peak tracker
+        if fw > pk[0]:
+            pk[0] = fw
+            pk[1] = t
+            pk[2] = pk[5]
+            pk[6] = dt
+            pk[4] = 1.0
+        elif pk[4] != 0.0:
+            pk[3] = fw
+            pk[7] = dt
+            pk[4] = 0.0
+        pk[5] = fw
+
+    @cuda.jit
+    def register_kernel(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, wall_slot,
+                        interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke, out_pe,
+                        out_ed, out_v, record_v, fmax, peak, acc, status):
+        m = cuda.grid(1)
+        t = cuda.threadIdx.x
+        if m >= status.shape[0] or status[m] != 0:
+            return
+        skap = cuda.shared.array((p, tpb), float64)
+        sinv = cuda.shared.array((p, tpb), float64)
+        sd0 = cuda.shared.array((pp, tpb), float64)
+        sfx = cuda.shared.array((pp, tpb), float64)
+        for i in range(p):
+            skap[i, t] = kappa[i, m]
+            sinv[i, t] = inv_mass[i, m]
+            if pre:
+                sd0[i, t] = d0[i, m]
+                sfx[i, t] = fext[i, m]
+        ul = cuda.local.array(p1, float64)
+        vl = cuda.local.array(p, float64)
+        pk = cuda.local.array(8, float64)
+        for j in range(8):
+            pk[j] = peak[j, m]
+        ul[p] = u[p, m]  # the far end (wall) never moves
+        nrec = rec.shape[0]
+        ws = wall_slot[m] + 1
+        nsub = n_sub[m]
+        neval = n_eval[m]
+        block = interval / nsub
+        adaptive = stride[m] == 0
+        ns = stride[m] if not adaptive else int(acc[3, m])
+        step = acc[2, m]
+        for k in range(k_start, k_stop):
+            for b in range(nsub):
+                if adaptive and ((k - 1) * nsub + b) % neval == 0:
+                    req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block,
+                                          c_steps[m], damping, LAW_ELASTIC, p, m)
+                    ns, r4, r5 = adapt_stride(req, ns, relax[m], acc[4, m], acc[5, m])
+                    acc[4, m] = r4
+                    acc[5, m] = r5
+                    acc[3, m] = ns
+                    acc[6, m] = max(acc[6, m], ns)
+                    acc[7, m] = min(acc[7, m], ns)
+                dt = block / ns
+                half = 0.5 * dt
+                t0 = (k - 1) * interval + b * block
+                for i in range(p):  # the block's opening half kick and drift
+                    vi = v[i, m] + half * a[i, m]
+                    vl[i] = vi
+                    ul[i] = u[i, m] + dt * vi
+                for s in range(ns - 1):  # kernels.step_elastic
+                    fprev = 0.0
+                    fw = 0.0
+                    for i in range(p):
+                        d = ul[i] - ul[i + 1] + (sd0[i, t] if pre else 0.0)
+                        ok = d > DELTA_MIN
+                        dd = d if ok else 1.0  # no sqrt(0): CUDA's slow path
+                        f = skap[i, t] * dd * math.sqrt(dd) if ok else 0.0
+                        if i + 1 == ws:
+                            fw = f
+                        ai = (fprev - f + (sfx[i, t] if pre else 0.0)) * sinv[i, t]
+                        vl[i] += dt * ai
+                        ul[i] += dt * vl[i]
+                        fprev = f
+                    track(fw, t0 + (s + 1) * dt, dt, pk)
+                fprev = 0.0  # kernels.final_step_elastic: forces, closing half kick, state to memory
+                for i in range(p):
+                    d = ul[i] - ul[i + 1] + (sd0[i, t] if pre else 0.0)
+                    ok = d > DELTA_MIN
+                    dd = d if ok else 1.0
+                    f = skap[i, t] * dd * math.sqrt(dd) if ok else 0.0
+                    g[i + 1, m] = f
+                    ai = (fprev - f + (sfx[i, t] if pre else 0.0)) * sinv[i, t]
+                    a[i, m] = ai
+                    v[i, m] = vl[i] + half * ai
+                    u[i, m] = ul[i]
+                    fprev = f
+                track(g[ws, m], t0 + block, dt, pk)
+                step += ns
+            # --- probes, sampled on the device (verlet_kernel's, elastic branch)
+            row = k - k_start
+            for j in range(nrec):
+                out_f[row, j, m] = g[rec[j] + 1, m]
+            for j in range(fmax.shape[0]):
+                x = g[j + 1, m]
+                if x > fmax[j, m]:
+                    fmax[j, m] = x
+            ke = 0.0
+            pe = 0.0
+            for i in range(p):
+                ke += mass[i, m] * v[i, m] * v[i, m]
+                pe += 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
+            ke = 0.5 * ke
+            out_ke[row, m] = ke
+            out_pe[row, m] = pe
+            out_ed[row, m] = acc[0, m]
+            if record_v[m]:
+                for i in range(out_v.shape[1]):
+                    out_v[row, i, m] = v[i, m]
+            if not (math.isfinite(ke) and math.isfinite(g[1, m])):
+                status[m] = 1
+                break
+        for j in range(8):
+            peak[j, m] = pk[j]
+        acc[2, m] = step
+
+    return register_kernel, tpb
 
 
 _SLOT_ARRAYS = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
@@ -593,9 +763,18 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     """
     cuda = _cuda()
     nmem = pk.n_members
-    warp = nmem < WARP_PER_MEMBER_BELOW
-    kernel = _kernels()["warp" if warp else "thread"]
     p = int(pk.n_slots[0])
+    width = int(pk.off[1])
+    # aligned elastic members of a short chain: the register kernel (positions and velocities on
+    # the chip), else one warp per member for small batches, one thread per member for large ones
+    register = USE_REGISTER_KERNEL and p <= REGISTER_MAX_SLOTS and not np.any(pk.general)
+    warp = not register and nmem < WARP_PER_MEMBER_BELOW
+    if register:
+        pre = bool(np.any(pk.flat["d0"].reshape(nmem, width)[:, :p] != 0.0)
+                   or np.any(pk.flat["fext"].reshape(nmem, width)[:, :p] != 0.0))
+        kernel, tpb = _register_kernel(p, pre)
+    else:
+        kernel = _kernels()["warp" if warp else "thread"]
     width = int(pk.off[1])
     if not (np.all(pk.n_slots == p) and np.all(pk.nrec == pk.nrec[0]) and np.all(pk.record_v == pk.record_v[0])):
         raise ConfigError("device", "the CUDA engine runs members of one layout (same number of beads and probes)")
@@ -638,13 +817,18 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     while k < ns:
         k_stop = min(ns, k + per_launch)
         rows = k_stop - k
-        launch = kernel[nmem, _lanes()] if warp else kernel[-(-nmem // THREADS_PER_BLOCK), THREADS_PER_BLOCK]
-        launch(
-            d["u"], d["v"], d["a"], d["g"], d["vp"], *((d["sc"],) if warp else ()), d["mass"], d["inv_mass"],
-            d["kappa"], d["damping"], d["d0"],
-            d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["law"], flags["general"], ints["wall_slot"],
-            float(pk.interval), ints["stride"], ints["n_sub"], ints["n_eval"], c_steps, ints["relax"], k, k_stop, rec,
-            out_f, out_ke, out_pe, out_ed, out_v, flags["record_v"], fmax, peak, acc, status)
+        tail = (float(pk.interval), ints["stride"], ints["n_sub"], ints["n_eval"], c_steps, ints["relax"], k, k_stop,
+                rec, out_f, out_ke, out_pe, out_ed, out_v, flags["record_v"], fmax, peak, acc, status)
+        if register:
+            kernel[-(-nmem // tpb), tpb](
+                d["u"], d["v"], d["a"], d["g"], d["mass"], d["inv_mass"], d["kappa"], d["damping"], d["d0"], d["de"],
+                d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["wall_slot"], *tail)
+        else:
+            launch = kernel[nmem, _lanes()] if warp else kernel[-(-nmem // THREADS_PER_BLOCK), THREADS_PER_BLOCK]
+            launch(
+                d["u"], d["v"], d["a"], d["g"], d["vp"], *((d["sc"],) if warp else ()), d["mass"], d["inv_mass"],
+                d["kappa"], d["damping"], d["d0"], d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["law"],
+                flags["general"], ints["wall_slot"], *tail)
         # probes stay on the device for the whole launch; one copy per chunk
         host_f[:, k:k_stop, :] = out_f.copy_to_host()[:rows].transpose(2, 0, 1)
         pk.out_ke[:, k:k_stop] = out_ke.copy_to_host()[:rows].T
