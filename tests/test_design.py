@@ -237,7 +237,8 @@ def test_dask_scheduler_spreads_generations_with_the_same_result(tmp_path):
 def test_a_generation_too_large_for_memory_is_refused_naming_the_population(tmp_path, capsys, monkeypatch):
     import hertzchain.checks as checks
 
-    monkeypatch.setattr(checks, "available_memory", lambda: 10_000_000)  # 10 MB
+    # 2 MB: 200 members of 2 ms sampled every 5 us (the coarse search of this problem) need ~3 MB
+    monkeypatch.setattr(checks, "available_memory", lambda: 2_000_000)
     f = tmp_path / "d.toml"
     _write_design(f, _nq_design(budget=400, population=200))
     assert main(["design", str(f), "--out", str(tmp_path / "out"), "-q", "--no-html"]) == 2

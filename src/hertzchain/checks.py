@@ -275,6 +275,8 @@ def energy_tolerance(system, dt_max: float, integrator: str = "verlet", rtol: fl
         return max(1e-2, 1e3 * rtol)
     from .integrate.verlet import MAX_OMEGA_DT
 
+    if not dt_max > 0:  # no step to follow (system may then be None): the floor
+        return 1e-3
     return max(1e-3, 0.1 * min(system.max_frequency() * dt_max, MAX_OMEGA_DT) ** 2)
 
 

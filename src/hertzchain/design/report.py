@@ -109,6 +109,15 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     return out, ds
 
 
+def _fidelity_info(prob) -> dict:
+    """design.json's ``search_fidelity``: how the search ran candidates (the best are reported at full accuracy)."""
+    from .problem import search_fidelity
+
+    fid = search_fidelity(prob)
+    return {"name": fid.name, "steps_per_radian": fid.steps_per_radian, "coarse_sampling": fid.coarse_sampling,
+            "verify_top": prob.section.verify_top if fid.name != "full" else None}
+
+
 def _history_frame(result: DesignResult):
     import pandas as pd
 
@@ -254,7 +263,9 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
         The content of ``design.json``: ``best: {objective, variables, feasible, metrics}``,
         ``n_evaluations``, ``objective_name``, ``objectives``, ``units``, ``comparison`` (chain 1
         and the uniform chain, improvement in percent), ``generations``, ``elapsed_s``,
-        ``evaluations_per_s``, ``seed``, ``budget``, ``pareto`` (several objectives), ``hash``.
+        ``evaluations_per_s``, ``seed``, ``budget``, ``pareto`` (several objectives), ``hash``,
+        ``search_fidelity`` (``name``: ``"search"`` or ``"full"``, ``steps_per_radian`` and
+        ``coarse_sampling`` of the search runs, ``verify_top``).
     """
     import tomli_w
 
@@ -278,6 +289,7 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
         "elapsed_s": result.elapsed_s,
         "evaluations_per_s": result.n_evaluations / result.elapsed_s if result.elapsed_s > 0 else math.nan,
         "robust": None if prob.section.robust is None else prob.section.robust.model_dump(mode="json"),
+        "search_fidelity": _fidelity_info(prob),
         "comparison": comparison,
         "hash": prob.hash,
         "hertzchain_version": __version__,
