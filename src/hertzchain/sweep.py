@@ -529,11 +529,12 @@ def compute_chunk(task: _ChunkTask):
     """
     import xarray as xr
 
-    from .errors import ElasticLimitWarning, PulseNotFound
+    from .errors import ElasticLimitWarning, PulseNotFound, PulseNotReachedWarning
     from .integrate.batch import simulate_batch
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
+        warnings.simplefilter("ignore", PulseNotReachedWarning)  # fit_error says "no pulse" per member
         ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, n_threads=task.n_threads,
                             configs=None, device=task.device, steps_per_radian=task.steps_per_radian)
     ds = ds.assign_coords(member=("member", np.asarray(task.members, dtype=np.int64), ds["member"].attrs))

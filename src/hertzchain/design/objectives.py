@@ -319,12 +319,14 @@ def run_task(task: _Task) -> dict[str, np.ndarray]:
     no Dataset: stacking one costs more than a coarse run of a short chain); a task the GPU runs
     goes through :func:`~hertzchain.integrate.batch.simulate_batch`.
     """
-    from ..errors import ElasticLimitWarning
+    from ..errors import ElasticLimitWarning, PulseNotReachedWarning
     from ..integrate.batch import run_batch, simulate_batch
 
     with warnings.catch_warnings():
-        # Designs past the elastic limit are ranked by the max_force_over_yield constraint, not warned about.
+        # Designs past the elastic limit, or whose pulse misses the wall, are ranked by constraints
+        # (max_force_over_yield, the pulse-at-wall one), not warned about.
         warnings.simplefilter("ignore", ElasticLimitWarning)
+        warnings.simplefilter("ignore", PulseNotReachedWarning)
         if _on_gpu(task):
             ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, device=task.device or "auto",
                                 steps_per_radian=task.steps_per_radian)

@@ -72,7 +72,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     import warnings
 
     from ..config import build_model, build_probes, parse_config
-    from ..errors import ElasticLimitWarning
+    from ..errors import ElasticLimitWarning, PulseNotReachedWarning
     from ..integrate.batch import simulate_batch
     from ..probes import Probes
     from .constraints import Constraints, geometric_violation
@@ -91,7 +91,10 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     probes = Probes(sample_interval=build_probes(runs[0]).sample_interval, contacts=())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
-        ds = simulate_batch(models, runs[0].run.duration, probes, dt=runs[0].run.dt)
+        # a reference whose pulse misses the wall within the run gets no value (pulse_at_wall below)
+        warnings.simplefilter("ignore", PulseNotReachedWarning)
+        ds = simulate_batch(models, runs[0].run.duration, probes, dt=runs[0].run.dt,
+                            steps_per_radian=runs[0].run.steps_per_radian)
     out: dict[str, Any] = {}
     for name, ev in zip(cfgs, evs):
         # A chain whose pulse does not reach the wall within the run has no comparable value.

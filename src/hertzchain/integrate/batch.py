@@ -45,6 +45,7 @@ from numba import njit, prange
 from ..errors import ConfigError, SimulationDiverged
 from ..model import Model
 from ..probes import Probes
+from ..checks import warn_members_pulse_not_reached
 from ..simulation import warn_elastic_limit
 from . import kernels, verlet
 from .ensemble import Ensemble, same_layout, systems
@@ -864,6 +865,8 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     -----
     ElasticLimitWarning
         Once per member whose contact forces pass the elastic limit.
+    PulseNotReachedWarning
+        Once per batch, naming the members on a wall whose record ended before the pulse reached it.
     """
     from . import cuda as _cuda
 
@@ -874,14 +877,17 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     elif isinstance(models, Sequence) and same_layout(models) and _one_probes(probes, len(models)) is not None:
         ens = Ensemble.from_models(models)
     if ens is not None:
-        return _simulate_ensemble(ens, duration, _one_probes(probes, ens.n_members), dt, progress, n_threads,
-                                  configs, device, steps_per_radian)
-    if device == "cuda":
+        ds = _simulate_ensemble(ens, duration, _one_probes(probes, ens.n_members), dt, progress, n_threads,
+                                configs, device, steps_per_radian)
+    elif device == "cuda":
         _cuda.require_gpu()
         raise ConfigError("device", "the CUDA engine runs batches whose members share one layout (number of "
                           "beads, end, contact law kind) and one Probes; this batch mixes them: split it, or use "
                           "device='cpu'")
-    return _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian)
+    else:
+        ds = _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian)
+    warn_members_pulse_not_reached(ds)
+    return ds
 
 
 def _one_probes(probes, n: int) -> Probes | None:
