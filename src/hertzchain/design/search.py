@@ -255,12 +255,37 @@ def _save(out: Path, state: _State) -> None:
     write_bytes(out / _CHECKPOINT, pickle.dumps((state, np.random.get_state()), protocol=pickle.HIGHEST_PROTOCOL))
 
 
+#: What a checkpoint may name when it is read back: the search's own state (hertzchain.design),
+#: the optimisers (cma, pymoo) and NumPy's arrays and generators, and plain containers. Anything
+#: else (os.system, eval, ...) is refused, so that a design folder received from someone else
+#: cannot run code on --resume (a pickle may call any importable function).
+_CHECKPOINT_MODULES = ("hertzchain.design", "cma", "pymoo", "numpy", "collections", "copyreg")
+_CHECKPOINT_BUILTINS = frozenset({"dict", "list", "set", "frozenset", "tuple", "int", "float", "complex", "bool",
+                                  "str", "bytes", "bytearray", "slice", "range", "object"})
+
+
+class _CheckpointUnpickler(pickle.Unpickler):
+    def find_class(self, module: str, name: str):
+        allowed = (name in _CHECKPOINT_BUILTINS if module == "builtins"
+                   else any(module == m or module.startswith(m + ".") for m in _CHECKPOINT_MODULES))
+        if allowed:
+            return super().find_class(module, name)
+        raise pickle.UnpicklingError(f"a design checkpoint never refers to {module}.{name}")
+
+
 def _load(out: Path, problem: DesignProblem, force: bool) -> _State | None:
+    import io
+
     path = out / _CHECKPOINT
     if not path.exists():
         return None
     try:
-        state, global_random = pickle.loads(path.read_bytes())
+        state, global_random = _CheckpointUnpickler(io.BytesIO(path.read_bytes())).load()
+    except pickle.UnpicklingError as exc:
+        if "never refers to" in str(exc) and not force:
+            raise DesignMismatch(f"{path} is not a checkpoint this program wrote ({exc}): it is not loaded; remove it "
+                                 "or use --force to start afresh") from None
+        return None
     except Exception:  # an unreadable checkpoint (another version, truncated copy): start afresh
         return None
     if getattr(state, "hash", None) != problem.hash:
