@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall
-from hertzchain.errors import ElasticLimitWarning
+from hertzchain.errors import ElasticLimitWarning, PulseNotReachedWarning
 from hertzchain.integrate.batch import simulate_batch, simulate_many, stack_results
 from hertzchain.result import build_dataset, run_fields
 
@@ -73,8 +73,18 @@ def test_mixed_batch_equals_stacked_single_datasets():
     assert {"sensor", "body", "contact_all"} <= set(fast.dims)
     assert fast["contact_force"].sel(member=6).sizes["contact"] > 0
     assert len(set(fast["dt"].values.tolist())) > 3
+    # simulate_batch also names, in one warning, the members whose record ended before the pulse
+    # reached the wall (simulate_many leaves that to the caller)
+    pulse = [m for c, m in w_fast if c is PulseNotReachedWarning]
+    w_fast = [(c, m) for c, m in w_fast if c is not PulseNotReachedWarning]
     assert w_fast == w_slow and {m.split(":")[0] for _, m in w_fast} >= {"member 5", "member 6"}
     assert all(c is ElasticLimitWarning for c, _ in w_fast)
+    # the single-run check's criterion: the wall contact never carried 1e-6 of the member's largest force
+    fmax = np.nanmax(fast["max_contact_force"].values, axis=1)
+    missed = [i for i in range(len(models))
+              if models[i].wall.present and fast["peak_wall_force"].values[i] <= 1e-6 * fmax[i]]
+    assert missed and len(pulse) == 1
+    assert pulse[0].startswith(f"{len(missed)} of {len(models)} members (member {', '.join(map(str, missed))})")
 
 
 @pytest.mark.parametrize("probes", [Probes(INTERVAL, contacts=(0,)),                  # wall + contact 0

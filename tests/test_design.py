@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import itertools
 import json
+import os
 
 import numpy as np
 import pytest
@@ -108,6 +109,30 @@ def test_killed_design_resumes_to_the_same_result_and_seed_reproduces(tmp_path):
     assert [r["x"] for r in resumed.history] == [r["x"] for r in ref.history]
     other = run_design(parse_design(_nq_design(budget=120, seed=4)), tmp_path / "c")
     assert [r["x"] for r in other.history] != [r["x"] for r in ref.history]
+
+
+def test_a_planted_checkpoint_cannot_run_code(tmp_path):
+    """A checkpoint is a pickle, which may call any importable function when read: resuming reads
+    it with an allow-list (the search's state, cma, pymoo, NumPy), so a design folder received from
+    someone else cannot run code. The planted file is refused by name; --force starts afresh."""
+    import pickle
+
+    from hertzchain.design.search import DesignMismatch
+
+    marker = tmp_path / "ran"
+
+    class Payload:
+        def __reduce__(self):
+            return (os.system, (f"touch {marker}",))
+
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / "checkpoint.pkl").write_bytes(pickle.dumps(Payload()))
+    with pytest.raises(DesignMismatch, match="checkpoint.pkl is not a checkpoint this program wrote"):
+        run_design(parse_design(_nq_design(budget=60)), out)
+    assert not marker.exists()
+    res = run_design(parse_design(_nq_design(budget=60)), out, force=True)
+    assert not marker.exists() and not res.resumed and res.n_evaluations > 0
 
 
 def _write_design(path, data: dict) -> None:
@@ -237,7 +262,8 @@ def test_dask_scheduler_spreads_generations_with_the_same_result(tmp_path):
 def test_a_generation_too_large_for_memory_is_refused_naming_the_population(tmp_path, capsys, monkeypatch):
     import hertzchain.checks as checks
 
-    monkeypatch.setattr(checks, "available_memory", lambda: 10_000_000)  # 10 MB
+    # 2 MB: 200 members of 2 ms sampled every 5 us (the coarse search of this problem) need ~3 MB
+    monkeypatch.setattr(checks, "available_memory", lambda: 2_000_000)
     f = tmp_path / "d.toml"
     _write_design(f, _nq_design(budget=400, population=200))
     assert main(["design", str(f), "--out", str(tmp_path / "out"), "-q", "--no-html"]) == 2

@@ -85,7 +85,8 @@ def test_robust_worst_case_over_speeds_matches_single_runs(tmp_path):
         model = hc.Model(hc.Chain.uniform(4, 26e-3).append_taper(4, q), hc.Striker(8e-3, v), hc.Wall("flat"), hc.Elastic())
         peaks.append(hc.simulate(model, 2e-3, hc.Probes(sample_interval=1e-6, contacts=())).attrs["peak_wall_force"])
     assert res.best["objective"] == pytest.approx(max(peaks), rel=1e-12)
-    assert res.n_evaluations == 2 * len({r["chain.taper.q"] for r in res.history})  # two runs per candidate
+    # two runs per candidate and fidelity (the search's, then the best ones again at full accuracy)
+    assert res.n_evaluations == 2 * len({(r["fidelity"], r["chain.taper.q"]) for r in res.history})
 
 
 def test_robust_mean_plus_k_sigma_without_tolerance_is_the_nominal_value(tmp_path):
@@ -95,9 +96,9 @@ def test_robust_mean_plus_k_sigma_without_tolerance_is_the_nominal_value(tmp_pat
                                   "polish": False, "robust": {"tolerances": {"diameter_rel": 0.0}, "draws": 3,
                                                               "statistic": "mean+ksigma", "k": 3.0}}), tmp_path / "b")
     # Same seed, same candidates; three identical draws: sigma = 0, so the objective is the nominal one.
-    first = {r["chain.taper.q"]: r["peak_wall_force"] for r in nominal.history}
+    first = {(r["fidelity"], r["chain.taper.q"]): r["peak_wall_force"] for r in nominal.history}
     for r in robust.history[: len(nominal.history)]:
-        assert r["peak_wall_force"] == pytest.approx(first[r["chain.taper.q"]], rel=1e-12)
+        assert r["peak_wall_force"] == pytest.approx(first[r["fidelity"], r["chain.taper.q"]], rel=1e-12)
 
 
 def test_pareto_front_is_mutually_non_dominated_and_dominates_the_rest(tmp_path):
@@ -157,15 +158,15 @@ def test_materials_are_categorical_variables_and_the_example_parses():
 def test_a_member_that_gains_energy_is_flagged():
     """The batched engine has no energy check: the design's own (hertzchain.checks) flags a member
     whose kinetic + elastic + dissipated energy grows, so it can never be the best design."""
-    from hertzchain.design.objectives import _energy_ok, _Task
+    from hertzchain.design.objectives import _energy_ok, _records_of_dataset, _Task
 
     models = [hc.Model(hc.Chain.uniform(4, 26e-3), hc.Striker(8e-3, 0.2), hc.Wall("flat"), hc.Elastic())] * 2
     probes = hc.Probes(sample_interval=1e-6, contacts=())
     ds = simulate_batch(models, 5e-4, probes)
     task = _Task(models, 5e-4, probes, None, ["peak_wall_force"], None)
-    assert _energy_ok(ds, task).tolist() == [True, True]
+    assert _energy_ok(_records_of_dataset(ds), task).tolist() == [True, True]
     ds["kinetic_energy"].values[1, 200:] *= 1.01  # a 1 % gain, as a too-large step would give
-    assert _energy_ok(ds, task).tolist() == [True, False]
+    assert _energy_ok(_records_of_dataset(ds), task).tolist() == [True, False]
 
 
 @pytest.mark.parametrize("design, field", [

@@ -121,3 +121,40 @@ def test_a_stiff_track_spring_recovers_the_rigid_1d_offset_model():
     free = simulate_lateral(model, Track(), 8e-4, probes)
     assert np.max(np.abs(free.wall_force.values - f1)) / f1.max() > 0.01  # free: a different chain
     assert errs[1] < 1e-4 and errs[1] < errs[0] / 30
+
+
+def test_track_section_of_a_run_config(tmp_path, capsys):
+    """``[track]`` in a run file runs the 2D path: the same numbers as simulate_lateral called with
+    the Track it describes, the config stored, and field-named errors (exit 2 from the CLI)."""
+    from hertzchain.cli import main
+    from hertzchain.config import parse_config, run_config
+    from hertzchain.errors import ConfigError
+
+    data = {"chain": {"diameters_mm": [26.0] * 5, "offsets_mm": [0.0, 0.0, 1.0, 0.0, 0.0]},
+            "striker": {"diameter_mm": 8.0, "velocity": 0.25},
+            "run": {"duration": 6e-4, "sample_interval": 1e-6},
+            "track": {"groove_radius_mm": 15.0, "friction": 0.2}}
+    ds = run_config(data)
+    mm = 1e-3  # the config's unit conversion (26 mm -> 26 * 1e-3 m, not the literal 26e-3)
+    model = Model(Chain([26.0 * mm] * 5, offsets=[0.0, 0.0, 1.0 * mm, 0.0, 0.0]), Striker(8.0 * mm, 0.25), Wall("flat"))
+    ref = simulate_lateral(model, Track(groove_radius=15.0 * mm, friction=0.2), 6e-4, hc.Probes(1e-6))
+    assert ds.attrs["lateral_freedom"] == 1 and "track" in ds.attrs["config"]
+    for v in ("contact_force", "lateral_displacement", "friction_loss"):
+        np.testing.assert_array_equal(ds[v].values, ref[v].values)
+    assert float(ds.friction_loss[-1]) > 0
+    # without [track], the 1D engine
+    assert "lateral_freedom" not in run_config({k: v for k, v in data.items() if k != "track"}).attrs
+    with pytest.raises(ConfigError) as e:
+        run_config({**data, "track": {"groove_radius_mm": 5.0}})  # narrower than the 13 mm beads
+    assert e.value.field == "track.groove_radius_mm" and "13 mm" in str(e.value)
+    with pytest.raises(ConfigError) as e:
+        parse_config({**data, "track": {"friction": -0.1}})
+    assert e.value.field == "track.friction"
+    cfg = tmp_path / "run.toml"
+    cfg.write_text('[chain]\ndiameters_mm = [26, 26, 26]\n[run]\nduration = 3e-4\n[track]\nspring = 1e3\n')
+    capsys.readouterr()
+    assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--set", "track.sprung=1"]) == 2
+    err = capsys.readouterr().err
+    assert "track.sprung" in err and "Traceback" not in err
+    assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--quiet"]) == 0
+    assert hc.load(tmp_path / "r.nc").attrs["lateral_freedom"] == 1

@@ -275,6 +275,8 @@ def energy_tolerance(system, dt_max: float, integrator: str = "verlet", rtol: fl
         return max(1e-2, 1e3 * rtol)
     from .integrate.verlet import MAX_OMEGA_DT
 
+    if not dt_max > 0:  # no step to follow (system may then be None): the floor
+        return 1e-3
     return max(1e-3, 0.1 * min(system.max_frequency() * dt_max, MAX_OMEGA_DT) ** 2)
 
 
@@ -371,3 +373,37 @@ def _warn_pulse_not_reached(ds, fmax: np.ndarray, nc: int, stacklevel: int) -> N
         f"the record ends (run.duration = {duration:g} s) before the pulse reaches the wall: the front got to "
         f"contact {reached} of {nc - 1}{estimate}; the wall force is 0 N because nothing arrived yet. "
         "Lengthen run.duration"), stacklevel=stacklevel + 1)
+
+
+def warn_members_pulse_not_reached(ds, stacklevel: int = 2) -> None:
+    """The pulse-arrival check of :func:`check_after_run` for a batch: ONE warning naming the members
+    on a wall whose wall contact never carried a pulse (the record ended before it arrived).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A :func:`hertzchain.simulate_batch` result (``max_contact_force`` (member, contact_all),
+        ``n_contacts``, ``has_wall``, ``duration`` attribute).
+    stacklevel : int
+        Passed to :func:`warnings.warn`.
+    """
+    if ds.sizes.get("member", 0) == 0 or "max_contact_force" not in ds:
+        return
+    fmax = ds["max_contact_force"].values
+    nc = ds["n_contacts"].values.astype(np.int64)
+    on_wall = ds["has_wall"].values.astype(bool) & (nc > 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows of members without contacts
+        top = np.nanmax(fmax, axis=1)
+    wall = fmax[np.arange(fmax.shape[0]), np.maximum(nc - 1, 0)]
+    # a precompressed member's wall contact carries F0 from the start and is never flagged
+    missed = np.flatnonzero(on_wall & ~(wall > 1e-6 * np.where(top > 0, top, np.inf)))
+    if missed.size == 0:
+        return
+    duration = float(ds.attrs.get("duration", ds["time"].values[-1]))
+    some = ", ".join(str(i) for i in missed[:8].tolist()) + (", ..." if missed.size > 8 else "")
+    warnings.warn(PulseNotReachedWarning(
+        f"{missed.size} of {fmax.shape[0]} members (member {some}): the record ends (duration = {duration:g} s) "
+        "before the pulse reaches the wall; their wall force is 0 N because nothing arrived yet. Lengthen the "
+        "duration (hertzchain.auto_duration(model) gives one long enough)"), stacklevel=stacklevel + 1)
+

@@ -67,11 +67,11 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     """Simulate the chain described by CONFIG (TOML) and save the result as NetCDF."""
     import warnings
 
-    from .config import apply_instruments, build_instruments, build_model, build_probes, load_config
+    from .config import apply_instruments, build_instruments, build_model, build_probes, load_config, simulate_config
     from .errors import DurationWarning, ElasticLimitWarning
     from .fileio import check_not_input, check_target
     from .result import save
-    from .simulation import auto_duration, simulate
+    from .simulation import auto_duration
 
     from .errors import ConfigError
 
@@ -94,8 +94,7 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
         warnings.simplefilter("always", ElasticLimitWarning)
         warnings.simplefilter("always", DurationWarning)
         with progress_bar("simulating", enabled=not quiet and work > 1e8, lazy=True) as update:
-            ds = simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
-                          rtol=cfg.run.rtol, progress=update, config=cfg.model_dump(mode="json"))
+            ds = simulate_config(cfg, model, probes, progress=update)
     for w in caught:
         click.echo(f"warning: {w.message}", err=True)
     ds = apply_instruments(ds, cfg)

@@ -66,6 +66,9 @@ BOUNDS = {
     "sample_interval": (1e-12, 1.0),  # s
     "dt": (1e-15, 1.0),               # s
     "rtol": (1e-14, 0.1),
+    # adaptive Verlet accuracy, omega dt <= 1 / steps_per_radian: below ~10 the peak force is off
+    # by more than ~3e-4 (error ~ (1 / steps_per_radian)^2) and Verlet nears its stability limit
+    "steps_per_radian": (10.0, 1e5),
 }
 
 
@@ -188,6 +191,9 @@ class RunSection(_Section):
     dt: float | None = _bounded("dt", default=None, description="s; automatic when absent")
     integrator: Literal["verlet", "dop853", "rk45"] = "verlet"
     rtol: float = _bounded("rtol", default=1e-10)
+    steps_per_radian: float = _bounded(
+        "steps_per_radian", default=400.0,
+        description="adaptive Verlet step: omega dt <= 1 / steps_per_radian; peak error ~ (1/steps_per_radian)^2")
 
     @field_validator("duration", mode="before")
     @classmethod
@@ -236,6 +242,19 @@ class InstrumentConfig(_Section):
     sensors: InstrumentChannel | None = None
 
 
+class TrackConfig(_Section):
+    """``[track]``: lateral freedom (:func:`hertzchain.simulate_lateral`): the beads may leave the
+    chain's axis, held by a groove, a spring and friction (:class:`hertzchain.Track`). Absent: the
+    beads stay on their lines (the 1D engine)."""
+
+    groove_radius_mm: float | None = Field(default=None, gt=0, le=BOUNDS["diameter_mm"][1],
+                                           description="mm, radius of the groove's cross-section; absent: flat bed")
+    spring: float = Field(default=0.0, ge=0, le=1e12, description="N/m, transverse spring per body")
+    friction: float = Field(default=0.0, ge=0, le=10.0, description="Coulomb coefficient with the track")
+    slip_velocity: float = Field(default=1e-5, gt=0, le=10.0, description="m/s, regularisation of the friction")
+    gravity: float = Field(default=9.81, ge=0, le=1e3, description="m/s^2")
+
+
 class RunConfig(_Section):
     """The whole run file."""
 
@@ -247,6 +266,7 @@ class RunConfig(_Section):
     run: RunSection = RunSection()
     probes: ProbesConfig = ProbesConfig()
     instrument: InstrumentConfig = InstrumentConfig()
+    track: TrackConfig | None = None
 
 
 def _field_name(loc: tuple[Any, ...]) -> str:
@@ -617,6 +637,61 @@ def apply_instruments(ds, cfg: RunConfig):
                            trigger=cfg.instrument.trigger)
 
 
+def build_track(cfg: RunConfig):
+    """The :class:`hertzchain.Track` of ``[track]``, or None when the config has none (1D engine)."""
+    if cfg.track is None:
+        return None
+    from .track import Track
+
+    t = cfg.track
+    with _as_written("track.groove_radius", "track.groove_radius_mm"):
+        return Track(groove_radius=None if t.groove_radius_mm is None else t.groove_radius_mm * 1e-3,
+                     spring=t.spring, friction=t.friction, slip_velocity=t.slip_velocity, gravity=t.gravity)
+
+
+def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
+    """Simulate a validated config: :func:`hertzchain.simulate`, or with ``[track]``
+    :func:`hertzchain.simulate_lateral` (no instrument model applied here).
+
+    Parameters
+    ----------
+    cfg : RunConfig
+        The validated config.
+    model, probes : optional
+        Already built from ``cfg`` (built here when None).
+    progress : callable, optional
+        ``progress(done, total)`` during a 1D Verlet run.
+
+    Returns
+    -------
+    xarray.Dataset
+        The result, SI units, with the config in its ``config`` attribute.
+    """
+    model = build_model(cfg) if model is None else model
+    probes = build_probes(cfg) if probes is None else probes
+    config = cfg.model_dump(mode="json")
+    if cfg.track is None:
+        from .simulation import simulate
+
+        return simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
+                        rtol=cfg.run.rtol, progress=progress, config=config,
+                        steps_per_radian=cfg.run.steps_per_radian)
+    if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:
+        raise ConfigError("run.steps_per_radian", "is a setting of the 1D engine's adaptive step; the lateral "
+                          "(2D) path of [track] has its own: leave it out")
+    from .simulation import auto_duration
+    from .track import simulate_lateral
+
+    auto = cfg.run.duration == "auto"
+    track = build_track(cfg)
+    with _as_written("track.groove_radius", "track.groove_radius_mm"):
+        ds = simulate_lateral(model, track, auto_duration(model) if auto else cfg.run.duration, probes,
+                              integrator=cfg.run.integrator, dt=cfg.run.dt, rtol=cfg.run.rtol, config=config)
+    if auto:
+        ds.attrs["duration_mode"] = "auto"
+    return ds
+
+
 def run_config(cfg: RunConfig | dict | str | Path, progress=None):
     """Build and simulate a config; returns the result :class:`xarray.Dataset`.
 
@@ -632,14 +707,10 @@ def run_config(cfg: RunConfig | dict | str | Path, progress=None):
     xarray.Dataset
         The result (SI units), with the measured signals of ``[instrument]`` when configured.
     """
-    from .simulation import simulate
-
     if isinstance(cfg, (str, Path)):
         cfg = load_config(cfg)
     elif isinstance(cfg, dict):
         cfg = parse_config(cfg)
     model = build_model(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run
-    ds = simulate(model, cfg.run.duration, build_probes(cfg), integrator=cfg.run.integrator, dt=cfg.run.dt,
-                  rtol=cfg.run.rtol, progress=progress, config=cfg.model_dump(mode="json"))
-    return apply_instruments(ds, cfg)
+    return apply_instruments(simulate_config(cfg, model, progress=progress), cfg)

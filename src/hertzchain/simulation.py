@@ -64,7 +64,7 @@ def auto_duration(model: Model) -> float:
 def simulate(model: Model, duration: float | str = "auto", probes: Probes | None = None, *,
              integrator: Literal["verlet", "dop853", "rk45"] = "verlet", dt: float | None = None,
              rtol: float = 1e-10, progress: Callable[[int, int], None] | None = None,
-             config: dict | None = None) -> xr.Dataset:
+             config: dict | None = None, steps_per_radian: float | None = None) -> xr.Dataset:
     """Simulate ``model`` for ``duration`` [s] and return the result Dataset.
 
     Parameters
@@ -87,6 +87,11 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         Relative tolerance of the scipy reference integrators (unused by ``"verlet"``).
     config
         The input it came from, stored in the result's attributes.
+    steps_per_radian
+        Accuracy of the adaptive Verlet step: omega dt <= 1 / steps_per_radian (default None:
+        :data:`hertzchain.integrate.verlet.ADAPTIVE_STEPS_PER_RADIAN` = 400, a peak wall force
+        within ~1e-6; the error scales as (1 / steps_per_radian)^2); unused with ``dt`` or the
+        scipy integrators.
 
     Returns
     -------
@@ -129,7 +134,8 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     if integrator == "verlet":
         raw = run_verlet(system, duration, probes.sample_interval, dt=dt, record_velocities=probes.velocities,
-                         contacts=rec, progress=progress, record_positions=probes.positions)
+                         contacts=rec, progress=progress, record_positions=probes.positions,
+                         steps_per_radian=steps_per_radian)
     else:
         from .integrate.reference import run_reference  # scipy.integrate: loaded only for these
 

@@ -78,7 +78,7 @@ _METRIC_UNITS = {"F_m": ("N", "peak wall force F_m of the cos^6 fit"),
                  "Q_F": ("N s", "front momentum Q_F (integral of F up to T + tau)"),
                  "Q_T": ("N s", "tail momentum Q_T (integral of F after T + tau)")}
 #: Sections of a run config that members may not differ in: the batched engine shares them.
-_SHARED = {"run.duration", "run.sample_interval", "run.integrator", "run.rtol"}
+_SHARED = {"run.duration", "run.sample_interval", "run.integrator", "run.rtol", "run.steps_per_radian"}
 _CHUNK_NAME = "chunk_{:05d}.nc"
 
 
@@ -506,6 +506,7 @@ class _ChunkTask:
     n_threads: int | None
     sweep_hash: str
     device: str = "auto"
+    steps_per_radian: float | None = None
 
 
 def _wall_metrics(time: np.ndarray, force: np.ndarray) -> dict[str, float]:
@@ -528,13 +529,14 @@ def compute_chunk(task: _ChunkTask):
     """
     import xarray as xr
 
-    from .errors import ElasticLimitWarning, PulseNotFound
+    from .errors import ElasticLimitWarning, PulseNotFound, PulseNotReachedWarning
     from .integrate.batch import simulate_batch
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
+        warnings.simplefilter("ignore", PulseNotReachedWarning)  # fit_error says "no pulse" per member
         ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, n_threads=task.n_threads,
-                            configs=None, device=task.device)
+                            configs=None, device=task.device, steps_per_radian=task.steps_per_radian)
     ds = ds.assign_coords(member=("member", np.asarray(task.members, dtype=np.int64), ds["member"].attrs))
     _check_members_energy(ds, task)
     values = {k: np.full(len(task.members), np.nan) for k in METRIC_COLUMNS}
@@ -921,7 +923,10 @@ def _run_chunks(cfg: SweepConfig, out: Path, chunks_dir: Path, models, duration:
     ``models``: a list of Models, or an Ensemble whose rows are the members; ``device`` as in
     :func:`run_sweep`.
     """
+    from .config import parse_config
     from .fileio import atomic_path
+
+    steps_per_radian = parse_config(cfg.base).run.steps_per_radian  # shared by every member (_SHARED)
 
     total = cfg.n_members
     done_members = 0
@@ -935,7 +940,8 @@ def _run_chunks(cfg: SweepConfig, out: Path, chunks_dir: Path, models, duration:
             todo.append(_ChunkTask(index=index, members=list(members), models=chunk_models,
                                    params=[cfg.members[m] for m in members], duration=duration,
                                    probes=probes, dt=[member_dts[m] for m in members],
-                                   n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash, device=device))
+                                   n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash, device=device,
+                                   steps_per_radian=steps_per_radian))
     if progress is not None:
         progress(done_members, total)
 

@@ -126,7 +126,7 @@ _LATERAL_VARIABLES = {
 
 def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes | None = None, *,
                      integrator: Literal["verlet", "dop853"] = "verlet", dt: float | None = None,
-                     rtol: float = 1e-12) -> xr.Dataset:
+                     rtol: float = 1e-12, config: dict | None = None) -> xr.Dataset:
     """Simulate ``model`` with transverse freedom on ``track`` for ``duration`` [s].
 
     The result has the layout of :func:`hertzchain.simulate` (``contact_force`` and
@@ -152,6 +152,8 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
         Fixed Verlet step [s].
     rtol : float
         Relative tolerance of the DOP853 reference.
+    config : dict, optional
+        The input that produced the run (stored as JSON in the ``config`` attribute).
 
     Returns
     -------
@@ -194,7 +196,7 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
         run.raw.contact_force = run.raw.contact_force[:, keep]
         run.raw.contacts = np.asarray(rec)
         run.raw.velocity = None
-    ds = build_dataset(run.raw, model, probes, duration=duration, system=system,
+    ds = build_dataset(run.raw, model, probes, duration=duration, system=system, config=config,
                        extra_attrs={"lateral_freedom": 1, "track": json.dumps(track.describe())})
     n = model.chain.n_beads
     values = {"lateral_kinetic_energy": (("time",), run.lateral_kinetic_energy),

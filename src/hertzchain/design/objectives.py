@@ -21,7 +21,14 @@ the ``worst`` case, the ``mean``, or ``mean+ksigma`` (mean + k standard deviatio
 scenarios; run constraints must hold in every scenario.
 
 All scenario runs of all candidates of a generation go to the batched engine in one
-:func:`hertzchain.integrate.batch.simulate_batch` call (or one per chunk on a Dask cluster).
+:func:`hertzchain.integrate.batch.run_batch` call (or one per chunk on a Dask cluster), which
+returns the engine's arrays without building a Dataset (the design needs a handful of numbers
+per member, not the stacked result).
+
+Fidelity (:class:`Fidelity`): the search may run candidates at a coarser accuracy than the base
+config (fewer adaptive steps per radian, fewer samples); the best candidates are then run again
+at the base config's own accuracy, and only those values are reported (see
+:mod:`hertzchain.design.search`).
 """
 
 from __future__ import annotations
@@ -37,7 +44,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..errors import PulseNotFound
 from .constraints import Constraints, geometric_violation, geometry, run_violation
 
-__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "member_metrics"]
+__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Fidelity", "member_metrics", "search_interval"]
 
 #: Objective names with their units and meaning.
 OBJECTIVES: dict[str, tuple[str, str]] = {
@@ -50,6 +57,64 @@ OBJECTIVES: dict[str, tuple[str, str]] = {
 
 #: Fitness of an infeasible candidate: above any feasible objective value, ranked by violation.
 INFEASIBLE = 1e12
+
+#: Objectives computed from the engine's per-step trackers alone (the wall peak is tracked and
+#: refined at every step), so that sampling the records more coarsely does not change them. The
+#: others read sampled records: the largest contact forces (peak_contact_force,
+#: max_force_over_yield) are maxima over the samples, Q_F and the energy are read off the
+#: sampled wall force.
+SAMPLING_FREE = frozenset({"peak_wall_force"})
+
+
+#: Samples per wall pulse that coarse search records keep (the pulse-arrival check needs a few).
+SEARCH_SAMPLES_PER_PULSE = 10
+
+
+@dataclass(frozen=True)
+class Fidelity:
+    """The accuracy candidates are run at.
+
+    Attributes
+    ----------
+    name : str
+        ``"full"`` (the base config's own accuracy, what ``hertzchain run`` of the candidate
+        gives) or ``"search"`` (coarser, for the search only).
+    steps_per_radian : float or None
+        Adaptive-step accuracy (``run.steps_per_radian``); None: the config's own.
+    coarse_sampling : bool
+        Sample each engine call every whole multiple of ``run.sample_interval`` that still
+        leaves SEARCH_SAMPLES_PER_PULSE samples in the shortest wall pulse its members can give
+        (:func:`search_interval`); False: every ``run.sample_interval``.
+    """
+
+    name: str = "full"
+    steps_per_radian: float | None = None
+    coarse_sampling: bool = False
+
+
+def search_interval(models: list, interval: float, duration: float) -> float:
+    """Sample interval [s] of a coarse search call: the largest multiple of ``interval`` that
+    leaves SEARCH_SAMPLES_PER_PULSE samples in the shortest wall pulse of ``models``.
+
+    A pulse of speed v lasts tau = sqrt(10) phi_N / (2 v) at the last bead (paper Sec. III),
+    v from the last bead's largest possible velocity V (paper eq. 5, second form): all the
+    striker's energy in bead N, V = v_0 sqrt(m_s / m_N), bounds it (the wave is faster, so
+    shorter, at larger V). A precompressed chain carries faster waves than this bound knows of:
+    its records keep the base interval.
+    """
+    from ..theory import pulse_duration, solitary_wave_speed_from_velocity
+
+    if any(m.precompression for m in models):
+        return interval
+    tau = math.inf
+    for m in models:
+        chain = m.chain
+        vmax = m.striker.velocity * math.sqrt(m.striker.mass / chain.masses[-1])
+        if vmax > 0:
+            speed = float(solitary_wave_speed_from_velocity(chain.materials[-1], vmax))
+            tau = min(tau, float(pulse_duration(chain.diameters[-1], speed)))
+    k = max(1, math.floor(tau / (SEARCH_SAMPLES_PER_PULSE * interval))) if math.isfinite(tau) else 1
+    return k * interval if k * interval <= duration else interval
 
 
 class Robust(BaseModel):
@@ -96,6 +161,8 @@ class Evaluation:
         (``force_over_yield``, ``pulse_at_wall``, ``energy_ok``: the energy balance held).
     engine_runs : int
         Members simulated for it (0 when rejected on geometry or taken from the cache).
+    fidelity : str
+        :attr:`Fidelity.name` of the runs (``"full"`` or ``"search"``).
     """
 
     objectives: dict[str, float]
@@ -103,6 +170,7 @@ class Evaluation:
     violation: float
     metrics: dict[str, Any]
     engine_runs: int = 0
+    fidelity: str = "full"
 
     def fitness(self, names: list[str]) -> list[float]:
         """Values the search minimises: the objectives when feasible, else INFEASIBLE + violation."""
@@ -140,18 +208,66 @@ def member_metrics(ds, objectives: list[str], window: tuple[float, float] | None
         ``{name: array (member,)}`` for each objective, plus ``force_over_yield`` and
         ``pulse_at_wall`` (bool).
     """
+    return _metrics(_records_of_dataset(ds), objectives, window)
+
+
+@dataclass
+class _Records:
+    """What the objectives and checks read of a batch, (member, ...) arrays: times [s], wall force
+    samples [N], refined peak wall force [N], largest sampled force of every contact [N] (NaN
+    padded) and its F_Y [N], kappa of the bead N - wall contact [N/m^1.5], energies [J]."""
+
+    time: np.ndarray
+    wall: np.ndarray
+    peak_wall_force: np.ndarray
+    fmax: np.ndarray
+    yield_force: np.ndarray
+    kappa_wall: np.ndarray
+    kinetic: np.ndarray
+    potential: np.ndarray
+    dissipated: np.ndarray
+
+
+def _records_of_dataset(ds) -> "_Records":
+    """:class:`_Records` of a stacked batch result."""
+    nb = ds["n_beads"].values.astype(int)
+    return _Records(time=ds["time"].values, wall=ds["wall_force"].values, peak_wall_force=ds["peak_wall_force"].values,
+                    fmax=ds["max_contact_force"].values, yield_force=ds["yield_force"].values,
+                    kappa_wall=ds["kappa"].values[np.arange(nb.size), nb],  # contact N joins bead N and the wall
+                    kinetic=ds["kinetic_energy"].values, potential=ds["potential_energy"].values,
+                    dissipated=ds["dissipated_energy"].values)
+
+
+def _records(runs, systems) -> _Records:
+    """:class:`_Records` of :func:`hertzchain.integrate.batch.run_batch`'s RawRuns and Systems."""
+    m = len(runs)
+    nc = max(r.max_force.size for r in runs)
+    fmax = np.full((m, nc), np.nan)
+    fy = np.full((m, nc), np.nan)
+    for i, (r, sy) in enumerate(zip(runs, systems)):
+        fmax[i, :r.max_force.size] = r.max_force
+        fy[i, :r.max_force.size] = sy.yield_force[:r.max_force.size]
+    n = np.array([sy.n_beads for sy in systems])
+    wall = np.stack([r.contact_force[:, int(np.searchsorted(r.contacts, k))] for r, k in zip(runs, n)])
+    return _Records(time=runs[0].time, wall=wall, peak_wall_force=np.array([r.peak_wall_force for r in runs]),
+                    fmax=fmax, yield_force=fy, kappa_wall=np.array([sy.kappa[k] for sy, k in zip(systems, n)]),
+                    kinetic=np.stack([r.kinetic_energy for r in runs]),
+                    potential=np.stack([r.potential_energy for r in runs]),
+                    dissipated=np.stack([r.dissipated_energy for r in runs]))
+
+
+def _metrics(rec: _Records, objectives: list[str], window: tuple[float, float] | None) -> dict[str, np.ndarray]:
+    """:func:`member_metrics` of :class:`_Records`."""
     from ..analysis import fit_pulse
 
-    n = ds.sizes["member"]
-    fmax = ds["max_contact_force"].values
-    ratio = np.nanmax(fmax / ds["yield_force"].values, axis=1)
-    wall = ds["wall_force"].values
-    time = ds["time"].values
+    fmax, wall, time = rec.fmax, rec.wall, rec.time
+    n = wall.shape[0]
+    ratio = np.nanmax(fmax / rec.yield_force, axis=1)
     out: dict[str, np.ndarray] = {"force_over_yield": ratio,
                                   "pulse_at_wall": np.array([_pulse_passed(wall[i]) for i in range(n)])}
     for name in objectives:
         if name == "peak_wall_force":
-            out[name] = ds["peak_wall_force"].values.astype(float)
+            out[name] = np.asarray(rec.peak_wall_force, dtype=float)
         elif name == "peak_contact_force":
             out[name] = np.nanmax(fmax, axis=1)
         elif name == "max_force_over_yield":
@@ -165,8 +281,7 @@ def member_metrics(ds, objectives: list[str], window: tuple[float, float] | None
                     out["pulse_at_wall"][i] = False
             out[name] = q
         elif name == "energy_at_wall":
-            nb = ds["n_beads"].values.astype(int)
-            kappa = ds["kappa"].values[np.arange(n), nb]  # contact N joins bead N and the wall
+            kappa = rec.kappa_wall
             mask = np.ones(time.size, bool) if window is None else (time >= window[0]) & (time <= window[1])
             fpk = np.max(np.where(mask, np.maximum(wall, 0.0), 0.0), axis=1)
             out[name] = 0.4 * fpk ** (5.0 / 3.0) / kappa ** (2.0 / 3.0)
@@ -184,37 +299,62 @@ class _Task:
     objectives: list[str]
     window: tuple[float, float] | None
     device: str | None = None
+    steps_per_radian: float | None = None
+
+
+def _on_gpu(task: _Task) -> bool:
+    """Whether the engine would run this task on the GPU (simulate_batch's device choice)."""
+    from ..integrate import cuda
+    from ..integrate.ensemble import same_layout
+
+    if task.device in (None, "auto"):
+        return (len(task.models) >= cuda.AUTO_MIN_MEMBERS and same_layout(task.models) and cuda.gpu_usable())
+    return task.device == "cuda"
 
 
 def run_task(task: _Task) -> dict[str, np.ndarray]:
-    """Simulate a task's models in ONE batched engine call and return their :func:`member_metrics`."""
-    from ..errors import ElasticLimitWarning
-    from ..integrate.batch import simulate_batch
+    """Simulate a task's models in ONE batched engine call and return their :func:`member_metrics`.
 
-    kwargs = {} if task.device is None else {"device": task.device}
+    On the CPU the engine's arrays are used as they are (:func:`~hertzchain.integrate.batch.run_batch`,
+    no Dataset: stacking one costs more than a coarse run of a short chain); a task the GPU runs
+    goes through :func:`~hertzchain.integrate.batch.simulate_batch`.
+    """
+    from ..errors import ElasticLimitWarning, PulseNotReachedWarning
+    from ..integrate.batch import run_batch, simulate_batch
+
     with warnings.catch_warnings():
-        # Designs past the elastic limit are ranked by the max_force_over_yield constraint, not warned about.
+        # Designs past the elastic limit, or whose pulse misses the wall, are ranked by constraints
+        # (max_force_over_yield, the pulse-at-wall one), not warned about.
         warnings.simplefilter("ignore", ElasticLimitWarning)
-        ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, **kwargs)
-    out = member_metrics(ds, task.objectives, task.window)
-    out["energy_ok"] = _energy_ok(ds, task)
+        warnings.simplefilter("ignore", PulseNotReachedWarning)
+        if _on_gpu(task):
+            ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, device=task.device or "auto",
+                                steps_per_radian=task.steps_per_radian)
+            rec = _records_of_dataset(ds)
+        else:
+            runs, systems = run_batch(task.models, task.duration, task.probes, dt=task.dt,
+                                      steps_per_radian=task.steps_per_radian, return_systems=True)
+            rec = _records(runs, systems)
+    out = _metrics(rec, task.objectives, task.window)
+    out["energy_ok"] = _energy_ok(rec, task)
     return out
 
 
-def _energy_ok(ds, task: _Task) -> np.ndarray:
+def _energy_ok(rec: _Records, task: _Task) -> np.ndarray:
     """Whether each member's energy balance holds (:mod:`hertzchain.checks`; the batched engine does
     not check it): a member that gains energy has wrong forces, so it is infeasible, never best."""
     from ..checks import check_energy_balance, energy_tolerance
     from ..errors import SimulationDiverged
 
-    time = ds["time"].values
-    ke, pe, ed = (ds[v].values for v in ("kinetic_energy", "potential_energy", "dissipated_energy"))
     ok = np.ones(len(task.models), dtype=bool)
     for i, model in enumerate(task.models):
         # the adaptive step's largest step is not stored per member: the minimum allowance then
-        tol = energy_tolerance(model.system(), task.dt if task.dt is not None else 0.0)
+        # (it needs no System: omega_max is only read for a user step)
+        tol = energy_tolerance(model.system() if task.dt is not None else None,
+                               task.dt if task.dt is not None else 0.0)
         try:
-            check_energy_balance(time, ke[i], pe[i], ed[i], tolerance=tol, cause="run.dt")
+            check_energy_balance(rec.time, rec.kinetic[i], rec.potential[i], rec.dissipated[i], tolerance=tol,
+                                 cause="run.dt")
         except SimulationDiverged:
             ok[i] = False
     return ok
@@ -252,6 +392,8 @@ class Evaluator:
         Members per task when a client spreads a generation.
     device : str or None
         Passed to the engine when it takes one.
+    fidelity : Fidelity
+        The accuracy the candidates are run at (default: each config's own).
     """
 
     objectives: list[str]
@@ -262,6 +404,7 @@ class Evaluator:
     chunk_size: int = 64
     device: str | None = None
     cache: dict = field(default_factory=dict)
+    fidelity: Fidelity = Fidelity()
 
     @property
     def n_scenarios(self) -> int:
@@ -296,6 +439,19 @@ class Evaluator:
         check_resources(replace(est, seconds=0.0),
                         memory_field="design.population" if self.client is None else "design.chunk_size")
 
+    @property
+    def has_geometric_constraints(self) -> bool:
+        """Whether any constraint is checked on the geometry (before a run)."""
+        c = self.constraints
+        return any(v is not None for v in (c.min_diameter_mm, c.max_length_mm, c.max_mass_kg, c.min_beads,
+                                            c.max_beads))
+
+    def geometric_violation(self, config: dict) -> float:
+        """Summed relative violation of the geometric constraints by a candidate's run config (no run)."""
+        from ..config import build_chain, parse_config
+
+        return geometric_violation(self.constraints, geometry(build_chain(parse_config(config))))
+
     def evaluate(self, keys: list, configs: list[dict]) -> list[Evaluation]:
         """Evaluate candidates (``keys`` identify equal candidates: each is simulated once, ever)."""
         from ..config import build_model, build_probes, parse_config
@@ -313,24 +469,30 @@ class Evaluator:
             geo = geometry(model.chain)
             viol = geometric_violation(self.constraints, geo)
             if viol > 0:
-                ev = Evaluation({n: math.nan for n in self.objectives}, False, viol, dict(geo))
+                ev = Evaluation({n: math.nan for n in self.objectives}, False, viol, dict(geo),
+                                fidelity=self.fidelity.name)
                 self.cache[key] = ev
                 results[i] = ev
             else:
                 pending[key] = (i, cfg, geo, model)
         if pending:
             run0 = parse_config(next(iter(pending.values()))[1])
-            probes = Probes(sample_interval=build_probes(run0).sample_interval, contacts=())
             models, owner = [], []
             for key, (i, cfg, geo, model) in pending.items():
                 ms = self._scenario_models(cfg, model)
                 models += ms
                 owner += [key] * len(ms)
+            fid = self.fidelity
+            interval = build_probes(run0).sample_interval
+            if fid.coarse_sampling:  # from every scenario: a faster striker gives a shorter pulse
+                interval = search_interval(models, interval, run0.run.duration)
+            probes = Probes(sample_interval=interval, contacts=())
+            spr = fid.steps_per_radian or run0.run.steps_per_radian
             self._check_memory(models, run0.run.duration, probes, run0.run.dt)
             tasks = [_Task(models[s:s + self.chunk_size], run0.run.duration, probes, run0.run.dt, self.objectives,
-                           self.window, self.device)
+                           self.window, self.device, spr)
                      for s in range(0, len(models), self.chunk_size)] if self.client is not None else \
-                [_Task(models, run0.run.duration, probes, run0.run.dt, self.objectives, self.window, self.device)]
+                [_Task(models, run0.run.duration, probes, run0.run.dt, self.objectives, self.window, self.device, spr)]
             parts = _gather(self.client, tasks)
             merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
             position = {k: j for j, k in enumerate(pending)}
@@ -348,7 +510,8 @@ class Evaluator:
                 if any(not math.isfinite(v) for v in objs.values()) or not energy:
                     viol = max(viol, 1.0)  # no objective value (no pulse to fit) or a wrong run: infeasible
                 ev = Evaluation(objs, viol == 0, viol, {**geo, "force_over_yield": fy, "pulse_at_wall": pulse,
-                                                        "energy_ok": energy}, engine_runs=int(sel.sum()))
+                                                        "energy_ok": energy}, engine_runs=int(sel.sum()),
+                                fidelity=fid.name)
                 self.cache[key] = replace(ev, engine_runs=0)
                 results[i] = ev
         out = []

@@ -18,7 +18,8 @@ Optional keys of ``[design]``: ``population`` (candidates per generation), ``pol
 search after the population method, default true), ``window = [t0, t1]`` [s] (of
 ``energy_at_wall``), ``chunk_size`` (members per Dask task), ``[design.robust]``
 (:class:`~hertzchain.design.objectives.Robust`), ``[design.shape]``
-(:class:`~hertzchain.design.space.Shape`).
+(:class:`~hertzchain.design.space.Shape`), ``search_steps_per_radian`` and ``verify_top``
+(multi-fidelity search, :func:`search_fidelity`).
 """
 
 from __future__ import annotations
@@ -31,14 +32,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from ..errors import ConfigError
 from .constraints import Constraints
-from .objectives import OBJECTIVES, Robust
+from .objectives import OBJECTIVES, SAMPLING_FREE, Fidelity, Robust
 from .space import Space, parse_shape, parse_variables
 
-__all__ = ["DesignProblem", "parse_design", "load_design"]
+__all__ = ["DesignProblem", "parse_design", "load_design", "search_fidelity"]
+
+#: Default adaptive-step accuracy of the search runs (``design.search_steps_per_radian``): the
+#: peak wall force of the n-q design's chains is then within ~1e-4 of the full-accuracy value
+#: (error ~ (1 / steps_per_radian)^2: 3e-4 at 10, 7e-5 at 20, 2e-5 at 40, 1e-6 at 400; measured
+#: in tests/test_design_fidelity.py), far below the differences the search ranks.
+SEARCH_STEPS_PER_RADIAN = 20.0
 
 
 class DesignSection(BaseModel):
@@ -57,6 +64,22 @@ class DesignSection(BaseModel):
     chunk_size: int = Field(default=64, ge=1)
     robust: Robust | None = None
     shape: dict[str, Any] | None = None
+    search_steps_per_radian: float | str = SEARCH_STEPS_PER_RADIAN
+    verify_top: int = Field(default=4, ge=1, le=1000)
+
+    @field_validator("search_steps_per_radian", mode="before")
+    @classmethod
+    def _full_or_number(cls, v: Any) -> Any:
+        # Checked here in full, so that the error names the field with the allowed values.
+        from ..config import BOUNDS
+
+        if v == "full":
+            return v
+        lo, hi = BOUNDS["steps_per_radian"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v <= hi):
+            raise ValueError(f"must be 'full' (search at the base config's accuracy) or a number of adaptive "
+                             f"steps per radian from {lo:g} to {hi:g}")
+        return float(v)
 
 
 class _DesignFile(BaseModel):
@@ -94,6 +117,42 @@ class DesignProblem:
     def objective_name(self) -> str:
         """The objectives joined by ``+`` (design.json's ``objective_name``)."""
         return "+".join(self.objectives)
+
+
+def search_fidelity(problem: DesignProblem) -> Fidelity:
+    """The accuracy the search runs candidates at (multi-fidelity search).
+
+    Coarse (``name = "search"``) when ``design.search_steps_per_radian`` is a number below the
+    base config's ``run.steps_per_radian``, the base uses the adaptive step (no ``run.dt``) and
+    there is one objective: candidates are then run with that many steps per radian (peak error
+    ~ (1 / steps_per_radian)^2), and, when the objective and constraints read no sampled record
+    (objective ``peak_wall_force``, refined at every step; no ``max_force_over_yield``
+    constraint), sampled more coarsely (``coarse_sampling``: still
+    :data:`~hertzchain.design.objectives.SEARCH_SAMPLES_PER_PULSE` samples per wall pulse for
+    the pulse-arrival check, :func:`~hertzchain.design.objectives.search_interval`). The best
+    ``verify_top`` candidates are then run again at full accuracy.
+    Otherwise (``"full"``, a fixed step, several objectives: a Pareto front's values are all
+    reported) the search runs at the base config's own accuracy.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        The design.
+
+    Returns
+    -------
+    Fidelity
+        ``Fidelity("full")`` or ``Fidelity("search", steps_per_radian, coarse_sampling)``.
+    """
+    from ..config import parse_config
+
+    sec = problem.section
+    run = parse_config(problem.base).run
+    if (sec.search_steps_per_radian == "full" or run.dt is not None or len(problem.objectives) > 1
+            or sec.search_steps_per_radian >= run.steps_per_radian):
+        return Fidelity()
+    coarse_sampling = set(problem.objectives) <= SAMPLING_FREE and sec.constraints.max_force_over_yield is None
+    return Fidelity("search", float(sec.search_steps_per_radian), coarse_sampling)
 
 
 def _loc(prefix: tuple, loc: tuple) -> str:

@@ -72,7 +72,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     import warnings
 
     from ..config import build_model, build_probes, parse_config
-    from ..errors import ElasticLimitWarning
+    from ..errors import ElasticLimitWarning, PulseNotReachedWarning
     from ..integrate.batch import simulate_batch
     from ..probes import Probes
     from .constraints import Constraints, geometric_violation
@@ -91,7 +91,10 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     probes = Probes(sample_interval=build_probes(runs[0]).sample_interval, contacts=())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
-        ds = simulate_batch(models, runs[0].run.duration, probes, dt=runs[0].run.dt)
+        # a reference whose pulse misses the wall within the run gets no value (pulse_at_wall below)
+        warnings.simplefilter("ignore", PulseNotReachedWarning)
+        ds = simulate_batch(models, runs[0].run.duration, probes, dt=runs[0].run.dt,
+                            steps_per_radian=runs[0].run.steps_per_radian)
     out: dict[str, Any] = {}
     for name, ev in zip(cfgs, evs):
         # A chain whose pulse does not reach the wall within the run has no comparable value.
@@ -107,6 +110,15 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
                   if out[ref][n] and out["best"][n] is not None else None) for n in prob.objectives}
         for ref in ("chain1", "uniform")}
     return out, ds
+
+
+def _fidelity_info(prob) -> dict:
+    """design.json's ``search_fidelity``: how the search ran candidates (the best are reported at full accuracy)."""
+    from .problem import search_fidelity
+
+    fid = search_fidelity(prob)
+    return {"name": fid.name, "steps_per_radian": fid.steps_per_radian, "coarse_sampling": fid.coarse_sampling,
+            "verify_top": prob.section.verify_top if fid.name != "full" else None}
 
 
 def _history_frame(result: DesignResult):
@@ -254,7 +266,9 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
         The content of ``design.json``: ``best: {objective, variables, feasible, metrics}``,
         ``n_evaluations``, ``objective_name``, ``objectives``, ``units``, ``comparison`` (chain 1
         and the uniform chain, improvement in percent), ``generations``, ``elapsed_s``,
-        ``evaluations_per_s``, ``seed``, ``budget``, ``pareto`` (several objectives), ``hash``.
+        ``evaluations_per_s``, ``seed``, ``budget``, ``pareto`` (several objectives), ``hash``,
+        ``search_fidelity`` (``name``: ``"search"`` or ``"full"``, ``steps_per_radian`` and
+        ``coarse_sampling`` of the search runs, ``verify_top``).
     """
     import tomli_w
 
@@ -278,6 +292,7 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
         "elapsed_s": result.elapsed_s,
         "evaluations_per_s": result.n_evaluations / result.elapsed_s if result.elapsed_s > 0 else math.nan,
         "robust": None if prob.section.robust is None else prob.section.robust.model_dump(mode="json"),
+        "search_fidelity": _fidelity_info(prob),
         "comparison": comparison,
         "hash": prob.hash,
         "hertzchain_version": __version__,

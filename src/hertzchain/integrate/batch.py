@@ -45,6 +45,7 @@ from numba import njit, prange
 from ..errors import ConfigError, SimulationDiverged
 from ..model import Model
 from ..probes import Probes
+from ..checks import warn_members_pulse_not_reached
 from ..simulation import warn_elastic_limit
 from . import kernels, verlet
 from .ensemble import Ensemble, same_layout, systems
@@ -177,14 +178,17 @@ def _check_inputs(models: Sequence[Model], duration: float, probes, dt) -> tuple
 
 def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequence[Probes] | None = None, *,
               dt: float | Sequence[float | None] | None = None, progress: Callable[[int, int], None] | None = None,
-              n_threads: int | None = None) -> list[RawRun]:
+              n_threads: int | None = None, steps_per_radian: float | None = None, return_systems: bool = False
+              ) -> list[RawRun] | tuple[list[RawRun], list]:
     """Integrate every model with the batched compiled Verlet; one :class:`RawRun` per member.
 
     Parameters are those of :func:`simulate_batch`. The RawRuns are identical to what
-    :func:`hertzchain.integrate.verlet.run_verlet` returns for each member alone.
+    :func:`hertzchain.integrate.verlet.run_verlet` returns for each member alone. With
+    ``return_systems`` also every member's ``Model.system()`` (computed for the run anyway).
     """
     plist, dts = _check_inputs(models, duration, probes, dt)
-    return _run(models, duration, plist, dts, progress, n_threads)[0]
+    runs, sys_list, _ = _run(models, duration, plist, dts, progress, n_threads, steps_per_radian)
+    return (runs, sys_list) if return_systems else runs
 
 
 def _check_no_positions(plist) -> None:
@@ -349,7 +353,8 @@ def _init_kernel(off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, d
 _flush_stale_cache(_batch_kernel, _init_kernel)
 
 
-def _step_plans(w: np.ndarray, interval: float, dts: np.ndarray, check) -> dict[str, np.ndarray]:
+def _step_plans(w: np.ndarray, interval: float, dts: np.ndarray, check,
+                steps_per_radian: float | None = None) -> dict[str, np.ndarray]:
     """:func:`hertzchain.integrate.verlet.step_plan` of every member (``dts``: NaN = adaptive step).
 
     ``check(i, dt)`` is :func:`hertzchain.integrate.verlet.check_time_step` on member i: called
@@ -386,10 +391,11 @@ def _step_plans(w: np.ndarray, interval: float, dts: np.ndarray, check) -> dict[
     ns = np.where(short, 1, np.ceil(interval / bmax - 1e-9)).astype(np.int64)
     ne = np.where(short, np.maximum(1, np.floor(bmax / interval)), 1).astype(np.int64)
     block = interval / ns
-    plan_dt[ad] = block / np.ceil(block * ADAPTIVE_STEPS_PER_RADIAN * wa - 1e-9)
+    c = ADAPTIVE_STEPS_PER_RADIAN if steps_per_radian is None else float(steps_per_radian)
+    plan_dt[ad] = block / np.ceil(block * c * wa - 1e-9)
     n_sub[ad] = ns
     n_eval[ad] = ne
-    c_steps[ad] = ADAPTIVE_STEPS_PER_RADIAN
+    c_steps[ad] = c
     relax[ad] = RELAX_EVALUATIONS
     return {"stride": stride, "plan_dt": plan_dt, "n_sub": n_sub, "n_eval": n_eval, "c_steps": c_steps,
             "relax": relax}
@@ -424,7 +430,7 @@ class _EnsembleArrays:
 
 
 def _pack_ensemble(ens: Ensemble, probes: Probes, dts: np.ndarray, interval: float,
-                   n_samples: int) -> tuple[_Packed, _EnsembleArrays]:
+                   n_samples: int, steps_per_radian: float | None = None) -> tuple[_Packed, _EnsembleArrays]:
     """The batch of an ensemble with array code: what :func:`_pack_models` builds member by member."""
     nmem, n = ens.n_members, ens.n_beads
     p = -(-(n + 2) // PAD) * PAD  # layout.pack: moving bodies + wall ghost, rounded up
@@ -460,7 +466,7 @@ def _pack_ensemble(ens: Ensemble, probes: Probes, dts: np.ndarray, interval: flo
     def check(i: int, dt: float) -> None:
         verlet.check_time_step(ens.model(i).system(), dt)
 
-    for k, x in _step_plans(w, interval, dts, check).items():
+    for k, x in _step_plans(w, interval, dts, check, steps_per_radian).items():
         setattr(pk, k, x)
     f = pk.flat
     _init_kernel(pk.off, pk.n_slots, f["u"], f["v"], f["a"], f["g"], f["mass"], f["inv_mass"], f["kappa"],
@@ -520,8 +526,8 @@ def _engine(pk: _Packed, progress, n_threads) -> None:
             progress(k - 1, n_samples - 1)
 
 
-def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads
-         ) -> tuple[list[RawRun], list, dict[str, np.ndarray]]:
+def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads,
+         steps_per_radian: float | None = None) -> tuple[list[RawRun], list, dict[str, np.ndarray]]:
     """:func:`run_batch` on checked inputs. Also returns every member's ``Model.system()`` and the
     output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
     energies always, ``recorded_force`` (member, time, recorded contact) when every member
@@ -535,7 +541,7 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
     members: list[_Member] = []
     for model, p, dti in zip(models, plist, dts):
         system = model.system()
-        plan = step_plan(system, interval, dti)
+        plan = step_plan(system, interval, dti, steps_per_radian)
         rec = p.recorded_contacts(model.chain.n_beads, model.wall.present)
         members.append(_Member(system, rec, plan, bool(p.velocities)))
     pk = _pack_models(members, interval, n_samples)
@@ -805,7 +811,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
                    probes: Probes | Sequence[Probes] | None = None, *,
                    dt: float | Sequence[float | None] | None = None, progress: Callable[[int, int], None] | None = None,
                    n_threads: int | None = None, configs: Sequence[dict | None] | None = None,
-                   device: str = "auto") -> xr.Dataset:
+                   device: str = "auto", steps_per_radian: float | None = None) -> xr.Dataset:
     """Simulate many independent chains in one parallel compiled call; results stacked along ``member``.
 
     Every member's arrays are bit-identical to :func:`hertzchain.simulate` run on it alone (see
@@ -846,6 +852,9 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         ``hertzchain.integrate.cuda``: members must share a layout and one Probes; an error
         when no usable GPU is present) or ``"auto"`` (default: the GPU when one is usable and the
         batch has at least ``hertzchain.integrate.cuda.AUTO_MIN_MEMBERS`` members, else the CPU).
+    steps_per_radian
+        Accuracy of the adaptive step, as ``simulate(steps_per_radian=)`` (``run.steps_per_radian``):
+        None for the default ``ADAPTIVE_STEPS_PER_RADIAN``; one value for every member.
 
     Returns
     -------
@@ -856,6 +865,8 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     -----
     ElasticLimitWarning
         Once per member whose contact forces pass the elastic limit.
+    PulseNotReachedWarning
+        Once per batch, naming the members on a wall whose record ended before the pulse reached it.
     """
     from . import cuda as _cuda
 
@@ -866,14 +877,17 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     elif isinstance(models, Sequence) and same_layout(models) and _one_probes(probes, len(models)) is not None:
         ens = Ensemble.from_models(models)
     if ens is not None:
-        return _simulate_ensemble(ens, duration, _one_probes(probes, ens.n_members), dt, progress, n_threads,
-                                  configs, device)
-    if device == "cuda":
+        ds = _simulate_ensemble(ens, duration, _one_probes(probes, ens.n_members), dt, progress, n_threads,
+                                configs, device, steps_per_radian)
+    elif device == "cuda":
         _cuda.require_gpu()
         raise ConfigError("device", "the CUDA engine runs batches whose members share one layout (number of "
                           "beads, end, contact law kind) and one Probes; this batch mixes them: split it, or use "
                           "device='cpu'")
-    return _simulate_models(models, duration, probes, dt, progress, n_threads, configs)
+    else:
+        ds = _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian)
+    warn_members_pulse_not_reached(ds)
+    return ds
 
 
 def _one_probes(probes, n: int) -> Probes | None:
@@ -888,7 +902,7 @@ def _one_probes(probes, n: int) -> Probes | None:
 
 
 def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progress, n_threads, configs,
-                       device: str) -> xr.Dataset:
+                       device: str, steps_per_radian: float | None = None) -> xr.Dataset:
     """:func:`simulate_batch` of an ensemble: set up, run and stacked with array code."""
     from . import cuda as _cuda
 
@@ -906,7 +920,7 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
     interval = probes.sample_interval
     n_samples = int(math.floor(duration / interval + 1e-9)) + 1
     on_gpu = _cuda.use_gpu(device, nmem)  # before the set-up: 'cuda' without a GPU fails at once
-    pk, arrays = _pack_ensemble(ens, probes, dts, interval, n_samples)
+    pk, arrays = _pack_ensemble(ens, probes, dts, interval, n_samples, steps_per_radian)
     if on_gpu:
         _cuda.run_packed(pk, progress)
     else:
@@ -940,13 +954,14 @@ def _member_runs(pk: _Packed) -> list[RawRun]:
     return runs
 
 
-def _simulate_models(models, duration, probes, dt, progress, n_threads, configs) -> xr.Dataset:
+def _simulate_models(models, duration, probes, dt, progress, n_threads, configs,
+                     steps_per_radian: float | None = None) -> xr.Dataset:
     """:func:`simulate_batch` of arbitrary models (members of different layouts or probes)."""
     # What stack_results(simulate_many(...)) gives, without one Dataset per member: every member's
     # run_fields (the arrays and attributes build_dataset would wrap) go straight into the stack.
     plist, dts = _check_inputs(models, duration, probes, dt)
     cfgs = _as_list(configs, len(models), "configs") if configs is not None else [None] * len(models)
-    runs, sys_list, stacked = _run(models, duration, plist, dts, progress, n_threads)
+    runs, sys_list, stacked = _run(models, duration, plist, dts, progress, n_threads, steps_per_radian)
     return _stack_members(runs, models, plist, cfgs, duration, sys_list, stacked)
 
 

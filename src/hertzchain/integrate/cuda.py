@@ -330,6 +330,56 @@ def _kernels() -> dict:
             peak[4, m] = 0.0
         peak[5, m] = fw
 
+    @cuda.jit(device=True, **inline)
+    def adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, lw, n, m, ns,
+              relax, acc):
+        """The adaptive step's evaluation for member m (kernels.required_stride, then
+        kernels._adapt_stride on acc[3:8]): returns the new steps per block."""
+        req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping,
+                              lw, n, m)
+        ns, r4, r5 = adapt_stride(req, ns, relax, acc[4, m], acc[5, m])
+        acc[4, m] = r4
+        acc[5, m] = r5
+        acc[3, m] = ns
+        acc[6, m] = max(acc[6, m], ns)
+        acc[7, m] = min(acc[7, m], ns)
+        return ns
+
+    @cuda.jit(device=True, **inline)
+    def sample(row, gen, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke, out_pe, out_ed,
+               out_v, record_v, acc, n, m):
+        """The probes of member m at a sample time into row ``row`` (recorded forces, running
+        maxima, energies, velocities); returns False when the state is no longer finite."""
+        for j in range(rec.shape[0]):
+            out_f[row, j, m] = g[rec[j] + 1, m]
+        for j in range(fmax.shape[0]):
+            x = g[j + 1, m]
+            if x > fmax[j, m]:
+                fmax[j, m] = x
+        ke = 0.0
+        pe = 0.0
+        if gen:  # kernels.kinetic_energy and kernels.potential_energy
+            for i in range(n):
+                ke += 0.5 * mass[i, m] * v[i, m] * v[i, m]
+            for j in range(n):
+                d = overlap(u, d0, de, dx0, rsum, j, m)
+                if d > 0.0:
+                    pe += 0.4 * kappa[j, m] * d * d * math.sqrt(d)
+            for i in range(n):
+                pe -= fext[i, m] * u[i, m]
+        else:  # kernels.energies_elastic
+            for i in range(n):
+                ke += mass[i, m] * v[i, m] * v[i, m]
+                pe += 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
+            ke = 0.5 * ke
+        out_ke[row, m] = ke
+        out_pe[row, m] = pe
+        out_ed[row, m] = acc[0, m]
+        if record_v[m]:
+            for i in range(out_v.shape[1]):
+                out_v[row, i, m] = v[i, m]
+        return math.isfinite(ke) and math.isfinite(g[1, m])
+
     @cuda.jit
     def verlet_kernel(u, v, a, g, vp, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
                       wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
@@ -343,7 +393,6 @@ def _kernels() -> dict:
         if m >= status.shape[0] or status[m] != 0:
             return
         n = a.shape[0]
-        nrec = rec.shape[0]
         lw = law[m]
         gen = general[m]
         ws = wall_slot[m] + 1
@@ -356,14 +405,8 @@ def _kernels() -> dict:
         for k in range(k_start, k_stop):
             for b in range(nsub):
                 if adaptive and ((k - 1) * nsub + b) % neval == 0:
-                    req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block,
-                                          c_steps[m], damping, lw, n, m)
-                    ns, r4, r5 = adapt_stride(req, ns, relax[m], acc[4, m], acc[5, m])
-                    acc[4, m] = r4
-                    acc[5, m] = r5
-                    acc[3, m] = ns
-                    acc[6, m] = max(acc[6, m], ns)
-                    acc[7, m] = min(acc[7, m], ns)
+                    ns = adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block, c_steps[m],
+                               damping, lw, n, m, ns, relax[m], acc)
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
@@ -394,36 +437,8 @@ def _kernels() -> dict:
                         track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
                 step += ns
             # --- probes, sampled on the device
-            row = k - k_start
-            for j in range(nrec):
-                out_f[row, j, m] = g[rec[j] + 1, m]
-            for j in range(fmax.shape[0]):
-                x = g[j + 1, m]
-                if x > fmax[j, m]:
-                    fmax[j, m] = x
-            ke = 0.0
-            pe = 0.0
-            if gen:  # kernels.kinetic_energy and kernels.potential_energy
-                for i in range(n):
-                    ke += 0.5 * mass[i, m] * v[i, m] * v[i, m]
-                for j in range(n):
-                    d = overlap(u, d0, de, dx0, rsum, j, m)
-                    if d > 0.0:
-                        pe += 0.4 * kappa[j, m] * d * d * math.sqrt(d)
-                for i in range(n):
-                    pe -= fext[i, m] * u[i, m]
-            else:  # kernels.energies_elastic
-                for i in range(n):
-                    ke += mass[i, m] * v[i, m] * v[i, m]
-                    pe += 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
-                ke = 0.5 * ke
-            out_ke[row, m] = ke
-            out_pe[row, m] = pe
-            out_ed[row, m] = acc[0, m]
-            if record_v[m]:
-                for i in range(out_v.shape[1]):
-                    out_v[row, i, m] = v[i, m]
-            if not (math.isfinite(ke) and math.isfinite(g[1, m])):
+            if not sample(k - k_start, gen, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke,
+                          out_pe, out_ed, out_v, record_v, acc, n, m):
                 acc[2, m] = step
                 status[m] = 1
                 return
@@ -577,8 +592,8 @@ def _kernels() -> dict:
             acc[4, m] = r4
             acc[5, m] = r5
 
-    _KERNEL = {"thread": verlet_kernel, "warp": warp_kernel, "required_stride": required_stride,
-               "adapt_stride": adapt_stride}
+    _KERNEL = {"thread": verlet_kernel, "warp": warp_kernel, "adapt": adapt, "sample": sample,
+               "track_peak": track_peak, "hertz": hertz}
     return _KERNEL
 
 
@@ -609,28 +624,11 @@ def _register_kernel(p: int, pre: bool):
     from numba import float64
 
     kern = _kernels()
-    required_stride = kern["required_stride"]
-    adapt_stride = kern["adapt_stride"]
-    inline = {} if _simulated() else {"forceinline": True}
+    adapt, sample, track_peak, hertz = kern["adapt"], kern["sample"], kern["track_peak"], kern["hertz"]
     tpb = REGISTER_THREADS if not pre else REGISTER_THREADS // 2
     # array shapes must be compile-time constants (an expression inside the kernel is not)
     p1 = p + 1
     pp = p if pre else 1
-
-    @cuda.jit(device=True, **inline)
-    def track(fw, t, dt, pk):
-        # kernels._track_peak on a per-thread copy of the member's peak tracker
-        if fw > pk[0]:
-            pk[0] = fw
-            pk[1] = t
-            pk[2] = pk[5]
-            pk[6] = dt
-            pk[4] = 1.0
-        elif pk[4] != 0.0:
-            pk[3] = fw
-            pk[7] = dt
-            pk[4] = 0.0
-        pk[5] = fw
 
     @cuda.jit
     def register_kernel(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, wall_slot,
@@ -652,11 +650,10 @@ def _register_kernel(p: int, pre: bool):
                 sfx[i, t] = fext[i, m]
         ul = cuda.local.array(p1, float64)
         vl = cuda.local.array(p, float64)
-        pk = cuda.local.array(8, float64)
+        pk = cuda.local.array((8, 1), float64)  # the member's peak tracker, a per-thread copy
         for j in range(8):
-            pk[j] = peak[j, m]
+            pk[j, 0] = peak[j, m]
         ul[p] = u[p, m]  # the far end (wall) never moves
-        nrec = rec.shape[0]
         ws = wall_slot[m] + 1
         nsub = n_sub[m]
         neval = n_eval[m]
@@ -667,14 +664,8 @@ def _register_kernel(p: int, pre: bool):
         for k in range(k_start, k_stop):
             for b in range(nsub):
                 if adaptive and ((k - 1) * nsub + b) % neval == 0:
-                    req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block,
-                                          c_steps[m], damping, LAW_ELASTIC, p, m)
-                    ns, r4, r5 = adapt_stride(req, ns, relax[m], acc[4, m], acc[5, m])
-                    acc[4, m] = r4
-                    acc[5, m] = r5
-                    acc[3, m] = ns
-                    acc[6, m] = max(acc[6, m], ns)
-                    acc[7, m] = min(acc[7, m], ns)
+                    ns = adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block, c_steps[m],
+                               damping, LAW_ELASTIC, p, m, ns, relax[m], acc)
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
@@ -686,56 +677,32 @@ def _register_kernel(p: int, pre: bool):
                     fprev = 0.0
                     fw = 0.0
                     for i in range(p):
-                        d = ul[i] - ul[i + 1] + (sd0[i, t] if pre else 0.0)
-                        ok = d > DELTA_MIN
-                        dd = d if ok else 1.0  # no sqrt(0): CUDA's slow path
-                        f = skap[i, t] * dd * math.sqrt(dd) if ok else 0.0
+                        f = hertz(skap[i, t], ul[i] - ul[i + 1] + (sd0[i, t] if pre else 0.0))
                         if i + 1 == ws:
                             fw = f
                         ai = (fprev - f + (sfx[i, t] if pre else 0.0)) * sinv[i, t]
                         vl[i] += dt * ai
                         ul[i] += dt * vl[i]
                         fprev = f
-                    track(fw, t0 + (s + 1) * dt, dt, pk)
+                    track_peak(fw, t0 + (s + 1) * dt, dt, pk, 0)
                 fprev = 0.0  # kernels.final_step_elastic: forces, closing half kick, state to memory
                 for i in range(p):
-                    d = ul[i] - ul[i + 1] + (sd0[i, t] if pre else 0.0)
-                    ok = d > DELTA_MIN
-                    dd = d if ok else 1.0
-                    f = skap[i, t] * dd * math.sqrt(dd) if ok else 0.0
+                    f = hertz(skap[i, t], ul[i] - ul[i + 1] + (sd0[i, t] if pre else 0.0))
                     g[i + 1, m] = f
                     ai = (fprev - f + (sfx[i, t] if pre else 0.0)) * sinv[i, t]
                     a[i, m] = ai
                     v[i, m] = vl[i] + half * ai
                     u[i, m] = ul[i]
                     fprev = f
-                track(g[ws, m], t0 + block, dt, pk)
+                track_peak(g[ws, m], t0 + block, dt, pk, 0)
                 step += ns
             # --- probes, sampled on the device (verlet_kernel's, elastic branch)
-            row = k - k_start
-            for j in range(nrec):
-                out_f[row, j, m] = g[rec[j] + 1, m]
-            for j in range(fmax.shape[0]):
-                x = g[j + 1, m]
-                if x > fmax[j, m]:
-                    fmax[j, m] = x
-            ke = 0.0
-            pe = 0.0
-            for i in range(p):
-                ke += mass[i, m] * v[i, m] * v[i, m]
-                pe += 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
-            ke = 0.5 * ke
-            out_ke[row, m] = ke
-            out_pe[row, m] = pe
-            out_ed[row, m] = acc[0, m]
-            if record_v[m]:
-                for i in range(out_v.shape[1]):
-                    out_v[row, i, m] = v[i, m]
-            if not (math.isfinite(ke) and math.isfinite(g[1, m])):
+            if not sample(k - k_start, False, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke,
+                          out_pe, out_ed, out_v, record_v, acc, p, m):
                 status[m] = 1
                 break
         for j in range(8):
-            peak[j, m] = pk[j]
+            peak[j, m] = pk[j, 0]
         acc[2, m] = step
 
     return register_kernel, tpb

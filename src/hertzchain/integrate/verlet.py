@@ -22,7 +22,8 @@ STEPS_PER_RADIAN = 300.0
 #: Adaptive step (the default): omega dt <= 1 / ADAPTIVE_STEPS_PER_RADIAN with omega bounded from
 #: the present overlaps (kernels.required_stride). Calibrated so that the peak wall force of the
 #: paper's chains is within 1e-6 of a DOP853 rtol=1e-12 reference and the energy error stays
-#: below 1e-6 (tests/test_accuracy.py, tests/test_conservation.py).
+#: below 1e-6 (tests/test_accuracy.py, tests/test_conservation.py). ``run.steps_per_radian``
+#: overrides it: Verlet is second order, so the error scales as (1 / steps_per_radian)^2.
 ADAPTIVE_STEPS_PER_RADIAN = 400.0
 #: The adaptive step is re-evaluated at least every HORIZON_RADIANS / omega_max seconds (a
 #: twentieth of the shortest contact, roughly), looking that far ahead.
@@ -101,10 +102,12 @@ class StepPlan:
         return self.stride == 0
 
 
-def step_plan(system: System, sample_interval: float, dt: float | None) -> StepPlan:
+def step_plan(system: System, sample_interval: float, dt: float | None,
+              steps_per_radian: float | None = None) -> StepPlan:
     """Fixed step ``dt`` [s] (checked, shortened to divide the sample interval) or, when None, the
     adaptive step: blocks short enough (<= HORIZON_RADIANS / omega_max) for the look-ahead of
-    ``kernels.required_stride`` to hold."""
+    ``kernels.required_stride`` to hold, with omega dt <= 1 / ``steps_per_radian`` (default
+    ADAPTIVE_STEPS_PER_RADIAN; unused with a fixed step)."""
     if dt is not None:
         check_time_step(system, dt)
         stride, dt = _stride(sample_interval, dt)
@@ -118,8 +121,9 @@ def step_plan(system: System, sample_interval: float, dt: float | None) -> StepP
     else:
         n_sub, n_eval = math.ceil(sample_interval / bmax - 1e-9), 1
     block = sample_interval / n_sub
-    return StepPlan(stride=0, dt=block / math.ceil(block * ADAPTIVE_STEPS_PER_RADIAN * w - 1e-9),
-                    n_sub=n_sub, n_eval=n_eval, c_steps=ADAPTIVE_STEPS_PER_RADIAN, relax=RELAX_EVALUATIONS)
+    c = ADAPTIVE_STEPS_PER_RADIAN if steps_per_radian is None else float(steps_per_radian)
+    return StepPlan(stride=0, dt=block / math.ceil(block * c * w - 1e-9),
+                    n_sub=n_sub, n_eval=n_eval, c_steps=c, relax=RELAX_EVALUATIONS)
 
 
 def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_v: bool,
@@ -167,15 +171,16 @@ def refine_peak(peak: np.ndarray) -> tuple[float, float]:
 def run_verlet(system: System, duration: float, sample_interval: float, dt: float | None = None,
                record_velocities: bool = False, contacts: np.ndarray | None = None,
                progress: Callable[[int, int], None] | None = None, chunk_steps: int = 2_000_000,
-               record_positions: bool = False) -> RawRun:
+               record_positions: bool = False, steps_per_radian: float | None = None) -> RawRun:
     """Integrate ``system`` for ``duration`` [s] with the compiled velocity Verlet.
 
     Probes are sampled every ``sample_interval`` [s]; the step is ``dt`` [s], shortened if needed
     so that it divides the sample interval, or adaptive when None (see :func:`step_plan`). ``contacts`` lists the
     contact numbers whose forces are recorded (all when None). ``progress(done, total)``
-    is called between chunks of about ``chunk_steps`` steps.
+    is called between chunks of about ``chunk_steps`` steps. ``steps_per_radian`` sets the
+    adaptive step's accuracy (:func:`step_plan`).
     """
-    plan = step_plan(system, sample_interval, dt)
+    plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
     nc = system.n_contacts
     nb = system.n_beads + 1

@@ -299,7 +299,7 @@ class _Problem:
                  duration: float | None = None) -> list[list[tuple[np.ndarray, np.ndarray]]]:
         """One batched engine call: for every config vector, every trace's (sim time, force)."""
         from ..config import build_model
-        from ..errors import ElasticLimitWarning
+        from ..errors import ElasticLimitWarning, PulseNotReachedWarning
         from ..integrate.batch import simulate_batch
         from ..probes import Probes
 
@@ -316,6 +316,8 @@ class _Problem:
             duration = max(end * 1.02 + 2 * self.sample_interval, 4 * self.sample_interval)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ElasticLimitWarning)  # reported once on the final model
+            # a record of embedded sensors may rightly end before the pulse reaches the wall
+            warnings.simplefilter("ignore", PulseNotReachedWarning)
             ds = simulate_batch(models, duration, probes, n_threads=self.n_threads)
         self.n_evaluations += 1
         self.n_members += len(models)
