@@ -134,6 +134,34 @@ def test_dynamic_overlap_beyond_hertz_range_warns():
         hc.simulate(model, 2e-6, hc.Probes(sample_interval=1e-8))
 
 
+def test_batches_warn_once_for_the_members_past_the_hertz_range():
+    """simulate_batch gives one HertzRangeWarning naming the members that simulate would warn
+    about, with the same worst ratio; both batch paths (one layout: array code; mixed layouts)."""
+    def ratio(message: str) -> float:
+        return float(message.split(" times the smaller")[0].split()[-1])
+
+    fine = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2))
+    crushed = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 600.0))
+    short = hc.Model(hc.Chain.uniform(3, 10e-3), hc.Striker(8e-3, 600.0))
+    with warnings.catch_warnings(record=True) as single:
+        warnings.simplefilter("always")
+        warnings.simplefilter("ignore", hc.ElasticLimitWarning)
+        hc.simulate(crushed, 1e-4)
+    expected = ratio(str(next(w.message for w in single if w.category is HertzRangeWarning)))
+    for members, named in (([fine, crushed, fine], "1 of 3 members (member 1)"),
+                           ([fine, crushed, short], "2 of 3 members (member 1, 2)")):
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            warnings.simplefilter("ignore", hc.ElasticLimitWarning)
+            hc.simulate_batch(members, 1e-4)
+        hertz = [str(w.message) for w in rec if w.category is HertzRangeWarning]
+        assert len(hertz) == 1 and hertz[0].startswith(named)
+        assert ratio(hertz[0]) == pytest.approx(expected, rel=1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", HertzRangeWarning)
+        hc.simulate_batch([fine, fine], 1e-4)
+
+
 def test_record_ending_before_the_pulse_reaches_the_wall_warns():
     """Issue: too short a run reported 'peak wall force 0 N', exit 0."""
     model = hc.Model(hc.Chain.uniform(20, 26e-3), hc.Striker(8e-3, 0.2))

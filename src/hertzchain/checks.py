@@ -375,6 +375,40 @@ def _warn_pulse_not_reached(ds, fmax: np.ndarray, nc: int, stacklevel: int) -> N
         "Lengthen run.duration"), stacklevel=stacklevel + 1)
 
 
+def warn_members_hertz_range(fmax: np.ndarray, kappa: np.ndarray, smaller_radius: np.ndarray,
+                             stacklevel: int = 2) -> None:
+    """The Hertz-range check of :func:`check_after_run` for a batch: ONE warning naming the members
+    whose largest contact force compressed a contact beyond ``HERTZ_MAX_OVERLAP`` of the smaller
+    radius (paper eq. 1 holds for small overlaps only).
+
+    Parameters
+    ----------
+    fmax, kappa, smaller_radius : numpy.ndarray
+        (member, contact): every contact's largest force [N], its Hertz stiffness kappa
+        [N m^-3/2] and the smaller radius of its two bodies [m]; NaN where a member has no such
+        contact.
+    stacklevel : int
+        Passed to :func:`warnings.warn`.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        overlap = np.where(kappa > 0, (np.maximum(fmax, 0.0) / np.where(kappa > 0, kappa, 1.0)) ** (2.0 / 3.0), 0.0)
+        ratio = np.nan_to_num(overlap / smaller_radius, nan=0.0)
+    if ratio.size == 0:
+        return
+    worst = ratio.max(axis=1)
+    over = np.flatnonzero(worst > HERTZ_MAX_OVERLAP)
+    if over.size == 0:
+        return
+    i = int(over[np.argmax(worst[over])])
+    j = int(np.argmax(ratio[i]))
+    some = ", ".join(str(k) for k in over[:8].tolist()) + (", ..." if over.size > 8 else "")
+    warnings.warn(HertzRangeWarning(
+        f"{over.size} of {ratio.shape[0]} members (member {some}) compressed a contact beyond the range of Hertz "
+        f"contact (overlaps below {HERTZ_MAX_OVERLAP:g} R, paper eq. 1); worst: member {i}, contact {j}, "
+        f"{ratio[i, j]:.3g} times the smaller bead radius. Their forces are not physical: lower the striker "
+        "velocity"), stacklevel=stacklevel + 1)
+
+
 def warn_members_pulse_not_reached(ds, stacklevel: int = 2) -> None:
     """The pulse-arrival check of :func:`check_after_run` for a batch: ONE warning naming the members
     on a wall whose wall contact never carried a pulse (the record ended before it arrived).

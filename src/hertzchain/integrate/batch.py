@@ -45,7 +45,7 @@ from numba import njit, prange
 from ..errors import ConfigError, SimulationDiverged
 from ..model import Model
 from ..probes import Probes
-from ..checks import warn_members_pulse_not_reached
+from ..checks import _smaller_radius, warn_members_hertz_range, warn_members_pulse_not_reached
 from ..simulation import warn_elastic_limit
 from . import kernels, verlet
 from .ensemble import Ensemble, same_layout, systems
@@ -925,6 +925,10 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
         _cuda.run_packed(pk, progress)
     else:
         _engine(pk, progress, n_threads)
+    # checks.check_after_run's Hertz range, for every member at once (smaller radius per contact)
+    r = np.concatenate([np.asarray(ens.striker_diameter)[:, None] / 2, np.asarray(ens.diameters) / 2], axis=1)
+    smaller = np.concatenate([np.minimum(r[:, :-1], r[:, 1:]), r[:, -1:]], axis=1)[:, :arrays.n_contacts]
+    warn_members_hertz_range(pk.fmax.reshape(nmem, arrays.n_contacts), arrays.kappa, smaller, stacklevel=4)
     ds = _ensemble_dataset(ens, arrays, pk, probes, duration, cfgs)
     if ds is None:  # member 0's results hold a variable the array path does not know: stack member by member
         ds = _stack_members(_member_runs(pk), [ens.model(i) for i in range(nmem)], [probes] * nmem,
@@ -962,6 +966,13 @@ def _simulate_models(models, duration, probes, dt, progress, n_threads, configs,
     plist, dts = _check_inputs(models, duration, probes, dt)
     cfgs = _as_list(configs, len(models), "configs") if configs is not None else [None] * len(models)
     runs, sys_list, stacked = _run(models, duration, plist, dts, progress, n_threads, steps_per_radian)
+    width = max(sy.n_contacts for sy in sys_list)
+    fmax, kappa, smaller = (np.full((len(models), width), np.nan) for _ in range(3))
+    for i, (run, model, sy) in enumerate(zip(runs, models, sys_list)):
+        nc = sy.n_contacts
+        fmax[i, :nc], kappa[i, :nc] = run.max_force[:nc], sy.kappa[:nc]
+        smaller[i, :nc] = _smaller_radius(model)[:nc]
+    warn_members_hertz_range(fmax, kappa, smaller, stacklevel=4)
     return _stack_members(runs, models, plist, cfgs, duration, sys_list, stacked)
 
 
