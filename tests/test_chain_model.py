@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain.chain import TABLE_I_MM
+from hertzchain.chain import TABLE_I_MM, Chain
+from hertzchain.errors import ConfigError
 
 
 def test_masses_and_hertz_constants_follow_design():
@@ -78,3 +79,18 @@ def test_precompression_is_static_equilibrium():
     assert np.allclose(chain_forces, 10.0, rtol=1e-6)
     e = (ds.kinetic_energy + ds.potential_energy).values
     assert np.abs(e - e[0]).max() < 1e-9 * abs(e[0])
+
+
+@pytest.mark.parametrize("bad, index", [([0.01, float("nan")], 1), ([-1.0, 0.01], 0), ([0.01, 0.02, float("inf")], 2)])
+def test_bad_diameters_are_named_by_index(bad, index):
+    """The fast check of Chain (min > 0, max finite) falls back to the one that names the bead."""
+    with pytest.raises(ConfigError) as e:
+        Chain(np.array(bad))
+    assert e.value.field == f"chain.diameters[{index}]" and f"bead {index + 1}" in str(e.value)
+
+
+def test_aligned_chains_stay_aligned_through_concat_and_keep_offsets_otherwise():
+    plain = Chain.uniform(3, 10e-3).concat(Chain.uniform(2, 8e-3))
+    assert plain.offsets.shape == (5,) and not plain.offsets.any() and not plain.offsets.flags.writeable
+    bent = Chain.uniform(3, 10e-3).with_offsets({2: 1e-3}).concat(Chain.uniform(2, 8e-3))
+    np.testing.assert_array_equal(bent.offsets, [0.0, 1e-3, 0.0, 0.0, 0.0])

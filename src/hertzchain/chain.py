@@ -56,8 +56,11 @@ class Chain:
     offsets: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        # Chains are built by the thousand in a design search (every geometry check builds one):
+        # the checks below take their slow, index-finding path only when something is wrong.
         d = np.asarray(self.diameters, dtype=float).copy()
-        _check_diameters(d, "chain.diameters")
+        if d.ndim != 1 or d.size == 0 or not (d.min() > 0 and d.max() < math.inf):  # NaN fails both
+            _check_diameters(d, "chain.diameters")
         d.setflags(write=False)
         object.__setattr__(self, "diameters", d)
         mats = self.materials
@@ -65,12 +68,17 @@ class Chain:
             mats = (get_material(mats),) * d.size
         elif len(mats) == 0:
             mats = (get_material("AISI52100"),) * d.size
-        else:
+        elif not (isinstance(mats, tuple) and all(type(m) is Material for m in mats)):
             mats = tuple(get_material(m) for m in mats)
         if len(mats) != d.size:
             raise ConfigError("chain.materials", f"needs one material per bead ({d.size}), got {len(mats)}")
         object.__setattr__(self, "materials", mats)
-        e = np.zeros(d.size) if self.offsets is None else np.asarray(self.offsets, dtype=float).copy()
+        if self.offsets is None:  # aligned: nothing to check
+            e = np.zeros(d.size)
+            e.setflags(write=False)
+            object.__setattr__(self, "offsets", e)
+            return
+        e = np.asarray(self.offsets, dtype=float).copy()
         if e.shape != d.shape:
             raise ConfigError("chain.offsets", f"needs one offset per bead ({d.size}), got {e.size}")
         if not np.all(np.isfinite(e)):
@@ -117,8 +125,9 @@ class Chain:
 
     def concat(self, other: "Chain") -> "Chain":
         """Beads of ``self`` followed by the beads of ``other``."""
+        aligned = not (self.offsets.any() or other.offsets.any())
         return Chain(np.concatenate([self.diameters, other.diameters]), self.materials + other.materials,
-                     np.concatenate([self.offsets, other.offsets]))
+                     None if aligned else np.concatenate([self.offsets, other.offsets]))
 
     def truncated(self, n: int) -> "Chain":
         """The first ``n`` beads (the paper's protocol: a chain cut after bead n, wall behind it)."""
