@@ -169,10 +169,28 @@ def check_resources(est: ResourceEstimate, *, memory_field: str = "run.duration"
             stacklevel=3)
 
 
+def smaller_radii(striker_diameter: np.ndarray, diameters: np.ndarray) -> np.ndarray:
+    """Smaller radius of the two bodies of every contact 0..N [m] (the wall is a flat), per member.
+
+    Parameters
+    ----------
+    striker_diameter : numpy.ndarray
+        (M,) striker diameters [m].
+    diameters : numpy.ndarray
+        (M, N) bead diameters [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        (M, N + 1); the last column is bead N against the wall.
+    """
+    r = np.concatenate([np.asarray(striker_diameter, float)[:, None], np.asarray(diameters, float)], axis=1) / 2
+    return np.concatenate([np.minimum(r[:, :-1], r[:, 1:]), r[:, -1:]], axis=1)
+
+
 def _smaller_radius(model) -> np.ndarray:
-    """Smaller radius of the two bodies of every contact 0..N [m] (the wall is a flat)."""
-    r = np.concatenate([[model.striker.diameter / 2], model.chain.radii])
-    return np.append(np.minimum(r[:-1], r[1:]), r[-1])
+    """:func:`smaller_radii` of one model."""
+    return smaller_radii(np.array([model.striker.diameter]), model.chain.diameters[None, :])[0]
 
 
 def check_before_run(model, system, duration: float, probes, *, dt: float | None = None,

@@ -45,7 +45,7 @@ from numba import njit, prange
 from ..errors import ConfigError, SimulationDiverged
 from ..model import Model
 from ..probes import Probes
-from ..checks import _smaller_radius, warn_members_hertz_range, warn_members_pulse_not_reached
+from ..checks import _smaller_radius, smaller_radii, warn_members_hertz_range, warn_members_pulse_not_reached
 from ..simulation import warn_elastic_limit
 from . import kernels, verlet
 from .ensemble import Ensemble, same_layout, systems
@@ -485,6 +485,16 @@ def _member_velocities(pk: _Packed, m: int) -> np.ndarray:
     return pk.out_v[pk.v_off[m]:pk.v_off[m + 1]].reshape(pk.v_rows[m], pk.nb[m])
 
 
+def check_members_finite(status: np.ndarray, t: float) -> None:
+    """Raise SimulationDiverged naming the members whose ``status`` is set (state no longer finite
+    before time ``t`` [s]); shared by the CPU and CUDA engines."""
+    bad = np.flatnonzero(status)
+    if bad.size:
+        raise SimulationDiverged(
+            f"the integration of member(s) {bad.tolist()[:10]} diverged (non-finite state) before "
+            f"t = {t:.4g} s; use a smaller run.dt (or the automatic one) or check their inputs")
+
+
 def _engine(pk: _Packed, progress, n_threads) -> None:
     """Run the packed batch to the end on the CPU (all cores), in compiled calls of ~CHUNK_SLOT_STEPS."""
     interval, n_samples = pk.interval, pk.n_samples
@@ -516,11 +526,7 @@ def _engine(pk: _Packed, progress, n_threads) -> None:
                                   pk.acc, status)
             finally:
                 numba.set_num_threads(previous)
-        bad = np.flatnonzero(status)
-        if bad.size:
-            raise SimulationDiverged(
-                f"the integration of member(s) {bad.tolist()[:10]} diverged (non-finite state) before "
-                f"t = {k_stop * interval:.4g} s; use a smaller run.dt (or the automatic one) or check their inputs")
+        check_members_finite(status, k_stop * interval)
         k = k_stop
         if progress is not None:
             progress(k - 1, n_samples - 1)
@@ -925,9 +931,8 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
         _cuda.run_packed(pk, progress)
     else:
         _engine(pk, progress, n_threads)
-    # checks.check_after_run's Hertz range, for every member at once (smaller radius per contact)
-    r = np.concatenate([np.asarray(ens.striker_diameter)[:, None] / 2, np.asarray(ens.diameters) / 2], axis=1)
-    smaller = np.concatenate([np.minimum(r[:, :-1], r[:, 1:]), r[:, -1:]], axis=1)[:, :arrays.n_contacts]
+    # checks.check_after_run's Hertz range, for every member at once
+    smaller = smaller_radii(ens.striker_diameter, ens.diameters)[:, :arrays.n_contacts]
     warn_members_hertz_range(pk.fmax.reshape(nmem, arrays.n_contacts), arrays.kappa, smaller, stacklevel=4)
     ds = _ensemble_dataset(ens, arrays, pk, probes, duration, cfgs)
     if ds is None:  # member 0's results hold a variable the array path does not know: stack member by member

@@ -40,7 +40,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import ConfigError, SimulationDiverged
+from ..errors import ConfigError
 from .kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 
 __all__ = ["ENGINE", "AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable", "use_gpu", "run_packed"]
@@ -728,6 +728,8 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     SimulationDiverged
         When a member's state became non-finite.
     """
+    from .batch import check_members_finite  # the CPU engine's check (batch loads this module lazily)
+
     cuda = _cuda()
     nmem = pk.n_members
     p = int(pk.n_slots[0])
@@ -803,11 +805,7 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
         pk.out_ed[:, k:k_stop] = out_ed.copy_to_host()[:rows].T
         if record_v:
             host_v[:, k:k_stop, :] = out_v.copy_to_host()[:rows].transpose(2, 0, 1)
-        bad = np.flatnonzero(status.copy_to_host())
-        if bad.size:
-            raise SimulationDiverged(
-                f"the integration of member(s) {bad.tolist()[:10]} diverged (non-finite state) before "
-                f"t = {k_stop * pk.interval:.4g} s; use a smaller run.dt (or the automatic one) or check their inputs")
+        check_members_finite(status.copy_to_host(), k_stop * pk.interval)
         k = k_stop
         if progress is not None:
             progress(k - 1, ns - 1)
