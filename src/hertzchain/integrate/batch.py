@@ -13,11 +13,12 @@ numerical is re-implemented here:
   so the kernel writes straight into the outputs). Velocity Verlet has no cross-member coupling
   and no reductions across members, so the thread that runs a member cannot change its result.
 
-Set-up. Members that share a layout (number of beads, end, contact law kind) and one Probes are
-set up with array code (:class:`~hertzchain.integrate.ensemble.Ensemble`, :func:`_pack_ensemble`:
-a few microseconds per member, the same numbers as the member-by-member :func:`_pack_models`),
-and their stacked Dataset is built from the (member, ...) buffers (:func:`_ensemble_dataset`).
-Such batches can also run on a GPU (``device=``, :mod:`hertzchain.integrate.cuda`).
+Set-up. Members are set up with array code (:class:`~hertzchain.integrate.ensemble.Ensemble`,
+:func:`_pack_groups`: a few microseconds per member, the same numbers as the member-by-member
+:func:`_pack_models`), one group of members sharing a layout (number of beads, end, contact law
+kind) and one Probes at a time, all groups into one packed batch and one engine call. Batches
+of one group also get their stacked Dataset from the (member, ...) buffers
+(:func:`_ensemble_dataset`) and can run on a GPU (``device=``, :mod:`hertzchain.integrate.cuda`).
 
 Public entry points: :func:`simulate_many` (a list of single-run Datasets, identical to
 :func:`~hertzchain.simulation.simulate`'s) and :func:`simulate_batch` (one Dataset stacked along a
@@ -48,10 +49,10 @@ from ..probes import Probes
 from ..checks import _smaller_radius, smaller_radii, warn_members_hertz_range, warn_members_pulse_not_reached
 from ..simulation import warn_elastic_limit
 from . import kernels, verlet
-from .ensemble import Ensemble, same_layout, systems
+from .ensemble import Ensemble, layout_key, same_layout, systems
 from .layout import PAD, pack
 from .verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, MAX_OMEGA_DT, RELAX_EVALUATIONS, RawRun, StepPlan,
-                     _dt_used, initialise, refine_peak, step_plan)
+                     _dt_used, initialise, step_plan)
 
 __all__ = ["simulate_batch", "simulate_many", "run_batch", "stack_results"]
 
@@ -77,8 +78,8 @@ def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, dampin
                   out_v, v_off, v_rows, nbody, record_v, fmax, fmax_off, peak, acc, status):
     """Advance every member from sample ``k_start`` to ``k_stop`` with :func:`kernels.verlet_run`.
 
-    Member m owns the slots ``off[m]:off[m + 1]`` of the body/contact buffers (``P + 1`` slots,
-    ``P = n_slots[m]``, rounded up to whole cache lines): the ``P``-sized arrays (mass, kappa, ...)
+    Member m owns the slots from ``off[m]`` of the body/contact buffers (``P + 1`` slots,
+    ``P = n_slots[m]``, rounded up to whole cache lines; see :func:`_outputs`): the ``P``-sized arrays (mass, kappa, ...)
     use the first ``P``, ``u, v, g`` the first ``P + 1`` (layout of
     :mod:`hertzchain.integrate.kernels`). Its recorded contacts are ``rec[rec_off[m]:rec_off[m+1]]``;
     its force samples the flat block ``out_f[f_off[m]:f_off[m+1]]`` seen as (K, n_rec); its
@@ -183,8 +184,12 @@ def run_batch(models: Sequence[Model], duration: float, probes: Probes | Sequenc
     """Integrate every model with the batched compiled Verlet; one :class:`RawRun` per member.
 
     Parameters are those of :func:`simulate_batch`. The RawRuns are identical to what
-    :func:`hertzchain.integrate.verlet.run_verlet` returns for each member alone. With
-    ``return_systems`` also every member's ``Model.system()`` (computed for the run anyway).
+    :func:`hertzchain.integrate.verlet.run_verlet` returns for each member alone. Members of
+    the elastic, viscoelastic and dashpot laws are set up with array code, one group of members
+    of one layout (number of beads, end, law kind) and one Probes at a time, into one engine
+    call; a batch with a size-scaled viscoelastic member is set up member by member. With
+    ``return_systems`` also every member's :class:`MemberSystem` (bead count, Hertz constants and
+    elastic limits, computed for the run anyway; no ``Model.system()`` per member).
     """
     plist, dts = _check_inputs(models, duration, probes, dt)
     runs, sys_list, _ = _run(models, duration, plist, dts, progress, n_threads, steps_per_radian)
@@ -248,14 +253,28 @@ class _Packed:
 _NAMES = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
 
 
+def _slot_sizes(n_slots: np.ndarray) -> np.ndarray:
+    """Slots a member owns in the flat buffers: P + 1 rounded up to whole 64-byte cache lines (on
+    an aligned buffer two threads then never write to one cache line: false sharing would cost a
+    line transfer per step)."""
+    return -(-(n_slots + 1) // _LINE) * _LINE
+
+
 def _outputs(interval: float, n_samples: int, n_slots: np.ndarray, nrec: np.ndarray, rec: np.ndarray,
-             nb: np.ndarray, record_v: np.ndarray, n_contacts: np.ndarray, **members) -> _Packed:
-    """Offsets and zeroed buffers of a batch (member m owns P + 1 slots rounded up to cache lines)."""
+             nb: np.ndarray, record_v: np.ndarray, n_contacts: np.ndarray, slot_order: np.ndarray | None = None,
+             **members) -> _Packed:
+    """Offsets and zeroed buffers of a batch (member m owns :func:`_slot_sizes` slots from
+    ``off[m]``). The members' slots follow one another in the order ``slot_order`` (default: the
+    members' own); every other buffer is in the members' order."""
     nmem = n_slots.size
-    # P + 1 slots rounded up to whole 64-byte cache lines, on an aligned buffer: two threads
-    # never write to one cache line (false sharing would cost a line transfer per step).
-    sizes = -(-(n_slots + 1) // _LINE) * _LINE
-    off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    sizes = _slot_sizes(n_slots)
+    if slot_order is None:
+        off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    else:
+        starts = np.concatenate([[0], np.cumsum(sizes[slot_order])]).astype(np.int64)
+        off = np.empty(nmem + 1, dtype=np.int64)
+        off[slot_order] = starts[:-1]
+        off[nmem] = starts[-1]  # the buffers' length
     total = int(off[-1])
     flat = {k: _aligned_zeros(total) for k in _NAMES + ("u", "v", "g", "a")}
     rec_off = np.concatenate([[0], np.cumsum(nrec)]).astype(np.int64)
@@ -413,7 +432,7 @@ def _ensemble_dts(dt, nmem: int) -> np.ndarray:
     return np.array([np.nan if x is None else x for x in vals], dtype=float)
 
 
-#: Members whose System arrays are computed at once by :func:`_pack_ensemble`: ~0.5 MB per
+#: Members whose System arrays are computed at once by :func:`_pack_groups`: ~0.5 MB per
 #: array for 30 beads, so the temporaries stay in the caches (one pass over 1e5 members at once
 #: was ~4x slower, mostly page faults on fresh 25 MB temporaries).
 SETUP_BLOCK = 2048
@@ -421,51 +440,136 @@ SETUP_BLOCK = 2048
 
 @dataclass
 class _EnsembleArrays:
-    """What the stacked result needs of the members' System arrays (member, ...)."""
+    """What the results need of one group's System arrays (group member, ...)."""
 
-    bead_mass: np.ndarray
-    kappa: np.ndarray        # (M, n_contacts)
-    yield_force: np.ndarray  # (M, n_contacts)
+    bead_mass: np.ndarray    # (M, N) kg
+    kappa_slots: np.ndarray  # (M, N + 1): System.kappa of every member (0 in a free end's slot)
+    yield_slots: np.ndarray  # (M, N + 1): System.yield_force of every member
     n_contacts: int
 
+    @property
+    def kappa(self) -> np.ndarray:
+        """(M, n_contacts) Hertz constants of the real contacts [N/m^1.5]."""
+        return self.kappa_slots[:, :self.n_contacts]
 
-def _pack_ensemble(ens: Ensemble, probes: Probes, dts: np.ndarray, interval: float,
-                   n_samples: int, steps_per_radian: float | None = None) -> tuple[_Packed, _EnsembleArrays]:
-    """The batch of an ensemble with array code: what :func:`_pack_models` builds member by member."""
-    nmem, n = ens.n_members, ens.n_beads
-    p = -(-(n + 2) // PAD) * PAD  # layout.pack: moving bodies + wall ghost, rounded up
-    rec = probes.recorded_contacts(n, ens.has_wall)
-    nc = n + (1 if ens.has_wall else 0)
+    @property
+    def yield_force(self) -> np.ndarray:
+        """(M, n_contacts) elastic limits of the real contacts [N]."""
+        return self.yield_slots[:, :self.n_contacts]
+
+
+@dataclass
+class _Group:
+    """Members of one layout (``ensemble.layout_key``) and one Probes, set up together with array
+    code: member j of ``ens`` is member ``rows[j]`` of the batch (None: the batch is this group)."""
+
+    ens: Ensemble
+    probes: Probes
+    rows: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class MemberSystem:
+    """What a batch's results need of a member's ``Model.system()``, without computing it.
+
+    The batched set-up computes every member's System arrays with array code
+    (:func:`hertzchain.integrate.ensemble.systems`); a member's rows of them are kept here.
+
+    Parameters
+    ----------
+    n_beads
+        Number of beads N.
+    has_wall
+        Whether the chain ends on a wall.
+    kappa
+        (N + 1,) Hertz constants of contacts 0..N [N/m^1.5] (paper eq. 1), as ``System.kappa``:
+        contact N joins bead N and the wall, 0 for a free end.
+    yield_force
+        (N + 1,) force at which each contact reaches its elastic limit [N], as
+        ``System.yield_force`` (inf where not defined).
+    """
+
+    n_beads: int
+    has_wall: bool
+    kappa: np.ndarray
+    yield_force: np.ndarray
+
+    @property
+    def n_contacts(self) -> int:
+        """Number of real contacts: N + 1 with a wall, N without."""
+        return self.n_beads + (1 if self.has_wall else 0)
+
+
+def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_samples: int,
+                 check: Callable[[int, float], None], steps_per_radian: float | None = None
+                 ) -> tuple[_Packed, list[_EnsembleArrays]]:
+    """A batch of members of several layouts with array code: what :func:`_pack_models` builds
+    member by member, bit for bit, into one :class:`_Packed` (one initialisation, one engine call).
+
+    ``dts``: every member's user step [s] (NaN: adaptive), in the batch's order; ``check(i, dt)``:
+    :func:`hertzchain.integrate.verlet.check_time_step` of member i (see :func:`_step_plans`).
+    Every per-member array of the _Packed is in the batch's order; only the slots of the flat
+    body/contact buffers are laid out group after group, so that a group's members (one width)
+    are the rows of a 2-D view of each buffer and ``systems()`` fills a block of them at once.
+    Returns the packed batch and, per group, its members' System arrays (group order).
+    """
+    nmem = dts.size
+    n_slots, nrec, nb, n_contacts, wall_slot = (np.empty(nmem, dtype=np.int64) for _ in range(5))
+    record_v = np.empty(nmem, dtype=np.bool_)
+    recs, index = [], []
+    for g in groups:
+        n, wall = g.ens.n_beads, g.ens.has_wall
+        rows = slice(None) if g.rows is None else g.rows
+        n_slots[rows] = -(-(n + 2) // PAD) * PAD  # layout.pack: moving bodies + wall ghost, rounded up
+        rec = g.probes.recorded_contacts(n, wall).astype(np.int64)
+        nrec[rows] = rec.size
+        nb[rows] = n + 1
+        n_contacts[rows] = n + (1 if wall else 0)
+        wall_slot[rows] = n
+        record_v[rows] = bool(g.probes.velocities)
+        recs.append(rec)
+        index.append(np.arange(g.ens.n_members) if g.rows is None else g.rows)
+    if len(groups) == 1:
+        rec_all, slot_order = np.tile(recs[0], nmem), None
+    else:
+        # member i's recorded contacts go to rec_all[rec_off[i]:rec_off[i + 1]], in the batch's order
+        rec_off = np.concatenate([[0], np.cumsum(nrec)])
+        rec_all = np.empty(int(rec_off[-1]), dtype=np.int64)
+        for rec, rows in zip(recs, index):
+            rec_all[rec_off[rows][:, None] + np.arange(rec.size)] = rec
+        slot_order = np.concatenate(index)
     zeros_i, zeros_f = np.zeros(nmem, dtype=np.int64), np.zeros(nmem)
-    pk = _outputs(interval, n_samples, n_slots=np.full(nmem, p, dtype=np.int64),
-                  nrec=np.full(nmem, rec.size, dtype=np.int64), rec=np.tile(rec.astype(np.int64), nmem),
-                  nb=np.full(nmem, n + 1, dtype=np.int64), record_v=np.full(nmem, bool(probes.velocities)),
-                  n_contacts=np.full(nmem, nc, dtype=np.int64), law=np.zeros(nmem, dtype=np.int64),
-                  general=np.zeros(nmem, dtype=np.bool_), wall_slot=np.full(nmem, n, dtype=np.int64),
-                  stride=zeros_i, plan_dt=zeros_f, n_sub=zeros_i, n_eval=zeros_i, c_steps=zeros_f, relax=zeros_i)
-    out = _EnsembleArrays(bead_mass=np.empty((nmem, n)), kappa=np.empty((nmem, nc)),
-                          yield_force=np.empty((nmem, nc)), n_contacts=nc)
+    pk = _outputs(interval, n_samples, n_slots=n_slots, nrec=nrec, rec=rec_all, nb=nb, record_v=record_v,
+                  n_contacts=n_contacts, slot_order=slot_order, law=np.zeros(nmem, dtype=np.int64),
+                  general=np.zeros(nmem, dtype=np.bool_), wall_slot=wall_slot, stride=zeros_i, plan_dt=zeros_f,
+                  n_sub=zeros_i, n_eval=zeros_i, c_steps=zeros_f, relax=zeros_i)
     w = np.empty(nmem)
-    width = int(pk.off[1])
-    nb = n + 1
-    flat2d = {k: x.reshape(nmem, width) for k, x in pk.flat.items()}
-    for lo in range(0, nmem, SETUP_BLOCK):
-        hi = min(nmem, lo + SETUP_BLOCK)
-        sy = systems(ens, lo, hi)
-        cols = {"mass": sy.mass[:, :nb], "inv_mass": sy.inv_mass[:, :nb], "kappa": sy.kappa, "damping": sy.damping,
-                "d0": sy.d0, "de": sy.de, "dx0": sy.dx0, "rsum": sy.rsum, "fext": sy.fext[:, :nb],
-                "dcap": sy.max_overlap, "u": sy.u0[:, :nb], "v": sy.v0[:, :nb]}
-        for k, x in cols.items():
-            flat2d[k][lo:hi, :x.shape[1]] = x
-        pk.law[lo:hi] = sy.law
-        pk.general[lo:hi] = sy.general
-        w[lo:hi] = sy.max_frequency
-        out.bead_mass[lo:hi] = sy.bead_mass
-        out.kappa[lo:hi] = sy.kappa[:, :nc]
-        out.yield_force[lo:hi] = sy.yield_force[:, :nc]
-    def check(i: int, dt: float) -> None:
-        verlet.check_time_step(ens.model(i).system(), dt)
-
+    out = []
+    for g, rows in zip(groups, index):
+        ens = g.ens
+        m, n = ens.n_members, ens.n_beads
+        nbody, nc = n + 1, n + (1 if ens.has_wall else 0)
+        first = int(pk.off[rows[0]])
+        width = int(_slot_sizes(n_slots[rows[:1]])[0])
+        flat2d = {k: x[first:first + m * width].reshape(m, width) for k, x in pk.flat.items()}
+        arrays = _EnsembleArrays(bead_mass=np.empty((m, n)), kappa_slots=np.empty((m, n + 1)),
+                                 yield_slots=np.empty((m, n + 1)), n_contacts=nc)
+        for lo in range(0, m, SETUP_BLOCK):
+            hi = min(m, lo + SETUP_BLOCK)
+            sy = systems(ens, lo, hi)
+            cols = {"mass": sy.mass[:, :nbody], "inv_mass": sy.inv_mass[:, :nbody], "kappa": sy.kappa,
+                    "damping": sy.damping, "d0": sy.d0, "de": sy.de, "dx0": sy.dx0, "rsum": sy.rsum,
+                    "fext": sy.fext[:, :nbody], "dcap": sy.max_overlap, "u": sy.u0[:, :nbody], "v": sy.v0[:, :nbody]}
+            for k, x in cols.items():
+                flat2d[k][lo:hi, :x.shape[1]] = x
+            at = rows[lo:hi]
+            pk.law[at] = sy.law
+            pk.general[at] = sy.general
+            w[at] = sy.max_frequency
+            arrays.bead_mass[lo:hi] = sy.bead_mass
+            arrays.kappa_slots[lo:hi] = sy.kappa
+            arrays.yield_slots[lo:hi] = sy.yield_force
+        out.append(arrays)
     for k, x in _step_plans(w, interval, dts, check, steps_per_radian).items():
         setattr(pk, k, x)
     f = pk.flat
@@ -474,6 +578,32 @@ def _pack_ensemble(ens: Ensemble, probes: Probes, dts: np.ndarray, interval: flo
                  pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed, pk.out_v, pk.v_off,
                  pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak, pk.acc)
     return pk, out
+
+
+def _pack_ensemble(ens: Ensemble, probes: Probes, dts: np.ndarray, interval: float,
+                   n_samples: int, steps_per_radian: float | None = None) -> tuple[_Packed, _EnsembleArrays]:
+    """The batch of an ensemble with array code: :func:`_pack_groups` of one group."""
+    def check(i: int, dt: float) -> None:
+        verlet.check_time_step(ens.model(i).system(), dt)
+
+    pk, (arrays,) = _pack_groups([_Group(ens, probes)], dts, interval, n_samples, check, steps_per_radian)
+    return pk, arrays
+
+
+def _groups(models: Sequence[Model], plist: Sequence[Probes]) -> list[_Group] | None:
+    """The models as groups of one layout and one Probes (first appearance order, members in the
+    batch's order within each), or None when one has a law the array set-up does not compute."""
+    rows: dict[tuple, list[int]] = {}
+    for i, (model, p) in enumerate(zip(models, plist)):
+        key = layout_key(model)
+        if key is None:
+            return None
+        rows.setdefault((key, p), []).append(i)
+    if len(rows) == 1:
+        return [_Group(Ensemble.from_models(models), plist[0])]
+    return [_Group(Ensemble.from_models([models[i] for i in r]), p, np.array(r, dtype=np.int64))
+            for (_, p), r in rows.items()]
+
 
 def _member_forces(pk: _Packed, m: int) -> np.ndarray:
     """Member m's force samples, a (time, recorded contact) view of the flat buffer."""
@@ -532,10 +662,45 @@ def _engine(pk: _Packed, progress, n_threads) -> None:
             progress(k - 1, n_samples - 1)
 
 
+def _setup_members(models: Sequence[Model], plist: Sequence[Probes], dts: list, interval: float, n_samples: int,
+                   steps_per_radian: float | None = None) -> tuple[_Packed, list[MemberSystem]]:
+    """The batch set up member by member (``Model.system()``, :func:`step_plan`, :func:`_pack_models`):
+    any law; the reference the array set-up (:func:`_setup_groups`) reproduces bit for bit."""
+    members: list[_Member] = []
+    for model, p, dti in zip(models, plist, dts):
+        system = model.system()
+        plan = step_plan(system, interval, dti, steps_per_radian)
+        rec = p.recorded_contacts(model.chain.n_beads, model.wall.present)
+        members.append(_Member(system, rec, plan, bool(p.velocities)))
+    return _pack_models(members, interval, n_samples), [
+        MemberSystem(mb.system.n_beads, mb.system.has_wall, mb.system.kappa, mb.system.yield_force) for mb in members]
+
+
+def _setup_groups(models: Sequence[Model], plist: Sequence[Probes], dts: list, interval: float, n_samples: int,
+                  steps_per_radian: float | None = None) -> tuple[_Packed, list[MemberSystem]] | None:
+    """The batch set up with array code, one group of one layout and Probes at a time
+    (:func:`_pack_groups`); None when a member's law needs the member-by-member set-up."""
+    groups = _groups(models, plist)
+    if groups is None:
+        return None
+
+    def check(i: int, dt: float) -> None:
+        verlet.check_time_step(models[i].system(), dt)
+
+    pk, arrays = _pack_groups(groups, _ensemble_dts(dts, len(models)), interval, n_samples, check, steps_per_radian)
+    member_systems: list[MemberSystem | None] = [None] * len(models)
+    for g, a in zip(groups, arrays):
+        n, wall = g.ens.n_beads, g.ens.has_wall
+        rows = range(g.ens.n_members) if g.rows is None else g.rows.tolist()
+        for j, i in enumerate(rows):
+            member_systems[i] = MemberSystem(n, wall, a.kappa_slots[j], a.yield_slots[j])
+    return pk, member_systems
+
+
 def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads,
-         steps_per_radian: float | None = None) -> tuple[list[RawRun], list, dict[str, np.ndarray]]:
-    """:func:`run_batch` on checked inputs. Also returns every member's ``Model.system()`` and the
-    output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
+         steps_per_radian: float | None = None) -> tuple[list[RawRun], list[MemberSystem], dict[str, np.ndarray]]:
+    """:func:`run_batch` on checked inputs. Also returns every member's :class:`MemberSystem` and
+    the output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
     energies always, ``recorded_force`` (member, time, recorded contact) when every member
     records the same contacts, ``velocity`` when every member records velocities of as many bodies."""
     _check_threads(n_threads)
@@ -544,35 +709,20 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
     n_samples = int(math.floor(duration / interval + 1e-9)) + 1
 
     _check_no_positions(plist)
-    members: list[_Member] = []
-    for model, p, dti in zip(models, plist, dts):
-        system = model.system()
-        plan = step_plan(system, interval, dti, steps_per_radian)
-        rec = p.recorded_contacts(model.chain.n_beads, model.wall.present)
-        members.append(_Member(system, rec, plan, bool(p.velocities)))
-    pk = _pack_models(members, interval, n_samples)
+    pk, member_systems = (_setup_groups(models, plist, dts, interval, n_samples, steps_per_radian)
+                          or _setup_members(models, plist, dts, interval, n_samples, steps_per_radian))
     _engine(pk, progress, n_threads)
-
-    time = np.arange(n_samples) * interval
-    runs = []
-    for m, mb in enumerate(members):
-        f, vv = _member_forces(pk, m), _member_velocities(pk, m)
-        fpk, t_pk = refine_peak(pk.peak[m])
-        dt_min, dt_max = _dt_used(mb.plan, pk.acc[m], interval)
-        runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=pk.out_ke[m],
-                           potential_energy=pk.out_pe[m],
-                           dissipated_energy=pk.out_ed[m], velocity=vv if mb.record_v else None,
-                           max_force=pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], peak_wall_force=fpk,
-                           peak_wall_time=t_pk, dt=dt_min, integrator="verlet", n_steps=int(pk.acc[m, 2]),
-                           contacts=mb.rec, dt_max=dt_max, adaptive=mb.plan.adaptive))
+    runs = _member_runs(pk)
     # The output buffers seen as (member, time, ...) where every member has the same layout: row m
     # is exactly what RawRun m holds (its arrays are views of these rows).
     stacked = {"kinetic_energy": pk.out_ke, "potential_energy": pk.out_pe, "dissipated_energy": pk.out_ed}
-    if all(np.array_equal(mb.rec, members[0].rec) for mb in members):
-        stacked["recorded_force"] = pk.out_f.reshape(nmem, n_samples, pk.nrec[0])
+    nrec = int(pk.nrec[0])
+    if np.all(pk.nrec == nrec) and np.array_equal(pk.rec.reshape(nmem, nrec), np.broadcast_to(pk.rec[:nrec],
+                                                                                              (nmem, nrec))):
+        stacked["recorded_force"] = pk.out_f.reshape(nmem, n_samples, nrec)
     if pk.record_v.all() and np.all(pk.nb == pk.nb[0]):
         stacked["velocity"] = pk.out_v.reshape(nmem, n_samples, pk.nb[0])
-    return runs, [mb.system for mb in members], stacked
+    return runs, member_systems, stacked
 
 
 def simulate_many(models: Sequence[Model], duration: float, probes: Probes | Sequence[Probes] | None = None, *,

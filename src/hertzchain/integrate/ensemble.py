@@ -30,7 +30,7 @@ from ..errors import ConfigError
 from ..materials import Material
 from ..model import Model, Striker, Wall
 
-__all__ = ["Ensemble", "Systems", "systems", "same_layout"]
+__all__ = ["Ensemble", "Systems", "systems", "same_layout", "layout_key"]
 
 _LAW_FIELD = {"elastic": "contact.law", "viscoelastic": "contact.A", "dashpot": "contact.gamma"}
 
@@ -96,6 +96,9 @@ class Ensemble:
                  striker_velocity=None, striker_diameter=None, law_parameter=None, precompression=None) -> None:
         if not isinstance(base, Model):
             raise ConfigError("base", f"must be a hertzchain Model, got {type(base).__name__}")
+        if layout_key(base) is None:
+            raise ConfigError("contact.law", f"an Ensemble computes the elastic, viscoelastic and dashpot laws; "
+                              f"'{base.law.name}' members go through simulate_batch as a list of models")
         n = base.chain.n_beads
         sizes = [np.shape(x)[0] for x in (diameters, offsets) if x is not None and np.ndim(x) == 2]
         sizes += [np.shape(x)[0] for x in (striker_velocity, striker_diameter, law_parameter, precompression)
@@ -150,7 +153,7 @@ class Ensemble:
         """
         if not same_layout(models):
             raise ConfigError("models", "an ensemble's members must share the number of beads, the end (wall "
-                              "or none) and the contact law's kind")
+                              "or none) and the contact law's kind (elastic, viscoelastic or dashpot)")
         m0 = models[0]
         n = m0.chain.n_beads
         table: dict[int, int] = {}
@@ -432,6 +435,25 @@ def _material_table(mats: list[Material | None]) -> tuple[tuple[Material, ...], 
     return tuple(unique), np.array(index, dtype=np.int64)
 
 
+def layout_key(model: Model) -> tuple[int, bool, str] | None:
+    """The layout an ensemble's members share: (number of beads, wall present, contact law kind).
+
+    Parameters
+    ----------
+    model:
+        Any model.
+
+    Returns
+    -------
+    tuple or None
+        ``(N, has_wall, law name)``; None for a law the array set-up does not compute (the
+        size-scaled viscoelastic law: its damping depends on each contact's masses).
+    """
+    if model.law.name not in _LAW_FIELD:
+        return None
+    return model.chain.n_beads, model.wall.present, model.law.name
+
+
 def same_layout(models: Sequence[Model]) -> bool:
     """True when the models share the number of beads, the end and the contact law's kind.
 
@@ -443,13 +465,13 @@ def same_layout(models: Sequence[Model]) -> bool:
     Returns
     -------
     bool
-        Whether ``Ensemble.from_models`` accepts them.
+        Whether ``Ensemble.from_models`` accepts them (never for the size-scaled viscoelastic
+        law, see ``layout_key``).
     """
     if len(models) == 0 or not all(isinstance(m, Model) for m in models):
         return False
-    m0 = models[0]
-    key = (m0.chain.n_beads, m0.wall.present, m0.law.name)
-    return all((m.chain.n_beads, m.wall.present, m.law.name) == key for m in models)
+    key = layout_key(models[0])
+    return key is not None and all(layout_key(m) == key for m in models)
 
 
 @dataclass
