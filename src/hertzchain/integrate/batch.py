@@ -36,7 +36,7 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Callable, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 import numba
 import numpy as np
@@ -52,7 +52,7 @@ from . import kernels, verlet
 from .ensemble import Ensemble, layout_key, same_layout, systems
 from .layout import PAD, pack
 from .verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, MAX_OMEGA_DT, RELAX_EVALUATIONS, RawRun, StepPlan,
-                     _dt_used, initialise, step_plan)
+                     initialise, step_plan)
 
 __all__ = ["simulate_batch", "simulate_many", "run_batch", "stack_results"]
 
@@ -468,8 +468,7 @@ class _Group:
     rows: np.ndarray | None = None
 
 
-@dataclass(frozen=True)
-class MemberSystem:
+class MemberSystem(NamedTuple):
     """What a batch's results need of a member's ``Model.system()``, without computing it.
 
     The batched set-up computes every member's System arrays with array code
@@ -545,13 +544,13 @@ def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_s
                   n_sub=zeros_i, n_eval=zeros_i, c_steps=zeros_f, relax=zeros_i)
     w = np.empty(nmem)
     out = []
+    flat = pk.flat
     for g, rows in zip(groups, index):
         ens = g.ens
         m, n = ens.n_members, ens.n_beads
         nbody, nc = n + 1, n + (1 if ens.has_wall else 0)
         first = int(pk.off[rows[0]])
-        width = int(_slot_sizes(n_slots[rows[:1]])[0])
-        flat2d = {k: x[first:first + m * width].reshape(m, width) for k, x in pk.flat.items()}
+        last = first + m * int(_slot_sizes(n_slots[rows[0]]))  # the group's slots, one row per member
         arrays = _EnsembleArrays(bead_mass=np.empty((m, n)), kappa_slots=np.empty((m, n + 1)),
                                  yield_slots=np.empty((m, n + 1)), n_contacts=nc)
         for lo in range(0, m, SETUP_BLOCK):
@@ -561,7 +560,7 @@ def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_s
                     "damping": sy.damping, "d0": sy.d0, "de": sy.de, "dx0": sy.dx0, "rsum": sy.rsum,
                     "fext": sy.fext[:, :nbody], "dcap": sy.max_overlap, "u": sy.u0[:, :nbody], "v": sy.v0[:, :nbody]}
             for k, x in cols.items():
-                flat2d[k][lo:hi, :x.shape[1]] = x
+                flat[k][first:last].reshape(m, -1)[lo:hi, :x.shape[1]] = x
             at = rows[lo:hi]
             pk.law[at] = sy.law
             pk.general[at] = sy.general
@@ -572,7 +571,7 @@ def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_s
         out.append(arrays)
     for k, x in _step_plans(w, interval, dts, check, steps_per_radian).items():
         setattr(pk, k, x)
-    f = pk.flat
+    f = flat
     _init_kernel(pk.off, pk.n_slots, f["u"], f["v"], f["a"], f["g"], f["mass"], f["inv_mass"], f["kappa"],
                  f["damping"], f["d0"], f["de"], f["dx0"], f["rsum"], f["fext"], pk.law, pk.general, pk.wall_slot,
                  pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed, pk.out_v, pk.v_off,
@@ -692,8 +691,8 @@ def _setup_groups(models: Sequence[Model], plist: Sequence[Probes], dts: list, i
     for g, a in zip(groups, arrays):
         n, wall = g.ens.n_beads, g.ens.has_wall
         rows = range(g.ens.n_members) if g.rows is None else g.rows.tolist()
-        for j, i in enumerate(rows):
-            member_systems[i] = MemberSystem(n, wall, a.kappa_slots[j], a.yield_slots[j])
+        for i, kappa, fy in zip(rows, a.kappa_slots, a.yield_slots):  # row views
+            member_systems[i] = MemberSystem(n, wall, kappa, fy)
     return pk, member_systems
 
 
@@ -1093,23 +1092,31 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
     return ds
 
 
+def _dts_used(pk: _Packed) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`hertzchain.integrate.verlet._dt_used` of every member: smallest and largest step [s]."""
+    adaptive = pk.stride == 0
+    block = pk.interval / pk.n_sub
+    with np.errstate(divide="ignore"):
+        dt_min = np.where(adaptive & (pk.acc[:, 6] != 0), block / pk.acc[:, 6], pk.plan_dt)
+        dt_max = np.where(adaptive & (pk.acc[:, 7] != 0), block / pk.acc[:, 7], pk.plan_dt)
+    return dt_min, dt_max
+
+
 def _member_runs(pk: _Packed) -> list[RawRun]:
     """Every member's :class:`RawRun`, views of the packed outputs."""
     time = np.arange(pk.n_samples) * pk.interval
     fpk, tpk = _refine_peaks(pk.peak)
+    dt_min, dt_max = _dts_used(pk)
+    per_member = zip(fpk.tolist(), tpk.tolist(), dt_min.tolist(), dt_max.tolist(), pk.acc[:, 2].tolist(),
+                     (pk.stride == 0).tolist(), pk.record_v.tolist(), pk.rec_off.tolist(), pk.fmax_off.tolist())
     runs = []
-    for m in range(pk.n_members):
-        plan = StepPlan(stride=int(pk.stride[m]), dt=float(pk.plan_dt[m]), n_sub=int(pk.n_sub[m]),
-                        n_eval=int(pk.n_eval[m]), c_steps=float(pk.c_steps[m]), relax=int(pk.relax[m]))
-        f, vv = _member_forces(pk, m), _member_velocities(pk, m)
-        dt_min, dt_max = _dt_used(plan, pk.acc[m], pk.interval)
-        r0, r1 = pk.rec_off[m], pk.rec_off[m + 1]
-        runs.append(RawRun(time=time.copy(), contact_force=f, kinetic_energy=pk.out_ke[m],
+    for m, (f_peak, t_peak, dt0, dt1, steps, adaptive, record_v, r0, c0) in enumerate(per_member):
+        runs.append(RawRun(time=time.copy(), contact_force=_member_forces(pk, m), kinetic_energy=pk.out_ke[m],
                            potential_energy=pk.out_pe[m], dissipated_energy=pk.out_ed[m],
-                           velocity=vv if pk.record_v[m] else None,
-                           max_force=pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], peak_wall_force=float(fpk[m]),
-                           peak_wall_time=float(tpk[m]), dt=dt_min, integrator="verlet", n_steps=int(pk.acc[m, 2]),
-                           contacts=pk.rec[r0:r1], dt_max=dt_max, adaptive=plan.adaptive))
+                           velocity=_member_velocities(pk, m) if record_v else None,
+                           max_force=pk.fmax[c0:pk.fmax_off[m + 1]], peak_wall_force=f_peak, peak_wall_time=t_peak,
+                           dt=dt0, integrator="verlet", n_steps=int(steps), contacts=pk.rec[r0:pk.rec_off[m + 1]],
+                           dt_max=dt1, adaptive=adaptive))
     return runs
 
 
@@ -1186,10 +1193,7 @@ def _ensemble_dataset(ens: Ensemble, sy: _EnsembleArrays, pk: _Packed, probes: P
     interval = pk.interval
     fpk, tpk = _refine_peaks(pk.peak)
     adaptive = pk.stride == 0
-    block = interval / pk.n_sub
-    with np.errstate(divide="ignore"):
-        dt_min = np.where(adaptive & (pk.acc[:, 6] != 0), block / pk.acc[:, 6], pk.plan_dt)
-        dt_max = np.where(adaptive & (pk.acc[:, 7] != 0), block / pk.acc[:, 7], pk.plan_dt)
+    dt_min, dt_max = _dts_used(pk)
     rec = pk.rec[:pk.nrec[0]]
     forces = pk.out_f.reshape(nmem, ns, rec.size)
     velocity = pk.out_v.reshape(nmem, ns, n + 1) if probes.velocities else None

@@ -179,7 +179,10 @@ class Ensemble:
         has_wall = m0.wall.present
         self = cls.__new__(cls)
         self._set(n_beads=n, has_wall=has_wall, law_name=m0.law.name, materials=None,
-                  bead_material=np.stack(bead_rows),
+                  # one row for all when the members share their materials (systems() then
+                  # looks the material columns up once: a stride-0 first axis says so)
+                  bead_material=np.broadcast_to(bead_rows[0], (len(models), n)) if len(rows) == 1
+                  else np.stack(bead_rows),
                   striker_material=np.array([idx(x.striker.material) for x in models], dtype=np.int64),
                   wall_material=np.array([idx(x.wall_material) if has_wall else -1 for x in models], dtype=np.int64),
                   wall_material_given=None,
@@ -514,8 +517,15 @@ def _scalar_map(fn, x: np.ndarray) -> np.ndarray:
     library's pow, while NumPy's array power may use a vector routine that differs in the last
     bit; where Model.system() computes on scalars, so does this, once per distinct value.
     """
+    if x.size <= _SMALL:  # a few members: sorting out the distinct values costs more than fn
+        return np.array([fn(v) for v in x.ravel().tolist()], dtype=float).reshape(x.shape)
     vals, inv = np.unique(x, return_inverse=True)
     return np.array([fn(float(v)) for v in vals], dtype=float)[inv.reshape(x.shape)]
+
+
+#: Up to this many values, :func:`_scalar_map` calls ``fn`` on each (np.unique's ~10 us would
+#: cost more); the values are the same either way.
+_SMALL = 32
 
 
 def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
@@ -560,8 +570,8 @@ def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
 
     # masses: the striker's with scalar arithmetic (Striker.mass), the beads' as Chain.masses
     striker_mass = np.empty(m)
-    for k in np.unique(striker_material).tolist():
-        rows = striker_material == k
+    for k in (striker_mat.tolist() if mm == 1 else np.unique(striker_material).tolist()):
+        rows = slice(None) if mm == 1 else striker_material == k
         rho = float(rho_t[k])
         striker_mass[rows] = _scalar_map(lambda dia: rho * math.pi * dia**3 / 6.0, striker_diameter[rows])
     bead_mass = np.ascontiguousarray(rho_t[bead_mat]) * math.pi * np.ascontiguousarray(d) ** 3 / 6.0
