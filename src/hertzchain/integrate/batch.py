@@ -550,9 +550,8 @@ def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_s
         m, n = ens.n_members, ens.n_beads
         nbody, nc = n + 1, n + (1 if ens.has_wall else 0)
         first = int(pk.off[rows[0]])
-        last = first + m * int(_slot_sizes(n_slots[rows[0]]))  # the group's slots, one row per member
-        arrays = _EnsembleArrays(bead_mass=np.empty((m, n)), kappa_slots=np.empty((m, n + 1)),
-                                 yield_slots=np.empty((m, n + 1)), n_contacts=nc)
+        last = first + m * _slot_sizes(int(n_slots[rows[0]]))  # the group's slots, one row per member
+        kept: list[tuple[np.ndarray, ...]] = []
         for lo in range(0, m, SETUP_BLOCK):
             hi = min(m, lo + SETUP_BLOCK)
             sy = systems(ens, lo, hi)
@@ -561,14 +560,14 @@ def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_s
                     "fext": sy.fext[:, :nbody], "dcap": sy.max_overlap, "u": sy.u0[:, :nbody], "v": sy.v0[:, :nbody]}
             for k, x in cols.items():
                 flat[k][first:last].reshape(m, -1)[lo:hi, :x.shape[1]] = x
-            at = rows[lo:hi]
+            at = slice(lo, hi) if g.rows is None else rows[lo:hi]
             pk.law[at] = sy.law
             pk.general[at] = sy.general
             w[at] = sy.max_frequency
-            arrays.bead_mass[lo:hi] = sy.bead_mass
-            arrays.kappa_slots[lo:hi] = sy.kappa
-            arrays.yield_slots[lo:hi] = sy.yield_force
-        out.append(arrays)
+            kept.append((sy.bead_mass, sy.kappa, sy.yield_force))
+        # one block (a design's group): systems()'s own arrays, nothing copied
+        rows_of = [parts[0] if len(kept) == 1 else np.concatenate(parts) for parts in zip(*kept)]
+        out.append(_EnsembleArrays(*rows_of, n_contacts=nc))
     for k, x in _step_plans(w, interval, dts, check, steps_per_radian).items():
         setattr(pk, k, x)
     f = flat

@@ -177,22 +177,23 @@ class Ensemble:
                 row = rows[key] = np.array([idx(x) for x in mdl.chain.materials], dtype=np.int64)
             bead_rows.append(row)
         has_wall = m0.wall.present
+        # the per-member scalars in one pass (a design's generation builds ~10 small ensembles)
+        scalars = np.array([(x.striker.diameter, x.striker.velocity, float(x.law.parameter), x.precompression)
+                            for x in models], dtype=float).T.copy()
         self = cls.__new__(cls)
         self._set(n_beads=n, has_wall=has_wall, law_name=m0.law.name, materials=None,
                   # one row for all when the members share their materials (systems() then
                   # looks the material columns up once: a stride-0 first axis says so)
                   bead_material=np.broadcast_to(bead_rows[0], (len(models), n)) if len(rows) == 1
-                  else np.stack(bead_rows),
+                  else np.array(bead_rows),
                   striker_material=np.array([idx(x.striker.material) for x in models], dtype=np.int64),
                   wall_material=np.array([idx(x.wall_material) if has_wall else -1 for x in models], dtype=np.int64),
                   wall_material_given=None,
                   wall_given=np.array([x.wall.material is not None for x in models]),
-                  diameters=np.stack([x.chain.diameters for x in models]),
-                  offsets=np.stack([x.chain.offsets for x in models]),
-                  striker_diameter=np.array([x.striker.diameter for x in models], dtype=float),
-                  striker_velocity=np.array([x.striker.velocity for x in models], dtype=float),
-                  law_parameter=np.array([float(x.law.parameter) for x in models], dtype=float),
-                  precompression=np.array([x.precompression for x in models], dtype=float))
+                  diameters=np.array([x.chain.diameters for x in models], dtype=float),
+                  offsets=np.array([x.chain.offsets for x in models], dtype=float),
+                  striker_diameter=scalars[0], striker_velocity=scalars[1], law_parameter=scalars[2],
+                  precompression=scalars[3])
         object.__setattr__(self, "materials", tuple(materials))
         object.__setattr__(self, "_models", list(models))
         return self
@@ -622,7 +623,7 @@ def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
 
     e = np.zeros((m, n + 2))
     e[:, 1:n + 1] = ens.offsets[sel]
-    de = np.diff(e, axis=1)
+    de = e[:, 1:] - e[:, :-1]  # np.diff's own arithmetic
     de[:, n] = 0.0
     r2 = np.zeros((m, n + 2))
     r2[:, :n + 1] = r
@@ -641,19 +642,21 @@ def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
         dcap = np.where(kappa > 0, (2.5 * energy[:, None] / np.where(kappa > 0, kappa, 1.0)) ** 0.4, 0.0) + d0
     # System.max_frequency: Gershgorin bounds of stiffness and damping (System.damping_coefficients)
     k = 1.5 * kappa * np.sqrt(dcap)
-    if ens.law_name == "dashpot":
-        c = np.where(kappa > 0, damping, 0.0)
-    elif ens.law_name == "viscoelastic":
-        c = kappa * damping * np.sqrt(np.maximum(dcap, 0.0))
-    else:
-        c = np.zeros_like(kappa)
     k_left = np.zeros((m, n + 1))
     k_left[:, 1:] = k[:, :n]
-    c_left = np.zeros((m, n + 1))
-    c_left[:, 1:] = c[:, :n]
     omega2 = 2.0 * (k_left + k[:, :n + 1]) * inv_mass[:, :n + 1]
-    beta = 2.0 * (c_left + c[:, :n + 1]) * inv_mass[:, :n + 1]
-    w = np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta, axis=1)
+    if ens.law_name == "elastic":
+        # beta = 0: sqrt(omega2 + 0.0) + 0.0 is sqrt(omega2) (omega2 >= 0), the same numbers
+        w = np.max(np.sqrt(omega2), axis=1)
+    else:
+        if ens.law_name == "dashpot":
+            c = np.where(kappa > 0, damping, 0.0)
+        else:
+            c = kappa * damping * np.sqrt(np.maximum(dcap, 0.0))
+        c_left = np.zeros((m, n + 1))
+        c_left[:, 1:] = c[:, :n]
+        beta = 2.0 * (c_left + c[:, :n + 1]) * inv_mass[:, :n + 1]
+        w = np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta, axis=1)
     return Systems(mass=mass, inv_mass=inv_mass, kappa=kappa, damping=damping, d0=d0, de=de, dx0=dx0, rsum=rsum,
                    fext=fext, u0=np.zeros((m, n + 2)), v0=v0, yield_force=fy, law=LAW_CODES[ens.law_name],
                    misaligned=np.any(de != 0.0, axis=1), has_wall=ens.has_wall, bead_mass=bead_mass,
