@@ -12,7 +12,8 @@ recorded but the wall's, adaptive step at 20 steps per radian), after a JIT warm
 alternately in the same run (best of N; the machine may be shared):
 
 1. ``setup_s_per_member``: the set-up (Model -> engine buffers, step plans, initial state) with
-   array code, one group of one layout at a time (``batch._setup_groups``), against the
+   array code (``batch._setup_groups``: here one ragged group, every chain on a wall with the
+   elastic law, padded to the longest), against the
    member-by-member set-up (``Model.system()``, ``step_plan``, ``layout.pack``, ``initialise``
    per member: ``batch._setup_members``, the path of batches with a size-scaled law).
 2. ``run_batch_s``: ``run_batch(..., return_systems=True)`` end to end (what the design calls),
@@ -98,7 +99,7 @@ def measure_mixed(repeat: int) -> dict:
     best = {k: min(v) for k, v in times.items()}
     m = len(models)
     return {"members": m, "bead_counts": sorted({mdl.chain.n_beads for mdl in models}),
-            "layout_groups": len(batch._groups(models, plist)), "duration_s": DURATION, "sample_interval_s": INTERVAL,
+            "setup_groups": len(batch._groups(models, plist)), "duration_s": DURATION, "sample_interval_s": INTERVAL,
             "steps_per_radian": STEPS_PER_RADIAN,
             "setup_s_per_member": best["grouped"] / m, "member_by_member_setup_s_per_member": best["members"] / m,
             "setup_speedup": best["members"] / best["grouped"],
@@ -138,7 +139,8 @@ def main(argv: list[str] | None = None) -> dict:
            "setup_s_per_member": mixed["setup_s_per_member"], "run_batch_s": mixed["run_batch_s"],
            "ensemble_setup_s_per_member": ens["setup_s_per_member"]}
     rows = [
-        (f"set-up per member, {mixed['members']} chains of {mixed['layout_groups']} layouts, grouped array code",
+        (f"set-up per member, {mixed['members']} chains of {len(mixed['bead_counts'])} bead counts, array code "
+         f"({mixed['setup_groups']} group)",
          f"{mixed['setup_s_per_member'] * 1e6:.1f} us"),
         ("set-up per member, member by member (Model.system, pack, initialise)",
          f"{mixed['member_by_member_setup_s_per_member'] * 1e6:.1f} us"),

@@ -1,4 +1,6 @@
-"""Batched engine: mixed-layout batches set up with array code, one layout group at a time.
+"""Batched engine: mixed-layout batches set up with array code, one group of members sharing the
+end, contact law kind and Probes at a time (an Ensemble when they share the bead count too, else
+ragged: padded to the longest chain).
 
 Every member's results must be bit for bit those of :func:`hertzchain.simulate` run on it alone,
 whatever the order of the members and however the groups interleave.
@@ -12,20 +14,20 @@ import numpy as np
 import pytest
 from conftest import assert_same_run
 
-from hertzchain import Chain, Model, Probes, Striker, Viscoelastic, Wall, simulate
+from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
 from hertzchain.contact import ScaledViscoelastic
 from hertzchain.errors import ConfigError, ElasticLimitWarning
 from hertzchain.integrate import batch
 from hertzchain.integrate.batch import run_batch, simulate_batch, simulate_many
-from hertzchain.integrate.ensemble import Ensemble, same_layout
+from hertzchain.integrate.ensemble import Ensemble, Ragged, layout_key, same_layout
 
 DURATION = 2.5e-4  # s: the pulse reaches the wall of every chain below
 INTERVAL = 1e-6    # s
 
 
 def grouped_models() -> list[Model]:
-    """Three bead counts, a free end and a wall, two laws, two materials, offsets, precompression;
-    several members per layout, shuffled so that the groups interleave."""
+    """Bead counts 3 to 6, a free end and a wall, three laws, two materials, offsets, precompression;
+    several members per end and law, shuffled so that the groups interleave."""
     visco = Viscoelastic(A=1e-6)
     models = [
         Model(Chain.uniform(4, 10e-3), Striker(8e-3, 0.2)),
@@ -35,9 +37,11 @@ def grouped_models() -> list[Model]:
         Model(Chain.uniform(4, 10e-3).with_offsets({2: 0.3e-3}), Striker(8e-3, 0.1)),
         Model(Chain.uniform(6, 10e-3), Striker(8e-3, 0.2), law=visco),
         Model(Chain.uniform(6, 8e-3, "brass"), Striker(8e-3, 0.25), law=visco, precompression=1.0),
-        Model(Chain.uniform(6, 11e-3).with_offsets({3: -0.2e-3}), Striker(7e-3, 0.2), law=visco),
+        Model(Chain.uniform(5, 11e-3).with_offsets({3: -0.2e-3}), Striker(7e-3, 0.2), law=visco),
         Model(Chain.uniform(5, 10e-3), Striker(8e-3, 0.2), wall=Wall("none")),
-        Model(Chain.uniform(5, 9e-3), Striker(8e-3, 0.3), wall=Wall("none")),
+        Model(Chain.uniform(3, 9e-3), Striker(8e-3, 0.3), wall=Wall("none")),
+        Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2), law=Dashpot(gamma=5.0)),
+        Model(Chain.uniform(3, 9e-3, "brass"), Striker(8e-3, 0.2), law=Dashpot(gamma=2.0)),
         Model(Chain.from_diameters([10e-3, 9e-3, 11e-3, 10e-3], ("AISI52100", "brass", "AISI52100", "brass")),
               Striker(8e-3, 0.1), wall=Wall("flat", "brass")),
     ]
@@ -63,10 +67,13 @@ def test_groups_interleave_and_hold_several_members(grouped):
     groups = batch._groups(models, [probes] * len(models))
     rows = np.concatenate([g.rows for g in groups])
     assert sorted(rows.tolist()) == list(range(len(models)))
-    assert len(groups) == 4 and max(g.ens.n_members for g in groups) == 5
+    assert len(groups) == 4 and max(g.ens.n_members for g in groups) == 6
+    assert sum(isinstance(g.ens, Ragged) for g in groups) == 3
     assert not all(np.array_equal(g.rows, np.arange(g.rows[0], g.rows[0] + g.rows.size)) for g in groups)
-    for g in groups:  # a group is one layout, its members in the batch's order
-        assert same_layout([models[i] for i in g.rows]) and np.all(np.diff(g.rows) > 0)
+    for g in groups:  # one end and law per group, its members in the batch's order
+        members = [models[i] for i in g.rows]
+        assert len({layout_key(m)[1:] for m in members}) == 1 and np.all(np.diff(g.rows) > 0)
+        assert isinstance(g.ens, Ragged) != same_layout(members)
 
 
 def test_mixed_layouts_equal_single_runs_bit_for_bit(grouped, monkeypatch):

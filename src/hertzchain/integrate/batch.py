@@ -49,7 +49,7 @@ from ..probes import Probes
 from ..checks import _smaller_radius, smaller_radii, warn_members_hertz_range, warn_members_pulse_not_reached
 from ..simulation import warn_elastic_limit
 from . import kernels, verlet
-from .ensemble import Ensemble, layout_key, same_layout, systems
+from .ensemble import Ensemble, Ragged, layout_key, ragged, same_layout, systems
 from .layout import PAD, pack
 from .verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, MAX_OMEGA_DT, RELAX_EVALUATIONS, RawRun, StepPlan,
                      initialise, step_plan)
@@ -460,10 +460,11 @@ class _EnsembleArrays:
 
 @dataclass
 class _Group:
-    """Members of one layout (``ensemble.layout_key``) and one Probes, set up together with array
-    code: member j of ``ens`` is member ``rows[j]`` of the batch (None: the batch is this group)."""
+    """Members of one end, law kind and Probes, set up together with array code: member j of
+    ``ens`` (one layout, or ragged: any bead counts) is member ``rows[j]`` of the batch (None: the
+    batch is this group)."""
 
-    ens: Ensemble
+    ens: Ensemble | Ragged
     probes: Probes
     rows: np.ndarray | None = None
 
@@ -501,41 +502,52 @@ class MemberSystem(NamedTuple):
 
 def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_samples: int,
                  check: Callable[[int, float], None], steps_per_radian: float | None = None
-                 ) -> tuple[_Packed, list[_EnsembleArrays]]:
+                 ) -> tuple[_Packed, list[tuple[np.ndarray, np.ndarray, np.ndarray]]]:
     """A batch of members of several layouts with array code: what :func:`_pack_models` builds
     member by member, bit for bit, into one :class:`_Packed` (one initialisation, one engine call).
 
-    ``dts``: every member's user step [s] (NaN: adaptive), in the batch's order; ``check(i, dt)``:
-    :func:`hertzchain.integrate.verlet.check_time_step` of member i (see :func:`_step_plans`).
-    Every per-member array of the _Packed is in the batch's order; only the slots of the flat
-    body/contact buffers are laid out group after group, so that a group's members (one width)
-    are the rows of a 2-D view of each buffer and ``systems()`` fills a block of them at once.
-    Returns the packed batch and, per group, its members' System arrays (group order).
+    A group is an :class:`~hertzchain.integrate.ensemble.Ensemble` (one layout) or a
+    :class:`~hertzchain.integrate.ensemble.Ragged` (one end and law, any bead counts) and one
+    Probes; :func:`~hertzchain.integrate.ensemble.systems` computes its members' arrays a block at
+    a time. ``dts``: every member's user step [s] (NaN: adaptive), in the batch's order;
+    ``check(i, dt)``: :func:`hertzchain.integrate.verlet.check_time_step` of member i (see
+    :func:`_step_plans`). Every per-member array of the _Packed is in the batch's order; the
+    slots of the flat body/contact buffers are laid out group after group, so that the members of
+    an Ensemble (one width) are the rows of a 2-D view of each buffer; a Ragged group's members
+    are written through one index of their N_i + 1 real slots. Returns the packed batch and, per
+    group, its members' bead masses (M, N), Hertz constants and elastic limits (M, N + 1), padded
+    past a ragged member's N_i.
     """
     nmem = dts.size
     n_slots, nrec, nb, n_contacts, wall_slot = (np.empty(nmem, dtype=np.int64) for _ in range(5))
     record_v = np.empty(nmem, dtype=np.bool_)
-    recs, index = [], []
+    index, counts, recs = [], [], []
     for g in groups:
-        n, wall = g.ens.n_beads, g.ens.has_wall
-        rows = slice(None) if g.rows is None else g.rows
-        n_slots[rows] = -(-(n + 2) // PAD) * PAD  # layout.pack: moving bodies + wall ghost, rounded up
-        rec = g.probes.recorded_contacts(n, wall).astype(np.int64)
-        nrec[rows] = rec.size
-        nb[rows] = n + 1
-        n_contacts[rows] = n + (1 if wall else 0)
-        wall_slot[rows] = n
+        ens = g.ens
+        wall = 1 if ens.has_wall else 0
+        rows = np.arange(ens.n_members) if g.rows is None else g.rows
+        n_each = getattr(ens, "n_each", None)
+        n_each = np.full(rows.size, ens.n_beads, dtype=np.int64) if n_each is None else n_each
+        n_slots[rows] = -(-(n_each + 2) // PAD) * PAD  # layout.pack: moving bodies + wall ghost, rounded up
+        nb[rows] = n_each + 1
+        n_contacts[rows] = n_each + wall
+        wall_slot[rows] = n_each
         record_v[rows] = bool(g.probes.velocities)
-        recs.append(rec)
-        index.append(np.arange(g.ens.n_members) if g.rows is None else g.rows)
-    if len(groups) == 1:
-        rec_all, slot_order = np.tile(recs[0], nmem), None
+        distinct, which = np.unique(n_each, return_inverse=True)
+        rec = [g.probes.recorded_contacts(n, ens.has_wall).astype(np.int64) for n in distinct.tolist()]
+        nrec[rows] = np.array([r.size for r in rec], dtype=np.int64)[which]
+        index.append(rows)
+        counts.append(n_each)
+        recs.append((rec, which))
+    if len(groups) == 1 and len(recs[0][0]) == 1 and groups[0].rows is None:
+        rec_all, slot_order = np.tile(recs[0][0][0], nmem), None
     else:
         # member i's recorded contacts go to rec_all[rec_off[i]:rec_off[i + 1]], in the batch's order
         rec_off = np.concatenate([[0], np.cumsum(nrec)])
         rec_all = np.empty(int(rec_off[-1]), dtype=np.int64)
-        for rec, rows in zip(recs, index):
-            rec_all[rec_off[rows][:, None] + np.arange(rec.size)] = rec
+        for rows, (rec, which) in zip(index, recs):
+            for k, r in enumerate(rec):
+                rec_all[rec_off[rows[which == k]][:, None] + np.arange(r.size)] = r
         slot_order = np.concatenate(index)
     zeros_i, zeros_f = np.zeros(nmem, dtype=np.int64), np.zeros(nmem)
     pk = _outputs(interval, n_samples, n_slots=n_slots, nrec=nrec, rec=rec_all, nb=nb, record_v=record_v,
@@ -545,29 +557,35 @@ def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_s
     w = np.empty(nmem)
     out = []
     flat = pk.flat
-    for g, rows in zip(groups, index):
+    for g, rows, n_each in zip(groups, index, counts):
         ens = g.ens
         m, n = ens.n_members, ens.n_beads
-        nbody, nc = n + 1, n + (1 if ens.has_wall else 0)
+        is_ragged = hasattr(ens, "n_each")
         first = int(pk.off[rows[0]])
-        last = first + m * _slot_sizes(int(n_slots[rows[0]]))  # the group's slots, one row per member
+        last = first + m * _slot_sizes(int(n_slots[rows[0]]))  # an Ensemble's slots, one row per member
         kept: list[tuple[np.ndarray, ...]] = []
         for lo in range(0, m, SETUP_BLOCK):
             hi = min(m, lo + SETUP_BLOCK)
             sy = systems(ens, lo, hi)
-            cols = {"mass": sy.mass[:, :nbody], "inv_mass": sy.inv_mass[:, :nbody], "kappa": sy.kappa,
-                    "damping": sy.damping, "d0": sy.d0, "de": sy.de, "dx0": sy.dx0, "rsum": sy.rsum,
-                    "fext": sy.fext[:, :nbody], "dcap": sy.max_overlap, "u": sy.u0[:, :nbody], "v": sy.v0[:, :nbody]}
-            for k, x in cols.items():
-                flat[k][first:last].reshape(m, -1)[lo:hi, :x.shape[1]] = x
+            # the N + 1 slots of every body array (bodies 0..N) and contact array (contacts 0..N)
+            cols = {"mass": sy.mass, "inv_mass": sy.inv_mass, "kappa": sy.kappa, "damping": sy.damping, "d0": sy.d0,
+                    "de": sy.de, "dx0": sy.dx0, "rsum": sy.rsum, "fext": sy.fext, "dcap": sy.max_overlap,
+                    "u": sy.u0, "v": sy.v0}
+            if is_ragged:
+                r_idx, c_idx = np.nonzero(np.arange(n + 1) <= n_each[lo:hi, None])
+                dst = pk.off[rows[lo:hi]][r_idx] + c_idx
+                for k, x in cols.items():
+                    flat[k][dst] = x[r_idx, c_idx]
+            else:
+                for k, x in cols.items():
+                    flat[k][first:last].reshape(m, -1)[lo:hi, :n + 1] = x[:, :n + 1]
             at = slice(lo, hi) if g.rows is None else rows[lo:hi]
             pk.law[at] = sy.law
             pk.general[at] = sy.general
             w[at] = sy.max_frequency
             kept.append((sy.bead_mass, sy.kappa, sy.yield_force))
         # one block (a design's group): systems()'s own arrays, nothing copied
-        rows_of = [parts[0] if len(kept) == 1 else np.concatenate(parts) for parts in zip(*kept)]
-        out.append(_EnsembleArrays(*rows_of, n_contacts=nc))
+        out.append(tuple(parts[0] if len(kept) == 1 else np.concatenate(parts) for parts in zip(*kept)))
     for k, x in _step_plans(w, interval, dts, check, steps_per_radian).items():
         setattr(pk, k, x)
     f = flat
@@ -585,22 +603,27 @@ def _pack_ensemble(ens: Ensemble, probes: Probes, dts: np.ndarray, interval: flo
         verlet.check_time_step(ens.model(i).system(), dt)
 
     pk, (arrays,) = _pack_groups([_Group(ens, probes)], dts, interval, n_samples, check, steps_per_radian)
-    return pk, arrays
+    return pk, _EnsembleArrays(*arrays, n_contacts=ens.n_beads + (1 if ens.has_wall else 0))
 
 
 def _groups(models: Sequence[Model], plist: Sequence[Probes]) -> list[_Group] | None:
-    """The models as groups of one layout and one Probes (first appearance order, members in the
-    batch's order within each), or None when one has a law the array set-up does not compute."""
+    """The models as groups of one end, law kind and Probes (first appearance order, members in the
+    batch's order within each): an Ensemble where they share the bead count, else a Ragged group;
+    None when one has a law the array set-up does not compute."""
     rows: dict[tuple, list[int]] = {}
     for i, (model, p) in enumerate(zip(models, plist)):
         key = layout_key(model)
         if key is None:
             return None
-        rows.setdefault((key, p), []).append(i)
-    if len(rows) == 1:
-        return [_Group(Ensemble.from_models(models), plist[0])]
-    return [_Group(Ensemble.from_models([models[i] for i in r]), p, np.array(r, dtype=np.int64))
-            for (_, p), r in rows.items()]
+        rows.setdefault((key[1:], p), []).append(i)
+    groups = []
+    for (_, p), r in rows.items():
+        members = models if len(rows) == 1 else [models[i] for i in r]
+        n0 = members[0].chain.n_beads
+        same = all(mdl.chain.n_beads == n0 for mdl in members)
+        groups.append(_Group(Ensemble.from_models(members) if same else ragged(members), p,
+                             None if len(rows) == 1 else np.array(r, dtype=np.int64)))
+    return groups
 
 
 def _member_forces(pk: _Packed, m: int) -> np.ndarray:
@@ -687,11 +710,17 @@ def _setup_groups(models: Sequence[Model], plist: Sequence[Probes], dts: list, i
 
     pk, arrays = _pack_groups(groups, _ensemble_dts(dts, len(models)), interval, n_samples, check, steps_per_radian)
     member_systems: list[MemberSystem | None] = [None] * len(models)
-    for g, a in zip(groups, arrays):
-        n, wall = g.ens.n_beads, g.ens.has_wall
+    for g, (_, kappa, fy) in zip(groups, arrays):
+        wall = g.ens.has_wall
         rows = range(g.ens.n_members) if g.rows is None else g.rows.tolist()
-        for i, kappa, fy in zip(rows, a.kappa_slots, a.yield_slots):  # row views
-            member_systems[i] = MemberSystem(n, wall, kappa, fy)
+        n_each = getattr(g.ens, "n_each", None)
+        if n_each is None:
+            n = g.ens.n_beads
+            for i, k, f in zip(rows, kappa, fy):  # row views
+                member_systems[i] = MemberSystem(n, wall, k, f)
+        else:
+            for i, n, k, f in zip(rows, n_each.tolist(), kappa, fy):
+                member_systems[i] = MemberSystem(n, wall, k[:n + 1], f[:n + 1])
     return pk, member_systems
 
 
