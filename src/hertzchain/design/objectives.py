@@ -239,7 +239,10 @@ def _records_of_dataset(ds) -> "_Records":
 
 
 def _records(runs, systems) -> _Records:
-    """:class:`_Records` of :func:`hertzchain.integrate.batch.run_batch`'s RawRuns and Systems."""
+    """:class:`_Records` of :func:`hertzchain.integrate.batch.run_batch`'s RawRuns and
+    :class:`~hertzchain.integrate.batch.MemberSystem` rows (``return_systems=True``): each member's
+    bead count, Hertz constants and elastic limits, computed by the batched set-up (no
+    ``Model.system()`` per member)."""
     m = len(runs)
     nc = max(r.max_force.size for r in runs)
     fmax = np.full((m, nc), np.nan)

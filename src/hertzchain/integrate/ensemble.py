@@ -12,7 +12,9 @@ operation for operation, so that every member's numbers are bit for bit those of
 :func:`hertzchain.simulate`; tests/test_ensemble.py checks it).
 
 Members of one ensemble share the number of beads, whether there is a wall and the contact law's
-kind; everything else may differ per member.
+kind; everything else may differ per member. A :class:`Ragged` set of members (built by
+:func:`ragged`) may also differ in the number of beads: a design search's generation of chains
+of many lengths is then one ``systems`` call too.
 """
 
 from __future__ import annotations
@@ -633,13 +635,15 @@ def _scalar_map(fn, x: np.ndarray) -> np.ndarray:
 _SMALL = 32
 
 
-def systems(ens: Ensemble, start: int = 0, stop: int | None = None) -> Systems:
+def systems(ens: Ensemble | Ragged, start: int = 0, stop: int | None = None) -> Systems:
     """The engine's arrays of every member: ``Model.system()`` vectorised over the members.
 
     Parameters
     ----------
     ens:
-        The members.
+        The members: one layout (:class:`Ensemble`), or any numbers of beads (:class:`Ragged`:
+        then row i holds member i's arrays in its first N_i + 1 contact slots and bodies, and
+        ``max_frequency`` is over its bodies 0..N_i).
     start, stop:
         The range of members to compute (default: all). The batched engine computes blocks of
         a few thousand members, whose arrays stay in the caches.
