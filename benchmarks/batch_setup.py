@@ -21,7 +21,7 @@ alternately in the same run (best of N; the machine may be shared):
    set-up (``old_run_batch_s``: that set-up, the same engine, the same RawRuns). Target: <= 5 ms.
 3. ``ensemble_setup_s_per_member``: a 1e4-member single-layout ensemble (30 beads of 26 mm,
    0.1 % diameter tolerances) set up with ``batch._pack_ensemble``, per member: the one-group
-   case of the grouped set-up must not be slower than before it (3.3 us/member, see README).
+   case of the grouped set-up must not be slower than before it (see benchmarks/README.md).
 """
 
 from __future__ import annotations
