@@ -47,6 +47,12 @@ class _Section(BaseModel):
     # true`` ran at 1 m/s); integers are still accepted where a float is expected.
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
+    def __deepcopy__(self, memo: dict | None = None) -> "_Section":
+        # pydantic deep-copies a model default (WallConfig(), ProbesConfig(), ...) at every
+        # validation, which was a third of parse_config's time (a design search parses
+        # thousands); the sections are frozen, so a shallow copy is as good.
+        return self.__copy__()
+
 
 #: Physical bounds of the config's numbers (inclusive unless said otherwise), generous enough for
 #: any granular-chain experiment and tight enough that nothing reaches the engine as 0, inf or an
