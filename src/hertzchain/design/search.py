@@ -150,13 +150,25 @@ class DesignResult:
 
 
 def _population(problem: DesignProblem) -> int:
-    """Candidates per generation: ``[design].population`` or max(32, CMA-ES's 4 + 3 ln d): a batch
-    of a few dozen chains costs the engine little more than one."""
+    """Candidates per generation: ``[design].population``, else 40 for NSGA-II (several
+    objectives) and max(8, CMA-ES's 4 + 3 ln d) for CMA-ES. Each candidate costs its own set-up
+    and run (~0.1 ms for a short chain at search accuracy), so CMA-ES's small generations reach
+    a given quality sooner than generations of a few dozen (n-q benchmark problem, 20 seeds: a
+    median 25 ms to 1 % with 8, 36 ms with 32)."""
     if problem.section.population:
         return problem.section.population
     if len(problem.objectives) > 1:
         return 40
-    return max(32, 4 + int(3 * math.log(max(problem.space.dim, 2))))
+    return max(8, 4 + int(3 * math.log(max(problem.space.dim, 2))))
+
+
+def _initial_sample(problem: DesignProblem) -> int:
+    """Points of the Latin hypercube that starts a one-objective search: ``[design].population``,
+    else max(32, the CMA-ES population): the whole space is surveyed once before CMA-ES starts
+    from its best point."""
+    if problem.section.population:
+        return problem.section.population
+    return max(32, _population(problem))
 
 
 def _new_optimiser(problem: DesignProblem, restart: int = 0, x0: np.ndarray | None = None):
@@ -601,7 +613,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
             # from the best region found rather than from the centre of the box.
             from scipy.stats import qmc
 
-            pop0 = _population(problem)
+            pop0 = _initial_sample(problem)
             xs = list(qmc.LatinHypercube(d=problem.space.dim, seed=np.random.default_rng([sec.seed, 11])).random(pop0))
             xs = _repair_initial(problem, evaluator, xs)
             if len({problem.space.key(x) for x in xs}) * per_candidate > budget:
