@@ -23,8 +23,8 @@ import hertzchain as hc
 from hertzchain.errors import ElasticLimitWarning
 from hertzchain.integrate import batch, kernels
 from hertzchain.integrate.batch import run_batch, simulate_many
-from hertzchain.integrate.verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, auto_time_step, refine_peak,
-                                         run_verlet, step_plan)
+from hertzchain.integrate.verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, HORIZON_STEPS, auto_time_step,
+                                         horizon_radians, refine_peak, run_verlet, step_plan)
 
 REF_RTOL = 1e-12  # DOP853 reference tolerance (converged to ~1e-8, tests/test_accuracy.py)
 
@@ -83,18 +83,23 @@ def test_given_dt_is_a_fixed_step_shortened_to_divide_the_interval(gentle_contra
 
 
 @pytest.mark.parametrize("interval", [1e-7, 1e-5])
-def test_step_plan_blocks_respect_the_horizon(contract_model, interval):
-    """Blocks never exceed HORIZON_RADIANS / omega_max (the look-ahead of required_stride) and the
-    smallest possible step is the 1/ADAPTIVE_STEPS_PER_RADIAN one of the whole-run bound."""
+@pytest.mark.parametrize("spr", [None, 20.0])
+def test_step_plan_blocks_respect_the_horizon(contract_model, interval, spr):
+    """Blocks never exceed horizon_radians / omega_max (the look-ahead of required_stride: 0.4 rad
+    at the default accuracy, HORIZON_STEPS steps at a coarse one) and the smallest possible step is
+    the 1/steps_per_radian one of the whole-run bound."""
+    c = ADAPTIVE_STEPS_PER_RADIAN if spr is None else spr
+    horizon = horizon_radians(c)
+    assert horizon == (HORIZON_RADIANS if spr is None else HORIZON_STEPS / spr)
     w = contract_model.system().max_frequency()
-    plan = step_plan(contract_model.system(), interval, None)
+    plan = step_plan(contract_model.system(), interval, None, spr)
     assert plan.adaptive and plan.stride == 0
     block = interval / plan.n_sub
-    assert block <= HORIZON_RADIANS / w * (1 + 1e-12)
-    assert plan.n_eval * block <= HORIZON_RADIANS / w * (1 + 1e-12)
-    assert w * plan.dt <= 1 / ADAPTIVE_STEPS_PER_RADIAN * (1 + 1e-12)
+    assert block <= horizon / w * (1 + 1e-12)
+    assert plan.n_eval * block <= horizon / w * (1 + 1e-12)
+    assert w * plan.dt <= 1 / c * (1 + 1e-12)
     assert (block / plan.dt) == pytest.approx(round(block / plan.dt), abs=1e-6)  # whole steps per block
-    if interval > HORIZON_RADIANS / w:
+    if interval > horizon / w:
         assert plan.n_sub > 1 and plan.n_eval == 1
     else:
         assert plan.n_sub == 1 and plan.n_eval >= 1

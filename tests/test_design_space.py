@@ -195,3 +195,44 @@ def test_automatic_duration_is_resolved_once_for_the_whole_space(tmp_path):
     res = run_design(p, tmp_path)
     assert res.best["config"]["run"]["duration"] == p.base["run"]["duration"]
     assert "duration" not in base["run"]  # the caller's mapping is left alone
+
+
+@pytest.mark.parametrize("chain", [
+    {"uniform": {"n": 4, "diameter_mm": 26.0}, "taper": {"n": 6, "q": 0.07}},
+    {"preset": "chain2", "truncate": 20},
+    {"diameters_mm": [26.0, 20.0, 14.0], "materials": ["AISI52100", "brass", "AISI52100"]},
+    {"uniform": {"n": 3, "diameter_mm": 10.0}, "offsets_fraction": [0.0, 0.1, 0.0],
+     "substitutions": [{"bead": 2, "diameter_mm": 8.0}]},
+])
+def test_chain_of_validates_the_chain_alone_with_the_same_numbers(chain):
+    """The design's geometry checks build the chain from [chain] alone: the same Chain (bit for bit)
+    as the whole config gives, and the same field-named errors."""
+    from hertzchain.config import build_chain, chain_of, parse_config
+
+    data = {**BASE, "chain": chain}
+    a, b = chain_of(data), build_chain(parse_config(data))
+    assert np.array_equal(a.diameters, b.diameters) and np.array_equal(a.offsets, b.offsets)
+    assert [m.name for m in a.materials] == [m.name for m in b.materials]
+    bad = {**BASE, "chain": {**chain, "taper": {"n": 2, "q": 1.5}}} if "uniform" in chain else \
+        {**BASE, "chain": {**chain, "truncate": 0}}
+    with pytest.raises(ConfigError) as whole:
+        build_chain(parse_config(bad))
+    with pytest.raises(ConfigError) as alone:
+        chain_of(bad)
+    assert alone.value.field == whole.value.field and alone.value.field.startswith("chain.")
+
+
+def test_geometric_margin_is_signed_and_agrees_with_the_violation():
+    """The margin the boundary search uses is >= 0 exactly where no geometric constraint is broken,
+    its size the smallest relative slack (here the 15 mm bead limit: 26 (1 - q)^n / 15 - 1)."""
+    from hertzchain.design.constraints import Constraints, geometric_margin, geometric_violation, geometry
+
+    c = Constraints(min_diameter_mm=15.0, max_length_mm=400.0, max_beads=20)
+    for n in range(1, 16):
+        for q in np.linspace(0.0, 0.2, 9):
+            geo = geometry(hc.Chain.uniform(4, 26e-3).append_taper(n, q))
+            m = geometric_margin(c, geo)
+            assert (m >= 0) == (geometric_violation(c, geo) == 0)
+            expected = min(26 * (1 - q) ** n / 15 - 1, (400 - geo["length_mm"]) / 400, (20 - 4 - n) / 20)
+            assert m == pytest.approx(expected, rel=1e-12, abs=1e-12)
+    assert geometric_margin(Constraints(), geo) == np.inf

@@ -121,7 +121,11 @@ class Chain:
         last = self.diameters[-1]
         new = last * (1.0 - q) ** np.arange(1, int(n) + 1)
         mat = get_material(material) if material is not None else self.materials[-1]
-        return self.concat(Chain.from_diameters(new, mat))
+        # One Chain built (not a tapered one and then the concatenation): geometry checks of a
+        # design search build thousands.
+        aligned = not self.offsets.any()
+        return Chain(np.concatenate([self.diameters, new]), self.materials + (mat,) * int(n),
+                     None if aligned else np.concatenate([self.offsets, np.zeros(int(n))]))
 
     def concat(self, other: "Chain") -> "Chain":
         """Beads of ``self`` followed by the beads of ``other``."""

@@ -33,7 +33,7 @@ import tomllib
 from collections.abc import Iterable
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, NoReturn
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -46,6 +46,12 @@ class _Section(BaseModel):
     # strict: TOML booleans and strings are not numbers, floats are not counts (issue: ``velocity =
     # true`` ran at 1 m/s); integers are still accepted where a float is expected.
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+    def __deepcopy__(self, memo: dict | None = None) -> "_Section":
+        # pydantic deep-copies a model default (WallConfig(), ProbesConfig(), ...) at every
+        # validation, which was a third of parse_config's time (a design search parses
+        # thousands); the sections are frozen, so a shallow copy is as good.
+        return self.__copy__()
 
 
 #: Physical bounds of the config's numbers (inclusive unless said otherwise), generous enough for
@@ -117,7 +123,7 @@ class ChainConfig(_Section):
     uniform: UniformBlock | None = None
     taper: TaperBlock | None = None
     truncate: _BeadNumber | None = None
-    substitutions: list[Substitution] = []
+    substitutions: list[Substitution] = Field(default_factory=list)  # not deep-copied at every validation
     offsets_mm: list[_Offset] | None = None
     offsets_fraction: list[Annotated[float, Field(ge=-0.5, le=0.5)]] | None = None
     precompression: float = _bounded("precompression", default=0.0, description="static force, N")
@@ -312,25 +318,31 @@ def parse_config(data: dict) -> RunConfig:
     try:
         return RunConfig.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = tuple(err["loc"])
-        name = _field_name(loc)
-        if err["type"] == "extra_forbidden":
-            allowed = _allowed_keys(loc)
-            raise ConfigError(name, f"unknown key; allowed keys here: {allowed}") from None
-        if err["type"] == "missing":
-            raise ConfigError(name, "is required") from None
-        msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
-        value = err.get("input")
-        if not isinstance(value, (dict, list)):
-            msg += f" (got {value!r})"
-        if err["type"] in ("float_type", "int_type", "int_from_float", "bool_type", "string_type"):
-            msg += "; write it as a TOML " + {"float_type": "number such as 0.5 (not true or a quoted string)",
-                                               "int_type": "whole number such as 12 (not 12.0 or a quoted string)",
-                                               "int_from_float": "whole number such as 12 (not 12.0)",
-                                               "bool_type": "boolean, true or false",
-                                               "string_type": "quoted string"}[err["type"]]
-        raise ConfigError(name or "config", msg) from None
+        _raise_config_error(exc)
+
+
+def _raise_config_error(exc: ValidationError, prefix: tuple[str, ...] = ()) -> NoReturn:
+    """Turn pydantic's first error into a ConfigError naming the field as written (under ``prefix``:
+    the section that was validated on its own)."""
+    err = exc.errors()[0]
+    loc = prefix + tuple(err["loc"])
+    name = _field_name(loc)
+    if err["type"] == "extra_forbidden":
+        allowed = _allowed_keys(loc)
+        raise ConfigError(name, f"unknown key; allowed keys here: {allowed}") from None
+    if err["type"] == "missing":
+        raise ConfigError(name, "is required") from None
+    msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
+    value = err.get("input")
+    if not isinstance(value, (dict, list)):
+        msg += f" (got {value!r})"
+    if err["type"] in ("float_type", "int_type", "int_from_float", "bool_type", "string_type"):
+        msg += "; write it as a TOML " + {"float_type": "number such as 0.5 (not true or a quoted string)",
+                                           "int_type": "whole number such as 12 (not 12.0 or a quoted string)",
+                                           "int_from_float": "whole number such as 12 (not 12.0)",
+                                           "bool_type": "boolean, true or false",
+                                           "string_type": "quoted string"}[err["type"]]
+    raise ConfigError(name or "config", msg) from None
 
 
 def read_toml(path: str | Path, what: str = "config file") -> dict:
@@ -497,30 +509,64 @@ def _as_written(internal: str, written: str):
 
 def build_chain(cfg: RunConfig):
     """The :class:`~hertzchain.chain.Chain` described by ``[chain]``."""
-    import numpy as np
-
-    from .chain import Chain, paper_chain
-
-    c = cfg.chain
     _register_materials(cfg)
     _check_material_names(cfg)
+    return _chain(cfg.chain)
+
+
+def chain_of(data: dict):
+    """The :class:`~hertzchain.chain.Chain` of a config mapping, validating ``[chain]`` alone.
+
+    What :func:`build_chain` of :func:`parse_config` gives, with the same schema and the same
+    field-named errors, at a third of the cost: a design search checks the geometry of thousands
+    of candidates whose other sections are validated once, when they are run. A mapping with its
+    own ``[materials]`` goes the whole way.
+
+    Parameters
+    ----------
+    data : dict
+        A run config mapping (as read from TOML).
+
+    Returns
+    -------
+    Chain
+        The beads, diameters in m.
+    """
+    if "materials" in data or not isinstance(data.get("chain"), dict):
+        return build_chain(parse_config(data))
+    try:
+        section = ChainConfig.model_validate(data["chain"])
+    except ValidationError as exc:
+        _raise_config_error(exc, ("chain",))
+    return _chain(section)
+
+
+def _chain(c: ChainConfig):
+    """The Chain of a validated ``[chain]`` (its materials registered)."""
+    import numpy as np
+
+    from .chain import TABLE_I_MM, Chain
+
     mats: Any = c.material
     n_max = BOUNDS["beads"][1]
+    # The diameters first, then one Chain (each Chain validates itself; a design search builds
+    # thousands): the same numbers as Chain.uniform(...).append_taper(...).
     if c.preset is not None:
-        chain = paper_chain(c.preset, c.material)
+        d = np.array(TABLE_I_MM[c.preset]) * 1e-3
     elif c.uniform is not None:
-        chain = Chain.uniform(c.uniform.n, c.uniform.diameter_mm * 1e-3, c.material)
+        d = np.full(c.uniform.n, c.uniform.diameter_mm * 1e-3)
     else:
-        chain = Chain.from_diameters(np.array(c.diameters_mm) * 1e-3, c.material)
+        d = np.array(c.diameters_mm) * 1e-3
     if c.taper is not None:
-        if chain.n_beads + c.taper.n > n_max:
-            raise ConfigError("chain.taper.n", f"makes a chain of {chain.n_beads + c.taper.n} beads; "
+        if d.size + c.taper.n > n_max:
+            raise ConfigError("chain.taper.n", f"makes a chain of {d.size + c.taper.n} beads; "
                               f"at most {n_max} are allowed")
-        smallest_mm = chain.diameters[-1] * 1e3 * (1.0 - c.taper.q) ** c.taper.n
+        smallest_mm = d[-1] * 1e3 * (1.0 - c.taper.q) ** c.taper.n
         if smallest_mm < BOUNDS["diameter_mm"][0]:
             raise ConfigError("chain.taper", f"q = {c.taper.q:g} over n = {c.taper.n} beads makes the last bead "
                               f"{smallest_mm:.3g} mm; beads must be at least {BOUNDS['diameter_mm'][0]:g} mm")
-        chain = chain.append_taper(c.taper.n, c.taper.q)
+        d = np.concatenate([d, d[-1] * (1.0 - c.taper.q) ** np.arange(1, c.taper.n + 1)])  # Chain.append_taper
+    chain = Chain(d, c.material)
     if c.truncate is not None:
         if c.truncate > chain.n_beads:
             raise ConfigError("chain.truncate", f"must be at most the number of beads ({chain.n_beads}), got {c.truncate}")

@@ -17,7 +17,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-__all__ = ["Constraints", "geometry", "geometric_violation", "run_violation"]
+__all__ = ["Constraints", "geometry", "geometric_violation", "geometric_margin", "run_violation"]
 
 
 class Constraints(BaseModel):
@@ -70,6 +70,19 @@ def geometric_violation(c: Constraints, geo: dict[str, Any]) -> float:
             + _excess(geo["mass_kg"], c.max_mass_kg, upper=True)
             + _excess(geo["n_beads"], c.min_beads, upper=False)
             + _excess(geo["n_beads"], c.max_beads, upper=True))
+
+
+def geometric_margin(c: Constraints, geo: dict[str, Any]) -> float:
+    """Signed distance to the nearest geometric limit: the smallest relative slack
+    (limit - value) / |limit| of an upper limit, (value - limit) / |limit| of a lower one; >= 0
+    exactly when :func:`geometric_violation` is 0, negative past a limit, inf without geometric
+    constraints. Continuous across the boundary, so the search can find it by false position."""
+    slack = [((limit - geo[key]) if upper else (geo[key] - limit)) / abs(limit)
+             for key, limit, upper in (("min_diameter_mm", c.min_diameter_mm, False),
+                                       ("length_mm", c.max_length_mm, True), ("mass_kg", c.max_mass_kg, True),
+                                       ("n_beads", c.min_beads, False), ("n_beads", c.max_beads, True))
+             if limit is not None]
+    return min(slack, default=float("inf"))
 
 
 def run_violation(c: Constraints, force_over_yield: float, pulse_at_wall: bool) -> float:

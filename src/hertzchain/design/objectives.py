@@ -42,7 +42,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from ..errors import PulseNotFound
-from .constraints import Constraints, geometric_violation, geometry, run_violation
+from .constraints import Constraints, geometric_margin, geometric_violation, geometry, run_violation
 
 __all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Fidelity", "member_metrics", "search_interval"]
 
@@ -449,11 +449,12 @@ class Evaluator:
         return any(v is not None for v in (c.min_diameter_mm, c.max_length_mm, c.max_mass_kg, c.min_beads,
                                             c.max_beads))
 
-    def geometric_violation(self, config: dict) -> float:
-        """Summed relative violation of the geometric constraints by a candidate's run config (no run)."""
-        from ..config import build_chain, parse_config
+    def geometric_margin(self, config: dict) -> float:
+        """:func:`~hertzchain.design.constraints.geometric_margin` of a candidate's run config (no
+        run): >= 0 when it meets every geometric constraint."""
+        from ..config import chain_of
 
-        return geometric_violation(self.constraints, geometry(build_chain(parse_config(config))))
+        return geometric_margin(self.constraints, geometry(chain_of(config)))
 
     def evaluate(self, keys: list, configs: list[dict]) -> list[Evaluation]:
         """Evaluate candidates (``keys`` identify equal candidates: each is simulated once, ever)."""

@@ -22,7 +22,6 @@ bins, one per allowed value (an ordinal encoding: neighbouring bins are neighbou
 
 from __future__ import annotations
 
-import copy
 import math
 import re
 from dataclasses import dataclass, field
@@ -293,6 +292,25 @@ def _parse_spec(raw: Any, name: str) -> tuple[str, float, float, tuple, bool | s
     return "real", float(spec.low), float(spec.high), (), spec.monotone
 
 
+def _own_path(cfg: dict, tokens: tuple, copied: set[int]) -> None:
+    """Replace the tables and lists along ``tokens`` (all but the last) by copies made for ``cfg``
+    (ids in ``copied``), so that setting the value there leaves the shared base untouched. Stops
+    where the path leaves the config: ``set_path`` then names what is wrong."""
+    node: Any = cfg
+    for tok in tokens[:-1]:
+        if isinstance(node, dict) and isinstance(tok, str) and tok in node:
+            child = node[tok]
+        elif isinstance(node, list) and isinstance(tok, int) and tok < len(node):
+            child = node[tok]
+        else:
+            return
+        if isinstance(child, (dict, list)) and id(child) not in copied:
+            child = dict(child) if isinstance(child, dict) else list(child)
+            copied.add(id(child))
+            node[tok] = child
+        node = child
+
+
 @dataclass
 class Space:
     """Variables, monotone groups and the optional chain shape: decodes unit-cube points into run configs.
@@ -343,8 +361,14 @@ class Space:
         return tuple((g, tuple(v) if isinstance(v, list) else v) for g, v in vals.items())
 
     def config(self, values: dict[str, Any]) -> dict:
-        """The run config (mapping) of a candidate given by ``{group path: value}``."""
-        cfg = copy.deepcopy(self.base)
+        """The run config (mapping) of a candidate given by ``{group path: value}``.
+
+        Tables and lists on a variable's path are copied; the rest is shared with ``base``
+        (copy on write: a search builds thousands of these, and a deep copy of the base was
+        most of the cost of a geometry check). Treat the result as read-only.
+        """
+        cfg = dict(self.base)
+        copied: set[int] = set()
         shape_params = dict(self.shape.params) if self.shape is not None else {}
         by_group: dict[str, list[Variable]] = {}
         for v in self.variables:
@@ -356,6 +380,7 @@ class Space:
                 if v.tokens[0] == "shape":
                     shape_params[v.tokens[1]] = value
                 else:
+                    _own_path(cfg, v.tokens, copied)
                     set_path(cfg, list(v.tokens), value, _variable_field(g))
         if self.shape is not None:
             cfg = self._apply_shape(cfg, shape_params)

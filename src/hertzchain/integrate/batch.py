@@ -51,8 +51,8 @@ from ..simulation import warn_elastic_limit
 from . import kernels, verlet
 from .ensemble import Ensemble, Ragged, layout_key, ragged, same_layout, systems
 from .layout import PAD, pack
-from .verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, MAX_OMEGA_DT, RELAX_EVALUATIONS, RawRun, StepPlan,
-                     initialise, step_plan)
+from .verlet import (ADAPTIVE_STEPS_PER_RADIAN, MAX_OMEGA_DT, RELAX_EVALUATIONS, RawRun, StepPlan,
+                     horizon_radians, initialise, step_plan)
 
 __all__ = ["simulate_batch", "simulate_many", "run_batch", "stack_results"]
 
@@ -404,13 +404,13 @@ def _step_plans(w: np.ndarray, interval: float, dts: np.ndarray, check,
     plan_dt[still] = interval
     ad = ~fixed & (w > 0.0)
     wa = w[ad]
+    c = ADAPTIVE_STEPS_PER_RADIAN if steps_per_radian is None else float(steps_per_radian)
     with np.errstate(divide="ignore"):
-        bmax = HORIZON_RADIANS / wa
+        bmax = horizon_radians(c) / wa
     short = interval <= bmax
     ns = np.where(short, 1, np.ceil(interval / bmax - 1e-9)).astype(np.int64)
     ne = np.where(short, np.maximum(1, np.floor(bmax / interval)), 1).astype(np.int64)
     block = interval / ns
-    c = ADAPTIVE_STEPS_PER_RADIAN if steps_per_radian is None else float(steps_per_radian)
     plan_dt[ad] = block / np.ceil(block * c * wa - 1e-9)
     n_sub[ad] = ns
     n_eval[ad] = ne

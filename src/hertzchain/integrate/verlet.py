@@ -26,8 +26,24 @@ STEPS_PER_RADIAN = 300.0
 #: overrides it: Verlet is second order, so the error scales as (1 / steps_per_radian)^2.
 ADAPTIVE_STEPS_PER_RADIAN = 400.0
 #: The adaptive step is re-evaluated at least every HORIZON_RADIANS / omega_max seconds (a
-#: twentieth of the shortest contact, roughly), looking that far ahead.
+#: twentieth of the shortest contact, roughly), looking that far ahead, at the default accuracy.
 HORIZON_RADIANS = 0.4
+#: A block between two re-evaluations spans at least this many steps at omega_max: at coarse
+#: accuracy (few steps per radian) the look-ahead is lengthened (see :func:`horizon_radians`).
+HORIZON_STEPS = 32.0
+
+
+def horizon_radians(steps_per_radian: float) -> float:
+    """Look-ahead of the adaptive step, in radians of omega_max: HORIZON_RADIANS, or HORIZON_STEPS
+    steps when that is longer (below 80 steps per radian).
+
+    Re-evaluating the step (``kernels.required_stride``: a bound over every contact) costs several
+    steps' worth of work; at 20 steps per radian a 0.4 rad block held about two steps, and the
+    evaluations were most of the run. The longer look-ahead is at least as conservative (the
+    overlaps are extrapolated over it) and the stability margin of a coarse step is wide (omega dt
+    <= 1 / 10 at the coarsest allowed accuracy, against Verlet's limit of 2).
+    """
+    return max(HORIZON_RADIANS, HORIZON_STEPS / steps_per_radian)
 #: An adaptive step grows only after this many evaluations in a row allowed it.
 RELAX_EVALUATIONS = 5
 #: A user time step with omega_max dt above this is refused (Verlet is unstable at 2; the error
@@ -105,7 +121,7 @@ class StepPlan:
 def step_plan(system: System, sample_interval: float, dt: float | None,
               steps_per_radian: float | None = None) -> StepPlan:
     """Fixed step ``dt`` [s] (checked, shortened to divide the sample interval) or, when None, the
-    adaptive step: blocks short enough (<= HORIZON_RADIANS / omega_max) for the look-ahead of
+    adaptive step: blocks short enough (<= horizon_radians / omega_max) for the look-ahead of
     ``kernels.required_stride`` to hold, with omega dt <= 1 / ``steps_per_radian`` (default
     ADAPTIVE_STEPS_PER_RADIAN; unused with a fixed step)."""
     if dt is not None:
@@ -115,13 +131,13 @@ def step_plan(system: System, sample_interval: float, dt: float | None,
     w = system.max_frequency()
     if w <= 0.0:  # nothing moves: any step is exact
         return StepPlan(stride=1, dt=sample_interval)
-    bmax = HORIZON_RADIANS / w
+    c = ADAPTIVE_STEPS_PER_RADIAN if steps_per_radian is None else float(steps_per_radian)
+    bmax = horizon_radians(c) / w
     if sample_interval <= bmax:
         n_sub, n_eval = 1, max(1, math.floor(bmax / sample_interval))
     else:
         n_sub, n_eval = math.ceil(sample_interval / bmax - 1e-9), 1
     block = sample_interval / n_sub
-    c = ADAPTIVE_STEPS_PER_RADIAN if steps_per_radian is None else float(steps_per_radian)
     return StepPlan(stride=0, dt=block / math.ceil(block * c * w - 1e-9),
                     n_sub=n_sub, n_eval=n_eval, c_steps=c, relax=RELAX_EVALUATIONS)
 
