@@ -321,7 +321,7 @@ def _repairs(problem: DesignProblem, evaluator: Evaluator) -> bool:
     the boundary's points are grid points that the search's own steps reach, and moving a point
     across many bins at once only crowded the first sample (a 14-bead catalogue design found a
     22 % worse optimum with it)."""
-    return evaluator.has_geometric_constraints and any(v.kind == "real" for v in problem.space.variables)
+    return evaluator.has_geometric_constraints and bool(problem.space.real.any())
 
 
 def _margin(problem: DesignProblem, evaluator: Evaluator, x: np.ndarray) -> float:
@@ -383,7 +383,7 @@ def _repair_point(problem: DesignProblem, evaluator: Evaluator, anchor: np.ndarr
     the candidate's own bin (the largest taper ratio its bead count allows); otherwise the whole
     segment to the anchor is searched."""
     space = problem.space
-    real = np.array([v.kind == "real" for v in space.variables])
+    real = space.real
     if not np.array_equal(space.centre(anchor)[~real], space.centre(bad)[~real]):
         start = np.where(real, anchor, bad)
         f_start = _margin(problem, evaluator, start)
@@ -446,7 +446,7 @@ def _repair_initial(problem: DesignProblem, evaluator: Evaluator, xs: list[np.nd
     good = np.flatnonzero(~bad)
     # Anchors in the candidate's own discrete bin come first: the repair is then a search along
     # the real coordinates alone (see _repair_point), with no check spent on a start point.
-    real = np.array([v.kind == "real" for v in problem.space.variables])
+    real = problem.space.real
     bins = np.array([problem.space.centre(x)[~real] for x in pts])
     out = list(xs)
     for i in np.flatnonzero(bad):

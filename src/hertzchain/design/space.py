@@ -338,6 +338,11 @@ class Space:
         return len(self.variables)
 
     @property
+    def real(self) -> np.ndarray:
+        """Mask of the real coordinates (the others are binned: integers, catalogue sizes, categories)."""
+        return np.array([v.kind == "real" for v in self.variables])
+
+    @property
     def groups(self) -> list[str]:
         """The variable paths as the user wrote them, in order."""
         return list(dict.fromkeys(v.group for v in self.variables))
