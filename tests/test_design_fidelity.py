@@ -221,10 +221,8 @@ def test_a_candidate_past_a_geometric_constraint_moves_onto_its_boundary():
     n_bin = (4 - 2 + 0.5) / 11  # unit coordinate of the integer bin n = 4 (2..12)
     good, bad = np.array([n_bin, 0.05 / 0.15]), np.array([n_bin, 1.0])
     steps = 12
-    checks = []
-    margin = ev.geometric_margin
-    ev.geometric_margin = lambda cfg: checks.append(cfg) or margin(cfg)
     x = _to_boundary(p, ev, good, bad, steps)
+    checks = ev.candidates  # one chain built per distinct point checked
     vals = p.space.values(x)
     q_star = 1 - (15 / 26) ** 0.25
     last = 26 * (1 - vals["chain.taper.q"]) ** 4
@@ -232,6 +230,33 @@ def test_a_candidate_past_a_geometric_constraint_moves_onto_its_boundary():
     assert last >= 15.0
     assert q_star - (0.15 - 0.05) * 2.0 ** -steps <= vals["chain.taper.q"] <= q_star or last <= 15.0 * (1 + _BOUNDARY_SLACK)
     assert len(checks) < 2 + steps  # the two ends and fewer than bisection's steps
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
+def test_the_first_generation_holds_the_boundary_point_of_every_bead_count_it_samples(seed):
+    """Known answer: with no bead below 15 mm, the steepest taper of n beads after 26 mm beads is
+    q*(n) = 1 - (15/26)^(1/n) (q* < 0.15, the box's edge, from n = 4 on). The first generation
+    (Latin hypercube, repair, and the choices' boundary points) holds, for every bead count it
+    samples, a point that meets the limit within the repair's resolution (2^-6 of the q range
+    or the boundary slack) at q*(n), or at the box's edge q = 0.15 where the whole range is
+    allowed; and no point breaks the limit."""
+    from scipy.stats import qmc
+
+    from hertzchain.design.objectives import Evaluator
+    from hertzchain.design.search import _BOUNDARY_SLACK, _REPAIR_STEPS, _initial_sample, _repair_initial
+
+    p = parse_design(_nq(seed=seed))
+    ev = Evaluator(p.objectives, p.section.constraints)
+    xs = list(qmc.LatinHypercube(d=2, seed=np.random.default_rng([seed, 11])).random(_initial_sample(p)))
+    points = [p.space.values(x) for x in _repair_initial(p, ev, xs)]
+    sampled = {p.space.values(x)["chain.taper.n"] for x in xs}
+    for n in sampled:
+        q_star = min(1 - (15 / 26) ** (1 / n), 0.15)
+        qs = np.array([v["chain.taper.q"] for v in points if v["chain.taper.n"] == n])
+        last = 26 * (1 - qs) ** n
+        assert np.all(last >= 15.0)
+        near = (qs >= q_star - 0.15 * 2.0 ** -_REPAIR_STEPS) | (last <= 15.0 * (1 + _BOUNDARY_SLACK))
+        assert near.any(), (n, q_star, qs)
 
 
 def test_sweeps_run_at_the_base_steps_per_radian_and_refuse_to_vary_it(tmp_path):

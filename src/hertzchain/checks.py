@@ -25,7 +25,7 @@ import numpy as np
 from .errors import ConfigError, HertzRangeWarning, LongRunWarning, PulseNotReachedWarning, SimulationDiverged
 
 __all__ = ["ResourceEstimate", "estimate_resources", "check_resources", "check_before_run", "check_after_run",
-           "check_energy_balance", "energy_tolerance", "energy_cause", "available_memory", "HERTZ_MAX_OVERLAP",
+           "check_energy_balance", "energy_gain", "estimate_memory", "energy_tolerance", "energy_cause", "available_memory", "HERTZ_MAX_OVERLAP",
            "LONG_RUN_S"]
 
 #: Largest overlap delta / R_min (R_min the smaller radius of the pair) taken as inside the range of
@@ -118,11 +118,7 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
     from .integrate.verlet import step_plan
 
     n = system.n_beads
-    samples = int(math.floor(duration / probes.sample_interval + 1e-9)) + 1
-    recorded = probes.recorded_contacts(n, system.has_wall).size
-    bodies = (n + 1) * (int(bool(probes.velocities)) + int(bool(getattr(probes, "positions", False))))
-    signals = recorded + 4 + len(probes.sensors) + bodies  # + 3 energies, time, wall
-    memory = BYTES_PER_VALUE * samples * signals * members
+    samples, signals, memory = _records_size(n, system.has_wall, duration, probes, members)
     if integrator == "verlet":
         plan = step_plan(system, probes.sample_interval, dt)
         steps = duration / plan.dt
@@ -135,6 +131,42 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
         seconds = steps * (SCIPY_S_PER_STEP + (n + 1) * NS_PER_BEAD_STEP["general"]) * members
     return ResourceEstimate(samples=samples, signals=signals, members=members, memory_bytes=int(memory),
                             steps=steps, seconds=seconds)
+
+
+def _records_size(n_beads: int, has_wall: bool, duration: float, probes, members: int) -> tuple[int, int, int]:
+    """Samples per member, recorded numbers per sample and member, and the records' bytes."""
+    samples = int(math.floor(duration / probes.sample_interval + 1e-9)) + 1
+    recorded = probes.recorded_contacts(n_beads, has_wall).size
+    bodies = (n_beads + 1) * (int(bool(probes.velocities)) + int(bool(getattr(probes, "positions", False))))
+    signals = recorded + 4 + len(probes.sensors) + bodies  # + 3 energies, time, wall
+    return samples, signals, BYTES_PER_VALUE * samples * signals * members
+
+
+def estimate_memory(n_beads: int, has_wall: bool, duration: float, probes, members: int = 1) -> ResourceEstimate:
+    """:func:`estimate_resources` without the run time (``steps`` and ``seconds`` 0): what the
+    records need, from the bead count alone (no System to build; a design search checks every
+    generation).
+
+    Parameters
+    ----------
+    n_beads : int
+        Beads of the largest member.
+    has_wall : bool
+        Whether the chain ends at a wall (one more contact).
+    duration : float
+        Simulated time [s].
+    probes : hertzchain.probes.Probes
+        What is recorded, and how often.
+    members : int
+        Runs held in memory together.
+
+    Returns
+    -------
+    ResourceEstimate
+    """
+    samples, signals, memory = _records_size(n_beads, has_wall, duration, probes, members)
+    return ResourceEstimate(samples=samples, signals=signals, members=members, memory_bytes=int(memory), steps=0.0,
+                            seconds=0.0)
 
 
 def _gib(x: float) -> str:
@@ -248,12 +280,7 @@ def check_energy_balance(time: np.ndarray, kinetic: np.ndarray, potential: np.nd
     cause : str
         What to change, named as the user wrote it (``run.dt``, ``contact.gamma``...).
     """
-    total = kinetic + potential + dissipated
-    scale = abs(kinetic[0]) + abs(potential[0])
-    if not (scale > 0):
-        return
-    with np.errstate(invalid="ignore"):
-        gain = (total - total[0]) / scale
+    gain = energy_gain(kinetic, potential, dissipated)
     bad = ~np.isfinite(gain) | (gain > tolerance)
     if np.any(bad):
         k = int(np.argmax(bad))
@@ -261,6 +288,27 @@ def check_energy_balance(time: np.ndarray, kinetic: np.ndarray, potential: np.nd
         raise SimulationDiverged(f"the run gains energy: kinetic + elastic + dissipated energy {what} at "
                                  f"t = {time[k]:.4g} s (allowed: {tolerance:.2g}); the results would be wrong. "
                                  f"Cause: {cause}")
+
+
+def energy_gain(kinetic: np.ndarray, potential: np.ndarray, dissipated: np.ndarray) -> np.ndarray:
+    """Gain of kinetic + elastic + dissipated energy since the first sample, relative to the
+    initial kinetic + elastic energy (0 for the exact motion; see :func:`check_energy_balance`).
+
+    Parameters
+    ----------
+    kinetic, potential, dissipated : numpy.ndarray
+        Energies [J], samples along the last axis (one row per run of a batch).
+
+    Returns
+    -------
+    numpy.ndarray
+        The relative gain at every sample (0 throughout for a run that starts with no energy).
+    """
+    total = kinetic + potential + dissipated
+    scale = np.abs(kinetic[..., :1]) + np.abs(potential[..., :1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        gain = (total - total[..., :1]) / scale
+    return np.where(scale > 0, gain, 0.0)
 
 
 def energy_tolerance(system, dt_max: float, integrator: str = "verlet", rtol: float = 1e-10) -> float:

@@ -532,13 +532,21 @@ def chain_of(data: dict):
     Chain
         The beads, diameters in m.
     """
+    return chain_parts(data)[1]
+
+
+def chain_parts(data: dict) -> tuple[ChainConfig, Any]:
+    """``(validated [chain] section, Chain)`` of a config mapping: :func:`chain_of` with the section,
+    so that a model can later be built from it without validating ``[chain]`` again
+    (:func:`build_model` with ``chain=``)."""
     if "materials" in data or not isinstance(data.get("chain"), dict):
-        return build_chain(parse_config(data))
+        cfg = parse_config(data)
+        return cfg.chain, build_chain(cfg)
     try:
         section = ChainConfig.model_validate(data["chain"])
     except ValidationError as exc:
         _raise_config_error(exc, ("chain",))
-    return _chain(section)
+    return section, _chain(section)
 
 
 def _chain(c: ChainConfig):
@@ -595,7 +603,7 @@ def _offsets_key(cfg: RunConfig) -> str:
     return "chain.offsets_fraction" if cfg.chain.offsets_fraction is not None else "chain.offsets_mm"
 
 
-def build_model(cfg: RunConfig):
+def build_model(cfg: RunConfig, chain=None):
     """The :class:`~hertzchain.model.Model` of a config (calibrating the law when ``eps`` is given).
 
     Parameters
@@ -603,6 +611,9 @@ def build_model(cfg: RunConfig):
     cfg : RunConfig
         A validated config (:func:`load_config`, :func:`parse_config`); lengths in mm where the
         key says so (``diameter_mm``), everything else SI.
+    chain : Chain, optional
+        The chain of ``cfg.chain`` when it was built already (:func:`chain_parts`: a design
+        search builds it to check the geometry before it runs the candidate); else built here.
 
     Returns
     -------
@@ -612,7 +623,11 @@ def build_model(cfg: RunConfig):
     from .contact import Dashpot, Elastic, ScaledViscoelastic, Viscoelastic
     from .model import Model, Striker, Wall
 
-    chain = build_chain(cfg)
+    if chain is None:
+        chain = build_chain(cfg)
+    else:
+        _register_materials(cfg)
+        _check_material_names(cfg)
     s = cfg.striker
     striker = Striker(s.diameter_mm * 1e-3, s.velocity, s.material or chain.materials[0])
     wall = Wall(cfg.wall.type, cfg.wall.material)

@@ -13,6 +13,7 @@ feasible set.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -52,8 +53,13 @@ class Constraints(BaseModel):
 
 def geometry(chain) -> dict[str, float]:
     """Smallest diameter [mm], length [mm], mass [kg] and bead count of a :class:`~hertzchain.Chain`."""
-    return {"min_diameter_mm": float(chain.diameters.min() * 1e3), "length_mm": float(chain.diameters.sum() * 1e3),
-            "mass_kg": float(chain.masses.sum()), "n_beads": int(chain.n_beads)}
+    d = chain.diameters
+    mats = chain.materials
+    # Chain.masses, with one density for a chain of one material (the same numbers: the search
+    # checks the geometry of thousands of candidates).
+    rho = mats[0].density if all(m is mats[0] for m in mats) else chain.densities
+    return {"min_diameter_mm": float(d.min() * 1e3), "length_mm": float(d.sum() * 1e3),
+            "mass_kg": float((rho * math.pi * d**3 / 6.0).sum()), "n_beads": d.size}
 
 
 def _excess(value: float, limit: float | None, upper: bool) -> float:

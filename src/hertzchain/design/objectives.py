@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Any, Callable, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -44,7 +44,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..errors import PulseNotFound
 from .constraints import Constraints, geometric_margin, geometric_violation, geometry, run_violation
 
-__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Fidelity", "member_metrics", "search_interval"]
+__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Candidate", "Fidelity", "member_metrics", "search_interval"]
 
 #: Objective names with their units and meaning.
 OBJECTIVES: dict[str, tuple[str, str]] = {
@@ -107,12 +107,15 @@ def search_interval(models: list, interval: float, duration: float) -> float:
     if any(m.precompression for m in models):
         return interval
     tau = math.inf
+    by_material: dict[Any, list[tuple[float, float]]] = {}  # last bead's material: (V, phi_N) per model
     for m in models:
-        chain = m.chain
-        vmax = m.striker.velocity * math.sqrt(m.striker.mass / chain.masses[-1])
+        mat, d = m.chain.materials[-1], float(m.chain.diameters[-1])
+        vmax = m.striker.velocity * math.sqrt(m.striker.mass / (mat.density * math.pi * d ** 3 / 6.0))
         if vmax > 0:
-            speed = float(solitary_wave_speed_from_velocity(chain.materials[-1], vmax))
-            tau = min(tau, float(pulse_duration(chain.diameters[-1], speed)))
+            by_material.setdefault(mat, []).append((vmax, d))
+    for mat, rows in by_material.items():
+        v, d = np.array(rows).T
+        tau = min(tau, float(np.min(pulse_duration(d, solitary_wave_speed_from_velocity(mat, v)))))
     k = max(1, math.floor(tau / (SEARCH_SAMPLES_PER_PULSE * interval))) if math.isfinite(tau) else 1
     return k * interval if k * interval <= duration else interval
 
@@ -179,15 +182,18 @@ class Evaluation:
         return [INFEASIBLE * (1.0 + self.violation)] * len(names)
 
 
-def _pulse_passed(force: np.ndarray) -> bool:
-    """The wall record holds a whole first pulse: it peaked before the end and fell to half its peak."""
-    if force.size < 3 or not np.all(np.isfinite(force)):
-        return False
-    peak = float(force.max())
-    if peak <= 0.0:
-        return False
-    i = int(np.argmax(force >= 0.999 * peak))  # first sample at the pulse's top
-    return i < force.size - 1 and float(force[i:].min()) < 0.5 * peak
+def _pulses_passed(force: np.ndarray) -> np.ndarray:
+    """Per member (rows of ``force``): the wall record holds a whole first pulse, it peaked before
+    the end and fell to half its peak."""
+    m, n = force.shape
+    if n < 3:
+        return np.zeros(m, dtype=bool)
+    finite = np.all(np.isfinite(force), axis=1)
+    f = np.where(finite[:, None], force, 0.0)
+    peak = f.max(axis=1)
+    top = np.argmax(f >= 0.999 * peak[:, None], axis=1)  # first sample at the pulse's top
+    after = np.where(np.arange(n) >= top[:, None], f, np.inf).min(axis=1)
+    return finite & (peak > 0.0) & (top < n - 1) & (after < 0.5 * peak)
 
 
 def member_metrics(ds, objectives: list[str], window: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
@@ -267,7 +273,7 @@ def _metrics(rec: _Records, objectives: list[str], window: tuple[float, float] |
     n = wall.shape[0]
     ratio = np.nanmax(fmax / rec.yield_force, axis=1)
     out: dict[str, np.ndarray] = {"force_over_yield": ratio,
-                                  "pulse_at_wall": np.array([_pulse_passed(wall[i]) for i in range(n)])}
+                                  "pulse_at_wall": _pulses_passed(wall)}
     for name in objectives:
         if name == "peak_wall_force":
             out[name] = np.asarray(rec.peak_wall_force, dtype=float)
@@ -346,21 +352,16 @@ def run_task(task: _Task) -> dict[str, np.ndarray]:
 def _energy_ok(rec: _Records, task: _Task) -> np.ndarray:
     """Whether each member's energy balance holds (:mod:`hertzchain.checks`; the batched engine does
     not check it): a member that gains energy has wrong forces, so it is infeasible, never best."""
-    from ..checks import check_energy_balance, energy_tolerance
-    from ..errors import SimulationDiverged
+    from ..checks import energy_gain, energy_tolerance
 
-    ok = np.ones(len(task.models), dtype=bool)
-    for i, model in enumerate(task.models):
+    if task.dt is None:
         # the adaptive step's largest step is not stored per member: the minimum allowance then
         # (it needs no System: omega_max is only read for a user step)
-        tol = energy_tolerance(model.system() if task.dt is not None else None,
-                               task.dt if task.dt is not None else 0.0)
-        try:
-            check_energy_balance(rec.time, rec.kinetic[i], rec.potential[i], rec.dissipated[i], tolerance=tol,
-                                 cause="run.dt")
-        except SimulationDiverged:
-            ok[i] = False
-    return ok
+        tol = np.full(len(task.models), energy_tolerance(None, 0.0))
+    else:
+        tol = np.array([energy_tolerance(model.system(), task.dt) for model in task.models])
+    gain = energy_gain(rec.kinetic, rec.potential, rec.dissipated)
+    return np.all(np.isfinite(gain) & (gain <= tol[:, None]), axis=1)
 
 
 def summarise(values: np.ndarray, statistic: str, k: float) -> float:
@@ -372,6 +373,21 @@ def summarise(values: np.ndarray, statistic: str, k: float) -> float:
     if statistic == "mean":
         return float(values.mean())
     return float(values.mean() + k * values.std(ddof=1))
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """What a candidate's geometry check built: its run config, its validated ``[chain]``
+    section, its :class:`~hertzchain.chain.Chain`, its
+    :func:`~hertzchain.design.constraints.geometry` and its
+    :func:`~hertzchain.design.constraints.geometric_margin` (>= 0: meets the geometric
+    constraints)."""
+
+    config: dict
+    section: Any
+    chain: Any
+    geometry: dict
+    margin: float
 
 
 @dataclass
@@ -397,6 +413,15 @@ class Evaluator:
         Passed to the engine when it takes one.
     fidelity : Fidelity
         The accuracy the candidates are run at (default: each config's own).
+    base : dict or None
+        The base run config the candidates derive from (:class:`~hertzchain.design.space.Space`
+        copies on write): a candidate that differs from it in ``[chain]`` only gets its model
+        from the base's validated sections and the chain its geometry check built. None: every
+        candidate's config is validated whole.
+    candidates : dict
+        :class:`Candidate` by candidate key, built by :meth:`candidate` since the last
+        :meth:`evaluate` (which empties it: the repair's checks of a generation are what its run
+        reuses, and a search's worth of chains would only weigh on memory).
     """
 
     objectives: list[str]
@@ -408,6 +433,10 @@ class Evaluator:
     device: str | None = None
     cache: dict = field(default_factory=dict)
     fidelity: Fidelity = Fidelity()
+    base: dict | None = None
+    candidates: dict = field(default_factory=dict, repr=False)
+    _base_run: Any = field(default=None, init=False, repr=False)
+    _memory_checked: set = field(default_factory=set, init=False, repr=False)
 
     @property
     def n_scenarios(self) -> int:
@@ -431,16 +460,22 @@ class Evaluator:
                 out.append(model if tol is None else _apply_tolerances(model, tol, d))
         return out
 
-    def _check_memory(self, models: list, duration: float, probes, dt) -> None:
+    def _check_memory(self, models: list, duration: float, probes) -> None:
         """Refuse an engine call whose records cannot fit in memory (hertzchain.checks), naming the
-        setting that sizes it: the population (one call per generation) or the Dask chunk size."""
-        from ..checks import check_resources, estimate_resources
+        setting that sizes it: the population (one call per generation) or the Dask chunk size.
+        The records' size depends on the largest bead count and the member count only: each pair
+        is checked once."""
+        from ..checks import check_resources, estimate_memory
 
         members = len(models) if self.client is None else min(self.chunk_size, len(models))
-        largest = max(models, key=lambda m: m.chain.n_beads)
-        est = estimate_resources(largest.system(), duration, probes, dt=dt, members=members)
-        check_resources(replace(est, seconds=0.0),
+        n_beads = max(m.chain.n_beads for m in models)
+        has_wall = any(m.wall.present for m in models)
+        seen = (n_beads, has_wall, members, duration, probes.sample_interval)
+        if seen in self._memory_checked:
+            return
+        check_resources(estimate_memory(n_beads, has_wall, duration, probes, members),
                         memory_field="design.population" if self.client is None else "design.chunk_size")
+        self._memory_checked.add(seen)
 
     @property
     def has_geometric_constraints(self) -> bool:
@@ -449,28 +484,66 @@ class Evaluator:
         return any(v is not None for v in (c.min_diameter_mm, c.max_length_mm, c.max_mass_kg, c.min_beads,
                                             c.max_beads))
 
-    def geometric_margin(self, config: dict) -> float:
-        """:func:`~hertzchain.design.constraints.geometric_margin` of a candidate's run config (no
-        run): >= 0 when it meets every geometric constraint."""
-        from ..config import chain_of
+    def candidate(self, key, config: dict | Callable[[], dict]) -> Candidate:
+        """The chain and geometry of a candidate (no run), built once per ``key``.
 
-        return geometric_margin(self.constraints, geometry(chain_of(config)))
+        Parameters
+        ----------
+        key : hashable
+            The candidate's identity (:meth:`~hertzchain.design.space.Space.key`).
+        config : dict or callable
+            Its run config, or a function that builds it (called only when ``key`` is new).
 
-    def evaluate(self, keys: list, configs: list[dict]) -> list[Evaluation]:
-        """Evaluate candidates (``keys`` identify equal candidates: each is simulated once, ever)."""
-        from ..config import build_model, build_probes, parse_config
+        Returns
+        -------
+        Candidate
+            Section, chain, geometry and geometric margin (>= 0: every geometric constraint holds).
+        """
+        cand = self.candidates.get(key)
+        if cand is None:
+            from ..config import chain_parts
+
+            cfg = config() if callable(config) else config
+            section, chain = chain_parts(cfg)
+            geo = geometry(chain)
+            cand = Candidate(cfg, section, chain, geo, geometric_margin(self.constraints, geo))
+            self.candidates[key] = cand
+        return cand
+
+    def _run_config(self, cand: Candidate):
+        """The validated run config of a candidate: the base's sections with the candidate's
+        ``[chain]`` when nothing else differs (the sections are shared by identity: copy on
+        write), else the whole config validated."""
+        from ..config import parse_config
+
+        cfg = cand.config
+        base = self.base
+        if (base is not None and cfg.keys() == base.keys()
+                and all(v is base[k] for k, v in cfg.items() if k != "chain")):
+            if self._base_run is None:
+                self._base_run = parse_config(base)
+            return self._base_run.model_copy(update={"chain": cand.section})
+        return parse_config(cfg)
+
+    def evaluate(self, keys: list, configs: list[dict | Callable[[], dict]]) -> list[Evaluation]:
+        """Evaluate candidates (``keys`` identify equal candidates: each is simulated once, ever;
+        ``configs``: their run configs, or functions that build them, called only for candidates
+        not evaluated before)."""
+        from ..config import build_model, build_probes
         from ..probes import Probes
 
         results: dict[int, Evaluation] = {}
         pending: dict[Any, tuple[int, dict, dict, Any]] = {}
+        run0 = None
         for i, (key, cfg) in enumerate(zip(keys, configs)):
             if key in self.cache:
                 results[i] = replace(self.cache[key], engine_runs=0)
                 continue
             if key in pending:
                 continue
-            model = build_model(parse_config(cfg))
-            geo = geometry(model.chain)
+            cand = self.candidate(key, cfg)
+            cfg = cand.config
+            geo = cand.geometry
             viol = geometric_violation(self.constraints, geo)
             if viol > 0:
                 ev = Evaluation({n: math.nan for n in self.objectives}, False, viol, dict(geo),
@@ -478,46 +551,47 @@ class Evaluator:
                 self.cache[key] = ev
                 results[i] = ev
             else:
-                pending[key] = (i, cfg, geo, model)
+                run_cfg = self._run_config(cand)
+                run0 = run0 or run_cfg
+                pending[key] = (i, cfg, geo, build_model(run_cfg, chain=cand.chain))
         if pending:
-            run0 = parse_config(next(iter(pending.values()))[1])
-            models, owner = [], []
+            models, counts = [], []  # each candidate's scenario runs are contiguous
             for key, (i, cfg, geo, model) in pending.items():
                 ms = self._scenario_models(cfg, model)
                 models += ms
-                owner += [key] * len(ms)
+                counts.append(len(ms))
             fid = self.fidelity
             interval = build_probes(run0).sample_interval
             if fid.coarse_sampling:  # from every scenario: a faster striker gives a shorter pulse
                 interval = search_interval(models, interval, run0.run.duration)
             probes = Probes(sample_interval=interval, contacts=())
             spr = fid.steps_per_radian or run0.run.steps_per_radian
-            self._check_memory(models, run0.run.duration, probes, run0.run.dt)
+            self._check_memory(models, run0.run.duration, probes)
             tasks = [_Task(models[s:s + self.chunk_size], run0.run.duration, probes, run0.run.dt, self.objectives,
                            self.window, self.device, spr)
                      for s in range(0, len(models), self.chunk_size)] if self.client is not None else \
                 [_Task(models, run0.run.duration, probes, run0.run.dt, self.objectives, self.window, self.device, spr)]
             parts = _gather(self.client, tasks)
             merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-            position = {k: j for j, k in enumerate(pending)}
-            owner_arr = np.array([position[k] for k in owner])
+            # Per candidate, over its scenario runs: worst yield ratio, every pulse arrived, every
+            # energy balance held (as Python values, once for the whole generation).
+            starts = np.cumsum([0] + counts[:-1])
+            fys = np.maximum.reduceat(merged["force_over_yield"], starts).tolist()
+            pulses = np.logical_and.reduceat(merged["pulse_at_wall"], starts).tolist()
+            energies = np.logical_and.reduceat(merged["energy_ok"], starts).tolist()
+            values = {n: merged[n].tolist() for n in self.objectives}
             for j, (key, (i, cfg, geo, _)) in enumerate(pending.items()):
-                sel = owner_arr == j
-                fy = float(merged["force_over_yield"][sel].max())
-                pulse = bool(merged["pulse_at_wall"][sel].all())
-                energy = bool(merged["energy_ok"][sel].all())
-                objs = {}
-                for n in self.objectives:
-                    vals = merged[n][sel]
-                    objs[n] = (summarise(vals, self.robust.statistic, self.robust.k) if self.robust else float(vals[0]))
+                s0, c = int(starts[j]), counts[j]
+                fy, pulse, energy = fys[j], pulses[j], energies[j]
+                objs = {n: (summarise(merged[n][s0:s0 + c], self.robust.statistic, self.robust.k) if self.robust
+                            else values[n][s0]) for n in self.objectives}
                 viol = run_violation(self.constraints, fy, pulse)
                 if any(not math.isfinite(v) for v in objs.values()) or not energy:
                     viol = max(viol, 1.0)  # no objective value (no pulse to fit) or a wrong run: infeasible
-                ev = Evaluation(objs, viol == 0, viol, {**geo, "force_over_yield": fy, "pulse_at_wall": pulse,
-                                                        "energy_ok": energy}, engine_runs=int(sel.sum()),
-                                fidelity=fid.name)
-                self.cache[key] = replace(ev, engine_runs=0)
-                results[i] = ev
+                metrics = {**geo, "force_over_yield": fy, "pulse_at_wall": pulse, "energy_ok": energy}
+                self.cache[key] = Evaluation(objs, viol == 0, viol, metrics, fidelity=fid.name)
+                results[i] = Evaluation(objs, viol == 0, viol, metrics, engine_runs=c, fidelity=fid.name)
+        self.candidates.clear()
         out = []
         for i, key in enumerate(keys):
             out.append(results[i] if i in results else replace(self.cache[key], engine_runs=0))

@@ -292,23 +292,30 @@ def _parse_spec(raw: Any, name: str) -> tuple[str, float, float, tuple, bool | s
     return "real", float(spec.low), float(spec.high), (), spec.monotone
 
 
-def _own_path(cfg: dict, tokens: tuple, copied: set[int]) -> None:
-    """Replace the tables and lists along ``tokens`` (all but the last) by copies made for ``cfg``
-    (ids in ``copied``), so that setting the value there leaves the shared base untouched. Stops
-    where the path leaves the config: ``set_path`` then names what is wrong."""
+def _set_own(cfg: dict, tokens: tuple, value: Any, copied: set[int], name: str) -> None:
+    """Set ``value`` at ``tokens`` in ``cfg``, first replacing the tables and lists along the way
+    by copies made for ``cfg`` (ids in ``copied``), so that the shared base is left untouched.
+    Where the path leaves the config, ``set_path`` takes over: it creates missing tables or
+    names what is wrong (``name``: the field as the user wrote it)."""
     node: Any = cfg
     for tok in tokens[:-1]:
-        if isinstance(node, dict) and isinstance(tok, str) and tok in node:
+        if type(node) is dict and type(tok) is str and tok in node:
             child = node[tok]
-        elif isinstance(node, list) and isinstance(tok, int) and tok < len(node):
+        elif type(node) is list and type(tok) is int and tok < len(node):
             child = node[tok]
         else:
+            set_path(cfg, list(tokens), value, name)
             return
         if isinstance(child, (dict, list)) and id(child) not in copied:
             child = dict(child) if isinstance(child, dict) else list(child)
             copied.add(id(child))
             node[tok] = child
         node = child
+    last = tokens[-1]
+    if (type(node) is dict and type(last) is str) or (type(node) is list and type(last) is int and last < len(node)):
+        node[last] = value
+    else:
+        set_path(cfg, list(tokens), value, name)
 
 
 @dataclass
@@ -331,6 +338,11 @@ class Space:
     variables: list[Variable]
     shape: Shape | None = None
     monotone: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self._by_group: dict[str, list[Variable]] = {}
+        for v in self.variables:
+            self._by_group.setdefault(v.group, []).append(v)
 
     @property
     def dim(self) -> int:
@@ -362,8 +374,12 @@ class Space:
 
     def key(self, x: np.ndarray) -> tuple:
         """Hashable identity of the candidate ``x`` decodes to (equal keys: equal run configs)."""
-        vals = self.values(x)
-        return tuple((g, tuple(v) if isinstance(v, list) else v) for g, v in vals.items())
+        return self.key_of(self.values(x))
+
+    @staticmethod
+    def key_of(values: dict[str, Any]) -> tuple:
+        """:meth:`key` of a candidate given by its ``{group path: value}``."""
+        return tuple((g, tuple(v) if isinstance(v, list) else v) for g, v in values.items())
 
     def config(self, values: dict[str, Any]) -> dict:
         """The run config (mapping) of a candidate given by ``{group path: value}``.
@@ -375,9 +391,7 @@ class Space:
         cfg = dict(self.base)
         copied: set[int] = set()
         shape_params = dict(self.shape.params) if self.shape is not None else {}
-        by_group: dict[str, list[Variable]] = {}
-        for v in self.variables:
-            by_group.setdefault(v.group, []).append(v)
+        by_group = self._by_group
         for g, val in values.items():
             vs = by_group[g]
             vals = val if vs[0].path != g else [val]
@@ -385,8 +399,7 @@ class Space:
                 if v.tokens[0] == "shape":
                     shape_params[v.tokens[1]] = value
                 else:
-                    _own_path(cfg, v.tokens, copied)
-                    set_path(cfg, list(v.tokens), value, _variable_field(g))
+                    _set_own(cfg, v.tokens, value, copied, _variable_field(g))
         if self.shape is not None:
             cfg = self._apply_shape(cfg, shape_params)
         return cfg
