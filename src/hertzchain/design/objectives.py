@@ -36,11 +36,12 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Literal
+from typing import Any, Callable, Literal, NamedTuple
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from ..config import build_model, build_probes, chain_parts, parse_config
 from ..errors import PulseNotFound
 from .constraints import Constraints, geometric_margin, geometric_violation, geometry, run_violation
 
@@ -375,13 +376,12 @@ def summarise(values: np.ndarray, statistic: str, k: float) -> float:
     return float(values.mean() + k * values.std(ddof=1))
 
 
-@dataclass(frozen=True)
-class Candidate:
+class Candidate(NamedTuple):
     """What a candidate's geometry check built: its run config, its validated ``[chain]``
     section, its :class:`~hertzchain.chain.Chain`, its
     :func:`~hertzchain.design.constraints.geometry` and its
     :func:`~hertzchain.design.constraints.geometric_margin` (>= 0: meets the geometric
-    constraints)."""
+    constraints). A named tuple: a search builds thousands."""
 
     config: dict
     section: Any
@@ -446,7 +446,6 @@ class Evaluator:
         return len(self.robust.velocities or [None]) * self.robust.draws
 
     def _scenario_models(self, cfg: dict, nominal) -> list:
-        from ..config import build_model, parse_config
         from ..sweep import Tolerances, _apply_tolerances
 
         if self.robust is None:
@@ -501,8 +500,6 @@ class Evaluator:
         """
         cand = self.candidates.get(key)
         if cand is None:
-            from ..config import chain_parts
-
             cfg = config() if callable(config) else config
             section, chain = chain_parts(cfg)
             geo = geometry(chain)
@@ -514,8 +511,6 @@ class Evaluator:
         """The validated run config of a candidate: the base's sections with the candidate's
         ``[chain]`` when nothing else differs (the sections are shared by identity: copy on
         write), else the whole config validated."""
-        from ..config import parse_config
-
         cfg = cand.config
         base = self.base
         if (base is not None and cfg.keys() == base.keys()
@@ -529,7 +524,6 @@ class Evaluator:
         """Evaluate candidates (``keys`` identify equal candidates: each is simulated once, ever;
         ``configs``: their run configs, or functions that build them, called only for candidates
         not evaluated before)."""
-        from ..config import build_model, build_probes
         from ..probes import Probes
 
         results: dict[int, Evaluation] = {}

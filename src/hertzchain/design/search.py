@@ -333,7 +333,9 @@ def _margin(problem: DesignProblem, evaluator: Evaluator, x: np.ndarray) -> floa
     chain it builds is kept for the candidate's run (:meth:`Evaluator.candidate`)."""
     space = problem.space
     vals = space.values(x)
-    return evaluator.candidate(space.key_of(vals), lambda: space.config(vals)).margin
+    key = space.key_of(vals)
+    cand = evaluator.candidates.get(key)
+    return (cand if cand is not None else evaluator.candidate(key, space.config(vals))).margin
 
 
 def _to_boundary(problem: DesignProblem, evaluator: Evaluator, good: np.ndarray, bad: np.ndarray,
@@ -459,21 +461,39 @@ def _repair_initial(problem: DesignProblem, evaluator: Evaluator, xs: list[np.nd
     # meet them to the mean of those that break them.
     binds = pts[bad][:, real].mean(axis=0) - pts[good][:, real].mean(axis=0)
     out = list(xs)
+    # With one real coordinate, a choice's boundary along it is one point: found once, then given
+    # to the choice's other points beyond it (searching again would find the same point, and the
+    # near-copy would cost a run of its own).
+    single = int(real.sum()) == 1
+    found: dict[tuple, list[np.ndarray]] = {}
     for i in np.flatnonzero(bad):
-        # Anchors in the candidate's own discrete bin come first: the repair is then a search along
-        # the real coordinates alone (see _repair_point), with no check spent on a start point.
+        x, b = pts[i], tuple(bins[i])
         other_bin = np.any(bins[good] != bins[i], axis=1)
-        near = good[int(np.argmin(np.sum((pts[good] - pts[i]) ** 2, axis=1) + 4.0 * other_bin))]
-        if other_bin.all():
+        start = f_start = None
+        if not other_bin.all():
+            # An anchor in the candidate's own discrete bin: the repair is then a search along the
+            # real coordinates alone, with no check spent on a start point.
+            near = good[int(np.argmin(np.where(other_bin, np.inf, np.sum((pts[good] - x) ** 2, axis=1))))]
+            start, f_start = pts[near], margins[near]
+        else:
             # No sampled point of this choice meets the limits: back off against the binding
             # direction to the box's edge, and search from there if it meets them (the choice
             # keeps its boundary point rather than giving it up for a neighbour's).
-            back = _to_edge(pts[i], -binds, real)
+            back = _to_edge(x, -binds, real)
             f_back = _margin(problem, evaluator, back) if back is not None else -1.0
             if f_back >= 0:
-                out[i] = _to_boundary(problem, evaluator, back, pts[i], _REPAIR_STEPS, f_back, margins[i])
-                continue
-        out[i] = _repair_point(problem, evaluator, pts[near], pts[i], margins[near], margins[i])
+                start, f_start = back, f_back
+        if start is None:
+            near = good[int(np.argmin(np.sum((pts[good] - x) ** 2, axis=1)))]
+            out[i] = _repair_point(problem, evaluator, pts[near], x, margins[near], margins[i])
+            continue
+        known = [y for y in found.get(b, ()) if float(((y - start)[real] * (x - y)[real]).sum()) >= 0.0]
+        if known:
+            out[i] = known[0]
+            continue
+        out[i] = _to_boundary(problem, evaluator, start, x, _REPAIR_STEPS, f_start, margins[i])
+        if single:
+            found.setdefault(b, []).append(out[i])
     return out + _choice_boundaries(problem, evaluator, pts, bad, margins, bins, binds, len(xs) // 2)
 
 
