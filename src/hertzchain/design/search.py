@@ -337,7 +337,8 @@ def _margin(problem: DesignProblem, evaluator: Evaluator, x: np.ndarray) -> floa
 
 
 def _to_boundary(problem: DesignProblem, evaluator: Evaluator, good: np.ndarray, bad: np.ndarray,
-                 steps: int, f_good: float | None = None, f_bad: float | None = None) -> np.ndarray:
+                 steps: int, f_good: float | None = None, f_bad: float | None = None,
+                 slack: float = _BOUNDARY_SLACK) -> np.ndarray:
     """The last point of the segment from ``good`` (meets the geometric constraints) to ``bad``
     (breaks one) that still meets them, to 2^-steps of its length, from the geometry alone (no
     engine run). Optima often lie on such a boundary (the smallest bead allowed, the longest
@@ -346,15 +347,15 @@ def _to_boundary(problem: DesignProblem, evaluator: Evaluator, good: np.ndarray,
     The boundary is found by Chandrupatla's method (Advances in Engineering Software 28, 145,
     1997) on the signed geometric margin: inverse quadratic interpolation through the last three
     points where it is safe, bisection where not, the bracket always kept; the first step is
-    false position. It aims at the middle of the accepted band (a margin from 0 to
-    :data:`_BOUNDARY_SLACK`) and stops at the first point inside it, or, when the bracket is
+    false position. It aims at the middle of the accepted band (a margin from 0 to ``slack``,
+    default :data:`_BOUNDARY_SLACK`) and stops at the first point inside it, or, when the bracket is
     below 2^-steps of the segment (or after 2 (steps + 1) checks), at the bracket's end that
     meets the constraints. On the repairs of the n-q problem's first generations (30 seeds) it
     needs 2.8 geometry checks where the ITP method needed 3.7. ``f_good`` and ``f_bad`` are the
     ends' margins when known.
     """
     eps = 2.0 ** -(steps + 1)  # half the tolerated bracket
-    half = 0.5 * _BOUNDARY_SLACK
+    half = 0.5 * slack
 
     def point(t: float) -> np.ndarray:
         return problem.space.centre(good + t * (bad - good))
@@ -425,8 +426,10 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float, evaluato
             if repair and v.kind == "real":
                 f_y = _margin(problem, evaluator, y)
                 if f_y < 0:
+                    # The accepted band narrows with the step, so that the polish closes in on the
+                    # boundary (at the first steps' width, every step would stop as far from it).
                     y = _to_boundary(problem, evaluator, x, y, max(1, math.ceil(math.log2(h / _POLISH_HMIN))),
-                                     f_x, f_y)
+                                     f_x, f_y, slack=_BOUNDARY_SLACK * min(1.0, h / _POLISH_H0))
             if not np.array_equal(y, x):
                 out.append(y)
     return out
