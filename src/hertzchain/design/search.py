@@ -468,7 +468,7 @@ def _repair_initial(problem: DesignProblem, evaluator: Evaluator, xs: list[np.nd
     pts = np.asarray(xs, float)
     good = np.flatnonzero(~bad)
     real = problem.space.real
-    bins = np.array([problem.space.centre(x)[~real] for x in pts])
+    bins = [tuple(problem.space.centre(x)[~real].tolist()) for x in pts]  # each point's discrete choice
     # The direction in which the limits bind: from the mean real coordinates of the points that
     # meet them to the mean of those that break them.
     binds = pts[bad][:, real].mean(axis=0) - pts[good][:, real].mean(axis=0)
@@ -479,13 +479,13 @@ def _repair_initial(problem: DesignProblem, evaluator: Evaluator, xs: list[np.nd
     single = int(real.sum()) == 1
     found: dict[tuple, list[np.ndarray]] = {}
     for i in np.flatnonzero(bad):
-        x, b = pts[i], tuple(bins[i])
-        other_bin = np.any(bins[good] != bins[i], axis=1)
+        x, b = pts[i], bins[i]
+        same = [j for j in good if bins[j] == b]
         start = f_start = None
-        if not other_bin.all():
+        if same:
             # An anchor in the candidate's own discrete bin: the repair is then a search along the
             # real coordinates alone, with no check spent on a start point.
-            near = good[int(np.argmin(np.where(other_bin, np.inf, np.sum((pts[good] - x) ** 2, axis=1))))]
+            near = same[int(np.argmin(np.sum((pts[same] - x) ** 2, axis=1)))]
             start, f_start = pts[near], margins[near]
         else:
             # No sampled point of this choice meets the limits: back off against the binding
@@ -513,10 +513,10 @@ def _to_edge(x: np.ndarray, d: np.ndarray, real: np.ndarray) -> np.ndarray | Non
     """``x`` moved along ``d`` (real coordinates) to the edge of the unit box; None when ``d`` is
     zero or ``x`` is on that edge already."""
     xr = x[real]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        reach = np.where(d > 0, (1.0 - xr) / d, np.where(d < 0, -xr / d, np.inf))
-    t = float(reach.min()) if reach.size else 0.0
-    if not (0.0 < t < np.inf):
+    # How far along d each coordinate may go before it leaves [0, 1] (a few coordinates: plain floats).
+    t = min(((1.0 - xi) / di if di > 0 else -xi / di for xi, di in zip(xr.tolist(), d.tolist()) if di != 0),
+            default=math.inf)
+    if not 0.0 < t < math.inf:
         return None
     out = x.copy()
     out[real] = np.clip(xr + t * d, 0.0, 1.0)
@@ -524,9 +524,9 @@ def _to_edge(x: np.ndarray, d: np.ndarray, real: np.ndarray) -> np.ndarray | Non
 
 
 def _choice_boundaries(problem: DesignProblem, evaluator: Evaluator, pts: np.ndarray, bad: np.ndarray,
-                       margins: np.ndarray, bins: np.ndarray, binds: np.ndarray, most: int) -> list[np.ndarray]:
-    """Boundary points of the discrete choices the initial sample met only inside the geometric
-    limits (at most ``most`` of them).
+                       margins: np.ndarray, bins: list[tuple], binds: np.ndarray, most: int) -> list[np.ndarray]:
+    """Boundary points of the discrete choices (``bins``: each point's) the initial sample met only
+    inside the geometric limits (at most ``most`` of them).
 
     The repair puts every sampled point past a limit onto it, so each discrete choice (bead
     count, catalogue size, material) with such a point has a boundary point in the first
@@ -542,13 +542,13 @@ def _choice_boundaries(problem: DesignProblem, evaluator: Evaluator, pts: np.nda
     real = problem.space.real
     if real.all() or most < 1 or not np.any(binds):
         return []
-    crossed = {tuple(b) for b in bins[bad]}
+    crossed = {bins[j] for j in np.flatnonzero(bad)}
     good = np.flatnonzero(~bad)
     out: list[np.ndarray] = []
-    for b in dict.fromkeys(tuple(bins[j]) for j in good):
+    for b in dict.fromkeys(bins[j] for j in good):
         if b in crossed:
             continue
-        members = [j for j in good if tuple(bins[j]) == b]
+        members = [j for j in good if bins[j] == b]
         j = members[int(np.argmax(pts[members][:, real] @ binds))]
         x = pts[j]
         edge = _to_edge(x, binds, real)
