@@ -239,7 +239,8 @@ def test_the_first_generation_holds_the_boundary_point_of_every_bead_count_it_sa
     (Latin hypercube, repair, and the choices' boundary points) holds, for every bead count it
     samples, a point that meets the limit within the repair's resolution (2^-6 of the q range
     or the boundary slack) at q*(n), or at the box's edge q = 0.15 where the whole range is
-    allowed; and no point breaks the limit."""
+    allowed, and only one such point per bead count (no near-copies to pay runs for); and no
+    point breaks the limit."""
     from scipy.stats import qmc
 
     from hertzchain.design.objectives import Evaluator
@@ -257,6 +258,11 @@ def test_the_first_generation_holds_the_boundary_point_of_every_bead_count_it_sa
         assert np.all(last >= 15.0)
         near = (qs >= q_star - 0.15 * 2.0 ** -_REPAIR_STEPS) | (last <= 15.0 * (1 + _BOUNDARY_SLACK))
         assert near.any(), (n, q_star, qs)
+        # One real coordinate: a choice's boundary point is found once and shared, so the points
+        # that are not sampled ones (repaired or added) hold one q per bead count, no near-copies.
+        moved = {v["chain.taper.q"] for v in points if v["chain.taper.n"] == n} - {
+            v["chain.taper.q"] for v in (p.space.values(x) for x in xs) if v["chain.taper.n"] == n}
+        assert len(moved) <= 1, (n, moved)
 
 
 def test_sweeps_run_at_the_base_steps_per_radian_and_refuse_to_vary_it(tmp_path):

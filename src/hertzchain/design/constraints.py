@@ -18,7 +18,8 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-__all__ = ["Constraints", "geometry", "geometric_violation", "geometric_margin", "run_violation"]
+__all__ = ["Constraints", "has_geometric_constraints", "geometry", "geometric_violation", "geometric_margin",
+           "run_violation"]
 
 
 class Constraints(BaseModel):
@@ -49,6 +50,11 @@ class Constraints(BaseModel):
     max_beads: int | None = Field(default=None, ge=1)
     max_force_over_yield: float | None = Field(default=None, gt=0)
     pulse_at_wall: bool = True
+
+
+def has_geometric_constraints(c: Constraints) -> bool:
+    """Whether any constraint is checked on the geometry (before a run)."""
+    return any(v is not None for v in (c.min_diameter_mm, c.max_length_mm, c.max_mass_kg, c.min_beads, c.max_beads))
 
 
 def geometry(chain) -> dict[str, float]:

@@ -43,9 +43,11 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from ..config import build_model, build_probes, chain_parts, parse_config
 from ..errors import PulseNotFound
-from .constraints import Constraints, geometric_margin, geometric_violation, geometry, run_violation
+from .constraints import (Constraints, geometric_margin, geometric_violation, geometry, has_geometric_constraints,
+                          run_violation)
 
-__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Candidate", "Fidelity", "member_metrics", "search_interval"]
+__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Candidate", "Fidelity", "member_metrics",
+           "search_interval"]
 
 #: Objective names with their units and meaning.
 OBJECTIVES: dict[str, tuple[str, str]] = {
@@ -479,9 +481,7 @@ class Evaluator:
     @property
     def has_geometric_constraints(self) -> bool:
         """Whether any constraint is checked on the geometry (before a run)."""
-        c = self.constraints
-        return any(v is not None for v in (c.min_diameter_mm, c.max_length_mm, c.max_mass_kg, c.min_beads,
-                                            c.max_beads))
+        return has_geometric_constraints(self.constraints)
 
     def candidate(self, key, config: dict | Callable[[], dict]) -> Candidate:
         """The chain and geometry of a candidate (no run), built once per ``key``.

@@ -46,6 +46,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import ConfigError, HertzchainError
+from .constraints import has_geometric_constraints
 from .objectives import INFEASIBLE, Evaluator, Fidelity
 from .problem import DesignProblem, search_fidelity
 
@@ -162,15 +163,17 @@ def _population(problem: DesignProblem) -> int:
 
 def _initial_sample(problem: DesignProblem) -> int:
     """Points of the Latin hypercube that starts a one-objective search: ``[design].population``,
-    else max(16, the CMA-ES population): the whole space is surveyed once before CMA-ES starts
-    from its best point. With the repair and the discrete choices' boundary points
-    (:func:`_repair_initial`) 16 points did as well as 32 for less: on the n-q benchmark problem
-    every one of 40 seeds had the optimum in the first generation either way (10 ms against
-    14.5 ms); ``examples/design_taper.toml`` found the same optimum on 3 seeds, and
-    ``examples/design_robust.toml`` (no real variable: no repair) a mean 15.3 N against 16.2 N."""
+    else the CMA-ES population and at least 16 points where the first sample is repaired onto the
+    geometric limits (:func:`_repair_initial`: a limit and a real variable), 32 elsewhere: the
+    whole space is surveyed once before CMA-ES starts from its best point. With the repair and
+    the discrete choices' boundary points 16 points did as well as 32 for less (n-q benchmark
+    problem, 40 seeds: the optimum in the first generation every time either way, 10 ms against
+    14.5 ms; ``examples/design_taper.toml``: the same optimum on 3 seeds). Without them
+    (``examples/design_robust.toml``: catalogue sizes only) the sample is all there is to start
+    from, and 32 it stays."""
     if problem.section.population:
         return problem.section.population
-    return max(16, _population(problem))
+    return max(16 if _repairs(problem) else 32, _population(problem))
 
 
 def _new_optimiser(problem: DesignProblem, restart: int = 0, x0: np.ndarray | None = None):
@@ -316,14 +319,14 @@ def _load(out: Path, problem: DesignProblem, force: bool) -> _State | None:
     return state
 
 
-def _repairs(problem: DesignProblem, evaluator: Evaluator) -> bool:
+def _repairs(problem: DesignProblem) -> bool:
     """Whether candidates past a geometric constraint are moved onto its boundary: when there is
     such a constraint and a real variable. Bisection approaches a boundary along continuous
     coordinates; in a space of discrete coordinates only (integers, catalogue sizes, materials)
     the boundary's points are grid points that the search's own steps reach, and moving a point
     across many bins at once only crowded the first sample (a 14-bead catalogue design found a
     22 % worse optimum with it)."""
-    return evaluator.has_geometric_constraints and bool(problem.space.real.any())
+    return has_geometric_constraints(problem.section.constraints) and bool(problem.space.real.any())
 
 
 def _margin(problem: DesignProblem, evaluator: Evaluator, x: np.ndarray) -> float:
@@ -415,7 +418,7 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float, evaluato
     """Compass neighbours of ``x``: +- h on every real coordinate, the next bin on every discrete
     one; a real step that breaks a geometric constraint stops on its boundary instead."""
     out = []
-    repair = _repairs(problem, evaluator)
+    repair = _repairs(problem)
     f_x = _margin(problem, evaluator, x) if repair else None
     for j, v in enumerate(problem.space.variables):
         step = h if v.kind == "real" else 1.0 / v.n_values
@@ -439,7 +442,7 @@ def _repair(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: lis
     """Population candidates that break a geometric constraint, moved onto its boundary on their
     way to the best feasible point so far (:func:`_to_boundary`); the others unchanged."""
     best = _best_row(problem, state.history)
-    if best is None or not best["feasible"] or not _repairs(problem, evaluator):
+    if best is None or not best["feasible"] or not _repairs(problem):
         return xs
     good = np.asarray(best["x"], float)
     out = []
@@ -459,7 +462,7 @@ def _repair_initial(problem: DesignProblem, evaluator: Evaluator, xs: list[np.nd
     beyond the boundary says nothing the boundary itself does not. Followed by the boundary
     points of the discrete choices whose sampled points all meet the constraints
     (:func:`_choice_boundaries`; up to half the sample more)."""
-    if not _repairs(problem, evaluator):
+    if not _repairs(problem):
         return xs
     margins = np.array([_margin(problem, evaluator, x) for x in xs])
     bad = margins < 0
