@@ -13,7 +13,7 @@ from pathlib import Path
 
 import click
 
-from .cli_options import set_option
+from .cli_options import freeze_imports, set_option
 
 
 @contextmanager
@@ -155,7 +155,7 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
         laws_figure = start_laws_figure(out)  # drawn on the idle core while the imports below run
         from .paper.reproduce import FIGURE_NAMES, redraw
 
-        _freeze_imports()
+        freeze_imports()
         with progress_bar("redrawing figures and report", lazy=True) as update:  # errors first, no bar
             done = [0]
 
@@ -175,7 +175,7 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
     from .paper.protocol import Settings
     from .paper.reproduce import count_steps, reproduce as run_reproduction
 
-    _freeze_imports()
+    freeze_imports()
     settings = Settings(striker_velocity=velocity, elastic=elastic, law=law, eps=eps)
     total = count_steps(settings, figures=not no_figures)
     with progress_bar("reproducing the paper") as update:
@@ -192,16 +192,6 @@ def reproduce(out: Path, velocity: float, elastic: bool, law: str, eps: float, n
                f"Q1 = {c1['Q_fit']:.4f} +- {c1['Q_fit_err']:.4f} (theory {c1['Q_theory']:.4f}, paper 1.025 +- 0.016), "
                f"Q2 = {c2['Q_fit']:.4f} +- {c2['Q_fit_err']:.4f} (theory {c2['Q_theory']:.4f}, paper 1.049 +- 0.044), "
                f"eps = {summary['eps']:.4f}")
-
-
-def _freeze_imports() -> None:
-    """Move the objects alive now (the imported modules: most of the heap) out of the garbage
-    collector's reach. They live to the end anyway; otherwise each full collection rescans them
-    while the traces are read and again at exit (~0.45 s of ``reproduce --from-data``), and the
-    forked drawing processes would touch (copy) their pages doing so."""
-    import gc
-
-    gc.freeze()
 
 
 def _echo_elastic_limit(summary: dict) -> None:

@@ -561,16 +561,19 @@ def ragged(models: Sequence[Model]) -> Ragged:
     diameters = np.empty((len(models), nmax))
     offsets = np.zeros((len(models), nmax))
     bead_material = np.empty((len(models), nmax), dtype=np.int64)
-    rows: dict[tuple[int, ...], list[int]] = {}
+    rows: dict[tuple, list[int]] = {}
     for i, (mdl, n) in enumerate(zip(models, n_each.tolist())):
         chain = mdl.chain
         diameters[i, :n] = chain.diameters
         diameters[i, n:] = chain.diameters[-1]  # padding: finite numbers, never used
         offsets[i, :n] = chain.offsets
-        key = tuple(map(id, chain.materials))
+        mats = chain.materials
+        first = mats[0]
+        one = all(x is first for x in mats)  # one material throughout (the usual chain): one lookup
+        key = ("one", id(first), n) if one else tuple(map(id, mats))
         row = rows.get(key)
         if row is None:
-            row = rows[key] = [idx(x) for x in chain.materials]
+            row = rows[key] = [idx(first)] * n if one else [idx(x) for x in mats]
         bead_material[i, :n] = row
         bead_material[i, n:] = row[-1]
     scalars = np.array([(x.striker.diameter, x.striker.velocity, float(x.law.parameter), x.precompression)
