@@ -18,11 +18,11 @@
    infeasible candidates skipped without a simulation). Equal quality: a hit of the design's
    coarse search counts only if that candidate's FULL-accuracy objective is within 1 % (every
    coarse hit is simulated again at full accuracy after the run, outside the timed region; the
-   first verified hit's time counts), and the design's time includes its start-up before the
-   search clock starts (lock, fidelity set-up). Also saved: the time until the design has
-   verified its best at full accuracy (the whole run). Both are seeded; ten seeds are run (the
-   design hits within its first generation or two, so five seeds left the median to luck) and
-   the median times are compared.
+   first verified hit's time counts), and the design's time includes what it spends outside
+   its search clock (lock, set-up, freeing the search state at the end). Also saved: the time
+   until the design has verified its best at full accuracy (the whole run). Both are seeded;
+   ten seeds are run (DE needs anywhere from 28 to 144 simulations, so five seeds left its
+   median to luck) and the median times are compared.
 
 Saves results/design.json with machine info (~1-2 min on 2 cores).
 """
