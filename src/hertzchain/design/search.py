@@ -12,10 +12,11 @@ candidates ever evaluated as the Pareto front.
 
 Geometric constraints (smallest bead, length, mass, bead count) are checked without a run, and
 optima often lie on them: in a space with a real variable, a candidate that breaks one is moved
-onto its boundary by false position on the geometry (:func:`_to_boundary`), towards the nearest
+onto its boundary by root finding on the geometry (:func:`_to_boundary`), towards the nearest
 feasible point of the initial sample, towards the best feasible point in CMA-ES (which learns
 from the point it sampled, charged with the distance it was moved), or along its coordinate in
-the polish.
+the polish; and the initial sample also holds the boundary point of every discrete choice it
+samples (:func:`_repair_initial`, :func:`_choice_boundaries`).
 
 Multi-fidelity: the search runs candidates at the coarse accuracy of
 :func:`~hertzchain.design.problem.search_fidelity` (``design.search_steps_per_radian``); when it
