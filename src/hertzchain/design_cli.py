@@ -60,6 +60,9 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
                     prog.update(task, completed=done, total=total)
 
                 result = run_design(problem, out, client=client, progress=update, force=force, device=device)
+                if result.n_evaluations < problem.section.budget:  # ended before the budget: a full bar, not a cut one
+                    prog.update(task, description="engine runs (search done within the budget)",
+                                completed=result.n_evaluations, total=result.n_evaluations)
     finally:
         if client is not None:
             client.close()
