@@ -7,6 +7,8 @@ import tomllib
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 import hertzchain as hc
 from hertzchain.cli import main
@@ -230,6 +232,36 @@ def test_a_candidate_past_a_geometric_constraint_moves_onto_its_boundary():
     assert last >= 15.0
     assert q_star - (0.15 - 0.05) * 2.0 ** -steps <= vals["chain.taper.q"] <= q_star or last <= 15.0 * (1 + _BOUNDARY_SLACK)
     assert len(checks) < 2 + steps  # the two ends and fewer than bisection's steps
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.floats(0, 1), st.floats(0, 1), st.floats(0, 1), st.floats(0, 1))
+def test_the_boundary_search_ends_on_the_feasible_side_within_its_check_budget(n_good, q_good, n_bad, q_bad):
+    """Property, on any segment of the n-q space from a point that meets the 15 mm limit to one
+    that breaks it (across bead counts too, where the margin jumps): the boundary search
+    (Chandrupatla's method) returns a point that meets the limit, after at most 2 (steps + 1)
+    geometry checks; on a segment within one bead count, within the accepted band or 2^-steps
+    of the segment from the exact boundary q*(n) = 1 - (15/26)^(1/n)."""
+    from hertzchain.design.objectives import Evaluator
+    from hertzchain.design.search import _BOUNDARY_SLACK, _margin, _to_boundary
+
+    p = parse_design(_nq())
+    ev = Evaluator(p.objectives, p.section.constraints)
+    good, bad = np.array([n_good, q_good]), np.array([n_bad, q_bad])
+    f_good, f_bad = _margin(p, ev, good), _margin(p, ev, bad)
+    assume(f_good >= 0 > f_bad)
+    before = len(ev.candidates)  # the ends are checked: every new entry is one check of the search
+    steps = 6
+    y = _to_boundary(p, ev, good, bad, steps, f_good, f_bad)
+    assert len(ev.candidates) - before <= 2 * (steps + 1)
+    margin = _margin(p, Evaluator(p.objectives, p.section.constraints), y)
+    assert margin >= 0
+    vals = [p.space.values(x) for x in (good, bad, y)]
+    n = vals[0]["chain.taper.n"]
+    if vals[1]["chain.taper.n"] == n:
+        q_star = 1 - (15 / 26) ** (1 / n)
+        span = abs(vals[1]["chain.taper.q"] - vals[0]["chain.taper.q"])
+        assert margin <= _BOUNDARY_SLACK or q_star - vals[2]["chain.taper.q"] <= span * 2.0 ** -steps
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
