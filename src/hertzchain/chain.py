@@ -184,7 +184,11 @@ class Chain:
     @property
     def masses(self) -> np.ndarray:
         """Bead masses m_n = rho pi phi^3 / 6 [kg]."""
-        return self.densities * math.pi * self.diameters**3 / 6.0
+        mats = self.materials
+        # One material (the usual chain): its density as a scalar, the same numbers without a
+        # per-bead array (a design search takes the mass of thousands of candidate chains).
+        rho = mats[0].density if all(m is mats[0] for m in mats) else self.densities
+        return rho * math.pi * self.diameters**3 / 6.0
 
     @property
     def is_aligned(self) -> bool:

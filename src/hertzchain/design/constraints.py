@@ -13,7 +13,6 @@ feasible set.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -60,12 +59,8 @@ def has_geometric_constraints(c: Constraints) -> bool:
 def geometry(chain) -> dict[str, float]:
     """Smallest diameter [mm], length [mm], mass [kg] and bead count of a :class:`~hertzchain.Chain`."""
     d = chain.diameters
-    mats = chain.materials
-    # Chain.masses, with one density for a chain of one material (the same numbers: the search
-    # checks the geometry of thousands of candidates).
-    rho = mats[0].density if all(m is mats[0] for m in mats) else chain.densities
     return {"min_diameter_mm": float(d.min() * 1e3), "length_mm": float(d.sum() * 1e3),
-            "mass_kg": float((rho * math.pi * d**3 / 6.0).sum()), "n_beads": d.size}
+            "mass_kg": float(chain.masses.sum()), "n_beads": d.size}
 
 
 def _excess(value: float, limit: float | None, upper: bool) -> float:

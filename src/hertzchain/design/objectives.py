@@ -43,8 +43,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from ..config import build_model, build_probes, chain_parts, parse_config
 from ..errors import PulseNotFound
-from .constraints import (Constraints, geometric_margin, geometric_violation, geometry, has_geometric_constraints,
-                          run_violation)
+from .constraints import Constraints, geometric_margin, geometric_violation, geometry, run_violation
 
 __all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Candidate", "Fidelity", "member_metrics",
            "search_interval"]
@@ -477,11 +476,6 @@ class Evaluator:
         check_resources(estimate_memory(n_beads, has_wall, duration, probes, members),
                         memory_field="design.population" if self.client is None else "design.chunk_size")
         self._memory_checked.add(seen)
-
-    @property
-    def has_geometric_constraints(self) -> bool:
-        """Whether any constraint is checked on the geometry (before a run)."""
-        return has_geometric_constraints(self.constraints)
 
     def candidate(self, key, config: dict | Callable[[], dict]) -> Candidate:
         """The chain and geometry of a candidate (no run), built once per ``key``.

@@ -335,9 +335,7 @@ def _margin(problem: DesignProblem, evaluator: Evaluator, x: np.ndarray) -> floa
     chain it builds is kept for the candidate's run (:meth:`Evaluator.candidate`)."""
     space = problem.space
     vals = space.values(x)
-    key = space.key_of(vals)
-    cand = evaluator.candidates.get(key)
-    return (cand if cand is not None else evaluator.candidate(key, space.config(vals))).margin
+    return evaluator.candidate(space.key_of(vals), lambda: space.config(vals)).margin
 
 
 def _to_boundary(problem: DesignProblem, evaluator: Evaluator, good: np.ndarray, bad: np.ndarray,
