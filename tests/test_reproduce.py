@@ -215,7 +215,7 @@ def test_laws_figure_drawn_early_without_the_analysis_stack(summary, tmp_path):
     from hertzchain.paper.early import start_laws_figure
     from hertzchain.paper.figures import save_figure
 
-    code = ("import sys, hertzchain.paper.early, hertzchain.paper.law_figure, hertzchain.paper.style; "
+    code = ("import sys, hertzchain.paper.early, hertzchain.paper.law_figure, hertzchain.viz.style; "
             "print(sorted(m for m in ('scipy', 'xarray', 'pandas', 'numba') if m in sys.modules))")
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True).stdout.strip() == "[]"

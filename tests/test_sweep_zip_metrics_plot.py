@@ -7,7 +7,7 @@ import pytest
 
 from hertzchain.cli import main
 from hertzchain.errors import ConfigError
-from hertzchain.metrics_plot import plot_metrics
+from hertzchain.viz.metrics import plot_metrics
 from hertzchain.sweep import parse_sweep, run_sweep
 
 

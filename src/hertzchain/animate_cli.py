@@ -25,7 +25,7 @@ def animate(result: Path, out: Path, frames: int, fps: float, window: str | None
     Beads are drawn displaced when the run recorded positions (hertzchain run CONFIG --set
     probes.positions=true), at rest otherwise.
     """
-    from .animation import animate as write_animation
+    from .viz.animation import animate as write_animation
     from .cli import _open_result, progress_bar
     from .fileio import check_not_input
     from .plot_cli import parse_window

@@ -67,7 +67,7 @@ def compare(measured: Path, simulated: Path, out: Path, json_path: Path | None, 
     from .lab.compare import compare_traces
     from .lab.readers import read_trace
     from .lab.report import plot_comparison
-    from .plotting import image_format
+    from .viz.common import image_format
 
     image_format(out)  # an unknown --out suffix is refused before anything is read or simulated
     meas = read_trace(measured, column, sensitivity=sensitivity, sensor=sensor, time_unit=time_unit)

@@ -50,12 +50,15 @@ def plot(result: Path, out: Path, kind: str, window: str | None, member: int | N
     from .cli import _open_result
     from .errors import ConfigError
     from .fileio import check_not_input
-    from . import plotting
+    from .viz.energy import plot_energy
+    from .viz.signals import plot_signals
+    from .viz.spacetime import plot_spacetime
+    from .viz.common import image_format
 
-    plotting.image_format(out)  # an unknown --out suffix is refused before the file is read
+    image_format(out)  # an unknown --out suffix is refused before the file is read
     check_not_input(out, result)
     if result.suffix.lower() == ".csv":  # a sweep's metrics.csv: --signal names the metric (default F_m)
-        from .metrics_plot import plot_metrics
+        from .viz.metrics import plot_metrics
 
         click.echo(f"wrote {plot_metrics(result, out, *signals[:1])}")
         return
@@ -66,9 +69,9 @@ def plot(result: Path, out: Path, kind: str, window: str | None, member: int | N
         raise ConfigError("--scale", f"--scale and --to-scale go with --kind spacetime, not --kind {kind}")
     ds = _open_result(result)
     if kind == "signals":
-        plotting.plot_signals(ds, out, signals or None, contacts or None, window=span, member=member)
+        plot_signals(ds, out, signals or None, contacts or None, window=span, member=member)
     elif kind == "spacetime":
-        plotting.plot_spacetime(ds, out, scale=scale, to_scale=to_scale, window=span, member=member)
+        plot_spacetime(ds, out, scale=scale, to_scale=to_scale, window=span, member=member)
     else:
-        plotting.plot_energy(ds, out, window=span, member=member)
+        plot_energy(ds, out, window=span, member=member)
     click.echo(f"wrote {out}")

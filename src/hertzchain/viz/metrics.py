@@ -1,4 +1,4 @@
-"""Plots of a sweep's ``metrics.csv``: a wall-pulse metric against one or two swept parameters.
+"""Pictures of a sweep's ``metrics.csv``: a wall-pulse metric against one or two swept parameters.
 
 ``metrics.csv`` (written by :func:`hertzchain.run_sweep`) has one row per member: ``member``,
 ``chunk``, one column per swept parameter (named by its dotted path), then ``dt`` and the
@@ -58,9 +58,9 @@ def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str 
     import numpy as np
     import pandas as pd
 
-    from .errors import ConfigError
-    from .fileio import atomic_path
-    from .plotting import image_format
+    from ..errors import ConfigError
+    from ..fileio import atomic_path
+    from .common import image_format
 
     path, out = Path(path), Path(out)
     fmt = image_format(out)
