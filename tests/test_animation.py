@@ -7,7 +7,7 @@ import pytest
 
 import hertzchain as hc
 from hertzchain.viz import animation
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 
 
 def _model(n=8):

@@ -7,7 +7,7 @@ import pytest
 
 import hertzchain as hc
 from hertzchain.viz import common, energy, signals, spacetime
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 
 
 def _model(n=10, velocity=0.2, striker=8e-3):

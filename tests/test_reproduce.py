@@ -183,7 +183,7 @@ def test_redraw_reports_progress_and_elastic_limit(summary, tmp_path, capsys):
     from types import SimpleNamespace
 
     import hertzchain as hc
-    from hertzchain.cli import _echo_elastic_limit
+    from hertzchain.cli.reproduce import _echo_elastic_limit
     from hertzchain.paper.reproduce import FIGURE_NAMES, elastic_limit_summary, redraw
 
     out, _ = summary

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.errors import ConfigError
 from hertzchain.viz.metrics import plot_metrics
 from hertzchain.sweep import parse_sweep, run_sweep
