@@ -146,6 +146,7 @@ _GROUP_TITLES = {
     "hertzchain.instrument": "Instrument",
     "hertzchain.analysis": "Analysis",
     "hertzchain.theory": "Theory",
+    "hertzchain.viz": "Pictures",
 }
 
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain import animation
-from hertzchain.cli import main
+from hertzchain.viz import animation
+from hertzchain.cli.main import main
 
 
 def _model(n=8):
@@ -94,11 +94,11 @@ def test_animate_cli_and_errors(tmp_path, with_positions, capsys, monkeypatch):
 def test_wall_force_grows_beside_the_chain_drawn_to_scale(with_positions):
     """Side by side: the trace's axes lies right of the chain's, the chain keeps one scale on both
     axes, and at frame k the trace is the recorded wall force up to the frame's time."""
-    from hertzchain.plotting import _title
+    from hertzchain.viz.common import result_title
 
     ds = with_positions
     fr = animation.chain_frames(ds, 9, window=(0.1e-3, 1.1e-3))
-    view = animation._frame_figure(ds, fr, _title(ds, None))
+    view = animation._frame_figure(ds, fr, result_title(ds, None))
     view.figure.canvas.draw()  # applies the equal aspect to the chain's box
     chain, trace_ax = view.chain_axes.get_position(), view.trace_axes.get_position()
     assert trace_ax.x0 > chain.x1  # beside, not below: the trace starts right of the chain's end

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.config import parse_config, run_config
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -163,3 +163,28 @@ def test_instrument_section_adds_measured_signals():
     bad["instrument"]["wall"]["bits"] = 0
     with pytest.raises(hc.ConfigError, match=r"instrument\.wall\.bits"):
         run_config(bad)
+
+
+def test_cli_package_layout_and_light_help():
+    """hertzchain.cli: main registers every subcommand module, a subcommand imports only
+    cli.common and the library (never another subcommand or main), and loading the whole command
+    line, as ``hertzchain --help`` does, imports nothing heavy (the commands defer it)."""
+    import ast
+    import subprocess
+    import sys
+
+    from hertzchain.cli.main import cli
+
+    folder = Path(hc.__file__).parent / "cli"
+    subcommands = {p.stem for p in folder.glob("*.py")} - {"__init__", "__main__", "main", "common"}
+    assert set(cli.commands) == subcommands
+    for name in subcommands:
+        for node in ast.walk(ast.parse((folder / f"{name}.py").read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 1:
+                assert node.module == "common", f"cli/{name}.py imports .{node.module}"
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                assert not node.module.startswith("hertzchain.cli"), f"cli/{name}.py imports {node.module}"
+    code = ("import sys, hertzchain.cli.main; print(sorted(m for m in ('numpy', 'xarray', 'matplotlib', 'rich', "
+            "'scipy', 'numba', 'pandas') if m in sys.modules))")
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True).stdout.strip() == "[]"

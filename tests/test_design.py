@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.design import parse_design, run_design, write_report
 from hertzchain.integrate.batch import simulate_batch
 

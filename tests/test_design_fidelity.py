@@ -11,7 +11,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 import hertzchain as hc
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.config import build_model, parse_config
 from hertzchain.design import parse_design, run_design
 from hertzchain.design.objectives import (Fidelity, _records, _records_of_dataset, _Task, member_metrics, run_task,

@@ -176,7 +176,7 @@ def test_sweep_tolerances_out_of_range_name_the_field():
 
 def test_cli_device_option(tmp_path, capsys):
     """--device is accepted; 'cuda' without a GPU is a user error naming the option (exit 2)."""
-    from hertzchain.cli import main
+    from hertzchain.cli.main import main
     from hertzchain.integrate.cuda import gpu_usable
 
     sweep = tmp_path / "s.toml"

@@ -18,7 +18,7 @@ import pytest
 from scipy.stats import chi2
 
 import hertzchain as hc
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.errors import ConfigError
 from hertzchain.lab import Trace, fit_traces, read_trace
 from hertzchain.lab.fit import _identifiability

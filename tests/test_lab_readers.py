@@ -10,7 +10,7 @@ import pytest
 
 import hertzchain as hc
 from hertzchain.analysis import cos6_pulse
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.errors import ConfigError
 from hertzchain.lab import read_trace
 

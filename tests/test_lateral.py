@@ -126,7 +126,7 @@ def test_a_stiff_track_spring_recovers_the_rigid_1d_offset_model():
 def test_track_section_of_a_run_config(tmp_path, capsys):
     """``[track]`` in a run file runs the 2D path: the same numbers as simulate_lateral called with
     the Track it describes, the config stored, and field-named errors (exit 2 from the CLI)."""
-    from hertzchain.cli import main
+    from hertzchain.cli.main import main
     from hertzchain.config import parse_config, run_config
     from hertzchain.errors import ConfigError
 

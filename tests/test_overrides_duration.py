@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.simulation import auto_duration, elastic_limit_message
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

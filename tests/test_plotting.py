@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain import plotting
-from hertzchain.cli import main
+from hertzchain.viz import common, energy, signals, spacetime
+from hertzchain.cli.main import main
 
 
 def _model(n=10, velocity=0.2, striker=8e-3):
@@ -27,7 +27,7 @@ def batch():
 
 
 def test_spacetime_array_is_the_contact_forces(result):
-    fig = plotting.plot_spacetime(result)
+    fig = spacetime.plot_spacetime(result)
     mesh = fig.axes[0].collections[0]
     f = result.contact_force.values
     assert np.array_equal(np.asarray(mesh.get_array()).reshape(f.shape), f)
@@ -39,7 +39,7 @@ def test_spacetime_array_is_the_contact_forces(result):
 
 
 def test_spacetime_log_scale_and_beads_to_scale(result):
-    fig = plotting.plot_spacetime(result, scale="log", to_scale=True, floor=1e-3)
+    fig = spacetime.plot_spacetime(result, scale="log", to_scale=True, floor=1e-3)
     mesh = fig.axes[0].collections[0]
     f = result.contact_force.values
     arr = mesh.get_array()
@@ -48,7 +48,7 @@ def test_spacetime_log_scale_and_beads_to_scale(result):
     assert np.array_equal(np.asarray(arr).reshape(f.shape)[shown], f[shown])
     # contacts at their positions: contact 0 at 0, contact N at the chain's length, bead contacts
     # at the touching points (sum of the diameters before them)
-    x = plotting.contact_positions(result)
+    x = common.contact_positions(result)
     phi = result.diameter.values
     assert x[0] == 0 and x[-1] == pytest.approx(phi.sum())
     assert np.allclose(x[1:-1], np.cumsum(phi)[:-1])
@@ -58,9 +58,9 @@ def test_spacetime_log_scale_and_beads_to_scale(result):
 
 def test_spacetime_bins_long_records_keeping_peaks():
     ds = hc.simulate(_model(), 1.2e-3, hc.Probes(sample_interval=1e-7))
-    assert ds.sizes["time"] > plotting.MAX_MAP_ROWS
-    arr = np.asarray(plotting.plot_spacetime(ds).axes[0].collections[0].get_array())
-    k = -(-ds.sizes["time"] // plotting.MAX_MAP_ROWS)
+    assert ds.sizes["time"] > spacetime.MAX_MAP_ROWS
+    arr = np.asarray(spacetime.plot_spacetime(ds).axes[0].collections[0].get_array())
+    k = -(-ds.sizes["time"] // spacetime.MAX_MAP_ROWS)
     rows = ds.sizes["time"] // k
     expect = ds.contact_force.values[: rows * k].reshape(rows, k, -1).max(axis=1)
     assert np.array_equal(arr.reshape(expect.shape), expect)
@@ -83,7 +83,7 @@ def _panel_checks(fig):
 
 
 def test_signals_window_and_ranges(result):
-    fig = plotting.plot_signals(result, window=(0.5e-3, 1.0e-3))
+    fig = signals.plot_signals(result, window=(0.5e-3, 1.0e-3))
     labels = [ax.get_title(loc="left") for ax in fig.axes]
     assert labels == ["wall force", "sensor in bead 5"]
     sel = (result.time.values >= 0.5e-3) & (result.time.values <= 1.0e-3)
@@ -96,15 +96,15 @@ def test_signals_window_and_ranges(result):
 
 def test_signals_of_a_batch_member(batch):
     with pytest.raises(hc.ConfigError, match="--member"):
-        plotting.plot_signals(batch)
+        signals.plot_signals(batch)
     with pytest.raises(hc.ConfigError, match="member 7 is not in this file"):
-        plotting.plot_signals(batch, member=7)
-    fig = plotting.plot_signals(batch, member=2, signals=["wall_force", "contact_force"], contacts=[3])
+        signals.plot_signals(batch, member=7)
+    fig = signals.plot_signals(batch, member=2, signals=["wall_force", "contact_force"], contacts=[3])
     assert np.array_equal(fig.axes[0].get_lines()[0].get_ydata(), batch.wall_force.sel(member=2).values)
     assert np.array_equal(fig.axes[1].get_lines()[0].get_ydata(),
                           batch.contact_force.sel(member=2, contact=3).values)
     assert "0.4 m/s" in fig.texts[0].get_text() or "0.4 m/s" in fig._suptitle.get_text()
-    mesh = plotting.plot_spacetime(batch, member=1).axes[0].collections[0]
+    mesh = spacetime.plot_spacetime(batch, member=1).axes[0].collections[0]
     f = batch.contact_force.sel(member=1).values
     assert np.array_equal(np.asarray(mesh.get_array()).reshape(f.shape), f)
     _panel_checks(fig)
@@ -114,7 +114,7 @@ def test_measured_signal_on_its_own_time_axis(result):
     from hertzchain.instrument import Instrument, measure_dataset
 
     ds = measure_dataset(result, wall=Instrument.pcb_208a11(seed=1, sample_rate=1e6, record_length=300))
-    fig = plotting.plot_signals(ds, signals=["measured_wall_force", "wall_force"])
+    fig = signals.plot_signals(ds, signals=["measured_wall_force", "wall_force"])
     line = fig.axes[0].get_lines()[0]
     assert np.allclose(line.get_xdata(), ds.wall_scope_time.values * 1e3)
     assert np.array_equal(line.get_ydata(), ds.measured_wall_force.values)
@@ -123,7 +123,7 @@ def test_measured_signal_on_its_own_time_axis(result):
 
 
 def test_energy_lines_and_total(result):
-    fig = plotting.plot_energy(result)
+    fig = energy.plot_energy(result)
     ax = fig.axes[0]
     lines = {l.get_label(): l.get_ydata() for l in ax.get_lines()}
     ke, pe, ed = (result[v].values * 1e3 for v in ("kinetic_energy", "potential_energy", "dissipated_energy"))

@@ -13,7 +13,7 @@ import pytest
 import xarray as xr
 
 import hertzchain as hc
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.config import parse_config
 
 SMALL_RUN = ('[chain]\nuniform = {n = 3, diameter_mm = 26.0}\n[striker]\nvelocity = 0.2\n'
@@ -139,7 +139,7 @@ def test_analyze_json_is_valid_json_with_null(tmp_path, capsys):
 
 
 def test_numpy_warnings_do_not_reach_the_user(capsys):
-    import hertzchain.cli as cli_mod
+    import hertzchain.cli.main as cli_mod
 
     @cli_mod.cli.command("noisy")
     def noisy():

@@ -20,7 +20,7 @@ import pytest
 
 import hertzchain as hc
 from hertzchain import fileio
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.errors import ConfigError
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -207,7 +207,7 @@ def test_second_sweep_on_the_same_folder_is_refused(tmp_path, capsys):
     with _folder_lock(tmp_path):
         code = subprocess.run([sys.executable, "-c", textwrap.dedent(f"""
             import sys, json
-            from hertzchain.cli import main
+            from hertzchain.cli.main import main
             open({str(tmp_path / 's.toml')!r}, 'w').write('''
             [base]
             chain = {{uniform = {{n = 3, diameter_mm = 26.0}}}}

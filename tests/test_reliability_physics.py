@@ -208,7 +208,7 @@ def test_long_run_is_allowed_with_a_warning_and_the_estimate():
 
 def test_cli_refuses_a_run_too_large_for_memory(tmp_path, capsys):
     """Issue: duration = 12 was killed by the kernel after two minutes with no message."""
-    from hertzchain.cli import main
+    from hertzchain.cli.main import main
 
     cfg = tmp_path / "long.toml"
     cfg.write_text('[chain]\npreset = "chain1"\n[run]\nduration = 12.0\nsample_interval = 1e-9\n')

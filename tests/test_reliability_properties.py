@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 
 import hertzchain as hc
 from hertzchain import checks
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 
 SECTIONS = {"chain", "striker", "wall", "contact", "run", "probes", "instrument", "materials"}
 #: Runs projected past this [s] are refused in these tests (their estimate is what is tested; the

@@ -183,7 +183,7 @@ def test_redraw_reports_progress_and_elastic_limit(summary, tmp_path, capsys):
     from types import SimpleNamespace
 
     import hertzchain as hc
-    from hertzchain.cli import _echo_elastic_limit
+    from hertzchain.cli.reproduce import _echo_elastic_limit
     from hertzchain.paper.reproduce import FIGURE_NAMES, elastic_limit_summary, redraw
 
     out, _ = summary
@@ -215,7 +215,7 @@ def test_laws_figure_drawn_early_without_the_analysis_stack(summary, tmp_path):
     from hertzchain.paper.early import start_laws_figure
     from hertzchain.paper.figures import save_figure
 
-    code = ("import sys, hertzchain.paper.early, hertzchain.paper.law_figure, hertzchain.paper.style; "
+    code = ("import sys, hertzchain.paper.early, hertzchain.paper.law_figure, hertzchain.viz.style; "
             "print(sorted(m for m in ('scipy', 'xarray', 'pandas', 'numba') if m in sys.modules))")
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True).stdout.strip() == "[]"

@@ -129,7 +129,7 @@ def test_dask_local_cluster_gives_the_same_metrics(tmp_path, reference):
     distributed = pytest.importorskip("distributed")
     from click.testing import CliRunner
 
-    from hertzchain.sweep_cli import sweep
+    from hertzchain.cli.sweep import sweep
 
     toml = tmp_path / "grid.toml"
     toml.write_text(to_toml(grid_sweep()))
@@ -288,7 +288,7 @@ def test_example_sweep_file_is_valid():
 def test_cli_runs_resumes_and_reports_user_errors(tmp_path):
     from click.testing import CliRunner
 
-    from hertzchain.sweep_cli import sweep
+    from hertzchain.cli.sweep import sweep
 
     toml = tmp_path / "s.toml"
     toml.write_text(

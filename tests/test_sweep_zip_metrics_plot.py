@@ -5,9 +5,9 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from hertzchain.cli import main
+from hertzchain.cli.main import main
 from hertzchain.errors import ConfigError
-from hertzchain.metrics_plot import plot_metrics
+from hertzchain.viz.metrics import plot_metrics
 from hertzchain.sweep import parse_sweep, run_sweep
 
 
@@ -58,6 +58,16 @@ def test_plot_metrics_one_and_two_parameters(tmp_path):
     one = plot_metrics(csv, tmp_path / "line.png", metric="Q_F", x="chain.taper.q", y=None)
     for p in (two, one):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # A library call leaves the session's Matplotlib backend as it was (its own Agg canvas, no pyplot).
+    import matplotlib
+
+    before = matplotlib.get_backend()
+    matplotlib.use("svg")
+    try:
+        plot_metrics(csv, tmp_path / "again.png")
+        assert matplotlib.get_backend() == "svg"
+    finally:
+        matplotlib.use(before)
     assert main(["plot", str(csv), "--out", str(tmp_path / "cli.png"), "--signal", "tau"]) == 0
     assert (tmp_path / "cli.png").stat().st_size > 0
     assert main(["plot", str(csv), "--out", str(tmp_path / "bad.png"), "--signal", "nope"]) == 2

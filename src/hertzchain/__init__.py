@@ -31,7 +31,7 @@ _EXPORTS = {
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
     # many chains
     "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch", "Ensemble": "integrate.ensemble",
-    "run_sweep": "sweep", "load_sweep": "sweep", "plot_metrics": "metrics_plot",
+    "run_sweep": "sweep", "load_sweep": "sweep",
     # design search
     "load_design": "design", "parse_design": "design", "run_design": "design", "write_report": "design",
     "DesignProblem": "design", "DesignResult": "design",
@@ -45,8 +45,9 @@ _EXPORTS = {
     "FitResult": "lab",
     "tapering_factor": "theory", "ballistic_ratios": "theory", "solitary_wave_speed": "theory",
     "yield_limit": "theory", "predict_chain": "theory", "nesterenko_force": "theory",
-    # pictures of results
-    "plot_signals": "plotting", "plot_spacetime": "plotting", "plot_energy": "plotting", "animate": "animation",
+    # pictures of results and sweeps
+    "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
+    "animate": "viz.animation", "plot_metrics": "viz.metrics",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -62,7 +62,7 @@ def plot_comparison(comp, out: str | Path, measured_label: str = "measured",
         ``out``.
     """
     plt = _plt()
-    from ..plotting import image_format
+    from ..viz.common import image_format
 
     out = Path(out)
     fmt = image_format(out)

@@ -25,7 +25,7 @@ __all__ = ["start_laws_figure"]
 def _draw_laws(out_dir: str, laws: dict, eps: float) -> Path:
     # Matplotlib and hertzchain.theory only: the figure is done before the parent's imports are
     from .law_figure import fig_laws
-    from .style import save_figure
+    from ..viz.style import save_figure
 
     return save_figure(fig_laws(laws, eps), Path(out_dir), "fig5_laws")
 

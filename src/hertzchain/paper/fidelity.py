@@ -284,7 +284,8 @@ def fig3_lateral(rigid: dict, lateral: dict) -> Figure:
     matplotlib.figure.Figure
         One row per bead, one column per variant.
     """
-    from .figures import PULSE_WINDOW_MS, STYLE, _figure
+    from ..viz.style import STYLE, paper_figure
+    from .figures import PULSE_WINDOW_MS
 
     import matplotlib
 
@@ -292,7 +293,7 @@ def fig3_lateral(rigid: dict, lateral: dict) -> Figure:
     variants = ["rigid", *TRACKS]
     titles = {"rigid": "rigid offset (1D)", "lateral": "free in a groove", "lateral_friction": "groove + friction 0.2"}
     with matplotlib.rc_context(STYLE):
-        fig = _figure(7.0, 2.2 * len(beads))
+        fig = paper_figure(7.0, 2.2 * len(beads))
         axes = np.atleast_2d(fig.subplots(len(beads), len(variants), sharey="row"))
         for i, b in enumerate(beads):
             ref = rigid[(b, 0.0)]

@@ -35,7 +35,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .. import analysis, theory
-from .style import C1, C2, C3, CK, STYLE, _figure, _styled, _tag, save_figure
+from ..viz.style import C1, C2, C3, CK, STYLE, paper_figure, panel_tag, save_figure, styled
 from .values import FIG12_TRUNCATIONS, PAPER
 
 __all__ = ["fig1", "fig2", "fig3", "fig4", "fig5", "fig6", "save_figure", "figure_summary",
@@ -177,7 +177,7 @@ def _prediction(study, settings, q: float | None):
 # Figs. 1 and 2
 # ------------------------------------------------------------------------------------------
 def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
-    fig = _figure(7.0, 7.4)
+    fig = paper_figure(7.0, 7.4)
     axes = fig.subplots(4, 2)
     flat = axes.ravel()
     n0 = _n0(study)
@@ -196,7 +196,7 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
             f"$F_m$ = {fit.peak_force:.2f} N\n$\\tau$ = {fit.duration * 1e6:.0f} $\\mu$s",
             transform=ax.transAxes, ha="right", va="top")
     ax.legend(loc="upper right", bbox_to_anchor=(1.0, 0.66))  # right of the pulse, under the numbers
-    _tag(ax, "(a)")
+    panel_tag(ax, "(a)")
     fmax = max(float(np.max(f)), float(np.max(fs)))
 
     # (b)-(g) wall force of the truncated chains
@@ -211,7 +211,7 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
         ax.text(0.97, 0.95, f"n = {n}, $\\phi_{{{n}}}$ = {study.chain.diameters[n - 1] * 1e3:g} mm\n"
                 f"$F_m$ = {fit.peak_force:.2f} N\n$\\tau$ = {fit.duration * 1e6:.0f} $\\mu$s",
                 transform=ax.transAxes, ha="right", va="top")
-        _tag(ax, f"({letters[k + 1]})")
+        panel_tag(ax, f"({letters[k + 1]})")
         fmax = max(fmax, float(np.max(f)))
     for ax in flat[: len(shown) + 1]:
         ax.set_xlim(*PULSE_WINDOW_MS)
@@ -244,7 +244,7 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
     ax.legend(loc="lower left", title=f"centroids (vertical lines):\n{spec.centroid_in * 1e-3:.2f} $\\to$ "
               f"{spec.centroid_out * 1e-3:.2f} kHz\n-20 dB bandwidth:\n{bw_in * 1e-3:.1f} $\\to$ "
               f"{bw_out * 1e-3:.1f} kHz", title_fontsize=7, alignment="left")
-    _tag(ax, "(h)", "upper right")
+    panel_tag(ax, "(h)", "upper right")
     desc = settings.describe() if hasattr(settings, "describe") else {}
     run = (f"; {desc.get('law', '?')} contacts, striker {desc.get('striker_diameter', math.nan) * 1e3:g} mm at "
            f"{desc.get('striker_velocity', math.nan):g} m/s") if desc else ""
@@ -253,7 +253,7 @@ def _fig_pulses(study, settings, chain_label: str, q_label: str) -> Figure:
     return fig
 
 
-@_styled
+@styled
 def fig1(study1, settings) -> Figure:
     """Paper Fig. 1: pulse evolution in chain 1 (q1 = 5.60 %).
 
@@ -276,7 +276,7 @@ def fig1(study1, settings) -> Figure:
     return _fig_pulses(study1, settings, "Chain 1", "$q_1$")
 
 
-@_styled
+@styled
 def fig2(study2, settings) -> Figure:
     """Paper Fig. 2: the same as :func:`fig1` for chain 2 (q2 = 8.27 %, N = 28)."""
     return _fig_pulses(study2, settings, "Chain 2", "$q_2$")
@@ -285,7 +285,7 @@ def fig2(study2, settings) -> Figure:
 # ------------------------------------------------------------------------------------------
 # Fig. 3
 # ------------------------------------------------------------------------------------------
-@_styled
+@styled
 def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
     """Paper Fig. 3: sensitivity to misalignment and to a local change of the tapering.
 
@@ -307,7 +307,7 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
     settings:
         The run's settings (unused beyond the title; kept for a uniform signature).
     """
-    fig = _figure(3.4, 8.6)
+    fig = paper_figure(3.4, 8.6)
     # (a), (b): the forces, and below each the difference from the aligned chain on its own
     # scale (the effect is < 0.1 % of F_m: the curves above coincide); (c) differs visibly.
     grid = fig.add_gridspec(5, 1, height_ratios=[2.0, 1.15, 2.0, 1.15, 2.3])
@@ -366,7 +366,7 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
         table = f"vs. {short[0]}:\n" + "\n".join(deltas)
         ax.set_title(title + ("\n" + table if dax is None else ""), pad=3, fontsize=7.5)
         ax.legend(loc="upper right")
-        _tag(ax, f"({'abc'[k]})")
+        panel_tag(ax, f"({'abc'[k]})")
         if dax is None:
             ax.set_xlabel("t - T [ms]")
             continue
@@ -378,7 +378,7 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
         dax.set_title(table, fontsize=7, pad=2, loc="left")
         lo, hi = dax.get_ylim()
         dax.set_ylim(lo, hi + 0.25 * (hi - lo))  # room for the panel tag
-        _tag(dax, f"({'ab'[k]}')")
+        panel_tag(dax, f"({'ab'[k]}')")
     return fig
 
 
@@ -424,7 +424,7 @@ def _collapse_rms(records) -> float:
     return worst
 
 
-@_styled
+@styled
 def fig4(study1, study2) -> Figure:
     """Paper Fig. 4: self-similar collapse of the front pulse.
 
@@ -435,7 +435,7 @@ def fig4(study1, study2) -> Figure:
     chain 1, dashed: chain 2, dotted: the sensor. The thick black curve is Nesterenko's cos^6
     over the loading part, the fitted range.
     """
-    fig = _figure(3.4, 2.9)
+    fig = paper_figure(3.4, 2.9)
     ax = fig.subplots()
     records = _collapse_records(study1, study2)
     cmap = matplotlib.colormaps["viridis"]
@@ -468,7 +468,7 @@ def fig4(study1, study2) -> Figure:
 # ------------------------------------------------------------------------------------------
 # Fig. 5
 # ------------------------------------------------------------------------------------------
-@_styled
+@styled
 def fig5(study1, study2, settings) -> Figure:
     """Paper Fig. 5: characteristics of the pulse along both chains (left chain 1, right chain 2).
 
@@ -482,7 +482,7 @@ def fig5(study1, study2, settings) -> Figure:
     (d) front and tail momenta Q_F, Q_T of the wall pulse and their sum (momentum conservation).
     eps of the predictions: 1 for elastic runs, ``settings.eps`` otherwise.
     """
-    fig = _figure(7.0, 7.0)
+    fig = paper_figure(7.0, 7.0)
     axes = fig.subplots(4, 2, sharex="col")
     for col, study in enumerate((study1, study2)):
         n0 = _n0(study)
@@ -501,7 +501,7 @@ def fig5(study1, study2, settings) -> Figure:
         ax.set_ylabel("$\\phi_n$ [mm]")
         ax.legend(loc="upper right")
         ax.set_title(f"chain {label} ($q_{label}$)")
-        _tag(ax, f"(a{label})", "lower left")
+        panel_tag(ax, f"(a{label})", "lower left")
 
         ax = axes[1, col]
         F = study.series("peak_force")
@@ -515,7 +515,7 @@ def fig5(study1, study2, settings) -> Figure:
         ax.set_ylim(lo, hi + 0.12 * (hi - lo))  # room for the panel tag above the q = 0 line
         ax.set_ylabel("$F_m$ [N]")
         ax.legend(loc="lower left")
-        _tag(ax, f"(b{label})", "upper right")
+        panel_tag(ax, f"(b{label})", "upper right")
 
         ax = axes[2, col]
         tau = study.series("duration")
@@ -529,7 +529,7 @@ def fig5(study1, study2, settings) -> Figure:
         ax.set_ylim(lo, hi + 0.08 * (hi - lo))
         ax.set_ylabel("$\\tau$ [$\\mu$s]")
         ax.legend(loc="lower left", title=f"anchored at n = {n0}", title_fontsize=7)
-        _tag(ax, f"(c{label})", "upper right")
+        panel_tag(ax, f"(c{label})", "upper right")
 
         ax = axes[3, col]
         QF, QT = study.series("front_momentum") * 1e3, study.series("tail_momentum") * 1e3
@@ -542,7 +542,7 @@ def fig5(study1, study2, settings) -> Figure:
         ax.set_xlabel("bead n")
         ax.set_ylim(0, 1.6 * float(np.nanmax(total)))
         ax.legend(loc="upper left", bbox_to_anchor=(0.0, 0.9), ncol=3, columnspacing=0.8, handlelength=1.4)
-        _tag(ax, f"(d{label})", "upper right")
+        panel_tag(ax, f"(d{label})", "upper right")
         for a in axes[:, col]:
             a.set_xlim(*xlim)
     return fig
@@ -551,7 +551,7 @@ def fig5(study1, study2, settings) -> Figure:
 # ------------------------------------------------------------------------------------------
 # Fig. 6
 # ------------------------------------------------------------------------------------------
-@_styled
+@styled
 def fig6(study1, study2, settings) -> Figure:
     """Paper Fig. 6: time of flight and speed along both chains (left chain 1, right chain 2).
 
@@ -566,7 +566,7 @@ def fig6(study1, study2, settings) -> Figure:
     (c) local speed v_n = phi_n / (T_n - T_(n-1)), with the fit v_n = Q^(n - n') v_n' over the
     tapered part (solid, n' = n0 + 1) and the same law with the theoretical Q of eq. 8 (dashed).
     """
-    fig = _figure(7.0, 6.2)
+    fig = paper_figure(7.0, 6.2)
     axes = fig.subplots(3, 2, sharex="col")
     for col, study in enumerate((study1, study2)):
         label = "12"[col]
@@ -591,7 +591,7 @@ def fig6(study1, study2, settings) -> Figure:
         ax.set_ylim(lo - 0.2 * (hi - lo), hi)  # room below the data for the key
         ax.legend(loc="lower right")  # the empty corner: late beads, short times
         ax.set_title(f"chain {label} ($q_{label}$)")
-        _tag(ax, f"(a{label})", "upper left")
+        panel_tag(ax, f"(a{label})", "upper left")
 
         ax = axes[1, col]
         ax.axhline(0, color=C2, ls="--", lw=0.8)
@@ -602,7 +602,7 @@ def fig6(study1, study2, settings) -> Figure:
         ax.set_ylim(lo, hi + 0.1 * (hi - lo))  # room for the panel tag above the zero line
         ax.set_ylabel("T - T($\\epsilon$; q = 0) [$\\mu$s]")
         ax.legend(loc="lower left")
-        _tag(ax, f"(b{label})", "upper right")
+        panel_tag(ax, f"(b{label})", "upper right")
 
         ax = axes[2, col]
         vs = phi[0] / np.diff(T_s)
@@ -624,7 +624,7 @@ def fig6(study1, study2, settings) -> Figure:
         ax.legend(loc="upper left")
         top = max(float(np.max(v_loc)), float(np.max(vs)))
         ax.set_ylim(0.9 * min(float(np.min(vs)), float(np.min(v_loc))), top * 1.22)
-        _tag(ax, f"(c{label})", "lower right")
+        panel_tag(ax, f"(c{label})", "lower right")
         for a in axes[:, col]:
             a.set_xlim(0, N + 1)
     return fig

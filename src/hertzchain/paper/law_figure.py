@@ -44,10 +44,10 @@ def fig_laws(numbers: dict, eps: float = PAPER["eps"]) -> Figure:
     """
     import matplotlib
 
-    from .style import STYLE, _figure
+    from ..viz.style import STYLE, paper_figure
 
     with matplotlib.rc_context(STYLE):
-        fig = _figure(7.0, 4.8)
+        fig = paper_figure(7.0, 4.8)
         axes = fig.subplots(2, 2, sharex="col")
         for col, chain in enumerate(("chain1", "chain2")):
             any_row = next(iter(numbers.values()))[chain]

@@ -1,10 +1,12 @@
-"""The look of the paper's figures and how they are saved (Matplotlib only).
+"""The Agg figure factory and the look of the paper's figures (Matplotlib only).
 
-:data:`STYLE` (the paper's two-column format: ~3.4 in a column, ~7 in a full width, 8-pt
-fonts), the colours, the Agg-backed :class:`~matplotlib.figure.Figure` factory and
-:func:`save_figure` (PNG + PDF, written atomically). Kept apart from
-:mod:`hertzchain.paper.figures` so that a process can draw with them without importing the
-analysis stack (SciPy, xarray): :mod:`hertzchain.paper.early`.
+:func:`agg_figure` makes every figure of the package: a :class:`~matplotlib.figure.Figure` on its
+own Agg canvas, so the global pyplot state and the session's backend are never touched.
+:data:`STYLE` is the paper's two-column format (~3.4 in a column, ~7 in a full width, 8-pt
+fonts), with its colours, :func:`paper_figure`, :func:`styled`, :func:`panel_tag` and
+:func:`save_figure` (PNG + PDF, written atomically), used by :mod:`hertzchain.paper.figures`.
+Nothing here imports the analysis stack (SciPy, xarray), so that a process can draw with it
+early: :mod:`hertzchain.paper.early`.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-__all__ = ["STYLE", "save_figure"]
+__all__ = ["STYLE", "agg_figure", "paper_figure", "styled", "panel_tag", "save_figure"]
 
 #: Matplotlib style for the paper's column widths (8-pt fonts, thin lines).
 STYLE = {
@@ -35,7 +37,37 @@ STYLE = {
 C1, C2, C3, CK = "#1f77b4", "#d62728", "#2ca02c", "0.2"
 
 
-def _styled(func: Callable) -> Callable:
+def agg_figure(width: float, height: float, *, layout: str | None = "constrained",
+               dpi: float | None = None) -> Figure:
+    """A figure of ``width`` x ``height`` inches on its own Agg canvas (no pyplot state).
+
+    Parameters
+    ----------
+    width, height : float
+        Size [in].
+    layout : str or None
+        Matplotlib layout engine (``"constrained"``; None: positions set by hand).
+    dpi : float or None
+        Resolution [dots per inch] (None: Matplotlib's default).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The empty figure, its canvas attached.
+    """
+    fig = Figure(figsize=(width, height), layout=layout, dpi=dpi)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def paper_figure(width: float, height: float) -> Figure:
+    """An :func:`agg_figure` with the paper's tight padding between panels."""
+    fig = agg_figure(width, height)
+    fig.get_layout_engine().set(w_pad=0.03, h_pad=0.03, wspace=0.04, hspace=0.04)
+    return fig
+
+
+def styled(func: Callable) -> Callable:
     """Draw under :data:`STYLE` (font sizes are fixed when artists are created)."""
 
     @wraps(func)
@@ -46,14 +78,7 @@ def _styled(func: Callable) -> Callable:
     return wrapper
 
 
-def _figure(width: float, height: float) -> Figure:
-    fig = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(fig)
-    fig.get_layout_engine().set(w_pad=0.03, h_pad=0.03, wspace=0.04, hspace=0.04)
-    return fig
-
-
-def _tag(ax, text: str, loc: str = "upper left") -> None:
+def panel_tag(ax, text: str, loc: str = "upper left") -> None:
     """Panel letter, e.g. "(b)", inside the axes."""
     x, ha = (0.03, "left") if "left" in loc else (0.97, "right")
     y, va = (0.95, "top") if "upper" in loc else (0.05, "bottom")

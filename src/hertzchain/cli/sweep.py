@@ -1,4 +1,4 @@
-"""``hertzchain sweep``: run or resume a parameter sweep (registered in cli.py with ``cli.add_command``).
+"""``hertzchain sweep``: run or resume a parameter sweep.
 
 Heavy imports (numba, xarray, dask) are deferred into the command so that ``hertzchain --help``
 stays quick.
@@ -10,7 +10,8 @@ from pathlib import Path
 
 import click
 
-from .cli_options import set_option
+from .common import dask_client, require_device, set_option
+
 
 @click.command("sweep")
 @click.argument("sweep_file", type=click.Path(dir_okay=False, path_type=Path))
@@ -36,8 +37,7 @@ def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, overr
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
                                TimeRemainingColumn)
 
-    from .cli_options import dask_client, require_device
-    from .sweep import load_sweep, run_sweep
+    from ..sweep import load_sweep, run_sweep
 
     cfg = load_sweep(sweep_file, overrides)
     require_device(device)  # fail now, naming the option, rather than in the first chunk

@@ -1,4 +1,4 @@
-"""``hertzchain plot``: draw a result (registered in cli.py's ``_register_subcommands``).
+"""``hertzchain plot``: draw a result, or a sweep's metrics table.
 
 Heavy imports (matplotlib, xarray) are deferred into the command so that ``--help`` is quick.
 """
@@ -9,21 +9,7 @@ from pathlib import Path
 
 import click
 
-
-def parse_window(text: str | None) -> tuple[float, float] | None:
-    """``"T0,T1"`` in ms -> (t0, t1) in s (None when not given)."""
-    from .errors import ConfigError
-
-    if text is None:
-        return None
-    parts = text.split(",")
-    try:
-        t0, t1 = (float(p) for p in parts)
-    except ValueError:
-        raise ConfigError("--window", f"{text!r} is not T0,T1 (two times in ms, e.g. --window 1.5,2.5)") from None
-    if not t1 > t0:
-        raise ConfigError("--window", f"needs T0 < T1 (ms), got {text!r}")
-    return t0 * 1e-3, t1 * 1e-3
+from .common import open_result, parse_window
 
 
 @click.command("plot")
@@ -47,15 +33,14 @@ def plot(result: Path, out: Path, kind: str, window: str | None, member: int | N
          contacts: tuple[int, ...], scale: str, to_scale: bool) -> None:
     """Draw RESULT (a hertzchain .nc: a run, a batch or a sweep chunk; or a sweep's metrics.csv:
     --signal METRIC against the swept parameters) into an image."""
-    from .cli import _open_result
-    from .errors import ConfigError
-    from .fileio import check_not_input
-    from . import plotting
+    from ..errors import ConfigError
+    from ..fileio import check_not_input
+    from ..viz.common import image_format
 
-    plotting.image_format(out)  # an unknown --out suffix is refused before the file is read
+    image_format(out)  # an unknown --out suffix is refused before the file is read
     check_not_input(out, result)
     if result.suffix.lower() == ".csv":  # a sweep's metrics.csv: --signal names the metric (default F_m)
-        from .metrics_plot import plot_metrics
+        from ..viz.metrics import plot_metrics
 
         click.echo(f"wrote {plot_metrics(result, out, *signals[:1])}")
         return
@@ -64,11 +49,17 @@ def plot(result: Path, out: Path, kind: str, window: str | None, member: int | N
         raise ConfigError("--signal", f"--signal and --contact go with --kind signals, not --kind {kind}")
     if kind != "spacetime" and (scale != "linear" or to_scale):
         raise ConfigError("--scale", f"--scale and --to-scale go with --kind spacetime, not --kind {kind}")
-    ds = _open_result(result)
+    ds = open_result(result)
     if kind == "signals":
-        plotting.plot_signals(ds, out, signals or None, contacts or None, window=span, member=member)
+        from ..viz.signals import plot_signals
+
+        plot_signals(ds, out, signals or None, contacts or None, window=span, member=member)
     elif kind == "spacetime":
-        plotting.plot_spacetime(ds, out, scale=scale, to_scale=to_scale, window=span, member=member)
+        from ..viz.spacetime import plot_spacetime
+
+        plot_spacetime(ds, out, scale=scale, to_scale=to_scale, window=span, member=member)
     else:
-        plotting.plot_energy(ds, out, window=span, member=member)
+        from ..viz.energy import plot_energy
+
+        plot_energy(ds, out, window=span, member=member)
     click.echo(f"wrote {out}")

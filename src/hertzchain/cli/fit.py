@@ -6,9 +6,7 @@ from pathlib import Path
 
 import click
 
-from .analyze_cli import trace_options
-from .cli_options import set_option
-
+from .common import echo_warning, progress_bar, set_option, trace_options
 
 #: Per-trace keys of a MEASURED argument that say how to read the file (the rest are config paths).
 READ_KEYS = ("column", "sensitivity", "sensor", "time_unit")
@@ -21,7 +19,7 @@ def parse_measured(item: str) -> tuple[Path, str | None, list[str], dict]:
     file: ``column=CH2``, ``sensor=pcb_200b02``, ``sensitivity=11.0``, ``time_unit=us``), or a
     dotted config path for this trace only (``chain.truncate=16``).
     """
-    from .errors import ConfigError
+    from ..errors import ConfigError
 
     if Path(item).exists() or "@" not in item:
         return Path(item), None, [], {}
@@ -46,7 +44,7 @@ def parse_measured(item: str) -> tuple[Path, str | None, list[str], dict]:
     return Path(name), signal, overrides, read
 
 
-@click.command()
+@click.command("fit")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("measured", nargs=-1, required=True)
 @click.option("--free", "free", multiple=True, required=True, metavar="DOTTED.PATH",
@@ -75,12 +73,11 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
     at the scope's times, times gain, shifted by time_offset, plus baseline); the Jacobian of each
     iteration comes from one batched engine call.
     """
-    from .cli import progress_bar
-    from .config import apply_overrides, parse_config, read_toml
-    from .errors import ConfigError
-    from .lab.fit import Trace, fit_traces
-    from .lab.readers import read_trace
-    from .lab.report import prepare_folder, write_fit_outputs
+    from ..config import apply_overrides, parse_config, read_toml
+    from ..errors import ConfigError
+    from ..lab.fit import Trace, fit_traces
+    from ..lab.readers import read_trace
+    from ..lab.report import prepare_folder, write_fit_outputs
 
     if max_evaluations < 1:
         raise ConfigError("--max-evaluations", f"must be at least 1, got {max_evaluations}")
@@ -112,7 +109,7 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
             update(budget, budget)
     paths = write_fit_outputs(result, out)
     for doubt in result.warnings:
-        click.echo(f"warning: {doubt}", err=True)
+        echo_warning(doubt)
     if quiet:
         return
     from rich.console import Console

@@ -1,4 +1,4 @@
-"""Plots of a sweep's ``metrics.csv``: a wall-pulse metric against one or two swept parameters.
+"""Pictures of a sweep's ``metrics.csv``: a wall-pulse metric against one or two swept parameters.
 
 ``metrics.csv`` (written by :func:`hertzchain.run_sweep`) has one row per member: ``member``,
 ``chunk``, one column per swept parameter (named by its dotted path), then ``dt`` and the
@@ -58,9 +58,9 @@ def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str 
     import numpy as np
     import pandas as pd
 
-    from .errors import ConfigError
-    from .fileio import atomic_path
-    from .plotting import image_format
+    from ..errors import ConfigError
+    from ..fileio import atomic_path
+    from .common import image_format
 
     path, out = Path(path), Path(out)
     fmt = image_format(out)
@@ -87,14 +87,12 @@ def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str 
         if p is not None and df[p].dtype.kind not in "fiu":
             raise ConfigError(p, "is not a numeric parameter; plot numeric parameters only")
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from .style import agg_figure
 
     unit = _UNITS.get(metric, "")
     label = f"{metric} [{unit}]" if unit else metric
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    fig = agg_figure(6.5, 4.2, layout=None)  # cropped to its content by bbox_inches="tight" below
+    ax = fig.subplots()
     if y is None:
         others = [p for p in params if p != x]
         groups = df.groupby(others, sort=True) if others else [((), df)]
@@ -123,5 +121,4 @@ def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str 
     ax.set_title(f"{metric} of {path.name}")
     with atomic_path(out) as tmp:
         fig.savefig(tmp, format=fmt, dpi=120, bbox_inches="tight")
-    plt.close(fig)
     return out

@@ -1,4 +1,4 @@
-"""``hertzchain design``: search for the chain that best meets a goal (registered in cli.py).
+"""``hertzchain design``: search for the chain that best meets a goal.
 
 Heavy imports (numba, cma, matplotlib) are deferred into the command so that ``hertzchain --help``
 stays quick.
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from .cli_options import set_option
+from .common import dask_client, freeze_imports, require_device, set_option
 
 
 @click.command("design")
@@ -36,8 +36,7 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from .design import load_design, run_design, write_report
-    from .cli_options import dask_client, freeze_imports, require_device
+    from ..design import load_design, run_design, write_report
 
     problem = load_design(design_file, overrides)
     _import_search()
@@ -85,12 +84,12 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
 
 def _import_search() -> None:
     """Import what the search runs on (the engine, CMA-ES, the first sample), so that
-    :func:`~hertzchain.cli_options.freeze_imports` takes its modules out of the collector's reach too."""
+    :func:`~hertzchain.cli.common.freeze_imports` takes its modules out of the collector's reach too."""
     import cma  # noqa: F401
     from scipy.stats import qmc  # noqa: F401
 
-    from .design import search  # noqa: F401
-    from .integrate import batch  # noqa: F401
+    from ..design import search  # noqa: F401
+    from ..integrate import batch  # noqa: F401
 
 
 def _improvement(info: dict, ref: str) -> str:

@@ -1,10 +1,12 @@
-"""``hertzchain animate``: a GIF or MP4 of a result (registered in cli.py's ``_register_subcommands``)."""
+"""``hertzchain animate``: a GIF or MP4 of a result."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import click
+
+from .common import open_result, parse_window, progress_bar
 
 
 @click.command("animate")
@@ -25,14 +27,12 @@ def animate(result: Path, out: Path, frames: int, fps: float, window: str | None
     Beads are drawn displaced when the run recorded positions (hertzchain run CONFIG --set
     probes.positions=true), at rest otherwise.
     """
-    from .animation import animate as write_animation
-    from .cli import _open_result, progress_bar
-    from .fileio import check_not_input
-    from .plot_cli import parse_window
+    from ..fileio import check_not_input
+    from ..viz.animation import animate as write_animation
 
     check_not_input(out, result)
     span = parse_window(window)
-    ds = _open_result(result)
+    ds = open_result(result)
     with progress_bar("drawing frames", enabled=not quiet) as update:
         write_animation(ds, out, n_frames=frames, fps=fps, window=span, member=member, exaggeration=exaggeration,
                         progress=update)

@@ -6,24 +6,21 @@ from pathlib import Path
 
 import click
 
-from .analyze_cli import trace_options
+from .common import open_result, signal_frame, trace_options
 
 
 def simulated_signal(source: Path, signal: str):
     """The simulated force ``signal`` (``wall_force``, ``sensor_force:N``...) of a result or a run config."""
-    from .analyze_cli import signal_frame
-    from .errors import ConfigError
+    from ..errors import ConfigError
 
     if not source.exists():
         raise ConfigError(str(source), "no such file")
     if source.suffix.lower() == ".toml":
-        from .config import run_config
+        from ..config import run_config
 
         ds = run_config(source)
     else:
-        from .cli import _open_result
-
-        ds = _open_result(source)
+        ds = open_result(source)
     name, _, index = signal.partition(":")
     da = signal_frame(ds, name)[name]
     extra = [d for d in da.dims if d != "time"]
@@ -44,7 +41,7 @@ def simulated_signal(source: Path, signal: str):
     return da
 
 
-@click.command()
+@click.command("compare")
 @click.argument("measured", type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("simulated", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
@@ -63,11 +60,11 @@ def compare(measured: Path, simulated: Path, out: Path, json_path: Path | None, 
     Both pulses are fitted as in the paper (F_m cos^6((t - T)/tau), Sec. III); the table gives the
     differences simulated - measured of F_m, T and tau and the rms residual after alignment.
     """
-    from .fileio import json_text, write_text
-    from .lab.compare import compare_traces
-    from .lab.readers import read_trace
-    from .lab.report import plot_comparison
-    from .plotting import image_format
+    from ..fileio import json_text, write_text
+    from ..lab.compare import compare_traces
+    from ..lab.readers import read_trace
+    from ..lab.report import plot_comparison
+    from ..viz.common import image_format
 
     image_format(out)  # an unknown --out suffix is refused before anything is read or simulated
     meas = read_trace(measured, column, sensitivity=sensitivity, sensor=sensor, time_unit=time_unit)

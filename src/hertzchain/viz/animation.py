@@ -20,7 +20,8 @@ from typing import Callable, Sequence
 import numpy as np
 import xarray as xr
 
-from .errors import ConfigError
+from ..errors import ConfigError
+from .common import bead_centres, contact_positions, result_title, select_member, time_window
 
 __all__ = ["ChainFrames", "chain_frames", "animate"]
 
@@ -92,8 +93,6 @@ def chain_frames(ds: xr.Dataset, n_frames: int = 100, *, window: Sequence[float]
     ChainFrames
         The frames' data.
     """
-    from .plotting import bead_centres, contact_positions, select_member, time_window
-
     run = select_member(ds, member)
     if not (isinstance(n_frames, (int, np.integer)) and 2 <= n_frames <= 2000):
         raise ConfigError("--frames", f"must be an integer in 2..2000, got {n_frames!r}")
@@ -157,14 +156,13 @@ def _frame_figure(run: xr.Dataset, fr: ChainFrames, title: str) -> _FrameFigure:
     """Lay out the frames (FRAME_INCHES at FRAME_DPI) of ``run``: the chain to scale on the
     left, its colour scale below it, the wall force growing beside it on the right."""
     import matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
-    from matplotlib.figure import Figure
     from matplotlib.patches import Circle
 
-    fig = Figure(figsize=FRAME_INCHES, dpi=FRAME_DPI)
-    FigureCanvasAgg(fig)
+    from .style import agg_figure
+
+    fig = agg_figure(*FRAME_INCHES, layout=None, dpi=FRAME_DPI)
     # Side by side (figure fractions): a chain is ~10-20 times longer than it is wide, so drawn
     # to scale it is a thin strip; the left 55 % of the frame keeps it as long as possible and
     # leaves the trace a panel of its own height on the right.
@@ -242,8 +240,7 @@ def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float 
     pathlib.Path
         ``out``. Every frame is FRAME_INCHES x FRAME_DPI = 800 x 450 pixels.
     """
-    from .fileio import atomic_path
-    from .plotting import _title, select_member
+    from ..fileio import atomic_path
 
     out = Path(out)
     kind = out.suffix.lower()
@@ -257,7 +254,7 @@ def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float 
         raise ConfigError("--fps", f"must lie in (0, 100], got {fps!r}")
     fr = chain_frames(ds, n_frames, window=window, member=member, exaggeration=exaggeration)
     run = select_member(ds, member)
-    view = _frame_figure(run, fr, _title(run, member if "member" in ds.dims else None))
+    view = _frame_figure(run, fr, result_title(run, member if "member" in ds.dims else None))
     canvas = view.figure.canvas
 
     frames: list = []

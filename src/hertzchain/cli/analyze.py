@@ -6,47 +6,12 @@ from pathlib import Path
 
 import click
 
+from .common import open_result, signal_frame, trace_options
+
 _NETCDF = (".nc", ".nc4", ".netcdf", ".cdf", ".h5")
 
 
-def trace_options(func):
-    """The options that say how to read a measured file (shared by analyze, compare and fit)."""
-    for option in reversed((
-        click.option("--column", default=None, metavar="NAME_OR_INDEX",
-                     help="Signal column of a text/scope file, by header name or 0-based index "
-                          "(default: the only one besides time, or the one named *force*)."),
-        click.option("--sensitivity", type=float, default=None, metavar="MV_PER_N",
-                     help="Sensor sensitivity [mV/N]: the signal is in volts and becomes newtons."),
-        click.option("--sensor", default=None, type=click.Choice(["pcb_208a11", "pcb_200b02"], case_sensitive=False),
-                     help="Sensor preset instead of --sensitivity: pcb_208a11 (112.40 mV/N, wall), "
-                          "pcb_200b02 (11.24 mV/N, embedded)."),
-        click.option("--time-unit", default=None, metavar="s|ms|us|ns",
-                     help="Unit of the time column when the file does not name it."),
-    )):
-        func = option(func)
-    return func
-
-
-def signal_frame(ds, name: str):
-    """A one-signal Dataset on a ``time`` dimension (the instrument's ``*_scope_time`` renamed)."""
-    import xarray as xr
-
-    from .errors import ConfigError
-
-    if name not in ds.data_vars:
-        forces = [v for v in ds.data_vars if ds[v].attrs.get("units") == "N" and any(str(d).endswith("time")
-                                                                                  for d in ds[v].dims)]
-        raise ConfigError("--signal", f"{name!r} is not a signal of this result; available: {', '.join(forces)}")
-    da = ds[name]
-    tdim = next((d for d in da.dims if str(d).endswith("time")), None)
-    if tdim is None:
-        raise ConfigError("--signal", f"{name!r} is not a time signal (dims {da.dims})")
-    if tdim != "time":
-        da = da.reset_coords(drop=True).rename({tdim: "time"})
-    return xr.Dataset({name: da})
-
-
-@click.command()
+@click.command("analyze")
 @click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--signal", "signals", multiple=True,
               help="Result signals: wall_force, sensor_force, contact_force, measured_wall_force, "
@@ -67,9 +32,9 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
     """
     import math
 
-    from .analysis import analyze_signals
-    from .errors import ConfigError
-    from .fileio import json_text, write_text
+    from ..analysis import analyze_signals
+    from ..errors import ConfigError
+    from ..fileio import json_text, write_text
 
     if not source.exists():
         raise ConfigError(str(source), "no such file")
@@ -77,12 +42,10 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
         raise ConfigError("--tail-end", f"must be a positive time in s, got {tail_end}")
     units_note = "time in s, force in N"
     if source.suffix.lower() in _NETCDF:
-        from .cli import _open_result
-
         if sensitivity is not None or sensor is not None or time_unit is not None:
             raise ConfigError("--sensitivity", "a hertzchain result is already in SI units (N, s); "
                               "--sensitivity, --sensor and --time-unit apply to scope files")
-        ds = _open_result(source)
+        ds = open_result(source)
         if column is not None:
             signals = signals + (column,)
         chosen = signals or tuple(s for s in ("wall_force", "sensor_force") if s in ds) or ("contact_force",)
@@ -93,7 +56,7 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
                 frame = frame.sel(time=slice(None, tail_end))
             rows += analyze_signals(frame, signals=(name,))
     else:
-        from .lab.readers import read_trace
+        from ..lab.readers import read_trace
 
         da = read_trace(source, column, sensitivity=sensitivity, sensor=sensor, time_unit=time_unit, baseline=False)
         if tail_end is not None:

@@ -1,0 +1,91 @@
+"""The ``hertzchain`` command: the Click group, one line per subcommand, the one error path.
+
+Each subcommand lives in a module of its own (``hertzchain/cli/<name>.py``); what they share is
+in :mod:`hertzchain.cli.common`. A new command: write its module, add one ``add_command`` line
+below. Every user error (bad config, bad file, bad option) ends with a one-paragraph message and
+exit status 2, never a traceback. Heavy imports are deferred into the commands so ``--help`` is quick.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import click
+
+from .analyze import analyze
+from .animate import animate
+from .common import user_warnings
+from .compare import compare
+from .design import design
+from .fit import fit
+from .materials import materials
+from .plot import plot
+from .reproduce import reproduce
+from .run import run
+from .sweep import sweep
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="hertzchain")
+def cli() -> None:
+    """Impulse propagation in chains of Hertzian beads (tapered granular shock absorbers)."""
+
+
+cli.add_command(run)
+cli.add_command(reproduce)
+cli.add_command(materials)
+cli.add_command(plot)
+cli.add_command(animate)
+cli.add_command(analyze)
+cli.add_command(compare)
+cli.add_command(fit)
+cli.add_command(sweep)
+cli.add_command(design)
+
+
+@user_warnings
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: run the CLI, turning user errors into a message and exit status 2.
+
+    The one error path of the command line: a :class:`~hertzchain.errors.HertzchainError` (bad
+    config, bad file, a run that diverged), a usage error, an unreadable or unwritable file
+    (OSError) or a lack of memory ends with one paragraph naming what is wrong and exit status
+    2; anything else is a bug, reported as such with exit status 1.
+    """
+    from ..errors import HertzchainError
+
+    try:
+        cli.main(args=argv, prog_name="hertzchain", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("aborted", err=True)
+        return 130
+    except click.exceptions.ClickException as exc:
+        exc.show()
+        return 2 if isinstance(exc, click.UsageError) else exc.exit_code
+    except HertzchainError as exc:
+        click.echo(f"error: {exc}", err=True)
+        return 2
+    except KeyboardInterrupt:
+        click.echo("interrupted", err=True)
+        return 130
+    except MemoryError:
+        click.echo("error: not enough memory for this job; shorten run.duration, raise run.sample_interval "
+                   "or record fewer contacts (probes.contacts)", err=True)
+        return 2
+    except OSError as exc:  # a file the job needed could not be read or written
+        where = exc.filename if exc.filename is not None else "a file"
+        click.echo(f"error: {where}: {exc.strerror or exc}", err=True)
+        return 2
+    except Exception as exc:  # a bug: say so plainly, full traceback on request
+        if os.environ.get("HERTZCHAIN_DEBUG"):
+            raise
+        click.echo(f"internal error: {type(exc).__name__}: {exc}\n"
+                   "This is a bug in hertzchain; rerun with HERTZCHAIN_DEBUG=1 for the traceback.", err=True)
+        return 1
+    return 0
+
+
+def entry() -> None:
+    """Console-script entry point (``hertzchain``, ``python -m hertzchain.cli``)."""
+    sys.exit(main())

@@ -1,0 +1,63 @@
+"""``hertzchain run``: simulate the chain of a config file and save the result as NetCDF."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from .common import echo_warning, progress_bar, set_option
+
+
+@click.command("run")
+@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="NetCDF file to write (e.g. result.nc).")
+@set_option
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
+def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> None:
+    """Simulate the chain described by CONFIG (TOML) and save the result as NetCDF."""
+    import warnings
+
+    from ..config import apply_instruments, build_instruments, build_model, build_probes, load_config, simulate_config
+    from ..errors import ConfigError, DurationWarning, ElasticLimitWarning
+    from ..fileio import check_not_input, check_target
+    from ..result import save
+    from ..simulation import auto_duration
+
+    if out.suffix.lower() not in (".nc", ".nc4", ".h5"):
+        # A result is NetCDF-4 whatever the name; a .csv or .png name is a mistake to catch before the run.
+        raise ConfigError("--out", f"a result is a NetCDF file: name it *.nc (got {out.name!r})")
+    cfg = load_config(config, overrides)
+    check_not_input(out, config)
+    check_target(out)  # refuse a FIFO, a link or a device as --out before any work
+    model = build_model(cfg)
+    probes = build_probes(cfg)
+    build_instruments(cfg)  # fail on bad instrument settings before a long run
+    # A progress bar only when the run is long enough to be worth one (> ~1e8 bead-steps).
+    from ..integrate.verlet import auto_time_step
+
+    dt = cfg.run.dt or auto_time_step(model.system())
+    duration = auto_duration(model) if cfg.run.duration == "auto" else cfg.run.duration
+    work = duration / dt * model.chain.n_beads
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ElasticLimitWarning)
+        warnings.simplefilter("always", DurationWarning)
+        with progress_bar("simulating", enabled=not quiet and work > 1e8, lazy=True) as update:
+            ds = simulate_config(cfg, model, probes, progress=update)
+    for w in caught:
+        echo_warning(w.message)
+    ds = apply_instruments(ds, cfg)
+    save(ds, out)
+    if not quiet:
+        if ds.attrs.get("time_step") == "adaptive":
+            step = f"adaptive dt {ds.attrs['dt']:.3g}-{ds.attrs['dt_max']:.3g} s, {ds.attrs['n_steps']} steps"
+        elif ds.attrs.get("time_step") == "solve_ivp":
+            step = f"{ds.attrs['integrator']}, {ds.attrs['n_steps']} right-hand-side calls"
+        else:
+            step = f"dt = {ds.attrs['dt']:.3g} s"
+        span = f"{ds.attrs['duration'] * 1e3:.3g} ms" + (" (automatic)" if ds.attrs.get("duration_mode") == "auto" else "")
+        msg = f"wrote {out} ({span}, {ds.sizes['time']} samples, {ds.sizes['contact']} contacts, {step})"
+        if "wall_force" in ds:
+            msg += f"; peak wall force {ds.attrs['peak_wall_force']:.4g} N at {ds.attrs['peak_wall_time'] * 1e3:.4g} ms"
+        click.echo(msg)
