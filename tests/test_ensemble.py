@@ -196,7 +196,7 @@ def test_cli_device_option(tmp_path, capsys):
 def test_configs_and_the_member_by_member_fallback_give_the_same_dataset(monkeypatch):
     """Per-member configs are stored as given; a variable the array path does not know (one
     added to run_fields later) makes it stack member by member, with the same result."""
-    from hertzchain.integrate import batch
+    from hertzchain.integrate import batch_results
 
     ens = ensembles()["viscoelastic"]
     models = [ens.model(i) for i in range(M)]
@@ -205,7 +205,7 @@ def test_configs_and_the_member_by_member_fallback_give_the_same_dataset(monkeyp
     fast = simulate_batch(ens, DURATION, probes, configs=configs)
     slow = stack_results(simulate_many(models, DURATION, probes, configs=configs))
     assert_identical(fast, slow)
-    monkeypatch.setattr(batch, "_KNOWN", batch._KNOWN - {"sensor_force"})
+    monkeypatch.setattr(batch_results, "_KNOWN", batch_results._KNOWN - {"sensor_force"})
     fallback = simulate_batch(ens, DURATION, probes, configs=configs)
     assert_identical(fallback, slow)
 

@@ -19,7 +19,7 @@ rounding differences of every step adding up (tests/test_cuda.py).
 
 Layout: every per-slot array is (slot, member), so that the threads of a warp, which run
 neighbouring members, read neighbouring addresses (coalesced). Inputs are the engine's packed
-batch (:class:`hertzchain.integrate.batch._Packed`, built by the vectorised set-up) for members
+batch (:class:`hertzchain.integrate.batch_buffers._Packed`, built by the vectorised set-up) for members
 that share a layout; outputs stay on the device for a whole launch (a chunk of samples) and are
 copied into the packed batch's buffers after it.
 
@@ -41,6 +41,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import ConfigError
+from .batch_buffers import check_members_finite
 from .kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 
 __all__ = ["ENGINE", "AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable", "use_gpu", "run_packed"]
@@ -717,7 +718,7 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     Parameters
     ----------
     pk:
-        The engine's packed batch (``hertzchain.integrate.batch._Packed``) after set-up: every
+        The engine's packed batch (``hertzchain.integrate.batch_buffers._Packed``) after set-up: every
         member with the same slot count, recorded contacts and velocity recording. Its output
         buffers, trackers and maximum forces receive the results, as the CPU engine leaves them.
     progress:
@@ -728,8 +729,6 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     SimulationDiverged
         When a member's state became non-finite.
     """
-    from .batch import check_members_finite  # the CPU engine's check (batch loads this module lazily)
-
     cuda = _cuda()
     nmem = pk.n_members
     p = int(pk.n_slots[0])
