@@ -42,7 +42,7 @@ from _common import RESULTS, best_of, machine_info, quiet, save_json, table  # n
 
 from hertzchain import Chain, Model, Probes, Striker, Viscoelastic  # noqa: E402
 from hertzchain.errors import ElasticLimitWarning  # noqa: E402
-from hertzchain.integrate import batch, batch_engine, batch_pack, cuda  # noqa: E402
+from hertzchain.integrate import batch, batch_engine, batch_pack, cuda, cuda_kernels  # noqa: E402
 from hertzchain.integrate.verlet import step_plan  # noqa: E402
 from hertzchain.integrate.ensemble import Ensemble  # noqa: E402
 
@@ -170,16 +170,16 @@ def measure_gpu(sizes: list[int], repeat: int, warp_up_to: int) -> dict:
             if m <= warp_up_to:
                 out["warp_per_member"][str(m)] = run(m, "warp")[0]
         # the register kernel's block size (its shared memory holds slots x threads parameters)
-        tpb = cuda.REGISTER_THREADS
+        tpb = cuda_kernels.REGISTER_THREADS
         out["register_threads_per_block"] = {}
         m = min(100_000, max(sizes))
         for threads in (32, 64):
-            cuda.REGISTER_THREADS = threads
-            cuda._register_kernel.cache_clear()
+            cuda_kernels.REGISTER_THREADS = threads
+            cuda_kernels._register_kernel.cache_clear()
             run(32, "register")
             out["register_threads_per_block"][str(threads)] = run(m, "register")[0]
-        cuda.REGISTER_THREADS = tpb
-        cuda._register_kernel.cache_clear()
+        cuda_kernels.REGISTER_THREADS = tpb
+        cuda_kernels._register_kernel.cache_clear()
     finally:
         cuda.WARP_PER_MEMBER_BELOW, cuda.USE_REGISTER_KERNEL = saved
     return out
