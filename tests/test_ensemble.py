@@ -13,7 +13,8 @@ from test_batch_stacking import assert_identical
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
 from hertzchain.errors import ConfigError, ElasticLimitWarning
 from hertzchain.integrate.batch import simulate_batch, simulate_many, stack_results
-from hertzchain.integrate.ensemble import Ensemble, same_layout, systems
+from hertzchain.integrate.ensemble import Ensemble, same_layout
+from hertzchain.integrate.systems import systems
 
 DURATION = 2.5e-4  # s: the pulse reaches the wall of every member below
 INTERVAL = 1e-6    # s

@@ -26,8 +26,10 @@ from ..model import Model
 from ..probes import Probes
 from . import kernels, verlet
 from .batch_buffers import _NAMES, _Packed, _member_forces, _member_velocities, _outputs, _slot_sizes
-from .ensemble import Ensemble, Ragged, layout_key, ragged, systems
+from .ensemble import Ensemble, layout_key
 from .layout import PAD, pack
+from .ragged import Ragged, ragged
+from .systems import systems
 from .verlet import (ADAPTIVE_STEPS_PER_RADIAN, MAX_OMEGA_DT, RELAX_EVALUATIONS, StepPlan, horizon_radians,
                      initialise, step_plan)
 
@@ -223,7 +225,7 @@ class MemberSystem(NamedTuple):
     """What a batch's results need of a member's ``Model.system()``, without computing it.
 
     The batched set-up computes every member's System arrays with array code
-    (:func:`hertzchain.integrate.ensemble.systems`); a member's rows of them are kept here.
+    (:func:`hertzchain.integrate.systems.systems`); a member's rows of them are kept here.
 
     Parameters
     ----------
@@ -257,8 +259,8 @@ def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_s
     member by member, bit for bit, into one :class:`_Packed` (one initialisation, one engine call).
 
     A group is an :class:`~hertzchain.integrate.ensemble.Ensemble` (one layout) or a
-    :class:`~hertzchain.integrate.ensemble.Ragged` (one end and law, any bead counts) and one
-    Probes; :func:`~hertzchain.integrate.ensemble.systems` computes its members' arrays a block at
+    :class:`~hertzchain.integrate.ragged.Ragged` (one end and law, any bead counts) and one
+    Probes; :func:`~hertzchain.integrate.systems.systems` computes its members' arrays a block at
     a time. ``dts``: every member's user step [s] (NaN: adaptive), in the batch's order;
     ``check(i, dt)``: :func:`hertzchain.integrate.verlet.check_time_step` of member i (see
     :func:`_step_plans`). Every per-member array of the _Packed is in the batch's order; the
