@@ -12,15 +12,15 @@ recorded but the wall's, adaptive step at 20 steps per radian), after a JIT warm
 alternately in the same run (best of N; the machine may be shared):
 
 1. ``setup_s_per_member``: the set-up (Model -> engine buffers, step plans, initial state) with
-   array code (``batch._setup_groups``: here one ragged group, every chain on a wall with the
+   array code (``batch_pack._setup_groups``: here one ragged group, every chain on a wall with the
    elastic law, padded to the longest), against the
    member-by-member set-up (``Model.system()``, ``step_plan``, ``layout.pack``, ``initialise``
-   per member: ``batch._setup_members``, the path of batches with a size-scaled law).
+   per member: ``batch_pack._setup_members``, the path of batches with a size-scaled law).
 2. ``run_batch_s``: ``run_batch(..., return_systems=True)`` end to end (what the design calls),
    the engine alone on the same packed batch, and the same call with the member-by-member
    set-up (``old_run_batch_s``: that set-up, the same engine, the same RawRuns). Target: <= 5 ms.
 3. ``ensemble_setup_s_per_member``: a 1e4-member single-layout ensemble (30 beads of 26 mm,
-   0.1 % diameter tolerances) set up with ``batch._pack_ensemble``, per member: the one-group
+   0.1 % diameter tolerances) set up with ``batch_pack._pack_ensemble``, per member: the one-group
    case of the grouped set-up must not be slower than before it (see benchmarks/README.md).
 """
 
@@ -39,7 +39,7 @@ from _common import RESULTS, best_of, machine_info, quiet, save_json, table  # n
 
 import hertzchain as hc  # noqa: E402
 from hertzchain.errors import ElasticLimitWarning  # noqa: E402
-from hertzchain.integrate import batch  # noqa: E402
+from hertzchain.integrate import batch, batch_engine, batch_pack, batch_results  # noqa: E402
 from hertzchain.integrate.ensemble import Ensemble  # noqa: E402
 
 DURATION = 2e-3           # s
@@ -68,23 +68,23 @@ def measure_mixed(repeat: int) -> dict:
     n_samples = int(round(DURATION / INTERVAL)) + 1
 
     def grouped():
-        return batch._setup_groups(models, plist, dts, INTERVAL, n_samples, STEPS_PER_RADIAN)
+        return batch_pack._setup_groups(models, plist, dts, INTERVAL, n_samples, STEPS_PER_RADIAN)
 
     def members():
-        return batch._setup_members(models, plist, dts, INTERVAL, n_samples, STEPS_PER_RADIAN)
+        return batch_pack._setup_members(models, plist, dts, INTERVAL, n_samples, STEPS_PER_RADIAN)
 
     def run_new():
         return batch.run_batch(models, DURATION, probes, steps_per_radian=STEPS_PER_RADIAN, return_systems=True)
 
     def run_old():
         pk, systems = members()
-        batch._engine(pk, None, None)
-        return batch._member_runs(pk), systems
+        batch_engine._engine(pk, None, None)
+        return batch_results._member_runs(pk), systems
 
     def engine():
         pk, _ = grouped()
         t0 = time.perf_counter()
-        batch._engine(pk, None, None)
+        batch_engine._engine(pk, None, None)
         return time.perf_counter() - t0
 
     # Same numbers both ways (the point of the array set-up), checked once.
@@ -99,7 +99,8 @@ def measure_mixed(repeat: int) -> dict:
     best = {k: min(v) for k, v in times.items()}
     m = len(models)
     return {"members": m, "bead_counts": sorted({mdl.chain.n_beads for mdl in models}),
-            "setup_groups": len(batch._groups(models, plist)), "duration_s": DURATION, "sample_interval_s": INTERVAL,
+            "setup_groups": len(batch_pack._groups(models, plist)), "duration_s": DURATION,
+            "sample_interval_s": INTERVAL,
             "steps_per_radian": STEPS_PER_RADIAN,
             "setup_s_per_member": best["grouped"] / m, "member_by_member_setup_s_per_member": best["members"] / m,
             "setup_speedup": best["members"] / best["grouped"],
@@ -113,10 +114,10 @@ def measure_ensemble(m: int, repeat: int) -> dict:
     base = hc.Model(hc.Chain.uniform(30, 26e-3), hc.Striker(8e-3, 0.5))
     d = 26e-3 * (1 + 1e-3 * np.random.default_rng(0).standard_normal((m, 30)))
     probes = hc.Probes(1e-6, contacts=(0,))
-    dts = batch._ensemble_dts(None, m)
+    dts = batch_pack._ensemble_dts(None, m)
 
     def setup():
-        return batch._pack_ensemble(Ensemble(base, diameters=d), probes, dts, 1e-6, 11)
+        return batch_pack._pack_ensemble(Ensemble(base, diameters=d), probes, dts, 1e-6, 11)
 
     setup()
     best, times, _ = best_of(setup, repeat)

@@ -42,7 +42,8 @@ from _common import RESULTS, best_of, machine_info, quiet, save_json, table  # n
 
 from hertzchain import Chain, Model, Probes, Striker, Viscoelastic  # noqa: E402
 from hertzchain.errors import ElasticLimitWarning  # noqa: E402
-from hertzchain.integrate import batch, cuda  # noqa: E402
+from hertzchain.integrate import batch, batch_engine, batch_pack, cuda, cuda_kernels  # noqa: E402
+from hertzchain.integrate.verlet import step_plan  # noqa: E402
 from hertzchain.integrate.ensemble import Ensemble  # noqa: E402
 
 N_BEADS = 30
@@ -67,25 +68,25 @@ def measure_setup(m: int, repeat: int, n_baseline: int) -> dict:
     base = base_model()
     d = perturbed(m)
     probes = Probes(1e-6, contacts=(0,))
-    dts = batch._ensemble_dts(None, m)
+    dts = batch_pack._ensemble_dts(None, m)
 
     def vectorised():
         ens = Ensemble(base, diameters=d)
-        return batch._pack_ensemble(ens, probes, dts, 1e-6, 11)
+        return batch_pack._pack_ensemble(ens, probes, dts, 1e-6, 11)
 
     vectorised()  # compiled initialise: load / compile
     best, times, _ = best_of(vectorised, repeat)
     models = [Model(Chain(d[i], base.chain.materials), base.striker) for i in range(m)]
     best_models, times_models, _ = best_of(
-        lambda: batch._pack_ensemble(Ensemble.from_models(models), probes, dts, 1e-6, 11), repeat)
+        lambda: batch_pack._pack_ensemble(Ensemble.from_models(models), probes, dts, 1e-6, 11), repeat)
 
     def per_member():
         members = []
         for model in models[:n_baseline]:
             system = model.system()
-            members.append(batch._Member(system, probes.recorded_contacts(N_BEADS, True),
-                                         batch.step_plan(system, 1e-6, None), False))
-        return batch._pack_models(members, 1e-6, 11)
+            members.append(batch_pack._Member(system, probes.recorded_contacts(N_BEADS, True),
+                                              step_plan(system, 1e-6, None), False))
+        return batch_pack._pack_models(members, 1e-6, 11)
 
     best_old, times_old, _ = best_of(per_member, max(1, repeat - 1))
     return {"members": m, "setup_s_per_member": best / m, "times_s": times,
@@ -98,13 +99,13 @@ def measure_setup(m: int, repeat: int, n_baseline: int) -> dict:
 def measure_end_to_end(m: int, duration: float, repeat: int) -> dict:
     ens = Ensemble(base_model(), diameters=perturbed(m, 1))
     probes = Probes(1e-6, contacts=(0,))
-    dts = batch._ensemble_dts(None, m)
+    dts = batch_pack._ensemble_dts(None, m)
     n_samples = int(round(duration / 1e-6)) + 1
 
     def engine():
-        pk, _ = batch._pack_ensemble(ens, probes, dts, 1e-6, n_samples)
+        pk, _ = batch_pack._pack_ensemble(ens, probes, dts, 1e-6, n_samples)
         t0 = time.perf_counter()
-        batch._engine(pk, None, None)
+        batch_engine._engine(pk, None, None)
         return time.perf_counter() - t0, pk
 
     def end_to_end():
@@ -150,7 +151,7 @@ def measure_gpu(sizes: list[int], repeat: int, warp_up_to: int) -> dict:
         ens = Ensemble(base, diameters=perturbed(m, 2))
         times = []
         for _ in range(repeat):
-            pk, _ = batch._pack_ensemble(ens, probes, np.full(m, GPU_DT), 1e-5, 11)
+            pk, _ = batch_pack._pack_ensemble(ens, probes, np.full(m, GPU_DT), 1e-5, 11)
             t0 = time.perf_counter()
             cuda.run_packed(pk)
             times.append(time.perf_counter() - t0)
@@ -169,16 +170,16 @@ def measure_gpu(sizes: list[int], repeat: int, warp_up_to: int) -> dict:
             if m <= warp_up_to:
                 out["warp_per_member"][str(m)] = run(m, "warp")[0]
         # the register kernel's block size (its shared memory holds slots x threads parameters)
-        tpb = cuda.REGISTER_THREADS
+        tpb = cuda_kernels.REGISTER_THREADS
         out["register_threads_per_block"] = {}
         m = min(100_000, max(sizes))
         for threads in (32, 64):
-            cuda.REGISTER_THREADS = threads
-            cuda._register_kernel.cache_clear()
+            cuda_kernels.REGISTER_THREADS = threads
+            cuda_kernels._register_kernel.cache_clear()
             run(32, "register")
             out["register_threads_per_block"][str(threads)] = run(m, "register")[0]
-        cuda.REGISTER_THREADS = tpb
-        cuda._register_kernel.cache_clear()
+        cuda_kernels.REGISTER_THREADS = tpb
+        cuda_kernels._register_kernel.cache_clear()
     finally:
         cuda.WARP_PER_MEMBER_BELOW, cuda.USE_REGISTER_KERNEL = saved
     return out

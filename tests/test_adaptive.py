@@ -21,7 +21,7 @@ from conftest import assert_same_run
 
 import hertzchain as hc
 from hertzchain.errors import ElasticLimitWarning
-from hertzchain.integrate import batch, kernels
+from hertzchain.integrate import batch_engine, kernels
 from hertzchain.integrate.batch import run_batch, simulate_many
 from hertzchain.integrate.verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, HORIZON_STEPS, auto_time_step,
                                          horizon_radians, refine_peak, run_verlet, step_plan)
@@ -349,7 +349,7 @@ def test_batch_mixes_adaptive_and_fixed_members_bit_for_bit(batch_case):
 def test_batch_in_many_chunks_on_one_thread_is_bit_identical(batch_case, monkeypatch):
     models, probes, dts, singles = batch_case
     calls = []
-    monkeypatch.setattr(batch, "CHUNK_SLOT_STEPS", 2e3)  # one compiled call per few samples
+    monkeypatch.setattr(batch_engine, "CHUNK_SLOT_STEPS", 2e3)  # one compiled call per few samples
     runs = run_batch(models, BATCH_DURATION, probes, dt=dts, n_threads=1, progress=lambda d, t: calls.append(d))
     assert len(calls) > 10
     for raw, single in zip(runs, singles):

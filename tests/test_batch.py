@@ -10,7 +10,7 @@ from conftest import assert_same_run
 
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
 from hertzchain.errors import ConfigError, ElasticLimitWarning
-from hertzchain.integrate import batch
+from hertzchain.integrate import batch_engine
 from hertzchain.integrate.batch import run_batch, simulate_batch, simulate_many
 
 DURATION = 2.5e-4  # s: short, but long enough for the pulse to hit the wall of every chain below
@@ -102,7 +102,7 @@ def test_many_compiled_calls_and_one_thread_change_nothing(mixed, monkeypatch):
     models, probes, dts, singles = mixed
     calls = []
     # A tiny work budget per call splits the run into one compiled call per few samples.
-    monkeypatch.setattr(batch, "CHUNK_SLOT_STEPS", 2e3)
+    monkeypatch.setattr(batch_engine, "CHUNK_SLOT_STEPS", 2e3)
     runs = run_batch(models, DURATION, probes, dt=dts, n_threads=1, progress=lambda d, t: calls.append((d, t)))
     n = singles[0].sizes["time"] - 1
     assert len(calls) > 10 and calls[-1] == (n, n)

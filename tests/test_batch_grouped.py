@@ -17,9 +17,10 @@ from conftest import assert_same_run
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
 from hertzchain.contact import ScaledViscoelastic
 from hertzchain.errors import ConfigError, ElasticLimitWarning
-from hertzchain.integrate import batch
+from hertzchain.integrate import batch, batch_pack
 from hertzchain.integrate.batch import run_batch, simulate_batch, simulate_many
-from hertzchain.integrate.ensemble import Ensemble, Ragged, layout_key, same_layout
+from hertzchain.integrate.ensemble import Ensemble, layout_key, same_layout
+from hertzchain.integrate.ragged import Ragged
 
 DURATION = 2.5e-4  # s: the pulse reaches the wall of every chain below
 INTERVAL = 1e-6    # s
@@ -64,7 +65,7 @@ def grouped():
 
 def test_groups_interleave_and_hold_several_members(grouped):
     models, probes, _ = grouped
-    groups = batch._groups(models, [probes] * len(models))
+    groups = batch_pack._groups(models, [probes] * len(models))
     rows = np.concatenate([g.rows for g in groups])
     assert sorted(rows.tolist()) == list(range(len(models)))
     assert len(groups) == 4 and max(g.ens.n_members for g in groups) == 6
@@ -154,7 +155,7 @@ def test_size_scaled_law_is_set_up_member_by_member():
     probes = Probes(INTERVAL)
     alone = singles(models, probes)
     mixed = models + [Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2))]
-    assert batch._groups(mixed, [probes] * 3) is None
+    assert batch_pack._groups(mixed, [probes] * 3) is None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
         ds = simulate_batch(models, DURATION, probes)

@@ -13,7 +13,8 @@ from test_batch_stacking import assert_identical
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
 from hertzchain.errors import ConfigError, ElasticLimitWarning
 from hertzchain.integrate.batch import simulate_batch, simulate_many, stack_results
-from hertzchain.integrate.ensemble import Ensemble, same_layout, systems
+from hertzchain.integrate.ensemble import Ensemble, same_layout
+from hertzchain.integrate.systems import systems
 
 DURATION = 2.5e-4  # s: the pulse reaches the wall of every member below
 INTERVAL = 1e-6    # s
@@ -196,7 +197,7 @@ def test_cli_device_option(tmp_path, capsys):
 def test_configs_and_the_member_by_member_fallback_give_the_same_dataset(monkeypatch):
     """Per-member configs are stored as given; a variable the array path does not know (one
     added to run_fields later) makes it stack member by member, with the same result."""
-    from hertzchain.integrate import batch
+    from hertzchain.integrate import batch_results
 
     ens = ensembles()["viscoelastic"]
     models = [ens.model(i) for i in range(M)]
@@ -205,7 +206,7 @@ def test_configs_and_the_member_by_member_fallback_give_the_same_dataset(monkeyp
     fast = simulate_batch(ens, DURATION, probes, configs=configs)
     slow = stack_results(simulate_many(models, DURATION, probes, configs=configs))
     assert_identical(fast, slow)
-    monkeypatch.setattr(batch, "_KNOWN", batch._KNOWN - {"sensor_force"})
+    monkeypatch.setattr(batch_results, "_KNOWN", batch_results._KNOWN - {"sensor_force"})
     fallback = simulate_batch(ens, DURATION, probes, configs=configs)
     assert_identical(fallback, slow)
 

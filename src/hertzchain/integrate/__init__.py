@@ -1,1 +1,13 @@
-"""Integrators: the compiled velocity Verlet (default) and the scipy DOP853 reference."""
+"""Integrators: the compiled velocity Verlet (default), the scipy DOP853 reference, and the
+batched engines that run many chains at once.
+
+One chain: ``kernels`` (compiled forces and Verlet steps), ``layout`` (a System packed into the
+kernels' padded arrays), ``verlet`` (the driver: time step, chunks, probes), ``lateral`` (the 2D
+path), ``reference`` (scipy).
+
+Many chains (``simulate_batch``), in the order a batch goes through them: ``batch`` (entry
+points), ``ensemble`` / ``ragged`` / ``systems`` (members as arrays, ``Model.system()``
+vectorised), ``batch_pack`` (set-up), ``batch_buffers`` (the packed batch both engines share),
+``batch_engine`` (CPU) or ``cuda`` with ``cuda_kernels`` and ``cuda_device`` (GPU),
+``batch_results`` (RawRuns and stacked Datasets).
+"""

@@ -18,6 +18,8 @@ Probes are sampled inside the loop every ``stride`` steps (no Python call per st
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from numba import njit
 
@@ -449,3 +451,25 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
             return 1
     acc[2] = step
     return 0
+
+
+def flush_stale_cache(*kernels_using: object) -> None:
+    """Drop the on-disk cache of these compiled functions when this module is newer than it.
+
+    Numba's cache only checks the source file of the cached function itself, not of the
+    functions it calls; the batched engine's loops (``batch_engine._batch_kernel``,
+    ``batch_pack._init_kernel``) compile the functions of this module into themselves, so an
+    edit of ``kernels.py`` would otherwise leave the batched engine running the old kernel.
+
+    Parameters
+    ----------
+    *kernels_using
+        Numba dispatchers (``@njit(cache=True)``) that call functions of this module.
+    """
+    for fn in kernels_using:
+        try:
+            index = Path(fn._cache._cache_file._index_path)
+            if index.exists() and index.stat().st_mtime < Path(__file__).stat().st_mtime:
+                fn._cache.flush()
+        except (AttributeError, OSError):  # private Numba API moved or no cache: nothing to protect
+            pass

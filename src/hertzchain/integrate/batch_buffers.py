@@ -1,0 +1,134 @@
+"""The packed batch: the flat ragged buffers both batched engines (CPU and CUDA) run on.
+
+The set-up (:mod:`hertzchain.integrate.batch_pack`) lays a batch out as one :class:`_Packed`:
+the padded per-slot arrays of every member concatenated into flat buffers (one offset table),
+per-member step plans and parameters, the output buffers with sample 0 written, and the
+kernel's trackers. An engine then advances it in place, the CPU engine
+(:mod:`hertzchain.integrate.batch_engine`) or the GPU engine (:mod:`hertzchain.integrate.cuda`),
+and :mod:`hertzchain.integrate.batch_results` reads the results out of it. Nothing here depends
+on the device: both engines import this module and neither imports the other.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SimulationDiverged
+
+
+#: Doubles per 64-byte cache line.
+_LINE = 8
+
+
+def _aligned_zeros(n: int) -> np.ndarray:
+    """Zeros of length ``n`` starting on a 64-byte boundary."""
+    buf = np.zeros(n + _LINE)
+    start = (-(buf.ctypes.data // 8)) % _LINE
+    return buf[start:start + n]
+
+
+@dataclass
+class _Packed:
+    """A batch laid out for the engine: ragged flat buffers (see ``batch_engine._batch_kernel``),
+    per-member step plans and parameters, output buffers (sample 0 written) and the kernel's
+    trackers."""
+
+    interval: float
+    n_samples: int
+    flat: dict[str, np.ndarray]
+    off: np.ndarray
+    n_slots: np.ndarray
+    law: np.ndarray
+    general: np.ndarray
+    wall_slot: np.ndarray
+    stride: np.ndarray
+    n_sub: np.ndarray
+    n_eval: np.ndarray
+    c_steps: np.ndarray
+    relax: np.ndarray
+    plan_dt: np.ndarray
+    rec: np.ndarray
+    rec_off: np.ndarray
+    nrec: np.ndarray
+    out_f: np.ndarray
+    f_off: np.ndarray
+    out_ke: np.ndarray
+    out_pe: np.ndarray
+    out_ed: np.ndarray
+    out_v: np.ndarray
+    v_off: np.ndarray
+    v_rows: np.ndarray
+    nb: np.ndarray
+    record_v: np.ndarray
+    fmax: np.ndarray
+    fmax_off: np.ndarray
+    peak: np.ndarray
+    acc: np.ndarray
+
+    @property
+    def n_members(self) -> int:
+        return self.n_slots.size
+
+
+_NAMES = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
+
+
+def _slot_sizes(n_slots: np.ndarray) -> np.ndarray:
+    """Slots a member owns in the flat buffers: P + 1 rounded up to whole 64-byte cache lines (on
+    an aligned buffer two threads then never write to one cache line: false sharing would cost a
+    line transfer per step)."""
+    return -(-(n_slots + 1) // _LINE) * _LINE
+
+
+def _outputs(interval: float, n_samples: int, n_slots: np.ndarray, nrec: np.ndarray, rec: np.ndarray,
+             nb: np.ndarray, record_v: np.ndarray, n_contacts: np.ndarray, slot_order: np.ndarray | None = None,
+             **members) -> _Packed:
+    """Offsets and zeroed buffers of a batch (member m owns :func:`_slot_sizes` slots from
+    ``off[m]``). The members' slots follow one another in the order ``slot_order`` (default: the
+    members' own); every other buffer is in the members' order."""
+    nmem = n_slots.size
+    sizes = _slot_sizes(n_slots)
+    if slot_order is None:
+        off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    else:
+        starts = np.concatenate([[0], np.cumsum(sizes[slot_order])]).astype(np.int64)
+        off = np.empty(nmem + 1, dtype=np.int64)
+        off[slot_order] = starts[:-1]
+        off[nmem] = starts[-1]  # the buffers' length
+    total = int(off[-1])
+    flat = {k: _aligned_zeros(total) for k in _NAMES + ("u", "v", "g", "a")}
+    rec_off = np.concatenate([[0], np.cumsum(nrec)]).astype(np.int64)
+    f_off = np.concatenate([[0], np.cumsum(nrec * n_samples)]).astype(np.int64)
+    v_rows = np.where(record_v, n_samples, 1).astype(np.int64)
+    v_off = np.concatenate([[0], np.cumsum(v_rows * nb)]).astype(np.int64)
+    fmax_off = np.concatenate([[0], np.cumsum(n_contacts)]).astype(np.int64)
+    return _Packed(interval=interval, n_samples=n_samples, flat=flat, off=off, n_slots=n_slots, rec=rec,
+                   rec_off=rec_off, nrec=nrec, out_f=np.empty(int(f_off[-1])), f_off=f_off,
+                   out_ke=np.empty((nmem, n_samples)), out_pe=np.empty((nmem, n_samples)),
+                   out_ed=np.empty((nmem, n_samples)), out_v=np.empty(int(v_off[-1])), v_off=v_off, v_rows=v_rows,
+                   nb=nb, record_v=record_v, fmax=np.zeros(int(fmax_off[-1])), fmax_off=fmax_off,
+                   # Written every step: one cache line (8 doubles) per member (see ``sizes``).
+                   peak=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE),
+                   acc=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE), **members)
+
+
+def _member_forces(pk: _Packed, m: int) -> np.ndarray:
+    """Member m's force samples, a (time, recorded contact) view of the flat buffer."""
+    return pk.out_f[pk.f_off[m]:pk.f_off[m + 1]].reshape(pk.n_samples, pk.nrec[m])
+
+
+def _member_velocities(pk: _Packed, m: int) -> np.ndarray:
+    """Member m's velocity samples, a (time or 1, body) view of the flat buffer."""
+    return pk.out_v[pk.v_off[m]:pk.v_off[m + 1]].reshape(pk.v_rows[m], pk.nb[m])
+
+
+def check_members_finite(status: np.ndarray, t: float) -> None:
+    """Raise SimulationDiverged naming the members whose ``status`` is set (state no longer finite
+    before time ``t`` [s]); shared by the CPU and CUDA engines."""
+    bad = np.flatnonzero(status)
+    if bad.size:
+        raise SimulationDiverged(
+            f"the integration of member(s) {bad.tolist()[:10]} diverged (non-finite state) before "
+            f"t = {t:.4g} s; use a smaller run.dt (or the automatic one) or check their inputs")
