@@ -31,7 +31,7 @@ _EXPORTS = {
     "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
     # many chains
     "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch", "Ensemble": "integrate.ensemble",
-    "run_sweep": "sweep", "load_sweep": "sweep", "plot_metrics": "metrics_plot",
+    "run_sweep": "sweep.runner", "load_sweep": "sweep.schema", "plot_metrics": "metrics_plot",
     # design search
     "load_design": "design", "parse_design": "design", "run_design": "design", "write_report": "design",
     "DesignProblem": "design", "DesignResult": "design",

@@ -640,7 +640,7 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
     DesignLocked
         Another search is writing into ``out_dir``.
     """
-    from ..sweep import _folder_lock
+    from ..sweep.storage import _folder_lock
 
     out = Path(out_dir)
     try:
