@@ -233,7 +233,7 @@ def test_other_design_in_the_same_folder_needs_force(tmp_path, capsys):
 
 def test_a_folder_in_use_by_another_search_is_refused(tmp_path, capsys):
     from hertzchain.design.search import DesignLocked
-    from hertzchain.sweep import _folder_lock
+    from hertzchain.sweep.storage import _folder_lock
 
     f = tmp_path / "d.toml"
     _write_design(f, _nq_design(budget=40, polish=False, population=8))

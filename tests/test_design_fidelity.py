@@ -215,8 +215,8 @@ def test_a_candidate_past_a_geometric_constraint_moves_onto_its_boundary():
     last bead is below 15 mm, the point found meets the constraint and lies within 2^-steps of the
     exact boundary q* = 1 - (15/26)^(1/4) (26 (1 - q)^4 = 15 mm) or within the boundary slack
     (last bead under 15 mm x (1 + slack)); it takes fewer geometry checks than bisection."""
+    from hertzchain.design.boundary import _BOUNDARY_SLACK, _to_boundary
     from hertzchain.design.objectives import Evaluator
-    from hertzchain.design.search import _BOUNDARY_SLACK, _to_boundary
 
     p = parse_design(_nq())
     ev = Evaluator(p.objectives, p.section.constraints)
@@ -275,8 +275,9 @@ def test_the_first_generation_holds_the_boundary_point_of_every_bead_count_it_sa
     point breaks the limit."""
     from scipy.stats import qmc
 
+    from hertzchain.design.boundary import _BOUNDARY_SLACK, _REPAIR_STEPS, _repair_initial
     from hertzchain.design.objectives import Evaluator
-    from hertzchain.design.search import _BOUNDARY_SLACK, _REPAIR_STEPS, _initial_sample, _repair_initial
+    from hertzchain.design.search import _initial_sample
 
     p = parse_design(_nq(seed=seed))
     ev = Evaluator(p.objectives, p.section.constraints)

@@ -149,7 +149,8 @@ def _tolerance_sweep(n: int = 6, **tol) -> dict:
 
 
 def test_sweep_members_as_one_ensemble_are_the_models_number_for_number():
-    from hertzchain.sweep import _member_ensemble, parse_sweep
+    from hertzchain.sweep import parse_sweep
+    from hertzchain.sweep.schema import _member_ensemble
 
     cfg = parse_sweep(_tolerance_sweep())
     ens, dts = _member_ensemble(cfg)

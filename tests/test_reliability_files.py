@@ -201,7 +201,8 @@ def test_damaged_chunk_is_recomputed_on_resume(tmp_path):
 
 
 def test_second_sweep_on_the_same_folder_is_refused(tmp_path, capsys):
-    from hertzchain.sweep import SweepLocked, _folder_lock, parse_sweep
+    from hertzchain.sweep import SweepLocked, parse_sweep
+    from hertzchain.sweep.storage import _folder_lock
 
     tmp_path.mkdir(exist_ok=True)
     with _folder_lock(tmp_path):

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hertzchain import sweep as sweep_mod
+from hertzchain.sweep import runner as sweep_runner
 from hertzchain.errors import ConfigError, HertzchainError
 from hertzchain.sweep import SweepMismatch, load_sweep, parse_sweep, run_sweep
 
@@ -92,13 +92,13 @@ def test_killed_sweep_resumes_without_recomputing(tmp_path, reference, monkeypat
     (chunks / "chunk_00003.nc").write_bytes(b"not netcdf")
 
     computed = []
-    real = sweep_mod.compute_chunk
+    real = sweep_runner.compute_chunk
 
     def counting(task):
         computed.append(task.index)
         return real(task)
 
-    monkeypatch.setattr(sweep_mod, "compute_chunk", counting)
+    monkeypatch.setattr(sweep_runner, "compute_chunk", counting)
     seen = []
     result = run_sweep(grid_sweep(), out, progress=lambda d, t: seen.append(d))
     assert computed == [2, 3]
@@ -315,7 +315,7 @@ def test_chunk_tasks_and_results_survive_pickling(tmp_path):
     cfg = parse_sweep(grid_sweep(parameters={"striker.velocity": [0.1, 0.2]},
                                  tolerances={"diameter_rel": 1e-3, "offset_mm": 0.02, "seed": 3}))
     captured = []
-    real = sweep_mod.compute_chunk
+    real = sweep_runner.compute_chunk
 
     class Recorder:
         def map(self, fn, tasks):

@@ -28,10 +28,11 @@ _EXPORTS = {
     "Track": "track", "simulate_lateral": "track",
     # running and results
     "Probes": "probes", "simulate": "simulation", "auto_duration": "simulation", "save": "result", "load": "result",
-    "load_config": "config", "parse_config": "config", "run_config": "config", "build_model": "config",
+    "load_config": "config.loading", "parse_config": "config.schema", "run_config": "config.build",
+    "build_model": "config.build",
     # many chains
     "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch", "Ensemble": "integrate.ensemble",
-    "run_sweep": "sweep", "load_sweep": "sweep",
+    "run_sweep": "sweep.runner", "load_sweep": "sweep.schema",
     # design search
     "load_design": "design", "parse_design": "design", "run_design": "design", "write_report": "design",
     "DesignProblem": "design", "DesignResult": "design",

@@ -4,7 +4,9 @@
   profiles, materials, chain shapes;
 - :mod:`~hertzchain.design.constraints`: geometry and run constraints;
 - :mod:`~hertzchain.design.objectives`: objectives, robust forms, batched evaluation;
-- :mod:`~hertzchain.design.search`: CMA-ES / NSGA-II, local polish, checkpoints;
+- :mod:`~hertzchain.design.search`: CMA-ES / NSGA-II, local polish, verification at full accuracy;
+- :mod:`~hertzchain.design.boundary`: candidates past a geometric limit moved onto it;
+- :mod:`~hertzchain.design.checkpoint`: the search state saved and safely read back;
 - :mod:`~hertzchain.design.report`: best.toml, design.json, history.csv, pareto.csv, design.html.
 """
 

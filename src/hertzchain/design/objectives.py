@@ -447,7 +447,7 @@ class Evaluator:
         return len(self.robust.velocities or [None]) * self.robust.draws
 
     def _scenario_models(self, cfg: dict, nominal) -> list:
-        from ..sweep import Tolerances, _apply_tolerances
+        from ..sweep.schema import Tolerances, _apply_tolerances
 
         if self.robust is None:
             return [nominal]
@@ -590,7 +590,7 @@ def _gather(client, tasks: list[_Task]) -> list[dict]:
     """Run the tasks here (client None) or on the client, results in task order."""
     if client is None:
         return [run_task(t) for t in tasks]
-    from ..sweep import _results
+    from ..sweep.runner import _results
 
     indexed = [(i, t) for i, t in enumerate(tasks)]
     got = dict(_results(client, _run_indexed, indexed))

@@ -1,0 +1,318 @@
+"""The schema of a run config: one pydantic model per TOML section, with the physical bounds of
+every number (:data:`BOUNDS`); :func:`parse_config` validates a mapping against it and reports the
+first problem as a :class:`~hertzchain.errors.ConfigError` naming the field as the user wrote it.
+
+The documentation's table of config keys is generated from :class:`RunConfig` (docs/conf.py).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any, Literal, NoReturn
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from ..errors import ConfigError
+
+
+class _Section(BaseModel):
+    # strict: TOML booleans and strings are not numbers, floats are not counts (issue: ``velocity =
+    # true`` ran at 1 m/s); integers are still accepted where a float is expected.
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+    def __deepcopy__(self, memo: dict | None = None) -> "_Section":
+        # pydantic deep-copies a model default (WallConfig(), ProbesConfig(), ...) at every
+        # validation, which was a third of parse_config's time (a design search parses
+        # thousands); the sections are frozen, so a shallow copy is as good.
+        return self.__copy__()
+
+
+#: Physical bounds of the config's numbers (inclusive unless said otherwise), generous enough for
+#: any granular-chain experiment and tight enough that nothing reaches the engine as 0, inf or an
+#: overflowing product (1e300 m/s, 1e-300 mm, 1e30 beads).
+BOUNDS = {
+    "diameter_mm": (1e-3, 1e4),       # 1 um .. 10 m
+    "beads": (1, 10_000_000),         # bead counts and numbers (memory is checked separately)
+    "velocity": (0.0, 1e3),           # m/s, > 0; far beyond yield already
+    "density": (1.0, 1e5),            # kg/m^3
+    "young": (1e3, 1e13),             # Pa
+    "yield_stress": (1e3, 1e12),      # Pa
+    "precompression": (0.0, 1e9),     # N (and the Hertz-range check on the static overlap)
+    "offset_mm": (-1e4, 1e4),
+    "A": (0.0, 1.0),                  # s (the paper's eps = 0.985 needs A ~ 4.5e-6 s)
+    "gamma": (0.0, 1e9),              # N s/m
+    "duration": (0.0, 100.0),         # s, > 0 (memory and run time are checked separately)
+    "sample_interval": (1e-12, 1.0),  # s
+    "dt": (1e-15, 1.0),               # s
+    "rtol": (1e-14, 0.1),
+    # adaptive Verlet accuracy, omega dt <= 1 / steps_per_radian: below ~10 the peak force is off
+    # by more than ~3e-4 (error ~ (1 / steps_per_radian)^2) and Verlet nears its stability limit
+    "steps_per_radian": (10.0, 1e5),
+}
+
+
+def _bounded(kind: str, *, open_low: bool = False, **kw: Any) -> Any:
+    lo, hi = BOUNDS[kind]
+    return Field(gt=lo, le=hi, **kw) if open_low else Field(ge=lo, le=hi, **kw)
+
+
+_Diameter = Annotated[float, _bounded("diameter_mm")]
+_BeadNumber = Annotated[int, _bounded("beads")]
+_Offset = Annotated[float, _bounded("offset_mm")]
+
+
+class MaterialConfig(_Section):
+    """A user material under ``[materials.NAME]`` (SI units)."""
+
+    density: float = _bounded("density", description="kg/m^3")
+    young: float = _bounded("young", description="Young's modulus, Pa")
+    poisson: float = Field(gt=-1, lt=0.5)
+    yield_stress: float | None = _bounded("yield_stress", default=None, description="Pa")
+
+
+class UniformBlock(_Section):
+    n: _BeadNumber
+    diameter_mm: _Diameter
+
+
+class TaperBlock(_Section):
+    n: _BeadNumber
+    q: float = Field(ge=0, lt=1, description="tapering factor as a fraction (0.056 = 5.6 %)")
+
+
+class Substitution(_Section):
+    bead: _BeadNumber
+    diameter_mm: _Diameter | None = None
+    material: str | None = None
+
+
+class ChainConfig(_Section):
+    """``[chain]``: give exactly one of ``diameters_mm``, ``preset`` or ``uniform`` (+ optional ``taper``)."""
+
+    material: str = "AISI52100"
+    materials: list[str] | None = None
+    diameters_mm: list[float] | None = None
+    preset: Literal["chain1", "chain2"] | None = None
+    uniform: UniformBlock | None = None
+    taper: TaperBlock | None = None
+    truncate: _BeadNumber | None = None
+    substitutions: list[Substitution] = Field(default_factory=list)  # not deep-copied at every validation
+    offsets_mm: list[_Offset] | None = None
+    offsets_fraction: list[Annotated[float, Field(ge=-0.5, le=0.5)]] | None = None
+    precompression: float = _bounded("precompression", default=0.0, description="static force, N")
+
+    @field_validator("diameters_mm")
+    @classmethod
+    def _finite_positive(cls, v: list[float] | None) -> list[float] | None:
+        if v is not None:
+            if not v:
+                raise ValueError("must list at least one diameter")
+            if len(v) > BOUNDS["beads"][1]:
+                raise ValueError(f"lists {len(v)} beads; at most {BOUNDS['beads'][1]} are allowed")
+            lo, hi = BOUNDS["diameter_mm"]
+            for i, d in enumerate(v):
+                if not (math.isfinite(d) and lo <= d <= hi):
+                    raise ValueError(f"diameter of bead {i + 1} (item [{i}]) must be a positive finite number "
+                                     f"in mm, from {lo:g} to {hi:g}, got {d!r}")
+        return v
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "ChainConfig":
+        given = [k for k in ("diameters_mm", "preset", "uniform") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError("give exactly one of diameters_mm, preset or uniform "
+                             f"(got {', '.join(given) if given else 'none'})")
+        if self.offsets_mm is not None and self.offsets_fraction is not None:
+            raise ValueError("give offsets_mm or offsets_fraction, not both")
+        return self
+
+
+class StrikerConfig(_Section):
+    diameter_mm: _Diameter = 8.0
+    velocity: float = _bounded("velocity", open_low=True, default=0.5, description="m/s towards the chain")
+    material: str | None = None
+
+
+class WallConfig(_Section):
+    type: Literal["flat", "none"] = "flat"
+    material: str | None = None
+
+
+class ContactConfig(_Section):
+    """``[contact]``: law and either its parameter (A [s] or gamma [N s/m]) or a target ``eps``."""
+
+    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot"] = "elastic"
+    eps: float | None = Field(default=None, gt=0, le=1, description="per-bead factor of the paper")
+    A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s "
+                                  "(viscoelastic_scaled: between two beads like the chain's first)")
+    gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m")
+
+    @model_validator(mode="after")
+    def _parameter(self) -> "ContactConfig":
+        if self.law == "elastic" and (self.A is not None or self.gamma is not None or
+                                      (self.eps is not None and self.eps != 1.0)):
+            raise ValueError("the elastic law takes no A, gamma or eps < 1; set law = 'viscoelastic' or 'dashpot'")
+        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma"}.get(self.law)
+        if own is not None:
+            other = "gamma" if own == "A" else "A"
+            if getattr(self, other) is not None:
+                raise ValueError(f"law '{self.law}' takes {own} (or eps), not {other}")
+            if (getattr(self, own) is None) == (self.eps is None):
+                raise ValueError(f"law '{self.law}' needs exactly one of {own} or eps")
+        return self
+
+
+class RunSection(_Section):
+    duration: float | Literal["auto"] = Field(
+        default="auto", description="s, or 'auto': until the front has crossed the chain and its tail passed "
+                                    "(hertzchain.simulation.auto_duration)")
+    sample_interval: float = _bounded("sample_interval", default=1e-7, description="s")
+    dt: float | None = _bounded("dt", default=None, description="s; automatic when absent")
+    integrator: Literal["verlet", "dop853", "rk45"] = "verlet"
+    rtol: float = _bounded("rtol", default=1e-10)
+    steps_per_radian: float = _bounded(
+        "steps_per_radian", default=400.0,
+        description="adaptive Verlet step: omega dt <= 1 / steps_per_radian; peak error ~ (1/steps_per_radian)^2")
+
+    @field_validator("duration", mode="before")
+    @classmethod
+    def _auto_or_time(cls, v: Any) -> Any:
+        # Checked here in full, so that an error names run.duration (not a branch of the union).
+        if v == "auto":
+            return v
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError("must be a time in s (a number) or 'auto'")
+        lo, hi = BOUNDS["duration"]
+        if not (math.isfinite(v) and lo < v <= hi):
+            raise ValueError(f"must be greater than {lo:g} and at most {hi:g} (a time in s), or 'auto'")
+        return float(v)
+
+
+class ProbesConfig(_Section):
+    sensors: list[_BeadNumber] = []
+    contacts: Literal["all"] | list[Annotated[int, Field(ge=0, le=BOUNDS["beads"][1])]] = "all"
+    velocities: bool = False
+    positions: bool = False
+
+
+class InstrumentChannel(_Section):
+    """One measured channel: a sensor preset plus any :class:`hertzchain.instrument.Instrument` field."""
+
+    preset: Literal["pcb_208a11", "pcb_200b02"] | None = None
+    sensitivity_mV_per_N: float | None = Field(default=None, gt=0, le=1e6)
+    noise_rms_mV: float | None = Field(default=None, ge=0, le=1e6)
+    sample_rate: float | None = Field(default=None, ge=1.0, le=1e12, description="Hz")
+    record_length: int | None = Field(default=None, ge=2, le=100_000_000)
+    trigger_level_N: float | None = Field(default=None, ge=-1e9, le=1e9)
+    pretrigger_fraction: float | None = Field(default=None, ge=0, lt=1)
+    bits: int | None = Field(default=None, ge=1, le=48)
+    full_scale_V: float | None = Field(default=None, gt=0, le=1e4)
+    offset_V: float | None = Field(default=None, ge=-1e4, le=1e4)
+    n_average: int | None = Field(default=None, ge=1, le=1_000_000)
+    trigger_jitter: bool | None = None
+    seed: int | None = Field(default=None, ge=0, le=2**63 - 1)
+
+
+class InstrumentConfig(_Section):
+    """``[instrument]``: the laboratory's measurement chain, off unless a channel is given."""
+
+    trigger: Literal["self", "wall"] = "self"
+    wall: InstrumentChannel | None = None
+    sensors: InstrumentChannel | None = None
+
+
+class TrackConfig(_Section):
+    """``[track]``: lateral freedom (:func:`hertzchain.simulate_lateral`): the beads may leave the
+    chain's axis, held by a groove, a spring and friction (:class:`hertzchain.Track`). Absent: the
+    beads stay on their lines (the 1D engine)."""
+
+    groove_radius_mm: float | None = Field(default=None, gt=0, le=BOUNDS["diameter_mm"][1],
+                                           description="mm, radius of the groove's cross-section; absent: flat bed")
+    spring: float = Field(default=0.0, ge=0, le=1e12, description="N/m, transverse spring per body")
+    friction: float = Field(default=0.0, ge=0, le=10.0, description="Coulomb coefficient with the track")
+    slip_velocity: float = Field(default=1e-5, gt=0, le=10.0, description="m/s, regularisation of the friction")
+    gravity: float = Field(default=9.81, ge=0, le=1e3, description="m/s^2")
+
+
+class RunConfig(_Section):
+    """The whole run file."""
+
+    materials: dict[str, MaterialConfig] = {}
+    chain: ChainConfig
+    striker: StrikerConfig = StrikerConfig()
+    wall: WallConfig = WallConfig()
+    contact: ContactConfig = ContactConfig()
+    run: RunSection = RunSection()
+    probes: ProbesConfig = ProbesConfig()
+    instrument: InstrumentConfig = InstrumentConfig()
+    track: TrackConfig | None = None
+
+
+def _field_name(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+def _allowed_keys(loc: tuple[Any, ...]) -> str:
+    model: Any = RunConfig
+    for part in loc[:-1]:
+        if isinstance(part, int) or model is None:
+            continue
+        fld = getattr(model, "model_fields", {}).get(part)
+        if fld is None:
+            return ""
+        ann = fld.annotation
+        args = getattr(ann, "__args__", ())
+        candidates = [ann, *args] + [a for x in args for a in getattr(x, "__args__", ())]
+        model = next((c for c in candidates if isinstance(c, type) and issubclass(c, BaseModel)), None)
+    if model is None:
+        return ""
+    return ", ".join(model.model_fields)
+
+
+def parse_config(data: dict) -> RunConfig:
+    """Validate a config mapping; raise :class:`ConfigError` naming the first bad field.
+
+    Parameters
+    ----------
+    data : dict
+        The mapping as read from a TOML run file (keys in the units their names say, else SI).
+
+    Returns
+    -------
+    RunConfig
+        The validated, immutable config.
+    """
+    try:
+        return RunConfig.model_validate(data)
+    except ValidationError as exc:
+        _raise_config_error(exc)
+
+
+def _raise_config_error(exc: ValidationError, prefix: tuple[str, ...] = ()) -> NoReturn:
+    """Turn pydantic's first error into a ConfigError naming the field as written (under ``prefix``:
+    the section that was validated on its own)."""
+    err = exc.errors()[0]
+    loc = prefix + tuple(err["loc"])
+    name = _field_name(loc)
+    if err["type"] == "extra_forbidden":
+        allowed = _allowed_keys(loc)
+        raise ConfigError(name, f"unknown key; allowed keys here: {allowed}") from None
+    if err["type"] == "missing":
+        raise ConfigError(name, "is required") from None
+    msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
+    value = err.get("input")
+    if not isinstance(value, (dict, list)):
+        msg += f" (got {value!r})"
+    if err["type"] in ("float_type", "int_type", "int_from_float", "bool_type", "string_type"):
+        msg += "; write it as a TOML " + {"float_type": "number such as 0.5 (not true or a quoted string)",
+                                           "int_type": "whole number such as 12 (not 12.0 or a quoted string)",
+                                           "int_from_float": "whole number such as 12 (not 12.0)",
+                                           "bool_type": "boolean, true or false",
+                                           "string_type": "quoted string"}[err["type"]]
+    raise ConfigError(name or "config", msg) from None
