@@ -128,7 +128,9 @@ def compute_chunk(task: _ChunkTask):
         # sweep's), so that a recomputed chunk has the same bytes and checksum as the first one.
         ds.attrs.pop("created_utc", None)
         return ds
-    keep = [v for v in ds.data_vars if ds[v].dims == ("member",)]
+    # The per-member numbers; not the member's description (``model``, ``config``: ~1 kB each, and
+    # the sweep file and the member's index give it again: SweepConfig.member_model).
+    keep = [v for v in ds.data_vars if ds[v].dims == ("member",) and v not in ("model", "config")]
     table = xr.Dataset({**{v: ds[v].variable for v in keep}, **metrics}, coords={"member": ds["member"]},
                        attrs={**attrs, "title": "hertzchain sweep chunk (metrics only)", "engine": ds.attrs.get("engine", "")})
     traces = None
@@ -223,9 +225,10 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         Output folder (see the module docstring for its content).
     client
         None: chunks are computed here, one after the other, each across all cores. A Dask
-        ``distributed.Client``, a ``concurrent.futures.Executor``, anything with ``submit`` +
-        ``gather`` or with ``map``: chunks are sent to it and written here as they come back (the
-        workers need no access to ``out_dir``).
+        ``distributed.Client`` (worker processes here or on other machines), a
+        ``concurrent.futures.Executor``, anything with ``submit`` + ``gather`` or with ``map``:
+        chunks are sent to it and written here as they come back (the workers need no access
+        to ``out_dir``; a worker that dies costs only its chunk, run again elsewhere).
     progress
         Called as ``progress(done_members, total_members)`` after each chunk file is written
         (and once at the start with the members found finished on disk).
@@ -243,8 +246,9 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         parameter (named by its path), ``dt`` [s], ``peak_wall_force`` [N] and ``peak_wall_time``
         [s] (integrator), ``elastic_limit_exceeded``, the wall-pulse metrics ``F_m`` [N], ``T``
         [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s] (NaN with ``fit_error`` saying why when the
-        member has no wall or no fitted pulse). Also written to ``metrics.csv`` (and
-        ``metrics.parquet`` when pyarrow is installed).
+        member has no wall or no fitted pulse), ``kinetic_energy_end``, ``potential_energy_end``,
+        ``dissipated_energy_end`` [J] and ``force_over_yield``. Also written to ``metrics.csv``
+        (and ``metrics.parquet`` when pyarrow is installed).
 
     Raises
     ------
