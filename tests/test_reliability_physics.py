@@ -185,9 +185,11 @@ def test_records_that_cannot_fit_in_memory_are_refused_before_allocation():
     model = hc.Model(hc.Chain.uniform(16, 26e-3))
     probes = hc.Probes(sample_interval=1e-7)
     est = checks.estimate_resources(model.system(), 12.0, probes)
-    # samples x (contacts + energies + time + wall) x 16 bytes
+    # samples x (contacts + energies + wall) x 12 bytes (the record and its compressed file)
     assert est.samples == 120_000_001 and est.signals == 17 + 4
-    assert est.memory_bytes == 16 * est.samples * est.signals
+    assert est.memory_bytes == checks.BYTES_PER_VALUE * est.samples * est.signals == 12 * est.samples * est.signals
+    # the peak: the process as it is (at least the runtime's own) plus the job
+    assert est.peak_bytes == est.memory_bytes + est.process_bytes and est.process_bytes >= checks.RUNTIME_BYTES
     with pytest.raises(hc.ConfigError, match=r"^run\.duration: .*GiB.*more than"):
         checks.check_resources(est, available=2**30)
     checks.check_resources(checks.estimate_resources(model.system(), 1e-3, probes), available=2**30)

@@ -151,3 +151,33 @@ def test_relative_only_draws_are_those_documented():
         z = np.random.default_rng([5, i, 1]).standard_normal((2, 3))
         assert np.array_equal(ens.diameters[i], np.full(3, 10e-3) * (1.0 + 1e-3 * z[0]))
         assert np.array_equal(ens.offsets[i], np.zeros(3) + 0.02 * 1e-3 * z[1])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("store", ["metrics", "wall"])
+def test_peak_memory_of_a_sweep_is_within_its_estimate(tmp_path, store):
+    """The sweep's estimate (hertzchain.sweep.runner.estimate_sweep) against the peak resident
+    memory of the process that runs it (os.wait4), on chunks whose records dominate: 120 short
+    chains recorded for 2e5 samples (~90 MB of records a chunk). benchmarks/memory_estimates.py
+    does the same for every documented example."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import tomli_w
+
+    from hertzchain.sweep.runner import estimate_sweep
+
+    spec = ensemble(n=240, chunk_size=120, store=store)
+    spec["base"]["run"] = {"duration": 2e-2, "sample_interval": 1e-7}
+    f = tmp_path / "s.toml"
+    f.write_text(tomli_w.dumps(spec))
+    est = estimate_sweep(parse_sweep(spec))
+    assert est.memory_bytes > 80e6  # the records, not the interpreter, decide
+    proc = subprocess.Popen([str(Path(sys.executable).parent / "hertzchain"), "sweep", str(f), "--out",
+                             str(tmp_path / "out"), "-q"], stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0, proc.stderr.read()
+    ratio = usage.ru_maxrss * 1024 / est.peak_bytes
+    assert 1 / 1.3 <= ratio <= 1.3, (ratio, usage.ru_maxrss * 1024, est)

@@ -25,7 +25,8 @@ import numpy as np
 from .errors import ConfigError, HertzRangeWarning, LongRunWarning, PulseNotReachedWarning, SimulationDiverged
 
 __all__ = ["ResourceEstimate", "estimate_resources", "check_resources", "check_before_run", "check_after_run",
-           "check_energy_balance", "energy_gain", "estimate_memory", "energy_tolerance", "energy_cause", "available_memory", "HERTZ_MAX_OVERLAP",
+           "check_energy_balance", "energy_gain", "estimate_memory", "energy_tolerance", "energy_cause", "available_memory", "resident_memory",
+           "process_baseline", "HERTZ_MAX_OVERLAP",
            "LONG_RUN_S"]
 
 #: Largest overlap delta / R_min (R_min the smaller radius of the pair) taken as inside the range of
@@ -44,8 +45,28 @@ SCIPY_S_PER_STEP = 2e-5
 #: Share of the available memory a run may plan to use (the result is copied once when it is
 #: assembled and written).
 MEMORY_SHARE = 0.8
-#: Bytes kept per recorded number: the float64 record plus one copy while the result is built.
-BYTES_PER_VALUE = 16
+#: Bytes per recorded number of a job whose records are written to a file (a run, a sweep chunk):
+#: the float64 record (views of the engine's buffers make the Dataset) and, while the file is
+#: built in memory, its compressed copy (about half of it). benchmarks/memory_estimates.py
+#: measures the peak resident memory of every documented example against the estimate.
+BYTES_PER_VALUE = 12
+#: ... of a job whose records are not written (a sweep with store = "metrics", a design
+#: generation): the float64 record alone.
+BYTES_PER_VALUE_UNWRITTEN = 8
+#: Resident memory of a process that has run the engine once: the interpreter, NumPy, SciPy,
+#: xarray, Numba and its compiled kernels [bytes] (~265 MiB measured on Linux x86-64, Python
+#: 3.11, the CLI's imports included). A job's peak resident memory is this (or what the process
+#: holds already, when more) plus the job's own memory.
+RUNTIME_BYTES = 270 * 2**20
+
+
+def resident_memory() -> int | None:
+    """Resident memory of this process now [bytes] (Linux /proc/self/statm), or None when unknown."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as fh:
+            return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
 
 
 def available_memory() -> int | None:
@@ -76,11 +97,15 @@ class ResourceEstimate:
     members : int
         Runs held in memory at once (1, or a sweep chunk).
     memory_bytes : int
-        Memory the records need [bytes] (with one copy while the result is built).
+        Memory the job allocates [bytes]: its records and, when they are written, the file built
+        from them (what must fit in the memory available).
     steps : float
         Time steps of one member (an upper estimate for the adaptive step).
     seconds : float
         Projected run time [s] on one core.
+    process_bytes : int
+        Resident memory of the process besides the job [bytes]: what it holds now, at least
+        :data:`RUNTIME_BYTES`.
     """
 
     samples: int
@@ -89,10 +114,21 @@ class ResourceEstimate:
     memory_bytes: int
     steps: float
     seconds: float
+    process_bytes: int = 0
+
+    @property
+    def peak_bytes(self) -> int:
+        """The process's peak resident memory during the job [bytes]: ``process_bytes + memory_bytes``."""
+        return self.process_bytes + self.memory_bytes
+
+
+def process_baseline() -> int:
+    """Resident memory a job starts from [bytes]: this process's now, at least :data:`RUNTIME_BYTES`."""
+    return max(resident_memory() or 0, RUNTIME_BYTES)
 
 
 def estimate_resources(system, duration: float, probes, dt: float | None = None, members: int = 1,
-                       integrator: str = "verlet") -> ResourceEstimate:
+                       integrator: str = "verlet", written: bool = True) -> ResourceEstimate:
     """Samples x recorded signals x members and the steps for ``duration``, before any allocation.
 
     Parameters
@@ -110,6 +146,9 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
         Runs held in memory together (a sweep chunk).
     integrator : str
         ``"verlet"``, or a scipy method (``"dop853"``, ``"rk45"``; a rougher estimate).
+    written : bool
+        Whether the records are written to a file (a run's result, a sweep chunk) or only
+        reduced to numbers (a metrics-only chunk, a design generation).
 
     Returns
     -------
@@ -118,7 +157,7 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
     from .integrate.verlet import step_plan
 
     n = system.n_beads
-    samples, signals, memory = _records_size(n, system.has_wall, duration, probes, members)
+    samples, signals, memory = _records_size(n, system.has_wall, duration, probes, members, written)
     if integrator == "verlet":
         plan = step_plan(system, probes.sample_interval, dt)
         steps = duration / plan.dt
@@ -130,19 +169,23 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
         steps = duration * system.max_frequency() / SCIPY_RADIANS_PER_STEP
         seconds = steps * (SCIPY_S_PER_STEP + (n + 1) * NS_PER_BEAD_STEP["general"]) * members
     return ResourceEstimate(samples=samples, signals=signals, members=members, memory_bytes=int(memory),
-                            steps=steps, seconds=seconds)
+                            steps=steps, seconds=seconds, process_bytes=process_baseline())
 
 
-def _records_size(n_beads: int, has_wall: bool, duration: float, probes, members: int) -> tuple[int, int, int]:
-    """Samples per member, recorded numbers per sample and member, and the records' bytes."""
+def _records_size(n_beads: int, has_wall: bool, duration: float, probes, members: int,
+                  written: bool = True) -> tuple[int, int, int]:
+    """Samples per member, recorded numbers per sample and member, and the job's bytes."""
     samples = int(math.floor(duration / probes.sample_interval + 1e-9)) + 1
     recorded = probes.recorded_contacts(n_beads, has_wall).size
     bodies = (n_beads + 1) * (int(bool(probes.velocities)) + int(bool(getattr(probes, "positions", False))))
-    signals = recorded + 4 + len(probes.sensors) + bodies  # + 3 energies, time, wall
-    return samples, signals, BYTES_PER_VALUE * samples * signals * members
+    # the recorded contacts, the 3 energies, the wall force and the sensors; the time axis is shared
+    signals = recorded + 4 + len(probes.sensors) + bodies
+    per_value = BYTES_PER_VALUE if written else BYTES_PER_VALUE_UNWRITTEN
+    return samples, signals, per_value * samples * signals * members
 
 
-def estimate_memory(n_beads: int, has_wall: bool, duration: float, probes, members: int = 1) -> ResourceEstimate:
+def estimate_memory(n_beads: int, has_wall: bool, duration: float, probes, members: int = 1,
+                    written: bool = False) -> ResourceEstimate:
     """:func:`estimate_resources` without the run time (``steps`` and ``seconds`` 0): what the
     records need, from the bead count alone (no System to build; a design search checks every
     generation).
@@ -159,14 +202,16 @@ def estimate_memory(n_beads: int, has_wall: bool, duration: float, probes, membe
         What is recorded, and how often.
     members : int
         Runs held in memory together.
+    written : bool
+        Whether the records are written to a file (a design generation's are not).
 
     Returns
     -------
     ResourceEstimate
     """
-    samples, signals, memory = _records_size(n_beads, has_wall, duration, probes, members)
+    samples, signals, memory = _records_size(n_beads, has_wall, duration, probes, members, written)
     return ResourceEstimate(samples=samples, signals=signals, members=members, memory_bytes=int(memory), steps=0.0,
-                            seconds=0.0)
+                            seconds=0.0, process_bytes=process_baseline())
 
 
 def _gib(x: float) -> str:

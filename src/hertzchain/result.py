@@ -198,10 +198,10 @@ def to_netcdf_bytes(ds: xr.Dataset, compress: bool = True, single_precision: boo
             enc["dtype"] = "float32"
         if enc:
             encoding[name] = enc
-    return netcdf_bytes(ds, encoding)
+    return bytes(netcdf_bytes(ds, encoding))
 
 
-def netcdf_bytes(ds: xr.Dataset, encoding: dict) -> bytes:
+def netcdf_bytes(ds: xr.Dataset, encoding: dict) -> memoryview:
     """``ds.to_netcdf`` into memory with ``encoding``, whatever Dask scheduler is active.
 
     xarray guards a write with a lock of the active Dask scheduler; with a ``distributed.Client``
@@ -219,13 +219,14 @@ def netcdf_bytes(ds: xr.Dataset, encoding: dict) -> bytes:
 
     Returns
     -------
-    bytes
-        The file's content.
+    memoryview
+        The file's content (a view of the in-memory file: no copy of a file that may be as large
+        as the records).
     """
     import dask
 
     with dask.config.set(scheduler="synchronous"):
-        return bytes(ds.to_netcdf(None, engine=ENGINE, encoding=encoding))
+        return memoryview(ds.to_netcdf(None, engine=ENGINE, encoding=encoding))
 
 
 def save(ds: xr.Dataset, path: str | Path, compress: bool = True, single_precision: bool = False) -> Path:

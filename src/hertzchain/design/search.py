@@ -547,3 +547,41 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
     pareto = pareto_rows(problem, state.history) if multi else ([best] if best and best["feasible"] else [])
     return DesignResult(problem, best_out, state.history, pareto, state.n_evaluations, state.generation,
                         t_saved + time.perf_counter() - t_start, out, resumed)
+
+
+def estimate_design(problem: DesignProblem):
+    """The memory of the design's largest engine call (a generation), before the search starts.
+
+    An upper estimate: the largest generation (the first sample, or the population after its
+    restarts' doublings) times the scenarios of ``[design.robust]``, every member as long as the
+    longest chain of the space (its unit cube's corners) and sampled at the base's interval.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        The design.
+
+    Returns
+    -------
+    hertzchain.checks.ResourceEstimate
+        ``members``: the generation's engine runs; ``peak_bytes``: the process's peak resident memory.
+    """
+    from ..checks import estimate_memory
+    from ..config import build_model, build_probes, chain_parts, parse_config
+    from ..probes import Probes
+    from ..simulation import auto_duration
+
+    robust = problem.section.robust
+    scenarios = 1 if robust is None else len(robust.velocities or [None]) * robust.draws
+    beads = []
+    for corner in (0.0, 1.0):
+        try:
+            beads.append(chain_parts(problem.space.decode(np.full(problem.space.dim, corner))[1])[1].n_beads)
+        except ConfigError:  # a corner outside the geometric limits: the other one, or the base
+            pass
+    run0 = parse_config(problem.base)
+    base_model = build_model(run0)
+    duration = auto_duration(base_model) if run0.run.duration == "auto" else run0.run.duration
+    members = max(_initial_sample(problem), _population(problem) * 2**_MAX_DOUBLINGS) * scenarios
+    return estimate_memory(max(beads + [base_model.chain.n_beads]), base_model.wall.present, duration,
+                           Probes(sample_interval=build_probes(run0).sample_interval, contacts=()), members)

@@ -163,6 +163,10 @@ def _run_metrics(ds) -> dict:
             for k, v in out.items()}
 
 
+#: Members whose energy balance is checked together (see _check_members_energy).
+_ENERGY_ROWS = 16
+
+
 def _check_members_energy(ds, models, dts: list, task: _ChunkTask) -> None:
     """The energy balance of every member (hertzchain.checks), which the batched engine does not
     check itself: a member that gains energy stops the sweep, naming the member and the cause.
@@ -175,8 +179,15 @@ def _check_members_energy(ds, models, dts: list, task: _ChunkTask) -> None:
     model = models.model if hasattr(models, "model") else models.__getitem__
     tol = np.array([energy_tolerance(model(i).system(), dt) if dt is not None else energy_tolerance(None, 0.0)
                     for i, dt in enumerate(dts)])
-    gain = energy_gain(ke, pe, ed)
-    bad = np.flatnonzero(np.any(~np.isfinite(gain) | (gain > tol[:, None]), axis=1))
+    # A block of members at a time: the gain's temporaries stay a few rows, not a chunk's worth of
+    # records (the memory estimate counts the records and the engine's buffers only).
+    bad = np.empty(0, dtype=np.int64)
+    for r in range(0, len(dts), _ENERGY_ROWS):
+        rows = slice(r, r + _ENERGY_ROWS)
+        gain = energy_gain(ke[rows], pe[rows], ed[rows])
+        bad = np.flatnonzero(np.any(~np.isfinite(gain) | (gain > tol[rows, None]), axis=1)) + r
+        if bad.size:
+            break
     if bad.size:
         i = int(bad[0])
         try:
@@ -294,6 +305,7 @@ class _Plan:
     trace_probes: Any
     device: str
     steps_per_radian: float | None
+    estimate: Any = None
 
 
 def _plan(cfg: SweepConfig, device: str) -> _Plan:
@@ -334,30 +346,66 @@ def _plan(cfg: SweepConfig, device: str) -> _Plan:
 
             # Members share one time axis (the batched engine): the slowest member's duration.
             duration = max(duration, max(auto_duration(m) for m in models))
-    _check_sweep_resources(cfg, largest[1], largest[2], duration, probes,
-                           base_probes if cfg.sweep.traces else None)
+    est = _sweep_estimate(cfg, largest[1], largest[2], duration, probes, base_probes if cfg.sweep.traces else None)
+    _check_sweep_resources(cfg, est)
     return _Plan(duration=duration, probes=probes, trace_probes=base_probes, device=device,
-                 steps_per_radian=run_cfg.run.steps_per_radian)
+                 steps_per_radian=run_cfg.run.steps_per_radian, estimate=est)
 
 
-def _check_sweep_resources(cfg: SweepConfig, model, dt, duration: float, probes, trace_probes) -> None:
-    """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep.
+#: Memory of metrics.csv's table while it is collected and written, per member [bytes]: its numeric
+#: columns and the Python strings of its text columns (447 measured for 1e6 members of an ensemble).
+TABLE_BYTES_PER_MEMBER = 450
 
-    ``model``: the member with the most beads (it stands for all), ``dt`` its fixed step.
-    """
+
+def _sweep_estimate(cfg: SweepConfig, model, dt, duration: float, probes, trace_probes):
+    """The memory of one chunk (the largest member stands for all, ``dt`` its fixed step), and of
+    the metrics table at the end, whichever is larger; the run time of the whole sweep."""
     from dataclasses import replace as _replace
 
-    from ..checks import check_resources, estimate_resources
+    from ..checks import estimate_resources
 
     members = min(cfg.sweep.chunk_size, cfg.n_members)
     system = model.system()
-    est = estimate_resources(system, duration, probes, dt=dt, members=members)
+    est = estimate_resources(system, duration, probes, dt=dt, members=members, written=cfg.sweep.store != "metrics")
     if trace_probes is not None:  # the traced members of a chunk are run again with every probe
         extra = estimate_resources(system, duration, trace_probes, dt=dt, members=min(members, len(cfg.sweep.traces)))
         est = _replace(est, memory_bytes=est.memory_bytes + extra.memory_bytes)
+    return est
+
+
+def _check_sweep_resources(cfg: SweepConfig, est) -> None:
+    """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep."""
+    from dataclasses import replace as _replace
+
+    from ..checks import check_resources
+
     check_resources(_replace(est, seconds=0.0), memory_field="sweep.chunk_size")
-    total = _replace(est, members=cfg.n_members, memory_bytes=0, seconds=est.seconds / members * cfg.n_members)
+    # the metrics table of every member, collected at the end (450 MB for a million members)
+    check_resources(_replace(est, seconds=0.0, memory_bytes=TABLE_BYTES_PER_MEMBER * cfg.n_members),
+                    memory_field="sweep.n")
+    total = _replace(est, members=cfg.n_members, memory_bytes=0, seconds=est.seconds / est.members * cfg.n_members)
     check_resources(total)
+
+
+def estimate_sweep(cfg: SweepConfig):
+    """What a sweep will need, before it runs (every member is validated to know it).
+
+    Parameters
+    ----------
+    cfg : SweepConfig
+        The sweep.
+
+    Returns
+    -------
+    hertzchain.checks.ResourceEstimate
+        ``members``: a chunk's; ``memory_bytes``: what the process allocates at most, a chunk's
+        records or the metrics table of every member at the end, whichever is larger;
+        ``peak_bytes``: the process's peak resident memory; ``seconds``: one chunk on one core.
+    """
+    from dataclasses import replace as _replace
+
+    est = _plan(cfg, "auto").estimate
+    return _replace(est, memory_bytes=max(est.memory_bytes, TABLE_BYTES_PER_MEMBER * cfg.n_members))
 
 
 def _tasks(cfg: SweepConfig, plan: _Plan, todo: list[int]) -> Iterator[_ChunkTask]:
