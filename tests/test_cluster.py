@@ -248,3 +248,12 @@ def test_page_block_is_the_one_documented():
     """The marker sits right above the local-process block (a reordered page would test another)."""
     text = PAGE.read_text()
     assert re.search(r"\.\. tested-commands:.*\n\n\.\. code-block:: bash\n\n   \.venv/bin/dask scheduler", text)
+
+
+def test_no_scheduler_at_the_address_is_a_clean_error():
+    from hertzchain.errors import ConfigError
+    from hertzchain.parallel import connect
+
+    with pytest.raises(ConfigError) as e:
+        connect(f"tcp://127.0.0.1:{_free_port()}", timeout="1s")
+    assert e.value.field == "--scheduler" and "dask scheduler" in e.value.message

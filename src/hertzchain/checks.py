@@ -178,8 +178,9 @@ def _records_size(n_beads: int, has_wall: bool, duration: float, probes, members
     samples = int(math.floor(duration / probes.sample_interval + 1e-9)) + 1
     recorded = probes.recorded_contacts(n_beads, has_wall).size
     bodies = (n_beads + 1) * (int(bool(probes.velocities)) + int(bool(getattr(probes, "positions", False))))
-    # the recorded contacts, the 3 energies, the wall force and the sensors; the time axis is shared
-    signals = recorded + 4 + len(probes.sensors) + bodies
+    # the recorded contacts (the wall's and the sensors' contacts among them), the 3 energies and
+    # the sensors' forces; the time axis is shared
+    signals = recorded + 3 + len(probes.sensors) + bodies
     per_value = BYTES_PER_VALUE if written else BYTES_PER_VALUE_UNWRITTEN
     return samples, signals, per_value * samples * signals * members
 

@@ -115,7 +115,7 @@ def results_as_completed(client, fn: Callable[[Any], Any], tasks: Iterable) -> I
     """
     if client is None:
         for t in tasks:
-            yield fn(t)
+            yield fn(t)  # nothing kept here: a result is freed once the caller lets it go
         return
     import concurrent.futures as cf
 
@@ -186,6 +186,7 @@ def _dask_results(client, fn, it: Iterator) -> Iterator:
                 if nxt is not _END:
                     pending.add(client.submit(fn, nxt, pure=False))
                 yield result
+                del result  # not held here while the next one is awaited
     finally:  # stopped early (an error, Ctrl-C): leave no work running on the cluster
         left = list(pending.futures)
         if left:

@@ -453,6 +453,8 @@ def _run_chunks(cfg: SweepConfig, plan: _Plan, out: Path, chunks_dir: Path, clie
         check()  # ... or while it was written (h5py's cleanups run weakref callbacks)
         computed.append(index)
         done_members += table.sizes["member"]
+        # let the chunk go before the next one is computed (a chunk's records are the estimate)
+        del result, table, traces
         if progress is not None:
             progress(done_members, total)
 
