@@ -29,7 +29,7 @@ so that P = kappa delta^(3/2) with
 
 the elliptical form of paper eq. 1: for A = B = 1/(2R) (two spheres, a sphere on a flat) it is
 kappa = (4/3) E* sqrt(R), the circular Hertz constant. A sphere of radius R_1 on the side of a
-crossed cylinder of radius R_2 has B/A = 1 + 2 R_1 / R_2; two equal cylinders crossed at right
+crossed cylinder of radius R_2 has B/A = 1 + R_1 / R_2; two equal cylinders crossed at right
 angles meet like a sphere on a flat. Parallel cylinders, or a cylinder's side on a flat, touch
 along a line (A = 0): that contact is not Hertz's point contact and is refused, as is a flat on a
 flat.
