@@ -306,10 +306,10 @@ def _refuse_extended(models) -> None:
 
 
 def _one_layout(models) -> bool:
-    """Whether the models share the number of beads, the end and the contact law's kind (whatever
-    else they are): what the CUDA engine needs of a batch set up member by member."""
-    keys = {(m.chain.n_beads, m.wall.present, m.law.name) if isinstance(m, Model) else None for m in models}
-    return len(keys) == 1 and None not in keys and models[0].law.name != "viscoelastic_scaled"
+    """Whether the models share the number of beads and the end (whatever else they are): what the
+    CUDA engine needs of a batch set up member by member (it takes every member's law as it is)."""
+    keys = {(m.chain.n_beads, m.wall.present) if isinstance(m, Model) else None for m in models}
+    return len(keys) == 1 and None not in keys
 
 
 def _one_probes(probes, n: int) -> Probes | None:
