@@ -128,6 +128,13 @@ def extend(model, parts: dict) -> dict:
     d0 = np.zeros(n + 1)
     loaded = (held[: n + 1] > 0) & (kappa > 0)
     d0[loaded] = (held[: n + 1][loaded] / kappa[loaded]) ** (2.0 / 3.0)
+    if law.name == "elastoplastic":
+        # loaded past F_Y: along Thornton's loading line F_y + (3/2) kappa delta_y^(1/2) (delta - delta_y)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            dy = (fy / np.where(kappa > 0, kappa, 1.0)) ** (2.0 / 3.0)
+            over = loaded & (held[: n + 1] > fy)
+            plastic = dy + (held[: n + 1] - fy) / (1.5 * kappa * np.sqrt(dy))
+        d0 = np.where(over, plastic, d0)
     mount_d0 = 0.0
     if wall.is_body and held[n + 1] > 0:
         if wall.stiffness == 0:  # Model refuses this before; kept as a guard for direct callers

@@ -9,11 +9,15 @@ of 8, so the vector loops run without a scalar remainder on short chains):
 - ``g`` (P + 1,) holds contact forces shifted by one: g[0] = 0 and g[j + 1] = F_j, so that the
   acceleration of body i is (g[i] - g[i + 1] + f_ext,i) / m_i with no special first body.
 
-Padding bodies and contacts have 1/m = 0 and kappa = 0 and never move or push. A model with a
-protected body or mass-in-mass beads (``System.extended``) also has an extension array ``ext``
-(P, EXT_COLUMNS): linear springs and dashpots in parallel with the Hertz law of a contact slot (the
-body's mount, contact N + 1, to the immovable ghost N + 2), and an internal mass on a spring per
-body slot, whose displacement and velocity are state (:func:`step_extended`). The contact
+Padding bodies and contacts have 1/m = 0 and kappa = 0 and never move or push. The
+elastic-plastic law (Thornton 1997, :func:`elastoplastic_force`) also takes, per contact slot,
+its yield overlap ``dyield`` and a state that lives as long as the run: the largest overlap
+reached ``dmax``, and the unloading curve it implies, residual overlap ``dres`` and stiffness
+``kres`` (``layout.pack`` starts them at 0, 0, kappa). A model with a protected body or
+mass-in-mass beads (``System.extended``) also has an extension array ``ext`` (P, EXT_COLUMNS):
+linear springs and dashpots in parallel with the contact law of a contact slot (the body's mount,
+contact N + 1, to the immovable ghost N + 2), and an internal mass on a spring per body slot,
+whose displacement and velocity are state (:func:`step_extended`). The contact
 forces are written once (:func:`forces_elastic`, branch-free so that LLVM vectorises it, and
 :func:`forces_general` for dissipative laws and misaligned beads); the same functions serve the
 Verlet loop and the scipy reference RHS, so both integrate the same equations (paper eq. 1).
@@ -27,7 +31,10 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT = 0, 1, 2
+from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
+                        accelerations_extended, energies_extended, forces_linear)
+
+LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT, LAW_ELASTOPLASTIC = 0, 1, 2, 3
 
 #: Overlaps below this [m] count as zero (forces below ~1e-35 N). Without it the numerical
 #: precursor ahead of a pulse decays into subnormal floats (~1e-300), which x86 handles ~30x
@@ -122,14 +129,60 @@ def final_step_elastic(u, v, a, g, kappa, d0, fext, inv_mass, half):
         fprev = f
 
 
+@njit(cache=True, nogil=True, inline="always")
+def elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres):
+    """Thornton's elastic-plastic contact force at overlap ``d`` >= 0 and its new state.
+
+    Loading past the largest overlap so far (d > dmax): Hertz, kappa d^(3/2), up to the yield
+    overlap dyield, then the line F_y + (3/2) kappa dyield^(1/2) (d - dyield) (slope pi p_y R*);
+    the state moves to the unloading curve through (d, F): residual overlap
+    dres = d - F / (kappa d^(1/2)) and stiffness kres = kappa (d / (d - dres))^(1/2) (Hertz with
+    Thornton's enlarged radius R_p, see ``contact.thornton_unloading``). Otherwise (unloading or
+    reloading below dmax): kres (d - dres)^(3/2), zero below dres. A viscous term
+    damping kres (d - dres)^(1/2) d(delta)/dt is added (Kuwabara-Kono with the present elastic
+    stiffness; ``damping`` = A [s], 0 for the plain law) and the sum is clipped at zero.
+
+    Parameters are per-contact scalars (overlap [m], rate [m/s], kappa [N/m^1.5], A [s], yield
+    overlap [m], state); returns (force [N], its elastic-plastic part [N], dmax, dres, kres), the
+    caller stores the state. Elastic contacts (dmax <= dyield) have dres = 0 and kres = kappa.
+    """
+    if d > dmax:
+        dmax = d
+        if d > dyield:
+            sy = np.sqrt(dyield)
+            fep = kappa * sy * (dyield + 1.5 * (d - dyield))  # F_y + (3/2) kappa dyield^(1/2) (d - dyield)
+            sd = np.sqrt(d)
+            x = fep / (kappa * sd)  # d - dres: the unloading stiffness at d is Hertz's (3/2) kappa d^(1/2)
+            dres = d - x
+            kres = kappa * sd / np.sqrt(x)
+            sx = np.sqrt(x)
+        else:
+            sx = np.sqrt(d)
+            fep = kappa * d * sx
+    else:
+        x = d - dres
+        if x > DELTA_MIN:
+            sx = np.sqrt(x)
+            fep = kres * x * sx
+        else:
+            sx = 0.0
+            fep = 0.0
+    f = fep + damping * kres * sx * rate
+    f = f if f > 0.0 else 0.0
+    return f, fep, dmax, dres, kres
+
+
 @njit(cache=True, nogil=True)
-def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g):
+def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres):
     """Axial contact forces with dissipation and/or misalignment; returns the dissipated power [W].
 
     For a misaligned pair (de_j != 0) the distance of centres is d = sqrt(dx^2 + de^2),
     delta = R_j + R_{j+1} - d and the axial force is F(delta) dx / d (docs/conventions.rst, misalignment).
     Kuwabara-Kono: F = kappa (delta^(3/2) + A delta^(1/2) ddelta/dt); dashpot:
     F = kappa delta^(3/2) + gamma ddelta/dt; both clipped at zero (never attractive).
+    Elastic-plastic (Thornton): :func:`elastoplastic_force`, whose state (``dmax``, ``dres``,
+    ``kres``; unused by the other laws) is updated in place; the dissipated power returned is the
+    viscous part's only (the plastic work follows from the state, :func:`plastic_work`).
     """
     power = 0.0
     for j in range(kappa.shape[0]):
@@ -150,6 +203,16 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g):
             continue
         if d <= DELTA_MIN:
             d = 0.0
+        if law == LAW_ELASTOPLASTIC:
+            if kappa[j] == 0.0:  # no contact (free end, padding)
+                g[j + 1] = 0.0
+                continue
+            rate = c * (v[j] - v[j + 1])
+            f, fep, dmax[j], dres[j], kres[j] = elastoplastic_force(d, rate, kappa[j], damping[j], dyield[j],
+                                                                    dmax[j], dres[j], kres[j])
+            power += (f - fep) * rate
+            g[j + 1] = c * f
+            continue
         sd = np.sqrt(d)
         fel = kappa[j] * d * sd
         if law == LAW_ELASTIC:
@@ -208,6 +271,47 @@ def potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, aligned_elastic):
 
 
 @njit(cache=True, nogil=True, fastmath=_SUMS)
+def potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres):
+    """Elastic energy stored in elastic-plastic contacts minus the work of f_ext [J]: what each
+    contact's unloading curve gives back, (2/5) kres (delta - dres)^(5/2) (Hertz's
+    (2/5) kappa delta^(5/2) for a contact that never yielded: dres = 0, kres = kappa)."""
+    e = 0.0
+    for j in range(kres.shape[0]):
+        if de[j] != 0.0:
+            dx = dx0[j] - (u[j] - u[j + 1])
+            d = rsum[j] - np.sqrt(dx * dx + de[j] * de[j])
+        else:
+            d = u[j] - u[j + 1] + d0[j]
+        x = d - dres[j]
+        if x > 0.0:
+            e += 0.4 * kres[j] * x * x * np.sqrt(x)
+    for i in range(fext.shape[0]):
+        e -= fext[i] * u[i]
+    return e
+
+
+@njit(cache=True, nogil=True, fastmath=_SUMS)
+def plastic_work(kappa, dyield, dmax, dres):
+    """Plastic work [J] done in all contacts so far, from each one's largest overlap alone.
+
+    The work along Thornton's loading curve up to dmax, (2/5) F_y dyield + F_y (dmax - dyield)
+    + (3/4) kappa dyield^(1/2) (dmax - dyield)^2, minus what its unloading curve stores,
+    (2/5) F_max (dmax - dres); 0 for a contact that never passed dyield.
+    """
+    w = 0.0
+    for j in range(kappa.shape[0]):
+        dm = dmax[j]
+        dy = dyield[j]
+        if dm > dy:
+            sy = np.sqrt(dy)
+            fy = kappa[j] * dy * sy
+            x = dm - dy
+            fmax = fy + 1.5 * kappa[j] * sy * x
+            w += 0.4 * fy * dy + fy * x + 0.75 * kappa[j] * sy * x * x - 0.4 * fmax * (dm - dres[j])
+    return w
+
+
+@njit(cache=True, nogil=True, fastmath=_SUMS)
 def energies_elastic(u, v, g, mass, d0, fext):
     """(kinetic, potential) energy [J] of an aligned elastic chain, as :func:`kinetic_energy` and
     :func:`potential_energy` give them, in one vectorised pass (~20 ns a sample for 24 slots,
@@ -231,59 +335,9 @@ def kinetic_energy(v, mass):
     return e
 
 
-#: Columns of the extension array ``ext`` (see the module docstring). Per contact slot j: linear
-#: stiffness [N/m] and dashpot [N s/m] acting on the overlap u_j - u_{j+1} + d0_j (they pull as
-#: well as push: the protected body's mount). Per body slot i: internal spring [N/m], internal
-#: mass [kg] and its inverse, internal displacement [m] and velocity [m/s] (state, both measured
-#: from the internal mass's place at rest, where its spring is relaxed). Column EXT_ACC holds, in
-#: row 0, the work [J] done on the protected body so far by contact N and, in row 1, that power
-#: [W] at the last step (the trapezoidal rule's memory, carried from chunk to chunk).
-EXT_KLIN, EXT_CLIN, EXT_KIN, EXT_MIN, EXT_IMIN, EXT_W, EXT_WV, EXT_ACC = range(8)
-EXT_COLUMNS = 8
-
-
 @njit(cache=True, nogil=True)
-def forces_linear(u, v, d0, ext, g):
-    """Add the linear springs and dashpots of ``ext`` to the contact forces ``g`` (g[j + 1] +=
-    k_j delta_j + c_j d(delta_j)/dt, delta_j = u_j - u_{j+1} + d0_j); returns their dissipated power [W]."""
-    power = 0.0
-    for j in range(ext.shape[0]):
-        k = ext[j, EXT_KLIN]
-        c = ext[j, EXT_CLIN]
-        if k != 0.0 or c != 0.0:
-            rate = v[j] - v[j + 1]
-            g[j + 1] += k * (u[j] - u[j + 1] + d0[j]) + c * rate
-            power += c * rate * rate
-    return power
-
-
-@njit(cache=True, nogil=True)
-def accelerations_extended(u, g, fext, inv_mass, ext, a, wa):
-    """:func:`accelerations` with the internal springs: a_i = (F_{i-1} - F_i + f_ext,i + k_in (w_i - u_i)) / m_i
-    and the internal masses' wa_i = k_in (u_i - w_i) / m_in (mass-in-mass beads)."""
-    for i in range(a.shape[0]):
-        s = ext[i, EXT_KIN] * (ext[i, EXT_W] - u[i])
-        a[i] = (g[i] - g[i + 1] + fext[i] + s) * inv_mass[i]
-        wa[i] = -s * ext[i, EXT_IMIN]
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def energies_extended(u, d0, ext):
-    """(kinetic energy of the internal masses, elastic energy of the linear and internal springs) [J]."""
-    ke = 0.0
-    pe = 0.0
-    for i in range(ext.shape[0]):
-        wv = ext[i, EXT_WV]
-        x = ext[i, EXT_W] - u[i]
-        d = u[i] - u[i + 1] + d0[i]
-        ke += 0.5 * ext[i, EXT_MIN] * wv * wv
-        pe += 0.5 * (ext[i, EXT_KIN] * x * x + ext[i, EXT_KLIN] * d * d)
-    return ke, pe
-
-
-@njit(cache=True, nogil=True)
-def step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, ext, body_slot,
-                  wall_slot, t0, dt, ns, peak, acc):
+def step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dyield, dmax, dres,
+                  kres, ext, body_slot, wall_slot, t0, dt, ns, peak, acc):
     """One block of ``ns`` steps of the general path with the extension (see :func:`verlet_run`).
 
     The same kick-drift-kick as the general path, the internal masses (``ext``) stepped with the
@@ -301,7 +355,7 @@ def step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, i
     for s in range(ns):
         for i in range(n):
             vp[i] = v[i] + half * a[i]
-        p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g)
+        p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
         p += forces_linear(u, vp, d0, ext, g)
         acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
         acc[1] = p
@@ -446,9 +500,9 @@ def _adapt_stride(req, ns, relax, acc):
 
 
 @njit(cache=True, nogil=True)
-def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
-               wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
-               out_pe, out_ed, out_v, record_v, fmax, peak, acc, ext, ext_on, body_slot, out_b):
+def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres,
+               law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f,
+               out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, ext, ext_on, body_slot, out_b):
     """Advance from sample ``k_start`` to ``k_stop`` (samples ``interval`` seconds apart) with velocity Verlet.
 
     On entry and exit ``u, v, a, g`` hold positions, synchronised velocities, accelerations and
@@ -473,7 +527,10 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     previous force, step before, step after]; the parabola through the three points gives the
     peak between steps. Sample k of ``out_f`` receives the forces of the contacts listed in
     ``rec``; ``fmax`` keeps every contact's largest sampled force, stored or not, for the
-    elastic-limit check. Returns 0, or 1 when the state became non-finite.
+    elastic-limit check. The elastic-plastic law's per-contact state (``dmax``, ``dres``,
+    ``kres``, see :func:`elastoplastic_force`) is carried in place from chunk to chunk, and
+    ``out_wp`` receives its plastic work (:func:`plastic_work`) at every sample (other laws leave
+    it alone). Returns 0, or 1 when the state became non-finite.
 
     A model with the extension (``ext_on``: a protected body, mass-in-mass beads) steps with
     :func:`step_extended` and its energies include the internal masses and the linear springs;
@@ -512,8 +569,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
             half = 0.5 * dt
             t0 = (k - 1) * interval + b * block
             if ext_on:
-                step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, ext,
-                              body_slot, wall_slot, t0, dt, ns, peak, acc)
+                step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dyield, dmax,
+                              dres, kres, ext, body_slot, wall_slot, t0, dt, ns, peak, acc)
                 step += ns
                 continue
             for i in range(n):
@@ -523,7 +580,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + half * a[i]
-                    p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g)
+                    p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
                     acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
                     acc[1] = p
                     _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
@@ -559,20 +616,24 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
         for j in range(fmax.shape[0]):
             x = g1[j]
             fmax[j] = x if x > fmax[j] else fmax[j]  # a ternary vectorises; Numba's max() does not
-        if general:
+        if law == LAW_ELASTOPLASTIC:
+            ke = kinetic_energy(v, mass)
+            pe = potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres)
+            out_wp[k] = plastic_work(kappa, dyield, dmax, dres)
+        elif general:
             ke = kinetic_energy(v, mass)
             pe = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
-            if ext_on:
-                ke_in, pe_lin = energies_extended(u, d0, ext)
-                ke += ke_in
-                pe += pe_lin
-                if body_slot >= 0:
-                    out_b[k, 0] = u[body_slot]
-                    out_b[k, 1] = v[body_slot]
-                    out_b[k, 2] = a[body_slot]
-                    out_b[k, 3] = ext[0, EXT_ACC]
         else:
             ke, pe = energies_elastic(u, v, g, mass, d0, fext)
+        if ext_on:
+            ke_in, pe_lin = energies_extended(u, d0, ext)
+            ke += ke_in
+            pe += pe_lin
+            if body_slot >= 0:
+                out_b[k, 0] = u[body_slot]
+                out_b[k, 1] = v[body_slot]
+                out_b[k, 2] = a[body_slot]
+                out_b[k, 3] = ext[0, EXT_ACC]
         out_ke[k] = ke
         out_pe[k] = pe
         out_ed[k] = acc[0]
@@ -587,7 +648,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
 
 
 def flush_stale_cache(*kernels_using: object) -> None:
-    """Drop the on-disk cache of these compiled functions when this module is newer than it.
+    """Drop the on-disk cache of these compiled functions when this module (or ``extension.py``,
+    whose functions it compiles in) is newer than it.
 
     Numba's cache only checks the source file of the cached function itself, not of the
     functions it calls; the batched engine's loops (``batch_engine._batch_kernel``,
@@ -599,10 +661,17 @@ def flush_stale_cache(*kernels_using: object) -> None:
     *kernels_using
         Numba dispatchers (``@njit(cache=True)``) that call functions of this module.
     """
+    sources = (Path(__file__), Path(__file__).with_name("extension.py"))  # what the kernels compile in
+    newest = max(p.stat().st_mtime for p in sources)
     for fn in kernels_using:
         try:
             index = Path(fn._cache._cache_file._index_path)
-            if index.exists() and index.stat().st_mtime < Path(__file__).stat().st_mtime:
+            if index.exists() and index.stat().st_mtime < newest:
                 fn._cache.flush()
         except (AttributeError, OSError):  # private Numba API moved or no cache: nothing to protect
             pass
+
+
+# The stepping loop compiles the extension's functions (extension.py) into itself: an edit there
+# must recompile it too (Numba's cache only checks the file of the function it caches).
+flush_stale_cache(step_extended, verlet_run)
