@@ -83,12 +83,12 @@ class Chain:
             els = (els,) * d.size
         elif len(els) == 0:
             els = (SPHERE,) * d.size
-        elif not isinstance(els, tuple):
+        else:
             els = tuple(els)
-        if len(els) != d.size:
-            raise ConfigError("chain.elements", f"needs one element per bead ({d.size}), got {len(els)}")
-        if not all(type(x) is Element for x in els):
-            raise ConfigError("chain.elements", "every entry must be a hertzchain Element")
+            if len(els) != d.size:
+                raise ConfigError("chain.elements", f"needs one element per bead ({d.size}), got {len(els)}")
+            if not all(type(x) is Element for x in els):
+                raise ConfigError("chain.elements", "every entry must be a hertzchain Element")
         object.__setattr__(self, "elements", els)
         if self.offsets is None:  # aligned: nothing to check
             e = np.zeros(d.size)
