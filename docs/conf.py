@@ -135,6 +135,7 @@ _GROUP_TITLES = {
     "hertzchain.materials": "Materials",
     "hertzchain.contact": "Contact laws",
     "hertzchain.chain": "Chains",
+    "hertzchain.elements": "Bead elements",
     "hertzchain.model": "Model",
     "hertzchain.probes": "Probes",
     "hertzchain.simulation": "Running",

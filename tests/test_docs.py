@@ -50,7 +50,7 @@ def _text(page: Path) -> str:
 def test_site_builds_with_every_page(site):
     pages = ["index", "conventions", "theory", "benchmarks", "validation", "api/index", "gallery/index", "architecture"]
     pages += [f"guide/{p}" for p in ("config", "running", "results", "analysis", "reproduction", "sweeps",
-                                     "instrument", "lab", "design", "gpu", "plotting", "fidelity", "errors")]
+                                     "instrument", "lab", "design", "gpu", "plotting", "fidelity", "bodies", "errors")]
     for page in pages:
         assert (site / f"{page}.html").is_file(), page
 
@@ -79,8 +79,8 @@ def test_api_pages_show_parameters_with_units(site):
 def test_conventions_page_covers_each_convention(site):
     text = _text(site / "conventions.html")
     for heading in ("Units", "Bodies and their numbering", "Contacts and their numbering", "Contact law (Hertz)",
-                    "Materials", "Striker", "Wall", "Sensors", "Misalignment", "Dissipation", "Precompression",
-                    "Elastic limit"):
+                    "Materials", "Striker", "Wall", "Protected body", "Sensors", "Misalignment", "Dissipation",
+                    "Precompression", "Gravity", "Elements", "Elastic limit"):
         assert re.search(rf"{re.escape(heading)}\s*#", text), heading
 
 

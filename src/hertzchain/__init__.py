@@ -23,7 +23,7 @@ _EXPORTS = {
     "Elastic": "contact", "Viscoelastic": "contact", "ScaledViscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
     "Elastoplastic": "contact",
     "yield_force": "contact",
-    "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain",
+    "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain", "Element": "elements",
     "Striker": "model", "Wall": "model", "Model": "model",
     # lateral freedom (the 2D path)
     "Track": "track", "simulate_lateral": "track",
@@ -40,7 +40,7 @@ _EXPORTS = {
     # dissipation
     "calibrate_law": "dissipation", "measure_eps": "dissipation",
     # measurement, analysis, theory
-    "Instrument": "instrument",
+    "Instrument": "instrument", "sensor_wall": "instrument",
     "fit_pulse": "analysis", "PulseFit": "analysis", "power_spectrum": "analysis",
     # laboratory data: scope files, comparison, calibration
     "read_trace": "lab", "compare_traces": "lab", "Comparison": "lab", "fit_traces": "lab", "Trace": "lab",
