@@ -49,6 +49,8 @@ _EXPORTS = {
     # pictures of results and sweeps
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
     "animate": "viz.animation", "plot_metrics": "viz.metrics",
+    # the interactive explorer (Panel; the [explore] extra)
+    "explore": "explore",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -18,6 +18,7 @@ from .animate import animate
 from .common import user_warnings
 from .compare import compare
 from .design import design
+from .explore import explore
 from .fit import fit
 from .materials import materials
 from .plot import plot
@@ -42,6 +43,7 @@ cli.add_command(compare)
 cli.add_command(fit)
 cli.add_command(sweep)
 cli.add_command(design)
+cli.add_command(explore)
 
 
 @user_warnings
