@@ -28,6 +28,7 @@ _EXPORTS = {
     "Track": "track", "simulate_lateral": "track",
     # running and results
     "Probes": "probes", "simulate": "simulation", "auto_duration": "simulation", "save": "result", "load": "result",
+    "export": "exporting",
     "load_config": "config.loading", "parse_config": "config.schema", "run_config": "config.build",
     "build_model": "config.build",
     # many chains

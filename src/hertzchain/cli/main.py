@@ -19,6 +19,7 @@ from .common import user_warnings
 from .compare import compare
 from .design import design
 from .explore import explore
+from .export import export
 from .fit import fit
 from .materials import materials
 from .plot import plot
@@ -44,6 +45,7 @@ cli.add_command(fit)
 cli.add_command(sweep)
 cli.add_command(design)
 cli.add_command(explore)
+cli.add_command(export)
 
 
 @user_warnings
