@@ -31,6 +31,8 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax ships with the site (copied into _static/mathjax): the equations render offline.
+    "sphinx-mathjax-offline",
     "numpydoc",
     "sphinx_gallery.gen_gallery",
 ]
@@ -148,7 +150,7 @@ _GROUP_TITLES = {
     "hertzchain.theory": "Theory",
     "hertzchain.viz": "Pictures",
     "hertzchain.exporting": "Exporting results (CSV, MATLAB, parquet)",
-    "hertzchain.explore": "Explorer",
+    "hertzchain.explorer": "Explorer",
 }
 
 
@@ -208,6 +210,8 @@ sphinx_gallery_conf = {
     "matplotlib_animations": False,
     "image_scrapers": ("matplotlib",),
     "reset_modules": ("matplotlib",),
+    # The timing page loads jQuery and DataTables from CDNs: no page of the site may need the network.
+    "write_computation_times": False,
 }
 
 # -- HTML ----------------------------------------------------------------------------------------
@@ -219,7 +223,7 @@ html_theme_options = {
     "secondary_sidebar_items": ["page-toc"],
 }
 html_sidebars = {"**": ["sidebar-nav-bs"]}
-html_static_path: list[str] = []
+html_static_path = ["_static"]
 html_show_sourcelink = False
 
 

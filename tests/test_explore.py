@@ -14,8 +14,8 @@ import hertzchain as hc
 from hertzchain.cli.main import main
 from hertzchain.config import parse_config
 from hertzchain.errors import ConfigError
-from hertzchain.explore.compute import compute_view, uniform_count
-from hertzchain.explore.settings import ExplorerSettings
+from hertzchain.explorer.compute import compute_view, uniform_count
+from hertzchain.explorer.settings import ExplorerSettings
 
 
 @pytest.mark.parametrize("changes", [
@@ -79,6 +79,6 @@ def test_explore_is_a_displayable_app_in_jupyter():
     assert app.apply(striker_velocity=0.4).force.max() / peak == pytest.approx((0.4 / 0.3) ** 1.2, rel=0.02)
     # a refused value leaves the view as it was and says why
     assert app.apply(striker_velocity=-1.0) is None and "striker.velocity" in app.message.object
-    # the package is callable too once a submodule made it the attribute
-    import hertzchain.explore.app  # noqa: F401
+    # the function stays the package's attribute once the explorer's modules are imported
+    import hertzchain.explorer.app  # noqa: F401
     assert math.isclose(hc.explore().view.force.max(), 8.511304981414646, rel_tol=1e-12)

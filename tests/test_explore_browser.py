@@ -25,7 +25,7 @@ pytestmark = pytest.mark.skipif(_missing is not None, reason=_missing or "")
 
 def _simulated_peak(**changes) -> float:
     from hertzchain.config import build_model, build_probes, parse_config, simulate_config
-    from hertzchain.explore.settings import ExplorerSettings
+    from hertzchain.explorer.settings import ExplorerSettings
 
     cfg = parse_config(ExplorerSettings(**changes).config())
     return float(simulate_config(cfg, build_model(cfg), build_probes(cfg)).wall_force.max())

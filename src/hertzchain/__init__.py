@@ -51,7 +51,7 @@ _EXPORTS = {
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
     "animate": "viz.animation", "plot_metrics": "viz.metrics",
     # the interactive explorer (Panel; the [explore] extra)
-    "explore": "explore",
+    "explore": "explorer",
 }
 
 __all__ = ["__version__", *_EXPORTS]

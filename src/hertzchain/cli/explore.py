@@ -18,7 +18,7 @@ def explore(port: int, no_browser: bool) -> None:
     and "save as config" writes the TOML that `hertzchain run` reproduces the view from.
     Needs the [explore] extra (pip install 'hertzchain[explore]'). Works offline.
     """
-    from ..explore import require_panel, serve
+    from ..explorer import require_panel, serve
 
     require_panel()
     serve(port, open_browser=not no_browser,

@@ -1,6 +1,6 @@
 """The explorer's page: controls on the left, the pictures of the view on the right (Panel on Bokeh).
 
-Every control change recomputes the view (:func:`~hertzchain.explore.compute.compute_view`, tens
+Every control change recomputes the view (:func:`~hertzchain.explorer.compute.compute_view`, tens
 of milliseconds for the paper's 30-bead chains) and replaces the data of the Bokeh plots in
 place, so the browser redraws without reloading the page. Bokeh's and Panel's scripts are served
 by the app itself: the page needs no network.

@@ -1,21 +1,20 @@
-"""The explorer: a local web app to feel how the chain, the striker, the wall and the contact law
+"""The explorer's room: a local web app to feel how the chain, the striker, the wall and the contact law
 shape the wall pulse (``hertzchain explore``), and the same app inside Jupyter
 (``hertzchain.explore()``).
 
-- :mod:`~hertzchain.explore.settings`: what a view is (:class:`ExplorerSettings`) and the run
+- :mod:`~hertzchain.explorer.settings`: what a view is (:class:`ExplorerSettings`) and the run
   config that reproduces it ("save as config");
-- :mod:`~hertzchain.explore.compute`: one view computed (the run, the cos^6 fit, the space-time
+- :mod:`~hertzchain.explorer.compute`: one view computed (the run, the cos^6 fit, the space-time
   map, the energies, paper eqs. 6-8 beside them), built on :mod:`hertzchain.viz`;
-- :mod:`~hertzchain.explore.app`: the page (Panel on Bokeh; needs the ``[explore]`` extra);
+- :mod:`~hertzchain.explorer.app`: the page (Panel on Bokeh; needs the ``[explore]`` extra);
 - :func:`serve`: the app on ``http://127.0.0.1:PORT/`` until stopped.
 
 Nothing here loads Panel until the app is asked for, so the package imports without the extra.
+(The room is ``explorer``, not ``explore``: a subpackage becomes an attribute of ``hertzchain``
+when imported, and would then hide the function ``hertzchain.explore``.)
 """
 
 from __future__ import annotations
-
-import sys
-import types
 
 __all__ = ["explore", "serve", "require_panel"]
 
@@ -44,12 +43,12 @@ def explore(settings=None, **changes):
     settings : ExplorerSettings or None
         The first view (default: the paper's chain 1 hit at 0.2 m/s by an 8 mm striker).
     **changes
-        :class:`~hertzchain.explore.settings.ExplorerSettings` fields to change from it, e.g.
+        :class:`~hertzchain.explorer.settings.ExplorerSettings` fields to change from it, e.g.
         ``striker_velocity=0.3`` [m/s] or ``chain="chain2"``.
 
     Returns
     -------
-    hertzchain.explore.app.Explorer
+    hertzchain.explorer.app.Explorer
         A Panel viewer: displayed in a notebook, served by :func:`serve`; ``.apply(**changes)``
         changes the view from code and ``.view`` holds its numbers.
     """
@@ -98,15 +97,3 @@ def serve(port: int, *, address: str = "127.0.0.1", open_browser: bool = False, 
         server.io_loop.add_callback(ready, url)
     server.start()
     server.io_loop.start()
-
-
-class _CallableModule(types.ModuleType):
-    """``hertzchain.explore`` is both this package and the function :func:`explore`: importing
-    a submodule makes the package an attribute of ``hertzchain``, so the package itself calls
-    :func:`explore`."""
-
-    def __call__(self, *args, **kwargs):
-        return explore(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule
