@@ -54,6 +54,9 @@ class Striker:
         """Striker mass rho pi phi^3 / 6 [kg]."""
         return self.material.density * math.pi * self.diameter**3 / 6.0
 
+    def __repr__(self) -> str:
+        return f"Striker({self.diameter * 1e3:.4g} mm {self.material.name} at {self.velocity:.4g} m/s)"
+
 
 @dataclass(frozen=True)
 class Wall:
@@ -81,6 +84,9 @@ class Wall:
     @property
     def present(self) -> bool:
         return self.kind != "none"
+
+    def __repr__(self) -> str:
+        return f"Wall({self.kind!r}" + (f", {self.material.name}" if self.material is not None else "") + ")"
 
 
 @dataclass(frozen=True)
@@ -224,6 +230,24 @@ class Model:
             raise ConfigError("chain.offsets", f"bead 1 is offset by {e1:.3g} m from the striker's line of flight, "
                               f"more than half the sum of their radii ({reach:.3g} m); the striker would not "
                               "hit it head-on (or would miss the chain)")
+
+    def __repr__(self) -> str:
+        pre = f", precompression {self.precompression:.4g} N" if self.precompression else ""
+        return f"Model({self.chain!r}, {self.striker!r}, {self.wall!r}, {self.law!r}{pre})"
+
+    def _repr_html_(self) -> str:
+        from .display import counts_text, diameters_text, html_table
+
+        chain = self.chain
+        rows = [("chain", diameters_text(chain.diameters)),
+                ("materials", counts_text(m.name for m in chain.materials)),
+                ("striker", repr(self.striker)[len("Striker("):-1]),
+                ("wall", "free end" if not self.wall.present else
+                 f"flat, {(self.wall.material or chain.materials[-1]).name}"),
+                ("contact law", repr(self.law))]
+        if self.precompression:
+            rows.append(("precompression", f"{self.precompression:.4g} N"))
+        return html_table("Model", rows)
 
     @property
     def wall_material(self) -> Material | None:
