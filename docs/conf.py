@@ -19,6 +19,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT / "src"))  # a plain checkout builds too (the editable install is preferred)
+sys.path.insert(0, str(HERE))  # figure_scraper, named below
 
 import hertzchain  # noqa: E402
 
@@ -37,7 +38,7 @@ extensions = [
     "sphinx_gallery.gen_gallery",
 ]
 
-exclude_patterns = ["_build", "**.ipynb_checkpoints", "gallery/*.py", "gallery/*.ipynb", "gallery/*.zip",
+exclude_patterns = ["_build", "figure_scraper.py", "**.ipynb_checkpoints", "gallery/*.py", "gallery/*.ipynb", "gallery/*.zip",
                     "gallery/*.md5", "gallery/*.json", "gallery/*.pickle"]
 templates_path: list[str] = []
 nitpicky = False
@@ -208,7 +209,8 @@ sphinx_gallery_conf = {
     "download_all_examples": False,
     "remove_config_comments": True,
     "matplotlib_animations": False,
-    "image_scrapers": ("matplotlib",),
+    # hertzchain's plotting functions draw outside pyplot: figure_scraper saves those too
+    "image_scrapers": ("matplotlib", "figure_scraper"),
     "reset_modules": ("matplotlib",),
     # The timing page loads jQuery and DataTables from CDNs: no page of the site may need the network.
     "write_computation_times": False,

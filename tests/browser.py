@@ -5,6 +5,7 @@ Selenium, controls found inside Bokeh's shadow DOM.
 Run as a script to refresh the screenshot shown in the docs::
 
     python tests/browser.py --screenshot docs/_static/explorer.png
+    python tests/browser.py --screenshot docs/_static/explorer_taper.png --taper
 """
 
 from __future__ import annotations
@@ -175,14 +176,27 @@ def set_input(driver, label: str, text: str) -> None:
     box.send_keys(text, Keys.ENTER)
 
 
-def screenshot(out: Path) -> None:
-    """Open the explorer, switch to the Kuwabara-Kono law, and save a screenshot of the page."""
+def choose(driver, label: str, option: str) -> None:
+    """Pick ``option`` (its visible text) in the drop-down list labelled ``label``, as a user would."""
+    from selenium.webdriver.support.select import Select
+
+    Select(wait_for(driver, JS_INPUT, label)).select_by_visible_text(option)
+
+
+def screenshot(out: Path, taper: bool = False) -> None:
+    """Open the explorer and save a screenshot of the page; with ``taper``, first switch to a
+    uniform block + taper with Kuwabara-Kono contacts (the taper's controls shown)."""
     port = free_port()
     proc = start_explorer(port)
     try:
         with chromium() as driver:
             driver.get(f"http://127.0.0.1:{port}/")
-            wait_for(driver, JS_MAX, "wall_source", "force")
+            peak = wait_for(driver, JS_MAX, "wall_source", "force")
+            if taper:
+                choose(driver, "chain", "uniform block + taper")
+                peak = wait_for(driver, JS_MAX, "wall_source", "force", until=lambda v: v is not None and v != peak)
+                choose(driver, "contact law", "Kuwabara-Kono, calibrated to eps")
+                wait_for(driver, JS_MAX, "wall_source", "force", until=lambda v: v is not None and v != peak)
             time.sleep(1.0)
             out.parent.mkdir(parents=True, exist_ok=True)
             driver.save_screenshot(str(out))
@@ -195,4 +209,6 @@ if __name__ == "__main__":
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--screenshot", type=Path, required=True, help="PNG file to write")
-    screenshot(parser.parse_args().screenshot)
+    parser.add_argument("--taper", action="store_true", help="a uniform block + taper, Kuwabara-Kono contacts")
+    args = parser.parse_args()
+    screenshot(args.screenshot, taper=args.taper)

@@ -54,7 +54,8 @@ class Explorer(pn.viewable.Viewer):
             "uniform_diameter_mm": w.FloatInput(label="uniform block: diameter [mm]", value=s.uniform_diameter_mm,
                                                 start=1.0, end=100.0, step=0.5),
             "taper_n": w.IntSlider(label="taper: beads n", start=0, end=40, value=s.taper_n),
-            "taper_q": w.FloatSlider(label="taper: q", start=0.0, end=0.15, step=0.001, value=s.taper_q),
+            "taper_q": w.FloatSlider(label="taper: q", start=0.0, end=0.15, step=0.001, value=s.taper_q,
+                                     format="0.000"),
             "diameters_mm": w.TextInput(label="per-bead diameters [mm]", value=s.diameters_mm),
             "material": w.Select(label="bead material", options=mats, value=s.material),
             "striker_diameter_mm": w.FloatInput(label="striker diameter [mm]", value=s.striker_diameter_mm,
@@ -66,7 +67,8 @@ class Explorer(pn.viewable.Viewer):
                              value=s.wall),
             "wall_material": w.Select(label="wall material", options=mats, value=s.wall_material),
             "law": w.Select(label="contact law", options=LAWS, value=s.law),
-            "eps": w.FloatSlider(label="per-bead factor eps (Sec. III)", start=0.9, end=1.0, step=0.001, value=s.eps),
+            "eps": w.FloatSlider(label="per-bead factor eps (Sec. III)", start=0.9, end=1.0, step=0.001, value=s.eps,
+                                 format="0.000"),
         }
         for key, widget in self.widgets.items():
             # Sliders recompute when released (value_throttled), the rest on every committed change.
