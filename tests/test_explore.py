@@ -23,6 +23,7 @@ from hertzchain.explorer.settings import ExplorerSettings
     {"chain": "chain2", "law": "viscoelastic", "eps": 0.98},
     {"chain": "uniform", "uniform_n": 10, "taper_n": 6, "taper_q": 0.08, "material": "brass", "law": "dashpot"},
     {"chain": "diameters", "diameters_mm": "20 20 20 18 16", "wall": "none", "striker_velocity": 0.1},
+    {"law": "elastoplastic", "striker_velocity": 1.0},
 ])
 def test_saved_config_reproduces_the_view_through_hertzchain_run(tmp_path, changes):
     settings = ExplorerSettings(**changes)
@@ -53,6 +54,19 @@ def test_view_numbers_are_the_simulation_and_the_paper():
     e0 = 0.5 * view.result.mass.values[0] * 0.2 ** 2 if "mass" in view.result and view.result.mass.size > 30 else total[0]
     assert np.ptp(total) < 1e-3 * e0
     # eq. 8 for chain 1's q = 5.60 % (elastic): the paper's Q_th with eps = 1
+    rows = {r.equation: r for r in view.theory}
+    assert float(rows["eq. 8"].theory) == pytest.approx(hc.ballistic_ratios(0.0560, 1.0).speed, abs=2e-4)
+
+
+def test_elastoplastic_view_accounts_for_the_plastic_work():
+    """Thornton's law: the plastic work is drawn as its own energy, and with it the sum is the
+    striker's kinetic energy again (nothing else dissipates: no eps, no viscous term)."""
+    view = compute_view(ExplorerSettings(law="elastoplastic", striker_velocity=2.0))
+    assert "eps" not in view.config["contact"]
+    curves = dict(view.energies)
+    e0 = curves["total"][0]
+    assert curves["plastic"][-1] > 0.1 * e0 and curves["dissipated"][-1] == 0
+    assert np.ptp(curves["total"]) < 1e-5 * e0
     rows = {r.equation: r for r in view.theory}
     assert float(rows["eq. 8"].theory) == pytest.approx(hc.ballistic_ratios(0.0560, 1.0).speed, abs=2e-4)
 

@@ -17,11 +17,12 @@ from bokeh.plotting import figure
 
 from ..errors import HertzchainError
 from .compute import ExplorerView, compute_view
-from .settings import CHAIN_KINDS, LAWS, ExplorerSettings
+from .settings import CHAIN_KINDS, EPS_LAWS, LAWS, ExplorerSettings
 
 __all__ = ["Explorer"]
 
-_PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#000000")
+_PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#000000")
+_ENERGIES = ("kinetic", "potential", "dissipated", "plastic", "total")
 
 
 def _materials() -> list[str]:
@@ -122,11 +123,10 @@ class Explorer(pn.viewable.Viewer):
         fig.x_range, fig.y_range = self.map_x, self.map_y
         self.map_fig = fig
 
-        self.energy_source = ColumnDataSource({"t": [], "kinetic": [], "potential": [], "dissipated": [], "total": []},
-                                              name="energy_source")
+        self.energy_source = ColumnDataSource({"t": [], **{name: [] for name in _ENERGIES}}, name="energy_source")
         fig = figure(width=340, height=340, x_axis_label="t [ms]", y_axis_label="energy [mJ]", title="energies",
                      tools="pan,wheel_zoom,box_zoom,reset,save")
-        for colour, name in zip(_PALETTE, ("kinetic", "potential", "dissipated", "total")):
+        for colour, name in zip(_PALETTE, _ENERGIES):
             fig.line("t", name, source=self.energy_source, color=colour, line_width=1.5, legend_label=name)
         fig.legend.location = "center"
         self.energy_fig = fig
@@ -148,7 +148,7 @@ class Explorer(pn.viewable.Viewer):
         self.map_y.start, self.map_y.end = float(t[0]) * 1e3, float(t[0] + dt * t.size) * 1e3
         data = {"t": view.energy_time * 1e3}
         data.update({name: e * 1e3 for name, e in view.energies})
-        for name in ("kinetic", "potential", "dissipated"):
+        for name in _ENERGIES:
             data.setdefault(name, np.full(view.energy_time.size, np.nan))
         self.energy_source.data = data
         res = view.result
@@ -156,8 +156,12 @@ class Explorer(pn.viewable.Viewer):
         fit = view.fit
         fit_text = (f"F<sub>m</sub> = <b>{fit.peak_force:.4g} N</b>, T = <b>{fit.time_of_flight * 1e3:.4g} ms</b>, "
                     f"τ = <b>{fit.duration * 1e6:.4g} µs</b>" if fit is not None else "no pulse found to fit")
-        limit = (" <span style='color:#a00'>elastic limit passed: beads would yield</span>"
-                 if res.attrs.get("elastic_limit_exceeded") else "")
+        limit = ""
+        if "plastic_work" in res:  # the elastoplastic law: how much of the striker's energy the yield took
+            e0 = float(sum(e[0] for name, e in view.energies if name != "total"))
+            limit = f"; plastic work <b>{float(res.plastic_work[-1]) / e0:.1%}</b> of the striker's energy"
+        elif res.attrs.get("elastic_limit_exceeded"):
+            limit = " <span style='color:#a00'>elastic limit passed: beads would yield</span>"
         self.readout.object = (f"<div id='hc-readout'>{res.sizes['bead']} beads; peak wall force "
                                f"<b id='hc-peak'>{peak}</b>; cos<sup>6</sup> fit: {fit_text}; "
                                f"computed in {view.seconds * 1e3:.0f} ms{limit}</div>")
@@ -175,7 +179,7 @@ class Explorer(pn.viewable.Viewer):
             self.widgets[key].visible = kind == "uniform"
         self.widgets["diameters_mm"].visible = kind == "diameters"
         self.widgets["wall_material"].visible = self.settings.wall == "flat"
-        self.widgets["eps"].visible = self.settings.law != "elastic"
+        self.widgets["eps"].visible = self.settings.law in EPS_LAWS
 
     def _changed(self, key: str, value) -> None:
         self.apply(**{key: value})

@@ -125,7 +125,10 @@ def _theory(result, settings: ExplorerSettings, fit) -> list[TheoryRow]:
 
     phi = result.diameter.values
     n0 = uniform_count(phi)
-    eps = 1.0 if settings.law == "elastic" else float(settings.eps)
+    from .settings import EPS_LAWS
+
+    # the ballistic theory knows the per-bead factor eps; an elastic or plastic contact has none
+    eps = float(settings.eps) if settings.law in EPS_LAWS else 1.0
     rows = []
     if n0 < phi.size:
         q, q_sd = tapering_factor(phi, n0)

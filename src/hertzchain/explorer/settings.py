@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from ..errors import ConfigError
 
-__all__ = ["CHAIN_KINDS", "LAWS", "ExplorerSettings"]
+__all__ = ["CHAIN_KINDS", "LAWS", "EPS_LAWS", "ExplorerSettings"]
 
 #: The chain controls: the paper's two chains (Table I), a uniform block with an optional taper,
 #: or the diameters bead by bead.
@@ -21,7 +21,9 @@ CHAIN_KINDS = {"paper chain 1 (Table I, q = 5.60 %)": "chain1", "paper chain 2 (
                "uniform block + taper": "uniform", "per-bead diameters": "diameters"}
 #: Contact laws offered (``[contact] law``); the dissipative ones are calibrated to the per-bead factor eps.
 LAWS = {"elastic (Hertz, paper eq. 1)": "elastic", "Kuwabara-Kono, calibrated to eps": "viscoelastic",
-        "dashpot, calibrated to eps": "dashpot"}
+        "dashpot, calibrated to eps": "dashpot", "elastoplastic (Thornton): yields above F_Y": "elastoplastic"}
+#: The laws calibrated to the per-bead factor eps (the others take none).
+EPS_LAWS = ("viscoelastic", "dashpot")
 
 
 def _diameters(text: str) -> list[float]:
@@ -57,9 +59,10 @@ class ExplorerSettings:
     wall : str
         ``"flat"`` (an immovable flat, the paper's sensor cap) or ``"none"`` (a free end).
     law : str
-        ``"elastic"``, ``"viscoelastic"`` (Kuwabara-Kono) or ``"dashpot"``.
+        ``"elastic"``, ``"viscoelastic"`` (Kuwabara-Kono), ``"dashpot"`` or ``"elastoplastic"``
+        (Thornton: the contact yields above the materials' elastic limit F_Y).
     eps : float
-        Per-bead factor of the paper (Sec. III) the dissipative laws are calibrated to.
+        Per-bead factor of the paper (Sec. III) the viscoelastic and dashpot laws are calibrated to.
     sample_interval : float
         Recording interval [s].
     """
@@ -117,7 +120,7 @@ class ExplorerSettings:
             raise ConfigError("chain", f"unknown chain kind {self.chain!r}; choose from {', '.join(CHAIN_KINDS.values())}")
         chain["material"] = self.material
         contact: dict = {"law": self.law}
-        if self.law != "elastic":
+        if self.law in EPS_LAWS:
             contact["eps"] = float(self.eps)
         return {
             "chain": chain,

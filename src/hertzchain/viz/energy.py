@@ -29,10 +29,13 @@ def energy_curves(run: xr.Dataset, window: Sequence[float] | None = None) -> tup
     time : numpy.ndarray
         Sample times [s].
     curves : list of (str, numpy.ndarray)
-        ("kinetic" | "potential" | "dissipated" | "total", energy [J]); "total" last.
+        ("kinetic" | "potential" | "dissipated" | "plastic" | "total", energy [J]); "total" last.
+        "plastic" is the work of the elastoplastic law (Thornton), recorded apart from the
+        viscous dissipation.
     """
     parts = [(lab, name) for lab, name in (("kinetic", "kinetic_energy"), ("potential", "potential_energy"),
-                                           ("dissipated", "dissipated_energy")) if name in run]
+                                           ("dissipated", "dissipated_energy"), ("plastic", "plastic_work"))
+             if name in run and run[name].dims == ("time",)]
     if not parts:
         raise ConfigError("--kind energy", "the result holds no energies")
     t = run.time.values
@@ -44,7 +47,7 @@ def energy_curves(run: xr.Dataset, window: Sequence[float] | None = None) -> tup
 
 def plot_energy(ds: xr.Dataset, out: str | Path | None = None, *, window: Sequence[float] | None = None,
                 member: int | None = None):
-    """Kinetic, Hertz potential and dissipated energy and their sum against time.
+    """Kinetic, Hertz potential, dissipated (and plastic) energy and their sum against time.
 
     The sum is the striker's initial kinetic energy (plus precompression work) when the run
     conserves energy; its drift is the integrator's error.
