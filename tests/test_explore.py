@@ -24,6 +24,7 @@ from hertzchain.explorer.settings import ExplorerSettings
     {"chain": "uniform", "uniform_n": 10, "taper_n": 6, "taper_q": 0.08, "material": "brass", "law": "dashpot"},
     {"chain": "diameters", "diameters_mm": "20 20 20 18 16", "wall": "none", "striker_velocity": 0.1},
     {"law": "elastoplastic", "striker_velocity": 1.0},
+    {"chain": "chain2", "bead_materials": "AISI52100 x 26, brass, brass", "wall_material": "brass"},
 ])
 def test_saved_config_reproduces_the_view_through_hertzchain_run(tmp_path, changes):
     settings = ExplorerSettings(**changes)

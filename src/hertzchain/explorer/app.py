@@ -59,6 +59,8 @@ class Explorer(pn.viewable.Viewer):
                                      format="0.000"),
             "diameters_mm": w.TextInput(label="per-bead diameters [mm]", value=s.diameters_mm),
             "material": w.Select(label="bead material", options=mats, value=s.material),
+            "bead_materials": w.TextInput(label="per-bead materials (empty: all the same)", value=s.bead_materials,
+                                          placeholder="e.g. AISI52100 x 28, brass x 2"),
             "striker_diameter_mm": w.FloatInput(label="striker diameter [mm]", value=s.striker_diameter_mm,
                                                 start=0.5, end=100.0, step=0.5),
             "striker_velocity": w.FloatInput(label="striker velocity [m/s]", value=s.striker_velocity,
@@ -86,7 +88,8 @@ class Explorer(pn.viewable.Viewer):
         controls = pn.Column(
             pn.pane.HTML("<h3>hertzchain explorer</h3>"),
             pn.pane.HTML("<b>Chain</b>"), *(self.widgets[k] for k in ("chain", "uniform_n", "uniform_diameter_mm",
-                                                                     "taper_n", "taper_q", "diameters_mm", "material")),
+                                                                     "taper_n", "taper_q", "diameters_mm", "material",
+                                                                     "bead_materials")),
             pn.pane.HTML("<b>Striker</b>"), *(self.widgets[k] for k in ("striker_diameter_mm", "striker_velocity",
                                                                        "striker_material")),
             pn.pane.HTML("<b>Wall</b>"), self.widgets["wall"], self.widgets["wall_material"],

@@ -119,7 +119,7 @@ def _bead_peaks(result) -> np.ndarray:
     return (0.5 * (f[:, :n] + right)).max(axis=0)
 
 
-def _theory(result, settings: ExplorerSettings, fit) -> list[TheoryRow]:
+def _theory(result, settings: ExplorerSettings, fit, chain) -> list[TheoryRow]:
     """Paper eqs. 6-8 (ballistic approximation, Sec. III) for the chain of ``result``."""
     from ..theory import ballistic_ratios, predict_chain, tapering_factor
 
@@ -148,7 +148,8 @@ def _theory(result, settings: ExplorerSettings, fit) -> list[TheoryRow]:
     anchor = max(1, min(n0, phi.size - 1))
     target = anchor + (phi.size - anchor) // 2
     if target > anchor and peaks[anchor - 1] > 0:
-        pred = predict_chain(phi[anchor - 1:], settings.material, float(peaks[anchor - 1]), eps=eps, n0=0)
+        # eq. 7 for one material: the anchor bead's (a chain of mixed materials is beyond the theory)
+        pred = predict_chain(phi[anchor - 1:], chain.materials[anchor - 1], float(peaks[anchor - 1]), eps=eps, n0=0)
         rows.append(TheoryRow(f"F<sub>m</sub> in bead {target}, from bead {anchor}", "eq. 7",
                               f"{pred.peak_force[target - anchor]:.4g} N", f"{peaks[target - 1]:.4g} N"))
     if fit is not None:
@@ -185,7 +186,8 @@ def compute_view(settings: ExplorerSettings) -> ExplorerView:
     cfg = parse_config(config)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the explorer shows the numbers; the elastic-limit note is in its text
-        result = simulate_config(cfg, build_model(cfg), build_probes(cfg))
+        model = build_model(cfg)
+        result = simulate_config(cfg, model, build_probes(cfg))
     if "wall_force" in result:
         signal, force = "wall_force", result.wall_force.values
     else:
@@ -203,4 +205,4 @@ def compute_view(settings: ExplorerSettings) -> ExplorerView:
     return ExplorerView(settings=settings, config=config, result=result, signal=signal, time=t, force=force,
                         fit=fit, fit_time=fit_t, fit_force=fit_f, map_x=grid.x, map_time=grid.time,
                         map_force=grid.force, map_vmax=robust_vmax(grid), energy_time=energy_t, energies=energies,
-                        theory=_theory(result, settings, fit), seconds=time.perf_counter() - start)
+                        theory=_theory(result, settings, fit, model.chain), seconds=time.perf_counter() - start)

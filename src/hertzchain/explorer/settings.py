@@ -38,6 +38,18 @@ def _diameters(text: str) -> list[float]:
     return values
 
 
+def _materials(text: str) -> list[str]:
+    """'AISI52100 x 28, brass x 2' (or names one by one, commas or spaces) -> one name per bead."""
+    out: list[str] = []
+    for part in text.split(","):
+        words = part.split()
+        if len(words) == 3 and words[1] == "x" and words[2].isdigit():
+            out += [words[0]] * int(words[2])
+        else:
+            out += words
+    return out
+
+
 @dataclass(frozen=True)
 class ExplorerSettings:
     """One view of the explorer (units in the names; the rest SI).
@@ -54,6 +66,9 @@ class ExplorerSettings:
         Bead diameters [mm], comma or space separated.
     material, striker_material, wall_material : str
         Catalogue names (``hertzchain materials``) of the beads, the striker and the wall.
+    bead_materials : str
+        One material per bead from the impact end, overriding ``material`` when not empty:
+        names, commas or spaces, ``NAME x N`` for N beads in a row (``AISI52100 x 28, brass x 2``).
     striker_diameter_mm, striker_velocity : float
         Striker diameter [mm] and impact speed [m/s].
     wall : str
@@ -74,6 +89,7 @@ class ExplorerSettings:
     taper_q: float = 0.056
     diameters_mm: str = "26, 26, 26, 26, 26, 26, 26, 26, 24, 23, 22, 21, 20"
     material: str = "AISI52100"
+    bead_materials: str = ""
     striker_diameter_mm: float = 8.0
     striker_velocity: float = 0.2
     striker_material: str = "AISI52100"
@@ -119,6 +135,8 @@ class ExplorerSettings:
         else:
             raise ConfigError("chain", f"unknown chain kind {self.chain!r}; choose from {', '.join(CHAIN_KINDS.values())}")
         chain["material"] = self.material
+        if self.bead_materials.strip():
+            chain["materials"] = _materials(self.bead_materials)
         contact: dict = {"law": self.law}
         if self.law in EPS_LAWS:
             contact["eps"] = float(self.eps)
