@@ -97,3 +97,12 @@ def test_explore_is_a_displayable_app_in_jupyter():
     # the function stays the package's attribute once the explorer's modules are imported
     import hertzchain.explorer.app  # noqa: F401
     assert math.isclose(hc.explore().view.force.max(), 8.511304981414646, rel_tol=1e-12)
+
+
+def test_explore_command_without_panel_names_the_extra(monkeypatch, capsys):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "panel", None)  # as if the [explore] extra were not installed
+    assert main(["explore", "--port", "5999", "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert "hertzchain[explore]" in err and "Traceback" not in err
