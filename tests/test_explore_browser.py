@@ -59,10 +59,12 @@ def test_control_change_replots_the_wall_peak_simulate_gives(page):
     print(f"control change -> new plot: {elapsed * 1e3:.0f} ms")
 
 
-def test_page_loads_nothing_from_another_host(page):
+def test_page_loads_nothing_from_another_host_and_logs_no_error(page):
     wait_for(page, JS_MAX, "wall_source", "force")
     urls = page.execute_script(JS_HOSTS)
     assert urls, "the page reported no resources"
     foreign = [u for u in urls if urlparse(u).hostname not in ("127.0.0.1", "localhost", None)
                and not u.startswith(("data:", "blob:"))]
     assert not foreign
+    # and no script failed in the page (Bokeh, Panel and the app's updates)
+    assert not [e for e in page.get_log("browser") if e["level"] == "SEVERE"]
