@@ -26,6 +26,7 @@ pytest.importorskip("sphinx")
 pytest.importorskip("pydata_sphinx_theme")
 pytest.importorskip("numpydoc")
 pytest.importorskip("sphinx_gallery")
+pytest.importorskip("sphinx-mathjax-offline")  # MathJax copied into the site (docs/conf.py)
 
 
 def _build(out: Path, *extra: str) -> subprocess.CompletedProcess:
