@@ -210,7 +210,7 @@ sphinx_gallery_conf = {
     "remove_config_comments": True,
     "matplotlib_animations": False,
     # hertzchain's plotting functions draw outside pyplot: figure_scraper saves those too
-    "image_scrapers": ("matplotlib", "figure_scraper"),
+    "image_scrapers": ("figure_scraper", "matplotlib"),
     "reset_modules": ("matplotlib",),
     # The timing page loads jQuery and DataTables from CDNs: no page of the site may need the network.
     "write_computation_times": False,
