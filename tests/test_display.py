@@ -52,3 +52,15 @@ def test_html_repr_for_jupyter(make):
     Cells().feed(page)
     assert page.startswith("<table>") and page.endswith("</table>") and len(cells) >= 6
     assert "AISI52100" in page or "F_m" in page
+
+
+def test_design_result_repr_summarises_the_search(tmp_path):
+    import tomllib
+    from pathlib import Path
+
+    data = tomllib.loads((Path(__file__).resolve().parents[1] / "examples" / "design_taper.toml").read_text())
+    data["design"]["budget"] = 24
+    result = hc.run_design(hc.parse_design(data), tmp_path)
+    text = repr(result)
+    assert len(text) < 400 and text.startswith("DesignResult(best peak_wall_force = ")  # was ~25,000 characters
+    assert f"{result.n_evaluations} engine runs" in text and "chain.taper.q" in text
