@@ -29,6 +29,7 @@ _EXPORTS = {
     "Track": "track", "simulate_lateral": "track",
     # running and results
     "Probes": "probes", "simulate": "simulation", "auto_duration": "simulation", "save": "result", "load": "result",
+    "export": "exporting",
     "load_config": "config.loading", "parse_config": "config.schema", "run_config": "config.build",
     "build_model": "config.build",
     # many chains
@@ -50,6 +51,8 @@ _EXPORTS = {
     # pictures of results and sweeps
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
     "animate": "viz.animation", "plot_metrics": "viz.metrics",
+    # the interactive explorer (Panel; the [explore] extra)
+    "explore": "explorer",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -228,6 +228,25 @@ class Chain:
     def is_aligned(self) -> bool:
         return not np.any(self.offsets)
 
+    def __repr__(self) -> str:
+        # One line: the diameters grouped in runs and the materials counted (not 30 full Materials).
+        from .display import counts_text, diameters_text
+
+        text = f"Chain({diameters_text(self.diameters)}; {counts_text(m.name for m in self.materials)}"
+        if not self.is_aligned:
+            text += f"; offsets up to {np.abs(self.offsets).max() * 1e3:.3g} mm"
+        return text + ")"
+
+    def _repr_html_(self) -> str:
+        from .display import counts_text, diameters_text, html_table
+
+        rows = [("beads", str(self.n_beads)), ("diameters", diameters_text(self.diameters).split(": ", 1)[1]),
+                ("materials", counts_text(m.name for m in self.materials)),
+                ("mass", f"{self.masses.sum() * 1e3:.4g} g"),
+                ("length", f"{self.diameters.sum() * 1e3:.4g} mm"),
+                ("offsets", "aligned" if self.is_aligned else f"up to {np.abs(self.offsets).max() * 1e3:.3g} mm")]
+        return html_table("Chain", rows)
+
     def describe(self) -> dict:
         """Plain-data description (stored in result attributes)."""
         names = [m.name for m in self.materials]

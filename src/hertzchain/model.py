@@ -110,6 +110,12 @@ class Striker:
                        radius_of_curvature_mm=None if self.face_radius is None else self.face_radius * 1e3)
         return out
 
+    def __repr__(self) -> str:
+        extra = ""
+        if not self.plain:
+            extra = f", {self.mass * 1e3:.4g} g" + (", flat face" if self.shape == "flat" else "")
+        return f"Striker({self.diameter * 1e3:.4g} mm {self.material.name} at {self.velocity:.4g} m/s{extra})"
+
 
 @dataclass(frozen=True)
 class Wall:
@@ -190,6 +196,12 @@ class Wall:
     def face_radius(self) -> float | None:
         """Radius of curvature of the face bead N presses on [m]; None for a flat."""
         return self.radius_of_curvature if self.shape == "sphere" else None
+
+    def __repr__(self) -> str:
+        text = f"Wall({self.kind!r}" + (f", {self.material.name}" if self.material is not None else "")
+        if self.is_body:
+            text += f", {self.mass:.4g} kg on {self.stiffness:.4g} N/m, {self.damping:.4g} N s/m"
+        return text + ")"
 
 
 @dataclass(frozen=True)
@@ -416,6 +428,25 @@ class Model:
         if (g > 0 or self.precompression > 0) and self.wall.is_body and self.wall.stiffness == 0:
             raise ConfigError("wall.stiffness", "a free body (stiffness 0) cannot hold the chain's static load "
                               "(chain.gravity, chain.precompression): give its mount a stiffness in N/m")
+
+    def __repr__(self) -> str:
+        pre = f", precompression {self.precompression:.4g} N" if self.precompression else ""
+        pre += f", gravity {self.gravity:.4g} m/s^2" if self.gravity else ""
+        return f"Model({self.chain!r}, {self.striker!r}, {self.wall!r}, {self.law!r}{pre})"
+
+    def _repr_html_(self) -> str:
+        from .display import counts_text, diameters_text, html_table
+
+        chain = self.chain
+        rows = [("chain", diameters_text(chain.diameters)),
+                ("materials", counts_text(m.name for m in chain.materials)),
+                ("striker", repr(self.striker)[len("Striker("):-1]),
+                ("wall", "free end" if not self.wall.present else
+                 f"{'protected body' if self.wall.is_body else 'flat'}, {self.wall_material.name}"),
+                ("contact law", repr(self.law))]
+        if self.precompression:
+            rows.append(("precompression", f"{self.precompression:.4g} N"))
+        return html_table("Model", rows)
 
     @property
     def wall_material(self) -> Material | None:
