@@ -216,6 +216,10 @@ sphinx_gallery_conf = {
     # The timing page loads jQuery and DataTables from CDNs: no page of the site may need the network.
     "write_computation_times": False,
 }
+# Timing pages left by a build with an older configuration would still be built from the source
+# tree (they are generated files, git-ignored): remove them so no stale page reaches the network.
+for _stale in (HERE / "sg_execution_times.rst", HERE / "gallery" / "sg_execution_times.rst"):
+    _stale.unlink(missing_ok=True)
 
 # -- HTML ----------------------------------------------------------------------------------------
 html_theme = "pydata_sphinx_theme"
