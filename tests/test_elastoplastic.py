@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain.contact import (LIMITING_PRESSURE_FACTOR, effective_modulus, effective_radius, hertz_constant,
-                                limiting_pressure, thornton_loading_force, thornton_loading_overlap,
-                                thornton_loading_work, thornton_restitution, thornton_unloading, yield_force,
-                                yield_velocity)
+from hertzchain.contact import effective_modulus, effective_radius, hertz_constant, yield_force
+from hertzchain.plasticity import (LIMITING_PRESSURE_FACTOR, limiting_pressure, thornton_loading_force,
+                                   thornton_loading_overlap, thornton_loading_work, thornton_restitution,
+                                   thornton_unloading, yield_velocity)
 from hertzchain.errors import ConfigError
 from hertzchain.integrate.kernels import elastoplastic_force
 

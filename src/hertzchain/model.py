@@ -17,7 +17,8 @@ from typing import Literal
 import numpy as np
 
 from .chain import Chain
-from .contact import LAW_CODES, Dashpot, Elastic, Elastoplastic, ScaledViscoelastic, Viscoelastic
+from .contact import LAW_CODES, Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
+from .plasticity import Elastoplastic
 from .errors import ConfigError
 from .materials import Material, get_material
 
@@ -144,7 +145,7 @@ class System:
         energy = 0.5 * self.mass[0] * self.v0[0] ** 2
         kap = self.kappa
         if self.law == LAW_CODES["elastoplastic"]:
-            from .contact import thornton_loading_overlap, thornton_loading_work
+            from .plasticity import thornton_loading_overlap, thornton_loading_work
 
             dy = self.yield_overlap()
             energy += float(np.sum(np.where(kap > 0, thornton_loading_work(self.d0, kap, dy), 0.0)))
@@ -217,7 +218,7 @@ class Model:
         The end condition (default: immovable flat of the chain's material).
     law
         Contact law: :class:`Elastic` (paper eq. 1), :class:`Viscoelastic`, :class:`ScaledViscoelastic`,
-        :class:`Dashpot` or :class:`Elastoplastic` (Thornton 1997).
+        :class:`Dashpot`, :class:`ScaledDashpot` or :class:`Elastoplastic` (Thornton 1997).
     precompression
         Static force [N] squeezing beads 1..N against the wall before impact (0 = the paper's
         "barely touching" chain). Needs a wall.
@@ -226,7 +227,7 @@ class Model:
     chain: Chain
     striker: Striker = field(default_factory=Striker)
     wall: Wall = field(default_factory=Wall)
-    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | Elastoplastic = field(default_factory=Elastic)
+    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot | Elastoplastic = field(default_factory=Elastic)
     precompression: float = 0.0
 
     def __post_init__(self) -> None:
@@ -340,8 +341,11 @@ class Model:
                        reference_material=self.law.material.name)
         elif self.law.name == "dashpot":
             law["gamma"] = self.law.gamma
+        elif self.law.name == "dashpot_scaled":
+            law.update(gamma=self.law.gamma, reference_diameter_mm=self.law.diameter * 1e3,
+                       reference_material=self.law.material.name)
         elif self.law.name == "elastoplastic":
-            from .contact import LIMITING_PRESSURE_FACTOR
+            from .plasticity import LIMITING_PRESSURE_FACTOR
 
             law.update(A=self.law.A, limiting_pressure_over_yield_stress=LIMITING_PRESSURE_FACTOR)
             if self.law.diameter is not None:

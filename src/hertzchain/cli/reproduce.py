@@ -15,7 +15,8 @@ from .common import echo_warning, freeze_imports, progress_bar
 @click.option("--velocity", type=float, default=0.2, show_default=True,
               help="Striker speed [m/s] (not given in the paper; normalised results do not depend on it).")
 @click.option("--elastic", is_flag=True, help="No dissipation (default: calibrated to the paper's eps = 0.985).")
-@click.option("--law", type=click.Choice(["viscoelastic", "viscoelastic_scaled", "dashpot"]), default="viscoelastic",
+@click.option("--law", type=click.Choice(["viscoelastic", "viscoelastic_scaled", "dashpot", "dashpot_scaled"]),
+              default="viscoelastic",
               show_default=True, help="Dissipative contact law calibrated to eps (viscoelastic_scaled: Kuwabara-Kono "
               "A following each contact's collision time, the same eps in every bead size).")
 @click.option("--eps", type=float, default=0.985, show_default=True, help="Per-bead factor eps to calibrate to.")

@@ -165,8 +165,9 @@ def build_model(cfg: RunConfig, chain=None):
     Model
         Chain, striker, wall and contact law in SI units (diameters [m], speeds [m/s]).
     """
-    from ..contact import Dashpot, Elastic, Elastoplastic, ScaledViscoelastic, Viscoelastic
+    from ..contact import Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
     from ..model import Model, Striker, Wall
+    from ..plasticity import Elastoplastic
 
     if chain is None:
         chain = build_chain(cfg)
@@ -189,6 +190,8 @@ def build_model(cfg: RunConfig, chain=None):
         law = Viscoelastic(k.A)
     elif k.law == "viscoelastic_scaled":
         law = ScaledViscoelastic(k.A, float(chain.diameters[0]), chain.materials[0])
+    elif k.law == "dashpot_scaled":
+        law = ScaledDashpot(k.gamma, float(chain.diameters[0]), chain.materials[0])
     else:
         law = Dashpot(k.gamma)
     with _as_written("chain.offsets", _offsets_key(cfg)):

@@ -142,11 +142,13 @@ class ContactConfig(_Section):
     """``[contact]``: law and either its parameter (A [s] or gamma [N s/m]) or a target ``eps``;
     ``elastoplastic`` (Thornton) takes an optional viscous A (default 0)."""
 
-    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot", "elastoplastic"] = "elastic"
+    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot", "dashpot_scaled",
+                 "elastoplastic"] = "elastic"
     eps: float | None = Field(default=None, gt=0, le=1, description="per-bead factor of the paper")
     A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s "
                                   "(viscoelastic_scaled: between two beads like the chain's first)")
-    gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m")
+    gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m "
+                                   "(dashpot_scaled: between two beads like the chain's first)")
 
     @model_validator(mode="after")
     def _parameter(self) -> "ContactConfig":
@@ -158,7 +160,7 @@ class ContactConfig(_Section):
                 raise ValueError("law 'elastoplastic' takes an optional A (s, the viscous term on top of Thornton's "
                                  "plastic contact), not gamma or eps")
             return self
-        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma"}.get(self.law)
+        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma", "dashpot_scaled": "gamma"}.get(self.law)
         if own is not None:
             other = "gamma" if own == "A" else "A"
             if getattr(self, other) is not None:
