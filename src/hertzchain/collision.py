@@ -102,7 +102,8 @@ def _two_body_system(velocity: float, law, diameter_a: float, mat_a: Material, d
     rsum[0] = ra + (0.0 if rb is None else rb)
     system = System(mass=mass, inv_mass=inv_mass, kappa=kap, damping=damping, d0=zeros, de=zeros.copy(),
                     dx0=rsum.copy(), rsum=rsum, fext=np.zeros(mass.size), u0=np.zeros(mass.size), v0=v0,
-                    law=LAW_CODES[law.name], misaligned=False, has_wall=diameter_b is None, yield_force=fy)
+                    law=LAW_CODES[law.name], misaligned=False, has_wall=diameter_b is None, yield_force=fy,
+                    yield_pressure_ratio=getattr(law, "pressure_ratio", 1.0))
     return system, mu
 
 

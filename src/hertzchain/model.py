@@ -107,6 +107,8 @@ class System:
     misaligned: bool
     has_wall: bool
     yield_force: np.ndarray  # (N+1,) F_Y per contact [N] (inf when not defined)
+    #: elastoplastic law: its limiting pressure over the paper-consistent 1.5 sigma_Y (Elastoplastic.pressure_ratio)
+    yield_pressure_ratio: float = 1.0
 
     @property
     def n_beads(self) -> int:
@@ -126,12 +128,14 @@ class System:
         """Overlap delta_y [m] at which every contact reaches its elastic limit, (N+1,).
 
         F_Y = kappa delta_y^(3/2) (:func:`hertzchain.contact.yield_force`, Thornton's F_y with
-        p_y = 1.5 sigma_Y); inf where no yield stress is given or there is no contact.
+        p_y = 1.5 sigma_Y); times ``yield_pressure_ratio`` squared for another limiting pressure
+        (delta_y ~ p_y^2); inf where no yield stress is given or there is no contact.
         """
         kap = self.kappa
         ok = (kap > 0) & np.isfinite(self.yield_force)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(ok, (self.yield_force / np.where(ok, kap, 1.0)) ** (2.0 / 3.0), np.inf)
+            dy = np.where(ok, (self.yield_force / np.where(ok, kap, 1.0)) ** (2.0 / 3.0), np.inf)
+        return dy if self.yield_pressure_ratio == 1.0 else dy * self.yield_pressure_ratio**2
 
     def max_overlap(self) -> np.ndarray:
         """Upper bound of every contact's overlap [m] over the whole run, (N+1,).
@@ -310,11 +314,12 @@ class Model:
             d0[1:] = (self.precompression / kappa[1:]) ** (2.0 / 3.0)
             fext[1] = self.precompression
             if self.law.name == "elastoplastic":
-                # statically loaded along Thornton's loading curve: past F_Y the line F_y + slope (d - dy)
+                # statically loaded along Thornton's loading curve: past F_y the line F_y + slope (d - dy)
+                f_y = fy[1:] * self.law.pressure_ratio**3
                 with np.errstate(invalid="ignore"):
-                    dy = (fy[1:] / kappa[1:]) ** (2.0 / 3.0)
-                    over = self.precompression > fy[1:]
-                    plastic = dy + (self.precompression - fy[1:]) / (1.5 * kappa[1:] * np.sqrt(dy))
+                    dy = (f_y / kappa[1:]) ** (2.0 / 3.0)
+                    over = self.precompression > f_y
+                    plastic = dy + (self.precompression - f_y) / (1.5 * kappa[1:] * np.sqrt(dy))
                 d0[1:] = np.where(over, plastic, d0[1:])
 
         e = np.concatenate([[0.0], self.chain.offsets, [0.0]])
@@ -329,7 +334,8 @@ class Model:
         v0[0] = self.striker.velocity
         return System(mass=mass, inv_mass=inv_mass, kappa=kappa, damping=damping, d0=d0, de=de, dx0=dx0,
                       rsum=rsum, fext=fext, u0=np.zeros(n + 2), v0=v0, law=LAW_CODES[self.law.name],
-                      misaligned=bool(np.any(de != 0.0)), has_wall=self.wall.present, yield_force=fy)
+                      misaligned=bool(np.any(de != 0.0)), has_wall=self.wall.present, yield_force=fy,
+                      yield_pressure_ratio=getattr(self.law, "pressure_ratio", 1.0))
 
     def describe(self) -> dict:
         """Plain-data description of the model (stored in result attributes)."""
@@ -345,9 +351,7 @@ class Model:
             law.update(gamma=self.law.gamma, reference_diameter_mm=self.law.diameter * 1e3,
                        reference_material=self.law.material.name)
         elif self.law.name == "elastoplastic":
-            from .plasticity import LIMITING_PRESSURE_FACTOR
-
-            law.update(A=self.law.A, limiting_pressure_over_yield_stress=LIMITING_PRESSURE_FACTOR)
+            law.update(A=self.law.A, limiting_pressure_factor=self.law.limiting_pressure_factor)
             if self.law.diameter is not None:
                 law.update(reference_diameter_mm=self.law.diameter * 1e3, reference_material=self.law.material.name)
         return {

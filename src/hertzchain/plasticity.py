@@ -32,14 +32,17 @@ __all__ = ["LIMITING_PRESSURE_FACTOR", "limiting_pressure", "thornton_loading_fo
 LIMITING_PRESSURE_FACTOR = 1.5
 
 
-def limiting_pressure(mat1: str | Material, mat2: str | Material | None = None) -> float:
-    """Thornton's limiting contact pressure p_y = LIMITING_PRESSURE_FACTOR sigma_Y [Pa].
+def limiting_pressure(mat1: str | Material, mat2: str | Material | None = None,
+                      factor: float = LIMITING_PRESSURE_FACTOR) -> float:
+    """Thornton's limiting contact pressure p_y = factor x sigma_Y [Pa].
 
     Parameters
     ----------
     mat1, mat2 : str or Material
         The two materials (``mat2=None``: the same as ``mat1``); the weaker yield stress
         sigma_Y [Pa] sets p_y.
+    factor : float
+        p_y / sigma_Y (default LIMITING_PRESSURE_FACTOR = 1.5: yield starts at the paper's F_Y).
 
     Returns
     -------
@@ -48,7 +51,7 @@ def limiting_pressure(mat1: str | Material, mat2: str | Material | None = None) 
     """
     m1, m2 = get_material(mat1), get_material(mat1 if mat2 is None else mat2)
     stresses = [s for s in (m1.yield_stress, m2.yield_stress) if s is not None]
-    return LIMITING_PRESSURE_FACTOR * min(stresses) if stresses else math.inf
+    return factor * min(stresses) if stresses else math.inf
 
 
 def thornton_loading_force(delta, kappa, delta_y):
@@ -258,6 +261,12 @@ class Elastoplastic:
     the sum is clipped at zero (never attractive). With ``diameter`` the time constant is scaled
     per contact as in :class:`ScaledViscoelastic` (A_j = A t_j / t_ref).
 
+    ``limiting_pressure_factor`` sets p_y = factor x sigma_Y. The default 1.5 makes Thornton's
+    onset of yield the paper's F_Y; about 3 (the fully plastic mean pressure of an indentation,
+    Tabor's hardness ~ 2.8-3 sigma_Y) stiffens the plastic branch towards what work-hardened metal
+    balls show at speeds far above v_y (see the user guide's plasticity page). F_Y, and with it
+    ``max_force_over_yield``, stays the paper's elastic limit whatever the factor.
+
     Parameters
     ----------
     A : float
@@ -266,11 +275,14 @@ class Elastoplastic:
         Reference bead diameter [m] of a size-scaled A (None: the same A at every contact).
     material : Material or str
         Reference bead material of a size-scaled A.
+    limiting_pressure_factor : float
+        p_y over the weaker material's yield stress sigma_Y [-] (default LIMITING_PRESSURE_FACTOR).
     """
 
     A: float = 0.0
     diameter: float | None = None
     material: Material | str = "AISI52100"
+    limiting_pressure_factor: float = LIMITING_PRESSURE_FACTOR
     name = "elastoplastic"
 
     def __post_init__(self) -> None:
@@ -278,11 +290,19 @@ class Elastoplastic:
             raise ConfigError("contact.A", f"must be a finite number >= 0 (s), got {self.A!r}")
         if self.diameter is not None and not (math.isfinite(self.diameter) and self.diameter > 0):
             raise ConfigError("contact.diameter", f"must be a positive reference diameter (m), got {self.diameter!r}")
+        f = self.limiting_pressure_factor
+        if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 0):
+            raise ConfigError("contact.limiting_pressure_factor", f"must be a positive number (p_y / sigma_Y), got {f!r}")
         object.__setattr__(self, "material", get_material(self.material))
 
     @property
     def parameter(self) -> float:
         return self.A
+
+    @property
+    def pressure_ratio(self) -> float:
+        """p_y over the paper-consistent 1.5 sigma_Y: F_y = F_Y ratio^3, delta_y = delta_Y ratio^2."""
+        return self.limiting_pressure_factor / LIMITING_PRESSURE_FACTOR
 
     def contact_damping(self, mu, kappa):
         """Per-contact viscous time constants A_j [s] (see :meth:`ScaledViscoelastic.contact_damping`).

@@ -181,7 +181,7 @@ def build_model(cfg: RunConfig, chain=None):
     if k.law == "elastic":
         law: Any = Elastic()
     elif k.law == "elastoplastic":
-        law = Elastoplastic(k.A or 0.0)
+        law = Elastoplastic(k.A or 0.0, limiting_pressure_factor=k.limiting_pressure_factor or 1.5)
     elif k.eps is not None:
         from ..dissipation import calibrate_law
 

@@ -147,6 +147,9 @@ class ContactConfig(_Section):
     eps: float | None = Field(default=None, gt=0, le=1, description="per-bead factor of the paper")
     A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s "
                                   "(viscoelastic_scaled: between two beads like the chain's first)")
+    limiting_pressure_factor: float | None = Field(
+        default=None, gt=0, le=10, description="elastoplastic: Thornton's limiting pressure p_y over the yield "
+                                                "stress (default 1.5: yield starts at the paper's F_Y)")
     gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m "
                                    "(dashpot_scaled: between two beads like the chain's first)")
 
@@ -155,6 +158,8 @@ class ContactConfig(_Section):
         if self.law == "elastic" and (self.A is not None or self.gamma is not None or
                                       (self.eps is not None and self.eps != 1.0)):
             raise ValueError("the elastic law takes no A, gamma or eps < 1; set law = 'viscoelastic' or 'dashpot'")
+        if self.law != "elastoplastic" and self.limiting_pressure_factor is not None:
+            raise ValueError("limiting_pressure_factor belongs to law = 'elastoplastic'")
         if self.law == "elastoplastic":
             if self.gamma is not None or self.eps is not None:
                 raise ValueError("law 'elastoplastic' takes an optional A (s, the viscous term on top of Thornton's "
