@@ -176,6 +176,23 @@ def collision_time_scale(mu, kappa):
     return (mu / kappa) ** 0.4
 
 
+def _check_scaled(field: str, value: float, unit: str, diameter: float) -> None:
+    """The checks of a size-scaled law: parameter ``value`` >= 0 (named ``field``, in ``unit``)
+    and a positive reference diameter [m]."""
+    if not (math.isfinite(value) and value >= 0):
+        raise ConfigError(field, f"must be a finite number >= 0 ({unit}), got {value!r}")
+    if not (math.isfinite(diameter) and diameter > 0):
+        raise ConfigError("contact.diameter", f"must be a positive reference diameter (m), got {diameter!r}")
+
+
+def _reference_pair(diameter: float, material: Material) -> tuple[float, float]:
+    """Reduced mass m / 2 [kg] and Hertz constant [N/m^1.5] (paper eq. 1) of two beads of
+    ``diameter`` [m] and ``material``: the reference pair of a size-scaled law."""
+    r = diameter / 2
+    mu = 0.5 * material.density * math.pi * diameter**3 / 6.0
+    return mu, hertz_constant(r, r, material, material)
+
+
 @dataclass(frozen=True)
 class ScaledViscoelastic:
     """Kuwabara-Kono contact whose time constant follows each contact's collision time.
@@ -206,10 +223,7 @@ class ScaledViscoelastic:
     name = "viscoelastic_scaled"
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.A) and self.A >= 0):
-            raise ConfigError("contact.A", f"must be a finite number >= 0 (s), got {self.A!r}")
-        if not (math.isfinite(self.diameter) and self.diameter > 0):
-            raise ConfigError("contact.diameter", f"must be a positive reference diameter (m), got {self.diameter!r}")
+        _check_scaled("contact.A", self.A, "s", self.diameter)
         object.__setattr__(self, "material", get_material(self.material))
 
     @property
@@ -225,9 +239,7 @@ class ScaledViscoelastic:
             (mu / kappa)^(2/5) with mu = m / 2 and kappa of paper eq. 1 for two beads of the
             reference diameter and material.
         """
-        r = self.diameter / 2
-        mu = 0.5 * self.material.density * math.pi * self.diameter**3 / 6.0
-        return collision_time_scale(mu, hertz_constant(r, r, self.material, self.material))
+        return collision_time_scale(*_reference_pair(self.diameter, self.material))
 
     def contact_damping(self, mu, kappa):
         """Per-contact time constants A_j = A t_j / t_ref.
@@ -284,10 +296,7 @@ class ScaledDashpot:
     name = "dashpot_scaled"
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.gamma) and self.gamma >= 0):
-            raise ConfigError("contact.gamma", f"must be a finite number >= 0 (N s/m), got {self.gamma!r}")
-        if not (math.isfinite(self.diameter) and self.diameter > 0):
-            raise ConfigError("contact.diameter", f"must be a positive reference diameter (m), got {self.diameter!r}")
+        _check_scaled("contact.gamma", self.gamma, "N s/m", self.diameter)
         object.__setattr__(self, "material", get_material(self.material))
 
     @property
@@ -302,9 +311,7 @@ class ScaledDashpot:
         tuple of float
             (mu_ref = m / 2, kappa_ref of paper eq. 1).
         """
-        r = self.diameter / 2
-        mu = 0.5 * self.material.density * math.pi * self.diameter**3 / 6.0
-        return mu, hertz_constant(r, r, self.material, self.material)
+        return _reference_pair(self.diameter, self.material)
 
     def contact_damping(self, mu, kappa):
         """Per-contact coefficients gamma_j = gamma (kappa_j / kappa_ref)^(2/5) (mu_j / mu_ref)^(3/5).
