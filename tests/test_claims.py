@@ -116,3 +116,13 @@ def test_striker_bounce_and_one_dissipation_for_both_scales():
     blocks = report_blocks(s, {})
     which = blocks[[b[:2] for b in blocks].index(("h3", "Which model explains which observation")) + 1]
     assert [r[0] for r in which[2]] == list(explained_by(claims))
+
+
+def test_report_states_the_dissipation_model_and_the_strikers_bounce():
+    from hertzchain.paper.report import _dissipation_sentence
+
+    s = _summary("dashpot_scaled")
+    s["fidelity"]["laws"]["dashpot_scaled"] = {"striker_restitution": 0.958146}
+    text = _dissipation_sentence(s, {"law": "dashpot_scaled", "eps_target": 0.985, "striker_velocity": 0.2})
+    assert "dashpot following each contact pair" in text and "0.958 at 0.2 m/s" in text and "0.985" in text
+    assert "none" in _dissipation_sentence(s, {"law": "elastic"})
