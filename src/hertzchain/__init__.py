@@ -21,7 +21,7 @@ _EXPORTS = {
     "Material": "materials", "CATALOGUE": "materials", "get_material": "materials",
     "register_material": "materials",
     "Elastic": "contact", "Viscoelastic": "contact", "ScaledViscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
-    "Elastoplastic": "contact",
+    "ScaledDashpot": "contact", "Elastoplastic": "plasticity",
     "yield_force": "contact",
     "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain", "Element": "elements",
     "Striker": "model", "Wall": "model", "Model": "model",
@@ -39,7 +39,7 @@ _EXPORTS = {
     "load_design": "design", "parse_design": "design", "run_design": "design", "write_report": "design",
     "DesignProblem": "design", "DesignResult": "design",
     # dissipation
-    "calibrate_law": "dissipation", "measure_eps": "dissipation",
+    "calibrate_law": "dissipation", "measure_eps": "dissipation", "restitution": "collision",
     # measurement, analysis, theory
     "Instrument": "instrument", "sensor_wall": "instrument",
     "fit_pulse": "analysis", "PulseFit": "analysis", "power_spectrum": "analysis",

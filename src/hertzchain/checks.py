@@ -373,8 +373,9 @@ def energy_cause(model, dt: float | None, integrator: str = "verlet") -> str:
     if dt is not None:
         return f"the time step run.dt = {dt:g} s is too large for this model; lower it or leave it out"
     law = model.law.name
-    if law in ("dashpot", "viscoelastic") or (law == "elastoplastic" and model.law.parameter > 0):
-        key = "contact.gamma" if law == "dashpot" else "contact.A"
+    if law in ("dashpot", "dashpot_scaled", "viscoelastic", "viscoelastic_scaled") or (
+            law == "elastoplastic" and model.law.parameter > 0):
+        key = "contact.gamma" if law.startswith("dashpot") else "contact.A"
         return (f"the automatic step could not follow the damping of {key} = {model.law.parameter:g}; "
                 "lower it or give a smaller run.dt")
     return "the automatic step could not follow the model; give a smaller run.dt and report the case"

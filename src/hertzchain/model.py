@@ -18,7 +18,8 @@ from typing import Literal
 import numpy as np
 
 from .chain import Chain
-from .contact import LAW_CODES, Dashpot, Elastic, Elastoplastic, ScaledViscoelastic, Viscoelastic
+from .contact import LAW_CODES, Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
+from .plasticity import Elastoplastic
 from .errors import ConfigError
 from .materials import Material, get_material
 
@@ -237,6 +238,8 @@ class System:
     mount_d0: float = 0.0    # m, the mount's deflection at rest (its force k d0 carries the static load)
     res_m: np.ndarray | None = None   # (N+2,) kg, internal masses of mass-in-mass bodies (None: none)
     res_k: np.ndarray | None = None   # (N+2,) N/m, their springs
+    #: elastoplastic law: its limiting pressure over the paper-consistent 1.5 sigma_Y (Elastoplastic.pressure_ratio)
+    yield_pressure_ratio: float = 1.0
 
     @property
     def n_beads(self) -> int:
@@ -273,12 +276,14 @@ class System:
         """Overlap delta_y [m] at which every contact reaches its elastic limit, (N+1,).
 
         F_Y = kappa delta_y^(3/2) (:func:`hertzchain.contact.yield_force`, Thornton's F_y with
-        p_y = 1.5 sigma_Y); inf where no yield stress is given or there is no contact.
+        p_y = 1.5 sigma_Y); times ``yield_pressure_ratio`` squared for another limiting pressure
+        (delta_y ~ p_y^2); inf where no yield stress is given or there is no contact.
         """
         kap = self.kappa
         ok = (kap > 0) & np.isfinite(self.yield_force)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(ok, (self.yield_force / np.where(ok, kap, 1.0)) ** (2.0 / 3.0), np.inf)
+            dy = np.where(ok, (self.yield_force / np.where(ok, kap, 1.0)) ** (2.0 / 3.0), np.inf)
+        return dy if self.yield_pressure_ratio == 1.0 else dy * self.yield_pressure_ratio**2
 
     def max_overlap(self) -> np.ndarray:
         """Upper bound of every contact's overlap [m] over the whole run, (N+1,).
@@ -292,7 +297,7 @@ class System:
         energy = 0.5 * self.mass[0] * self.v0[0] ** 2
         kap = self.kappa
         if self.law == LAW_CODES["elastoplastic"]:
-            from .contact import thornton_loading_overlap, thornton_loading_work
+            from .plasticity import thornton_loading_overlap, thornton_loading_work
 
             dy = self.yield_overlap()
             energy += float(np.sum(np.where(kap > 0, thornton_loading_work(self.d0, kap, dy), 0.0)))
@@ -384,7 +389,7 @@ class Model:
         The end condition (default: immovable flat of the chain's material).
     law
         Contact law: :class:`Elastic` (paper eq. 1), :class:`Viscoelastic`, :class:`ScaledViscoelastic`,
-        :class:`Dashpot` or :class:`Elastoplastic` (Thornton 1997).
+        :class:`Dashpot`, :class:`ScaledDashpot` or :class:`Elastoplastic` (Thornton 1997).
     precompression
         Static force [N] squeezing beads 1..N against the wall before impact (0 = the paper's
         "barely touching" chain). Needs a wall.
@@ -398,7 +403,7 @@ class Model:
     chain: Chain
     striker: Striker = field(default_factory=Striker)
     wall: Wall = field(default_factory=Wall)
-    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | Elastoplastic = field(default_factory=Elastic)
+    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot | Elastoplastic = field(default_factory=Elastic)
     precompression: float = 0.0
     gravity: float = 0.0
 
@@ -520,11 +525,12 @@ class Model:
             d0[1:] = (self.precompression / kappa[1:]) ** (2.0 / 3.0)
             fext[1] = self.precompression
             if self.law.name == "elastoplastic":
-                # statically loaded along Thornton's loading curve: past F_Y the line F_y + slope (d - dy)
+                # statically loaded along Thornton's loading curve: past F_y the line F_y + slope (d - dy)
+                f_y = fy[1:] * self.law.pressure_ratio**3
                 with np.errstate(invalid="ignore"):
-                    dy = (fy[1:] / kappa[1:]) ** (2.0 / 3.0)
-                    over = self.precompression > fy[1:]
-                    plastic = dy + (self.precompression - fy[1:]) / (1.5 * kappa[1:] * np.sqrt(dy))
+                    dy = (f_y / kappa[1:]) ** (2.0 / 3.0)
+                    over = self.precompression > f_y
+                    plastic = dy + (self.precompression - f_y) / (1.5 * kappa[1:] * np.sqrt(dy))
                 d0[1:] = np.where(over, plastic, d0[1:])
 
         e = np.concatenate([[0.0], self.chain.offsets, [0.0]])
@@ -539,7 +545,8 @@ class Model:
         v0[0] = self.striker.velocity
         parts = dict(mass=mass, inv_mass=inv_mass, kappa=kappa, damping=damping, d0=d0, de=de, dx0=dx0,
                      rsum=rsum, fext=fext, u0=np.zeros(n + 2), v0=v0, law=LAW_CODES[self.law.name],
-                     misaligned=bool(np.any(de != 0.0)), has_wall=self.wall.present, yield_force=fy)
+                     misaligned=bool(np.any(de != 0.0)), has_wall=self.wall.present, yield_force=fy,
+                     yield_pressure_ratio=getattr(self.law, "pressure_ratio", 1.0))
         if self.plain:
             return System(**parts)
         from .bodies import extend  # the striker's face, elements, the protected body, gravity
@@ -556,10 +563,11 @@ class Model:
                        reference_material=self.law.material.name)
         elif self.law.name == "dashpot":
             law["gamma"] = self.law.gamma
+        elif self.law.name == "dashpot_scaled":
+            law.update(gamma=self.law.gamma, reference_diameter_mm=self.law.diameter * 1e3,
+                       reference_material=self.law.material.name)
         elif self.law.name == "elastoplastic":
-            from .contact import LIMITING_PRESSURE_FACTOR
-
-            law.update(A=self.law.A, limiting_pressure_over_yield_stress=LIMITING_PRESSURE_FACTOR)
+            law.update(A=self.law.A, limiting_pressure_factor=self.law.limiting_pressure_factor)
             if self.law.diameter is not None:
                 law.update(reference_diameter_mm=self.law.diameter * 1e3, reference_material=self.law.material.name)
         wall = {"type": self.wall.kind, "material": None if self.wall_material is None else self.wall_material.name}

@@ -71,4 +71,7 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
             msg += f"; peak wall force {ds.attrs['peak_wall_force']:.4g} N at {ds.attrs['peak_wall_time'] * 1e3:.4g} ms"
         if "peak_body_force" in ds.attrs:
             msg += f"; the protected body passes at most {ds.attrs['peak_body_force']:.4g} N to the ground"
+        if "plastic_work" in ds.attrs:  # the elastoplastic law
+            msg += (f"; plastic work {ds.attrs['plastic_work']:.3g} J, deepest permanent dent "
+                    f"{ds.attrs['residual_overlap_max'] * 1e6:.3g} um")
         click.echo(msg)

@@ -201,8 +201,9 @@ def build_model(cfg: RunConfig, chain=None):
     Model
         Chain, striker, wall and contact law in SI units (diameters [m], speeds [m/s]).
     """
-    from ..contact import Dashpot, Elastic, Elastoplastic, ScaledViscoelastic, Viscoelastic
+    from ..contact import Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
     from ..model import Model, Striker, Wall
+    from ..plasticity import Elastoplastic
 
     if chain is None:
         chain = build_chain(cfg)
@@ -219,7 +220,7 @@ def build_model(cfg: RunConfig, chain=None):
     if k.law == "elastic":
         law: Any = Elastic()
     elif k.law == "elastoplastic":
-        law = Elastoplastic(k.A or 0.0)
+        law = Elastoplastic(k.A or 0.0, limiting_pressure_factor=k.limiting_pressure_factor or 1.5)
     elif k.eps is not None:
         from ..dissipation import calibrate_law
 
@@ -228,6 +229,8 @@ def build_model(cfg: RunConfig, chain=None):
         law = Viscoelastic(k.A)
     elif k.law == "viscoelastic_scaled":
         law = ScaledViscoelastic(k.A, float(chain.diameters[0]), chain.materials[0])
+    elif k.law == "dashpot_scaled":
+        law = ScaledDashpot(k.gamma, float(chain.diameters[0]), chain.materials[0])
     else:
         law = Dashpot(k.gamma)
     with _as_written("chain.offsets", _offsets_key(cfg)):

@@ -191,23 +191,30 @@ class ContactConfig(_Section):
     """``[contact]``: law and either its parameter (A [s] or gamma [N s/m]) or a target ``eps``;
     ``elastoplastic`` (Thornton) takes an optional viscous A (default 0)."""
 
-    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot", "elastoplastic"] = "elastic"
+    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot", "dashpot_scaled",
+                 "elastoplastic"] = "elastic"
     eps: float | None = Field(default=None, gt=0, le=1, description="per-bead factor of the paper")
     A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s "
                                   "(viscoelastic_scaled: between two beads like the chain's first)")
-    gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m")
+    limiting_pressure_factor: float | None = Field(
+        default=None, gt=0, le=10, description="elastoplastic: Thornton's limiting pressure p_y over the yield "
+                                                "stress (default 1.5: yield starts at the paper's F_Y)")
+    gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m "
+                                   "(dashpot_scaled: between two beads like the chain's first)")
 
     @model_validator(mode="after")
     def _parameter(self) -> "ContactConfig":
         if self.law == "elastic" and (self.A is not None or self.gamma is not None or
                                       (self.eps is not None and self.eps != 1.0)):
             raise ValueError("the elastic law takes no A, gamma or eps < 1; set law = 'viscoelastic' or 'dashpot'")
+        if self.law != "elastoplastic" and self.limiting_pressure_factor is not None:
+            raise ValueError("limiting_pressure_factor belongs to law = 'elastoplastic'")
         if self.law == "elastoplastic":
             if self.gamma is not None or self.eps is not None:
                 raise ValueError("law 'elastoplastic' takes an optional A (s, the viscous term on top of Thornton's "
                                  "plastic contact), not gamma or eps")
             return self
-        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma"}.get(self.law)
+        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma", "dashpot_scaled": "gamma"}.get(self.law)
         if own is not None:
             other = "gamma" if own == "A" else "A"
             if getattr(self, other) is not None:

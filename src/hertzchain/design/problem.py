@@ -37,7 +37,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from ..errors import ConfigError
 from .constraints import Constraints
 from .body import BODY_OBJECTIVES
-from .objectives import OBJECTIVES, SAMPLING_FREE, Fidelity, Robust
+from .objectives import OBJECTIVES, PLASTIC_OBJECTIVES, SAMPLING_FREE, Fidelity, Robust
 from .space import Space, parse_shape, parse_variables
 
 __all__ = ["DesignProblem", "parse_design", "load_design", "search_fidelity"]
@@ -152,6 +152,7 @@ def search_fidelity(problem: DesignProblem) -> Fidelity:
     if (sec.search_steps_per_radian == "full" or run.dt is not None or len(problem.objectives) > 1
             or sec.search_steps_per_radian >= run.steps_per_radian):
         return Fidelity()
+    # (the plastic constraints, like the plastic objectives, read the per-step state: sampling-free)
     coarse_sampling = set(problem.objectives) <= SAMPLING_FREE and sec.constraints.max_force_over_yield is None
     return Fidelity("search", float(sec.search_steps_per_radian), coarse_sampling)
 
@@ -232,6 +233,12 @@ def parse_design(data: dict) -> DesignProblem:
                               "mass, stiffness and damping)")
     if len(set(objectives)) != len(objectives):
         raise ConfigError("design.objective", "lists an objective twice")
+    plastic = [n for n in objectives if n in PLASTIC_OBJECTIVES] + [
+        f"constraints.{k}" for k in ("max_plastic_work", "max_residual_overlap") if getattr(sec.constraints, k) is not None]
+    if plastic and base_cfg.contact.law != "elastoplastic":
+        raise ConfigError("design.objective" if plastic[0] in PLASTIC_OBJECTIVES else f"design.{plastic[0]}",
+                          f"{plastic[0]} needs contact yield: set [base.contact] law = 'elastoplastic' (the "
+                          f"{base_cfg.contact.law} law does no plastic work)")
     if sec.window is not None and not (len(sec.window) == 2 and 0 <= sec.window[0] < sec.window[1]):
         raise ConfigError("design.window", f"must be [t0, t1] in s with 0 <= t0 < t1, got {list(sec.window)}")
     if sec.robust is not None:

@@ -75,7 +75,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     from ..errors import ElasticLimitWarning, PulseNotReachedWarning
     from ..integrate.batch import simulate_batch
     from ..probes import Probes
-    from .constraints import Constraints, geometric_violation
+    from .constraints import Constraints, geometric_violation, run_violation
     from .objectives import Evaluator
 
     prob = result.problem
@@ -100,9 +100,10 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
         # A chain whose pulse does not reach the wall within the run has no comparable value.
         ok = bool(ev.metrics["pulse_at_wall"])
         out[name] = {n: ev.objectives[n] if ok else None for n in prob.objectives}
-        feasible = ev.feasible and geometric_violation(sec.constraints, ev.metrics) == 0 and (
-            sec.constraints.max_force_over_yield is None
-            or ev.metrics["force_over_yield"] <= sec.constraints.max_force_over_yield)
+        plastic = {k: ev.metrics[f"{k}_worst"] for k in ("plastic_work", "residual_overlap_max")
+                   if f"{k}_worst" in ev.metrics}
+        feasible = (ev.feasible and geometric_violation(sec.constraints, ev.metrics) == 0
+                    and run_violation(sec.constraints, ev.metrics["force_over_yield"], True, **plastic) == 0)
         out[name].update(n_beads=ev.metrics["n_beads"], length_mm=ev.metrics["length_mm"], pulse_at_wall=ok,
                          feasible=bool(feasible))
     out["improvement_percent"] = {
@@ -331,7 +332,8 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
     write_text(out / "history.csv", df.to_csv(index=False))
     if len(prob.objectives) > 1:
         keep = ["evaluation", "generation", *prob.space.groups, *prob.objectives, *[c for c in (
-            "min_diameter_mm", "length_mm", "mass_kg", "n_beads", "force_over_yield") if c in df]]
+            "min_diameter_mm", "length_mm", "mass_kg", "n_beads", "force_over_yield", "plastic_work_worst",
+            "residual_overlap_max_worst") if c in df]]
         front = df[df["evaluation"].isin([r["evaluation"] for r in result.pareto])][keep]
         write_text(out / "pareto.csv", front.to_csv(index=False))
     if figures:

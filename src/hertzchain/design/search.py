@@ -556,7 +556,8 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
         best_out = {"objective": objective, "variables": values, "feasible": bool(best["feasible"]),
                     "config": problem.space.config(values),
                     "metrics": {k: best[k] for k in ("min_diameter_mm", "length_mm", "mass_kg", "n_beads",
-                                                     "force_over_yield", "pulse_at_wall") if k in best}}
+                                                     "force_over_yield", "pulse_at_wall", "plastic_work_worst",
+                                                     "residual_overlap_max_worst") if k in best}}
     pareto = pareto_rows(problem, state.history) if multi else ([best] if best and best["feasible"] else [])
     return DesignResult(problem, best_out, state.history, pareto, state.n_evaluations, state.generation,
                         t_saved + time.perf_counter() - t_start, out, resumed)

@@ -28,6 +28,10 @@ _METRIC_UNITS = {"F_m": ("N", "peak wall force F_m of the cos^6 fit"),
                  "tau": ("s", "duration tau of the wall pulse"),
                  "Q_F": ("N s", "front momentum Q_F (integral of F up to T + tau)"),
                  "Q_T": ("N s", "tail momentum Q_T (integral of F after T + tau)")}
+#: Elastic-plastic metrics of each member (elastoplastic law): table column -> (chunk variable,
+#: units, meaning). In a chunk only when one of its members has the law (NaN for the others).
+PLASTIC_METRICS = {"plastic_work": ("plastic_work_total", "J", "plastic work done in all contacts by the end"),
+                   "residual_overlap_max": ("residual_overlap_max", "m", "largest residual (permanent) overlap")}
 _CHUNK_NAME = "chunk_{:05d}.nc"
 
 
@@ -188,10 +192,16 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
     if all(v != v for c in body for v in rows[c]):  # NaN everywhere: no member has a body
         for c in body:
             del rows[c]
+            for c, (var, *_) in PLASTIC_METRICS.items():
+                rows.setdefault(c, [np.nan] * (len(rows["member"]) - members.size))
+                rows[c] += f.variables[var][...].tolist() if var in f.variables else [np.nan] * members.size
     table = {"member": rows.pop("member"), "chunk": rows.pop("chunk")}
     for name in cfg.parameter_names:
         vals = [cfg.members[m][name] for m in table["member"]]
         table[name] = [json.dumps(v) if isinstance(v, (list, dict)) else v for v in vals]
+    for c in PLASTIC_METRICS:  # only sweeps with an elastoplastic member have these columns
+        if c in rows and not np.any(np.isfinite(np.asarray(rows[c], dtype=float))):
+            del rows[c]
     table.update(rows)
     df = pd.DataFrame(table)
     df["elastic_limit_exceeded"] = df["elastic_limit_exceeded"].astype(bool)
