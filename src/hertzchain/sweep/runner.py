@@ -22,8 +22,8 @@ import numpy as np
 
 from ..errors import ConfigError, SimulationDiverged
 from .schema import SweepConfig, chunk_members, load_sweep, parse_sweep
-from .storage import (_CHUNK_NAME, _METRIC_UNITS, METRIC_COLUMNS, RUN_METRICS, _chunk_is_done, _folder_lock,
-                      _metrics_table, _prepare_out_dir, _traces_path, _write_chunk)
+from .storage import (_CHUNK_NAME, _METRIC_UNITS, METRIC_COLUMNS, PLASTIC_METRICS, RUN_METRICS, _chunk_is_done,
+                      _folder_lock, _metrics_table, _prepare_out_dir, _traces_path, _write_chunk)
 
 # ------------------------------------------------------------------------------ computing chunks
 @dataclass
@@ -115,6 +115,13 @@ def compute_chunk(task: _ChunkTask):
     metrics = {k: xr.Variable(("member",), values[k], attrs={"units": u, "long_name": n})
                for k, (u, n) in _METRIC_UNITS.items()}
     metrics.update(_run_metrics(ds))
+    if "plastic_work" in ds:  # an elastoplastic member: its plastic work and largest permanent overlap
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows of the other members
+            plastic = {"plastic_work": ds["plastic_work"].values[:, -1],
+                       "residual_overlap_max": np.nanmax(ds["residual_overlap"].values, axis=1)}
+        for k, (var, units, long_name) in PLASTIC_METRICS.items():
+            metrics[var] = xr.Variable(("member",), plastic[k], attrs={"units": units, "long_name": long_name})
     metrics["fit_error"] = xr.Variable(("member",), np.array(errors, dtype=object),
                                        attrs={"long_name": "why the wall pulse has no metrics (empty when fitted)"})
     metrics["parameters"] = xr.Variable(("member",), np.array([json.dumps(task.recipe.members[m])
@@ -176,6 +183,8 @@ def _check_members_energy(ds, models, dts: list, task: _ChunkTask) -> None:
     from ..checks import check_energy_balance, energy_cause, energy_gain, energy_tolerance
 
     ke, pe, ed = (ds[v].values for v in ("kinetic_energy", "potential_energy", "dissipated_energy"))
+    if "plastic_work" in ds:  # every loss counts: viscous and plastic (NaN rows: other laws)
+        ed = ed + np.nan_to_num(ds["plastic_work"].values)
     model = models.model if hasattr(models, "model") else models.__getitem__
     tol = np.array([energy_tolerance(model(i).system(), dt) if dt is not None else energy_tolerance(None, 0.0)
                     for i, dt in enumerate(dts)])
@@ -258,8 +267,11 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         [s] (integrator), ``elastic_limit_exceeded``, the wall-pulse metrics ``F_m`` [N], ``T``
         [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s] (NaN with ``fit_error`` saying why when the
         member has no wall or no fitted pulse), ``kinetic_energy_end``, ``potential_energy_end``,
-        ``dissipated_energy_end`` [J] and ``force_over_yield``. Also written to ``metrics.csv``
-        (and ``metrics.parquet`` when pyarrow is installed).
+        ``dissipated_energy_end`` [J] and ``force_over_yield``; with protected bodies also
+        ``peak_body_force`` [N], ``peak_body_acceleration`` [m/s^2] and ``peak_body_energy`` [J];
+        with an elastoplastic member also ``plastic_work`` [J] and ``residual_overlap_max`` [m]
+        (NaN for members of other laws). Also written to ``metrics.csv`` (and ``metrics.parquet``
+        when pyarrow is installed).
 
     Raises
     ------

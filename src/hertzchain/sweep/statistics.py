@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from .storage import TABLE_COLUMNS
+from .storage import COLUMN_UNITS
 
 __all__ = ["read_metrics", "metric_columns", "summarize", "display_unit", "QUANTILES"]
 
@@ -112,7 +112,7 @@ def summarize(df, metrics: list[str] | None = None) -> dict[str, Any]:
     for m in metrics:
         x = df[m].to_numpy(dtype=float)
         x = x[np.isfinite(x)]
-        entry: dict[str, Any] = {"units": TABLE_COLUMNS.get(m, ""), "n": int(x.size)}
+        entry: dict[str, Any] = {"units": COLUMN_UNITS.get(m, ""), "n": int(x.size)}
         if x.size:
             q = np.quantile(x, QUANTILES)
             entry.update(mean=float(x.mean()), std=float(x.std(ddof=1)) if x.size > 1 else math.nan,

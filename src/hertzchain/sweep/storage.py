@@ -38,6 +38,14 @@ RUN_METRICS = {"kinetic_energy_end": ("J", "kinetic energy at the end of the run
 TABLE_COLUMNS = {"dt": "s", "peak_wall_force": "N", "peak_wall_time": "s", "elastic_limit_exceeded": "1",
                  **{k: u for k, (u, _) in _METRIC_UNITS.items()}, **{k: u for k, (u, _) in RUN_METRICS.items()},
                  "fit_error": ""}
+#: Elastic-plastic metrics of each member (elastoplastic law): table column -> (chunk variable,
+#: units, meaning). In a chunk only when one of its members has the law (NaN for the others).
+PLASTIC_METRICS = {"plastic_work": ("plastic_work_total", "J", "plastic work done in all contacts by the end"),
+                   "residual_overlap_max": ("residual_overlap_max", "m", "largest residual (permanent) overlap")}
+#: A protected body's peaks (wall.type = "body"), per member, with their units.
+_BODY_COLUMNS = {"peak_body_force": "N", "peak_body_acceleration": "m/s^2", "peak_body_energy": "J"}
+#: Units of every column metrics.csv may have (the optional ones after fit_error when present).
+COLUMN_UNITS = {**TABLE_COLUMNS, **_BODY_COLUMNS, **{c: u for c, (_, u, _) in PLASTIC_METRICS.items()}}
 _CHUNK_NAME = "chunk_{:05d}.nc"
 #: The full records of the members named by ``sweep.traces`` (store = "metrics"), one file per chunk.
 _TRACES_NAME = "traces_{:05d}.nc"
@@ -201,21 +209,29 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
     import pandas as pd
 
     cols = list(TABLE_COLUMNS)
-    parts: dict[str, list] = {"member": [], "chunk": [], **{c: [] for c in cols}}
+    # columns only some sweeps have (NaN for the members without them, left out where no member
+    # has them): a protected body's peaks (wall.type = "body"), the elastoplastic metrics
+    optional = {c: c for c in _BODY_COLUMNS} | {c: var for c, (var, *_) in PLASTIC_METRICS.items()}
+    parts: dict[str, list] = {"member": [], "chunk": [], **{c: [] for c in [*cols, *optional]}}
     for index in range(len(cfg.chunks())):
         with h5py.File(chunks_dir / _CHUNK_NAME.format(index), "r") as f:  # h5py: see _file_holds
             members = np.asarray(f["member"][...])
             parts["member"].append(members)
             parts["chunk"].append(np.full(members.size, index, dtype=np.int64))
             for c in cols:
-                values = np.asarray(f[c][...]) if c in f else np.full(members.size, np.nan)
-                parts[c].append(values)
+                parts[c].append(np.asarray(f[c][...]) if c in f else np.full(members.size, np.nan))
+            for c, var in optional.items():
+                parts[c].append(np.asarray(f[var][...], dtype=float) if var in f else np.full(members.size, np.nan))
     table = {"member": np.concatenate(parts.pop("member")), "chunk": np.concatenate(parts.pop("chunk"))}
     for name in cfg.parameter_names:
         vals = [cfg.members[m][name] for m in table["member"].tolist()]
         table[name] = [json.dumps(v) if isinstance(v, (list, dict)) else v for v in vals]
     for c in cols:
         table[c] = np.concatenate(parts[c])
+    for c in optional:
+        values = np.concatenate(parts[c])
+        if np.isfinite(values).any():
+            table[c] = values
     df = pd.DataFrame(table)
     df["elastic_limit_exceeded"] = df["elastic_limit_exceeded"].astype(bool)
     df["fit_error"] = [_text(x) for x in df["fit_error"].tolist()]
