@@ -181,3 +181,19 @@ def test_peak_memory_of_a_sweep_is_within_its_estimate(tmp_path, store):
     assert os.waitstatus_to_exitcode(status) == 0, proc.stderr.read()
     ratio = usage.ru_maxrss * 1024 / est.peak_bytes
     assert 1 / 1.3 <= ratio <= 1.3, (ratio, usage.ru_maxrss * 1024, est)
+
+
+def test_metrics_only_keeps_the_elastoplastic_and_body_metrics(tmp_path):
+    """Members of the elastoplastic law at 2 m/s (past yield) hitting a protected body: the
+    metrics-only chunks keep their plastic work, permanent overlap and body peaks, as the wall
+    store's chunks have them."""
+    base = {"chain": {"uniform": {"n": 4, "diameter_mm": 20.0}}, "striker": {"velocity": 2.0},
+            "contact": {"law": "elastoplastic"}, "wall": {"type": "body", "mass": 1.0, "stiffness": 1e6},
+            "run": {"duration": 4e-4, "sample_interval": 1e-6}}
+    runs = {store: run_sweep({"base": base, "sweep": {"mode": "random", "n": 4, "chunk_size": 2, "store": store,
+                                                      "tolerances": {"velocity_rel": 0.05, "seed": 2}}},
+                             tmp_path / store).metrics for store in ("wall", "metrics")}
+    pd.testing.assert_frame_equal(runs["wall"], runs["metrics"], check_exact=True)
+    m = runs["metrics"]
+    assert (m["plastic_work"] > 0).all() and (m["residual_overlap_max"] > 0).all() and (m["force_over_yield"] > 1).all()
+    assert (m["peak_body_force"] > 0).all() and m["plastic_work"].std() > 0
