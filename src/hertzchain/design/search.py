@@ -398,8 +398,11 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
+    from ..interrupts import latched
+
     # Two searches writing one checkpoint would corrupt each other: the folder is locked (flock).
-    with _folder_lock(out, "design", DesignLocked):
+    # A Ctrl-C is never swallowed by a cleanup between engine calls (hertzchain.interrupts).
+    with _folder_lock(out, "design", DesignLocked), latched():
         return _run_design(problem, out, client, device, progress, force, checkpoint_interval)
 
 
