@@ -169,7 +169,19 @@ class MapOnly:
         return (fn(x) for x in items)
 
 
-@pytest.mark.parametrize("make_client", [lambda: cf.ThreadPoolExecutor(2), MapOnly], ids=["executor", "map"])
+class SubmitGather:
+    """A 'client' with submit and gather only (futures resolved on gather)."""
+
+    def submit(self, fn, x):
+        return (fn, x)
+
+    def gather(self, future):
+        fn, x = future
+        return fn(x)
+
+
+@pytest.mark.parametrize("make_client", [lambda: cf.ThreadPoolExecutor(2), MapOnly, SubmitGather],
+                         ids=["executor", "map", "submit-gather"])
 def test_other_clients_give_the_same_metrics(tmp_path, reference, make_client):
     client = make_client()
     try:

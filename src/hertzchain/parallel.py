@@ -137,8 +137,15 @@ def results_as_completed(client, fn: Callable[[Any], Any], tasks: Iterable) -> I
             for f in pending:
                 f.cancel()
     elif hasattr(client, "submit") and hasattr(client, "gather"):
-        for t in tasks:
-            yield client.gather(client.submit(fn, t))
+        import collections
+
+        it = iter(tasks)
+        queue = collections.deque(client.submit(fn, t) for t in itertools.islice(it, 2 * IN_FLIGHT_PER_THREAD))
+        while queue:  # in order, a few submitted ahead
+            nxt = next(it, _END)
+            if nxt is not _END:
+                queue.append(client.submit(fn, nxt))
+            yield client.gather(queue.popleft())
     elif hasattr(client, "map"):
         yield from client.map(fn, tasks)
     else:
