@@ -14,7 +14,7 @@ _EXPORTS = {
     # errors
     "HertzchainError": "errors", "ConfigError": "errors", "SimulationDiverged": "errors",
     "PulseNotFound": "errors", "ElasticLimitWarning": "errors", "HertzRangeWarning": "errors",
-    "PulseNotReachedWarning": "errors", "LongRunWarning": "errors",
+    "PulseNotReachedWarning": "errors", "LongRunWarning": "errors", "CheckpointWarning": "errors",
     # checks
     "estimate_resources": "checks", "ResourceEstimate": "checks",
     # model

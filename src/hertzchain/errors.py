@@ -54,3 +54,7 @@ class PulseNotReachedWarning(UserWarning):
 
 class LongRunWarning(UserWarning):
     """A run is projected to take more than a few minutes (the estimate is in the message)."""
+
+
+class CheckpointWarning(UserWarning):
+    """A checkpoint could not be used (damaged, foreign, of an older format): it was set aside."""
