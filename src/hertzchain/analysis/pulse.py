@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import curve_fit
 
-from ..errors import ConfigError, PulseNotFound
+from ..errors import ConfigError, PulseClipped, PulseNotFound
 from ..theory import HALF_MAX_PHASE
 
 __all__ = ["PulseFit", "fit_pulse", "cos6_pulse", "estimate_noise", "front_tail_momenta"]
@@ -300,7 +300,7 @@ def front_tail_momenta(time: np.ndarray, force: np.ndarray, split: float) -> tup
 # --------------------------------------------------------------------------------------------
 def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = None, min_prominence: float = 0.2,
               snr_min: float = 8.0, fit_window: tuple[float, float] = (-1.0, 0.0),
-              max_iter: int = 50) -> PulseFit:
+              max_iter: int = 50, valid_max: float | None = None) -> PulseFit:
     """Fit the first pulse of a force record with Nesterenko's profile (paper Sec. III, eq. 4).
 
     Method, as in the paper: the loading part -tau < t - T < 0 of the first pulse is fitted with
@@ -337,6 +337,9 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
         Fitted range of (t - T)/tau; the paper's loading part is (-1, 0).
     max_iter
         Most window updates.
+    valid_max
+        The largest value the scope could record [N] (its full scale), when known: a pulse that
+        reaches it is clipped.
 
     Returns
     -------
@@ -349,6 +352,9 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
     PulseNotFound
         No pulse stands out of the noise, the record is too short, it ends before the first
         maximum or starts after the rise, or the pulse is sampled too coarsely to fit.
+    PulseClipped
+        The pulse is clipped: it reaches ``valid_max`` or its top is cut flat
+        (:func:`~hertzchain.analysis.saturation.find_clipping`).
     ConfigError
         The arrays are malformed (shapes, NaN, time not increasing).
     """
@@ -360,6 +366,11 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
     if not (fit_window[0] < fit_window[1]):
         raise ConfigError("fit_window", f"must be (low, high) with low < high, got {fit_window!r}")
 
+    from .saturation import find_clipping
+
+    clipped = find_clipping(t, f, valid_max=valid_max)
+    if clipped is not None:
+        raise PulseClipped(f"the pulse is clipped: {clipped}")
     noise = estimate_noise(f)
     # First guess of the baseline, only used to detect the pulse: a low percentile sits at the
     # quiet level of the record whether or not the record has a long pre-pulse part.
