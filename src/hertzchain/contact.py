@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from .errors import ConfigError
 from .materials import Material, get_material
+from .strict import real
 
 __all__ = [
     "hertz_constant", "effective_radius", "effective_modulus", "yield_force", "Elastic",
@@ -120,6 +121,7 @@ class Viscoelastic:
     name = "viscoelastic"
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "A", real(self.A, "contact.A", unit="s"))
         if not (math.isfinite(self.A) and self.A >= 0):
             raise ConfigError("contact.A", f"must be a finite number >= 0 (s), got {self.A!r}")
 
@@ -142,6 +144,7 @@ class Dashpot:
     name = "dashpot"
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "gamma", real(self.gamma, "contact.gamma", unit="N s/m"))
         if not (math.isfinite(self.gamma) and self.gamma >= 0):
             raise ConfigError("contact.gamma", f"must be a finite number >= 0 (N s/m), got {self.gamma!r}")
 
@@ -203,6 +206,7 @@ class ScaledViscoelastic:
     name = "viscoelastic_scaled"
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "A", real(self.A, "contact.A", unit="s"))
         if not (math.isfinite(self.A) and self.A >= 0):
             raise ConfigError("contact.A", f"must be a finite number >= 0 (s), got {self.A!r}")
         if not (math.isfinite(self.diameter) and self.diameter > 0):

@@ -20,6 +20,7 @@ from .chain import Chain
 from .contact import LAW_CODES, Dashpot, Elastic, ScaledViscoelastic, Viscoelastic
 from .errors import ConfigError
 from .materials import Material, get_material
+from .strict import real
 
 __all__ = ["Striker", "Wall", "Model", "System"]
 
@@ -43,9 +44,12 @@ class Striker:
     material: Material | str = "AISI52100"
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.diameter) and self.diameter > 0):
+        # Strict types (True or "0.3" are not speeds); NumPy scalars are stored as floats.
+        object.__setattr__(self, "diameter", real(self.diameter, "striker.diameter", unit="m"))
+        object.__setattr__(self, "velocity", real(self.velocity, "striker.velocity", unit="m/s"))
+        if not self.diameter > 0:
             raise ConfigError("striker.diameter_mm", f"must be a positive number, got {self.diameter * 1e3!r} mm")
-        if not (math.isfinite(self.velocity) and self.velocity > 0):
+        if not self.velocity > 0:
             raise ConfigError("striker.velocity", f"must be a positive speed in m/s (towards the chain), got {self.velocity!r}")
         object.__setattr__(self, "material", get_material(self.material))
 
@@ -210,6 +214,7 @@ class Model:
     precompression: float = 0.0
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
         if self.precompression > 0 and not self.wall.present:

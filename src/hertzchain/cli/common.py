@@ -181,11 +181,11 @@ class UnitsTable:
         if sum(w + 3 for w in widths) + 1 <= console.width:
             console.print(self._rich())
             return
-        console.print(escape(self.title), soft_wrap=True)
+        console.print(escape(self.title))
         for cells, style in self.rows:
             for h, c in zip(self.headers, cells):
                 if c:
-                    console.print(f"  {escape(h)}: {escape(c)}", style=style, soft_wrap=True)
+                    console.print(f"  {escape(h)}: {escape(c)}", style=style)
             console.print("")
 
 

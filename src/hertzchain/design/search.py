@@ -279,7 +279,7 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float, evaluato
             y = x.copy()
             y[j] = min(max(y[j] + s, 0.0), 1.0)
             y = problem.space.centre(y)
-            if repair and v.kind == "real":
+            if repair and v.kind == "real" and f_x >= 0:  # stop on the boundary only from a point inside it
                 f_y = _margin(problem, evaluator, y)
                 if f_y < 0:
                     # The accepted band narrows with the step, so that the polish closes in on the
@@ -347,6 +347,71 @@ def _verify(problem: DesignProblem, search: Evaluator, state: _State, budget: in
             return
 
 
+def preflight(problem: DesignProblem, client=None, chunk_size: int | None = None):
+    """The design's pre-flight, before any candidate is built: one generation must fit the budget
+    and the memory, and a search projected past a few minutes says so (LongRunWarning).
+
+    A generation is ``design.population`` candidates x the robust scenarios, run in one engine
+    call (a Dask ``chunk_size`` at a time with a client); its records are estimated from the base
+    config's chain, and the search's time as ``design.budget`` runs of the base chain at the
+    search's accuracy, over the cores.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        The design.
+    client : object
+        The Dask client, or None (one local engine call per generation).
+    chunk_size : int or None
+        Members per Dask task (``design.chunk_size``).
+
+    Returns
+    -------
+    hertzchain.checks.ResourceEstimate
+        The estimate of the whole search (``members``: one generation's engine runs).
+
+    Raises
+    ------
+    ConfigError
+        One generation costs more engine runs than the budget (naming ``design.population``), or
+        its records do not fit in memory (naming ``design.population`` or ``design.chunk_size``).
+    """
+    from dataclasses import replace as _replace
+
+    import numba
+
+    from ..checks import check_resources, estimate_memory, estimate_resources
+    from ..config import build_model, parse_config
+    from ..probes import Probes
+
+    sec = problem.section
+    per = Evaluator(problem.objectives, sec.constraints, sec.robust).n_scenarios
+    distinct = math.prod(v.n_values for v in problem.space.variables) if not problem.space.real.any() else math.inf
+    first = min(_initial_sample(problem), distinct)
+    if first * per > sec.budget:
+        raise ConfigError("design.population", f"a generation of {first:,} candidates x {per} scenario(s) costs "
+                          f"{first * per:,} engine runs, more than design.budget = {sec.budget:,}: lower "
+                          "design.population or raise design.budget")
+    cfg = parse_config(problem.base)
+    model = build_model(cfg)
+    members = min(max(_population(problem), first) * per, sec.budget)  # later generations: checked as they come
+    if client is not None:
+        members = min(members, chunk_size or sec.chunk_size)
+    probes = Probes(sample_interval=cfg.run.sample_interval, contacts=())
+    fidelity = search_fidelity(problem)
+    one = estimate_resources(model.system(), cfg.run.duration, probes, dt=cfg.run.dt,
+                             steps_per_radian=fidelity.steps_per_radian or cfg.run.steps_per_radian)
+    mem = estimate_memory(model.chain.n_beads, model.wall.present, cfg.run.duration, probes, members)
+    threads = numba.config.NUMBA_NUM_THREADS if client is None else 1
+    est = _replace(mem, steps=one.steps, seconds=one.seconds * sec.budget / max(1, min(threads, members)))
+    field = "design.population" if client is None else "design.chunk_size"
+    check_resources(est, memory_field=field,
+                    memory_hint=f"lower {field} ({members:,} engine runs a generation at most), raise "
+                                "run.sample_interval of [base] or shorten its run.duration",
+                    time_hint="lower design.budget, or spread the generations over a Dask cluster (--scheduler)")
+    return est
+
+
 def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, device: str | None = None,
                progress: Callable[[int, int], None] | None = None, force: bool = False,
                checkpoint_interval: float = 1.0) -> DesignResult:
@@ -384,9 +449,13 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         ``out_dir`` holds the checkpoint of another design (and ``force`` is false).
     DesignLocked
         Another search is writing into ``out_dir``.
+    ConfigError
+        A bad setting, or one the pre-flight (:func:`preflight`) refuses: a generation beyond the
+        budget or the memory.
     """
     from ..sweep.storage import _folder_lock
 
+    preflight(problem, client)  # before any candidate or folder: the budget, the memory, the time
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -552,6 +621,15 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
         _verify(problem, evaluator, state, sec.budget, clock, replay)
         state.verified = True
     checkpoint(final=True)
+    if state.history and not any(r["engine_runs"] for r in state.history):
+        # Every candidate broke a geometric constraint: nothing could be run, so there is no best.
+        from .constraints import broken_geometry
+
+        least = _best_row(problem, state.history)
+        raise ConfigError("design.constraints", f"no candidate of the design space meets the geometric constraints "
+                          f"({len(state.history)} tried); the closest one, {problem.space.values(np.asarray(least['x']))}"
+                          f", breaks {'; '.join(broken_geometry(sec.constraints, least))}: relax the constraints or "
+                          "widen the variables' ranges")
     best = _best_row(problem, state.history, "full" if coarse else None)
     best_out = None
     if best is not None:
