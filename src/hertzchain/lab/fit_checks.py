@@ -63,8 +63,9 @@ def check_records(labels: Sequence[str], times: Sequence[np.ndarray], records: S
             raise ConfigError(label, f"is clipped ({clipped}); a calibration on it would fit the cut top")
         height = float(np.max(y) - np.percentile(y, 10))
         if not height > SNR_MIN * sigma:
+            ratio = height / sigma if sigma > 0 else 0.0
             raise ConfigError(label, f"holds no significant pulse: its largest excursion above the baseline "
-                              f"({height:.3g} N) is {height / sigma:.2g} times its noise ({sigma:.3g} N), less than "
+                              f"({height:.3g} N) is {ratio:.2g} times its noise ({sigma:.3g} N), less than "
                               f"{SNR_MIN:g} (the criterion of hertzchain analyze); a fit of noise would report a "
                               "meaningless calibration. Check the file, the column and the sensitivity")
 

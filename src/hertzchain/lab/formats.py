@@ -181,8 +181,9 @@ def read_isf(path: Path, raw: bytes) -> _Table:
         codes = np.frombuffer(_isf_block(rest, n * width, n, width, where), dtype=dtype).astype(float)
     if codes.size != n:
         raise ConfigError(where, f"the curve holds {codes.size} points, header field NR_PT says {n}")
-    t = xzero + xincr * (np.arange(n) - pt_off)
-    y = (codes - yoff) * ymult + yzero
+    with np.errstate(over="ignore", invalid="ignore"):  # beyond float range: refused by read_trace's checks
+        t = xzero + xincr * (np.arange(n) - pt_off)
+        y = (codes - yoff) * ymult + yzero
     valid_max = None
     if kind in "iu":
         info = np.iinfo(dtype)
@@ -328,8 +329,9 @@ def read_trc(path: Path, raw: bytes) -> _Table:
     codes = np.frombuffer(payload, dtype=dtype).astype(float)
     index = np.arange(n, dtype=float)
     keep = slice(first, last + 1)
-    t = (h_offset + interval * index)[keep]
-    y = (float(gain) * codes - float(offset))[keep]
+    with np.errstate(over="ignore", invalid="ignore"):  # beyond float range: refused by read_trace's checks
+        t = (h_offset + interval * index)[keep]
+        y = (float(gain) * codes - float(offset))[keep]
     info = np.iinfo(dtype)
     valid_max = float(gain) * (info.max if gain > 0 else info.min) - float(offset)
 

@@ -491,8 +491,10 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
         raise ConfigError(where, f"holds {t.size} samples; a pulse record needs at least 10")
     bad = np.flatnonzero(~np.isfinite(y))
     if bad.size:
-        raise ConfigError(where, f"line {table.lines[bad[0]]}: the signal is {y_raw[bad[0]]} (the scope was out "
-                          "of range, or a gap): record again with a wider vertical range, or cut the file")
+        i = int(bad[0])
+        at = f"line {table.lines[i]}" if table.lines[i] else f"sample {i}"
+        raise ConfigError(where, f"{at}: the signal is {y_raw[i]} (the scope was out of range, or a gap, or a scale "
+                          "beyond float range): record again with a wider vertical range, or cut the file")
     steps = np.diff(t)
     back = np.flatnonzero(~(steps > 0))
     if back.size:
