@@ -48,7 +48,7 @@ def _text(page: Path) -> str:
 
 
 def test_site_builds_with_every_page(site):
-    pages = ["index", "conventions", "theory", "benchmarks", "validation", "api/index", "gallery/index"]
+    pages = ["index", "conventions", "theory", "benchmarks", "validation", "api/index", "gallery/index", "architecture"]
     pages += [f"guide/{p}" for p in ("config", "running", "results", "analysis", "reproduction", "sweeps",
                                      "instrument", "lab", "design", "gpu", "plotting", "fidelity", "errors")]
     for page in pages:

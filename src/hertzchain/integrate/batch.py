@@ -47,6 +47,7 @@ import xarray as xr
 
 from ..checks import (_smaller_radius, preflight_batch, smaller_radii, warn_members_hertz_range,
                       warn_members_pulse_not_reached)
+from ..contact import LAW_CODES
 from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
@@ -271,6 +272,9 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
 
     _cuda.check_device(device)
     duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")
+    if device == "cuda" and not isinstance(models, Ensemble):
+        _cuda.refuse_elastoplastic([LAW_CODES.get(getattr(getattr(m, "law", None), "name", None), -1)
+                                    for m in models])
     ens = None
     if isinstance(models, Ensemble):
         ens = models
