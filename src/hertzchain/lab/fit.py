@@ -36,7 +36,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import ConfigError
-from .fit_checks import check_records, fit_doubts
+from .fit_checks import check_records, fit_doubts, parameter_unit
 
 __all__ = ["Trace", "FitResult", "fit_traces", "MEASUREMENT_PARAMETERS"]
 
@@ -164,11 +164,11 @@ class FitResult:
         Returns
         -------
         dict
-            ``parameters`` ({name: {value, stderr, start[, bootstrap]}}), ``correlation``,
+            ``parameters`` ({name: {value, stderr, start, unit[, bootstrap]}}), ``correlation``,
             ``cost``, ``residual_variance``, ``n_points``, ``n_parameters``, ``n_evaluations``,
             ``n_members``, ``converged``, ``message``, ``warnings``, ``elapsed_s``, ``traces``.
         """
-        pars = {n: {"value": float(v), "stderr": float(e), "start": float(s)}
+        pars = {n: {"value": float(v), "stderr": float(e), "start": float(s), "unit": parameter_unit(n)}
                 for n, v, e, s in zip(self.names, self.values, self.stderr, self.start)}
         if self.bootstrap.size:
             for i, n in enumerate(self.names):

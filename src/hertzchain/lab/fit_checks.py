@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["SNR_MIN", "MAX_RESIDUAL_VARIANCE", "EDGE_FRACTION", "check_records", "fit_doubts"]
+__all__ = ["SNR_MIN", "MAX_RESIDUAL_VARIANCE", "EDGE_FRACTION", "check_records", "fit_doubts", "parameter_unit"]
 
 #: Least height of a record's pulse over its noise (fit_pulse's snr_min: analyze's criterion).
 SNR_MIN = 8.0
@@ -33,6 +33,32 @@ MAX_RESIDUAL_VARIANCE = 10.0
 #: A model pulse "leaves the record" when it is above this fraction of its height at an end of the
 #: record, or before the record starts.
 EDGE_FRACTION = 0.5
+
+
+#: Units of the free parameters, by the last part of their name (SI, as fit reports them).
+_UNITS = {"gain": "1", "time_offset": "s", "baseline": "N", "velocity": "m/s", "A": "s", "gamma": "N s/m", "eps": "1",
+          "young": "Pa", "poisson": "1", "density": "kg/m^3", "yield_stress": "Pa", "precompression": "N",
+          "duration": "s", "sample_interval": "s", "q": "1", "sensitivity_mV_per_N": "mV/N"}
+
+
+def parameter_unit(name: str) -> str:
+    """The unit of a free parameter as ``fit`` reports it (``striker.velocity`` -> ``m/s``).
+
+    Parameters
+    ----------
+    name : str
+        A config path (``materials.X.young``, ``chain.diameters_mm[3]``) or a measurement
+        parameter (``gain``, ``time_offset[2]``, ``baseline``).
+
+    Returns
+    -------
+    str
+        The unit (``mm`` for ``*_mm`` fields; ``SI`` when the name says nothing).
+    """
+    last = name.split("[")[0].rsplit(".", 1)[-1]
+    if last.endswith("_mm"):
+        return "mm"
+    return _UNITS.get(last, "SI")
 
 
 def check_records(labels: Sequence[str], times: Sequence[np.ndarray], records: Sequence[np.ndarray],
