@@ -69,6 +69,27 @@ def reference(tmp_path_factory):
     return ref, (base / "killed" / _CHECKPOINT).read_bytes()
 
 
+def _edit_meta(good: bytes, edit) -> bytes:
+    """The checkpoint ``good`` with its JSON document changed by ``edit(meta)`` (which may return
+    raw bytes to store instead)."""
+    with np.load(io.BytesIO(good), allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    meta = json.loads(arrays["meta"].tobytes())
+    text = edit(meta)
+    arrays["meta"] = np.frombuffer(text if text is not None else json.dumps(meta).encode(), np.uint8)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+def _plant(tmp_path, data: bytes):
+    """A design folder holding the checkpoint ``data``."""
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / _CHECKPOINT).write_bytes(data)
+    return out
+
+
 def _same_search(a, b) -> None:
     assert [r["x"] for r in a.history] == [r["x"] for r in b.history]
     assert a.best["variables"] == b.best["variables"] and a.best["objective"] == b.best["objective"]
@@ -126,31 +147,11 @@ def test_cli_tells_about_a_planted_checkpoint_and_exits_0(tmp_path, capsys):
 @pytest.mark.parametrize("damage", ["truncated", "empty", "text", "bad-json", "wrong-type", "other-schema"])
 def test_a_damaged_checkpoint_is_named_kept_aside_and_the_search_restarts(tmp_path, reference, damage):
     ref, good = reference
-    out = tmp_path / "d"
-    out.mkdir()
-    if damage == "truncated":
-        data = good[: len(good) // 2]
-    elif damage == "empty":
-        data = b""
-    elif damage == "text":
-        data = b"not a checkpoint\n"
-    else:
-        with np.load(io.BytesIO(good), allow_pickle=False) as npz:
-            arrays = {k: npz[k] for k in npz.files}
-        meta = json.loads(arrays["meta"].tobytes())
-        if damage == "bad-json":
-            text = b"{" + arrays["meta"].tobytes()[:40]
-        else:
-            if damage == "wrong-type":
-                meta["history"][0]["x"] = "0.5"
-            else:
-                meta["schema"] = 99
-            text = json.dumps(meta).encode()
-        arrays["meta"] = np.frombuffer(text, np.uint8)
-        buf = io.BytesIO()
-        np.savez(buf, **arrays)
-        data = buf.getvalue()
-    (out / _CHECKPOINT).write_bytes(data)
+    data = {"truncated": lambda: good[: len(good) // 2], "empty": lambda: b"", "text": lambda: b"not a checkpoint\n",
+            "bad-json": lambda: _edit_meta(good, lambda m: b"{" + json.dumps(m).encode()[:40]),
+            "wrong-type": lambda: _edit_meta(good, lambda m: m["history"][0].update(x="0.5")),
+            "other-schema": lambda: _edit_meta(good, lambda m: m.update(schema=99))}[damage]()
+    out = _plant(tmp_path, data)
     with pytest.warns(CheckpointWarning, match=r"checkpoint\.npz: is damaged or not a design checkpoint"):
         res = run_design(parse_design(_design()), out)
     assert not res.resumed
@@ -162,9 +163,7 @@ def test_resumed_search_replays_to_the_saved_state_and_ends_as_uninterrupted(tmp
     """CMA-ES: the replay asks for the saved candidates, reaches the saved mean, sigma, covariance,
     counters and random streams (no CheckpointWarning), and goes on to the uninterrupted result."""
     ref, good = reference
-    out = tmp_path / "d"
-    out.mkdir()
-    (out / _CHECKPOINT).write_bytes(good)
+    out = _plant(tmp_path, good)
     saved = _read(out / _CHECKPOINT, parse_design(_design()))
     assert saved.scalars["optimiser"] == "cma-es" and saved.generation >= 1
     assert {"cma_mean", "cma_C", "cma_pc", "cma_ps", "numpy_random_key"} <= set(saved.arrays)
@@ -185,16 +184,7 @@ def test_a_checkpoint_that_replays_elsewhere_is_set_aside(tmp_path, reference):
     """A well-formed checkpoint whose candidates are not those the search asks for (an edited file, or
     one of another version) is reported and the search starts from its seed."""
     ref, good = reference
-    with np.load(io.BytesIO(good), allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    meta = json.loads(arrays["meta"].tobytes())
-    meta["history"][-1]["x"][0] = 0.123456789
-    arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
-    out = tmp_path / "d"
-    out.mkdir()
-    buf = io.BytesIO()
-    np.savez(buf, **arrays)
-    (out / _CHECKPOINT).write_bytes(buf.getvalue())
+    out = _plant(tmp_path, _edit_meta(good, lambda m: m["history"][-1]["x"].__setitem__(0, 0.123456789)))
     with pytest.warns(CheckpointWarning, match="does not replay to the search it was saved from"):
         res = run_design(parse_design(_design()), out)
     assert not res.resumed
@@ -205,16 +195,8 @@ def test_replay_checks_the_optimiser_state(tmp_path, reference):
     """The saved CMA-ES state is compared with the replayed one: a sigma changed in its last digit is
     caught, reported and the search restarts."""
     ref, good = reference
-    with np.load(io.BytesIO(good), allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    meta = json.loads(arrays["meta"].tobytes())
-    meta["state"]["cma"]["sigma"] *= 1.0 + 1e-12
-    arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
-    out = tmp_path / "d"
-    out.mkdir()
-    buf = io.BytesIO()
-    np.savez(buf, **arrays)
-    (out / _CHECKPOINT).write_bytes(buf.getvalue())
+    out = _plant(tmp_path, _edit_meta(good, lambda m: m["state"]["cma"].update(sigma=m["state"]["cma"]["sigma"]
+                                                                                * (1.0 + 1e-12))))
     with pytest.warns(CheckpointWarning, match="replayed optimiser differs from the saved one in cma"):
         res = run_design(parse_design(_design()), out)
     assert not res.resumed
