@@ -386,19 +386,26 @@ def preflight(problem: DesignProblem, client=None, chunk_size: int | None = None
 
     sec = problem.section
     per = Evaluator(problem.objectives, sec.constraints, sec.robust).n_scenarios
+    fidelity = search_fidelity(problem)
+    # The full-accuracy runs of the best candidates are set aside from the budget of the search.
+    reserve = sec.verify_top * per if fidelity.name != "full" else 0
+    if reserve and sec.budget <= reserve:
+        raise ConfigError("design.budget", f"{sec.budget} engine runs leave nothing to search with after the "
+                          f"{reserve} set aside to run the design.verify_top = {sec.verify_top} best candidates "
+                          "again at full accuracy; raise the budget, lower design.verify_top, or set "
+                          "design.search_steps_per_radian = \"full\"")
     distinct = math.prod(v.n_values for v in problem.space.variables) if not problem.space.real.any() else math.inf
     first = min(_initial_sample(problem), distinct)
-    if first * per > sec.budget:
+    if first * per > sec.budget - reserve:
         raise ConfigError("design.population", f"a generation of {first:,} candidates x {per} scenario(s) costs "
-                          f"{first * per:,} engine runs, more than design.budget = {sec.budget:,}: lower "
-                          "design.population or raise design.budget")
+                          f"{first * per:,} engine runs, more than the {sec.budget - reserve:,} of design.budget = "
+                          f"{sec.budget:,} left for the search: lower design.population or raise design.budget")
     cfg = parse_config(problem.base)
     model = build_model(cfg)
     members = min(max(_population(problem), first) * per, sec.budget)  # later generations: checked as they come
     if client is not None:
         members = min(members, chunk_size or sec.chunk_size)
     probes = Probes(sample_interval=cfg.run.sample_interval, contacts=())
-    fidelity = search_fidelity(problem)
     one = estimate_resources(model.system(), cfg.run.duration, probes, dt=cfg.run.dt,
                              steps_per_radian=fidelity.steps_per_radian or cfg.run.steps_per_radian)
     mem = estimate_memory(model.chain.n_beads, model.wall.present, cfg.run.duration, probes, members)
@@ -487,12 +494,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
     state = _State(problem.hash)
     per_candidate = evaluator.n_scenarios
     # The full-accuracy runs of the best candidates are set aside from the budget of the search.
-    reserve = sec.verify_top * per_candidate if coarse else 0
-    if coarse and sec.budget <= reserve:
-        raise ConfigError("design.budget", f"{sec.budget} engine runs leave nothing to search with after the "
-                          f"{reserve} set aside to run the design.verify_top = {sec.verify_top} best candidates "
-                          "again at full accuracy; raise the budget, lower design.verify_top, or set "
-                          "design.search_steps_per_radian = \"full\"")
+    reserve = sec.verify_top * per_candidate if coarse else 0  # checked by the pre-flight: < budget
     budget = sec.budget - reserve
     multi = len(problem.objectives) > 1
     t_start = time.perf_counter()
