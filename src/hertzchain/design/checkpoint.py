@@ -29,6 +29,7 @@ deleted) and the search restarts.
 from __future__ import annotations
 
 import io
+import itertools
 import json
 import math
 import time
@@ -135,11 +136,19 @@ def _save(out: Path, state: Any) -> None:
         "format": _FORMAT, "schema": SCHEMA, "hertzchain": __version__, "problem_hash": state.hash,
         "phase": state.phase, "generation": int(state.generation), "n_evaluations": int(state.n_evaluations),
         "restarts": int(state.restarts), "verified": bool(state.verified), "elapsed_s": float(state.elapsed_s),
-        "state": scalars, "history": state.history,
-        "cache": [[list(k), _evaluation_data(ev)] for k, ev in state.cache.items()],
-        "full_cache": [[list(k), _evaluation_data(ev)] for k, ev in state.full_cache.items()],
+        "state": scalars,
     }
-    text = json.dumps(meta, default=_plain, allow_nan=True, separators=(",", ":"))
+    # History rows and cache entries never change once added: only the new ones are serialised
+    # (a long search saves its growing history once a second).
+    done = state.written
+    parts = {"history": state.history, "cache": state.cache, "full_cache": state.full_cache}
+    for name, items in parts.items():
+        texts = done.setdefault(name, [])
+        new = items[len(texts):] if isinstance(items, list) else \
+            [[list(k), _evaluation_data(ev)] for k, ev in itertools.islice(items.items(), len(texts), None)]
+        texts += [json.dumps(item, default=_plain, allow_nan=True, separators=(",", ":")) for item in new]
+    head = json.dumps(meta, default=_plain, allow_nan=True, separators=(",", ":"))
+    text = head[:-1] + "".join(f',"{name}":[' + ",".join(done[name]) + "]" for name in parts) + "}"
     buf = io.BytesIO()
     np.savez(buf, meta=np.frombuffer(text.encode("utf-8"), np.uint8), **arrays)
     write_bytes(out / _CHECKPOINT, buf.getvalue())

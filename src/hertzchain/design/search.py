@@ -97,6 +97,9 @@ class _State:
     verified: bool = False
     n_evaluations: int = 0
     elapsed_s: float = 0.0
+    # JSON text of the history rows and cache entries already written to the checkpoint: they never
+    # change once added, so a save serialises only what is new (hertzchain.design.checkpoint._save).
+    written: dict = field(default_factory=dict, repr=False)
 
 
 @dataclass
