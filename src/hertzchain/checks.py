@@ -256,7 +256,8 @@ def run_time_hint(dt: float | None) -> str | None:
 
 
 def preflight_batch(models, duration: float, probes, dt=None, *, n_threads: int | None = None,
-                    steps_per_radian: float | None = None, members_field: str = "models") -> ResourceEstimate:
+                    steps_per_radian: float | None = None, members_field: str = "models",
+                    on_gpu: bool = False) -> ResourceEstimate:
     """The pre-flight of a batch (:func:`hertzchain.simulate_batch`, :func:`hertzchain.simulate_many`):
     memory and time estimated before anything is set up or allocated.
 
@@ -279,6 +280,9 @@ def preflight_batch(models, duration: float, probes, dt=None, *, n_threads: int 
         Accuracy of the adaptive step.
     members_field : str
         How the caller names the members (the field of the error).
+    on_gpu : bool
+        The batch runs on a GPU: the time per bead-step measured on the CPU does not apply, so
+        only the memory is checked.
 
     Returns
     -------
@@ -316,7 +320,8 @@ def preflight_batch(models, duration: float, probes, dt=None, *, n_threads: int 
     step = float(step) if step is not None and float(step) > 0 else None  # NaN: the automatic step
     threads = n_threads or numba.config.NUMBA_NUM_THREADS
     try:
-        one = estimate_resources(member.system(), duration, p, dt=step, steps_per_radian=steps_per_radian)
+        one = (replace(mem, steps=0.0, seconds=0.0) if on_gpu else
+               estimate_resources(member.system(), duration, p, dt=step, steps_per_radian=steps_per_radian))
     except ConfigError:  # a bad step: the set-up reports it, naming the member
         one = replace(mem, steps=0.0, seconds=0.0)
     est = replace(mem, steps=one.steps, seconds=one.seconds * n / max(1, min(threads, n)))

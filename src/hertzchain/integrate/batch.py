@@ -323,7 +323,7 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
     interval = probes.sample_interval
     n_samples = int(math.floor(duration / interval + 1e-9)) + 1
     on_gpu = _cuda.use_gpu(device, nmem)  # before the set-up: 'cuda' without a GPU fails at once
-    preflight_batch(ens, duration, probes, dts, n_threads=n_threads, steps_per_radian=steps_per_radian)
+    preflight_batch(ens, duration, probes, dts, n_threads=n_threads, steps_per_radian=steps_per_radian, on_gpu=on_gpu)
     pk, arrays = _pack_ensemble(ens, probes, dts, interval, n_samples, steps_per_radian)
     if on_gpu:
         _cuda.run_packed(pk, progress)
