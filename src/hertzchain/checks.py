@@ -320,14 +320,15 @@ def preflight_batch(models, duration: float, probes, dt=None, *, n_threads: int 
     step = float(step) if step is not None and float(step) > 0 else None  # NaN: the automatic step
     threads = n_threads or numba.config.NUMBA_NUM_THREADS
     try:
-        one = (replace(mem, steps=0.0, seconds=0.0) if on_gpu else
-               estimate_resources(member.system(), duration, p, dt=step, steps_per_radian=steps_per_radian))
+        one = replace(mem, steps=0.0, seconds=0.0)
+        if not on_gpu:
+            one = estimate_resources(member.system(), duration, p, dt=step, steps_per_radian=steps_per_radian)
     except ConfigError:  # a bad step: the set-up reports it, naming the member
         one = replace(mem, steps=0.0, seconds=0.0)
     est = replace(mem, steps=one.steps, seconds=one.seconds * n / max(1, min(threads, n)))
     check_resources(est, memory_field="probes.contacts",
-                    memory_hint=f"record fewer contacts (probes.contacts: {p.recorded_contacts(n_beads, has_wall).size} "
-                                f"a member now), raise probes.sample_interval, shorten the duration, or split the "
+                    memory_hint=f"record fewer contacts (probes.contacts: {p.recorded_contacts(n_beads, has_wall).size}"
+                                " a member now), raise probes.sample_interval, shorten the duration, or split the "
                                 f"{n:,} members ({members_field}) into smaller batches",
                     time_hint=f"split the {n:,} members ({members_field}) into smaller batches, or shorten the duration")
     return est

@@ -631,8 +631,9 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
         from .constraints import broken_geometry
 
         least = _best_row(problem, state.history)
+        closest = problem.space.values(np.asarray(least["x"]))
         raise ConfigError("design.constraints", f"no candidate of the design space meets the geometric constraints "
-                          f"({len(state.history)} tried); the closest one, {problem.space.values(np.asarray(least['x']))}"
+                          f"({len(state.history)} tried); the closest one, {closest}"
                           f", breaks {'; '.join(broken_geometry(sec.constraints, least))}: relax the constraints or "
                           "widen the variables' ranges")
     best = _best_row(problem, state.history, "full" if coarse else None)
