@@ -7,7 +7,6 @@ rigid limit, F_s = (F_{n-1} + F_n) / 2.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
