@@ -133,7 +133,7 @@ def _law_desc(law) -> dict:
     out = {"law": law.name}
     if law.name in ("viscoelastic", "viscoelastic_scaled"):
         out["A"] = law.A
-    elif law.name == "dashpot":
+    elif law.name in ("dashpot", "dashpot_scaled"):
         out["gamma"] = law.gamma
     return out
 
