@@ -189,12 +189,12 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
                 rows[c] += [_text(x) for x in f.variables[c][...].tolist()]
             for c in body:
                 rows[c] += f.variables[c][...].tolist() if c in f.variables else [float("nan")] * members.size
-    if all(v != v for c in body for v in rows[c]):  # NaN everywhere: no member has a body
-        for c in body:
-            del rows[c]
             for c, (var, *_) in PLASTIC_METRICS.items():
                 rows.setdefault(c, [np.nan] * (len(rows["member"]) - members.size))
                 rows[c] += f.variables[var][...].tolist() if var in f.variables else [np.nan] * members.size
+    if all(v != v for c in body for v in rows[c]):  # NaN everywhere: no member has a body
+        for c in body:
+            del rows[c]
     table = {"member": rows.pop("member"), "chunk": rows.pop("chunk")}
     for name in cfg.parameter_names:
         vals = [cfg.members[m][name] for m in table["member"]]
