@@ -25,6 +25,7 @@ import numpy as np
 from .errors import ConfigError, HertzRangeWarning, LongRunWarning, PulseNotReachedWarning, SimulationDiverged
 
 __all__ = ["ResourceEstimate", "estimate_resources", "check_resources", "check_before_run", "check_after_run",
+           "preflight_batch", "duration_text", "run_time_hint",
            "check_energy_balance", "energy_gain", "estimate_memory", "energy_tolerance", "energy_cause", "available_memory", "HERTZ_MAX_OVERLAP",
            "LONG_RUN_S"]
 
@@ -92,7 +93,7 @@ class ResourceEstimate:
 
 
 def estimate_resources(system, duration: float, probes, dt: float | None = None, members: int = 1,
-                       integrator: str = "verlet") -> ResourceEstimate:
+                       integrator: str = "verlet", steps_per_radian: float | None = None) -> ResourceEstimate:
     """Samples x recorded signals x members and the steps for ``duration``, before any allocation.
 
     Parameters
@@ -110,17 +111,20 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
         Runs held in memory together (a sweep chunk).
     integrator : str
         ``"verlet"``, or a scipy method (``"dop853"``, ``"rk45"``; a rougher estimate).
+    steps_per_radian : float or None
+        Accuracy of the adaptive step (``run.steps_per_radian``; None: the default).
 
     Returns
     -------
     ResourceEstimate
+        Samples, signals, members, memory [bytes], steps and seconds on one core.
     """
     from .integrate.verlet import step_plan
 
     n = system.n_beads
     samples, signals, memory = _records_size(n, system.has_wall, duration, probes, members)
     if integrator == "verlet":
-        plan = step_plan(system, probes.sample_interval, dt)
+        plan = step_plan(system, probes.sample_interval, dt, steps_per_radian)
         steps = duration / plan.dt
         per = NS_PER_BEAD_STEP["general" if system.general else "elastic"]
         seconds = steps * (n + 1) * members * per
@@ -173,10 +177,34 @@ def _gib(x: float) -> str:
     return f"{x / 2**30:.3g} GiB"
 
 
+def duration_text(seconds: float) -> str:
+    """``about 21 h``, ``about 5 min``, ``about 40 s``: a projected time in words.
+
+    Parameters
+    ----------
+    seconds : float
+        The time [s].
+
+    Returns
+    -------
+    str
+        The time rounded in the largest unit that fits.
+    """
+    for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if seconds >= 2 * size:
+            break
+    else:
+        unit, size = "s", 1.0
+    value = seconds / size
+    return f"about {value:.0f} {unit}" if value >= 10 else f"about {value:.2g} {unit}"
+
+
 def check_resources(est: ResourceEstimate, *, memory_field: str = "run.duration",
-                    available: int | None = None) -> None:
-    """Refuse a run whose records cannot fit in memory (ConfigError naming ``memory_field``); warn
-    (:class:`~hertzchain.errors.LongRunWarning`) when it is projected to take more than LONG_RUN_S.
+                    available: int | None = None, time_hint: str | None = None,
+                    memory_hint: str | None = None) -> None:
+    """Refuse a job whose records cannot fit in memory (ConfigError naming ``memory_field``); warn
+    (:class:`~hertzchain.errors.LongRunWarning`, before any work) when it is projected to take
+    more than LONG_RUN_S, with the time, the memory and what to change.
 
     Parameters
     ----------
@@ -186,19 +214,124 @@ def check_resources(est: ResourceEstimate, *, memory_field: str = "run.duration"
         The input field to change when the records do not fit.
     available : int or None
         Memory available [bytes]; :func:`available_memory` when None.
+    time_hint : str or None
+        What to change to make it faster, naming the field (``run.dt``, the number of members);
+        default: a shorter run.duration or a smaller model.
+    memory_hint : str or None
+        What to change to make it fit; default: shorten run.duration, raise run.sample_interval
+        or record fewer contacts (probes.contacts).
     """
     available = available_memory() if available is None else available
     if available is not None and est.memory_bytes > MEMORY_SHARE * available:
         raise ConfigError(memory_field, f"the run would record {est.samples:,} samples x {est.signals:,} signals"
-                          + (f" x {est.members} members" if est.members > 1 else "")
+                          + (f" x {est.members:,} members" if est.members > 1 else "")
                           + f", about {_gib(est.memory_bytes)}, more than the {_gib(available)} of memory "
-                          "available; shorten run.duration, raise run.sample_interval or record fewer "
-                          "contacts (probes.contacts)")
+                          "available; " + (memory_hint or "shorten run.duration, raise run.sample_interval or record "
+                                           "fewer contacts (probes.contacts)"))
     if est.seconds > LONG_RUN_S:
         warnings.warn(LongRunWarning(
-            f"this run is projected to take about {est.seconds / 60:.0f} min ({est.steps:.3g} time steps, "
-            f"{est.members} member(s)); it goes on, but a shorter run.duration or a smaller model would be faster"),
-            stacklevel=3)
+            f"this run is projected to take {duration_text(est.seconds)} ({est.steps:.3g} time steps"
+            + (f" x {est.members:,} members" if est.members > 1 else "")
+            + f", records of {_gib(est.memory_bytes)}); it goes on (Ctrl-C stops it), but "
+            + (time_hint or "a shorter run.duration or a smaller model would be faster")), stacklevel=3)
+
+
+def run_time_hint(dt: float | None) -> str | None:
+    """What makes a single run faster, naming ``run.dt`` when the user fixed the step.
+
+    Parameters
+    ----------
+    dt : float or None
+        The user's fixed step [s] (None: automatic).
+
+    Returns
+    -------
+    str or None
+        The hint (None: the default one).
+    """
+    if dt is None:
+        return None
+    return (f"the time step run.dt = {dt:g} s sets the number of steps: leave it out (the automatic step) or raise "
+            "it; a shorter run.duration or a smaller model would be faster too")
+
+
+def preflight_batch(models, duration: float, probes, dt=None, *, n_threads: int | None = None,
+                    steps_per_radian: float | None = None, members_field: str = "models",
+                    on_gpu: bool = False) -> ResourceEstimate:
+    """The pre-flight of a batch (:func:`hertzchain.simulate_batch`, :func:`hertzchain.simulate_many`):
+    memory and time estimated before anything is set up or allocated.
+
+    The records of every member are held at once (BYTES_PER_VALUE per recorded number); the
+    time is that of the member with the most beads, times the members, over the threads.
+
+    Parameters
+    ----------
+    models : sequence of Model or Ensemble
+        The members.
+    duration : float
+        Simulated time [s].
+    probes : Probes or sequence of Probes or None
+        What each member records (None: the default Probes).
+    dt : float, sequence or None
+        The members' fixed steps [s] (None: automatic).
+    n_threads : int or None
+        Threads of the engine (None: every core Numba sees).
+    steps_per_radian : float or None
+        Accuracy of the adaptive step.
+    members_field : str
+        How the caller names the members (the field of the error).
+    on_gpu : bool
+        The batch runs on a GPU: the time per bead-step measured on the CPU does not apply, so
+        only the memory is checked.
+
+    Returns
+    -------
+    ResourceEstimate
+        The batch's estimate (``seconds`` on ``n_threads`` cores).
+
+    Raises
+    ------
+    ConfigError
+        The records cannot fit in memory (naming ``probes.contacts`` and the number of members).
+    """
+    from dataclasses import replace
+
+    import numba
+
+    from .probes import Probes
+
+    if hasattr(models, "n_members"):  # an Ensemble: one layout
+        n, n_beads, has_wall = int(models.n_members), int(models.n_beads), bool(models.has_wall)
+        big = 0
+        member = models.model(0)
+    else:
+        models = list(models)
+        n = len(models)
+        beads = [m.chain.n_beads for m in models]
+        big = int(np.argmax(beads))
+        member, n_beads, has_wall = models[big], beads[big], any(m.wall.present for m in models)
+    if isinstance(probes, Probes) or probes is None:
+        plist = [probes or Probes()]
+    else:
+        plist = [p or Probes() for p in probes]
+    p = plist[big] if len(plist) > big else plist[0]
+    mem = estimate_memory(n_beads, has_wall, duration, p, n)
+    step = dt[big] if isinstance(dt, (list, tuple, np.ndarray)) else dt
+    step = float(step) if step is not None and float(step) > 0 else None  # NaN: the automatic step
+    threads = n_threads or numba.config.NUMBA_NUM_THREADS
+    try:
+        one = replace(mem, steps=0.0, seconds=0.0)
+        if not on_gpu:
+            one = estimate_resources(member.system(), duration, p, dt=step, steps_per_radian=steps_per_radian)
+    except ConfigError:  # a bad step: the set-up reports it, naming the member
+        one = replace(mem, steps=0.0, seconds=0.0)
+    est = replace(mem, steps=one.steps, seconds=one.seconds * n / max(1, min(threads, n)))
+    check_resources(est, memory_field="probes.contacts",
+                    memory_hint=f"record fewer contacts (probes.contacts: {p.recorded_contacts(n_beads, has_wall).size}"
+                                " a member now), raise probes.sample_interval, shorten the duration, or split the "
+                                f"{n:,} members ({members_field}) into smaller batches",
+                    time_hint=f"split the {n:,} members ({members_field}) into smaller batches, or shorten the duration")
+    return est
 
 
 def smaller_radii(striker_diameter: np.ndarray, diameters: np.ndarray) -> np.ndarray:
@@ -262,7 +395,7 @@ def check_before_run(model, system, duration: float, probes, *, dt: float | None
                               f"{ratio[j]:.3g} times the smaller bead radius; Hertz contact (paper eq. 1) holds for "
                               f"overlaps below {HERTZ_MAX_OVERLAP:g} R. Lower the static load")
     est = estimate_resources(system, duration, probes, dt=dt, integrator=integrator)
-    check_resources(est)
+    check_resources(est, time_hint=run_time_hint(dt))
     return est
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import warnings
 from typing import Callable, Literal
 
@@ -14,8 +13,9 @@ from .checks import check_after_run, check_before_run
 from .errors import ConfigError, DurationWarning, ElasticLimitWarning
 from .model import Model
 from .probes import Probes
+from .strict import real
 
-__all__ = ["simulate", "warn_elastic_limit", "auto_duration", "elastic_limit_message"]
+__all__ = ["simulate", "warn_elastic_limit", "warn_members_elastic_limit", "auto_duration", "elastic_limit_message"]
 
 #: Bead masses a solitary wave sets in motion, in units of its peak bead velocity: the particle
 #: velocity of Nesterenko's wave is V_m cos^4 over 5 pi / sqrt(10) bead diameters (paper eq. 3-4),
@@ -122,8 +122,9 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
     mode = "given"
     if isinstance(duration, str) and duration == "auto":
         duration, mode = auto_duration(model), "auto"
-    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
-        raise ConfigError("run.duration", f"must be a positive time in s, got {duration!r}")
+    duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")
+    if dt is not None:
+        dt = real(dt, "run.dt", low=0.0, open_low=True, unit="s")
     if probes.sample_interval > duration:
         raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     system = model.system()
@@ -228,3 +229,40 @@ def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> 
     msg = elastic_limit_message(ds, where)
     if msg:
         warnings.warn(ElasticLimitWarning(msg), stacklevel=stacklevel + 1)
+
+
+def warn_members_elastic_limit(flagged: list, n_members: int, stacklevel: int = 2) -> None:
+    """The elastic-limit check of a batch: ONE :class:`~hertzchain.errors.ElasticLimitWarning`
+    naming the members past the limit and the worst one's contacts (not one line per member:
+    10,000 of them for an ensemble).
+
+    Parameters
+    ----------
+    flagged : list of (int, object)
+        ``(member, result)`` of every member whose forces passed the limit; ``result`` is what
+        :func:`elastic_limit_message` reads (``max_contact_force``, ``yield_force``, ``attrs``).
+    n_members : int
+        Members in the batch.
+    stacklevel : int
+        Passed on to :func:`warnings.warn`.
+    """
+    if not flagged:
+        return
+    if n_members == 1:
+        warn_elastic_limit(flagged[0][1], stacklevel=stacklevel + 1)
+        return
+
+    def worst_ratio(item) -> float:
+        r = item[1]
+        fmax, fy = (np.asarray(getattr(x, "values", x), dtype=float) for x in (r.max_contact_force, r.yield_force))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = fmax / fy
+        return float(np.nanmax(np.where(np.isfinite(ratio), ratio, 0.0)))
+
+    worst = max(flagged, key=worst_ratio)
+    msg = elastic_limit_message(worst[1], f"member {worst[0]}: ")
+    if msg is None:
+        return
+    some = ", ".join(str(i) for i, _ in flagged[:8]) + (", ..." if len(flagged) > 8 else "")
+    warnings.warn(ElasticLimitWarning(f"{len(flagged)} of {n_members} members (member {some}) pass the elastic "
+                                      f"limit; worst: {msg}"), stacklevel=stacklevel + 1)
