@@ -168,8 +168,11 @@ class RunSection(_Section):
                                     "(hertzchain.simulation.auto_duration)")
     sample_interval: float = _bounded("sample_interval", default=1e-7, description="s")
     dt: float | None = _bounded("dt", default=None, description="s; automatic when absent")
-    integrator: Literal["verlet", "dop853", "rk45"] = "verlet"
-    rtol: float = _bounded("rtol", default=1e-10)
+    integrator: Literal["verlet", "rkn4", "dop853", "rk45"] = "verlet"
+    rtol: float | None = _bounded(
+        "rtol", default=None,
+        description="relative tolerance of 'dop853'/'rk45' (default 1e-10) or of the step control of 'rkn4' "
+                    "(default 1e-6); unused by 'verlet'")
     steps_per_radian: float = _bounded(
         "steps_per_radian", default=400.0,
         description="adaptive Verlet step: omega dt <= 1 / steps_per_radian; peak error ~ (1/steps_per_radian)^2")
