@@ -281,7 +281,9 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
 
         return simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                         rtol=cfg.run.rtol, progress=progress, config=config,
-                        steps_per_radian=cfg.run.steps_per_radian)
+                        steps_per_radian=cfg.run.steps_per_radian, threads=cfg.run.threads)
+    if cfg.run.threads != 1:
+        raise ConfigError("run.threads", "the lateral (2D) path of [track] runs on one thread: leave it out")
     if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:
         raise ConfigError("run.steps_per_radian", "is a setting of the 1D engine's adaptive step; the lateral "
                           "(2D) path of [track] has its own: leave it out")

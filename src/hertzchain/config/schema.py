@@ -48,6 +48,7 @@ BOUNDS = {
     # adaptive Verlet accuracy, omega dt <= 1 / steps_per_radian: below ~10 the peak force is off
     # by more than ~3e-4 (error ~ (1 / steps_per_radian)^2) and Verlet nears its stability limit
     "steps_per_radian": (10.0, 1e5),
+    "threads": (1, 1024),             # threads sharing one chain (aligned elastic chains)
 }
 
 
@@ -176,6 +177,8 @@ class RunSection(_Section):
     steps_per_radian: float = _bounded(
         "steps_per_radian", default=400.0,
         description="adaptive Verlet step: omega dt <= 1 / steps_per_radian; peak error ~ (1/steps_per_radian)^2")
+    threads: int = _bounded("threads", default=1,
+                            description="threads sharing one long aligned elastic chain (Verlet; pays from ~1e4 beads)")
 
     @field_validator("duration", mode="before")
     @classmethod
