@@ -12,6 +12,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .elements import SPHERE, Element
 from .errors import ConfigError
 from .materials import Material, get_material
 
@@ -49,11 +50,15 @@ class Chain:
     offsets
         Perpendicular offsets e_n of the bead centres from the chain axis [m], shape (N,);
         zeros for an aligned chain (see the conventions page, misalignment).
+    elements
+        One :class:`~hertzchain.elements.Element` per bead (a single one is broadcast): what
+        each bead is (sphere, cylinder, given mass, mass-in-mass); plain spheres when empty.
     """
 
     diameters: np.ndarray
     materials: tuple[Material, ...] = field(default=())
     offsets: np.ndarray | None = None
+    elements: tuple[Element, ...] = field(default=())
 
     def __post_init__(self) -> None:
         # Chains are built by the thousand in a design search (every geometry check builds one):
@@ -73,6 +78,18 @@ class Chain:
         if len(mats) != d.size:
             raise ConfigError("chain.materials", f"needs one material per bead ({d.size}), got {len(mats)}")
         object.__setattr__(self, "materials", mats)
+        els = self.elements
+        if isinstance(els, Element):
+            els = (els,) * d.size
+        elif len(els) == 0:
+            els = (SPHERE,) * d.size
+        else:
+            els = tuple(els)
+            if len(els) != d.size:
+                raise ConfigError("chain.elements", f"needs one element per bead ({d.size}), got {len(els)}")
+            if not all(type(x) is Element for x in els):
+                raise ConfigError("chain.elements", "every entry must be a hertzchain Element")
+        object.__setattr__(self, "elements", els)
         if self.offsets is None:  # aligned: nothing to check
             e = np.zeros(d.size)
             e.setflags(write=False)
@@ -91,6 +108,9 @@ class Chain:
             n = int(too_far[0]) + 1
             raise ConfigError("chain.offsets", f"beads {n} and {n + 1} are offset by {de[n - 1]:.3g} m, more than half "
                               "the sum of their radii; the contact would not be a head-on Hertz contact")
+        if e.any() and not self.plain:
+            raise ConfigError("chain.offsets", "offsets are modelled for spheres only; a chain with cylinders or "
+                              "mass-in-mass beads must stay aligned")
         e.setflags(write=False)
         object.__setattr__(self, "offsets", e)
 
@@ -125,23 +145,25 @@ class Chain:
         # design search build thousands.
         aligned = not self.offsets.any()
         return Chain(np.concatenate([self.diameters, new]), self.materials + (mat,) * int(n),
-                     None if aligned else np.concatenate([self.offsets, np.zeros(int(n))]))
+                     None if aligned else np.concatenate([self.offsets, np.zeros(int(n))]),
+                     self.elements + (SPHERE,) * int(n))
 
     def concat(self, other: "Chain") -> "Chain":
         """Beads of ``self`` followed by the beads of ``other``."""
         aligned = not (self.offsets.any() or other.offsets.any())
         return Chain(np.concatenate([self.diameters, other.diameters]), self.materials + other.materials,
-                     None if aligned else np.concatenate([self.offsets, other.offsets]))
+                     None if aligned else np.concatenate([self.offsets, other.offsets]),
+                     self.elements + other.elements)
 
     def truncated(self, n: int) -> "Chain":
         """The first ``n`` beads (the paper's protocol: a chain cut after bead n, wall behind it)."""
         if not (1 <= n <= self.n_beads):
             raise ConfigError("chain.truncate", f"must be between 1 and {self.n_beads}, got {n}")
-        return Chain(self.diameters[:n], self.materials[:n], self.offsets[:n])
+        return Chain(self.diameters[:n], self.materials[:n], self.offsets[:n], self.elements[:n])
 
     def substitute(self, bead: int, diameter: float | None = None,
-                   material: str | Material | None = None) -> "Chain":
-        """Replace bead ``bead`` (1-based) by one of another diameter [m] and/or material."""
+                   material: str | Material | None = None, element: Element | None = None) -> "Chain":
+        """Replace bead ``bead`` (1-based) by one of another diameter [m], material and/or element."""
         if not (1 <= bead <= self.n_beads):
             raise ConfigError("chain.substitutions.bead", f"bead must be between 1 and {self.n_beads}, got {bead}")
         d = self.diameters.copy()
@@ -150,7 +172,10 @@ class Chain:
             d[bead - 1] = diameter
         if material is not None:
             mats[bead - 1] = get_material(material)
-        return Chain(d, tuple(mats), self.offsets)
+        els = self.elements
+        if element is not None:
+            els = els[:bead - 1] + (element,) + els[bead:]
+        return Chain(d, tuple(mats), self.offsets, els)
 
     def with_offsets(self, offsets: Sequence[float] | dict[int, float]) -> "Chain":
         """Same beads with perpendicular offsets [m]: a full list, or {bead: offset} (1-based)."""
@@ -182,8 +207,17 @@ class Chain:
         return np.array([m.density for m in self.materials])
 
     @property
+    def plain(self) -> bool:
+        """True when every bead is a plain sphere (no cylinder, given mass or resonator)."""
+        return all(x.plain for x in self.elements)
+
+    @property
     def masses(self) -> np.ndarray:
-        """Bead masses m_n = rho pi phi^3 / 6 [kg]."""
+        """Bead masses [kg]: m_n = rho pi phi^3 / 6 for spheres; a cylinder's rho pi phi^2 L / 4, a
+        given mass, the whole of a mass-in-mass bead (shell and internal mass) otherwise."""
+        if not self.plain:
+            return np.array([el.total_mass(float(dia), mat)
+                             for el, dia, mat in zip(self.elements, self.diameters, self.materials)])
         mats = self.materials
         # One material (the usual chain): its density as a scalar, the same numbers without a
         # per-bead array (a design search takes the mass of thousands of candidate chains).
@@ -194,14 +228,36 @@ class Chain:
     def is_aligned(self) -> bool:
         return not np.any(self.offsets)
 
+    def __repr__(self) -> str:
+        # One line: the diameters grouped in runs and the materials counted (not 30 full Materials).
+        from .display import counts_text, diameters_text
+
+        text = f"Chain({diameters_text(self.diameters)}; {counts_text(m.name for m in self.materials)}"
+        if not self.is_aligned:
+            text += f"; offsets up to {np.abs(self.offsets).max() * 1e3:.3g} mm"
+        return text + ")"
+
+    def _repr_html_(self) -> str:
+        from .display import counts_text, diameters_text, html_table
+
+        rows = [("beads", str(self.n_beads)), ("diameters", diameters_text(self.diameters).split(": ", 1)[1]),
+                ("materials", counts_text(m.name for m in self.materials)),
+                ("mass", f"{self.masses.sum() * 1e3:.4g} g"),
+                ("length", f"{self.diameters.sum() * 1e3:.4g} mm"),
+                ("offsets", "aligned" if self.is_aligned else f"up to {np.abs(self.offsets).max() * 1e3:.3g} mm")]
+        return html_table("Chain", rows)
+
     def describe(self) -> dict:
         """Plain-data description (stored in result attributes)."""
         names = [m.name for m in self.materials]
-        return {
+        out = {
             "diameters_mm": [float(x) for x in self.diameters * 1e3],
             "materials": names[0] if len(set(names)) == 1 else names,
             "offsets_mm": [float(x) for x in self.offsets * 1e3],
         }
+        if not self.plain:
+            out["elements"] = [x.describe() for x in self.elements]
+        return out
 
 
 def paper_chain(name: str, material: str | Material = "AISI52100") -> Chain:

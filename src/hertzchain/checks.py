@@ -227,8 +227,11 @@ def smaller_radii(striker_diameter: np.ndarray, diameters: np.ndarray) -> np.nda
 
 
 def _smaller_radius(model) -> np.ndarray:
-    """:func:`smaller_radii` of one model."""
-    return smaller_radii(np.array([model.striker.diameter]), model.chain.diameters[None, :])[0]
+    """:func:`smaller_radii` of one model (a flat striker face: bead 1's radius; a curved one: the
+    smaller of its radius of curvature and bead 1's)."""
+    face = model.striker.face_radius
+    size = 2.0 * (face if face is not None else float(model.chain.diameters[0]))
+    return smaller_radii(np.array([size]), model.chain.diameters[None, :])[0]
 
 
 def check_before_run(model, system, duration: float, probes, *, dt: float | None = None,
@@ -259,9 +262,11 @@ def check_before_run(model, system, duration: float, probes, *, dt: float | None
         ratio = system.d0 / _smaller_radius(model)
         j = int(np.argmax(ratio))
         if ratio[j] > HERTZ_MAX_OVERLAP:
-            raise ConfigError("chain.precompression", f"{model.precompression:g} N squeezes contact {j} by "
+            what, key = ((f"{model.precompression:g} N", "chain.precompression") if model.precompression > 0 else
+                         (f"gravity ({model.gravity:g} m/s^2)", "chain.gravity"))
+            raise ConfigError(key, f"{what} squeezes contact {j} by "
                               f"{ratio[j]:.3g} times the smaller bead radius; Hertz contact (paper eq. 1) holds for "
-                              f"overlaps below {HERTZ_MAX_OVERLAP:g} R. Lower the precompression")
+                              f"overlaps below {HERTZ_MAX_OVERLAP:g} R. Lower the static load")
     est = estimate_resources(system, duration, probes, dt=dt, integrator=integrator)
     check_resources(est)
     return est
@@ -440,9 +445,9 @@ def check_after_run(ds, model, system, *, dt: float | None = None, integrator: s
             "lower striker.velocity"), stacklevel=stacklevel + 1)
 
     if model.wall.present and nc > 1:
-        # the impact's part of each force: a precompressed chain carries F0 from the start
-        static = np.where(np.arange(nc) >= 1, model.precompression, 0.0)
-        _warn_pulse_not_reached(ds, fmax - static, nc, stacklevel + 1)
+        # the impact's part of each force: a precompressed (or weighed) chain carries its static load
+        # from the start
+        _warn_pulse_not_reached(ds, fmax - system.static_forces()[:nc], nc, stacklevel + 1)
 
 
 def _warn_pulse_not_reached(ds, fmax: np.ndarray, nc: int, stacklevel: int) -> None:

@@ -35,8 +35,9 @@ STEPPERS = ("verlet", "rkn4")
 #: batched engine's stacked results, which take them from :func:`run_fields`).
 VARIABLES: dict[str, tuple[str, str]] = {
     "contact_force": ("N", "contact force F_j between body j and body j+1 (paper eq. 1)"),
-    "kinetic_energy": ("J", "kinetic energy of striker and beads"),
-    "potential_energy": ("J", "Hertz potential energy sum (2/5) kappa delta^(5/2) (minus external work)"),
+    "kinetic_energy": ("J", "kinetic energy of striker and beads (and of a protected body, internal masses)"),
+    "potential_energy": ("J", "Hertz potential energy sum (2/5) kappa delta^(5/2) (plus linear springs, minus "
+                              "external work)"),
     "dissipated_energy": ("J", "energy dissipated by the contact law (viscous part)"),
     "plastic_work": ("J", "plastic work done in the contacts (elastoplastic law, Thornton 1997)"),
     "diameter": ("m", "bead diameter phi_n"),
@@ -51,6 +52,11 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "sensor_force": ("N", "force read by the sensor embedded in the bead, (F_{n-1} + F_n)/2"),
     "velocity": ("m s-1", "velocity of body (0 = striker)"),
     "displacement": ("m", "displacement of body (0 = striker) from its place at impact, along the chain"),
+    "body_force": ("N", "force the protected body passes to the ground, k x + c v (its mount)"),
+    "body_displacement": ("m", "protected body's displacement x: its mount's deflection from its unloaded length"),
+    "body_velocity": ("m s-1", "protected body's velocity"),
+    "body_acceleration": ("m s-2", "protected body's acceleration"),
+    "body_energy": ("J", "energy transmitted to the protected body: work of contact N on it since the impact"),
 }
 
 #: The ``conventions`` attribute of every result: where units and numbering are defined.
@@ -122,6 +128,8 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         arrays["velocity"] = (("time", "body"), raw.velocity)
     if raw.displacement is not None:
         arrays["displacement"] = (("time", "body"), raw.displacement)
+    if raw.body is not None:
+        arrays.update(body_arrays(raw.body, system))
     data = {}
     for name, (dims, values) in arrays.items():
         units, long_name = VARIABLES[name]
@@ -158,11 +166,57 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "conventions": CONVENTIONS,
     }
+    if raw.body is not None:
+        attrs.update(body_peaks(arrays["body_force"][1], arrays["body_acceleration"][1], arrays["body_energy"][1]))
     if raw.plastic_work is not None:
         attrs["plastic_work"] = float(raw.plastic_work[-1])
         attrs["residual_overlap_max"] = float(raw.residual_overlap.max()) if raw.residual_overlap.size else 0.0
     attrs.update(extra_attrs or {})
     return RunFields(data, coords, attrs)
+
+
+def body_arrays(record: np.ndarray, system) -> dict[str, tuple[tuple[str, ...], np.ndarray]]:
+    """The protected body's variables from the engine's record (time, 4): its displacement from
+    rest u, velocity v, acceleration and the work done on it; x = u + the mount's deflection at
+    rest, and the force to the ground k x + c v.
+
+    Parameters
+    ----------
+    record : numpy.ndarray
+        (time, 4) as ``RawRun.body``.
+    system : hertzchain.model.System
+        The run's arrays (``mount_k``, ``mount_c``, ``mount_d0``).
+
+    Returns
+    -------
+    dict
+        ``{name: (dims, values)}`` of ``body_force``, ``body_displacement``, ``body_velocity``,
+        ``body_acceleration`` and ``body_energy``.
+    """
+    x = system.mount_d0 + record[:, 0]
+    v = record[:, 1].copy()
+    return {"body_force": (("time",), system.mount_k * x + system.mount_c * v),
+            "body_displacement": (("time",), x), "body_velocity": (("time",), v),
+            "body_acceleration": (("time",), record[:, 2].copy()), "body_energy": (("time",), record[:, 3].copy())}
+
+
+def body_peaks(force: np.ndarray, acceleration: np.ndarray, energy: np.ndarray) -> dict[str, float]:
+    """Attributes of a run with a protected body: ``peak_body_force`` [N] and
+    ``peak_body_acceleration`` [m/s^2] (largest magnitudes over the samples) and
+    ``peak_body_energy`` [J] (the most energy the chain had delivered to it at any sample).
+
+    Parameters
+    ----------
+    force, acceleration, energy : numpy.ndarray
+        ``body_force``, ``body_acceleration`` and ``body_energy`` over time.
+
+    Returns
+    -------
+    dict
+        The three attributes.
+    """
+    return {"peak_body_force": float(np.max(np.abs(force))), "peak_body_acceleration": float(np.max(np.abs(acceleration))),
+            "peak_body_energy": float(np.max(energy))}
 
 
 def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float, config: dict | None = None,

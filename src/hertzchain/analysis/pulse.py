@@ -113,6 +113,24 @@ class PulseFit:
         """The fields as a plain dict (``window`` as a 2-tuple)."""
         return asdict(self)
 
+    def _rows(self) -> list[tuple[str, str]]:
+        from ..display import value_text
+
+        return [("F_m", value_text(self.peak_force, self.peak_force_err, "N")),
+                ("T", value_text(self.time_of_flight, self.time_of_flight_err, "ms", 1e3)),
+                ("tau", value_text(self.duration, self.duration_err, "µs", 1e6)),
+                ("Q_F, Q_T", f"{self.front_momentum * 1e3:.4g}, {self.tail_momentum * 1e3:.4g} mN s"),
+                ("fit", f"{self.n_points} points, rms residual {self.residual_rms:.2g} N, "
+                        f"baseline {self.baseline:.2g} N")]
+
+    def __repr__(self) -> str:
+        return "PulseFit(" + ", ".join(f"{k} = {v}" for k, v in self._rows()[:3]) + ")"
+
+    def _repr_html_(self) -> str:
+        from ..display import html_table
+
+        return html_table("PulseFit (paper Sec. III: F_m cos^6((t - T)/tau))", self._rows())
+
 
 # --------------------------------------------------------------------------------------------
 # helpers

@@ -18,6 +18,8 @@ from .animate import animate
 from .common import user_warnings
 from .compare import compare
 from .design import design
+from .explore import explore
+from .export import export
 from .fit import fit
 from .materials import materials
 from .plot import plot
@@ -42,6 +44,8 @@ cli.add_command(compare)
 cli.add_command(fit)
 cli.add_command(sweep)
 cli.add_command(design)
+cli.add_command(explore)
+cli.add_command(export)
 
 
 @user_warnings

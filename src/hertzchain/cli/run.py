@@ -12,22 +12,28 @@ from .common import echo_warning, progress_bar, set_option
 @click.command("run")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="NetCDF file to write (e.g. result.nc).")
+              help="Result file: NetCDF (result.nc, everything), or result.csv / result.mat / result.parquet "
+                   "(as hertzchain export writes them).")
 @set_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> None:
-    """Simulate the chain described by CONFIG (TOML) and save the result as NetCDF."""
+    """Simulate the chain described by CONFIG (TOML) and save the result (NetCDF, or CSV / MATLAB /
+    parquet by the suffix of --out, as hertzchain export writes them)."""
     import warnings
 
     from ..config import apply_instruments, build_instruments, build_model, build_probes, load_config, simulate_config
     from ..errors import ConfigError, DurationWarning, ElasticLimitWarning
+    from ..exporting import EXPORT_FORMATS, check_format, export
     from ..fileio import check_not_input, check_target
     from ..result import save
     from ..simulation import auto_duration
 
-    if out.suffix.lower() not in (".nc", ".nc4", ".h5"):
-        # A result is NetCDF-4 whatever the name; a .csv or .png name is a mistake to catch before the run.
-        raise ConfigError("--out", f"a result is a NetCDF file: name it *.nc (got {out.name!r})")
+    if out.suffix.lower() not in (".nc", ".nc4", ".h5", *EXPORT_FORMATS):
+        # A .png name (or a typo) is a mistake to catch before the run.
+        raise ConfigError("--out", f"name the result *.nc (NetCDF, everything), *.csv, *.mat or *.parquet "
+                          f"(as hertzchain export writes them); got {out.name!r}")
+    if out.suffix.lower() in EXPORT_FORMATS:
+        check_format(out)  # parquet without pyarrow is said before the run
     cfg = load_config(config, overrides)
     check_not_input(out, config)
     check_target(out)  # refuse a FIFO, a link or a device as --out before any work
@@ -48,7 +54,10 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     for w in caught:
         echo_warning(w.message)
     ds = apply_instruments(ds, cfg)
-    save(ds, out)
+    if out.suffix.lower() in EXPORT_FORMATS:
+        export(ds, out)
+    else:
+        save(ds, out)
     if not quiet:
         if ds.attrs.get("time_step") == "adaptive":
             step = f"adaptive dt {ds.attrs['dt']:.3g}-{ds.attrs['dt_max']:.3g} s, {ds.attrs['n_steps']} steps"
@@ -60,4 +69,6 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
         msg = f"wrote {out} ({span}, {ds.sizes['time']} samples, {ds.sizes['contact']} contacts, {step})"
         if "wall_force" in ds:
             msg += f"; peak wall force {ds.attrs['peak_wall_force']:.4g} N at {ds.attrs['peak_wall_time'] * 1e3:.4g} ms"
+        if "peak_body_force" in ds.attrs:
+            msg += f"; the protected body passes at most {ds.attrs['peak_body_force']:.4g} N to the ground"
         click.echo(msg)

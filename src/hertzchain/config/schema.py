@@ -49,6 +49,11 @@ BOUNDS = {
     # by more than ~3e-4 (error ~ (1 / steps_per_radian)^2) and Verlet nears its stability limit
     "steps_per_radian": (10.0, 1e5),
     "threads": (1, 1024),             # threads sharing one chain (aligned elastic chains)
+    "mass": (0.0, 1e6),               # kg, > 0: a striker, a bead or a protected body
+    "stiffness": (0.0, 1e15),         # N/m, the protected body's mount (0: a free body)
+    "damping": (0.0, 1e12),           # N s/m
+    "gravity": (0.0, 1e4),            # m/s^2 along the chain (a centrifuge reaches 1e4)
+    "frequency": (0.0, 1e9),          # Hz, > 0: a mass-in-mass bead's internal resonance
 }
 
 
@@ -85,6 +90,28 @@ class Substitution(_Section):
     bead: _BeadNumber
     diameter_mm: _Diameter | None = None
     material: str | None = None
+    element: str | None = None
+
+
+class ResonatorConfig(_Section):
+    """A mass-in-mass bead's internal mass: a fraction of the bead's mass on a linear spring."""
+
+    mass_fraction: float = Field(gt=0, lt=1, description="internal mass / whole bead mass")
+    frequency: float = _bounded("frequency", open_low=True,
+                                description="Hz, sqrt(k_in / m_in) / (2 pi) with the shell held")
+
+
+class ElementConfig(_Section):
+    """A bead kind under ``[elements.NAME]``, used by name in ``chain.elements`` (a bead's diameter
+    and material stay the chain's)."""
+
+    shape: Literal["sphere", "cylinder"] = "sphere"
+    orientation: Literal["crossed", "aligned"] = Field(
+        default="crossed", description="cylinder axis across the chain (side contacts) or along it (flat ends)")
+    length_mm: _Diameter | None = Field(default=None, description="cylinder length; absent: its diameter")
+    axis_deg: float = Field(default=0.0, ge=-360, le=360, description="crossed cylinder's axis about the chain axis")
+    mass: float | None = _bounded("mass", open_low=True, default=None, description="kg, a given bead mass")
+    resonator: ResonatorConfig | None = None
 
 
 class ChainConfig(_Section):
@@ -101,6 +128,13 @@ class ChainConfig(_Section):
     offsets_mm: list[_Offset] | None = None
     offsets_fraction: list[Annotated[float, Field(ge=-0.5, le=0.5)]] | None = None
     precompression: float = _bounded("precompression", default=0.0, description="static force, N")
+    gravity: float | None = _bounded("gravity", default=None,
+                                     description="m/s^2 along the chain towards the wall (absent: 0)")
+    tilt_deg: float | None = Field(default=None, ge=0, le=90,
+                                   description="track inclined by this angle, wall end down: gravity = "
+                                               "9.80665 sin(tilt) (instead of gravity)")
+    elements: list[str] | None = Field(default=None, description="one element name per bead ('sphere' or "
+                                                                  "a name of [elements])")
 
     @field_validator("diameters_mm")
     @classmethod
@@ -125,6 +159,8 @@ class ChainConfig(_Section):
                              f"(got {', '.join(given) if given else 'none'})")
         if self.offsets_mm is not None and self.offsets_fraction is not None:
             raise ValueError("give offsets_mm or offsets_fraction, not both")
+        if self.gravity is not None and self.tilt_deg is not None:
+            raise ValueError("give gravity or tilt_deg, not both")
         return self
 
 
@@ -132,11 +168,24 @@ class StrikerConfig(_Section):
     diameter_mm: _Diameter = 8.0
     velocity: float = _bounded("velocity", open_low=True, default=0.5, description="m/s towards the chain")
     material: str | None = None
+    mass: float | None = _bounded("mass", open_low=True, default=None,
+                                  description="kg; absent: the sphere's rho pi phi^3 / 6")
+    shape: Literal["sphere", "flat"] = Field(default="sphere", description="its face: 'flat' meets bead 1 in a "
+                                                                           "sphere-flat contact")
+    radius_of_curvature_mm: _Diameter | None = Field(default=None, description="a curved face's radius; "
+                                                                               "absent: diameter / 2")
 
 
 class WallConfig(_Section):
-    type: Literal["flat", "none"] = "flat"
+    """``[wall]``: a flat, a free end, or a protected body (``type = "body"``: mass, mount)."""
+
+    type: Literal["flat", "none", "body"] = "flat"
     material: str | None = None
+    mass: float | None = _bounded("mass", open_low=True, default=None, description="kg, the protected body's")
+    stiffness: float = _bounded("stiffness", default=0.0, description="N/m, its mount to the ground (0: free)")
+    damping: float = _bounded("damping", default=0.0, description="N s/m, the mount's dashpot")
+    shape: Literal["flat", "sphere"] = Field(default="flat", description="the body's face")
+    radius_of_curvature_mm: _Diameter | None = Field(default=None, description="a spherical body face's radius")
 
 
 class ContactConfig(_Section):
@@ -250,6 +299,7 @@ class RunConfig(_Section):
     """The whole run file."""
 
     materials: dict[str, MaterialConfig] = {}
+    elements: dict[str, ElementConfig] = {}
     chain: ChainConfig
     striker: StrikerConfig = StrikerConfig()
     wall: WallConfig = WallConfig()

@@ -13,6 +13,9 @@ Objectives (all minimised, SI units):
   eq. 1), within ``window`` = [t0, t1] [s] when given: the energy the pulse delivers into the
   wall's contact.
 
+With a protected body (``wall.type = "body"``), what reaches the body itself:
+``peak_body_force``, ``peak_body_acceleration``, ``energy_to_body`` (:mod:`hertzchain.design.body`).
+
 Robust forms (``[design.robust]``): every candidate is run in several *scenarios*: each striker
 speed of ``velocities`` times ``draws`` Monte Carlo draws of manufacturing tolerances (the
 sweep's tolerance model: phi_n (1 + diameter_rel z), e_n + offset_mm z', seeded per draw
@@ -43,6 +46,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from ..config import build_model, build_probes, chain_parts, parse_config
 from ..errors import PulseNotFound
+from .body import BODY_OBJECTIVES, body_objective, body_records
 from .constraints import Constraints, geometric_margin, geometric_violation, geometry, run_violation
 
 __all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Candidate", "Fidelity", "member_metrics",
@@ -55,7 +59,12 @@ OBJECTIVES: dict[str, tuple[str, str]] = {
     "max_force_over_yield": ("1", "largest contact force over its elastic limit F_Y"),
     "front_momentum_at_wall": ("N s", "front momentum Q_F of the wall pulse (paper Sec. III)"),
     "energy_at_wall": ("J", "largest elastic energy in the bead N - wall contact"),
+    "peak_body_force": ("N", "peak force the protected body passes to the ground"),
+    "peak_body_acceleration": ("m s-2", "peak acceleration of the protected body"),
+    "energy_to_body": ("J", "most energy delivered to the protected body"),
 }
+
+
 
 #: Fitness of an infeasible candidate: above any feasible objective value, ranked by violation.
 INFEASIBLE = 1e12
@@ -234,16 +243,19 @@ class _Records:
     kinetic: np.ndarray
     potential: np.ndarray
     dissipated: np.ndarray
+    body: dict | None = None  # protected body: body_force [N], body_acceleration [m/s^2], body_energy [J]
 
 
 def _records_of_dataset(ds) -> "_Records":
     """:class:`_Records` of a stacked batch result."""
     nb = ds["n_beads"].values.astype(int)
+    body = {k: ds[k].values for k in ("body_force", "body_acceleration", "body_energy")} if "body_force" in ds else None
     return _Records(time=ds["time"].values, wall=ds["wall_force"].values, peak_wall_force=ds["peak_wall_force"].values,
                     fmax=ds["max_contact_force"].values, yield_force=ds["yield_force"].values,
                     kappa_wall=ds["kappa"].values[np.arange(nb.size), nb],  # contact N joins bead N and the wall
                     kinetic=ds["kinetic_energy"].values, potential=ds["potential_energy"].values,
-                    dissipated=ds["dissipated_energy"].values)
+                    dissipated=ds["dissipated_energy"].values, body=body)
+
 
 
 def _records(runs, systems) -> _Records:
@@ -264,7 +276,7 @@ def _records(runs, systems) -> _Records:
                     fmax=fmax, yield_force=fy, kappa_wall=np.array([sy.kappa[k] for sy, k in zip(systems, n)]),
                     kinetic=np.stack([r.kinetic_energy for r in runs]),
                     potential=np.stack([r.potential_energy for r in runs]),
-                    dissipated=np.stack([r.dissipated_energy for r in runs]))
+                    dissipated=np.stack([r.dissipated_energy for r in runs]), body=body_records(runs, systems))
 
 
 def _metrics(rec: _Records, objectives: list[str], window: tuple[float, float] | None) -> dict[str, np.ndarray]:
@@ -296,6 +308,8 @@ def _metrics(rec: _Records, objectives: list[str], window: tuple[float, float] |
             mask = np.ones(time.size, bool) if window is None else (time >= window[0]) & (time <= window[1])
             fpk = np.max(np.where(mask, np.maximum(wall, 0.0), 0.0), axis=1)
             out[name] = 0.4 * fpk ** (5.0 / 3.0) / kappa ** (2.0 / 3.0)
+        elif name in BODY_OBJECTIVES:
+            out[name] = body_objective(name, rec.body, wall.shape)
     return out
 
 

@@ -36,6 +36,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from ..errors import ConfigError
 from .constraints import Constraints
+from .body import BODY_OBJECTIVES
 from .objectives import OBJECTIVES, SAMPLING_FREE, Fidelity, Robust
 from .space import Space, parse_shape, parse_variables
 
@@ -211,16 +212,24 @@ def parse_design(data: dict) -> DesignProblem:
         raise ConfigError(f"base.{exc.field}", exc.message) from None
     if base_cfg.run.integrator != "verlet":
         raise ConfigError("base.run.integrator", "designs run on the batched Verlet engine; use 'verlet'")
-    if base_cfg.wall.type != "flat":
-        raise ConfigError("base.wall.type", "a design is judged at the wall: use type = 'flat'")
+    if base_cfg.wall.type == "none":
+        raise ConfigError("base.wall.type", "a design is judged at the wall: use type = 'flat' or 'body'")
+    if base_cfg.wall.material is None:
+        # Every candidate meets the same wall: the base chain's first material, written into the
+        # base (a candidate whose first bead changes material would otherwise change its wall).
+        base = copy.deepcopy(base)
+        base.setdefault("wall", {})["material"] = build_model(base_cfg).wall_material.name
 
     objectives = [sec.objective] if isinstance(sec.objective, str) else list(sec.objective)
     if not objectives:
         raise ConfigError("design.objective", f"needs at least one of {', '.join(OBJECTIVES)}")
     for i, name in enumerate(objectives):
+        field = "design.objective" if isinstance(sec.objective, str) else f"design.objective[{i}]"
         if name not in OBJECTIVES:
-            field = "design.objective" if isinstance(sec.objective, str) else f"design.objective[{i}]"
             raise ConfigError(field, f"unknown objective {name!r}; allowed: {', '.join(OBJECTIVES)}")
+        if name in BODY_OBJECTIVES and base_cfg.wall.type != "body":
+            raise ConfigError(field, f"{name!r} measures a protected body: set [base.wall] type = 'body' (with its "
+                              "mass, stiffness and damping)")
     if len(set(objectives)) != len(objectives):
         raise ConfigError("design.objective", "lists an objective twice")
     if sec.window is not None and not (len(sec.window) == 2 and 0 <= sec.window[0] < sec.window[1]):

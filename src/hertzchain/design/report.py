@@ -112,6 +112,24 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     return out, ds
 
 
+def _measured_against(prob, best_cfg: dict) -> dict:
+    """Which body the candidates were measured against: the base's wall (or protected body), the
+    best candidate's, and the design variables that change it (``wall.*``)."""
+    from ..config import build_model, parse_config
+    from .body import measured_against
+
+    varying = [g for g in prob.space.groups if g.startswith("wall.")]
+    return {"base": measured_against(build_model(parse_config(prob.base))),
+            "best": measured_against(build_model(parse_config(best_cfg))), "varied_by": varying}
+
+
+def _measured_sentence(m: dict) -> str:
+    if not m["varied_by"]:
+        return f"Every candidate is measured against {m['base']}."
+    return (f"Candidates are measured against the body the design variables {', '.join(m['varied_by'])} give; "
+            f"the best against {m['best']}.")
+
+
 def _fidelity_info(prob) -> dict:
     """design.json's ``search_fidelity``: how the search ran candidates (the best are reported at full accuracy)."""
     from .problem import search_fidelity
@@ -245,7 +263,8 @@ def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
 <style>body{{font-family:sans-serif;max-width:60em;margin:auto}} td,th{{padding:2px 8px;border-bottom:1px solid #ddd}}</style>
 </head><body><h1>hertzchain design: {html.escape(info['objective_name'])}</h1>{feasible}
 <p>{info['n_evaluations']} engine runs in {info['generations']} engine calls, {info['elapsed_s']:.1f} s
-({info['evaluations_per_s']:.0f} runs/s), seed {info['seed']}. Improvement = (reference - best) / reference{robust}.</p>
+({info['evaluations_per_s']:.0f} runs/s), seed {info['seed']}. Improvement = (reference - best) / reference{robust}.
+{html.escape(_measured_sentence(info['measured_against']))}</p>
 <table><tr><th>chain</th><th>beads</th><th>length [mm]</th><th>meets the constraints</th>{heads}<th>improvement of the best</th></tr>{rows}</table>
 <h2>Best design</h2><table>{variables}</table>{images}</body></html>"""
 
@@ -268,7 +287,9 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
         and the uniform chain, improvement in percent), ``generations``, ``elapsed_s``,
         ``evaluations_per_s``, ``seed``, ``budget``, ``pareto`` (several objectives), ``hash``,
         ``search_fidelity`` (``name``: ``"search"`` or ``"full"``, ``steps_per_radian`` and
-        ``coarse_sampling`` of the search runs, ``verify_top``).
+        ``coarse_sampling`` of the search runs, ``verify_top``), ``measured_against`` (the wall or
+        protected body every candidate ends on, in words: ``base``, ``best`` and the design
+        variables ``varied_by`` that change it).
     """
     import tomli_w
 
@@ -294,6 +315,7 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
         "robust": None if prob.section.robust is None else prob.section.robust.model_dump(mode="json"),
         "search_fidelity": _fidelity_info(prob),
         "comparison": comparison,
+        "measured_against": _measured_against(prob, result.best["config"]),
         "hash": prob.hash,
         "hertzchain_version": __version__,
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),

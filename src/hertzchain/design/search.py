@@ -137,6 +137,19 @@ class DesignResult:
     out_dir: Path
     resumed: bool
 
+    def __repr__(self) -> str:
+        # The history holds a row per candidate (thousands): the summary says what was found.
+        best = "no candidate"
+        if self.best is not None:
+            obj = self.best["objective"]
+            value = (", ".join(f"{k} = {v:.4g}" for k, v in obj.items()) if isinstance(obj, dict)
+                     else f"{', '.join(self.problem.objectives)} = {obj:.4g}")
+            feasible = "" if self.best.get("feasible", True) else " (infeasible: the least violating)"
+            best = f"best {value} at {self.best['variables']}{feasible}"
+        front = f", Pareto front of {len(self.pareto)}" if len(self.problem.objectives) > 1 else ""
+        return (f"DesignResult({best}{front}; {self.n_evaluations} engine runs, {len(self.history)} candidates, "
+                f"{self.elapsed_s:.3g} s; {str(self.out_dir)!r})")
+
 
 def _population(problem: DesignProblem) -> int:
     """Candidates per generation: ``[design].population``, else 40 for NSGA-II (several

@@ -125,7 +125,8 @@ def _check_threads(n_threads) -> None:
 
 
 def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads,
-         steps_per_radian: float | None = None) -> tuple[list[RawRun], list[MemberSystem], dict[str, np.ndarray]]:
+         steps_per_radian: float | None = None, engine=None
+         ) -> tuple[list[RawRun], list[MemberSystem], dict[str, np.ndarray]]:
     """:func:`run_batch` on checked inputs. Also returns every member's :class:`MemberSystem` and
     the output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
     energies always, ``recorded_force`` (member, time, recorded contact) when every member
@@ -138,7 +139,10 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
     _check_no_positions(plist)
     pk, member_systems = (_setup_groups(models, plist, dts, interval, n_samples, steps_per_radian)
                           or _setup_members(models, plist, dts, interval, n_samples, steps_per_radian))
-    _engine(pk, progress, n_threads)
+    if engine is None:
+        _engine(pk, progress, n_threads)
+    else:
+        engine(pk, progress)
     runs = _member_runs(pk)
     # The output buffers seen as (member, time, ...) where every member has the same layout: row m
     # is exactly what RawRun m holds (its arrays are views of these rows).
@@ -274,9 +278,18 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         ens = models
     elif isinstance(models, Sequence) and same_layout(models) and _one_probes(probes, len(models)) is not None:
         ens = Ensemble.from_models(models)
+    if device == "cuda" and ens is None:
+        _refuse_extended(models)
     if ens is not None:
         ds = _simulate_ensemble(ens, duration, _one_probes(probes, ens.n_members), dt, progress, n_threads,
                                 configs, device, steps_per_radian)
+    elif device == "cuda" and _one_layout(models) and _one_probes(probes, len(models)) is not None:
+        # beyond the paper's kind (a given striker, cylinders, gravity) but not extended: set up
+        # member by member, run on the GPU
+        _cuda.require_gpu()
+        ds = _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian,
+                              engine=_cuda.run_packed)
+        ds.attrs["engine"] = _cuda.ENGINE
     elif device == "cuda":
         _cuda.require_gpu()
         raise ConfigError("device", "the CUDA engine runs batches whose members share one layout (number of "
@@ -286,6 +299,21 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         ds = _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian)
     warn_members_pulse_not_reached(ds)
     return ds
+
+
+def _refuse_extended(models) -> None:
+    """The CUDA engine has no protected body nor mass-in-mass beads: a ConfigError naming the field."""
+    for i, m in enumerate(models):
+        if isinstance(m, Model) and m.extended:
+            raise ConfigError(m.extension_field, f"member {i}: the CUDA engine does not model a protected body or "
+                              "mass-in-mass beads; run this batch on the CPU (device='cpu')")
+
+
+def _one_layout(models) -> bool:
+    """Whether the models share the number of beads and the end (whatever else they are): what the
+    CUDA engine needs of a batch set up member by member (it takes every member's law as it is)."""
+    keys = {(m.chain.n_beads, m.wall.present) if isinstance(m, Model) else None for m in models}
+    return len(keys) == 1 and None not in keys
 
 
 def _one_probes(probes, n: int) -> Probes | None:
@@ -336,13 +364,14 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
 
 
 def _simulate_models(models, duration, probes, dt, progress, n_threads, configs,
-                     steps_per_radian: float | None = None) -> xr.Dataset:
-    """:func:`simulate_batch` of arbitrary models (members of different layouts or probes)."""
+                     steps_per_radian: float | None = None, engine=None) -> xr.Dataset:
+    """:func:`simulate_batch` of arbitrary models (members of different layouts or probes);
+    ``engine(pk, progress)`` runs the packed batch instead of the CPU engine when given."""
     # What stack_results(simulate_many(...)) gives, without one Dataset per member: every member's
     # run_fields (the arrays and attributes build_dataset would wrap) go straight into the stack.
     plist, dts = _check_inputs(models, duration, probes, dt)
     cfgs = _as_list(configs, len(models), "configs") if configs is not None else [None] * len(models)
-    runs, sys_list, stacked = _run(models, duration, plist, dts, progress, n_threads, steps_per_radian)
+    runs, sys_list, stacked = _run(models, duration, plist, dts, progress, n_threads, steps_per_radian, engine)
     width = max(sy.n_contacts for sy in sys_list)
     fmax, kappa, smaller = (np.full((len(models), width), np.nan) for _ in range(3))
     for i, (run, model, sy) in enumerate(zip(runs, models, sys_list)):

@@ -23,7 +23,7 @@ from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
 from ..simulation import warn_elastic_limit
-from .batch_buffers import _Packed, _member_forces, _member_velocities
+from .batch_buffers import _Packed, _member_body, _member_forces, _member_velocities
 from .batch_pack import _EnsembleArrays
 from .ensemble import Ensemble
 from .kernels import LAW_ELASTOPLASTIC
@@ -40,6 +40,12 @@ _MEMBER_ATTRS = {
     "peak_wall_force": ("N", "peak wall force, refined between steps (NaN without a wall)"),
     "peak_wall_time": ("s", "time of the peak wall force (NaN without a wall)"),
     "elastic_limit_exceeded": ("1", "1 when a recorded contact force passed the elastic limit"),
+}
+#: Per-member attributes of runs with a protected body (NaN for members without one).
+_BODY_ATTRS = {
+    "peak_body_force": ("N", "largest force the protected body passed to the ground"),
+    "peak_body_acceleration": ("m s-2", "largest acceleration of the protected body"),
+    "peak_body_energy": ("J", "most energy delivered to the protected body"),
 }
 
 
@@ -158,8 +164,11 @@ def _stack(parts: Sequence[_Part], time, n_time: int, member, ready: dict[str, n
         data[name] = xr.Variable(("member",) + tuple(first_dims), out, attrs=dict(first_attrs))
 
     has_wall = np.array(["wall_force" in p.data for p in parts])
-    for key, (units, long_name) in _MEMBER_ATTRS.items():
-        vals = np.array([p.attrs[key] for p in parts], dtype=float)
+    member_attrs = dict(_MEMBER_ATTRS)
+    if any("peak_body_force" in p.attrs for p in parts):
+        member_attrs.update(_BODY_ATTRS)
+    for key, (units, long_name) in member_attrs.items():
+        vals = np.array([p.attrs.get(key, np.nan) for p in parts], dtype=float)
         if key.startswith("peak_wall"):
             vals = np.where(has_wall, vals, np.nan)  # the kernel tracks a kappa = 0 contact: 0 N, not a peak
         data[key] = xr.Variable(("member",), vals, attrs={"units": units, "long_name": long_name})
@@ -242,7 +251,8 @@ def _member_runs(pk: _Packed) -> list[RawRun]:
                            velocity=_member_velocities(pk, m) if record_v else None,
                            max_force=pk.fmax[c0:pk.fmax_off[m + 1]], peak_wall_force=f_peak, peak_wall_time=t_peak,
                            dt=dt0, integrator="verlet", n_steps=int(steps), contacts=pk.rec[r0:pk.rec_off[m + 1]],
-                           dt_max=dt1, adaptive=adaptive, **_plastic_fields(pk, m)))
+                           dt_max=dt1, adaptive=adaptive, body=_member_body(pk, m) if pk.body_slot[m] >= 0 else None,
+                           **_plastic_fields(pk, m)))
     return runs
 
 

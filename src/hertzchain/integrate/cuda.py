@@ -110,9 +110,13 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     SimulationDiverged
         When a member's state became non-finite.
     ConfigError
-        A member has the elastic-plastic law (``contact.law``), which the GPU kernels do not carry.
+        A member has the elastic-plastic law (``contact.law``), which the GPU kernels do not carry,
+        or a protected body or mass-in-mass beads (``wall.type``).
     """
     refuse_elastoplastic(pk.law)
+    if pk.ext_on is not None and np.any(pk.ext_on):
+        raise ConfigError("wall.type", "the CUDA engine does not model a protected body or mass-in-mass beads; run "
+                          "this batch on the CPU (device='cpu')")
     cuda = _cuda()
     nmem = pk.n_members
     p = int(pk.n_slots[0])

@@ -46,6 +46,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from . import kernels
 from .kernels import DELTA_MIN
 
 #: Blanes & Moan SRKN_6^b kick (b) and drift (a) coefficients (order 4).
@@ -486,3 +487,7 @@ def rkn_run(u, v, a, g, sq, ed, ends, up, vp, ap, fi, cross, coef, sx, sw, st, s
             return 1
     acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS] = t, tp, hl, steps
     return 0
+
+
+# the threshold DELTA_MIN is compiled in as a constant: an edit of kernels.py recompiles the run
+kernels.flush_stale_cache(rkn_run)

@@ -145,7 +145,7 @@ def _publish(pub, par, tid, u, s, e):
 @njit(cache=True, nogil=True)
 def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, mass, inv_mass, kappa, damping, d0,
                 de, dx0, rsum, fext, dcap, wall_slot, lean, interval, stride, n_sub, n_eval, c_steps, relax, k_start,
-                k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_v, out_u, record_u, fmax, peak, acc):
+                k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_v, out_u, record_u, fmax, peak, acc, ext):
     """Thread ``tid``'s share of ``kernels.verlet_run`` (aligned elastic chain) from sample
     ``k_start`` to ``k_stop``: bodies [bounds[tid], bounds[tid + 1]), recorded contacts
     rec[rbounds[tid]:rbounds[tid + 1]]. ``pub`` (2, nthr, 2): the first and last position of each
@@ -179,7 +179,7 @@ def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, 
                 part[tid] = kernels.required_stride(u[j0:e + 1], v[j0:e + 1], a[j0:e + 1], kappa[j0:e], d0[j0:e],
                                                     de[j0:e], dx0[j0:e], rsum[j0:e], dcap[j0:e],
                                                     inv_mass[j0:e + 1], n_eval * block, block, c_steps,
-                                                    damping[j0:e], 0)
+                                                    damping[j0:e], 0, ext, False)
                 sense = barrier(bar, nthr, sense)
                 req = part[0]
                 for t in range(1, nthr):
@@ -247,6 +247,10 @@ def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, 
     return 0
 
 
+# _thread_run compiles the kernels' functions into itself: an edit of kernels.py must recompile it
+kernels.flush_stale_cache(_thread_run)
+
+
 def run_verlet_threaded(system: System, duration: float, sample_interval: float, threads: int,
                         dt: float | None = None, record_velocities: bool = False, contacts: np.ndarray | None = None,
                         progress: Callable[[int, int], None] | None = None, record_positions: bool = False,
@@ -281,8 +285,8 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
         docstring).
     """
     if system.general:
-        raise ConfigError("run.threads", "several threads run aligned elastic chains (no dissipation, no offsets); "
-                          "use run.threads = 1 for this model")
+        raise ConfigError("run.threads", "several threads run aligned elastic chains (no dissipation, no offsets, "
+                          "no protected body or mass-in-mass beads); use run.threads = 1 for this model")
     plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
     nc = system.n_contacts
@@ -321,7 +325,7 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
         args = (nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, w.mass, w.inv_mass, w.kappa,
                 w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap, w.wall_slot, lean, sample_interval, plan.stride,
                 plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, k, k_stop, rec, out_f, out_ke, out_pe, out_ed,
-                out_v, record_velocities, out_u, record_positions, fmax, peak, acc)
+                out_v, record_velocities, out_u, record_positions, fmax, peak, acc, w.ext)
         workers = [threading.Thread(target=_thread_run, args=(t, *args), daemon=True) for t in range(1, nthr)]
         for th in workers:
             th.start()

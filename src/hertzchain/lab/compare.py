@@ -5,7 +5,7 @@ Both records are fitted as in the paper (Sec. III: F_m cos^6((t - T)/tau) on the
 are reported. The simulated record is then shifted onto the measured clock, either so that the
 two fitted times of flight coincide (``align="fit"``, the default) or by the lag that maximises
 their cross-correlation (``align="xcorr"``), interpolated at the measured sample times, and the
-residual measured - simulated gives the rms difference.
+residual simulated - measured (the sign of the reported differences) gives the rms difference.
 """
 
 from __future__ import annotations
@@ -42,7 +42,9 @@ class Comparison:
         The paper's pulse parameters of each (``peak_force``, ``time_of_flight``, ``duration``
         and their ``_err``) [N, s].
     time, measured_force, simulated_force, residual : numpy.ndarray
-        The measured samples [s, N], the aligned simulation there [N] and the difference [N].
+        The measured samples [s, N], the aligned simulation there [N] and the residual
+        simulated - measured [N] (the sign of the ``*_diff`` fields: positive where the
+        simulation is above the measurement).
     """
 
     peak_force_diff: float
@@ -125,7 +127,7 @@ def compare_traces(measured, simulated, align: str = "fit") -> Comparison:
         c = correlate(fs - fs.mean(), fm - fm.mean(), mode="full", method="fft")
         shift = float(grid_s[0] + (int(np.argmax(c)) - (grid_m.size - 1)) * dt - grid_m[0])
     sim_on_m = np.interp(tm + shift, ts, ys, left=ys[0], right=ys[-1])
-    residual = ym - sim_on_m
+    residual = sim_on_m - ym  # simulated - measured, like the differences of F_m, T and tau
     return Comparison(
         peak_force_diff=ps["peak_force"] - pm["peak_force"],
         time_of_flight_diff=ps["time_of_flight"] - pm["time_of_flight"],

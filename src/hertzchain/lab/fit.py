@@ -157,6 +157,13 @@ class FitResult:
     warnings: list[str] = field(default_factory=list)
     elapsed: float = 0.0
 
+    def __repr__(self) -> str:
+        pars = ", ".join(f"{n} = {v:.6g} ± {e:.2g}" for n, v, e in zip(self.names, self.values, self.stderr))
+        state = "converged" if self.converged else "NOT converged"
+        return (f"FitResult({pars}; {len(self.traces)} trace(s), {self.n_points} points, s^2 = "
+                f"{self.residual_variance:.3g}, {state}, {self.n_evaluations} engine calls"
+                + (f"; {len(self.warnings)} warning(s)" if self.warnings else "") + ")")
+
     def as_json(self) -> dict:
         """The result as the ``fit.json`` mapping (SI units).
 

@@ -72,11 +72,12 @@ def plot_comparison(comp, out: str | Path, measured_label: str = "measured",
     ax.plot(t_ms, comp.simulated_force, lw=1.1, color="C3", label=f"{simulated_label} (shifted {comp.shift * 1e3:+.4g} ms)")
     ax.set_ylabel("F [N]")
     ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(f"dF_m = {comp.peak_force_diff:+.3g} N, dT = {comp.time_of_flight_diff * 1e6:+.3g} us, "
-                 f"dtau = {comp.duration_diff * 1e6:+.3g} us, rms = {comp.rms_residual:.3g} N", fontsize=9)
+    ax.set_title(f"simulated - measured: dF_m = {comp.peak_force_diff:+.3g} N, "
+                 f"dT = {comp.time_of_flight_diff * 1e6:+.3g} us, dtau = {comp.duration_diff * 1e6:+.3g} us, "
+                 f"rms = {comp.rms_residual:.3g} N", fontsize=9)
     axr.plot(t_ms, comp.residual, lw=0.8, color="C0")
     axr.axhline(0, color="0.5", lw=0.6)
-    axr.set_ylabel("residual [N]")
+    axr.set_ylabel("simulated -\nmeasured [N]")
     axr.set_xlabel("t [ms] (measured clock)")
     for a in (ax, axr):
         a.grid(alpha=0.3)

@@ -284,7 +284,7 @@ def fig3_lateral(rigid: dict, lateral: dict) -> Figure:
     matplotlib.figure.Figure
         One row per bead, one column per variant.
     """
-    from ..viz.style import STYLE, paper_figure
+    from ..viz.style import STYLE, panel_tag, paper_figure
     from .figures import PULSE_WINDOW_MS
 
     import matplotlib
@@ -311,6 +311,7 @@ def fig3_lateral(rigid: dict, lateral: dict) -> Figure:
                 ax.set_xlim(*PULSE_WINDOW_MS)
                 ax.set_title(f"bead {b}: {titles.get(var, var)}", pad=3)
                 ax.set_xlabel("t - T [ms]")
+                panel_tag(ax, f"({chr(ord('a') + i * len(variants) + j)})")  # before the pulse: empty
             axes[i, 0].set_ylabel("wall force [N]")
             axes[i, 0].legend(loc="upper right")
     return fig

@@ -11,7 +11,7 @@
 - per-bead tables of the wall pulse and the exact parameters of the run.
 
 The HTML file embeds the figures as base64 PNG and has its CSS inline: it opens anywhere with no
-other file; MathJax (loaded from its CDN) typesets the formulas, which read as TeX source offline.
+other file, and its formulas are inline SVG drawn when it is written: it needs no network and no script.
 Formulas are written as ASCII in the notes (``F_m``, ``tau``, ``Q^(n-n')``) and turned into TeX
 (``$F_m$``, ``$\\tau$``) for both documents; figures are shown at one scale (their size in
 inches). Both documents are generated from one list of blocks, so they always say the same:

@@ -214,8 +214,9 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         parameter (named by its path), ``dt`` [s], ``peak_wall_force`` [N] and ``peak_wall_time``
         [s] (integrator), ``elastic_limit_exceeded``, the wall-pulse metrics ``F_m`` [N], ``T``
         [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s] (NaN with ``fit_error`` saying why when the
-        member has no wall or no fitted pulse). Also written to ``metrics.csv`` (and
-        ``metrics.parquet`` when pyarrow is installed).
+        member has no wall or no fitted pulse); with protected bodies also ``peak_body_force`` [N],
+        ``peak_body_acceleration`` [m/s^2] and ``peak_body_energy`` [J]. Also written to
+        ``metrics.csv`` (and ``metrics.parquet`` when pyarrow is installed).
 
     Raises
     ------

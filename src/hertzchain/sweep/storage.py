@@ -172,7 +172,9 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
     import pandas as pd
 
     cols = ["dt", "peak_wall_force", "peak_wall_time", "elastic_limit_exceeded", *METRIC_COLUMNS, "fit_error"]
-    rows: dict[str, list] = {"member": [], "chunk": [], **{c: [] for c in cols}}
+    # a protected body's peaks (wall.type = "body"), where some chunk has them; NaN for other members
+    body = ["peak_body_force", "peak_body_acceleration", "peak_body_energy"]
+    rows: dict[str, list] = {"member": [], "chunk": [], **{c: [] for c in cols + body}}
     for index in range(len(cfg.chunks())):
         # Only these small per-member variables are read (h5netcdf directly: see _chunk_is_done).
         with h5netcdf.File(chunks_dir / _CHUNK_NAME.format(index), "r") as f:
@@ -181,6 +183,11 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
             rows["chunk"] += [index] * members.size
             for c in cols:
                 rows[c] += [_text(x) for x in f.variables[c][...].tolist()]
+            for c in body:
+                rows[c] += f.variables[c][...].tolist() if c in f.variables else [float("nan")] * members.size
+    if all(v != v for c in body for v in rows[c]):  # NaN everywhere: no member has a body
+        for c in body:
+            del rows[c]
     table = {"member": rows.pop("member"), "chunk": rows.pop("chunk")}
     for name in cfg.parameter_names:
         vals = [cfg.members[m][name] for m in table["member"]]
