@@ -70,12 +70,16 @@ def _hertz(kappa, d):
     return kappa * d * np.sqrt(d)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _segment_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, s, e, gl, gr):
-    """``kernels.step_elastic`` on bodies [s, e): the force of contact s - 1 from the left
-    neighbour's published position ``gl``, that of contact e - 1 from the right one's ``gr``."""
-    fprev = _hertz(kappa[s - 1], gl - u[s] + d0[s - 1]) if s > 0 else 0.0
-    for i in range(s, e - 1):
+@njit(cache=True, nogil=True)
+def _segment_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, fprev, gr):
+    """``kernels.step_elastic`` on one block's bodies, given as views that start at its first body
+    (``u``, ``v``, ``g`` one slot longer): ``fprev`` the force of the contact on its left (computed
+    from the left neighbour's published position), ``gr`` the right neighbour's published
+    position (read instead of u[-1], which the neighbour may be moving). Views from 0, so that the
+    indices are known to be non-negative: with an index range from the block's first slot, Numba
+    wrapped every access for negative indices and LLVM left the loop scalar (1.7x slower)."""
+    n = inv_mass.shape[0]
+    for i in range(n - 1):
         d = u[i] - u[i + 1] + d0[i]
         d = d if d > DELTA_MIN else 0.0
         f = kappa[i] * d * np.sqrt(d)
@@ -85,7 +89,7 @@ def _segment_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, s, e, gl, gr):
         v[i] += dt * ai
         u[i] += dt * v[i]
         fprev = f
-    i = e - 1
+    i = n - 1
     f = _hertz(kappa[i], u[i] - gr + d0[i])
     g[i + 1] = f
     ai = (fprev - f + fext[i]) * inv_mass[i]
@@ -94,28 +98,28 @@ def _segment_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, s, e, gl, gr):
     u[i] += dt * v[i]
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _segment_lean(u, v, kappa, inv_mass, dt, s, e, gl, gr):
-    """``kernels.step_elastic_lean`` on bodies [s, e) (see :func:`_segment_step`)."""
-    fprev = _hertz(kappa[s - 1], gl - u[s]) if s > 0 else 0.0
-    for i in range(s, e - 1):
+@njit(cache=True, nogil=True)
+def _segment_lean(u, v, kappa, inv_mass, dt, fprev, gr):
+    """``kernels.step_elastic_lean`` on one block's bodies (see :func:`_segment_step`)."""
+    n = inv_mass.shape[0]
+    for i in range(n - 1):
         d = u[i] - u[i + 1]
         d = d if d > DELTA_MIN else 0.0
         f = kappa[i] * d * np.sqrt(d)
         v[i] += dt * ((fprev - f) * inv_mass[i])
         u[i] += dt * v[i]
         fprev = f
-    i = e - 1
+    i = n - 1
     f = _hertz(kappa[i], u[i] - gr)
     v[i] += dt * ((fprev - f) * inv_mass[i])
     u[i] += dt * v[i]
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _segment_final(u, v, a, g, kappa, d0, fext, inv_mass, half, s, e, gl, gr):
-    """``kernels.final_step_elastic`` on bodies [s, e) (see :func:`_segment_step`)."""
-    fprev = _hertz(kappa[s - 1], gl - u[s] + d0[s - 1]) if s > 0 else 0.0
-    for i in range(s, e - 1):
+@njit(cache=True, nogil=True)
+def _segment_final(u, v, a, g, kappa, d0, fext, inv_mass, half, fprev, gr):
+    """``kernels.final_step_elastic`` on one block's bodies (see :func:`_segment_step`)."""
+    n = inv_mass.shape[0]
+    for i in range(n - 1):
         d = u[i] - u[i + 1] + d0[i]
         d = d if d > DELTA_MIN else 0.0
         f = kappa[i] * d * np.sqrt(d)
@@ -124,7 +128,7 @@ def _segment_final(u, v, a, g, kappa, d0, fext, inv_mass, half, s, e, gl, gr):
         a[i] = ai
         v[i] += half * ai
         fprev = f
-    i = e - 1
+    i = n - 1
     f = _hertz(kappa[i], u[i] - gr + d0[i])
     g[i + 1] = f
     ai = (fprev - f + fext[i]) * inv_mass[i]
@@ -169,6 +173,8 @@ def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, 
     ns = stride if not adaptive else int(my[3])
     step = int(my[2])
     j0 = s - 1 if s > 0 else 0
+    kl = kappa[j0]  # the contact on the block's left (its force: kernels.step_elastic's arithmetic)
+    dl = d0[j0]
     for k in range(k_start, k_stop):
         for b in range(n_sub):
             if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
@@ -194,21 +200,25 @@ def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, 
             par = _publish(pub, par, tid, u, s, e)
             sense = barrier(bar, nthr, sense)
             for st in range(ns - 1):
-                gl = pub[par, tid - 1, 1] if left else 0.0
                 gr = pub[par, tid + 1, 0] if right else u[e]
                 if lean:
+                    # the force of contact s - 1 as the left neighbour computes it
+                    fl = _hertz(kl, pub[par, tid - 1, 1] - u[s]) if left else 0.0
                     if owns_wall:  # the wall force this step computes (at the positions it starts from)
                         kernels._track_peak(kernels.contact_force(u, kappa, d0, ws), t0 + (st + 1) * dt, dt, peak)
-                    _segment_lean(u, v, kappa, inv_mass, dt, s, e, gl, gr)
+                    _segment_lean(u[s:e + 1], v[s:e], kappa[s:e], inv_mass[s:e], dt, fl, gr)
                 else:
-                    _segment_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, s, e, gl, gr)
+                    fl = _hertz(kl, pub[par, tid - 1, 1] - u[s] + dl) if left else 0.0
+                    _segment_step(u[s:e + 1], v[s:e], a[s:e], g[s:e + 1], kappa[s:e], d0[s:e], fext[s:e],
+                                  inv_mass[s:e], dt, fl, gr)
                     if owns_wall:
                         kernels._track_peak(g[ws + 1], t0 + (st + 1) * dt, dt, peak)
                 par = _publish(pub, par, tid, u, s, e)
                 sense = barrier(bar, nthr, sense)
-            gl = pub[par, tid - 1, 1] if left else 0.0
             gr = pub[par, tid + 1, 0] if right else u[e]
-            _segment_final(u, v, a, g, kappa, d0, fext, inv_mass, half, s, e, gl, gr)
+            fl = _hertz(kl, pub[par, tid - 1, 1] - u[s] + dl) if left else 0.0
+            _segment_final(u[s:e + 1], v[s:e], a[s:e], g[s:e + 1], kappa[s:e], d0[s:e], fext[s:e], inv_mass[s:e],
+                           half, fl, gr)
             if owns_wall:
                 kernels._track_peak(g[ws + 1], t0 + block, dt, peak)
             step += ns
