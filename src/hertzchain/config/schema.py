@@ -51,6 +51,7 @@ BOUNDS = {
     # adaptive Verlet accuracy, omega dt <= 1 / steps_per_radian: below ~10 the peak force is off
     # by more than ~3e-4 (error ~ (1 / steps_per_radian)^2) and Verlet nears its stability limit
     "steps_per_radian": (10.0, 1e5),
+    "threads": (1, 1024),             # threads sharing one chain (aligned elastic chains)
     "mass": (0.0, 1e6),               # kg, > 0: a striker, a bead or a protected body
     "stiffness": (0.0, 1e15),         # N/m, the protected body's mount (0: a free body)
     "damping": (0.0, 1e12),           # N s/m
@@ -235,11 +236,16 @@ class RunSection(_Section):
                                     "(hertzchain.simulation.auto_duration)")
     sample_interval: float = _bounded("sample_interval", default=1e-7, description="s")
     dt: float | None = _bounded("dt", default=None, description="s; automatic when absent")
-    integrator: Literal["verlet", "dop853", "rk45"] = "verlet"
-    rtol: float = _bounded("rtol", default=1e-10)
+    integrator: Literal["verlet", "rkn4", "dop853", "rk45"] = "verlet"
+    rtol: float | None = _bounded(
+        "rtol", default=None,
+        description="relative tolerance of 'dop853'/'rk45' (default 1e-10) or of the step control of 'rkn4' "
+                    "(default 1e-6); unused by 'verlet'")
     steps_per_radian: float = _bounded(
         "steps_per_radian", default=400.0,
         description="adaptive Verlet step: omega dt <= 1 / steps_per_radian; peak error ~ (1/steps_per_radian)^2")
+    threads: int = _bounded("threads", default=1,
+                            description="threads sharing one long aligned elastic chain (Verlet; pays from ~1e4 beads)")
 
     @field_validator("duration", mode="before")
     @classmethod
