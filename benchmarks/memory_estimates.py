@@ -2,7 +2,8 @@
 
 For each example of ``examples/`` this script computes the estimate hertzchain makes before the
 job starts (:func:`hertzchain.checks.estimate_resources` for a run, the sweep's
-:func:`hertzchain.sweep.runner.estimate_sweep`, the design's per-generation estimate), then runs
+:func:`hertzchain.sweep.runner.estimate_sweep`, the design's pre-flight
+(:func:`hertzchain.design.search.preflight`: its largest generation)), then runs
 the job as documented (``hertzchain run / sweep / design``) in a fresh process and reads that
 process's peak resident set size (``os.wait4``: the kernel's ``ru_maxrss``). The claim: every
 ratio measured / estimated lies in [1/1.3, 1.3].
@@ -52,9 +53,9 @@ def estimate(kind: str, path: Path):
 
         return estimate_sweep(load_sweep(path))
     from hertzchain.design import load_design
-    from hertzchain.design.search import estimate_design
+    from hertzchain.design.search import preflight
 
-    return estimate_design(load_design(path))
+    return preflight(load_design(path))
 
 
 def command(kind: str, path: Path, out: Path) -> list[str]:

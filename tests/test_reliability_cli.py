@@ -132,7 +132,8 @@ def test_analyze_json_is_valid_json_with_null(tmp_path, capsys):
     csv = tmp_path / "noise.csv"
     noise = np.random.default_rng(0).normal(0.0, 0.01, 50)
     csv.write_text("time,force\n" + "".join(f"{i * 1e-6},{f}\n" for i, f in enumerate(noise)))
-    assert main(["analyze", str(csv), "--json"]) == 0
+    # Every row failed: the rows are still printed, and the exit status says so (issue 23).
+    assert main(["analyze", str(csv), "--json"]) == 2
     text = capsys.readouterr().out
     rows = json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in JSON"))
     assert rows[0]["error"] and rows[0]["peak_force"] is None

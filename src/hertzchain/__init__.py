@@ -13,8 +13,8 @@ __version__ = "0.1.0"
 _EXPORTS = {
     # errors
     "HertzchainError": "errors", "ConfigError": "errors", "SimulationDiverged": "errors",
-    "PulseNotFound": "errors", "ElasticLimitWarning": "errors", "HertzRangeWarning": "errors",
-    "PulseNotReachedWarning": "errors", "LongRunWarning": "errors",
+    "PulseNotFound": "errors", "PulseClipped": "errors", "ElasticLimitWarning": "errors", "HertzRangeWarning": "errors",
+    "PulseNotReachedWarning": "errors", "LongRunWarning": "errors", "CheckpointWarning": "errors",
     # checks
     "estimate_resources": "checks", "ResourceEstimate": "checks",
     # model

@@ -15,6 +15,7 @@ import numpy as np
 from .elements import SPHERE, Element
 from .errors import ConfigError
 from .materials import Material, get_material
+from .strict import count, real, real_array
 
 __all__ = ["Chain", "TABLE_I_MM", "paper_chain"]
 
@@ -63,7 +64,10 @@ class Chain:
     def __post_init__(self) -> None:
         # Chains are built by the thousand in a design search (every geometry check builds one):
         # the checks below take their slow, index-finding path only when something is wrong.
-        d = np.asarray(self.diameters, dtype=float).copy()
+        raw = self.diameters
+        # Numbers only (a string or a bool is refused, as in a config file), copied as floats.
+        d = np.array(raw, dtype=float) if isinstance(raw, np.ndarray) and raw.dtype.kind in "iuf" else \
+            real_array(raw, "chain.diameters")
         if d.ndim != 1 or d.size == 0 or not (d.min() > 0 and d.max() < math.inf):  # NaN fails both
             _check_diameters(d, "chain.diameters")
         d.setflags(write=False)
@@ -95,7 +99,7 @@ class Chain:
             e.setflags(write=False)
             object.__setattr__(self, "offsets", e)
             return
-        e = np.asarray(self.offsets, dtype=float).copy()
+        e = real_array(self.offsets, "chain.offsets")
         if e.shape != d.shape:
             raise ConfigError("chain.offsets", f"needs one offset per bead ({d.size}), got {e.size}")
         if not np.all(np.isfinite(e)):
@@ -119,16 +123,15 @@ class Chain:
     def from_diameters(cls, diameters: Sequence[float], material: str | Material | Sequence = "AISI52100",
                        offsets: Sequence[float] | None = None) -> "Chain":
         """Chain from explicit diameters [m] (one material for all beads, or one per bead)."""
-        d = np.asarray(diameters, dtype=float)
+        d = real_array(diameters, "chain.diameters")
         mats = material if isinstance(material, (str, Material)) else tuple(material)
-        return cls(d, mats, None if offsets is None else np.asarray(offsets, float))
+        return cls(d, mats, None if offsets is None else real_array(offsets, "chain.offsets"))
 
     @classmethod
     def uniform(cls, n: int, diameter: float, material: str | Material = "AISI52100") -> "Chain":
-        """``n`` identical beads of diameter ``diameter`` [m]."""
-        if int(n) < 1:
-            raise ConfigError("chain.n", f"a chain needs at least one bead, got {n}")
-        return cls.from_diameters([diameter] * int(n), material)
+        """``n`` identical beads of diameter ``diameter`` [m] (``n`` an int: 2.7 beads is refused)."""
+        n = count(n, "chain.n")
+        return cls.from_diameters([real(diameter, "chain.diameter", unit="m")] * n, material)
 
     def append_taper(self, n: int, q: float, material: str | Material | None = None) -> "Chain":
         """Append ``n`` beads with the exponential taper phi_{k+1} = (1 - q) phi_k (paper Sec. II).
@@ -136,6 +139,8 @@ class Chain:
         The first appended bead is (1 - q) times the current last bead. ``q`` is a fraction
         (0.056 for 5.6 %); it must be in [0, 1).
         """
+        n = count(n, "chain.taper.n", low=0)
+        q = real(q, "chain.taper.q")
         if not (0.0 <= q < 1.0):
             raise ConfigError("chain.taper.q", f"tapering factor must lie in [0, 1), got {q!r}")
         last = self.diameters[-1]
@@ -157,6 +162,7 @@ class Chain:
 
     def truncated(self, n: int) -> "Chain":
         """The first ``n`` beads (the paper's protocol: a chain cut after bead n, wall behind it)."""
+        n = count(n, "chain.truncate")
         if not (1 <= n <= self.n_beads):
             raise ConfigError("chain.truncate", f"must be between 1 and {self.n_beads}, got {n}")
         return Chain(self.diameters[:n], self.materials[:n], self.offsets[:n], self.elements[:n])

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 from .errors import ConfigError
 from .materials import Material, get_material
+from .strict import real
 
 __all__ = [
     "hertz_constant", "effective_radius", "effective_modulus", "yield_force", "Elastic",
@@ -123,6 +124,7 @@ class Viscoelastic:
     name = "viscoelastic"
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "A", real(self.A, "contact.A", unit="s"))
         if not (math.isfinite(self.A) and self.A >= 0):
             raise ConfigError("contact.A", f"must be a finite number >= 0 (s), got {self.A!r}")
 
@@ -145,6 +147,7 @@ class Dashpot:
     name = "dashpot"
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "gamma", real(self.gamma, "contact.gamma", unit="N s/m"))
         if not (math.isfinite(self.gamma) and self.gamma >= 0):
             raise ConfigError("contact.gamma", f"must be a finite number >= 0 (N s/m), got {self.gamma!r}")
 
@@ -223,6 +226,7 @@ class ScaledViscoelastic:
     name = "viscoelastic_scaled"
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "A", real(self.A, "contact.A", unit="s"))
         _check_scaled("contact.A", self.A, "s", self.diameter)
         object.__setattr__(self, "material", get_material(self.material))
 
@@ -296,6 +300,7 @@ class ScaledDashpot:
     name = "dashpot_scaled"
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "gamma", real(self.gamma, "contact.gamma", unit="N s/m"))
         _check_scaled("contact.gamma", self.gamma, "N s/m", self.diameter)
         object.__setattr__(self, "material", get_material(self.material))
 

@@ -557,7 +557,8 @@ def measure_dataset(ds, wall: Instrument | None = None, sensors: Instrument | No
         out["measured_wall_force"] = xr.Variable(("wall_scope_time",), acq.force, attrs={
             "units": "N", "long_name": "wall force as measured (sensor, noise, scope, averaging)"
             + ("; the sensor's stack force (body_force)" if "body_force" in ds else ""),
-            "trigger_time": acq.trigger_time, "n_clipped": acq.n_clipped, "instrument": json.dumps(wall.as_dict())})
+            "trigger_time": acq.trigger_time, "n_clipped": acq.n_clipped, "valid_max": wall.range_N[1],
+            "instrument": json.dumps(wall.as_dict())})
     if sensors is not None:
         if "sensor_force" not in ds:
             raise ConfigError("instrument.sensors", "the run has no embedded sensors (probes.sensors is empty)")
@@ -571,7 +572,8 @@ def measure_dataset(ds, wall: Instrument | None = None, sensors: Instrument | No
         out = out.assign_coords(sensor_scope_time=("sensor_scope_time", acq.time, {"units": "s",
                                 "long_name": "oscilloscope time relative to the trigger"}))
         out["measured_sensor_force"] = xr.Variable(("sensor_scope_time", "sensor"), np.array(records).T, attrs={
-            "units": "N", "long_name": "embedded-sensor force as measured", "instrument": json.dumps(sensors.as_dict())})
+            "units": "N", "long_name": "embedded-sensor force as measured", "valid_max": sensors.range_N[1],
+            "instrument": json.dumps(sensors.as_dict())})
         out["sensor_trigger_time"] = xr.Variable(("sensor",), np.array(trig_times), attrs={
             "units": "s", "long_name": "trigger time of each sensor's record on the simulation clock"})
     return out

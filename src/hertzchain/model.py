@@ -22,6 +22,7 @@ from .contact import LAW_CODES, Dashpot, Elastic, ScaledDashpot, ScaledViscoelas
 from .plasticity import Elastoplastic
 from .errors import ConfigError
 from .materials import Material, get_material
+from .strict import real
 
 __all__ = ["Striker", "Wall", "Model", "System"]
 
@@ -68,6 +69,9 @@ class Striker:
         if mass is not None and given_mass is not None:
             raise ConfigError("striker.mass", "give mass only once")
         mass = given_mass if mass is None else mass
+        # Strict types (True or "0.3" are not speeds); NumPy scalars are stored as floats.
+        diameter = real(diameter, "striker.diameter", unit="m")
+        velocity = real(velocity, "striker.velocity", unit="m/s")
         if not (math.isfinite(diameter) and diameter > 0):
             raise ConfigError("striker.diameter_mm", f"must be a positive number, got {diameter * 1e3!r} mm")
         if not (math.isfinite(velocity) and velocity > 0):
@@ -408,6 +412,7 @@ class Model:
     gravity: float = 0.0
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
         if self.precompression > 0 and not self.wall.present:

@@ -24,9 +24,12 @@ from .probes import Probes, sensor_forces
 if TYPE_CHECKING:  # the compiled kernels load only when a run is made, not to read a result
     from .integrate.verlet import RawRun
 
-__all__ = ["build_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes", "netcdf_bytes"]
+__all__ = ["build_dataset", "fields_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes",
+           "netcdf_bytes"]
 
 ENGINE = "h5netcdf"
+#: The integrators of hertzchain's own (``dt``, ``dt_max`` and ``time_step`` attributes mean steps).
+STEPPERS = ("verlet", "rkn4")
 
 
 #: Units and long name of every variable a run may hold (shared by :func:`build_dataset` and the
@@ -142,19 +145,20 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
 
     ratio = raw.max_force / system.yield_force[:nc]
     over = np.flatnonzero(ratio > 1.0).tolist()
-    described = model.describe()
+    model_text = json.dumps(model.describe())
     attrs = {
         "title": "hertzchain simulation",
         "hertzchain_version": __version__,
         "integrator": raw.integrator,
         "dt": raw.dt,
-        "dt_max": raw.dt_max if raw.integrator == "verlet" else 0.0,
-        "time_step": ("adaptive" if raw.adaptive else "fixed") if raw.integrator == "verlet" else "solve_ivp",
+        "dt_max": raw.dt_max if raw.integrator in STEPPERS else 0.0,
+        "time_step": ("adaptive" if raw.adaptive else "fixed") if raw.integrator in STEPPERS else "solve_ivp",
         "n_steps": raw.n_steps,
         "duration": duration,
         "sample_interval": probes.sample_interval,
-        "model": json.dumps(described),
-        "config": json.dumps(config if config is not None else {"model": described}),
+        "model": model_text,
+        # json.dumps({"model": described}), without encoding the model twice
+        "config": json.dumps(config) if config is not None else '{"model": ' + model_text + "}",
         "peak_wall_force": raw.peak_wall_force,
         "peak_wall_time": raw.peak_wall_time,
         "elastic_limit_exceeded": int(bool(over)),
@@ -223,9 +227,49 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
 
     ``system`` is ``model.system()`` when the caller already has it (it is not free for long chains).
     """
-    f = run_fields(raw, model, probes, duration=duration, config=config, extra_attrs=extra_attrs, system=system)
-    data = {name: xr.Variable(dims, values, attrs=attrs) for name, (dims, values, attrs) in f.data.items()}
-    return xr.Dataset(data, coords=f.coords, attrs=f.attrs)
+    return fields_dataset(run_fields(raw, model, probes, duration=duration, config=config,
+                                     extra_attrs=extra_attrs, system=system))
+
+
+def fields_dataset(f: RunFields) -> xr.Dataset:
+    """The Dataset of ``f``: the one ``xr.Dataset(data, coords=f.coords, attrs=f.attrs)`` builds.
+
+    Assembled directly (variables, one pandas index per coordinate, sizes): the public
+    constructor merges and aligns the variables, which took ~0.5 ms of a ~5 ms ``simulate()``
+    (benchmarks/overhead.py) for nothing, since a run's variables are aligned by construction.
+    Falls back to the public constructor if xarray's internal ``Dataset._construct_direct`` is
+    ever missing; tests/test_overhead.py checks that both give identical Datasets.
+
+    Parameters
+    ----------
+    f : RunFields
+        From :func:`run_fields`.
+
+    Returns
+    -------
+    xarray.Dataset
+        The result.
+    """
+    try:
+        import pandas as pd
+        from xarray.core.indexes import PandasIndex
+
+        # NumPy arrays throughout, so the checks of the public constructors can be skipped
+        out = {name: xr.Variable(dims, np.asarray(values), attrs=attrs, fastpath=True)
+               for name, (dims, values, attrs) in f.data.items()}
+        indexes = {}
+        for name, (dim, values, attrs) in f.coords.items():
+            # the run's own arrays: indexed without a copy
+            index = PandasIndex(pd.Index(np.asarray(values), copy=False), dim)
+            indexes[name] = index
+            out.update(index.create_variables({name: xr.Variable(dim, values, attrs)}))
+        sizes: dict[str, int] = {}
+        for var in out.values():
+            sizes.update((d, n) for d, n in zip(var.dims, var.shape) if d not in sizes)
+        return xr.Dataset._construct_direct(out, set(f.coords), sizes, dict(f.attrs), indexes)
+    except (ImportError, AttributeError, TypeError):  # xarray's internals moved: the public way
+        variables = {name: xr.Variable(dims, values, attrs=attrs) for name, (dims, values, attrs) in f.data.items()}
+        return xr.Dataset(variables, coords=f.coords, attrs=f.attrs)
 
 
 def to_netcdf_bytes(ds: xr.Dataset, compress: bool = True, single_precision: bool = False) -> bytes:

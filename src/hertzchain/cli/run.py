@@ -22,7 +22,7 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     import warnings
 
     from ..config import apply_instruments, build_instruments, build_model, build_probes, load_config, simulate_config
-    from ..errors import ConfigError, DurationWarning, ElasticLimitWarning
+    from ..errors import ConfigError, DurationWarning, ElasticLimitWarning, LongRunWarning
     from ..exporting import EXPORT_FORMATS, check_format, export
     from ..fileio import check_not_input, check_target
     from ..result import save
@@ -40,19 +40,24 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     model = build_model(cfg)
     probes = build_probes(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run
-    # A progress bar only when the run is long enough to be worth one (> ~1e8 bead-steps).
-    from ..integrate.verlet import auto_time_step
+    # The pre-flight, before any work: memory refused past what is available, and a projected time
+    # past a few minutes shown now (LongRunWarning), naming what to change (run.dt, run.duration).
+    from ..checks import check_resources, estimate_resources, run_time_hint
 
-    dt = cfg.run.dt or auto_time_step(model.system())
     duration = auto_duration(model) if cfg.run.duration == "auto" else cfg.run.duration
-    work = duration / dt * model.chain.n_beads
+    est = estimate_resources(model.system(), duration, probes, dt=cfg.run.dt, integrator=cfg.run.integrator,
+                             steps_per_radian=cfg.run.steps_per_radian)
+    check_resources(est, time_hint=run_time_hint(cfg.run.dt))
+    # A progress bar only when the run is long enough to be worth one (> ~1e8 bead-steps).
+    work = est.steps * model.chain.n_beads
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ElasticLimitWarning)
         warnings.simplefilter("always", DurationWarning)
         with progress_bar("simulating", enabled=not quiet and work > 1e8, lazy=True) as update:
             ds = simulate_config(cfg, model, probes, progress=update)
     for w in caught:
-        echo_warning(w.message)
+        if not issubclass(w.category, LongRunWarning):  # the pre-flight showed it before the run
+            echo_warning(w.message)
     ds = apply_instruments(ds, cfg)
     if out.suffix.lower() in EXPORT_FORMATS:
         export(ds, out)

@@ -337,18 +337,21 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
 
         return simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                         rtol=cfg.run.rtol, progress=progress, config=config,
-                        steps_per_radian=cfg.run.steps_per_radian)
+                        steps_per_radian=cfg.run.steps_per_radian, threads=cfg.run.threads)
+    if cfg.run.threads != 1:
+        raise ConfigError("run.threads", "the lateral (2D) path of [track] runs on one thread: leave it out")
     if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:
         raise ConfigError("run.steps_per_radian", "is a setting of the 1D engine's adaptive step; the lateral "
                           "(2D) path of [track] has its own: leave it out")
-    from ..simulation import auto_duration
+    from ..simulation import SCIPY_RTOL, auto_duration
     from ..track import simulate_lateral
 
     auto = cfg.run.duration == "auto"
     track = build_track(cfg)
     with _as_written("track.groove_radius", "track.groove_radius_mm"):
         ds = simulate_lateral(model, track, auto_duration(model) if auto else cfg.run.duration, probes,
-                              integrator=cfg.run.integrator, dt=cfg.run.dt, rtol=cfg.run.rtol, config=config)
+                              integrator=cfg.run.integrator, dt=cfg.run.dt,
+                              rtol=SCIPY_RTOL if cfg.run.rtol is None else cfg.run.rtol, config=config)
     if auto:
         ds.attrs["duration_mode"] = "auto"
     return ds

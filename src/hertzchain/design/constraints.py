@@ -86,6 +86,32 @@ def geometric_violation(c: Constraints, geo: dict[str, Any]) -> float:
             + _excess(geo["n_beads"], c.max_beads, upper=True))
 
 
+def broken_geometry(c: Constraints, geo: dict[str, Any]) -> list[str]:
+    """The geometric constraints ``geo`` breaks, each as ``design.constraints.KEY = limit (value)``.
+
+    Parameters
+    ----------
+    c : Constraints
+        The design's constraints.
+    geo : dict
+        A candidate's :func:`geometry` (or a history row holding its keys).
+
+    Returns
+    -------
+    list of str
+        One entry per broken constraint.
+    """
+    out = []
+    for name, key, limit, upper in (("min_diameter_mm", "min_diameter_mm", c.min_diameter_mm, False),
+                                    ("max_length_mm", "length_mm", c.max_length_mm, True),
+                                    ("max_mass_kg", "mass_kg", c.max_mass_kg, True),
+                                    ("min_beads", "n_beads", c.min_beads, False),
+                                    ("max_beads", "n_beads", c.max_beads, True)):
+        if _excess(geo[key], limit, upper) > 0:
+            out.append(f"design.constraints.{name} = {limit:g} (it has {geo[key]:.4g})")
+    return out
+
+
 def geometric_margin(c: Constraints, geo: dict[str, Any]) -> float:
     """Signed distance to the nearest geometric limit: the smallest relative slack
     (limit - value) / |limit| of an upper limit, (value - limit) / |limit| of a lower one; >= 0

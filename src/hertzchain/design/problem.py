@@ -58,7 +58,8 @@ class DesignSection(BaseModel):
     variables: dict[str, Any]
     constraints: Constraints = Constraints()
     budget: int = Field(default=2000, ge=1)
-    seed: int = 0
+    # NumPy and cma seed their generators with it (and seed + 1): 32-bit unsigned integers.
+    seed: int = Field(default=0, ge=0, le=2**32 - 2)
     population: int | None = Field(default=None, ge=4)
     polish: bool = True
     window: list[float] | None = None

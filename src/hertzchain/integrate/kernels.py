@@ -31,6 +31,9 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+# the energies of the probes (re-exported: kernels.potential_energy & co. are used throughout)
+from .energies import (energies_elastic, kinetic_energy, plastic_work, potential_energy,  # noqa: F401
+                       potential_energy_plastic)
 from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
                         accelerations_extended, energies_extended, forces_linear)
 
@@ -229,110 +232,84 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax
     return power
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _viscous_force(d, rate, kappa, damping, law):
+    """:func:`forces_general`'s viscoelastic or dashpot force at overlap d (aligned) and rate;
+    returns (force, elastic part). Open contacts give 0 through selects (vectorised)."""
+    dd = d if d > DELTA_MIN else 0.0
+    sd = np.sqrt(dd)
+    fel = kappa * dd * sd
+    f = fel + kappa * damping * sd * rate if law == LAW_VISCOELASTIC else fel + damping * rate
+    f = f if f > 0.0 else 0.0
+    return (f if d >= 0.0 else 0.0), fel
+
+
+@njit(cache=True, nogil=True, inline="always")
+def step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, last):
+    """One step of an aligned chain with the viscoelastic or dashpot law, fused into one pass (as
+    :func:`step_elastic`): the forces of :func:`forces_general` at velocities predicted half a step
+    ahead, v + (dt/2) a (carried from body to body), then the kick and drift (or, when ``last``,
+    the closing half kick); returns the dissipated power [W]. The same operations per contact in the
+    same order as forces_general and the update loops of :func:`verlet_run` (the same forces,
+    positions and velocities); the power is summed by :func:`dissipative_block` in a vectorised
+    order (its last bits may differ). The last slot (padding, kappa = damping = 0) is peeled off:
+    its right neighbour's prediction is 0, as in forces_general."""
+    n = a.shape[0]
+    power = 0.0
+    fprev = 0.0
+    vq = v[0] + half * a[0]
+    for i in range(n - 1):
+        vq1 = v[i + 1] + half * a[i + 1]
+        rate = vq - vq1
+        f, fel = _viscous_force(u[i] - u[i + 1] + d0[i], rate, kappa[i], damping[i], law)
+        power += (f - fel) * rate
+        g[i + 1] = f
+        ai = (fprev - f + fext[i]) * inv_mass[i]
+        a[i] = ai
+        if last:
+            v[i] += half * ai
+        else:
+            v[i] += dt * ai
+            u[i] += dt * v[i]
+        fprev = f
+        vq = vq1
+    i = n - 1
+    f, fel = _viscous_force(u[i] - u[i + 1] + d0[i], vq, kappa[i], damping[i], law)
+    g[i + 1] = f
+    ai = (fprev - f + fext[i]) * inv_mass[i]
+    a[i] = ai
+    if last:
+        v[i] += half * ai
+    else:
+        v[i] += dt * ai
+        u[i] += dt * v[i]
+    return power + (f - fel) * vq
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc"})
+def dissipative_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc):
+    """The ``ns`` steps of a block of :func:`verlet_run` for an aligned viscoelastic or dashpot
+    chain (:func:`step_dissipative`), with the dissipated energy's
+    trapezoidal integral in acc[0:2] and the wall peak; a function of its own, called once per
+    block (inlined into verlet_run's large body, LLVM left the fused loop scalar), whose power sum
+    may be reassociated: in contact order it held the loop scalar (~1.8x slower); the forces,
+    positions and velocities do not depend on it (tests/test_fused.py)."""
+    half = 0.5 * dt
+    for s in range(ns):
+        if s < ns - 1:
+            p = step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, False)
+        else:
+            p = step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, True)
+        acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
+        acc[1] = p
+        _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
+
+
 @njit(cache=True, nogil=True)
 def accelerations(g, fext, inv_mass, a):
     """a_i = (F_{i-1} - F_i + f_ext,i) / m_i for every slot (1/m = 0 for the wall and padding)."""
     for i in range(a.shape[0]):
         a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-
-
-#: The energy sums may be reassociated, so that LLVM vectorises them: a strict left-to-right sum
-#: of ~30 terms is a chain of dependent additions, and it made the probes ~4x slower than the step.
-_SUMS = {"reassoc"}
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, aligned_elastic):
-    """Hertz potential sum (2/5) kappa delta^(5/2) (paper Sec. III) minus the work of f_ext [J].
-
-    For an aligned elastic chain U_j = (2/5) F_j delta_j reuses the forces (no extra sqrt).
-    """
-    e = 0.0
-    if aligned_elastic:
-        # Shifted views instead of u[j + 1], g[j + 1]: with the +1 in the index LLVM left this sum
-        # scalar (~14 ns for 24 contacts instead of ~5). g = 0 wherever d <= 0, so no max().
-        u1 = u[1:]
-        g1 = g[1:]
-        for j in range(kappa.shape[0]):
-            e += g1[j] * (u[j] - u1[j] + d0[j])
-        e *= 0.4
-    else:
-        for j in range(kappa.shape[0]):
-            if de[j] != 0.0:
-                dx = dx0[j] - (u[j] - u[j + 1])
-                d = rsum[j] - np.sqrt(dx * dx + de[j] * de[j])
-            else:
-                d = u[j] - u[j + 1] + d0[j]
-            if d > 0.0:
-                e += 0.4 * kappa[j] * d * d * np.sqrt(d)
-    for i in range(fext.shape[0]):
-        e -= fext[i] * u[i]
-    return e
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres):
-    """Elastic energy stored in elastic-plastic contacts minus the work of f_ext [J]: what each
-    contact's unloading curve gives back, (2/5) kres (delta - dres)^(5/2) (Hertz's
-    (2/5) kappa delta^(5/2) for a contact that never yielded: dres = 0, kres = kappa)."""
-    e = 0.0
-    for j in range(kres.shape[0]):
-        if de[j] != 0.0:
-            dx = dx0[j] - (u[j] - u[j + 1])
-            d = rsum[j] - np.sqrt(dx * dx + de[j] * de[j])
-        else:
-            d = u[j] - u[j + 1] + d0[j]
-        x = d - dres[j]
-        if x > 0.0:
-            e += 0.4 * kres[j] * x * x * np.sqrt(x)
-    for i in range(fext.shape[0]):
-        e -= fext[i] * u[i]
-    return e
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def plastic_work(kappa, dyield, dmax, dres):
-    """Plastic work [J] done in all contacts so far, from each one's largest overlap alone.
-
-    The work along Thornton's loading curve up to dmax, (2/5) F_y dyield + F_y (dmax - dyield)
-    + (3/4) kappa dyield^(1/2) (dmax - dyield)^2, minus what its unloading curve stores,
-    (2/5) F_max (dmax - dres); 0 for a contact that never passed dyield.
-    """
-    w = 0.0
-    for j in range(kappa.shape[0]):
-        dm = dmax[j]
-        dy = dyield[j]
-        if dm > dy:
-            sy = np.sqrt(dy)
-            fy = kappa[j] * dy * sy
-            x = dm - dy
-            fmax = fy + 1.5 * kappa[j] * sy * x
-            w += 0.4 * fy * dy + fy * x + 0.75 * kappa[j] * sy * x * x - 0.4 * fmax * (dm - dres[j])
-    return w
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def energies_elastic(u, v, g, mass, d0, fext):
-    """(kinetic, potential) energy [J] of an aligned elastic chain, as :func:`kinetic_energy` and
-    :func:`potential_energy` give them, in one vectorised pass (~20 ns a sample for 24 slots,
-    against ~60 ns for the two separate sums)."""
-    u1 = u[1:]
-    g1 = g[1:]
-    ke = 0.0
-    pe = 0.0
-    for i in range(mass.shape[0]):
-        ke += mass[i] * v[i] * v[i]
-        pe += 0.4 * g1[i] * (u[i] - u1[i] + d0[i]) - fext[i] * u[i]
-    return 0.5 * ke, pe
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def kinetic_energy(v, mass):
-    """Sum of m v^2 / 2 over the slots [J] (mass = 0 for the wall and padding)."""
-    e = 0.0
-    for i in range(mass.shape[0]):
-        e += 0.5 * mass[i] * v[i] * v[i]
-    return e
 
 
 @njit(cache=True, nogil=True)
@@ -519,7 +496,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     second order.
 
     Between block ends the half kicks of consecutive steps are fused (leapfrog form); for an
-    aligned elastic chain a step is one pass (:func:`step_elastic`), otherwise one pass over the
+    aligned chain a step is one pass (:func:`step_elastic`; :func:`step_dissipative` for the
+    viscoelastic and dashpot laws), otherwise (offset beads) one pass over the
     contacts and one over the bodies. ``acc`` holds [dissipated energy (J),
     last dissipated power (W), step count, current ns, relax count, largest ns allowed in the
     relax window, largest ns used, smallest ns used]. ``peak`` tracks contact ``wall_slot`` (the
@@ -552,8 +530,10 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
             wa[i] = ext[i, EXT_KIN] * (u[i] - ext[i, EXT_W]) * ext[i, EXT_IMIN]
     step = int(acc[2])
     lean = n >= LEAN_SLOTS  # long chain without precompression (d0 = fext = 0): step_elastic_lean
+    aligned = True  # no offsets: the dissipative laws' fused steps (step_dissipative)
     for i in range(n):
         lean = lean and d0[i] == 0.0 and fext[i] == 0.0
+        aligned = aligned and de[i] == 0.0
     # Recorded contacts r0, r0 + 1, ... (the default: all of them) are copied as one slice.
     contiguous = nout > 0
     for j in range(1, nout):
@@ -576,7 +556,12 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
             for i in range(n):
                 v[i] += half * a[i]
                 u[i] += dt * v[i]
-            if general:
+            if general and aligned and law != LAW_ELASTOPLASTIC:
+                # aligned viscous chains: one fused pass per step, the same numbers as below (the
+                # elastic-plastic law branches per contact; its two passes below beat one fused
+                # scalar pass: benchmarks/dissipative.py)
+                dissipative_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc)
+            elif general:
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + half * a[i]
@@ -648,8 +633,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
 
 
 def flush_stale_cache(*kernels_using: object) -> None:
-    """Drop the on-disk cache of these compiled functions when this module (or ``extension.py``,
-    whose functions it compiles in) is newer than it.
+    """Drop the on-disk cache of these compiled functions when this module (or ``extension.py``
+    or ``energies.py``, whose functions it compiles in) is newer than it.
 
     Numba's cache only checks the source file of the cached function itself, not of the
     functions it calls; the batched engine's loops (``batch_engine._batch_kernel``,
@@ -661,7 +646,8 @@ def flush_stale_cache(*kernels_using: object) -> None:
     *kernels_using
         Numba dispatchers (``@njit(cache=True)``) that call functions of this module.
     """
-    sources = (Path(__file__), Path(__file__).with_name("extension.py"))  # what the kernels compile in
+    # what the kernels compile in
+    sources = (Path(__file__), Path(__file__).with_name("extension.py"), Path(__file__).with_name("energies.py"))
     newest = max(p.stat().st_mtime for p in sources)
     for fn in kernels_using:
         try:

@@ -158,7 +158,7 @@ def fit_html(result, png: bytes) -> str:
         b = boot[n]["bootstrap"]
         return f"<td>{b['stderr']:.2g}</td><td>[{b['interval_68'][0]:.6g}, {b['interval_68'][1]:.6g}]</td>"
 
-    rows = "".join(f"<tr><td>{e(n)}</td><td>{v:.6g}</td><td>{s:.2g}</td><td>{abs(s / v) * 100 if v else float('nan'):.2g} %</td>"
+    rows = "".join(f"<tr><td>{e(n)}</td><td>{e(boot[n]['unit'])}</td><td>{v:.6g}</td><td>{s:.2g}</td><td>{abs(s / v) * 100 if v else float('nan'):.2g} %</td>"
                    f"<td>{s0:.6g}</td>{boot_cells(n)}</tr>"
                    for n, v, s, s0 in zip(result.names, result.values, result.stderr, result.start))
     boot_head = (f"<th>bootstrap stderr ({result.bootstrap.shape[0]} refits)</th><th>bootstrap 68 % interval</th>"
@@ -180,7 +180,7 @@ cost (half the sum of squared noise-weighted residuals) {result.cost:.6g}; {resu
 {len(result.names)} parameters; residual variance s<sup>2</sup> = {result.residual_variance:.4g} (1 when the
 residuals are the noise); {result.n_evaluations} batched engine calls ({result.n_members} chains) in {result.elapsed:.2f} s.</p>
 <h2>Parameters (SI units; standard errors from s<sup>2</sup> (J<sup>T</sup>J)<sup>-1</sup>)</h2>
-<table><tr><th>parameter</th><th>value</th><th>stderr</th><th>rel.</th><th>start</th>{boot_head}</tr>{rows}</table>
+<table><tr><th>parameter</th><th>unit</th><th>value</th><th>stderr</th><th>rel.</th><th>start</th>{boot_head}</tr>{rows}</table>
 <h2>Correlations</h2><table><tr><th></th>{head}</tr>{corr}</table>
 <h2>Traces</h2><table><tr><th>trace</th><th>signal</th><th>samples</th><th>noise [N]</th><th>rms residual [N]</th></tr>{traces}</table>
 <h2>Traces, model and residuals</h2><img alt="fit" style="max-width:100%" src="data:image/png;base64,{img}">

@@ -174,7 +174,12 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
     return out
 
 
-def run_lateral_misalignment(settings: protocol.Settings, beads=(22, 28), fractions=(0.05, 0.10),
+#: Offsets (fractions of the bead's diameter) of the lateral-freedom variant of Fig. 3a-b.
+LATERAL_FRACTIONS = (0.05, 0.10)
+
+
+def run_lateral_misalignment(settings: protocol.Settings, beads=protocol.MISALIGNED_BEADS,
+                             fractions=LATERAL_FRACTIONS,
                              progress: Callable[[str], None] | None = None) -> tuple[dict, dict]:
     """Fig. 3a-b with lateral freedom: chain 2, bead ``b`` offset by ``fraction`` phi_b, on each track of :data:`TRACKS`.
 

@@ -189,7 +189,12 @@ def _analyse_timing(study: ChainStudy, settings: Settings) -> None:
     study.extras.update(v_local=v_local, v_local_beads=beads_v, v_ref=float(growth.v_ref))
 
 
-def run_misalignment(settings: Settings, beads=(22, 28), fractions=(0.0, 0.05, 0.10)) -> dict:
+#: Fig. 3a-b: the beads of chain 2 offset, and their offsets as fractions of the bead's diameter.
+MISALIGNED_BEADS = (22, 28)
+MISALIGNMENT_FRACTIONS = (0.0, 0.05, 0.10)
+
+
+def run_misalignment(settings: Settings, beads=MISALIGNED_BEADS, fractions=MISALIGNMENT_FRACTIONS) -> dict:
     """Fig. 3a-b: chain 2 with bead ``b`` offset perpendicular by e = fraction * phi_b."""
     full = paper_chain("chain2", settings.material)
     law = contact_law(settings, full)
