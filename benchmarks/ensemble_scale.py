@@ -70,8 +70,12 @@ def local_run(path: Path, out: Path) -> dict:
     from hertzchain.sweep import load_sweep
     from hertzchain.sweep.runner import estimate_sweep
 
+    from dataclasses import replace
+
+    from hertzchain.checks import RUNTIME_BYTES
+
     cfg = load_sweep(path)
-    est = estimate_sweep(cfg)
+    est = replace(estimate_sweep(cfg), process_bytes=RUNTIME_BYTES)  # as the sweep's fresh process makes it
     r = timed([str(BIN / "hertzchain"), "sweep", str(path), "--out", str(out), "-q"])
     chunk_bytes = sum(p.stat().st_size for p in (out / "chunks").glob("chunk_*.nc"))
     r.update(members=cfg.n_members, members_per_s=cfg.n_members / r["seconds"], estimate_peak_bytes=est.peak_bytes,

@@ -179,7 +179,10 @@ def test_peak_memory_of_a_sweep_is_within_its_estimate(tmp_path, store):
                              str(tmp_path / "out"), "-q"], stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
     assert os.waitstatus_to_exitcode(status) == 0, proc.stderr.read()
-    ratio = usage.ru_maxrss * 1024 / est.peak_bytes
+    # the estimate the sweep's own (fresh) process makes: its job on top of the engine's runtime
+    from hertzchain.checks import RUNTIME_BYTES
+
+    ratio = usage.ru_maxrss * 1024 / (est.memory_bytes + RUNTIME_BYTES)
     assert 1 / 1.3 <= ratio <= 1.3, (ratio, usage.ru_maxrss * 1024, est)
 
 
