@@ -50,7 +50,7 @@ _EXPORTS = {
     "yield_limit": "theory", "predict_chain": "theory", "nesterenko_force": "theory",
     # pictures of results and sweeps
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
-    "animate": "viz.animation", "plot_metrics": "viz.metrics",
+    "animate": "viz.animation", "plot_metrics": "viz.metrics", "plot_ensemble": "viz.ensemble",
     # the interactive explorer (Panel; the [explore] extra)
     "explore": "explorer",
 }

@@ -484,8 +484,11 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
+    from ..interrupts import latched
+
     # Two searches writing one checkpoint would corrupt each other: the folder is locked (flock).
-    with _folder_lock(out, "design", DesignLocked):
+    # A Ctrl-C is never swallowed by a cleanup between engine calls (hertzchain.interrupts).
+    with _folder_lock(out, "design", DesignLocked), latched():
         saved = _load(out, problem, force)
         try:
             return _run_design(problem, out, client, device, progress, checkpoint_interval, saved)
@@ -662,3 +665,4 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
     pareto = pareto_rows(problem, state.history) if multi else ([best] if best and best["feasible"] else [])
     return DesignResult(problem, best_out, state.history, pareto, state.n_evaluations, state.generation,
                         t_saved + time.perf_counter() - t_start, out, resumed)
+
