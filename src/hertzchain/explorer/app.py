@@ -15,6 +15,7 @@ import panel as pn
 from bokeh.models import ColorBar, ColumnDataSource, LinearColorMapper, Range1d
 from bokeh.plotting import figure
 
+from ..config.schema import BOUNDS
 from ..errors import HertzchainError
 from .ballistic import RATIOS_NOTE
 from .compute import ExplorerView, compute_view
@@ -99,23 +100,25 @@ class Explorer(pn.viewable.Viewer):
             "bead_materials": w.TextInput(label="per-bead materials (empty: all the same)", value=s.bead_materials,
                                           placeholder="e.g. AISI52100 x 28, brass x 2"),
             "gravity": w.FloatInput(label="gravity along the chain [m/s^2] (9.81: a column on the wall)",
-                                    value=s.gravity, start=0.0, step=0.5),
+                                    value=s.gravity, start=0.0, end=BOUNDS["gravity"][1], step=0.5),
             "striker_diameter_mm": w.FloatInput(label="striker diameter [mm]", value=s.striker_diameter_mm,
                                                 start=0.5, end=100.0, step=0.5),
             "striker_velocity": w.FloatInput(label="striker velocity [m/s]", value=s.striker_velocity,
                                              start=0.001, end=10.0, step=0.05),
             "striker_material": w.Select(label="striker material", options=mats, value=s.striker_material),
             "striker_mass": w.FloatInput(label="striker mass [kg] (empty: the sphere's)", value=s.striker_mass,
-                                         start=0.0, step=0.01, placeholder="the sphere's rho pi phi^3 / 6"),
+                                         start=0.0, end=BOUNDS["mass"][1], step=0.01,
+                                         placeholder="the sphere's rho pi phi^3 / 6"),
             "striker_shape": w.Select(label="striker face", options=STRIKER_SHAPES, value=s.striker_shape),
             "wall": w.Select(label="wall", options=WALLS, value=s.wall),
             "wall_material": w.Select(label="wall material (the cap, or the body's face)", options=mats,
                                       value=s.wall_material),
-            "body_mass": w.FloatInput(label="protected body: mass [kg]", value=s.body_mass, start=0.0, step=0.1),
+            "body_mass": w.FloatInput(label="protected body: mass [kg]", value=s.body_mass, start=0.0,
+                                      end=BOUNDS["mass"][1], step=0.1),
             "body_stiffness": w.FloatInput(label="protected body: mount stiffness [N/m]", value=s.body_stiffness,
-                                           start=0.0, step=1e5),
+                                           start=0.0, end=BOUNDS["stiffness"][1], step=1e5),
             "body_damping": w.FloatInput(label="protected body: mount damping [N s/m]", value=s.body_damping,
-                                         start=0.0, step=10.0),
+                                         start=0.0, end=BOUNDS["damping"][1], step=10.0),
             "law": w.Select(label="contact law", options=LAWS, value=s.law),
             "eps": w.FloatSlider(label="per-bead factor eps (Sec. III)", start=0.9, end=1.0, step=0.001, value=s.eps,
                                  format="0.000"),
@@ -167,6 +170,7 @@ class Explorer(pn.viewable.Viewer):
         self.body_line = fig.line("t", "force", source=self.body_source, line_width=2, color=_PALETTE[2],
                                   legend_label="body_force (mount to ground)")
         fig.legend.location = "top_left"
+        self.body_legend = fig.legend[0].items[-1]  # shown only with a protected body
         self.wall_fig = fig
 
         self.map_source = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []}, name="map_source")
@@ -203,6 +207,7 @@ class Explorer(pn.viewable.Viewer):
         body = view.body_force is not None
         self.body_source.data = {"t": view.time * 1e3 if body else [], "force": view.body_force if body else []}
         self.body_line.visible = body
+        self.body_legend.visible = body
         x, t, f = view.map_x, view.map_time, view.map_force
         dx = float(x[1] - x[0]) if x.size > 1 else 1.0
         dt = float(t[1] - t[0]) if t.size > 1 else 1e-6
