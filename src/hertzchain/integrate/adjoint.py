@@ -1,0 +1,176 @@
+"""The discrete adjoint of velocity Verlet: gradients of one scalar result with respect to every
+System parameter in one reverse sweep (reverse-mode differentiation of the steps the engine took).
+
+The result J depends on the forces of some steps (the samples it reads, the three steps around
+the wall peak): its partials dJ/dF^(s)_j are the *seeds*. With the step convention of
+:mod:`hertzchain.integrate.tape`, the adjoint of step s maps the adjoints (u', v', a') of
+(u_{s+1}, v_{s+1}, a_{s+1}) to those of (u_s, v_s, a_s):
+
+    a' += h/2 v';  Fbar_j = seed_j + a'_{j+1} / m_{j+1} - a'_j / m_j;
+    u'_j += Fbar_j dF_j/dw, u'_{j+1} -= Fbar_j dF_j/dw;  vpbar_j, vpbar_{j+1} likewise with dF_j/dvrel;
+    vhbar = v' + h u' + vpbar;  a'_s = h/2 (vhbar + vpbar);  v'_s = vhbar;  u'_s = u',
+
+while the parameter adjoints collect Fbar_j dF_j/dtheta_j and a'_i (net force)_i for 1/m_i
+(:mod:`hertzchain.integrate.partials`). The sweep runs group by group backwards: each group of
+blocks is replayed from its checkpoint (:func:`tape.replay_group`), then its steps are
+differentiated in reverse. Cost: about one primal run for the replay and one for the adjoint
+steps, whatever the number of parameters.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .kernels import DELTA_MIN
+from .partials import contact_partials
+from .tape import replay_group
+
+
+@njit(cache=True, nogil=True)
+def _adjoint_steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
+                   d0, de, dx0, rsum, fext, law, general, seed_step, seed_contact, seed_w, ptr, grad):
+    """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse; returns the seed pointer.
+
+    ``grad`` rows: kappa, damping, d0, de, dx0, rsum, fext, inv_mass (adjoints accumulated).
+    Seeds are sorted by step; ``ptr`` is one past the last seed not consumed yet. ``fb`` (zero on
+    entry and exit) receives a step's seeds; ``fs, wb, rb`` are scratch (size P + 1, slot 0 zero).
+    The loops read shifted views (``x1[j]`` for x[j + 1]) so that LLVM vectorises them, and the
+    adjoint of a_{s+1}, a' + h/2 v', is formed where it is read.
+    """
+    n = ab.shape[0]
+    p = ptr
+    gk, gdamp, gd0, gde, gdx0, grs, gfext, ginv = grad[0], grad[1], grad[2], grad[3], grad[4], grad[5], grad[6], grad[7]
+    ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
+    m = n - 1
+    for sl in range(nsteps - 1, -1, -1):
+        s = step0 + sl
+        h = hstore[sl]
+        hh = 0.5 * h
+        q = p
+        while q > 0 and seed_step[q - 1] == s:
+            q -= 1
+            fb[seed_contact[q]] += seed_w[q]
+        u = ustore[sl]
+        u1 = u[1:]
+        if general:
+            vp = vpstore[sl]
+            for j in range(m):
+                f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(u[j], u1[j], vp[j], vp[j + 1], kappa[j],
+                                                                       damping[j], d0[j], de[j], dx0[j], rsum[j], law)
+                fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+                fs1[j] = f
+                wb1[j] = fbar * gw
+                rb1[j] = fbar * gv
+                gk[j] += fbar * gkk
+                gdamp[j] += fbar * ga
+                gd0[j] += fbar * g0
+                gde[j] += fbar * gdd
+                gdx0[j] += fbar * gx
+                grs[j] += fbar * gr
+            for i in range(n):
+                abi = ab[i] + hh * vb[i]
+                ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+                gfext[i] += abi * inv_mass[i]
+                ub[i] += wb1[i] - wb[i]
+                vpb = rb1[i] - rb[i]
+                vh = vb[i] + h * ub[i] + vpb
+                ab[i] = hh * (vh + vpb)
+                vb[i] = vh
+        else:
+            # aligned elastic chain (kernels.step_elastic): F_j = kappa_j delta_j^(3/2)
+            for j in range(m):
+                d = u[j] - u1[j] + d0[j]
+                d = d if d > DELTA_MIN else 0.0
+                sd = np.sqrt(d)
+                fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+                fs1[j] = kappa[j] * d * sd
+                gw = 1.5 * kappa[j] * sd
+                wb1[j] = fbar * gw
+                gk[j] += fbar * d * sd
+                gd0[j] += fbar * gw
+            for i in range(n):
+                abi = ab[i] + hh * vb[i]
+                ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+                gfext[i] += abi * inv_mass[i]
+                ub[i] += wb1[i] - wb[i]
+                vh = vb[i] + h * ub[i]
+                ab[i] = hh * vh
+                vb[i] = vh
+        while p > q:  # clear this step's seeds
+            p -= 1
+            fb[seed_contact[p]] = 0.0
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
+                     seed_step, seed_contact, seed_w, ptr, grad):
+    """The state at t = 0: a_0 = (F(u_0, v_0)_{i-1} - F(u_0, v_0)_i + f_ext,i) / m_i (seeds of step -1)."""
+    n = ab.shape[0]
+    fb = np.zeros(n)
+    p = ptr
+    while p > 0 and seed_step[p - 1] == -1:
+        p -= 1
+        fb[seed_contact[p]] += seed_w[p]
+    fs = np.zeros(n + 1)
+    wb = np.zeros(n + 1)
+    rb = np.zeros(n + 1)
+    for j in range(n - 1):
+        f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(u0[j], u0[j + 1], v0[j], v0[j + 1], kappa[j],
+                                                               damping[j], d0[j], de[j], dx0[j], rsum[j],
+                                                               law if general else 0)
+        fbar = fb[j] + inv_mass[j + 1] * ab[j + 1] - inv_mass[j] * ab[j]
+        fs[j + 1] = f
+        wb[j + 1] = fbar * gw
+        rb[j + 1] = fbar * gv
+        grad[0, j] += fbar * gkk
+        grad[1, j] += fbar * ga
+        grad[2, j] += fbar * g0
+        grad[3, j] += fbar * gdd
+        grad[4, j] += fbar * gx
+        grad[5, j] += fbar * gr
+    for i in range(n):
+        grad[6, i] += ab[i] * inv_mass[i]
+        grad[7, i] += ab[i] * (fs[i] - fs[i + 1] + fext[i])
+        ub[i] += wb[i + 1] - wb[i]
+        vb[i] += rb[i + 1] - rb[i]
+    return p
+
+
+@njit(cache=True, nogil=True)
+def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
+                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows):
+    """The whole reverse sweep: every group replayed and differentiated, last group first, then
+    the initial state. On entry ``ub, vb, ab`` hold the seeds on the final state (usually zero);
+    on exit the adjoints of (u_0, v_0, a_0), and ``grad`` the parameter gradients (rows as in
+    :func:`_adjoint_steps`). ``max_rows``: most steps in one group."""
+    n = ab.shape[0]
+    u = np.zeros(n + 1)
+    v = np.zeros(n + 1)
+    a = np.zeros(n)
+    g = np.zeros(n + 1)
+    ustore = np.zeros((max_rows, n))
+    vpstore = np.zeros((max_rows if general else 1, n))
+    hstore = np.zeros(max_rows)
+    fb = np.zeros(n)
+    fs = np.zeros(n + 1)
+    wb = np.zeros(n + 1)
+    rb = np.zeros(n + 1)
+    n_groups = (n_blocks + group - 1) // group
+    # global number of the first step of every group
+    starts = np.zeros(n_groups + 1, dtype=np.int64)
+    for b in range(n_blocks):
+        starts[b // group + 1] += ns_log[b]
+    for i in range(n_groups):
+        starts[i + 1] += starts[i]
+    p = seed_step.shape[0]
+    for gi in range(n_groups - 1, -1, -1):
+        b0 = gi * group
+        b1 = min(b0 + group, n_blocks)
+        rows = replay_group(ckpt[gi], u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
+                            wall_slot, ns_log, b0, b1, block, ustore, vpstore, hstore)
+        p = _adjoint_steps(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
+                           damping, d0, de, dx0, rsum, fext, law, general, seed_step, seed_contact, seed_w, p, grad)
+    return _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
+                            seed_step, seed_contact, seed_w, p, grad)
