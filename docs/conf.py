@@ -147,6 +147,7 @@ _GROUP_TITLES = {
     "hertzchain.analysis": "Analysis",
     "hertzchain.theory": "Theory",
     "hertzchain.viz": "Pictures",
+    "hertzchain.gradients": "Sensitivities",
 }
 
 

@@ -36,6 +36,8 @@ _EXPORTS = {
     # design search
     "load_design": "design", "parse_design": "design", "run_design": "design", "write_report": "design",
     "DesignProblem": "design", "DesignResult": "design",
+    # sensitivities (exact derivatives of results by config fields)
+    "sensitivity": "gradients", "Sensitivity": "gradients", "trace_sensitivity": "gradients",
     # dissipation
     "calibrate_law": "dissipation", "measure_eps": "dissipation",
     # measurement, analysis, theory
@@ -48,7 +50,7 @@ _EXPORTS = {
     "yield_limit": "theory", "predict_chain": "theory", "nesterenko_force": "theory",
     # pictures of results and sweeps
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
-    "animate": "viz.animation", "plot_metrics": "viz.metrics",
+    "animate": "viz.animation", "plot_metrics": "viz.metrics", "plot_sensitivity": "viz.sensitivity",
 }
 
 __all__ = ["__version__", *_EXPORTS]

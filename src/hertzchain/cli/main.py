@@ -23,6 +23,7 @@ from .materials import materials
 from .plot import plot
 from .reproduce import reproduce
 from .run import run
+from .sensitivity import sensitivity
 from .sweep import sweep
 
 
@@ -42,6 +43,7 @@ cli.add_command(compare)
 cli.add_command(fit)
 cli.add_command(sweep)
 cli.add_command(design)
+cli.add_command(sensitivity)
 
 
 @user_warnings

@@ -112,9 +112,16 @@ class Sensitivity:
         return {"objective": self.objective, "unit": self.unit, "value": self.value, "mode": self.mode,
                 "n_steps": self.n_steps, "elapsed_s": self.elapsed_s, "notes": list(self.notes),
                 "variables": [{"path": k, "value": self.values.get(k), "unit": self.units[k], "derivative": g,
-                               "derivative_unit": f"{self.unit}/{self.units[k]}",
+                               "derivative_unit": _per(self.unit, self.units[k]),
                                "elasticity": None if math.isnan(rel[k]) else rel[k]}
                               for k, g in self.gradient.items()]}
+
+
+def _per(unit: str, per: str) -> str:
+    """``N`` per ``m/s`` -> ``N/(m/s)``; per ``mm`` -> ``N/mm``."""
+    if per == "1":
+        return unit
+    return f"{unit}/({per})" if any(c in per for c in "/ ^") else f"{unit}/{per}"
 
 
 def _config(config):

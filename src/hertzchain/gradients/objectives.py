@@ -11,8 +11,12 @@ Objectives (SI units; the names of the design objectives mean the same numbers a
 - ``peak_wall_time`` [s]: the time of that vertex;
 - ``time_of_flight`` [s], ``pulse_duration`` [s], ``front_momentum_at_wall`` [N s]: T, tau and Q_F of
   the wall pulse's cos^6 fit (paper Sec. III, :func:`hertzchain.analysis.fit_pulse`), differentiated
-  through the fit's optimality conditions (implicit function theorem) with its window of samples
-  and its baseline's samples held fixed;
+  through the fit's optimality conditions (implicit function theorem). The fit reads the samples
+  with (t - T) / tau in (-1, 0]; as the pulse moves, samples enter and leave that window and the
+  fitted values jump a little once per sample. The derivative is that of the fit with the window's
+  ends moving continuously: the trend through the jumps (with the window held fixed, the slope
+  between two jumps can be half the trend or less). The samples of the baseline (the median
+  before T - 2 tau, zero for a simulated record that starts at rest) are held fixed;
 - ``energy_at_wall`` [J]: the largest elastic energy stored in the bead N - wall contact,
   (2/5) F^(5/3) / kappa^(2/3) at the largest sampled wall force (within ``window``): the energy
   the pulse delivers into the wall's contact;
@@ -233,10 +237,12 @@ def pulse_partials(time: np.ndarray, force: np.ndarray, name: str) -> tuple[floa
     """A quantity of the wall pulse's cos^6 fit and its partials on every sample.
 
     The fit (:func:`hertzchain.analysis.fit_pulse`) minimises the squared residuals
-    r_i = (y_i - b) - F_m cos^6((t_i - T) / tau) over a window W of samples, with b the median of
-    the samples before T - 2 tau. At the optimum sum_i r_i grad m_i = 0; differentiating it with
-    W and the baseline's samples fixed gives dp = H^-1 sum_i grad m_i (dy_i - db), H the exact
-    Hessian (Gauss-Newton term minus sum r_i Hess m_i, the second derivatives by complex step).
+    r_i = (y_i - b) - F_m cos^6((t_i - T) / tau) over the window W of samples with (t - T) / tau in
+    (-1, 0], with b the median of the samples before T - 2 tau. At the optimum G = sum_i r_i grad m_i
+    = 0; differentiating it gives dp = (H - B)^-1 sum_i grad m_i (dy_i - db): H the exact Hessian
+    (Gauss-Newton term minus sum r_i Hess m_i, the second derivatives by complex step), B the
+    motion of the window's ends (r grad m at each end, per sample spacing, times the end's
+    derivative), the baseline's samples fixed.
     Q_F = int (f - b) dt up to T + tau (trapezoids, the split interpolated) then adds its own
     partials on the samples, on b and on the split time.
 
@@ -266,13 +272,25 @@ def pulse_partials(time: np.ndarray, force: np.ndarray, name: str) -> tuple[floa
         raise PulseNotFound("the pulse fit has too few samples to differentiate")
     z = (y[W] - b0) / f_scale
     J = _cos6_jacobian(s[W], p)
-    r = z - p[0] * _cos6_jacobian(s[W], p)[:, 0]
+    r = z - J[:, 0]  # residuals (a = 1: m = cos^6 = dm/da)
     H = J.T @ J
     for k in range(3):
         e = np.zeros(3, complex)
         e[k] = 1j * _STEP
         d2 = _cos6_jacobian(s[W], p + e).imag / _STEP  # d (grad m_i) / d p_k
         H[:, k] -= d2.T @ r
+    # The window (b + w0 c, b + w1 c] follows the fit: as its ends move, samples enter and leave it,
+    # and the values jump once per sample. Differentiated with the ends moving continuously (the
+    # sum over the window as a density of samples, 1 / ds per unit of s): G = sum r_i grad m_i gains
+    # r grad m / ds at each end times the end's motion. This is the slope of the jumps' envelope;
+    # with the window held fixed the slope between two jumps can differ from it by a factor two.
+    ds = float(np.median(np.diff(s)))
+    w0, w1 = -1.0, 0.0  # fit_pulse's default fit_window (loading part, paper Sec. III)
+    for w, sign in ((w1, 1.0), (w0, -1.0)):
+        edge = p[1] + w * p[2]
+        ze = (np.interp(edge, s, y) - b0) / f_scale
+        je = _cos6_jacobian(np.array([edge]), p)[0]
+        H -= sign * np.outer((ze - je[0]) * je, [0.0, 1.0, w]) / ds
     dp_dz = np.linalg.solve(H, J.T)  # (3, |W|): d p / d z_i
     n = t.size
     dp_dy = np.zeros((3, n))
