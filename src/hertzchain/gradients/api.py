@@ -24,8 +24,11 @@ from ..errors import ConfigError
 
 __all__ = ["Sensitivity", "TraceSensitivity", "sensitivity", "trace_sensitivity", "variable_unit"]
 
-#: With at most this many variables ``mode="auto"`` uses the tangent model, else the adjoint.
-TANGENT_MAX_VARIABLES = 2
+#: With at most this many variables ``mode="auto"`` uses the tangent model, else the adjoint. The
+#: adjoint's sweep costs ~3 taped runs for any number of variables; the tangent run ~5 plus ~2.5
+#: per variable (benchmarks/gradient.py): the adjoint wins from one variable on, and the tangent
+#: serves whole signals (:func:`trace_sensitivity`).
+TANGENT_MAX_VARIABLES = 0
 
 
 def variable_unit(path: str) -> str:
@@ -225,7 +228,7 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
         ``"peak_contact_force[j]"``.
     mode : {"auto", "adjoint", "tangent"}
         Reverse mode (one sweep for any number of variables) or forward mode (one tangent per
-        variable); ``"auto"`` takes the tangent for one or two variables.
+        variable); ``"auto"``: the adjoint, cheaper for any number of variables.
     window : (float, float), optional
         Time window [s] of ``energy_at_wall``.
 

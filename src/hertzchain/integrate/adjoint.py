@@ -29,12 +29,13 @@ from .tape import replay_group
 
 @njit(cache=True, nogil=True)
 def _adjoint_steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
-                   d0, de, dx0, rsum, fext, law, general, seed_step, seed_contact, seed_w, ptr, grad):
+                   d0, de, dx0, rsum, fext, law, general, static, seed_step, seed_contact, seed_w, ptr, grad):
     """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse; returns the seed pointer.
 
     ``grad`` rows: kappa, damping, d0, de, dx0, rsum, fext, inv_mass (adjoints accumulated).
     Seeds are sorted by step; ``ptr`` is one past the last seed not consumed yet. ``fb`` (zero on
     entry and exit) receives a step's seeds; ``fs, wb, rb`` are scratch (size P + 1, slot 0 zero).
+    ``static``: the chain is precompressed (d0, f_ext not zero), whose gradients are then kept.
     The loops read shifted views (``x1[j]`` for x[j + 1]) so that LLVM vectorises them, and the
     adjoint of a_{s+1}, a' + h/2 v', is formed where it is read.
     """
@@ -77,7 +78,7 @@ def _adjoint_steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
                 vh = vb[i] + h * ub[i] + vpb
                 ab[i] = hh * (vh + vpb)
                 vb[i] = vh
-        else:
+        elif static:
             # aligned elastic chain (kernels.step_elastic): F_j = kappa_j delta_j^(3/2)
             for j in range(m):
                 d = u[j] - u1[j] + d0[j]
@@ -93,6 +94,24 @@ def _adjoint_steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
                 abi = ab[i] + hh * vb[i]
                 ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
                 gfext[i] += abi * inv_mass[i]
+                ub[i] += wb1[i] - wb[i]
+                vh = vb[i] + h * ub[i]
+                ab[i] = hh * vh
+                vb[i] = vh
+        else:
+            # the same without precompression (d0 = f_ext = 0): no static-load gradients to keep
+            for j in range(m):
+                d = u[j] - u1[j]
+                d = d if d > DELTA_MIN else 0.0
+                sd = np.sqrt(d)
+                fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+                f = kappa[j] * d * sd
+                fs1[j] = f
+                wb1[j] = fbar * 1.5 * kappa[j] * sd
+                gk[j] += fbar * d * sd
+            for i in range(n):
+                abi = ab[i] + hh * vb[i]
+                ginv[i] += abi * (fs[i] - fs1[i])
                 ub[i] += wb1[i] - wb[i]
                 vh = vb[i] + h * ub[i]
                 ab[i] = hh * vh
@@ -158,6 +177,9 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     wb = np.zeros(n + 1)
     rb = np.zeros(n + 1)
     n_groups = (n_blocks + group - 1) // group
+    static = False
+    for i in range(n):
+        static = static or d0[i] != 0.0 or fext[i] != 0.0
     # global number of the first step of every group
     starts = np.zeros(n_groups + 1, dtype=np.int64)
     for b in range(n_blocks):
@@ -171,6 +193,7 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
         rows = replay_group(ckpt[gi], u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
                             wall_slot, ns_log, b0, b1, block, ustore, vpstore, hstore)
         p = _adjoint_steps(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
-                           damping, d0, de, dx0, rsum, fext, law, general, seed_step, seed_contact, seed_w, p, grad)
+                           damping, d0, de, dx0, rsum, fext, law, general, static, seed_step, seed_contact, seed_w, p,
+                           grad)
     return _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
                             seed_step, seed_contact, seed_w, p, grad)

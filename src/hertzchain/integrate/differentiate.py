@@ -251,7 +251,9 @@ def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
     -------
     dict
         ``{name: array}`` for every name of :data:`PARAMETERS`, shaped like the System's array
-        (``v0``: the initial velocities; ``inv_mass``: 1/m [1/kg]).
+        (``v0``: the initial velocities; ``inv_mass``: 1/m [1/kg]). ``d0`` and ``fext`` are zero
+        unless the chain is precompressed (an aligned elastic chain without a static load skips
+        them: nothing moves them there, and the sweep is faster without).
     """
     _check_seeds(tape, seeds)
     w, sy = tape.packed, tape.system

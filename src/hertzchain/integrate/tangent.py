@@ -24,17 +24,76 @@ from .partials import contact_partials
 from .tape import _elastic_block_stored, _general_block, _open_block
 
 
-@njit(cache=True, nogil=True)
-def _tangent_forces(u, vp, ut, vpt, th, dd, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, ft, f):
-    """Tangent forces ft (shifted: ft[j + 1] = F'_j) of direction ``dd`` at state (u, vp); f receives
-    the primal forces (shifted likewise)."""
+@njit(cache=True, nogil=True, inline="always")
+def _partials(us, vps, s, inv_mass, kappa, damping, d0, de, dx0, rsum, law, general, f, gp):
+    """Primal forces f (shifted: f[j + 1] = F_j) and partials of every contact at the state of row s
+    of ``us`` (positions) and ``vps`` (velocities; unused by the aligned elastic law): gp rows dF/dw,
+    dF/dvrel, then dF/dtheta for the parameters kappa, damping, d0, de, dx0, rsum."""
     n = inv_mass.shape[0]
-    for j in range(n - 1):
-        fj, gw, gv, gk, ga, g0, gdd, gx, gr = contact_partials(u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j],
-                                                               d0[j], de[j], dx0[j], rsum[j], law)
-        f[j + 1] = fj
-        ft[j + 1] = (gw * (ut[j] - ut[j + 1]) + gv * (vpt[j] - vpt[j + 1]) + gk * th[0, dd, j] + ga * th[1, dd, j]
-                     + g0 * th[2, dd, j] + gdd * th[3, dd, j] + gx * th[4, dd, j] + gr * th[5, dd, j])
+    if general:
+        for j in range(n - 1):
+            fj, gw, gv, gk, ga, g0, gdd, gx, gr = contact_partials(us[s, j], us[s, j + 1], vps[s, j], vps[s, j + 1],
+                                                                   kappa[j], damping[j], d0[j], de[j], dx0[j],
+                                                                   rsum[j], law)
+            f[j + 1] = fj
+            gp[0, j] = gw
+            gp[1, j] = gv
+            gp[2, j] = gk
+            gp[3, j] = ga
+            gp[4, j] = g0
+            gp[5, j] = gdd
+            gp[6, j] = gx
+            gp[7, j] = gr
+    else:  # aligned elastic (kernels.step_elastic)
+        for j in range(n - 1):
+            d = us[s, j] - us[s, j + 1] + d0[j]
+            d = d if d > kernels.DELTA_MIN else 0.0
+            sd = np.sqrt(d)
+            f[j + 1] = kappa[j] * d * sd
+            gw = 1.5 * kappa[j] * sd
+            gp[0, j] = gw
+            gp[2, j] = d * sd
+            gp[4, j] = gw
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _parameter_forces(gp, th, pf, general):
+    """pf[dd, j] = sum over parameters of dF_j/dtheta theta'_j along direction dd (fixed in a step)."""
+    nd = th.shape[1]
+    n = pf.shape[1]
+    for dd in range(nd):
+        if general:
+            for j in range(n - 1):
+                pf[dd, j] = (gp[2, j] * th[0, dd, j] + gp[3, j] * th[1, dd, j] + gp[4, j] * th[2, dd, j]
+                             + gp[5, j] * th[3, dd, j] + gp[6, j] * th[4, dd, j] + gp[7, j] * th[5, dd, j])
+        else:
+            for j in range(n - 1):
+                pf[dd, j] = gp[2, j] * th[0, dd, j] + gp[4, j] * th[2, dd, j]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _tangent_step(ut, vt, at, ft, vpt, gp, pf, f, th, dd, inv_mass, fext, h, general):
+    """One step of direction ``dd`` (the step's partials in ``gp``, ``pf``). The directions' states
+    are flat arrays (direction dd at offset dd (P + 1)), indexed rather than cut into views: a view
+    costs two atomic reference counts, more than a short loop, and flat indices vectorise."""
+    n = inv_mass.shape[0]
+    o = dd * (n + 1)
+    hh = 0.5 * h
+    for i in range(n):
+        vh = vt[o + i] + hh * at[o + i]
+        ut[o + i] += h * vh
+        vpt[i] = vh + hh * at[o + i]
+        vt[o + i] = vh
+    if general:
+        for j in range(n - 1):
+            ft[o + j + 1] = gp[0, j] * (ut[o + j] - ut[o + j + 1]) + gp[1, j] * (vpt[j] - vpt[j + 1]) + pf[dd, j]
+    else:
+        for j in range(n - 1):
+            ft[o + j + 1] = gp[0, j] * (ut[o + j] - ut[o + j + 1]) + pf[dd, j]
+    for i in range(n):
+        at[o + i] = (inv_mass[i] * (ft[o + i] - ft[o + i + 1] + th[6, dd, i])
+                     + th[7, dd, i] * (f[i] - f[i + 1] + fext[i]))
+        vt[o + i] += hh * at[o + i]
 
 
 @njit(cache=True, nogil=True)
@@ -55,12 +114,12 @@ def tangent_run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, d
     block = interval / n_sub
     adaptive = stride == 0
     ns = stride if not adaptive else int(acc[3])
-    ut = np.zeros((nd, n + 1))
-    vt = np.zeros((nd, n + 1))
-    at = np.zeros((nd, n))
-    ft = np.zeros((nd, n + 1))
+    ut = np.zeros(nd * (n + 1))  # direction dd at offset dd (n + 1)
+    vt = np.zeros(nd * (n + 1))
+    at = np.zeros(nd * (n + 1))
+    ft = np.zeros(nd * (n + 1))
     vpt = np.zeros(n + 1)
-    f = np.zeros(n + 1)
+    f = np.zeros(n + 1)  # primal forces, shifted
     vp = np.zeros_like(v)
     ustore = np.zeros((max_rows, n))
     vpstore = np.zeros((max_rows if general else 1, n))
@@ -69,18 +128,26 @@ def tangent_run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, d
     kstar = np.zeros(1, dtype=np.int64)
     ns_seed = seed_step.shape[0]
     p = 0
-    # t = 0: a_0 from F(u_0, v_0)
+    gp = np.zeros((8, n))
+    pf = np.zeros((nd, n))
+    # t = 0: a_0 from F(u_0, v_0); the elastic path reads no velocity
+    _partials(u.reshape((1, u.size)), v.reshape((1, v.size)), 0, inv_mass, kappa, damping, d0, de, dx0, rsum, lw,
+              general, f, gp)
+    _parameter_forces(gp, th, pf, general)
     for dd in range(nd):
-        vt[dd, :n] = v0t[dd]
-        _tangent_forces(u, v, ut[dd], vt[dd], th, dd, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, lw,
-                        ft[dd], f)
+        o = dd * (n + 1)
         for i in range(n):
-            at[dd, i] = inv_mass[i] * (ft[dd, i] - ft[dd, i + 1] + th[6, dd, i]) + th[7, dd, i] * (f[i] - f[i + 1] + fext[i])
+            vt[o + i] = v0t[dd, i]
+        for j in range(n - 1):
+            ft[o + j + 1] = gp[0, j] * (ut[o + j] - ut[o + j + 1]) + gp[1, j] * (vt[o + j] - vt[o + j + 1]) + pf[dd, j]
+        for i in range(n):
+            at[o + i] = (inv_mass[i] * (ft[o + i] - ft[o + i + 1] + th[6, dd, i])
+                         + th[7, dd, i] * (f[i] - f[i + 1] + fext[i]))
         for r in range(rec.shape[0]):
-            out_ft[dd, 0, r] = ft[dd, rec[r] + 1]
+            out_ft[dd, 0, r] = ft[o + rec[r] + 1]
     while p < ns_seed and seed_step[p] == -1:
         for dd in range(nd):
-            dj[dd] += seed_w[p] * ft[dd, seed_contact[p] + 1]
+            dj[dd] += seed_w[p] * ft[dd * (n + 1) + seed_contact[p] + 1]
         p += 1
     step = 0
     for k in range(1, n_samples):
@@ -100,31 +167,20 @@ def tangent_run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, d
             else:
                 _elastic_block_stored(u, v, a, g, inv_mass, kappa, d0, fext, ns, dt, ustore, hstore, 0)
             for s in range(ns):
-                h = hstore[s]
-                hh = 0.5 * h
-                us = ustore[s]
-                vps = vpstore[s] if general else us  # the elastic law reads no velocity
+                _partials(ustore, vpstore if general else ustore, s, inv_mass, kappa, damping, d0, de, dx0, rsum, lw,
+                          general, f, gp)
+                _parameter_forces(gp, th, pf, general)
                 for dd in range(nd):
-                    for i in range(n):
-                        vh = vt[dd, i] + hh * at[dd, i]
-                        ut[dd, i] += h * vh
-                        vpt[i] = vh + hh * at[dd, i]
-                        vt[dd, i] = vh
-                    _tangent_forces(us, vps, ut[dd], vpt, th, dd, inv_mass, kappa, damping, d0, de, dx0, rsum, fext,
-                                    lw, ft[dd], f)
-                    for i in range(n):
-                        at[dd, i] = (inv_mass[i] * (ft[dd, i] - ft[dd, i + 1] + th[6, dd, i])
-                                     + th[7, dd, i] * (f[i] - f[i + 1] + fext[i]))
-                        vt[dd, i] += hh * at[dd, i]
+                    _tangent_step(ut, vt, at, ft, vpt, gp, pf, f, th, dd, inv_mass, fext, hstore[s], general)
                 while p < ns_seed and seed_step[p] == step + s:
                     for dd in range(nd):
-                        dj[dd] += seed_w[p] * ft[dd, seed_contact[p] + 1]
+                        dj[dd] += seed_w[p] * ft[dd * (n + 1) + seed_contact[p] + 1]
                     p += 1
             step += ns
         for r in range(rec.shape[0]):
             out_f[k, r] = g[rec[r] + 1]
             for dd in range(nd):
-                out_ft[dd, k, r] = ft[dd, rec[r] + 1]
+                out_ft[dd, k, r] = ft[dd * (n + 1) + rec[r] + 1]
         if not np.isfinite(g[1]) or not np.isfinite(v[0]):
             return 1
     return 0

@@ -34,6 +34,13 @@ from . import kernels
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _store(dst, row, src):
+    """dst[row, :] = src[:dst.shape[1]] as an element loop (a slice assignment costs ~100 ns a call)."""
+    for i in range(dst.shape[1]):
+        dst[row, i] = src[i]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt, t0,
                    step, peak, kstar, store, ustore, vpstore, hstore, s0):
     """One block of ``ns`` steps of length ``dt`` after :func:`_open_block`, as ``kernels.verlet_run`` steps it,
@@ -44,8 +51,8 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
         for i in range(n):
             vp[i] = v[i] + half * a[i]
         if store:
-            ustore[s0 + s, :] = u[:n]
-            vpstore[s0 + s, :] = vp[:n]
+            _store(ustore, s0 + s, u)
+            _store(vpstore, s0 + s, vp)
             hstore[s0 + s] = dt
         kernels.forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g)
         before = peak[0]
@@ -82,12 +89,11 @@ def _elastic_block(u, v, a, g, inv_mass, kappa, d0, fext, wall_slot, ns, dt, blo
 @njit(cache=True, nogil=True, inline="always")
 def _elastic_block_stored(u, v, a, g, inv_mass, kappa, d0, fext, ns, dt, ustore, hstore, s0):
     """:func:`_elastic_block` storing every step's positions (no peak tracking: a replay)."""
-    n = a.shape[0]
     for s in range(ns - 1):
-        ustore[s0 + s, :] = u[:n]
+        _store(ustore, s0 + s, u)
         hstore[s0 + s] = dt
         kernels.step_elastic(u, v, a, g, kappa, d0, fext, inv_mass, dt)
-    ustore[s0 + ns - 1, :] = u[:n]
+    _store(ustore, s0 + ns - 1, u)
     hstore[s0 + ns - 1] = dt
     kernels.final_step_elastic(u, v, a, g, kappa, d0, fext, inv_mass, 0.5 * dt)
 
@@ -173,9 +179,10 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
     step counts, storing every step's force-evaluation state (:func:`_general_block`); returns the
     number of steps stored. ``u, v, a, g`` are scratch (overwritten)."""
     n = a.shape[0]
-    u[:n] = ckpt_g[0]
-    v[:n] = ckpt_g[1]
-    a[:] = ckpt_g[2]
+    for i in range(n):
+        u[i] = ckpt_g[0, i]
+        v[i] = ckpt_g[1, i]
+        a[i] = ckpt_g[2, i]
     vp = np.zeros_like(v)
     peak = np.zeros(8)
     kstar = np.zeros(1, dtype=np.int64)
