@@ -52,12 +52,11 @@ def _adjoint_steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
         while q > 0 and seed_step[q - 1] == s:
             q -= 1
             fb[seed_contact[q]] += seed_w[q]
-        u = ustore[sl]
-        u1 = u[1:]
+        # the step's row is indexed, not cut out as a view (a view costs two atomic reference counts)
         if general:
-            vp = vpstore[sl]
             for j in range(m):
-                f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(u[j], u1[j], vp[j], vp[j + 1], kappa[j],
+                f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(ustore[sl, j], ustore[sl, j + 1],
+                                                                       vpstore[sl, j], vpstore[sl, j + 1], kappa[j],
                                                                        damping[j], d0[j], de[j], dx0[j], rsum[j], law)
                 fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
                 fs1[j] = f
@@ -81,7 +80,7 @@ def _adjoint_steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
         elif static:
             # aligned elastic chain (kernels.step_elastic): F_j = kappa_j delta_j^(3/2)
             for j in range(m):
-                d = u[j] - u1[j] + d0[j]
+                d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
                 d = d if d > DELTA_MIN else 0.0
                 sd = np.sqrt(d)
                 fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
@@ -101,7 +100,7 @@ def _adjoint_steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
         else:
             # the same without precompression (d0 = f_ext = 0): no static-load gradients to keep
             for j in range(m):
-                d = u[j] - u1[j]
+                d = ustore[sl, j] - ustore[sl, j + 1]
                 d = d if d > DELTA_MIN else 0.0
                 sd = np.sqrt(d)
                 fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
