@@ -13,7 +13,7 @@ the wall peak): its partials dJ/dF^(s)_j are the *seeds*. With the step conventi
 while the parameter adjoints collect Fbar_j dF_j/dtheta_j and a'_i (net force)_i for 1/m_i
 (:mod:`hertzchain.integrate.partials`). The sweep runs group by group backwards: each group of
 blocks is replayed from its checkpoint (:func:`tape.replay_group`), then its steps are
-differentiated in reverse. Cost: about one primal run for the replay and one for the adjoint
+differentiated in reverse (:func:`_steps_general` and its elastic variants). Cost: about one primal run for the replay and one for the adjoint
 steps, whatever the number of parameters.
 """
 
@@ -27,17 +27,37 @@ from .partials import contact_partials
 from .tape import replay_group
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _take_seeds(s, p, fb, seed_step, seed_contact, seed_w):
+    """Add the seeds of step ``s`` (those just below pointer ``p``) into ``fb``; returns the new pointer."""
+    q = p
+    while q > 0 and seed_step[q - 1] == s:
+        q -= 1
+        fb[seed_contact[q]] += seed_w[q]
+    return q
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _clear_seeds(p, q, fb, seed_contact):
+    """Zero the entries of ``fb`` that the seeds q..p-1 wrote."""
+    while p > q:
+        p -= 1
+        fb[seed_contact[p]] = 0.0
+
+
 @njit(cache=True, nogil=True)
-def _adjoint_steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
-                   d0, de, dx0, rsum, fext, law, general, static, seed_step, seed_contact, seed_w, ptr, grad):
-    """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse; returns the seed pointer.
+def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
+                   d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, ptr, grad):
+    """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse, general forces; returns the seed pointer.
 
     ``grad`` rows: kappa, damping, d0, de, dx0, rsum, fext, inv_mass (adjoints accumulated).
     Seeds are sorted by step; ``ptr`` is one past the last seed not consumed yet. ``fb`` (zero on
     entry and exit) receives a step's seeds; ``fs, wb, rb`` are scratch (size P + 1, slot 0 zero).
-    ``static``: the chain is precompressed (d0, f_ext not zero), whose gradients are then kept.
-    The loops read shifted views (``x1[j]`` for x[j + 1]) so that LLVM vectorises them, and the
-    adjoint of a_{s+1}, a' + h/2 v', is formed where it is read.
+    The loops read shifted views (``x1[j]`` for x[j + 1], made once) so that LLVM vectorises them,
+    the adjoint of a_{s+1}, a' + h/2 v', is formed where it is read, and the stored step is indexed
+    (a row view per step costs two atomic reference counts). The three kinds of steps (this one,
+    :func:`_steps_static`, :func:`_steps_plain`) are compiled apart: one function holding them all
+    compiled each into slower code.
     """
     n = ab.shape[0]
     p = ptr
@@ -45,79 +65,104 @@ def _adjoint_steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
     ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
     m = n - 1
     for sl in range(nsteps - 1, -1, -1):
-        s = step0 + sl
         h = hstore[sl]
         hh = 0.5 * h
-        q = p
-        while q > 0 and seed_step[q - 1] == s:
-            q -= 1
-            fb[seed_contact[q]] += seed_w[q]
-        # the step's row is indexed, not cut out as a view (a view costs two atomic reference counts)
-        if general:
-            for j in range(m):
-                f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(ustore[sl, j], ustore[sl, j + 1],
-                                                                       vpstore[sl, j], vpstore[sl, j + 1], kappa[j],
-                                                                       damping[j], d0[j], de[j], dx0[j], rsum[j], law)
-                fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
-                fs1[j] = f
-                wb1[j] = fbar * gw
-                rb1[j] = fbar * gv
-                gk[j] += fbar * gkk
-                gdamp[j] += fbar * ga
-                gd0[j] += fbar * g0
-                gde[j] += fbar * gdd
-                gdx0[j] += fbar * gx
-                grs[j] += fbar * gr
-            for i in range(n):
-                abi = ab[i] + hh * vb[i]
-                ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
-                gfext[i] += abi * inv_mass[i]
-                ub[i] += wb1[i] - wb[i]
-                vpb = rb1[i] - rb[i]
-                vh = vb[i] + h * ub[i] + vpb
-                ab[i] = hh * (vh + vpb)
-                vb[i] = vh
-        elif static:
-            # aligned elastic chain (kernels.step_elastic): F_j = kappa_j delta_j^(3/2)
-            for j in range(m):
-                d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
-                d = d if d > DELTA_MIN else 0.0
-                sd = np.sqrt(d)
-                fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
-                fs1[j] = kappa[j] * d * sd
-                gw = 1.5 * kappa[j] * sd
-                wb1[j] = fbar * gw
-                gk[j] += fbar * d * sd
-                gd0[j] += fbar * gw
-            for i in range(n):
-                abi = ab[i] + hh * vb[i]
-                ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
-                gfext[i] += abi * inv_mass[i]
-                ub[i] += wb1[i] - wb[i]
-                vh = vb[i] + h * ub[i]
-                ab[i] = hh * vh
-                vb[i] = vh
-        else:
-            # the same without precompression (d0 = f_ext = 0): no static-load gradients to keep
-            for j in range(m):
-                d = ustore[sl, j] - ustore[sl, j + 1]
-                d = d if d > DELTA_MIN else 0.0
-                sd = np.sqrt(d)
-                fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
-                f = kappa[j] * d * sd
-                fs1[j] = f
-                wb1[j] = fbar * 1.5 * kappa[j] * sd
-                gk[j] += fbar * d * sd
-            for i in range(n):
-                abi = ab[i] + hh * vb[i]
-                ginv[i] += abi * (fs[i] - fs1[i])
-                ub[i] += wb1[i] - wb[i]
-                vh = vb[i] + h * ub[i]
-                ab[i] = hh * vh
-                vb[i] = vh
-        while p > q:  # clear this step's seeds
-            p -= 1
-            fb[seed_contact[p]] = 0.0
+        q = _take_seeds(step0 + sl, p, fb, seed_step, seed_contact, seed_w)
+        for j in range(m):
+            f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
+                                                                   vpstore[sl, j + 1], kappa[j], damping[j], d0[j],
+                                                                   de[j], dx0[j], rsum[j], law)
+            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fs1[j] = f
+            wb1[j] = fbar * gw
+            rb1[j] = fbar * gv
+            gk[j] += fbar * gkk
+            gdamp[j] += fbar * ga
+            gd0[j] += fbar * g0
+            gde[j] += fbar * gdd
+            gdx0[j] += fbar * gx
+            grs[j] += fbar * gr
+        for i in range(n):
+            abi = ab[i] + hh * vb[i]
+            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+            gfext[i] += abi * inv_mass[i]
+            ub[i] += wb1[i] - wb[i]
+            vpb = rb1[i] - rb[i]
+            vh = vb[i] + h * ub[i] + vpb
+            ab[i] = hh * (vh + vpb)
+            vb[i] = vh
+        _clear_seeds(p, q, fb, seed_contact)
+        p = q
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _steps_static(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mass, kappa, d0, fext, seed_step,
+                  seed_contact, seed_w, ptr, grad):
+    """:func:`_steps_general` for an aligned elastic chain under a static load (precompression):
+    F_j = kappa_j delta_j^(3/2) (kernels.step_elastic), d0 and f_ext differentiated too."""
+    n = ab.shape[0]
+    p = ptr
+    gk, gd0, gfext, ginv = grad[0], grad[2], grad[6], grad[7]
+    ab1, vb1, im1, fs1, wb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:]
+    m = n - 1
+    for sl in range(nsteps - 1, -1, -1):
+        h = hstore[sl]
+        hh = 0.5 * h
+        q = _take_seeds(step0 + sl, p, fb, seed_step, seed_contact, seed_w)
+        for j in range(m):
+            d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
+            d = d if d > DELTA_MIN else 0.0
+            sd = np.sqrt(d)
+            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fs1[j] = kappa[j] * d * sd
+            gw = 1.5 * kappa[j] * sd
+            wb1[j] = fbar * gw
+            gk[j] += fbar * d * sd
+            gd0[j] += fbar * gw
+        for i in range(n):
+            abi = ab[i] + hh * vb[i]
+            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+            gfext[i] += abi * inv_mass[i]
+            ub[i] += wb1[i] - wb[i]
+            vh = vb[i] + h * ub[i]
+            ab[i] = hh * vh
+            vb[i] = vh
+        _clear_seeds(p, q, fb, seed_contact)
+        p = q
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _steps_plain(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mass, kappa, seed_step, seed_contact,
+                 seed_w, ptr, grad):
+    """:func:`_steps_static` without a static load (d0 = f_ext = 0: their gradients are not kept)."""
+    n = ab.shape[0]
+    p = ptr
+    gk, ginv = grad[0], grad[7]
+    ab1, vb1, im1, fs1, wb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:]
+    m = n - 1
+    for sl in range(nsteps - 1, -1, -1):
+        h = hstore[sl]
+        hh = 0.5 * h
+        q = _take_seeds(step0 + sl, p, fb, seed_step, seed_contact, seed_w)
+        for j in range(m):
+            d = ustore[sl, j] - ustore[sl, j + 1]
+            d = d if d > DELTA_MIN else 0.0
+            sd = np.sqrt(d)
+            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fs1[j] = kappa[j] * d * sd
+            wb1[j] = fbar * 1.5 * kappa[j] * sd
+            gk[j] += fbar * d * sd
+        for i in range(n):
+            abi = ab[i] + hh * vb[i]
+            ginv[i] += abi * (fs[i] - fs1[i])
+            ub[i] += wb1[i] - wb[i]
+            vh = vb[i] + h * ub[i]
+            ab[i] = hh * vh
+            vb[i] = vh
+        _clear_seeds(p, q, fb, seed_contact)
+        p = q
     return p
 
 
@@ -162,7 +207,7 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     """The whole reverse sweep: every group replayed and differentiated, last group first, then
     the initial state. On entry ``ub, vb, ab`` hold the seeds on the final state (usually zero);
     on exit the adjoints of (u_0, v_0, a_0), and ``grad`` the parameter gradients (rows as in
-    :func:`_adjoint_steps`). ``max_rows``: most steps in one group."""
+    :func:`_steps_general`). ``max_rows``: most steps in one group."""
     n = ab.shape[0]
     u = np.zeros(n + 1)
     v = np.zeros(n + 1)
@@ -191,8 +236,14 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
         b1 = min(b0 + group, n_blocks)
         rows = replay_group(ckpt[gi], u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
                             wall_slot, ns_log, b0, b1, block, ustore, vpstore, hstore)
-        p = _adjoint_steps(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
-                           damping, d0, de, dx0, rsum, fext, law, general, static, seed_step, seed_contact, seed_w, p,
-                           grad)
+        if general:
+            p = _steps_general(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
+                               damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad)
+        elif static:
+            p = _steps_static(rows, ustore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, inv_mass, kappa, d0, fext,
+                              seed_step, seed_contact, seed_w, p, grad)
+        else:
+            p = _steps_plain(rows, ustore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, inv_mass, kappa, seed_step,
+                             seed_contact, seed_w, p, grad)
     return _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
                             seed_step, seed_contact, seed_w, p, grad)

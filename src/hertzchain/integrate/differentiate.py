@@ -341,12 +341,10 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
     out_ft = np.zeros((n_dirs, n_samples, rec.size))
     dj = np.zeros(n_dirs)
     seeds = seeds or Seeds.build([])
-    block = sample_interval / plan.n_sub
-    max_rows = plan.stride if plan.stride > 0 else int(math.ceil(block / plan.dt - 1e-9)) + 1
     status = _tangent.tangent_run(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
                                   w.dcap, system.law, system.general, w.wall_slot, sample_interval, plan.stride,
                                   plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, acc, th, v0t, rec,
-                                  out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj, max_rows)
+                                  out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj)
     if status != 0:
         raise SimulationDiverged("the integration diverged (non-finite state); check the inputs")
     return rec, out_f, out_ft, dj

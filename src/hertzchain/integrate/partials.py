@@ -42,7 +42,7 @@ def elastic_partials(d, sd, rate, kappa, damping):
 @njit(cache=True, nogil=True, inline="always")
 def viscoelastic_partials(d, sd, rate, kappa, damping):
     """Kuwabara-Kono: f = kappa (delta^(3/2) + A delta^(1/2) d(delta)/dt), clipped at zero."""
-    f = kappa * (d * sd + damping * sd * rate)
+    f = kappa * d * sd + kappa * damping * sd * rate  # the expression of kernels.forces_general
     if f <= 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0
     fd = kappa * (1.5 * sd + 0.5 * damping * rate / sd) if sd > 0.0 else 0.0
@@ -60,7 +60,10 @@ def dashpot_partials(d, sd, rate, kappa, damping):
 
 @njit(cache=True, nogil=True, inline="always")
 def law_partials(law, d, sd, rate, kappa, damping):
-    """(f, df/d delta, df/d rate, df/d kappa, df/d damping) of contact law ``law`` (LAW_CODES)."""
+    """(f, df/d delta, df/d rate, df/d kappa, df/d damping) of contact law ``law`` (LAW_CODES).
+
+    f is computed with the very expression of ``kernels.forces_general``, so that a step taken with
+    these forces is the engine's step bit for bit (:mod:`hertzchain.integrate.tangent`)."""
     if law == LAW_ELASTIC:
         return elastic_partials(d, sd, rate, kappa, damping)
     if law == LAW_VISCOELASTIC:
