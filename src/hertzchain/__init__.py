@@ -21,6 +21,7 @@ _EXPORTS = {
     "Material": "materials", "CATALOGUE": "materials", "get_material": "materials",
     "register_material": "materials",
     "Elastic": "contact", "Viscoelastic": "contact", "ScaledViscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
+    "Elastoplastic": "contact",
     "yield_force": "contact",
     "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain",
     "Striker": "model", "Wall": "model", "Model": "model",

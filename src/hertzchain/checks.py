@@ -274,7 +274,7 @@ def check_energy_balance(time: np.ndarray, kinetic: np.ndarray, potential: np.nd
     time : numpy.ndarray
         Sample times [s].
     kinetic, potential, dissipated : numpy.ndarray
-        Energies [J] at the samples.
+        Energies [J] at the samples (``dissipated``: every loss, viscous and plastic).
     tolerance : float
         Allowed relative gain.
     cause : str
@@ -368,7 +368,7 @@ def energy_cause(model, dt: float | None, integrator: str = "verlet") -> str:
     if dt is not None:
         return f"the time step run.dt = {dt:g} s is too large for this model; lower it or leave it out"
     law = model.law.name
-    if law in ("dashpot", "viscoelastic"):
+    if law in ("dashpot", "viscoelastic") or (law == "elastoplastic" and model.law.parameter > 0):
         key = "contact.gamma" if law == "dashpot" else "contact.A"
         return (f"the automatic step could not follow the damping of {key} = {model.law.parameter:g}; "
                 "lower it or give a smaller run.dt")
@@ -402,14 +402,19 @@ def check_after_run(ds, model, system, *, dt: float | None = None, integrator: s
         The run gained energy (see :func:`check_energy_balance`).
     """
     tolerance = energy_tolerance(system, float(ds.attrs.get("dt_max") or ds.attrs["dt"]), integrator, rtol)
+    lost = ds.dissipated_energy.values
+    if "plastic_work" in ds:  # the elastoplastic law: plastic work is energy lost too
+        lost = lost + ds.plastic_work.values
     check_energy_balance(ds.time.values, ds.kinetic_energy.values, ds.potential_energy.values,
-                         ds.dissipated_energy.values, tolerance=tolerance, cause=energy_cause(model, dt, integrator))
+                         lost, tolerance=tolerance, cause=energy_cause(model, dt, integrator))
 
     nc = system.n_contacts
     fmax = ds.max_contact_force.values
     kap = system.kappa[:nc]
     with np.errstate(divide="ignore", invalid="ignore"):
         overlap = np.where(kap > 0, (np.maximum(fmax, 0.0) / np.where(kap > 0, kap, 1.0)) ** (2.0 / 3.0), 0.0)
+    if "max_overlap" in ds:  # past yield the overlap is deeper than Hertz's at that force
+        overlap = np.maximum(overlap, ds.max_overlap.values)
     ratio = overlap / _smaller_radius(model)[:nc]
     if ratio.size and ratio.max() > HERTZ_MAX_OVERLAP:
         j = int(np.argmax(ratio))

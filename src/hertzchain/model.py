@@ -17,7 +17,7 @@ from typing import Literal
 import numpy as np
 
 from .chain import Chain
-from .contact import LAW_CODES, Dashpot, Elastic, ScaledViscoelastic, Viscoelastic
+from .contact import LAW_CODES, Dashpot, Elastic, Elastoplastic, ScaledViscoelastic, Viscoelastic
 from .errors import ConfigError
 from .materials import Material, get_material
 
@@ -121,15 +121,34 @@ class System:
         """True when the slower general force loop is needed (dissipation or offsets)."""
         return self.law != 0 or self.misaligned
 
+    def yield_overlap(self) -> np.ndarray:
+        """Overlap delta_y [m] at which every contact reaches its elastic limit, (N+1,).
+
+        F_Y = kappa delta_y^(3/2) (:func:`hertzchain.contact.yield_force`, Thornton's F_y with
+        p_y = 1.5 sigma_Y); inf where no yield stress is given or there is no contact.
+        """
+        kap = self.kappa
+        ok = (kap > 0) & np.isfinite(self.yield_force)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(ok, (self.yield_force / np.where(ok, kap, 1.0)) ** (2.0 / 3.0), np.inf)
+
     def max_overlap(self) -> np.ndarray:
         """Upper bound of every contact's overlap [m] over the whole run, (N+1,).
 
         All the energy available (striker kinetic energy + precompression energy) put into one
         contact: (2/5) kappa delta^(5/2) <= E, plus the static overlap d0. Contacts with kappa = 0
-        (no wall) get 0.
+        (no wall) get 0. For the elastic-plastic law the energy goes along Thornton's loading
+        curve (softer than Hertz past the yield overlap, so deeper), and the precompression
+        energy counted is the work along it.
         """
         energy = 0.5 * self.mass[0] * self.v0[0] ** 2
         kap = self.kappa
+        if self.law == LAW_CODES["elastoplastic"]:
+            from .contact import thornton_loading_overlap, thornton_loading_work
+
+            dy = self.yield_overlap()
+            energy += float(np.sum(np.where(kap > 0, thornton_loading_work(self.d0, kap, dy), 0.0)))
+            return thornton_loading_overlap(energy, kap, dy) + self.d0
         energy += float(np.sum(0.4 * kap * self.d0**2.5))
         with np.errstate(divide="ignore"):
             return np.where(kap > 0, (2.5 * energy / np.where(kap > 0, kap, 1.0)) ** 0.4, 0.0) + self.d0
@@ -142,7 +161,8 @@ class System:
         """
         if self.law == LAW_CODES["dashpot"]:
             return np.where(self.kappa > 0, self.damping, 0.0)
-        if self.law == LAW_CODES["viscoelastic"]:
+        if self.law in (LAW_CODES["viscoelastic"], LAW_CODES["elastoplastic"]):
+            # elastic-plastic: A kappa_p (delta - delta_p)^(1/2) <= A kappa delta^(1/2)
             return self.kappa * self.damping * np.sqrt(np.maximum(overlap, 0.0))
         return np.zeros_like(self.kappa)
 
@@ -196,8 +216,8 @@ class Model:
     wall
         The end condition (default: immovable flat of the chain's material).
     law
-        Contact law: :class:`Elastic` (paper eq. 1), :class:`Viscoelastic`, :class:`ScaledViscoelastic`
-        or :class:`Dashpot`.
+        Contact law: :class:`Elastic` (paper eq. 1), :class:`Viscoelastic`, :class:`ScaledViscoelastic`,
+        :class:`Dashpot` or :class:`Elastoplastic` (Thornton 1997).
     precompression
         Static force [N] squeezing beads 1..N against the wall before impact (0 = the paper's
         "barely touching" chain). Needs a wall.
@@ -206,7 +226,7 @@ class Model:
     chain: Chain
     striker: Striker = field(default_factory=Striker)
     wall: Wall = field(default_factory=Wall)
-    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot = field(default_factory=Elastic)
+    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | Elastoplastic = field(default_factory=Elastic)
     precompression: float = 0.0
 
     def __post_init__(self) -> None:
@@ -288,6 +308,13 @@ class Model:
         if self.precompression > 0:
             d0[1:] = (self.precompression / kappa[1:]) ** (2.0 / 3.0)
             fext[1] = self.precompression
+            if self.law.name == "elastoplastic":
+                # statically loaded along Thornton's loading curve: past F_Y the line F_y + slope (d - dy)
+                with np.errstate(invalid="ignore"):
+                    dy = (fy[1:] / kappa[1:]) ** (2.0 / 3.0)
+                    over = self.precompression > fy[1:]
+                    plastic = dy + (self.precompression - fy[1:]) / (1.5 * kappa[1:] * np.sqrt(dy))
+                d0[1:] = np.where(over, plastic, d0[1:])
 
         e = np.concatenate([[0.0], self.chain.offsets, [0.0]])
         de = np.diff(e)
@@ -313,6 +340,12 @@ class Model:
                        reference_material=self.law.material.name)
         elif self.law.name == "dashpot":
             law["gamma"] = self.law.gamma
+        elif self.law.name == "elastoplastic":
+            from .contact import LIMITING_PRESSURE_FACTOR
+
+            law.update(A=self.law.A, limiting_pressure_over_yield_stress=LIMITING_PRESSURE_FACTOR)
+            if self.law.diameter is not None:
+                law.update(reference_diameter_mm=self.law.diameter * 1e3, reference_material=self.law.material.name)
         return {
             "chain": self.chain.describe(),
             "striker": {"diameter_mm": self.striker.diameter * 1e3, "velocity": self.striker.velocity,

@@ -35,13 +35,16 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "contact_force": ("N", "contact force F_j between body j and body j+1 (paper eq. 1)"),
     "kinetic_energy": ("J", "kinetic energy of striker and beads"),
     "potential_energy": ("J", "Hertz potential energy sum (2/5) kappa delta^(5/2) (minus external work)"),
-    "dissipated_energy": ("J", "energy dissipated by the contact law"),
+    "dissipated_energy": ("J", "energy dissipated by the contact law (viscous part)"),
+    "plastic_work": ("J", "plastic work done in the contacts (elastoplastic law, Thornton 1997)"),
     "diameter": ("m", "bead diameter phi_n"),
     "mass": ("kg", "bead mass rho pi phi^3 / 6"),
     "offset": ("m", "perpendicular offset e_n of the bead centre"),
     "kappa": ("N m-1.5", "Hertz constant kappa_j of the contact"),
     "yield_force": ("N", "elastic limit F_Y of the contact (mean pressure = sigma_Y, paper Sec. II)"),
     "max_contact_force": ("N", "largest sampled force of every contact, stored or not"),
+    "max_overlap": ("m", "largest overlap every contact reached (elastoplastic law)"),
+    "residual_overlap": ("m", "permanent (residual) overlap of every contact at the end (elastoplastic law)"),
     "wall_force": ("N", "force on the wall sensor (contact N)"),
     "sensor_force": ("N", "force read by the sensor embedded in the bead, (F_{n-1} + F_n)/2"),
     "velocity": ("m s-1", "velocity of body (0 = striker)"),
@@ -105,6 +108,10 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "yield_force": (("contact_all",), system.yield_force[:nc]),
         "max_contact_force": (("contact_all",), raw.max_force),
     }
+    if raw.plastic_work is not None:
+        arrays["plastic_work"] = (("time",), raw.plastic_work)
+        arrays["max_overlap"] = (("contact_all",), raw.max_overlap)
+        arrays["residual_overlap"] = (("contact_all",), raw.residual_overlap)
     if model.wall.present:
         arrays["wall_force"] = (("time",), raw.contact_force[:, np.searchsorted(raw.contacts, n)])
     if probes.sensors:
@@ -148,6 +155,9 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "conventions": CONVENTIONS,
     }
+    if raw.plastic_work is not None:
+        attrs["plastic_work"] = float(raw.plastic_work[-1])
+        attrs["residual_overlap_max"] = float(raw.residual_overlap.max()) if raw.residual_overlap.size else 0.0
     attrs.update(extra_attrs or {})
     return RunFields(data, coords, attrs)
 

@@ -202,9 +202,17 @@ def elastic_limit_message(ds: xr.Dataset, where: str = "") -> str | None:
             f"{ratio[worst]:.2f} x F_Y. Beads would yield plastically: lower the striker velocity")
 
 
+def _law_name(ds) -> str | None:
+    """The contact law's name in a result's ``model`` attribute (None when not readable)."""
+    try:
+        return json.loads(ds.attrs["model"])["contact"]["law"]
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
 def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> None:
     """Warn (ElasticLimitWarning, :func:`elastic_limit_message`) when the result records forces
-    past the elastic limit.
+    past the elastic limit of an elastic or viscous law (the elastoplastic law models the yield).
 
     Parameters
     ----------
@@ -215,8 +223,8 @@ def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> 
     stacklevel : int
         Passed on to :func:`warnings.warn`.
     """
-    if not ds.attrs.get("elastic_limit_exceeded", 1):
-        return
+    if not ds.attrs.get("elastic_limit_exceeded", 1) or _law_name(ds) == "elastoplastic":
+        return  # the elastoplastic law models the yield: nothing to warn about
     msg = elastic_limit_message(ds, where)
     if msg:
         warnings.warn(ElasticLimitWarning(msg), stacklevel=stacklevel + 1)

@@ -163,7 +163,8 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
     Raises
     ------
     ConfigError
-        A bad input (precompression, integrator, track) or records that cannot fit in memory.
+        A bad input (precompression, the elastoplastic law, integrator, track) or records that cannot
+        fit in memory.
     SimulationDiverged
         The integration became non-finite or gained energy (:mod:`hertzchain.checks`).
 
@@ -179,6 +180,9 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
         raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     if model.precompression > 0:
         raise ConfigError("chain.precompression", "is not supported with lateral freedom")
+    if model.law.name == "elastoplastic":
+        raise ConfigError("contact.law", "the elastoplastic law is not supported with lateral freedom (its "
+                          "per-contact history is carried by the axial engine only); run it without [track]")
     system = model.system()
     probes.validate(model.chain.n_beads, model.wall.present)
     if integrator not in ("verlet", "dop853"):

@@ -165,7 +165,7 @@ def build_model(cfg: RunConfig, chain=None):
     Model
         Chain, striker, wall and contact law in SI units (diameters [m], speeds [m/s]).
     """
-    from ..contact import Dashpot, Elastic, ScaledViscoelastic, Viscoelastic
+    from ..contact import Dashpot, Elastic, Elastoplastic, ScaledViscoelastic, Viscoelastic
     from ..model import Model, Striker, Wall
 
     if chain is None:
@@ -179,6 +179,8 @@ def build_model(cfg: RunConfig, chain=None):
     k = cfg.contact
     if k.law == "elastic":
         law: Any = Elastic()
+    elif k.law == "elastoplastic":
+        law = Elastoplastic(k.A or 0.0)
     elif k.eps is not None:
         from ..dissipation import calibrate_law
 

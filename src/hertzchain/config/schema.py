@@ -139,9 +139,10 @@ class WallConfig(_Section):
 
 
 class ContactConfig(_Section):
-    """``[contact]``: law and either its parameter (A [s] or gamma [N s/m]) or a target ``eps``."""
+    """``[contact]``: law and either its parameter (A [s] or gamma [N s/m]) or a target ``eps``;
+    ``elastoplastic`` (Thornton) takes an optional viscous A (default 0)."""
 
-    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot"] = "elastic"
+    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot", "elastoplastic"] = "elastic"
     eps: float | None = Field(default=None, gt=0, le=1, description="per-bead factor of the paper")
     A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s "
                                   "(viscoelastic_scaled: between two beads like the chain's first)")
@@ -152,6 +153,11 @@ class ContactConfig(_Section):
         if self.law == "elastic" and (self.A is not None or self.gamma is not None or
                                       (self.eps is not None and self.eps != 1.0)):
             raise ValueError("the elastic law takes no A, gamma or eps < 1; set law = 'viscoelastic' or 'dashpot'")
+        if self.law == "elastoplastic":
+            if self.gamma is not None or self.eps is not None:
+                raise ValueError("law 'elastoplastic' takes an optional A (s, the viscous term on top of Thornton's "
+                                 "plastic contact), not gamma or eps")
+            return self
         own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma"}.get(self.law)
         if own is not None:
             other = "gamma" if own == "A" else "A"

@@ -46,6 +46,7 @@ import numpy as np
 import xarray as xr
 
 from ..checks import _smaller_radius, smaller_radii, warn_members_hertz_range, warn_members_pulse_not_reached
+from ..contact import LAW_CODES
 from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
@@ -265,6 +266,9 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     from . import cuda as _cuda
 
     _cuda.check_device(device)
+    if device == "cuda" and not isinstance(models, Ensemble):
+        _cuda.refuse_elastoplastic([LAW_CODES.get(getattr(getattr(m, "law", None), "name", None), -1)
+                                    for m in models])
     ens = None
     if isinstance(models, Ensemble):
         ens = models

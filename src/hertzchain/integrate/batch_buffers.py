@@ -57,6 +57,7 @@ class _Packed:
     out_ke: np.ndarray
     out_pe: np.ndarray
     out_ed: np.ndarray
+    out_wp: np.ndarray
     out_v: np.ndarray
     v_off: np.ndarray
     v_rows: np.ndarray
@@ -73,6 +74,9 @@ class _Packed:
 
 
 _NAMES = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
+#: Per-slot arrays of the elastic-plastic law (yield overlap and per-contact state, see
+#: ``layout.Packed``): full size only in a batch with an elastic-plastic member, else empty.
+_STATE = ("dyield", "dmax", "dres", "kres")
 
 
 def _slot_sizes(n_slots: np.ndarray) -> np.ndarray:
@@ -84,10 +88,12 @@ def _slot_sizes(n_slots: np.ndarray) -> np.ndarray:
 
 def _outputs(interval: float, n_samples: int, n_slots: np.ndarray, nrec: np.ndarray, rec: np.ndarray,
              nb: np.ndarray, record_v: np.ndarray, n_contacts: np.ndarray, slot_order: np.ndarray | None = None,
-             **members) -> _Packed:
+             plastic: bool = False, **members) -> _Packed:
     """Offsets and zeroed buffers of a batch (member m owns :func:`_slot_sizes` slots from
     ``off[m]``). The members' slots follow one another in the order ``slot_order`` (default: the
-    members' own); every other buffer is in the members' order."""
+    members' own); every other buffer is in the members' order. With ``plastic`` (a member has
+    the elastic-plastic law) the _STATE buffers and the plastic-work samples are allocated in
+    full, else empty (the kernel never reads them)."""
     nmem = n_slots.size
     sizes = _slot_sizes(n_slots)
     if slot_order is None:
@@ -99,6 +105,7 @@ def _outputs(interval: float, n_samples: int, n_slots: np.ndarray, nrec: np.ndar
         off[nmem] = starts[-1]  # the buffers' length
     total = int(off[-1])
     flat = {k: _aligned_zeros(total) for k in _NAMES + ("u", "v", "g", "a")}
+    flat.update({k: _aligned_zeros(total if plastic else 0) for k in _STATE})
     rec_off = np.concatenate([[0], np.cumsum(nrec)]).astype(np.int64)
     f_off = np.concatenate([[0], np.cumsum(nrec * n_samples)]).astype(np.int64)
     v_rows = np.where(record_v, n_samples, 1).astype(np.int64)
@@ -107,7 +114,8 @@ def _outputs(interval: float, n_samples: int, n_slots: np.ndarray, nrec: np.ndar
     return _Packed(interval=interval, n_samples=n_samples, flat=flat, off=off, n_slots=n_slots, rec=rec,
                    rec_off=rec_off, nrec=nrec, out_f=np.empty(int(f_off[-1])), f_off=f_off,
                    out_ke=np.empty((nmem, n_samples)), out_pe=np.empty((nmem, n_samples)),
-                   out_ed=np.empty((nmem, n_samples)), out_v=np.empty(int(v_off[-1])), v_off=v_off, v_rows=v_rows,
+                   out_ed=np.empty((nmem, n_samples)), out_wp=np.zeros((nmem, n_samples if plastic else 1)),
+                   out_v=np.empty(int(v_off[-1])), v_off=v_off, v_rows=v_rows,
                    nb=nb, record_v=record_v, fmax=np.zeros(int(fmax_off[-1])), fmax_off=fmax_off,
                    # Written every step: one cache line (8 doubles) per member (see ``sizes``).
                    peak=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE),

@@ -28,8 +28,9 @@ CHUNK_SLOT_STEPS = 2e8
 
 @njit(parallel=True, cache=True)
 def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap,
-                  law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed,
-                  out_v, v_off, v_rows, nbody, record_v, fmax, fmax_off, peak, acc, status):
+                  dyield, dmax, dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax,
+                  k_start, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_wp, out_v, v_off, v_rows,
+                  nbody, record_v, fmax, fmax_off, peak, acc, status):
     """Advance every member from sample ``k_start`` to ``k_stop`` with :func:`kernels.verlet_run`.
 
     Member m owns the slots from ``off[m]`` of the body/contact buffers (``P + 1`` slots,
@@ -41,7 +42,8 @@ def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, dampin
     ``out_v[v_off[m]:v_off[m+1]]`` seen as (v_rows[m], nbody[m] = N + 1). Members are visited in
     the order ``order`` (most expensive first, so that dynamic scheduling does not leave one long
     member for the end). ``status[m]`` is the kernel's return value; a member that diverged is
-    not advanced again.
+    not advanced again. The elastic-plastic buffers (``dyield`` ... ``kres``, ``out_wp``) are
+    empty in a batch without such a member: their slices are then empty and never read.
     """
     nk = out_ke.shape[1]
     for i in prange(order.shape[0]):
@@ -57,10 +59,11 @@ def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, dampin
         status[m] = kernels.verlet_run(u[s:s + p + 1], v[s:s + p + 1], a[s:s + p], g[s:s + p + 1], mass[s:s + p],
                                        inv_mass[s:s + p], kappa[s:s + p], damping[s:s + p], d0[s:s + p],
                                        de[s:s + p], dx0[s:s + p], rsum[s:s + p], fext[s:s + p], dcap[s:s + p],
+                                       dyield[s:s + p], dmax[s:s + p], dres[s:s + p], kres[s:s + p],
                                        law[m], general[m], wall_slot[m], interval, stride[m], n_sub[m], n_eval[m],
                                        c_steps[m], relax[m], k_start, k_stop, rec[r0:r1], f, out_ke[m], out_pe[m],
-                                       out_ed[m], vv, record_v[m], fmax[fmax_off[m]:fmax_off[m + 1]], peak[m],
-                                       acc[m])
+                                       out_ed[m], out_wp[m], vv, record_v[m], fmax[fmax_off[m]:fmax_off[m + 1]],
+                                       peak[m], acc[m])
 
 
 # The workqueue threading layer (the one available without TBB/OpenMP) aborts the process when two
@@ -96,10 +99,11 @@ def _engine(pk: _Packed, progress, n_threads) -> None:
                 with numba.parallel_chunksize(1):
                     _batch_kernel(order, pk.off, pk.n_slots, flat["u"], flat["v"], flat["a"], flat["g"], flat["mass"],
                                   flat["inv_mass"], flat["kappa"], flat["damping"], flat["d0"], flat["de"],
-                                  flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], pk.law, pk.general,
+                                  flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], flat["dyield"],
+                                  flat["dmax"], flat["dres"], flat["kres"], pk.law, pk.general,
                                   pk.wall_slot, interval, pk.stride, pk.n_sub, pk.n_eval, pk.c_steps, pk.relax, k,
                                   k_stop, pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed,
-                                  pk.out_v, pk.v_off, pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak,
+                                  pk.out_wp, pk.out_v, pk.v_off, pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak,
                                   pk.acc, status)
             finally:
                 numba.set_num_threads(previous)

@@ -25,7 +25,7 @@ from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
 from . import kernels, verlet
-from .batch_buffers import _NAMES, _Packed, _member_forces, _member_velocities, _outputs, _slot_sizes
+from .batch_buffers import _NAMES, _STATE, _Packed, _member_forces, _member_velocities, _outputs, _slot_sizes
 from .ensemble import Ensemble, layout_key
 from .layout import PAD, pack
 from .ragged import Ragged, ragged
@@ -47,7 +47,8 @@ class _Member:
 def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Packed:
     """A batch of arbitrary models, member by member (see :func:`_pack_ensemble` for the fast path)."""
     packs = [pack(mb.system) for mb in members]
-    pk = _outputs(interval, n_samples, n_slots=np.array([w.n_slots for w in packs], dtype=np.int64),
+    plastic = any(mb.system.law == kernels.LAW_ELASTOPLASTIC for mb in members)
+    pk = _outputs(interval, n_samples, plastic=plastic, n_slots=np.array([w.n_slots for w in packs], dtype=np.int64),
                   nrec=np.array([mb.rec.size for mb in members], dtype=np.int64),
                   rec=np.concatenate([mb.rec for mb in members]).astype(np.int64),
                   nb=np.array([mb.system.n_beads + 1 for mb in members], dtype=np.int64),
@@ -65,7 +66,7 @@ def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Pa
     flat = pk.flat
     for m, w in enumerate(packs):
         s, p = pk.off[m], w.n_slots
-        for k in _NAMES:
+        for k in _NAMES + (_STATE if plastic else ()):
             flat[k][s:s + p] = getattr(w, k)
         flat["u"][s:s + p + 1] = w.u
         flat["v"][s:s + p + 1] = w.v
@@ -73,9 +74,12 @@ def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Pa
     for m, (mb, w) in enumerate(zip(members, packs)):
         s, p = pk.off[m], w.n_slots
         u, v, g, a = (flat["u"][s:s + p + 1], flat["v"][s:s + p + 1], flat["g"][s:s + p + 1], flat["a"][s:s + p])
+        if plastic:  # the state the kernel carries is the batch's buffers, not the pack's copies
+            for k in _STATE:
+                setattr(w, k, flat[k][s:s + p])
         initialise(mb.system, w, u, v, g, a, mb.rec, _member_forces(pk, m),
                    pk.out_ke[m], pk.out_pe[m], pk.out_ed[m], _member_velocities(pk, m), mb.record_v,
-                   pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], pk.peak[m], pk.acc[m])
+                   pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], pk.peak[m], pk.acc[m], pk.out_wp[m])
     return pk
 
 
@@ -90,9 +94,10 @@ def _init_kernel(off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, d
         p = n_slots[m]
         uu, vv, gg, aa = u[s:s + p + 1], v[s:s + p + 1], g[s:s + p + 1], a[s:s + p]
         power0 = 0.0
-        if general[m]:
+        if general[m]:  # never the elastic-plastic law (set up member by member): no state to pass
             power0 = kernels.forces_general(uu, vv, kappa[s:s + p], damping[s:s + p], d0[s:s + p], de[s:s + p],
-                                            dx0[s:s + p], rsum[s:s + p], law[m], gg)
+                                            dx0[s:s + p], rsum[s:s + p], law[m], gg, fext[:0], fext[:0], fext[:0],
+                                            fext[:0])
         else:
             kernels.forces_elastic(uu, kappa[s:s + p], d0[s:s + p], gg)
         kernels.accelerations(gg, fext[s:s + p], inv_mass[s:s + p], aa)

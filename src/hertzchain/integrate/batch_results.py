@@ -26,6 +26,7 @@ from ..simulation import warn_elastic_limit
 from .batch_buffers import _Packed, _member_forces, _member_velocities
 from .batch_pack import _EnsembleArrays
 from .ensemble import Ensemble
+from .kernels import LAW_ELASTOPLASTIC
 from .verlet import RawRun
 
 
@@ -241,8 +242,18 @@ def _member_runs(pk: _Packed) -> list[RawRun]:
                            velocity=_member_velocities(pk, m) if record_v else None,
                            max_force=pk.fmax[c0:pk.fmax_off[m + 1]], peak_wall_force=f_peak, peak_wall_time=t_peak,
                            dt=dt0, integrator="verlet", n_steps=int(steps), contacts=pk.rec[r0:pk.rec_off[m + 1]],
-                           dt_max=dt1, adaptive=adaptive))
+                           dt_max=dt1, adaptive=adaptive, **_plastic_fields(pk, m)))
     return runs
+
+
+def _plastic_fields(pk: _Packed, m: int) -> dict:
+    """Member m's elastic-plastic results for its RawRun (plastic work samples, residual and
+    largest overlaps at the end, views of the packed buffers), or nothing for another law."""
+    if pk.law[m] != LAW_ELASTOPLASTIC:
+        return {}
+    s, nc = int(pk.off[m]), int(pk.fmax_off[m + 1] - pk.fmax_off[m])
+    return {"plastic_work": pk.out_wp[m], "residual_overlap": pk.flat["dres"][s:s + nc],
+            "max_overlap": pk.flat["dmax"][s:s + nc]}
 
 
 def _stack_members(runs, models, plist, cfgs, duration, sys_list, stacked=None) -> xr.Dataset:

@@ -66,6 +66,23 @@ REGISTER_MAX_SLOTS = 40
 USE_REGISTER_KERNEL = True
 
 
+def refuse_elastoplastic(laws) -> None:
+    """ConfigError naming ``contact.law`` when one of ``laws`` (kernel law codes) is the
+    elastic-plastic one: its per-contact state (largest overlap, unloading curve) is not carried
+    by the GPU kernels yet.
+
+    Parameters
+    ----------
+    laws : array_like of int
+        Law codes (``hertzchain.contact.LAW_CODES``) of the members.
+    """
+    from .kernels import LAW_ELASTOPLASTIC
+
+    if np.any(np.asarray(laws) == LAW_ELASTOPLASTIC):
+        raise ConfigError("contact.law", "the elastoplastic law runs on the CPU only (its per-contact state is not "
+                          "carried by the GPU kernels); use device = 'cpu' (or 'auto', which picks the CPU for it)")
+
+
 _SLOT_ARRAYS = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
 
 
@@ -85,7 +102,10 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     ------
     SimulationDiverged
         When a member's state became non-finite.
+    ConfigError
+        A member has the elastic-plastic law (``contact.law``), which the GPU kernels do not carry.
     """
+    refuse_elastoplastic(pk.law)
     cuda = _cuda()
     nmem = pk.n_members
     p = int(pk.n_slots[0])

@@ -9,7 +9,11 @@ of 8, so the vector loops run without a scalar remainder on short chains):
 - ``g`` (P + 1,) holds contact forces shifted by one: g[0] = 0 and g[j + 1] = F_j, so that the
   acceleration of body i is (g[i] - g[i + 1] + f_ext,i) / m_i with no special first body.
 
-Padding bodies and contacts have 1/m = 0 and kappa = 0 and never move or push. The contact
+Padding bodies and contacts have 1/m = 0 and kappa = 0 and never move or push. The
+elastic-plastic law (Thornton 1997, :func:`elastoplastic_force`) also takes, per contact slot,
+its yield overlap ``dyield`` and a state that lives as long as the run: the largest overlap
+reached ``dmax``, and the unloading curve it implies, residual overlap ``dres`` and stiffness
+``kres`` (``layout.pack`` starts them at 0, 0, kappa). The contact
 forces are written once (:func:`forces_elastic`, branch-free so that LLVM vectorises it, and
 :func:`forces_general` for dissipative laws and misaligned beads); the same functions serve the
 Verlet loop and the scipy reference RHS, so both integrate the same equations (paper eq. 1).
@@ -23,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT = 0, 1, 2
+LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT, LAW_ELASTOPLASTIC = 0, 1, 2, 3
 
 #: Overlaps below this [m] count as zero (forces below ~1e-35 N). Without it the numerical
 #: precursor ahead of a pulse decays into subnormal floats (~1e-300), which x86 handles ~30x
@@ -118,14 +122,60 @@ def final_step_elastic(u, v, a, g, kappa, d0, fext, inv_mass, half):
         fprev = f
 
 
+@njit(cache=True, nogil=True, inline="always")
+def elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres):
+    """Thornton's elastic-plastic contact force at overlap ``d`` >= 0 and its new state.
+
+    Loading past the largest overlap so far (d > dmax): Hertz, kappa d^(3/2), up to the yield
+    overlap dyield, then the line F_y + (3/2) kappa dyield^(1/2) (d - dyield) (slope pi p_y R*);
+    the state moves to the unloading curve through (d, F): residual overlap
+    dres = d - F / (kappa d^(1/2)) and stiffness kres = kappa (d / (d - dres))^(1/2) (Hertz with
+    Thornton's enlarged radius R_p, see ``contact.thornton_unloading``). Otherwise (unloading or
+    reloading below dmax): kres (d - dres)^(3/2), zero below dres. A viscous term
+    damping kres (d - dres)^(1/2) d(delta)/dt is added (Kuwabara-Kono with the present elastic
+    stiffness; ``damping`` = A [s], 0 for the plain law) and the sum is clipped at zero.
+
+    Parameters are per-contact scalars (overlap [m], rate [m/s], kappa [N/m^1.5], A [s], yield
+    overlap [m], state); returns (force [N], its elastic-plastic part [N], dmax, dres, kres), the
+    caller stores the state. Elastic contacts (dmax <= dyield) have dres = 0 and kres = kappa.
+    """
+    if d > dmax:
+        dmax = d
+        if d > dyield:
+            sy = np.sqrt(dyield)
+            fep = kappa * sy * (dyield + 1.5 * (d - dyield))  # F_y + (3/2) kappa dyield^(1/2) (d - dyield)
+            sd = np.sqrt(d)
+            x = fep / (kappa * sd)  # d - dres: the unloading stiffness at d is Hertz's (3/2) kappa d^(1/2)
+            dres = d - x
+            kres = kappa * sd / np.sqrt(x)
+            sx = np.sqrt(x)
+        else:
+            sx = np.sqrt(d)
+            fep = kappa * d * sx
+    else:
+        x = d - dres
+        if x > DELTA_MIN:
+            sx = np.sqrt(x)
+            fep = kres * x * sx
+        else:
+            sx = 0.0
+            fep = 0.0
+    f = fep + damping * kres * sx * rate
+    f = f if f > 0.0 else 0.0
+    return f, fep, dmax, dres, kres
+
+
 @njit(cache=True, nogil=True)
-def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g):
+def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres):
     """Axial contact forces with dissipation and/or misalignment; returns the dissipated power [W].
 
     For a misaligned pair (de_j != 0) the distance of centres is d = sqrt(dx^2 + de^2),
     delta = R_j + R_{j+1} - d and the axial force is F(delta) dx / d (docs/conventions.rst, misalignment).
     Kuwabara-Kono: F = kappa (delta^(3/2) + A delta^(1/2) ddelta/dt); dashpot:
     F = kappa delta^(3/2) + gamma ddelta/dt; both clipped at zero (never attractive).
+    Elastic-plastic (Thornton): :func:`elastoplastic_force`, whose state (``dmax``, ``dres``,
+    ``kres``; unused by the other laws) is updated in place; the dissipated power returned is the
+    viscous part's only (the plastic work follows from the state, :func:`plastic_work`).
     """
     power = 0.0
     for j in range(kappa.shape[0]):
@@ -146,6 +196,16 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g):
             continue
         if d <= DELTA_MIN:
             d = 0.0
+        if law == LAW_ELASTOPLASTIC:
+            if kappa[j] == 0.0:  # no contact (free end, padding)
+                g[j + 1] = 0.0
+                continue
+            rate = c * (v[j] - v[j + 1])
+            f, fep, dmax[j], dres[j], kres[j] = elastoplastic_force(d, rate, kappa[j], damping[j], dyield[j],
+                                                                    dmax[j], dres[j], kres[j])
+            power += (f - fep) * rate
+            g[j + 1] = c * f
+            continue
         sd = np.sqrt(d)
         fel = kappa[j] * d * sd
         if law == LAW_ELASTIC:
@@ -201,6 +261,47 @@ def potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, aligned_elastic):
     for i in range(fext.shape[0]):
         e -= fext[i] * u[i]
     return e
+
+
+@njit(cache=True, nogil=True, fastmath=_SUMS)
+def potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres):
+    """Elastic energy stored in elastic-plastic contacts minus the work of f_ext [J]: what each
+    contact's unloading curve gives back, (2/5) kres (delta - dres)^(5/2) (Hertz's
+    (2/5) kappa delta^(5/2) for a contact that never yielded: dres = 0, kres = kappa)."""
+    e = 0.0
+    for j in range(kres.shape[0]):
+        if de[j] != 0.0:
+            dx = dx0[j] - (u[j] - u[j + 1])
+            d = rsum[j] - np.sqrt(dx * dx + de[j] * de[j])
+        else:
+            d = u[j] - u[j + 1] + d0[j]
+        x = d - dres[j]
+        if x > 0.0:
+            e += 0.4 * kres[j] * x * x * np.sqrt(x)
+    for i in range(fext.shape[0]):
+        e -= fext[i] * u[i]
+    return e
+
+
+@njit(cache=True, nogil=True, fastmath=_SUMS)
+def plastic_work(kappa, dyield, dmax, dres):
+    """Plastic work [J] done in all contacts so far, from each one's largest overlap alone.
+
+    The work along Thornton's loading curve up to dmax, (2/5) F_y dyield + F_y (dmax - dyield)
+    + (3/4) kappa dyield^(1/2) (dmax - dyield)^2, minus what its unloading curve stores,
+    (2/5) F_max (dmax - dres); 0 for a contact that never passed dyield.
+    """
+    w = 0.0
+    for j in range(kappa.shape[0]):
+        dm = dmax[j]
+        dy = dyield[j]
+        if dm > dy:
+            sy = np.sqrt(dy)
+            fy = kappa[j] * dy * sy
+            x = dm - dy
+            fmax = fy + 1.5 * kappa[j] * sy * x
+            w += 0.4 * fy * dy + fy * x + 0.75 * kappa[j] * sy * x * x - 0.4 * fmax * (dm - dres[j])
+    return w
 
 
 @njit(cache=True, nogil=True, fastmath=_SUMS)
@@ -336,9 +437,9 @@ def _adapt_stride(req, ns, relax, acc):
 
 
 @njit(cache=True, nogil=True)
-def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
-               wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
-               out_pe, out_ed, out_v, record_v, fmax, peak, acc):
+def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres,
+               law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f,
+               out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc):
     """Advance from sample ``k_start`` to ``k_stop`` (samples ``interval`` seconds apart) with velocity Verlet.
 
     On entry and exit ``u, v, a, g`` hold positions, synchronised velocities, accelerations and
@@ -363,7 +464,10 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     previous force, step before, step after]; the parabola through the three points gives the
     peak between steps. Sample k of ``out_f`` receives the forces of the contacts listed in
     ``rec``; ``fmax`` keeps every contact's largest sampled force, stored or not, for the
-    elastic-limit check. Returns 0, or 1 when the state became non-finite.
+    elastic-limit check. The elastic-plastic law's per-contact state (``dmax``, ``dres``,
+    ``kres``, see :func:`elastoplastic_force`) is carried in place from chunk to chunk, and
+    ``out_wp`` receives its plastic work (:func:`plastic_work`) at every sample (other laws leave
+    it alone). Returns 0, or 1 when the state became non-finite.
 
     Velocities used by the dissipative forces at t + dt are predicted as v(t + dt/2) + a(t) dt/2;
     the error is O(dt^2) per step, so the scheme stays second order.
@@ -399,7 +503,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + half * a[i]
-                    p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g)
+                    p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
                     acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
                     acc[1] = p
                     _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
@@ -435,7 +539,11 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
         for j in range(fmax.shape[0]):
             x = g1[j]
             fmax[j] = x if x > fmax[j] else fmax[j]  # a ternary vectorises; Numba's max() does not
-        if general:
+        if law == LAW_ELASTOPLASTIC:
+            ke = kinetic_energy(v, mass)
+            pe = potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres)
+            out_wp[k] = plastic_work(kappa, dyield, dmax, dres)
+        elif general:
             ke = kinetic_energy(v, mass)
             pe = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
         else:

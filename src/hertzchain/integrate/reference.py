@@ -14,16 +14,29 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
-from ..errors import SimulationDiverged
+from ..errors import ConfigError, SimulationDiverged
 from ..model import System
 from . import kernels
 from .verlet import RawRun
 
 __all__ = ["run_reference", "make_rhs"]
 
+#: The elastic-plastic state arrays of ``kernels.forces_general``, unused by the laws solved here
+#: (a history-dependent force has no place in an ODE right-hand side evaluated at trial points).
+_NO_STATE = np.zeros(0)
+
+
+def _check_law(system: System) -> None:
+    """Refuse the elastic-plastic law (ConfigError naming ``run.integrator``)."""
+    if system.law == kernels.LAW_ELASTOPLASTIC:
+        raise ConfigError("run.integrator", "the elastoplastic contact law keeps a history per contact (its largest "
+                          "overlap), which the scipy integrators cannot carry between their trial steps; use "
+                          "integrator = 'verlet'")
+
 
 def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
-    """dy/dt for y = [u_0..u_N, v_0..v_N, E_dissipated] (SI units)."""
+    """dy/dt for y = [u_0..u_N, v_0..v_N, E_dissipated] (SI units); not for the elastic-plastic law."""
+    _check_law(system)
     nb = system.n_beads + 1
     u = np.zeros(nb + 1)
     v = np.zeros(nb + 1)
@@ -35,7 +48,8 @@ def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
         u[:nb] = y[:nb]
         v[:nb] = y[nb : 2 * nb]
         if s.general:
-            power = kernels.forces_general(u, v, s.kappa, s.damping, s.d0, s.de, s.dx0, s.rsum, s.law, g)
+            power = kernels.forces_general(u, v, s.kappa, s.damping, s.d0, s.de, s.dx0, s.rsum, s.law, g,
+                                           *(_NO_STATE,) * 4)
         else:
             kernels.forces_elastic(u, s.kappa, s.d0, g)
             power = 0.0
@@ -56,7 +70,7 @@ def _wall_force(system: System, y: np.ndarray) -> float:
         u[:nb] = y[:nb]
         v[:nb] = y[nb : 2 * nb]
         kernels.forces_general(u, v, system.kappa, system.damping, system.d0, system.de, system.dx0, system.rsum,
-                               system.law, g)
+                               system.law, g, *(_NO_STATE,) * 4)
         return float(g[nb])
     d = y[nb - 1] + system.d0[-1]
     return float(system.kappa[-1] * max(d, 0.0) ** 1.5)
@@ -69,8 +83,10 @@ def run_reference(system: System, duration: float, sample_interval: float, metho
 
     ``atol`` is set per component from ``rtol`` and natural scales (overlap of the striker
     contact, striker speed, striker energy) so that a tolerance means the same for every chain.
-    The peak wall force is refined on the dense output.
+    The peak wall force is refined on the dense output. The elastic-plastic law is refused
+    (ConfigError naming ``run.integrator``).
     """
+    _check_law(system)
     nb = system.n_beads + 1
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
     time = np.arange(n_samples) * sample_interval
@@ -98,7 +114,7 @@ def run_reference(system: System, duration: float, sample_interval: float, metho
         vv[:nb] = vel[k]
         if system.general:
             kernels.forces_general(u[k], vv, system.kappa, system.damping, system.d0, system.de, system.dx0,
-                                   system.rsum, system.law, g)
+                                   system.rsum, system.law, g, *(_NO_STATE,) * 4)
         else:
             kernels.forces_elastic(u[k], system.kappa, system.d0, g)
         forces[k] = g[1 : nc + 1]

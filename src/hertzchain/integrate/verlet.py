@@ -71,6 +71,9 @@ class RawRun:
     dt_max: float = 0.0         # s, the largest step used (= dt for a fixed step)
     adaptive: bool = False      # True when the step was chosen as the run went
     displacement: np.ndarray | None = None  # (K, N+1) m, bodies 0..N, when positions were asked for
+    plastic_work: np.ndarray | None = None  # (K,) J, elastic-plastic law only
+    residual_overlap: np.ndarray | None = None  # (n_contacts,) m, at the end (elastic-plastic law only)
+    max_overlap: np.ndarray | None = None  # (n_contacts,) m, largest overlap reached (elastic-plastic law only)
 
 
 def auto_time_step(system: System, sample_interval: float | None = None) -> float:
@@ -143,22 +146,29 @@ def step_plan(system: System, sample_interval: float, dt: float | None,
 
 
 def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_v: bool,
-               fmax, peak, acc) -> None:
+               fmax, peak, acc, out_wp=None) -> None:
     """State at t = 0 (forces, accelerations) and sample 0 of every probe, written in place.
 
     Shared by :func:`run_verlet` and the batched engine, which passes per-member views, so
     both start from exactly the same numbers. ``peak`` and ``acc`` (8 slots each) are the
-    kernel's wall-peak tracker and accumulators (see ``kernels.verlet_run``).
+    kernel's wall-peak tracker and accumulators (see ``kernels.verlet_run``). ``out_wp`` receives
+    the plastic work of the elastic-plastic law (the state ``w.dmax``... is that of the static
+    overlaps after this call).
     """
     power0 = 0.0
     if system.general:
-        power0 = kernels.forces_general(u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, system.law, g)
+        power0 = kernels.forces_general(u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, system.law, g,
+                                        w.dyield, w.dmax, w.dres, w.kres)
     else:
         kernels.forces_elastic(u, w.kappa, w.d0, g)
     kernels.accelerations(g, w.fext, w.inv_mass, a)
     out_f[0] = g[rec + 1]
     out_ke[0] = kernels.kinetic_energy(v, w.mass)
-    out_pe[0] = kernels.potential_energy(u, g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False)
+    if system.law == kernels.LAW_ELASTOPLASTIC:
+        out_pe[0] = kernels.potential_energy_plastic(u, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dres, w.kres)
+        out_wp[0] = kernels.plastic_work(w.kappa, w.dyield, w.dmax, w.dres)
+    else:
+        out_pe[0] = kernels.potential_energy(u, g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False)
     out_ed[0] = 0.0
     if record_v:
         out_v[0] = v[: out_v.shape[1]]
@@ -209,11 +219,14 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     out_ke = np.empty(n_samples)
     out_pe = np.empty(n_samples)
     out_ed = np.empty(n_samples)
+    plastic = system.law == kernels.LAW_ELASTOPLASTIC
+    out_wp = np.empty(n_samples if plastic else 1)
     out_v = np.empty((n_samples if record_velocities else 1, nb))
     fmax = np.empty(nc)
     peak = np.empty(8)
     acc = np.zeros(8)
-    initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc)
+    initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc,
+               out_wp)
 
     samples_per_chunk = 1 if record_positions else max(1, round(chunk_steps * plan.dt / sample_interval))
     out_u = np.empty((n_samples, nb)) if record_positions else None
@@ -227,10 +240,10 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_chunk)
         status = kernels.verlet_run(u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
-                                    w.rsum, w.fext, w.dcap, system.law, system.general, w.wall_slot,
-                                    sample_interval, plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax,
-                                    k, k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax,
-                                    peak, acc)
+                                    w.rsum, w.fext, w.dcap, w.dyield, w.dmax, w.dres, w.kres, system.law,
+                                    system.general, w.wall_slot, sample_interval, plan.stride, plan.n_sub,
+                                    plan.n_eval, plan.c_steps, plan.relax, k, k_stop, rec, out_f, out_ke, out_pe,
+                                    out_ed, out_wp, out_v, record_velocities, fmax, peak, acc)
         if status != 0:
             used = _dt_used(plan, acc, sample_interval)[0]
             advice = (f"with run.dt = {dt:.3g} s; use a smaller run.dt (or leave it out for the automatic step)"
@@ -251,7 +264,9 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     return RawRun(time=time, contact_force=out_f, kinetic_energy=out_ke, potential_energy=out_pe,
                   dissipated_energy=out_ed, velocity=out_v if record_velocities else None, max_force=fmax,
                   peak_wall_force=fpk, peak_wall_time=t_pk, dt=dt_min, integrator="verlet",
-                  n_steps=int(acc[2]), contacts=rec, dt_max=dt_max, adaptive=plan.adaptive, displacement=out_u)
+                  n_steps=int(acc[2]), contacts=rec, dt_max=dt_max, adaptive=plan.adaptive, displacement=out_u,
+                  plastic_work=out_wp if plastic else None, residual_overlap=w.dres[:nc].copy() if plastic else None,
+                  max_overlap=w.dmax[:nc].copy() if plastic else None)
 
 
 def _dt_used(plan: StepPlan, acc: np.ndarray, sample_interval: float) -> tuple[float, float]:
