@@ -145,6 +145,7 @@ def _prepare(cfg):
     """Model, System and run settings of a config, refusing what the derivative engines do not cover."""
     from ..checks import check_before_run
     from ..config import build_model, build_probes
+    from ..integrate import differentiate as D
     from ..simulation import auto_duration
 
     if cfg.track is not None:
@@ -155,6 +156,7 @@ def _prepare(cfg):
                           f"'{cfg.run.integrator}': use 'verlet'")
     model = build_model(cfg)
     system = model.system()
+    D.check_law(system)
     duration = auto_duration(model) if cfg.run.duration == "auto" else float(cfg.run.duration)
     probes = build_probes(cfg)
     check_before_run(model, system, duration, probes, dt=cfg.run.dt, integrator="verlet")

@@ -213,6 +213,10 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     v = np.zeros(n + 1)
     a = np.zeros(n)
     g = np.zeros(n + 1)
+    dyield = np.zeros(n)  # the elastic-plastic law is not differentiated: its state is scratch here
+    dmax = np.zeros(n)
+    dres = np.zeros(n)
+    kres = kappa.copy()
     ustore = np.zeros((max_rows, n))
     vpstore = np.zeros((max_rows if general else 1, n))
     hstore = np.zeros(max_rows)
@@ -235,7 +239,7 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
         b0 = gi * group
         b1 = min(b0 + group, n_blocks)
         rows = replay_group(ckpt[gi], u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
-                            wall_slot, ns_log, b0, b1, block, ustore, vpstore, hstore)
+                            wall_slot, ns_log, b0, b1, block, ustore, vpstore, hstore, dyield, dmax, dres, kres)
         if general:
             p = _steps_general(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
                                damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad)

@@ -141,11 +141,24 @@ def _samples(duration: float, sample_interval: float) -> int:
     return int(math.floor(duration / sample_interval + 1e-9)) + 1
 
 
-def _check_law(system: System) -> None:
+#: Contact laws the derivative engines differentiate (``contact.LAW_CODES`` values).
+LAWS = frozenset({0, 1, 2})
+
+
+def check_law(system: System) -> None:
+    """Refuse (ConfigError naming ``contact.law``) a law the engines do not differentiate.
+
+    Parameters
+    ----------
+    system : System
+        The model's arrays.
+    """
     from ..contact import LAW_CODES
 
-    if system.law not in set(LAW_CODES.values()):
-        raise ConfigError("contact.law", f"gradients do not know contact law code {system.law}")
+    if system.law not in LAWS:
+        name = next((k for k, v in LAW_CODES.items() if v == system.law), str(system.law))
+        raise ConfigError("contact.law", f"gradients do not differentiate the '{name}' law yet; they cover "
+                          "'elastic', 'viscoelastic', 'viscoelastic_scaled' and 'dashpot'")
 
 
 def record(system: System, duration: float, sample_interval: float, dt: float | None = None,
@@ -171,7 +184,7 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     Tape
         Records and checkpoints.
     """
-    _check_law(system)
+    check_law(system)
     plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = _samples(duration, sample_interval)
     w = pack(system)
@@ -198,7 +211,7 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     fmax_k = np.zeros(nc, dtype=np.int64)
     kstar = np.full(1, -1, dtype=np.int64)
     status = tape_forward(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
-                          system.law, system.general, w.wall_slot, sample_interval, plan.stride, plan.n_sub,
+                          w.dyield, w.dmax, w.dres, w.kres, system.law, system.general, w.wall_slot, sample_interval, plan.stride, plan.n_sub,
                           plan.n_eval, plan.c_steps, plan.relax, n_samples, rec, out_f, fmax, fmax_k, peak, kstar,
                           acc, ns_log, step_end, ckpt, group)
     if status != 0:
@@ -320,7 +333,7 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
         Contacts recorded (C,), forces (K, C) [N], their derivatives (D, K, C) [N per unit of
         the direction] and the seeded scalar's directional derivatives (D,).
     """
-    _check_law(system)
+    check_law(system)
     plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = _samples(duration, sample_interval)
     w = pack(system)

@@ -42,7 +42,7 @@ def _store(dst, row, src):
 
 @njit(cache=True, nogil=True, inline="always")
 def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt, t0,
-                   step, peak, kstar, store, ustore, vpstore, hstore, s0):
+                   step, peak, kstar, store, ustore, vpstore, hstore, s0, dyield, dmax, dres, kres):
     """One block of ``ns`` steps of length ``dt`` after :func:`_open_block`, as ``kernels.verlet_run`` steps it,
     with ``kernels.forces_general`` (dissipation, offsets)."""
     n = a.shape[0]
@@ -54,7 +54,7 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
             _store(ustore, s0 + s, u)
             _store(vpstore, s0 + s, vp)
             hstore[s0 + s] = dt
-        kernels.forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g)
+        kernels.forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
         before = peak[0]
         kernels._track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
         if g[wall_slot + 1] > before:
@@ -108,9 +108,9 @@ def _open_block(u, v, a, dt):
 
 
 @njit(cache=True, nogil=True)
-def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general, wall_slot,
-                 interval, stride, n_sub, n_eval, c_steps, relax, n_samples, rec, out_f, fmax, fmax_k, peak, kstar,
-                 acc, ns_log, step_end, ckpt, group):
+def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres, law,
+                 general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, n_samples, rec, out_f, fmax,
+                 fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group):
     """The primal run from t = 0 to sample ``n_samples - 1``, taped.
 
     State on entry as :func:`hertzchain.integrate.verlet.initialise` leaves it (sample 0 of
@@ -120,9 +120,12 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
     number of steps made up to it (the forces of sample k are those of step
     ``step_end[k] - 1``), ``out_f[k]`` the forces of the contacts ``rec``, and every contact's
     largest sampled force ``fmax`` with the sample ``fmax_k`` it came from. Returns 0, or 1 when
-    the state became non-finite.
+    the state became non-finite. The elastic-plastic law's state (``dmax``, ``dres``, ``kres``:
+    ``kernels.elastoplastic_force``) is carried in place, and checkpointed too when ``ckpt`` has
+    rows for it (6 rows: u, v, a, dmax, dres, kres).
     """
     n = a.shape[0]
+    plastic_rows = ckpt.shape[1] > 3
     block = interval / n_sub
     adaptive = stride == 0
     ns = stride if not adaptive else int(acc[3])
@@ -144,6 +147,11 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
                     ckpt[c, 0, i] = u[i]
                     ckpt[c, 1, i] = v[i]
                     ckpt[c, 2, i] = a[i]
+                if plastic_rows:
+                    for i in range(n):
+                        ckpt[c, 3, i] = dmax[i]
+                        ckpt[c, 4, i] = dres[i]
+                        ckpt[c, 5, i] = kres[i]
             ns_log[bi] = ns
             # The two paths are called apart (not through one function holding both): LLVM then
             # vectorises the elastic step as in verlet_run (~2.5x faster).
@@ -152,7 +160,7 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
             _open_block(u, v, a, dt)
             if general:
                 _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns,
-                               dt, t0, step, peak, kstar, False, dummy, dummy, dummy_h, 0)
+                               dt, t0, step, peak, kstar, False, dummy, dummy, dummy_h, 0, dyield, dmax, dres, kres)
             else:
                 _elastic_block(u, v, a, g, inv_mass, kappa, d0, fext, wall_slot, ns, dt, block, t0, step, peak, kstar)
             step += ns
@@ -174,15 +182,20 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
 
 @njit(cache=True, nogil=True)
 def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
-                 ns_log, b0, b1, block, ustore, vpstore, hstore):
+                 ns_log, b0, b1, block, ustore, vpstore, hstore, dyield, dmax, dres, kres):
     """Run blocks ``b0`` to ``b1 - 1`` again from their group's checkpoint ``ckpt_g`` with the taped
     step counts, storing every step's force-evaluation state (:func:`_general_block`); returns the
-    number of steps stored. ``u, v, a, g`` are scratch (overwritten)."""
+    number of steps stored. ``u, v, a, g`` (and the elastic-plastic state) are scratch."""
     n = a.shape[0]
     for i in range(n):
         u[i] = ckpt_g[0, i]
         v[i] = ckpt_g[1, i]
         a[i] = ckpt_g[2, i]
+    if ckpt_g.shape[0] > 3:
+        for i in range(n):
+            dmax[i] = ckpt_g[3, i]
+            dres[i] = ckpt_g[4, i]
+            kres[i] = ckpt_g[5, i]
     vp = np.zeros_like(v)
     peak = np.zeros(8)
     kstar = np.zeros(1, dtype=np.int64)
@@ -193,7 +206,7 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
         _open_block(u, v, a, dt)
         if general:
             _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt,
-                           0.0, 0, peak, kstar, True, ustore, vpstore, hstore, s0)
+                           0.0, 0, peak, kstar, True, ustore, vpstore, hstore, s0, dyield, dmax, dres, kres)
         else:
             _elastic_block_stored(u, v, a, g, inv_mass, kappa, d0, fext, ns, dt, ustore, hstore, s0)
         s0 += ns
