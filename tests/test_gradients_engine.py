@@ -58,6 +58,11 @@ def test_taped_run_is_the_engine_run_bit_for_bit(name):
     assert (tape.peak_wall_force, tape.peak_wall_time) == (raw.peak_wall_force, raw.peak_wall_time)
     # the forces of sample k are those of step step_end[k] - 1, and the step of the peak is among them
     assert tape.step_end[-1] == tape.n_steps and np.all(np.diff(tape.step_end) >= 1)
+    # the tangent model steps the same way (it takes its partials inside its own copy of the steps)
+    _, forces, _, _ = D.tangents(system, {"kappa": np.zeros((1, system.kappa.size))}, cfg.run.duration,
+                                 cfg.run.sample_interval, dt=cfg.run.dt, steps_per_radian=cfg.run.steps_per_radian,
+                                 contacts=range(system.n_contacts))
+    assert np.array_equal(forces, raw.contact_force)
 
 
 def _all_directions(system, names):

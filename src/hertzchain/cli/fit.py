@@ -124,5 +124,6 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
         extra = (f"{boot[n]['bootstrap']['stderr']:.2g}",) if bootstrap else ()
         table.add_row(n, f"{v:.6g}", f"{s:.2g}", f"{s0:.6g}", *extra)
     Console().print(table)
-    click.echo(f"{result.n_evaluations} engine calls ({result.n_members} chains) in {result.elapsed:.2f} s; "
+    click.echo(f"{result.n_evaluations} evaluations ({result.n_members} chains in batched engine calls, "
+               f"{result.n_tangent_runs} tangent runs; Jacobian: {result.jacobian}) in {result.elapsed:.2f} s; "
                f"wrote {', '.join(str(p) for p in paths.values())}")

@@ -94,6 +94,58 @@ def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_m
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _aligned_step(u, v, a, g, vp, kappa, damping, d0, fext, inv_mass, law, dt, last, gw, gv, gk, ga, g0):
+    """:func:`_general_step` for an aligned chain with a Kuwabara-Kono or dashpot law: the forces of
+    ``kernels.forces_general`` (the same expressions), the partials of ``partials.law_partials``,
+    written branch-free (selects) so that LLVM vectorises the loop. The partials' rows come as
+    views made once per run (a view made per step costs two atomic reference counts each)."""
+    n = a.shape[0]
+    half = 0.5 * dt
+    for i in range(n):
+        vp[i] = v[i] + half * a[i]
+    if law == kernels.LAW_VISCOELASTIC:
+        for j in range(n - 1):
+            d = u[j] - u[j + 1] + d0[j]
+            dd = d if d > kernels.DELTA_MIN else 0.0
+            sd = np.sqrt(dd)
+            r = vp[j] - vp[j + 1]
+            f = kappa[j] * dd * sd + kappa[j] * damping[j] * sd * r
+            on = (d >= 0.0) & (f > 0.0)  # no short-circuit branch: LLVM vectorises selects
+            isd = 1.0 / sd if sd > 0.0 else 0.0
+            g[j + 1] = f if on else 0.0
+            fd = kappa[j] * (1.5 * sd + 0.5 * damping[j] * r * isd)
+            gw[j] = fd if on else 0.0
+            g0[j] = fd if on else 0.0
+            gv[j] = kappa[j] * damping[j] * sd if on else 0.0
+            gk[j] = dd * sd + damping[j] * sd * r if on else 0.0
+            ga[j] = kappa[j] * sd * r if on else 0.0
+    else:  # dashpot
+        for j in range(n - 1):
+            d = u[j] - u[j + 1] + d0[j]
+            dd = d if d > kernels.DELTA_MIN else 0.0
+            sd = np.sqrt(dd)
+            r = vp[j] - vp[j + 1]
+            f = kappa[j] * dd * sd + damping[j] * r
+            on = (d >= 0.0) & (f > 0.0)
+            g[j + 1] = f if on else 0.0
+            fd = 1.5 * kappa[j] * sd
+            gw[j] = fd if on else 0.0
+            g0[j] = fd if on else 0.0
+            gv[j] = damping[j] if on else 0.0
+            gk[j] = dd * sd if on else 0.0
+            ga[j] = r if on else 0.0
+    if last:
+        for i in range(n):
+            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+            v[i] += half * a[i]
+    else:
+        for i in range(n):
+            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+            v[i] += dt * a[i]
+            u[i] += dt * v[i]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _parameter_forces(gp, gw, gk, th, pf, general):
     """pf[dd (P + 1) + j] = sum over parameters of dF_j/dtheta theta'_j along direction dd (a step's)."""
     nd = th.shape[1]
@@ -130,10 +182,11 @@ def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fe
         vt[o + i] += hh * at[o + i]
 
 
-def _tangent_loop(general: bool):
-    """The tangent run, compiled on its own for the aligned elastic steps and for the general ones
-    (one function holding both made LLVM's code for the elastic steps ~1.6x slower): ``general``
-    is a constant of the closure, and Numba prunes the branch not taken."""
+def _tangent_loop(general: bool, aligned: bool):
+    """The tangent run, compiled on its own for the aligned elastic steps, the aligned dissipative
+    ones and the general ones (one function holding them all made LLVM's code for the elastic
+    steps ~1.6x slower): ``general`` and ``aligned`` are constants of the closure, and Numba
+    prunes the branches not taken."""
 
     @njit(cache=True, nogil=True)
     def run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, interval, stride, n_sub, n_eval,
@@ -161,7 +214,7 @@ def _tangent_loop(general: bool):
         vpt = np.zeros(n + 1)
         vp = np.zeros_like(v)
         gp = np.zeros((8, n))  # partials: dF/dw, dF/dvrel, then kappa, damping, d0, de, dx0, rsum
-        gw, gv, gk = gp[0], gp[1], gp[2]
+        gw, gv, gk, ga, g0 = gp[0], gp[1], gp[2], gp[3], gp[4]
         pf = np.zeros(nd * (n + 1))
         thf = np.zeros(nd * (n + 1))  # tangents of f_ext and 1/m, flat like the states
         thm = np.zeros(nd * (n + 1))
@@ -211,7 +264,10 @@ def _tangent_loop(general: bool):
                 for s in range(ns):
                     # the primal step (forces at u_{s+1}, partials there), then the tangents' step s;
                     # ``general`` is a constant of the closure: the branch not taken is not compiled
-                    if general:
+                    if general and aligned:
+                        _aligned_step(u, v, a, g, vp, kappa, damping, d0, fext, inv_mass, law, dt, s == ns - 1, gw, gv,
+                                      gk, ga, g0)
+                    elif general:
                         _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt,
                                       s == ns - 1, gp)
                     elif s < ns - 1:
@@ -237,15 +293,22 @@ def _tangent_loop(general: bool):
     return run
 
 
-#: The tangent runs of the aligned elastic path and of the general one (dissipation, offsets).
-_TANGENT_RUNS = (_tangent_loop(False), _tangent_loop(True))
+#: The tangent runs: aligned elastic, aligned dissipative (Kuwabara-Kono, dashpot), general (offsets).
+_TANGENT_RUNS = {"elastic": _tangent_loop(False, True), "aligned": _tangent_loop(True, True),
+                 "general": _tangent_loop(True, False)}
 
 
 def tangent_run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general, wall_slot,
                 interval, stride, n_sub, n_eval, c_steps, relax, n_samples, acc, th, v0t, rec, out_f, out_ft,
                 seed_step, seed_contact, seed_w, dj):
     """The primal run from t = 0 (state as ``verlet.initialise`` leaves it) with D tangents (see the
-    loop's docstring above); ``general`` chooses the compiled run."""
-    return _TANGENT_RUNS[int(bool(general))](u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law,
+    loop's docstring above); ``general``, the law and the offsets choose the compiled run."""
+    if not general:
+        kind = "elastic"
+    elif law in (kernels.LAW_VISCOELASTIC, kernels.LAW_DASHPOT) and not np.any(de):
+        kind = "aligned"
+    else:
+        kind = "general"
+    return _TANGENT_RUNS[kind](u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law,
                                              interval, stride, n_sub, n_eval, c_steps, relax, n_samples, acc, th, v0t,
                                              rec, out_f, out_ft, seed_step, seed_contact, seed_w, dj)
