@@ -10,6 +10,13 @@ one engine call; move to the best improving neighbour, else halve h, until h < 1
 budget is spent. Several objectives: NSGA-II (:mod:`pymoo`) and the non-dominated feasible
 candidates ever evaluated as the Pareto front.
 
+Gradients: where every variable is a continuous config field that the sensitivity engine
+differentiates and the objective is one it knows (:func:`~hertzchain.design.gradient.gradient_support`:
+per-bead profiles, striker, law constants; no geometric constraint, no robust scenarios), the
+initial sample is followed by local searches on exact gradients (L-BFGS-B,
+:mod:`hertzchain.design.gradient`) from its best points, each outside the basins already
+searched; CMA-ES restarts supply new starts when those run out.
+
 Geometric constraints (smallest bead, length, mass, bead count) are checked without a run, and
 optima often lie on them: in a space with a real variable, a candidate that breaks one is moved
 onto its boundary by root finding on the geometry (:mod:`hertzchain.design.boundary`), towards the
@@ -39,7 +46,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -48,6 +55,7 @@ import numpy as np
 from ..errors import ConfigError, HertzchainError
 from .boundary import _BOUNDARY_SLACK, _margin, _repair_initial, _repair_point, _repairs, _to_boundary
 from .checkpoint import DesignMismatch, _load, _save
+from .gradient import GRADIENT_RUNS, gradient_support, initial_points, local_search, pick_start
 from .objectives import INFEASIBLE, Evaluator, Fidelity
 from .problem import DesignProblem, search_fidelity
 
@@ -95,6 +103,8 @@ class _State:
     verified: bool = False
     n_evaluations: int = 0
     elapsed_s: float = 0.0
+    gradient_used: list = field(default_factory=list)    # starts of the gradient phase's local searches
+    gradient_optima: list = field(default_factory=list)  # where they ended
 
 
 @dataclass
@@ -304,6 +314,36 @@ def _repair(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: lis
 
 
 
+def _gradient_step(problem: DesignProblem, evaluator: Evaluator, state: _State, budget: int, clock) -> None:
+    """One local search on exact gradients (:mod:`hertzchain.design.gradient`) from the best point
+    not yet tried outside the basins already searched; without such a point, a CMA-ES restart
+    (IPOP, a doubled population from a random point) whose best is searched next. A local search
+    is checkpointed whole: a resumed run makes an interrupted one again (the same evaluations)."""
+    left = (budget - state.n_evaluations) // GRADIENT_RUNS
+    x0 = pick_start(problem, state.history, state.gradient_used, state.gradient_optima)
+    if left < 2:
+        state.phase = "done"
+        return
+    if x0 is None:
+        if state.restarts >= _MAX_RESTARTS:
+            state.phase = "done"
+            return
+        state.restarts += 1
+        state.optimiser = _new_optimiser(problem, state.restarts)
+        state.phase, state.stall = "population", 0
+        return
+    state.gradient_used.append(x0)
+    evaluator.cache = state.cache
+
+    def record(x, ev, values) -> None:
+        state.n_evaluations += ev.engine_runs
+        state.cache.setdefault(problem.space.key_of(values), replace(ev, engine_runs=0))
+        state.history.append({**_row(problem, state, "gradient", x, ev, values), "elapsed_s": clock()})
+
+    x, _, _ = local_search(problem, evaluator, x0, left, record)
+    state.gradient_optima.append(x)
+
+
 def _verify(problem: DesignProblem, search: Evaluator, state: _State, budget: int, clock) -> None:
     """Run the best distinct candidates of the search again at full accuracy (phase ``verify``).
 
@@ -403,6 +443,9 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
     resumed = state is not None
     if state is None:
         state = _State(problem.hash)
+    for name in ("gradient_used", "gradient_optima"):  # a checkpoint written before the gradient phase
+        if not hasattr(state, name):
+            setattr(state, name, [])
     per_candidate = evaluator.n_scenarios
     # The full-accuracy runs of the best candidates are set aside from the budget of the search.
     reserve = sec.verify_top * per_candidate if coarse else 0
@@ -413,6 +456,9 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
                           "design.search_steps_per_radian = \"full\"")
     budget = sec.budget - reserve
     multi = len(problem.objectives) > 1
+    # Continuous variables and an objective the sensitivity engine differentiates: local searches
+    # on exact gradients (design.gradient) take the place of CMA-ES after the initial sample.
+    gradients = not multi and sec.polish and gradient_support(problem) is None
     t_start = time.perf_counter()
     t_saved = state.elapsed_s
 
@@ -445,8 +491,11 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
         return False
 
     def next_cycle() -> None:
-        """After a converged or stalled population phase: polish; after a polish: restart (IPOP)."""
-        if state.phase == "population" and sec.polish and not multi:
+        """After a converged or stalled population phase: polish (with gradients where the design
+        allows them); after a polish: restart (IPOP)."""
+        if state.phase == "population" and gradients:
+            state.phase = "gradient"
+        elif state.phase == "population" and sec.polish and not multi:
             state.phase, state.polish_x = "polish", None
         elif state.restarts < _MAX_RESTARTS and not multi:
             state.restarts += 1
@@ -464,12 +513,19 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
             pop0 = _initial_sample(problem)
             xs = list(qmc.LatinHypercube(d=problem.space.dim, seed=np.random.default_rng([sec.seed, 11])).random(pop0))
             xs = _repair_initial(problem, evaluator, xs)
+            if gradients:
+                xs = initial_points(problem, xs)
             if len({problem.space.key(x) for x in xs}) * per_candidate > budget:
                 raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of {pop0} "
                                   f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
             _evaluate(problem, evaluator, state, xs, "population", clock)
             improved()
             state.optimiser = _new_optimiser(problem, x0=np.asarray(_best_row(problem, state.history)["x"]))
+            if gradients:
+                state.phase = "gradient"
+        elif state.phase == "gradient":
+            _gradient_step(problem, evaluator, state, budget, clock)
+            improved()
         elif state.phase == "population":
             if state.optimiser is None:
                 state.optimiser = _new_optimiser(problem)

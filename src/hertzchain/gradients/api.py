@@ -74,6 +74,12 @@ class Sensitivity:
         Verlet steps of the run.
     elapsed_s : float
         Wall time of the whole computation [s].
+    notes : list of str
+        What the derivative holds fixed (the adaptive step's sequence).
+    records : dict
+        What the run recorded: ``time`` [s] and ``wall_force`` [N] at every sample (absent
+        without a wall), every contact's largest sampled force ``max_contact_force`` [N] and
+        elastic limit ``yield_force`` [N] (the design search's feasibility checks read them).
     """
 
     objective: str
@@ -86,6 +92,7 @@ class Sensitivity:
     n_steps: int
     elapsed_s: float = 0.0
     notes: list[str] = field(default_factory=list)
+    records: dict = field(default_factory=dict, repr=False)
 
     def relative(self) -> dict[str, float]:
         """Elasticities (x / J) dJ/dx: the relative change of the objective per relative change of each
@@ -281,13 +288,17 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
         grad = {p: float(dj[i]) + direct[p] for i, p in enumerate(paths)}
     else:
         grad = _parameter_gradient(sd, D.gradient(tape, seeds), reading.direct)
+    records = {"time": tape.time, "max_contact_force": tape.max_force,
+               "yield_force": system.yield_force[:system.n_contacts]}
+    if system.has_wall:
+        records["wall_force"] = tape.forces[:, int(np.searchsorted(tape.contacts, system.n_beads))]
     notes = []
     if tape.plan.adaptive:
         notes.append("adaptive step: the derivative holds the run's step sequence fixed (see the docs, Sensitivities)")
     return Sensitivity(objective=objective, unit=objective_unit(objective), value=float(reading.value),
                        gradient=grad, values=_values(cfg, paths, sd), units={p: variable_unit(p) for p in paths},
                        mode="tangent" if use_tangent else "adjoint", n_steps=tape.n_steps,
-                       elapsed_s=_time.perf_counter() - t0, notes=notes)
+                       elapsed_s=_time.perf_counter() - t0, notes=notes, records=records)
 
 
 @dataclass
