@@ -320,11 +320,11 @@ def _gradient_step(problem: DesignProblem, evaluator: Evaluator, state: _State, 
     (IPOP, a doubled population from a random point) whose best is searched next. A local search
     is checkpointed whole: a resumed run makes an interrupted one again (the same evaluations)."""
     left = (budget - state.n_evaluations) // GRADIENT_RUNS
-    x0 = pick_start(problem, state.history, state.gradient_used, state.gradient_optima)
+    start = pick_start(problem, state.history, state.gradient_used, state.gradient_optima)
     if left < 2:
         state.phase = "done"
         return
-    if x0 is None:
+    if start is None:
         if state.restarts >= _MAX_RESTARTS:
             state.phase = "done"
             return
@@ -332,6 +332,7 @@ def _gradient_step(problem: DesignProblem, evaluator: Evaluator, state: _State, 
         state.optimiser = _new_optimiser(problem, state.restarts)
         state.phase, state.stall = "population", 0
         return
+    x0, f0 = start
     state.gradient_used.append(x0)
     evaluator.cache = state.cache
 
@@ -340,7 +341,7 @@ def _gradient_step(problem: DesignProblem, evaluator: Evaluator, state: _State, 
         state.cache.setdefault(problem.space.key_of(values), replace(ev, engine_runs=0))
         state.history.append({**_row(problem, state, "gradient", x, ev, values), "elapsed_s": clock()})
 
-    x, _, _ = local_search(problem, evaluator, x0, left, record)
+    x, _, _ = local_search(problem, evaluator, x0, left, record, start_value=f0)
     state.gradient_optima.append(x)
 
 

@@ -80,6 +80,8 @@ class Sensitivity:
         What the run recorded: ``time`` [s] and ``wall_force`` [N] at every sample (absent
         without a wall), every contact's largest sampled force ``max_contact_force`` [N] and
         elastic limit ``yield_force`` [N] (the design search's feasibility checks read them).
+    smooth_value : float or None
+        With ``smoothing``: the soft maximum whose gradient ``gradient`` is.
     """
 
     objective: str
@@ -93,6 +95,7 @@ class Sensitivity:
     elapsed_s: float = 0.0
     notes: list[str] = field(default_factory=list)
     records: dict = field(default_factory=dict, repr=False)
+    smooth_value: float | None = None
 
     def relative(self) -> dict[str, float]:
         """Elasticities (x / J) dJ/dx: the relative change of the objective per relative change of each
@@ -220,7 +223,7 @@ def _derived_value(path: str, sd) -> float:
 
 def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_wall_force", *,
                 mode: Literal["auto", "adjoint", "tangent"] = "auto",
-                window: tuple[float, float] | None = None) -> Sensitivity:
+                window: tuple[float, float] | None = None, smoothing: float | None = None) -> Sensitivity:
     """Exact derivatives of a run's result with respect to config fields.
 
     Parameters
@@ -240,6 +243,11 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
         variable); ``"auto"``: the adjoint, cheaper for any number of variables.
     window : (float, float), optional
         Time window [s] of ``energy_at_wall``.
+    smoothing : float, optional
+        With ``peak_wall_force``: differentiate the soft maximum of the sampled wall force,
+        mu log sum exp(F_k / mu), mu = ``smoothing`` [N] (:func:`hertzchain.gradients.objectives.soft_peak`:
+        smooth where the peak has kinks, as where two pulses are equally high); ``.value`` stays
+        the peak itself, ``.smooth_value`` is the soft maximum.
 
     Returns
     -------
@@ -263,7 +271,7 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     switch, the result has a kink or a jump, and the gradient is that of the branch the run is on.
     """
     from ..integrate import differentiate as D
-    from .objectives import check_objective, objective_unit, read_objective
+    from .objectives import check_objective, objective_unit, read_objective, soft_peak
     from .setup import expand_paths, setup_derivatives
 
     t0 = _time.perf_counter()
@@ -277,6 +285,11 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     tape = D.record(system, duration, cfg.run.sample_interval, dt=cfg.run.dt,
                     steps_per_radian=cfg.run.steps_per_radian)
     reading = read_objective(objective, tape, window)
+    value = reading.value
+    if smoothing is not None:
+        if objective != "peak_wall_force" or not smoothing > 0:
+            raise ConfigError("smoothing", "is a width > 0 [N] of the soft maximum of peak_wall_force")
+        reading = soft_peak(tape, float(smoothing))
     seeds = D.Seeds.build([(tape.sample_step(k), j, w) for k, j, w in reading.samples] + list(reading.steps))
     use_tangent = mode == "tangent" or (mode == "auto" and len(paths) <= TANGENT_MAX_VARIABLES)
     if use_tangent:
@@ -295,10 +308,11 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     notes = []
     if tape.plan.adaptive:
         notes.append("adaptive step: the derivative holds the run's step sequence fixed (see the docs, Sensitivities)")
-    return Sensitivity(objective=objective, unit=objective_unit(objective), value=float(reading.value),
+    return Sensitivity(objective=objective, unit=objective_unit(objective), value=float(value),
                        gradient=grad, values=_values(cfg, paths, sd), units={p: variable_unit(p) for p in paths},
                        mode="tangent" if use_tangent else "adjoint", n_steps=tape.n_steps,
-                       elapsed_s=_time.perf_counter() - t0, notes=notes, records=records)
+                       elapsed_s=_time.perf_counter() - t0, notes=notes, records=records,
+                       smooth_value=float(reading.value) if smoothing is not None else None)
 
 
 @dataclass

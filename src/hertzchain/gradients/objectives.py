@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import ConfigError, PulseNotFound
 
-__all__ = ["OBJECTIVES", "Reading", "read_objective", "objective_unit", "contacts_needed"]
+__all__ = ["OBJECTIVES", "Reading", "read_objective", "objective_unit", "contacts_needed", "soft_peak"]
 
 #: Objective name -> (unit, meaning).
 OBJECTIVES: dict[str, tuple[str, str]] = {
@@ -189,6 +189,38 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
     value, weights = pulse_partials(tape.time, f, name)
     return Reading(value, samples=[(int(k), wall, float(w)) for k, w in zip(np.flatnonzero(weights),
                                                                            weights[weights != 0])])
+
+
+def soft_peak(tape, width: float) -> Reading:
+    """The soft maximum of the sampled wall force, mu log sum_k exp(F_k / mu) with mu = ``width`` [N],
+    and its partials (the soft-max weights) on every sample.
+
+    The peak wall force is a maximum over time: where two pulses (a front and a reflection) reach
+    the same height it has a kink, and the best designs sit on such kinks (they level their
+    peaks); a gradient method stalls there. The soft maximum is smooth, within ``width`` log(m)
+    above the largest sample (m: the samples within a few ``width`` of it), and its gradient
+    weighs every nearly highest peak: the stand-in the design search's local searches minimise.
+
+    Parameters
+    ----------
+    tape : Tape
+        The taped run (with a wall).
+    width : float
+        mu [N], > 0.
+
+    Returns
+    -------
+    Reading
+        The soft maximum [N] and its partials on the wall samples.
+    """
+    wall = tape.system.n_beads
+    f = tape.forces[:, int(np.searchsorted(tape.contacts, wall))]
+    top = float(np.max(f))
+    e = np.exp((f - top) / width)
+    z = float(e.sum())
+    w = e / z
+    keep = np.flatnonzero(w > 1e-14)
+    return Reading(top + width * math.log(z), samples=[(int(k), wall, float(w[k])) for k in keep])
 
 
 def _vertex(fb, fpk, fa, h0, h1, t_pk):
