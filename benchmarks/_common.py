@@ -281,7 +281,7 @@ def solve_scipy(system, duration: float, method: str, rtol: float, rhs_kind: str
 
 # ----------------------------------------------------------------------------- time to solution
 def time_to_solution(model, duration: float, tolerance: float, repeat: int, repeat_scipy: int,
-                     rhs_kinds: tuple[str, ...] = ("numpy", "compiled")) -> dict:
+                     rhs_kinds: tuple[str, ...] = ("numpy", "compiled"), integrator: str = "verlet") -> dict:
     """Wall-clock time to get the peak wall force within ``tolerance`` (relative) of DOP853 rtol=1e-12.
 
     hertzchain: the whole ``simulate(model, duration)`` call with its automatic (adaptive) step and
@@ -289,9 +289,13 @@ def time_to_solution(model, duration: float, tolerance: float, repeat: int, repe
     ``solve_ivp`` RK45 and DOP853 with rtol = 1e-4, 1e-5, ... (atol scaled alike) until the peak
     is within ``tolerance``; the state is sampled every 100 ns as well (:func:`solve_scipy`).
     ``speedup_vs_scipy`` is against the faster scipy solver with the NumPy right-hand side (what a
-    user writes); ``speedup_vs_scipy_compiled_rhs`` against scipy driving hertzchain's compiled one.
+    user writes); ``speedup_vs_scipy_compiled_rhs`` against scipy driving hertzchain's compiled one;
+    ``speedup_vs_dop853`` against DOP853 with the NumPy right-hand side. ``integrator``: the
+    hertzchain integrator timed (``"verlet"`` or ``"rkn4"``, each at its default accuracy); the
+    kernel alone is ``run_verlet`` / ``run_rkn`` with the same probes.
     """
     import hertzchain as hc
+    from hertzchain.integrate.rkn import run_rkn
     from hertzchain.integrate.verlet import run_verlet
 
     system = model.system()
@@ -301,13 +305,16 @@ def time_to_solution(model, duration: float, tolerance: float, repeat: int, repe
     def rel(x: float) -> float:
         return abs(x / ref - 1.0)
 
-    hc.simulate(model, duration)  # warm
-    t_hc, times_hc, ds = best_of(lambda: hc.simulate(model, duration), repeat)
+    kernel = run_verlet if integrator == "verlet" else run_rkn
+    hc.simulate(model, duration, integrator=integrator)  # warm
+    t_hc, times_hc, ds = best_of(lambda: hc.simulate(model, duration, integrator=integrator), repeat)
     hc_peak = float(ds.attrs["peak_wall_force"])
-    t_kernel, _, _ = best_of(lambda: run_verlet(system, duration, 1e-7), repeat)
+    t_kernel, _, _ = best_of(lambda: kernel(system, duration, 1e-7), repeat)
     out = {"reference": {"integrator": "dop853", "rtol": 1e-12, "peak_wall_force": ref, "time_s": t_ref},
-           "hertzchain": {"time_s": t_hc, "times_s": times_hc, "run_verlet_only_time_s": t_kernel,
+           "hertzchain": {"integrator": integrator, "time_s": t_hc, "times_s": times_hc,
+                          "run_verlet_only_time_s": t_kernel, "kernel_only_time_s": t_kernel,
                           "simulate_outside_run_verlet_s": t_hc - t_kernel,
+                          "simulate_outside_kernel_s": t_hc - t_kernel,
                           "time_step": ds.attrs.get("time_step", "fixed"), "dt": float(ds.attrs["dt"]),
                           "dt_max": float(ds.attrs.get("dt_max", ds.attrs["dt"])),
                           "n_steps": int(ds.attrs["n_steps"]), "peak_wall_force": hc_peak,
@@ -345,6 +352,8 @@ def time_to_solution(model, duration: float, tolerance: float, repeat: int, repe
         suffix = "" if kind == "numpy" else "_" + kind + "_rhs"
         out[f"fastest_scipy_{kind}_rhs"] = name
         out["speedup_vs_scipy" + suffix] = t / t_hc
+    dop = scipy_res.get("DOP853_numpy", {})
+    out["speedup_vs_dop853"] = dop["time_s"] / t_hc if "time_s" in dop else float("nan")
     return out
 
 
@@ -353,7 +362,8 @@ def time_to_solution_rows(t: dict, tolerance: float) -> list[tuple]:
     h = t["hertzchain"]
     step = (f"adaptive dt {h['dt'] * 1e9:.3g}-{h['dt_max'] * 1e9:.3g} ns" if h["time_step"] == "adaptive"
             else f"dt {h['dt'] * 1e9:.3g} ns")
-    rows = [(f"hertzchain Verlet ({step}, {h['n_steps']} steps)", "-", f"{h['time_s'] * 1e3:.2f}",
+    name = {"verlet": "Verlet", "rkn4": "rkn4"}.get(h.get("integrator", "verlet"), h.get("integrator"))
+    rows = [(f"hertzchain {name} ({step}, {h['n_steps']} steps)", "-", f"{h['time_s'] * 1e3:.2f}",
              f"{h['rel_error']:.1e}", "yes" if h["within_tolerance"] else "NO", "1")]
     for k, v in t["scipy"].items():
         method, kind = k.split("_")

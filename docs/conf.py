@@ -19,6 +19,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT / "src"))  # a plain checkout builds too (the editable install is preferred)
+sys.path.insert(0, str(HERE))  # figure_scraper, named below
 
 import hertzchain  # noqa: E402
 
@@ -31,11 +32,13 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax ships with the site (copied into _static/mathjax): the equations render offline.
+    "sphinx-mathjax-offline",
     "numpydoc",
     "sphinx_gallery.gen_gallery",
 ]
 
-exclude_patterns = ["_build", "**.ipynb_checkpoints", "gallery/*.py", "gallery/*.ipynb", "gallery/*.zip",
+exclude_patterns = ["_build", "figure_scraper.py", "**.ipynb_checkpoints", "gallery/*.py", "gallery/*.ipynb", "gallery/*.zip",
                     "gallery/*.md5", "gallery/*.json", "gallery/*.pickle"]
 templates_path: list[str] = []
 nitpicky = False
@@ -135,6 +138,7 @@ _GROUP_TITLES = {
     "hertzchain.materials": "Materials",
     "hertzchain.contact": "Contact laws",
     "hertzchain.chain": "Chains",
+    "hertzchain.elements": "Bead elements",
     "hertzchain.model": "Model",
     "hertzchain.probes": "Probes",
     "hertzchain.simulation": "Running",
@@ -148,6 +152,8 @@ _GROUP_TITLES = {
     "hertzchain.theory": "Theory",
     "hertzchain.viz": "Pictures",
     "hertzchain.gradients": "Sensitivities",
+    "hertzchain.exporting": "Exporting results (CSV, MATLAB, parquet)",
+    "hertzchain.explorer": "Explorer",
 }
 
 
@@ -205,9 +211,16 @@ sphinx_gallery_conf = {
     "download_all_examples": False,
     "remove_config_comments": True,
     "matplotlib_animations": False,
-    "image_scrapers": ("matplotlib",),
+    # hertzchain's plotting functions draw outside pyplot: figure_scraper saves those too
+    "image_scrapers": ("figure_scraper", "matplotlib"),
     "reset_modules": ("matplotlib",),
+    # The timing page loads jQuery and DataTables from CDNs: no page of the site may need the network.
+    "write_computation_times": False,
 }
+# Timing pages left by a build with an older configuration would still be built from the source
+# tree (they are generated files, git-ignored): remove them so no stale page reaches the network.
+for _stale in (HERE / "sg_execution_times.rst", HERE / "gallery" / "sg_execution_times.rst"):
+    _stale.unlink(missing_ok=True)
 
 # -- HTML ----------------------------------------------------------------------------------------
 html_theme = "pydata_sphinx_theme"
@@ -218,7 +231,7 @@ html_theme_options = {
     "secondary_sidebar_items": ["page-toc"],
 }
 html_sidebars = {"**": ["sidebar-nav-bs"]}
-html_static_path: list[str] = []
+html_static_path = ["_static"]
 html_show_sourcelink = False
 
 

@@ -81,6 +81,82 @@ def isf_values(t: np.ndarray, volts: np.ndarray, width: int = 2) -> np.ndarray:
     return (isf_codes(volts, ymult, 3.0, 0.0, width).astype(float) - 3.0) * ymult
 
 
+#: The sample formats of the .isf programmer manual: BN_FMT -> (NumPy kind, allowed BYT_NR).
+ISF_FORMATS = {"RI": ("i", (1, 2, 4, 8)), "RP": ("u", (1, 2, 4, 8)), "FP": ("f", (4, 8))}
+
+
+def isf_bytes(codes: np.ndarray, *, fmt: str = "RI", width: int = 2, order: str = "MSB", encoding: str = "BIN",
+              xincr: float = 4e-7, xzero: float = -4e-5, pt_off: float = 0.0, ymult: float = 1e-3,
+              yoff: float = 0.0, yzero: float = 0.0, xunit: str = "s", yunit: str = "V", short: bool = False,
+              indefinite: bool = False, extra: str = "", header_over: dict | None = None) -> bytes:
+    """A Tektronix .isf file of the sample ``codes`` in any documented variant (programmer manual,
+    WFMPre? and CURVe?): ``fmt`` RI/RP/FP, ``width`` BYT_NR, ``order`` MSB/LSB, ``encoding``
+    BIN/ASC, long or ``short`` key names, a ``#0`` block of ``indefinite`` length; ``header_over``
+    replaces header values as written (to write illegal ones)."""
+    kind = ISF_FORMATS[fmt][0]
+    dtype = np.dtype(f"{'>' if order == 'MSB' else '<'}{kind}{width}")
+    codes = np.asarray(codes)
+    fields = {"BYT_NR": str(width), "BIT_NR": str(8 * width), "ENCDG": encoding, "BN_FMT": fmt, "BYT_OR": order,
+              "NR_PT": str(codes.size), "WFID": f'"Ch1, DC coupling, 2.0E-1 V/div, 4.0E-5 s/div, {codes.size} points"',
+              "PT_FMT": "Y", "XINCR": repr(float(xincr)), "PT_OFF": repr(float(pt_off)), "XZERO": repr(float(xzero)),
+              "XUNIT": f'"{xunit}"', "YMULT": repr(float(ymult)), "YZERO": repr(float(yzero)),
+              "YOFF": repr(float(yoff)), "YUNIT": f'"{yunit}"'}
+    fields.update(header_over or {})
+    shorts = {"BYT_NR": "BYT_N", "BIT_NR": "BIT_N", "ENCDG": "ENC", "BN_FMT": "BN_F", "BYT_OR": "BYT_O",
+              "NR_PT": "NR_P", "WFID": "WFI", "PT_FMT": "PT_F", "XINCR": "XIN", "PT_OFF": "PT_O", "XZERO": "XZE",
+              "XUNIT": "XUN", "YMULT": "YMU", "YZERO": "YZE", "YOFF": "YOF", "YUNIT": "YUN"}
+    keys = [(shorts.get(k, k) if short else k, v) for k, v in fields.items() if v is not None]
+    header = (":WFMP:" if short else ":WFMPRE:") + ";".join(f"{k} {v}" for k, v in keys) + extra + ";"
+    if encoding.upper().startswith("ASC"):
+        body = ",".join(repr(float(c)) if kind == "f" else str(int(c)) for c in codes).encode("ascii")
+        return (header + (":CURV " if short else ":CURVE ")).encode("latin-1") + body + b"\n"
+    payload = codes.astype(dtype).tobytes()
+    block = b"#0" if indefinite else f"#{len(str(len(payload)))}{len(payload)}".encode("ascii")
+    return (header + (":CURV " if short else ":CURVE ")).encode("latin-1") + block + payload + b"\n"
+
+
+def trc_bytes(codes: np.ndarray, *, comm_type: int = 1, comm_order: int = 1, gain: float = 8.0 / 65536,
+              offset: float = 0.0, interval: float = 4e-7, h_offset: float = -4e-5, block_header: bool = True,
+              user_text: bytes = b"", record_type: int = 0, over: dict | None = None) -> bytes:
+    """A LeCroy .trc file (template LECROY_2_3) of the sample ``codes``: ``comm_type`` 0 (bytes) or 1
+    (words), ``comm_order`` 0 (HIFIRST) or 1 (LOFIRST), a user text block, with or without the
+    ``#9`` block header; ``over`` sets {offset: (struct format, value)} (illegal values)."""
+    e = ">" if comm_order == 0 else "<"
+    codes = np.asarray(codes).astype(f"{e}i{1 if comm_type == 0 else 2}")
+    desc = bytearray(346)
+
+    def put(fmt: str, pos: int, *values) -> None:
+        struct.pack_into(e + fmt, desc, pos, *values)
+
+    put("16s", 0, b"WAVEDESC")
+    put("16s", 16, b"LECROY_2_3")
+    put("h", 32, comm_type)
+    put("h", 34, comm_order)
+    put("i", 36, 346)
+    put("i", 40, len(user_text))
+    put("i", 60, codes.nbytes)
+    put("16s", 76, b"LECROYWR104Xi")
+    put("i", 116, codes.size)
+    put("i", 120, codes.size)
+    put("i", 124, 0)
+    put("i", 128, codes.size - 1)
+    put("i", 144, 1)
+    put("i", 148, 1)
+    put("f", 156, gain)
+    put("f", 160, offset)
+    put("H", 172, 8)
+    put("f", 176, interval)
+    put("d", 180, h_offset)
+    put("48s", 196, b"V")
+    put("48s", 244, b"S")
+    put("H", 316, record_type)
+    put("H", 344, 0)
+    for pos, (fmt, value) in (over or {}).items():
+        put(fmt, pos, value)
+    body = bytes(desc) + user_text + codes.tobytes()
+    return (f"#9{len(body):09d}".encode("ascii") if block_header else b"") + body
+
+
 def write_trc(path: Path, t: np.ndarray, volts: np.ndarray) -> Path:
     gain = np.float32(8.0 / 65536)
     offset = np.float32(0.0)

@@ -5,6 +5,8 @@ used without a copy), with the same elastic-limit warnings."""
 
 from __future__ import annotations
 
+import re
+
 import warnings
 
 import numpy as np
@@ -77,8 +79,11 @@ def test_mixed_batch_equals_stacked_single_datasets():
     # reached the wall (simulate_many leaves that to the caller)
     pulse = [m for c, m in w_fast if c is PulseNotReachedWarning]
     w_fast = [(c, m) for c, m in w_fast if c is not PulseNotReachedWarning]
-    assert w_fast == w_slow and {m.split(":")[0] for _, m in w_fast} >= {"member 5", "member 6"}
-    assert all(c is ElasticLimitWarning for c, _ in w_fast)
+    # ONE elastic-limit warning for the batch, naming the members past the limit (issue 23: not one line
+    # per member, 10,000 for a 10k ensemble)
+    assert w_fast == w_slow and len(w_fast) == 1 and w_fast[0][0] is ElasticLimitWarning
+    assert re.search(r"\d+ of 7 members \(member [\d, ]*5, 6\) pass the elastic limit; worst: member \d+:",
+                     w_fast[0][1]), w_fast[0][1]
     # the single-run check's criterion: the wall contact never carried 1e-6 of the member's largest force
     fmax = np.nanmax(fast["max_contact_force"].values, axis=1)
     missed = [i for i in range(len(models))

@@ -87,3 +87,42 @@ def test_report_blocks_hold_the_table():
     blocks = report_blocks(s, {})
     table = next(b for b in blocks if b[0] == "table")
     assert len(table[2]) == len(s["claims"]) and table[1][-1] == "verdict"
+
+
+def test_striker_bounce_and_one_dissipation_for_both_scales():
+    """The striker's restitution is judged against steel balls (>= 0.95); the combined row only
+    counts it for a variant whose chain measures the paper's eps back."""
+    from hertzchain.paper.claims import explained_by
+
+    s = _summary()
+    laws = s["fidelity"]["laws"]
+    laws["dashpot_scaled"] = _law(f_ratio=0.55)
+    for law, e, eps in (("viscoelastic", 0.68, 0.9832), ("viscoelastic_scaled", 0.86, 0.9831),
+                        ("dashpot_scaled", 0.958, 0.9842), ("elastic", 1.0, 0.9996)):
+        laws[law]["striker_restitution"] = e
+        laws[law]["chain1"]["eps_measured"] = eps
+    claims = build_claims(s)
+    bounce = _row(claims, "The steel striker bounces off the first bead")
+    assert bounce["verdicts"] == {"viscoelastic": "not reproduced", "viscoelastic_scaled": "not reproduced",
+                                  "dashpot_scaled": "reproduced", "elastic": "reproduced"}
+    both = _row(claims, "One dissipation gives both")
+    assert both["values"]["elastic"] == 0.0  # no eps: the elastic chain loses nothing
+    assert both["reproduced_by"] == ["dashpot_scaled"] and both["verdict"] == "partly"
+    s["settings"]["law"] = "dashpot_scaled"
+    assert _row(build_claims(s), "One dissipation gives both")["verdict"] == "reproduced"
+    assert "One dissipation gives both the chain's eps and a steel-like striker bounce" in \
+        explained_by(claims)["dashpot_scaled"]
+    s["claims"] = claims
+    blocks = report_blocks(s, {})
+    which = blocks[[b[:2] for b in blocks].index(("h3", "Which model explains which observation")) + 1]
+    assert [r[0] for r in which[2]] == list(explained_by(claims))
+
+
+def test_report_states_the_dissipation_model_and_the_strikers_bounce():
+    from hertzchain.paper.report import _dissipation_sentence
+
+    s = _summary("dashpot_scaled")
+    s["fidelity"]["laws"]["dashpot_scaled"] = {"striker_restitution": 0.958146}
+    text = _dissipation_sentence(s, {"law": "dashpot_scaled", "eps_target": 0.985, "striker_velocity": 0.2})
+    assert "dashpot following each contact pair" in text and "0.958 at 0.2 m/s" in text and "0.985" in text
+    assert "none" in _dissipation_sentence(s, {"law": "elastic"})

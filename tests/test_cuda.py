@@ -118,3 +118,22 @@ def test_device_choice_and_errors():
             with pytest.raises(ConfigError) as e:
                 simulate_batch(ens, 2e-5, Probes(1e-6), device="cuda")
             assert e.value.field == "device" and "GPU" in str(e.value)
+
+
+@pytest.mark.slow
+def test_simulated_kernels_beyond_the_paper():
+    """A flat striker of given mass, gravity, cylinders and given masses on the CUDA engine (set up
+    member by member) under Numba's simulator: the CPU engine's numbers bit for bit (the simulator
+    does not fuse multiply-adds); a protected body is refused with a ConfigError naming wall.type
+    (a few minutes under the simulator: marked slow)."""
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    proc = subprocess.run([sys.executable, str(HERE / "cuda_bodies.py")], capture_output=True, text=True, env=env,
+                          timeout=1200, cwd=HERE)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert result["engine"].startswith("batched velocity Verlet on the GPU")
+    assert result["pulse_N"] > 1.0 and result["refused"] == "wall.type"
+    for key in ("contact_force", "wall_force", "velocity", "peak_wall_force"):
+        assert result[key] == 0.0, key
+    for key in ("kinetic_energy", "potential_energy", "dissipated_energy"):
+        assert result[key] < 1e-12, key

@@ -26,6 +26,7 @@ pytest.importorskip("sphinx")
 pytest.importorskip("pydata_sphinx_theme")
 pytest.importorskip("numpydoc")
 pytest.importorskip("sphinx_gallery")
+pytest.importorskip("sphinx-mathjax-offline")  # MathJax copied into the site (docs/conf.py)
 
 
 def _build(out: Path, *extra: str) -> subprocess.CompletedProcess:
@@ -49,10 +50,32 @@ def _text(page: Path) -> str:
 
 def test_site_builds_with_every_page(site):
     pages = ["index", "conventions", "theory", "benchmarks", "validation", "api/index", "gallery/index", "architecture"]
-    pages += [f"guide/{p}" for p in ("config", "running", "results", "analysis", "reproduction", "sweeps",
-                                     "instrument", "lab", "design", "gpu", "plotting", "fidelity", "errors")]
+    pages += [f"guide/{p}" for p in ("config", "running", "explore", "results", "analysis", "reproduction", "sweeps",
+                                     "instrument", "lab", "design", "gpu", "plotting", "fidelity", "bodies", "plasticity", "errors")]
     for page in pages:
         assert (site / f"{page}.html").is_file(), page
+
+
+def test_no_page_loads_anything_from_another_host(site):
+    """The site works offline: no script, stylesheet or image from another host on any page, and
+    the equations are typeset by the MathJax copied into the site."""
+    from urllib.parse import urlparse
+
+    pages = sorted(site.rglob("*.html"))
+    assert len(pages) > 50
+    offenders = []
+    for page in pages:
+        html = page.read_text(encoding="utf-8")
+        for tag, attr in (("script", "src"), ("link", "href"), ("img", "src"), ("iframe", "src")):
+            for url in re.findall(rf'<{tag}\b[^>]*\b{attr}="([^"]+)"', html):
+                if urlparse(url).netloc:
+                    offenders.append(f"{page.relative_to(site)}: <{tag}> {url}")
+    assert not offenders
+    theory = (site / "theory.html").read_text(encoding="utf-8")
+    assert re.search(r'<script[^>]*src="_static/mathjax/tex-chtml.js', theory)
+    assert (site / "_static" / "mathjax" / "tex-chtml.js").is_file()
+    # MathJax's fonts come from beside its script, in the site
+    assert list((site / "_static" / "mathjax" / "output" / "chtml" / "fonts").rglob("*.woff"))
 
 
 def test_every_public_name_has_an_api_page(site):
@@ -79,8 +102,8 @@ def test_api_pages_show_parameters_with_units(site):
 def test_conventions_page_covers_each_convention(site):
     text = _text(site / "conventions.html")
     for heading in ("Units", "Bodies and their numbering", "Contacts and their numbering", "Contact law (Hertz)",
-                    "Materials", "Striker", "Wall", "Sensors", "Misalignment", "Dissipation", "Precompression",
-                    "Elastic limit"):
+                    "Materials", "Striker", "Wall", "Protected body", "Sensors", "Misalignment", "Dissipation",
+                    "Precompression", "Gravity", "Elements", "Elastic limit"):
         assert re.search(rf"{re.escape(heading)}\s*#", text), heading
 
 
@@ -154,7 +177,7 @@ def test_gallery_runs_and_makes_its_figures(tmp_path):
     run = _build(tmp_path)
     assert run.returncode == 0, f"sphinx -W failed:\n{run.stdout}\n{run.stderr}"
     scripts = sorted((ROOT / "examples" / "gallery").glob("plot_*.py"))
-    assert len(scripts) >= 5
+    assert len(scripts) >= 10
     for script in scripts:
         assert (tmp_path / "html" / "_images" / f"sphx_glr_{script.stem}_001.png").is_file(), script.name
 

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain.contact import (LIMITING_PRESSURE_FACTOR, effective_modulus, effective_radius, hertz_constant,
-                                limiting_pressure, thornton_loading_force, thornton_loading_overlap,
-                                thornton_loading_work, thornton_restitution, thornton_unloading, yield_force,
-                                yield_velocity)
+from hertzchain.contact import effective_modulus, effective_radius, hertz_constant, yield_force
+from hertzchain.plasticity import (LIMITING_PRESSURE_FACTOR, limiting_pressure, thornton_loading_force,
+                                   thornton_loading_overlap, thornton_loading_work, thornton_restitution,
+                                   thornton_unloading, yield_velocity)
 from hertzchain.errors import ConfigError
 from hertzchain.integrate.kernels import elastoplastic_force
 
@@ -308,3 +308,25 @@ def test_scipy_integrators_and_lateral_freedom_refuse_it():
         hc.simulate(model, 1e-4, integrator="dop853")
     with pytest.raises(ConfigError, match="contact.law"):
         hc.simulate_lateral(model, hc.Track(), 1e-4)
+
+
+def test_limiting_pressure_factor_scales_the_yield_point():
+    """p_y = factor sigma_Y: F_y ~ p_y^3, delta_y ~ p_y^2, v_y ~ p_y^(5/2); F_Y stays the paper's."""
+    base = hc.Model(hc.Chain.uniform(1, 26e-3), hc.Striker(8e-3, 1.0), hc.Wall("none"), hc.Elastoplastic()).system()
+    hard = hc.Model(hc.Chain.uniform(1, 26e-3), hc.Striker(8e-3, 1.0), hc.Wall("none"),
+                    hc.Elastoplastic(limiting_pressure_factor=3.0)).system()
+    assert np.array_equal(hard.yield_force, base.yield_force)
+    assert hard.yield_overlap()[0] == pytest.approx(4 * base.yield_overlap()[0], rel=1e-14)
+    mu = 1 / (base.inv_mass[0] + base.inv_mass[1])
+    v_y = yield_velocity(hard.kappa[0], hard.yield_overlap()[0], mu)
+    assert v_y == pytest.approx(2**2.5 * yield_velocity(base.kappa[0], base.yield_overlap()[0], mu), rel=1e-12)
+    e = hc.restitution(3 * v_y, hc.Elastoplastic(limiting_pressure_factor=3.0), 8e-3, STEEL, 26e-3)
+    assert e == pytest.approx(thornton_restitution(3 * v_y, v_y), rel=1e-5)
+    cfg = hc.parse_config({"chain": {"uniform": {"n": 3, "diameter_mm": 26}},
+                           "contact": {"law": "elastoplastic", "limiting_pressure_factor": 3.0}})
+    assert hc.build_model(cfg).law.limiting_pressure_factor == 3.0
+    with pytest.raises(ConfigError, match="limiting_pressure_factor"):
+        hc.parse_config({"chain": {"uniform": {"n": 3, "diameter_mm": 26}},
+                         "contact": {"law": "elastic", "limiting_pressure_factor": 3.0}})
+    with pytest.raises(ConfigError, match="limiting_pressure_factor"):
+        hc.Elastoplastic(limiting_pressure_factor=0.0)

@@ -144,9 +144,11 @@ def test_non_identifiable_and_bad_start(tmp_path, signal, capsys):
     assert not early.converged and "not converged" in early.as_json()["warnings"][0]
     with pytest.raises(ConfigError, match=r"r.csv@signal: sensor:31 names no bead.*1..30"):
         fit_traces(START, [Trace(da, signal="sensor:31", name="r.csv")], ["gain"])
-    # run.rtol is not used by the Verlet engine: the traces cannot tell anything about it.
+    # run.rtol is not used by the Verlet engine: the traces cannot tell anything about it (given a
+    # number: its default, None, means the integrator's own and is not a field to fit).
+    with_rtol = {**START, "run": {**START["run"], "rtol": 1e-10}}
     with pytest.raises(ConfigError, match="run.rtol.*do not change"):
-        fit_traces(START, [Trace(da)], ["run.rtol", "gain", "time_offset"])
+        fit_traces(with_rtol, [Trace(da)], ["run.rtol", "gain", "time_offset"])
     # Two parameters that act the same way: named together, with the combination.
     J = np.random.default_rng(0).standard_normal((200, 3))
     J[:, 2] = -2.0 * J[:, 0]
@@ -228,3 +230,20 @@ def test_fit_a_custom_materials_modulus(tmp_path):
     z = (result.values - [2.1e11, 0.3, acq.trigger_time + acq.jitter[0]]) / result.stderr
     assert np.all(np.abs(z) < 3), z
     assert result.stderr[0] / 2.1e11 < 0.01
+
+
+def test_compare_residual_has_the_sign_of_the_differences():
+    """simulated - measured everywhere: a simulation 10 % above the measurement gives dF_m > 0 and a
+    positive residual at the peak (the residual used to be measured - simulated, against its numbers)."""
+    import xarray as xr
+
+    from hertzchain.lab import compare_traces
+
+    t = np.linspace(0.0, 1e-3, 2001)
+    x = np.clip((t - 5e-4) / 5e-5, -np.pi / 2, np.pi / 2)
+    measured = xr.DataArray(2.0 * np.cos(x) ** 6, coords={"time": t}, dims="time")
+    comp = compare_traces(measured, 1.1 * measured)
+    assert comp.peak_force_diff == pytest.approx(0.2, rel=1e-3)
+    peak = np.argmax(comp.measured_force)
+    assert comp.residual[peak] == pytest.approx(0.2, rel=1e-3)
+    np.testing.assert_allclose(comp.residual, comp.simulated_force - comp.measured_force)

@@ -198,9 +198,10 @@ def _fig3c(name: str, law: str | None = None):
 def test_fig3c_local_taper_changes(law):
     """Paper Fig. 3c (reading of docs/guide/reproduction.rst (section "Fig. 3c")): "for dq/q = +1, the front pulse is
     slightly steeper and narrower. In contrast, for dq/q = -1, a smoother and slightly wider front
-    pulse is produced." ``law=None`` runs the example configs as they are (Kuwabara-Kono
-    calibrated to eps = 0.985); the elastic and dashpot variants show the effect is geometric.
-    Measured (Kuwabara-Kono): rise 10-90 % -0.09 % / +0.27 %, FWHM -0.25 % / +0.69 %.
+    pulse is produced." ``law=None`` runs the example configs as they are (the reproduction's
+    size-scaled dashpot calibrated to eps = 0.985); the elastic and dashpot variants show the
+    effect is geometric. Measured (size-scaled dashpot): rise 10-90 % -0.12 % / +0.32 %, FWHM
+    -0.27 % / +0.66 %.
     """
     runs = {name: _fig3c(name, law) for name in ("reference", "dq_plus", "dq_minus")}
     d = {name: runs[name].diameter.values * 1e3 for name in runs}

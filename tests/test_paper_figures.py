@@ -9,6 +9,7 @@ tested elsewhere.
 from __future__ import annotations
 
 import base64
+import html
 import re
 import struct
 
@@ -23,7 +24,7 @@ from hertzchain.paper.values import PAPER
 from figure_checks import text_overlaps, uncovered
 
 #: name -> (number of panels, figure width [in]) expected for each figure.
-EXPECTED = {"fig1": (8, 7.0), "fig2": (8, 7.0), "fig3": (5, 3.4), "fig4": (1, 3.4), "fig5": (8, 7.0),
+EXPECTED = {"fig1": (8, 7.0), "fig2": (8, 7.0), "fig3": (6, 3.4), "fig4": (1, 3.4), "fig5": (8, 7.0),
             "fig6": (6, 7.0)}
 
 
@@ -133,7 +134,7 @@ def test_figure_text_uses_paper_symbols(drawn):
 
 def test_fig3_legends_give_offsets_in_mm(drawn):
     fig, _ = drawn["fig3"]
-    a, _, b, _, c = _panels(fig)
+    a, _, b, _, c, _ = _panels(fig)
     for ax in (a, b):
         texts = [t.get_text() for t in ax.get_legend().get_texts()]
         assert len(texts) == 3 and all(re.match(r"e = \d+\.\d\d mm", t) for t in texts)
@@ -195,6 +196,27 @@ def test_fig4_curves_peak_at_one(drawn):
         assert abs(np.max(y) - 1.0) < 2e-3
 
 
+def test_fig3_has_no_text_between_panels_and_y_ranges_fit_the_peaks(drawn):
+    """The changes of the fits are the difference panels' keys (no text block between panels),
+    and each force panel's y range is the data's (a 2.6 N peak is not drawn on a 4.4 N axis)."""
+    fig, _ = drawn["fig3"]
+    panels = _panels(fig)
+    assert not fig.texts
+    for ax in panels:
+        assert "\n" not in ax.get_title()  # one line: the panel's subject, nothing else
+    for force, diff in zip(panels[0::2], panels[1::2]):
+        peak = max(np.max(line.get_ydata()) for line in force.get_lines())
+        assert force.get_ylim()[1] <= 1.15 * peak
+        keys = [t.get_text() for t in diff.get_legend().get_texts()]
+        assert keys and all("$\\Delta F_m$" in k and "$\\Delta T$" in k for k in keys)
+
+
+def test_fig6_time_of_flight_axis_starts_at_the_impact(drawn):
+    fig, _ = drawn["fig6"]
+    for ax in _panels(fig)[:2]:  # (a1), (a2): T [ms]
+        assert ax.get_ylabel() == "T [ms]" and ax.get_ylim()[0] == 0.0
+
+
 def test_fig6_legend_quotes_q(drawn, data):
     fig, _ = drawn["fig6"]
     legend = " ".join(t.get_text() for ax in _panels(fig) if ax.get_legend()
@@ -219,12 +241,16 @@ def test_report_md_and_html(drawn, summary, settings, tmp_path):
     for row in ("tapering factor q1", "standard deviation of q1", "tapering factor q2", "standard deviation of q2",
                 "Q1 (fit", "Q2 (fit", "$Q_1^{th}$", "$Q_2^{th}$", "$\\varepsilon$ measured back",
                 "wall/chain peak-force ratio", "wall/chain duration ratio", "yield force", "yield overlap"):
-        assert row in md and re.sub(r"\$([^$]+)\$", r"\\(\1\\)", row) in page, row
+        assert row in md, row
+        parts = re.split(r"\$([^$]+)\$", row)  # text, formula, text...: formulas drawn as SVG in the page
+        for i, part in enumerate(parts):
+            assert (f'data-tex="{html.escape(part)}"' if i % 2 else html.escape(part)) in page, row
     assert "| quantity | simulated | paper | relative difference | verdict |" in md
     assert "the paper's error bar 1.025 ± 0.016" in md
     assert re.search(r"\$Q_\{fit\}\$ = 1\.\d{3} ± 0\.\d{3} lies (inside|outside) the paper's error bar", md)
-    # maths as maths: no ASCII formula left in the notes; MathJax delimiters in the page
-    assert "\\(F_m\\)" in page and "$F_m$" in md and "\\(\\tau\\)" in page
+    # maths as maths: no ASCII formula left in the notes; drawn as inline SVG in the page
+    assert 'data-tex="F_m"><svg' in page and "$F_m$" in md and 'data-tex="\\tau"' in page
+    assert "\\(" not in page and "$" not in re.sub(r"<svg.*?</svg>", "", page, flags=re.S)
     notes = md.split("## Parameters")[0]
     for ascii_formula in (r"F_m\^\(n\+1\)", r"Q\^\(n-n'\)", r" tau ", r"T\(eps", r"(?<!\\)cos\^6"):
         assert not re.search(ascii_formula, notes), ascii_formula
@@ -239,9 +265,9 @@ def test_report_md_and_html(drawn, summary, settings, tmp_path):
     embedded = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
     assert len(embedded) == len(paths)
     assert {base64.b64decode(e) for e in embedded} == {p.read_bytes() for p in paths.values()}
-    # nothing external but MathJax, which only typesets the formulas (TeX source when offline)
+    # nothing external, no script at all: the page reads the same offline
     external = re.findall(r'(?:src|href)="((?:https?:)?//[^"]+)"', page)
-    assert external == ["https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-chtml.js"] and "<link" not in page
+    assert external == [] and "<link" not in page and "<script" not in page
     # one scale: each figure shown at its size in inches (a one-column figure at 3.4/7 of the page)
     widths = {name: float(w) for name, w in re.findall(r'<h3 id="(fig\d)">.*?style="width: ([\d.]+)%"', page,
                                                       flags=re.S)}
@@ -284,3 +310,23 @@ def test_save_figure_draws_the_pdf_once_with_the_pngs_layout(data, tmp_path, mon
     fig.draw(draws[-2])  # drawing again (the PNG's renderer) moves nothing: the layout is fixed
     assert [ax.get_position().bounds for ax in fig.axes] == positions
     assert png.with_suffix(".pdf").read_bytes()[:5] == b"%PDF-"
+
+
+def test_fig3_lateral_has_a_letter_on_every_panel_and_no_text_on_the_curves():
+    """Synthetic cos^6 wall pulses (the figure only draws them): a letter (a)..(f) per panel."""
+    import xarray as xr
+
+    from hertzchain.paper.fidelity import TRACKS, fig3_lateral
+
+    t = np.linspace(0.0, 3e-3, 3001)
+
+    def pulse(scale: float):
+        x = np.clip((t - 2e-3) / 8e-5, -np.pi / 2, np.pi / 2)
+        return xr.Dataset({"wall_force": ("time", scale * 2.6 * np.cos(x) ** 6)}, coords={"time": t})
+
+    rigid = {(b, fr): pulse(1 - fr) for b in (22, 28) for fr in (0.0, 0.05, 0.1)}
+    lateral = {(v, b, fr): pulse(1 - 2 * fr) for v in TRACKS for b in (22, 28) for fr in (0.05, 0.1)}
+    fig = fig3_lateral(rigid, lateral)
+    tags = sorted(t.get_text() for ax in fig.axes for t in ax.texts if re.fullmatch(r"\([a-z]\)", t.get_text()))
+    assert tags == ["(a)", "(b)", "(c)", "(d)", "(e)", "(f)"]
+    assert text_overlaps(fig) == []

@@ -31,7 +31,14 @@ def test_spacetime_array_is_the_contact_forces(result):
     mesh = fig.axes[0].collections[0]
     f = result.contact_force.values
     assert np.array_equal(np.asarray(mesh.get_array()).reshape(f.shape), f)
-    assert mesh.norm.vmin == 0 and mesh.norm.vmax == f.max()  # the colour scale covers every force
+    # The colour scale tops at the chain's largest force: the striker contact's short, larger force
+    # (contact 0) is drawn saturated, with the colour bar's arrow, instead of fading the chain out.
+    chain_max = f[:, result.contact.values >= 1].max()
+    assert f[:, 0].max() > 1.5 * chain_max
+    assert mesh.norm.vmin == 0 and mesh.norm.vmax == chain_max and mesh.colorbar.extend == "max"
+    everything = spacetime.plot_spacetime(result, vmax=None).axes[0].collections[0]
+    assert everything.norm.vmax == f.max() and everything.colorbar.extend == "neither"
+    assert spacetime.plot_spacetime(result, vmax=2.5).axes[0].collections[0].norm.vmax == 2.5
     # columns are the contacts, rows the samples (ms)
     x, y = mesh.get_coordinates()[0, :, 0], mesh.get_coordinates()[:, 0, 1]
     assert np.allclose(0.5 * (x[1:] + x[:-1]), result.contact.values)

@@ -132,7 +132,8 @@ def test_analyze_json_is_valid_json_with_null(tmp_path, capsys):
     csv = tmp_path / "noise.csv"
     noise = np.random.default_rng(0).normal(0.0, 0.01, 50)
     csv.write_text("time,force\n" + "".join(f"{i * 1e-6},{f}\n" for i, f in enumerate(noise)))
-    assert main(["analyze", str(csv), "--json"]) == 0
+    # Every row failed: the rows are still printed, and the exit status says so (issue 23).
+    assert main(["analyze", str(csv), "--json"]) == 2
     text = capsys.readouterr().out
     rows = json.loads(text, parse_constant=lambda c: pytest.fail(f"bare {c} in JSON"))
     assert rows[0]["error"] and rows[0]["peak_force"] is None
@@ -219,11 +220,12 @@ def test_oscilloscope_work_is_bounded_before_the_run():
     assert build_instruments(parse_config(data))["wall"].n_average == 10
 
 
-def test_run_refuses_an_out_name_that_is_not_netcdf(tmp_path, capsys):
-    """A result is NetCDF: --out result.csv is refused before the run, naming --out, nothing written."""
-    out = tmp_path / "result.csv"
+def test_run_refuses_an_out_name_that_is_not_a_result_format(tmp_path, capsys):
+    """A result is NetCDF (or CSV / MATLAB / parquet, as export writes them): --out result.png is
+    refused before the run, naming --out and the formats, nothing written."""
+    out = tmp_path / "result.png"
     examples = Path(__file__).resolve().parents[1] / "examples"
     assert main(["run", str(examples / "contract.toml"), "--out", str(out), "-q"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: --out:") and "*.nc" in err
+    assert err.startswith("error: --out:") and "*.nc" in err and "*.mat" in err
     assert not out.exists()

@@ -227,3 +227,53 @@ def test_laws_figure_drawn_early_without_the_analysis_stack(summary, tmp_path):
     early = finish()["fig5_laws"]
     here = save_figure(fidelity.fig_laws(s["fidelity"]["laws"], s["settings"]["eps_target"]), tmp_path, "fig5_laws")
     assert early == out / "fig5_laws.png" and early.read_bytes() == here.read_bytes()
+
+
+@pytest.mark.parametrize("missing", ["chain2_truncated_16.nc", "chain1_truncated_30.nc",
+                                     "fig3_chain2_offset_bead22_e0.05.nc", "fig3_lateral_lateral_bead28_e0.10.nc",
+                                     "fig3c_chain1_24_dq_plus.nc"])
+def test_redraw_names_a_missing_trace(summary, tmp_path, capsys, missing):
+    """--from-data with one trace missing: a KeyError crash (chain 2's first truncation) or a figure
+    silently short of a curve (an offset) before; now exit 2 naming the file."""
+    import shutil
+
+    from hertzchain.cli.main import main
+
+    out, _ = summary
+    shutil.copytree(out, tmp_path / "r")
+    (tmp_path / "r" / "data" / missing).unlink()
+    assert main(["reproduce", "--out", str(tmp_path / "r"), "--from-data"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {tmp_path / 'r' / 'data' / missing}: is missing") and "Traceback" not in err
+
+
+@pytest.mark.parametrize("edit,message", [
+    (lambda s: s["settings"].update(striker_velocity="0.2"), "settings.striker_velocity is '0.2'"),
+    (lambda s: s["settings"].update(law=3), "settings.law is 3"),
+    (lambda s: s["settings"].update(n0=16.5), "settings.n0 is 16.5"),
+    (lambda s: s["settings"].update(eps_target="x"), "settings.eps_target is 'x'"),
+    (lambda s: s["fidelity"].update(laws="x"), "fidelity.laws is not a table"),
+    (lambda s: s["fidelity"]["laws"]["viscoelastic"]["chain1"].update(peak_force=[1.0]),
+     "fidelity.laws.viscoelastic.chain1.peak_force is not 15 numbers"),
+    (lambda s: s.update(chain1="x"), "the report cannot read it"),
+])
+def test_redraw_names_a_mistyped_summary(summary, tmp_path, capsys, edit, message):
+    """A summary.json edited by hand (a string for a number, a damaged table) crashed the redraw
+    (internal error) or drew a wrong figure; now exit 2 naming the file and the key."""
+    import shutil
+
+    from hertzchain.cli.main import main
+
+    out, s = summary
+    shutil.copytree(out, tmp_path / "r")
+    s = json.loads(json.dumps(s))
+    s.setdefault("fidelity", {}).setdefault("laws", {"viscoelastic": {c: {"beads": list(range(16, 16 + n)),
+                                                                         "peak_force": [1.0] * n,
+                                                                         "duration": [1.0] * n}
+                                                                     for c, n in (("chain1", 15), ("chain2", 13))}})
+    edit(s)
+    (tmp_path / "r" / "summary.json").write_text(json.dumps(s))
+    assert main(["reproduce", "--out", str(tmp_path / "r"), "--from-data"]) == 2
+    err = capsys.readouterr().err
+    last = err.strip().splitlines()[-1]  # after the progress bar, when the report is what cannot read it
+    assert last.startswith(f"error: {tmp_path / 'r' / 'summary.json'}: ") and message in last, err

@@ -59,3 +59,28 @@ def test_config_takes_the_scaled_law():
     assert model.describe()["contact"]["reference_diameter_mm"] == pytest.approx(26.0)
     assert not isinstance(model.law, Viscoelastic)
     assert math.isclose(model.system().damping[1], 4e-6, rel_tol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [0.5, 1.5])
+def test_scaled_dashpot_gives_the_same_eps_in_every_bead_size(scale):
+    """The dashpot with gamma_j ~ kappa_j^(2/5) mu_j^(3/5) keeps the dashpot's dimensionless damping
+    gamma v^(-1/5) / (kappa^(2/5) mu^(3/5)) of every pair in a chain scaled by s: the same eps."""
+    striker = Striker(8e-3, 0.2)
+    law = calibrate_law("dashpot_scaled", 0.985, diameter=26e-3, striker=striker)
+    eps = measure_eps(law, 26e-3 * scale, striker=Striker(8e-3 * scale, 0.2)).eps
+    assert eps == pytest.approx(0.985, rel=2e-3)
+
+
+def test_per_contact_gamma_and_config_of_the_scaled_dashpot():
+    from hertzchain.contact import ScaledDashpot
+
+    law = ScaledDashpot(20.0, 26e-3)
+    chain = Chain.from_diameters(np.array([26e-3, 26e-3, 13e-3, 13e-3]), "AISI52100")
+    system = Model(chain, Striker(8e-3, 0.2), Wall("flat"), law).system()
+    assert system.law == 2  # the dashpot kernel, with a per-contact gamma
+    assert system.damping[1] == pytest.approx(20.0, rel=1e-12)                 # 26 mm - 26 mm
+    # 13 mm - 13 mm: kappa ~ R^(1/2), mu ~ R^3, so gamma ~ (1/2)^(1/5 + 9/5) = 1/4
+    assert system.damping[3] == pytest.approx(5.0, rel=1e-12)
+    model = build_model(parse_config({"chain": {"diameters_mm": [26, 26, 20]}, "striker": {"velocity": 0.2},
+                                      "contact": {"law": "dashpot_scaled", "gamma": 20.0}}))
+    assert isinstance(model.law, ScaledDashpot) and model.describe()["contact"]["gamma"] == 20.0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -76,3 +77,30 @@ def test_plot_metrics_one_and_two_parameters(tmp_path):
         "chain.taper.q": {"low": 0.0, "high": 0.1}, "striker.velocity": {"low": 0.1, "high": 0.3}}}},
         tmp_path / "rnd")
     assert plot_metrics(rnd.metrics_path, tmp_path / "rnd.png").stat().st_size > 0
+
+
+def test_sweep_map_tick_labels_do_not_overlap(tmp_path):
+    """40 swept values along y (and 12 along x): every k-th cell labelled, no two labels touching."""
+    import itertools
+
+    import pandas as pd
+
+    from hertzchain.viz.metrics import MAX_TICK_LABELS, metrics_figure
+
+    qs, vs = np.linspace(0.0, 0.117, 40), np.linspace(0.1, 1.2, 12)
+    rows = [{"member": k, "chunk": 0, "chain.taper.q": q, "striker.velocity": v, "dt": 1e-8, "F_m": v * (1 - q)}
+            for k, (v, q) in enumerate(itertools.product(vs, qs))]
+    csv = tmp_path / "metrics.csv"
+    pd.DataFrame(rows).to_csv(csv, index=False)
+    fig = metrics_figure(csv, "F_m", x="striker.velocity", y="chain.taper.q")
+    ax = fig.axes[0]
+    renderer = fig.canvas.get_renderer()
+    fig.draw(renderer)
+    for axis, most in ((ax.yaxis, MAX_TICK_LABELS["y"]), (ax.xaxis, MAX_TICK_LABELS["x"])):
+        labels = [t for t in axis.get_ticklabels() if t.get_text()]
+        assert 2 <= len(labels) <= most
+        boxes = [t.get_window_extent(renderer) for t in labels]
+        assert not any(a.overlaps(b) for a, b in itertools.combinations(boxes, 2))
+    # the labels name the cells they sit on: the first and every k-th swept value
+    assert float(ax.yaxis.get_ticklabels()[0].get_text()) == 0.0
+    assert float(ax.yaxis.get_ticklabels()[1].get_text()) == pytest.approx(qs[3], rel=1e-3)

@@ -13,22 +13,23 @@ __version__ = "0.1.0"
 _EXPORTS = {
     # errors
     "HertzchainError": "errors", "ConfigError": "errors", "SimulationDiverged": "errors",
-    "PulseNotFound": "errors", "ElasticLimitWarning": "errors", "HertzRangeWarning": "errors",
-    "PulseNotReachedWarning": "errors", "LongRunWarning": "errors",
+    "PulseNotFound": "errors", "PulseClipped": "errors", "ElasticLimitWarning": "errors", "HertzRangeWarning": "errors",
+    "PulseNotReachedWarning": "errors", "LongRunWarning": "errors", "CheckpointWarning": "errors",
     # checks
     "estimate_resources": "checks", "ResourceEstimate": "checks",
     # model
     "Material": "materials", "CATALOGUE": "materials", "get_material": "materials",
     "register_material": "materials",
     "Elastic": "contact", "Viscoelastic": "contact", "ScaledViscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
-    "Elastoplastic": "contact",
+    "ScaledDashpot": "contact", "Elastoplastic": "plasticity",
     "yield_force": "contact",
-    "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain",
+    "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain", "Element": "elements",
     "Striker": "model", "Wall": "model", "Model": "model",
     # lateral freedom (the 2D path)
     "Track": "track", "simulate_lateral": "track",
     # running and results
     "Probes": "probes", "simulate": "simulation", "auto_duration": "simulation", "save": "result", "load": "result",
+    "export": "exporting",
     "load_config": "config.loading", "parse_config": "config.schema", "run_config": "config.build",
     "build_model": "config.build",
     # many chains
@@ -40,9 +41,9 @@ _EXPORTS = {
     # sensitivities (exact derivatives of results by config fields)
     "sensitivity": "gradients", "Sensitivity": "gradients", "trace_sensitivity": "gradients",
     # dissipation
-    "calibrate_law": "dissipation", "measure_eps": "dissipation",
+    "calibrate_law": "dissipation", "measure_eps": "dissipation", "restitution": "collision",
     # measurement, analysis, theory
-    "Instrument": "instrument",
+    "Instrument": "instrument", "sensor_wall": "instrument",
     "fit_pulse": "analysis", "PulseFit": "analysis", "power_spectrum": "analysis",
     # laboratory data: scope files, comparison, calibration
     "read_trace": "lab", "compare_traces": "lab", "Comparison": "lab", "fit_traces": "lab", "Trace": "lab",
@@ -52,6 +53,8 @@ _EXPORTS = {
     # pictures of results and sweeps
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
     "animate": "viz.animation", "plot_metrics": "viz.metrics", "plot_sensitivity": "viz.sensitivity",
+    # the interactive explorer (Panel; the [explore] extra)
+    "explore": "explorer",
 }
 
 __all__ = ["__version__", *_EXPORTS]

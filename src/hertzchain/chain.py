@@ -12,8 +12,10 @@ from typing import Sequence
 
 import numpy as np
 
+from .elements import SPHERE, Element
 from .errors import ConfigError
 from .materials import Material, get_material
+from .strict import count, real, real_array
 
 __all__ = ["Chain", "TABLE_I_MM", "paper_chain"]
 
@@ -49,16 +51,23 @@ class Chain:
     offsets
         Perpendicular offsets e_n of the bead centres from the chain axis [m], shape (N,);
         zeros for an aligned chain (see the conventions page, misalignment).
+    elements
+        One :class:`~hertzchain.elements.Element` per bead (a single one is broadcast): what
+        each bead is (sphere, cylinder, given mass, mass-in-mass); plain spheres when empty.
     """
 
     diameters: np.ndarray
     materials: tuple[Material, ...] = field(default=())
     offsets: np.ndarray | None = None
+    elements: tuple[Element, ...] = field(default=())
 
     def __post_init__(self) -> None:
         # Chains are built by the thousand in a design search (every geometry check builds one):
         # the checks below take their slow, index-finding path only when something is wrong.
-        d = np.asarray(self.diameters, dtype=float).copy()
+        raw = self.diameters
+        # Numbers only (a string or a bool is refused, as in a config file), copied as floats.
+        d = np.array(raw, dtype=float) if isinstance(raw, np.ndarray) and raw.dtype.kind in "iuf" else \
+            real_array(raw, "chain.diameters")
         if d.ndim != 1 or d.size == 0 or not (d.min() > 0 and d.max() < math.inf):  # NaN fails both
             _check_diameters(d, "chain.diameters")
         d.setflags(write=False)
@@ -73,12 +82,24 @@ class Chain:
         if len(mats) != d.size:
             raise ConfigError("chain.materials", f"needs one material per bead ({d.size}), got {len(mats)}")
         object.__setattr__(self, "materials", mats)
+        els = self.elements
+        if isinstance(els, Element):
+            els = (els,) * d.size
+        elif len(els) == 0:
+            els = (SPHERE,) * d.size
+        else:
+            els = tuple(els)
+            if len(els) != d.size:
+                raise ConfigError("chain.elements", f"needs one element per bead ({d.size}), got {len(els)}")
+            if not all(type(x) is Element for x in els):
+                raise ConfigError("chain.elements", "every entry must be a hertzchain Element")
+        object.__setattr__(self, "elements", els)
         if self.offsets is None:  # aligned: nothing to check
             e = np.zeros(d.size)
             e.setflags(write=False)
             object.__setattr__(self, "offsets", e)
             return
-        e = np.asarray(self.offsets, dtype=float).copy()
+        e = real_array(self.offsets, "chain.offsets")
         if e.shape != d.shape:
             raise ConfigError("chain.offsets", f"needs one offset per bead ({d.size}), got {e.size}")
         if not np.all(np.isfinite(e)):
@@ -91,6 +112,9 @@ class Chain:
             n = int(too_far[0]) + 1
             raise ConfigError("chain.offsets", f"beads {n} and {n + 1} are offset by {de[n - 1]:.3g} m, more than half "
                               "the sum of their radii; the contact would not be a head-on Hertz contact")
+        if e.any() and not self.plain:
+            raise ConfigError("chain.offsets", "offsets are modelled for spheres only; a chain with cylinders or "
+                              "mass-in-mass beads must stay aligned")
         e.setflags(write=False)
         object.__setattr__(self, "offsets", e)
 
@@ -99,16 +123,15 @@ class Chain:
     def from_diameters(cls, diameters: Sequence[float], material: str | Material | Sequence = "AISI52100",
                        offsets: Sequence[float] | None = None) -> "Chain":
         """Chain from explicit diameters [m] (one material for all beads, or one per bead)."""
-        d = np.asarray(diameters, dtype=float)
+        d = real_array(diameters, "chain.diameters")
         mats = material if isinstance(material, (str, Material)) else tuple(material)
-        return cls(d, mats, None if offsets is None else np.asarray(offsets, float))
+        return cls(d, mats, None if offsets is None else real_array(offsets, "chain.offsets"))
 
     @classmethod
     def uniform(cls, n: int, diameter: float, material: str | Material = "AISI52100") -> "Chain":
-        """``n`` identical beads of diameter ``diameter`` [m]."""
-        if int(n) < 1:
-            raise ConfigError("chain.n", f"a chain needs at least one bead, got {n}")
-        return cls.from_diameters([diameter] * int(n), material)
+        """``n`` identical beads of diameter ``diameter`` [m] (``n`` an int: 2.7 beads is refused)."""
+        n = count(n, "chain.n")
+        return cls.from_diameters([real(diameter, "chain.diameter", unit="m")] * n, material)
 
     def append_taper(self, n: int, q: float, material: str | Material | None = None) -> "Chain":
         """Append ``n`` beads with the exponential taper phi_{k+1} = (1 - q) phi_k (paper Sec. II).
@@ -116,6 +139,8 @@ class Chain:
         The first appended bead is (1 - q) times the current last bead. ``q`` is a fraction
         (0.056 for 5.6 %); it must be in [0, 1).
         """
+        n = count(n, "chain.taper.n", low=0)
+        q = real(q, "chain.taper.q")
         if not (0.0 <= q < 1.0):
             raise ConfigError("chain.taper.q", f"tapering factor must lie in [0, 1), got {q!r}")
         last = self.diameters[-1]
@@ -125,23 +150,26 @@ class Chain:
         # design search build thousands.
         aligned = not self.offsets.any()
         return Chain(np.concatenate([self.diameters, new]), self.materials + (mat,) * int(n),
-                     None if aligned else np.concatenate([self.offsets, np.zeros(int(n))]))
+                     None if aligned else np.concatenate([self.offsets, np.zeros(int(n))]),
+                     self.elements + (SPHERE,) * int(n))
 
     def concat(self, other: "Chain") -> "Chain":
         """Beads of ``self`` followed by the beads of ``other``."""
         aligned = not (self.offsets.any() or other.offsets.any())
         return Chain(np.concatenate([self.diameters, other.diameters]), self.materials + other.materials,
-                     None if aligned else np.concatenate([self.offsets, other.offsets]))
+                     None if aligned else np.concatenate([self.offsets, other.offsets]),
+                     self.elements + other.elements)
 
     def truncated(self, n: int) -> "Chain":
         """The first ``n`` beads (the paper's protocol: a chain cut after bead n, wall behind it)."""
+        n = count(n, "chain.truncate")
         if not (1 <= n <= self.n_beads):
             raise ConfigError("chain.truncate", f"must be between 1 and {self.n_beads}, got {n}")
-        return Chain(self.diameters[:n], self.materials[:n], self.offsets[:n])
+        return Chain(self.diameters[:n], self.materials[:n], self.offsets[:n], self.elements[:n])
 
     def substitute(self, bead: int, diameter: float | None = None,
-                   material: str | Material | None = None) -> "Chain":
-        """Replace bead ``bead`` (1-based) by one of another diameter [m] and/or material."""
+                   material: str | Material | None = None, element: Element | None = None) -> "Chain":
+        """Replace bead ``bead`` (1-based) by one of another diameter [m], material and/or element."""
         if not (1 <= bead <= self.n_beads):
             raise ConfigError("chain.substitutions.bead", f"bead must be between 1 and {self.n_beads}, got {bead}")
         d = self.diameters.copy()
@@ -150,7 +178,10 @@ class Chain:
             d[bead - 1] = diameter
         if material is not None:
             mats[bead - 1] = get_material(material)
-        return Chain(d, tuple(mats), self.offsets)
+        els = self.elements
+        if element is not None:
+            els = els[:bead - 1] + (element,) + els[bead:]
+        return Chain(d, tuple(mats), self.offsets, els)
 
     def with_offsets(self, offsets: Sequence[float] | dict[int, float]) -> "Chain":
         """Same beads with perpendicular offsets [m]: a full list, or {bead: offset} (1-based)."""
@@ -182,8 +213,17 @@ class Chain:
         return np.array([m.density for m in self.materials])
 
     @property
+    def plain(self) -> bool:
+        """True when every bead is a plain sphere (no cylinder, given mass or resonator)."""
+        return all(x.plain for x in self.elements)
+
+    @property
     def masses(self) -> np.ndarray:
-        """Bead masses m_n = rho pi phi^3 / 6 [kg]."""
+        """Bead masses [kg]: m_n = rho pi phi^3 / 6 for spheres; a cylinder's rho pi phi^2 L / 4, a
+        given mass, the whole of a mass-in-mass bead (shell and internal mass) otherwise."""
+        if not self.plain:
+            return np.array([el.total_mass(float(dia), mat)
+                             for el, dia, mat in zip(self.elements, self.diameters, self.materials)])
         mats = self.materials
         # One material (the usual chain): its density as a scalar, the same numbers without a
         # per-bead array (a design search takes the mass of thousands of candidate chains).
@@ -194,14 +234,36 @@ class Chain:
     def is_aligned(self) -> bool:
         return not np.any(self.offsets)
 
+    def __repr__(self) -> str:
+        # One line: the diameters grouped in runs and the materials counted (not 30 full Materials).
+        from .display import counts_text, diameters_text
+
+        text = f"Chain({diameters_text(self.diameters)}; {counts_text(m.name for m in self.materials)}"
+        if not self.is_aligned:
+            text += f"; offsets up to {np.abs(self.offsets).max() * 1e3:.3g} mm"
+        return text + ")"
+
+    def _repr_html_(self) -> str:
+        from .display import counts_text, diameters_text, html_table
+
+        rows = [("beads", str(self.n_beads)), ("diameters", diameters_text(self.diameters).split(": ", 1)[1]),
+                ("materials", counts_text(m.name for m in self.materials)),
+                ("mass", f"{self.masses.sum() * 1e3:.4g} g"),
+                ("length", f"{self.diameters.sum() * 1e3:.4g} mm"),
+                ("offsets", "aligned" if self.is_aligned else f"up to {np.abs(self.offsets).max() * 1e3:.3g} mm")]
+        return html_table("Chain", rows)
+
     def describe(self) -> dict:
         """Plain-data description (stored in result attributes)."""
         names = [m.name for m in self.materials]
-        return {
+        out = {
             "diameters_mm": [float(x) for x in self.diameters * 1e3],
             "materials": names[0] if len(set(names)) == 1 else names,
             "offsets_mm": [float(x) for x in self.offsets * 1e3],
         }
+        if not self.plain:
+            out["elements"] = [x.describe() for x in self.elements]
+        return out
 
 
 def paper_chain(name: str, material: str | Material = "AISI52100") -> Chain:

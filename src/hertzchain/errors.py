@@ -36,6 +36,10 @@ class PulseNotFound(HertzchainError, ValueError):
     """A signal holds no pulse that the analysis can fit."""
 
 
+class PulseClipped(PulseNotFound):
+    """The pulse of a record is clipped (a saturated sensor or scope): its fit would be wrong."""
+
+
 class ElasticLimitWarning(UserWarning):
     """Contact forces passed the elastic limit (yield) estimated as in the paper, Sec. II."""
 
@@ -54,3 +58,7 @@ class PulseNotReachedWarning(UserWarning):
 
 class LongRunWarning(UserWarning):
     """A run is projected to take more than a few minutes (the estimate is in the message)."""
+
+
+class CheckpointWarning(UserWarning):
+    """A checkpoint could not be used (damaged, foreign, of an older format): it was set aside."""

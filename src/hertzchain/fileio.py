@@ -3,7 +3,10 @@
 A file is written under a unique temporary name in its target folder, flushed to disk, then
 renamed over the target in one step (``os.replace``), so a reader never sees half a file and two
 writers never share a temporary name (the last one to finish wins, with a whole file). A failed
-write leaves the target as it was and removes the temporary file.
+write leaves the target as it was and removes the temporary file. The temporary name carries the
+writer's host and process id (``.NAME.HOST-PID.RANDOM.tmp``): a process killed while it wrote
+(SIGKILL, a power cut) cannot remove its file, so the next write to that name removes every such
+file whose writer is no longer alive on this host.
 
 Guarantees, and the :class:`~hertzchain.errors.ConfigError` (its ``field`` is the path) otherwise:
 
@@ -21,15 +24,19 @@ import errno
 import json
 import math
 import os
+import re
+import socket
 import stat
 import tempfile
+import time
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
 from .errors import ConfigError
 
-__all__ = ["atomic_path", "write_text", "write_bytes", "check_target", "check_not_input", "json_text"]
+__all__ = ["atomic_path", "write_text", "write_bytes", "check_target", "check_not_input", "json_text",
+           "remove_stale_temporaries"]
 
 _REASONS = {
     errno.ENOSPC: "no space left on the device",
@@ -110,6 +117,71 @@ def _new_file_mode(path: Path) -> int:
         return 0o666 & ~mask
 
 
+def _host() -> str:
+    """This machine's name as it goes into a temporary name (letters, digits and dashes)."""
+    return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname())[:32] or "host"
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists on this machine."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):  # another user's process, or cannot tell: alive
+        return True
+    return True
+
+
+#: A temporary file of an older hertzchain (no writer id in its name) is left alone this long [s].
+_UNNAMED_STALE_S = 3600.0
+
+
+def remove_stale_temporaries(path: str | os.PathLike) -> list[Path]:
+    """Remove the temporary files that killed writes to ``path`` left behind.
+
+    A temporary file ``.NAME.HOST-PID.RANDOM.tmp`` is stale when HOST is this machine and
+    process PID is gone; one without a writer id (an older hertzchain) when it is older than an
+    hour. Files of live writers, of other machines (a shared folder) and other names are kept.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file about to be written.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files removed.
+    """
+    path = Path(path)
+    prefix, host = f".{path.name}.", _host()
+    removed = []
+    try:
+        entries = list(os.scandir(path.parent if str(path.parent) else "."))
+    except OSError:
+        return removed
+    for entry in entries:
+        name = entry.name
+        if not (name.startswith(prefix) and name.endswith(".tmp")):
+            continue
+        tag = name[len(prefix):-len(".tmp")]
+        m = re.fullmatch(r"(?P<host>[A-Za-z0-9-]+)-(?P<pid>\d+)\.[^.]+", tag)
+        try:
+            if m is not None:
+                stale = m.group("host") == host and not _alive(int(m.group("pid")))
+            else:
+                stale = "." not in tag and time.time() - entry.stat(follow_symlinks=False).st_mtime > _UNNAMED_STALE_S
+            if stale and entry.is_file(follow_symlinks=False):
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+        except OSError:  # gone meanwhile, or not ours to remove
+            continue
+    return removed
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a unique temporary path beside ``path``; on success rename it onto ``path``.
@@ -135,8 +207,10 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """
     path = Path(path)
     check_target(path)
+    remove_stale_temporaries(path)
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.{_host()}-{os.getpid()}.", suffix=".tmp",
+                                        dir=path.parent)
     except OSError as exc:
         raise ConfigError(str(path), f"cannot be written: {_reason(exc)}") from None
     os.close(fd)

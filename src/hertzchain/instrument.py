@@ -71,6 +71,8 @@ __all__ = [
     "InstrumentWarning",
     "PCB_208A11_MV_PER_N",
     "PCB_200B02_MV_PER_N",
+    "SENSOR_STIFFNESS",
+    "sensor_wall",
     "TDS340_RECORD_LENGTH",
     "TDS340_BITS",
 ]
@@ -79,6 +81,8 @@ __all__ = [
 PCB_208A11_MV_PER_N = 112.40
 #: Sensitivity of the sensor embedded in a bead, PCB 200B02 [mV/N].
 PCB_200B02_MV_PER_N = 11.24
+#: Stiffness of the paper's sensors, k_s = 1.9 kN/um (Sec. II) [N/m].
+SENSOR_STIFFNESS = 1.9e9
 #: Points per channel recorded by the Tektronix TDS340.
 TDS340_RECORD_LENGTH = 1000
 #: Vertical resolution of the Tektronix TDS340 [bits].
@@ -477,6 +481,36 @@ class Acquisition:
         return self.time + self.trigger_time
 
 
+def sensor_wall(mass: float, material=None, damping: float = 0.0, stiffness: float = SENSOR_STIFFNESS):
+    """The paper's wall sensor as a spring-mass instead of a perfect gauge: a protected body.
+
+    The sensor's cap (the flat the last bead hits) and the part of the quartz stack that moves
+    with it are a rigid mass on the stack's stiffness, k_s = 1.9 kN/um (paper Sec. II), whose
+    other side is the rigid support; the piezo reads the force through the stack, k x + c v:
+    the run's ``body_force``, which :func:`measure_dataset` then measures. The paper neglects the
+    coupling (k_s much larger than the Hertz contact stiffness); this model shows what it costs.
+
+    Parameters
+    ----------
+    mass : float
+        The sensor's moving mass [kg] (cap and half the stack; the paper does not give it).
+    material : str or Material, optional
+        The cap's material (default: the chain's first material, as for a flat wall).
+    damping : float
+        Internal damping of the stack [N s/m].
+    stiffness : float
+        Its stiffness [N/m] (default: the paper's).
+
+    Returns
+    -------
+    hertzchain.Wall
+        ``Wall("body", material, mass, stiffness, damping)``.
+    """
+    from .model import Wall
+
+    return Wall("body", material, mass, stiffness, damping)
+
+
 def measure_dataset(ds, wall: Instrument | None = None, sensors: Instrument | None = None,
                     trigger: str = "self"):
     """Add "measured" signals to a simulation result, keeping the ideal ones.
@@ -486,7 +520,9 @@ def measure_dataset(ds, wall: Instrument | None = None, sensors: Instrument | No
     ds:
         A result :class:`xarray.Dataset` (``wall_force``, ``sensor_force``).
     wall, sensors:
-        Instruments for the wall sensor and for the embedded sensors (None: not measured).
+        Instruments for the wall sensor and for the embedded sensors (None: not measured). The
+        wall sensor reads ``wall_force``, or ``body_force`` when the chain ends on a body (the
+        sensor modelled as a spring-mass, :func:`sensor_wall`: the force through its stack).
     trigger:
         ``"self"``: each channel triggers on itself; ``"wall"``: every channel triggers on the
         wall force (the paper triggers the embedded sensor's acquisition with the wall sensor in
@@ -510,16 +546,19 @@ def measure_dataset(ds, wall: Instrument | None = None, sensors: Instrument | No
         raise ConfigError("instrument.trigger", "'wall' needs a wall (wall.type = 'flat')")
     out = ds.copy()
     t = ds.time.values
-    trig = ds.wall_force.values if trigger == "wall" else None
+    read = ds.body_force.values if "body_force" in ds else ds.wall_force.values if "wall_force" in ds else None
+    trig = read if trigger == "wall" else None
     if wall is not None:
-        if "wall_force" not in ds:
+        if read is None:
             raise ConfigError("instrument.wall", "the run has no wall to measure (wall.type = 'none')")
-        acq = wall.acquire(t, ds.wall_force.values, trigger_signal=trig)
+        acq = wall.acquire(t, read, trigger_signal=trig)
         out = out.assign_coords(wall_scope_time=("wall_scope_time", acq.time, {"units": "s",
                                 "long_name": "oscilloscope time relative to the trigger"}))
         out["measured_wall_force"] = xr.Variable(("wall_scope_time",), acq.force, attrs={
-            "units": "N", "long_name": "wall force as measured (sensor, noise, scope, averaging)",
-            "trigger_time": acq.trigger_time, "n_clipped": acq.n_clipped, "instrument": json.dumps(wall.as_dict())})
+            "units": "N", "long_name": "wall force as measured (sensor, noise, scope, averaging)"
+            + ("; the sensor's stack force (body_force)" if "body_force" in ds else ""),
+            "trigger_time": acq.trigger_time, "n_clipped": acq.n_clipped, "valid_max": wall.range_N[1],
+            "instrument": json.dumps(wall.as_dict())})
     if sensors is not None:
         if "sensor_force" not in ds:
             raise ConfigError("instrument.sensors", "the run has no embedded sensors (probes.sensors is empty)")
@@ -533,7 +572,8 @@ def measure_dataset(ds, wall: Instrument | None = None, sensors: Instrument | No
         out = out.assign_coords(sensor_scope_time=("sensor_scope_time", acq.time, {"units": "s",
                                 "long_name": "oscilloscope time relative to the trigger"}))
         out["measured_sensor_force"] = xr.Variable(("sensor_scope_time", "sensor"), np.array(records).T, attrs={
-            "units": "N", "long_name": "embedded-sensor force as measured", "instrument": json.dumps(sensors.as_dict())})
+            "units": "N", "long_name": "embedded-sensor force as measured", "valid_max": sensors.range_N[1],
+            "instrument": json.dumps(sensors.as_dict())})
         out["sensor_trigger_time"] = xr.Variable(("sensor",), np.array(trig_times), attrs={
             "units": "s", "long_name": "trigger time of each sensor's record on the simulation clock"})
     return out

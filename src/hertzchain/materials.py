@@ -56,6 +56,11 @@ class Material:
     yield_stress: float | None = None
     source: str = field(default="user", compare=False)
 
+    def __repr__(self) -> str:
+        sy = "" if self.yield_stress is None else f", sigma_Y {self.yield_stress / 1e9:.4g} GPa"
+        return (f"Material({self.name!r}: rho {self.density:.5g} kg/m^3, Y {self.young / 1e9:.4g} GPa, "
+                f"nu {self.poisson:.3g}{sy})")
+
     def __post_init__(self) -> None:
         for key in ("density", "young"):
             value = getattr(self, key)

@@ -11,22 +11,30 @@ moves; with no wall its contact has kappa = 0). Contact j joins bodies j and j +
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
 from .chain import Chain
-from .contact import LAW_CODES, Dashpot, Elastic, Elastoplastic, ScaledViscoelastic, Viscoelastic
+from .contact import LAW_CODES, Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
+from .plasticity import Elastoplastic
 from .errors import ConfigError
 from .materials import Material, get_material
+from .strict import real
 
 __all__ = ["Striker", "Wall", "Model", "System"]
 
 
-@dataclass(frozen=True)
+def _positive(value, field_name: str, what: str) -> None:
+    if isinstance(value, bool) or not (isinstance(value, numbers.Real) and math.isfinite(value) and value > 0):
+        raise ConfigError(field_name, f"must be {what}, got {value!r}")
+
+
+@dataclass(frozen=True, init=False)
 class Striker:
-    """The impacting sphere (body 0), touching bead 1 at t = 0.
+    """The impacting body (body 0), touching bead 1 at t = 0.
 
     Parameters
     ----------
@@ -36,23 +44,82 @@ class Striker:
         Impact velocity [m/s], towards the chain (> 0).
     material
         Striker material (default: AISI 52100).
+    mass
+        Given mass [kg] (a drop hammer, an impactor of any build); None: the sphere's
+        rho pi phi^3 / 6.
+    shape : {"sphere", "flat"}
+        Its face: a sphere of the striker's diameter (or of ``radius_of_curvature``), or a flat
+        face, which meets bead 1 in a sphere-flat Hertz contact (1/R' = 0 in paper eq. 1).
+    radius_of_curvature
+        Radius [m] of a curved (spherical) striker face, e.g. a hammer's; None: the diameter / 2.
+    given_mass
+        The stored form of ``mass`` (what :func:`dataclasses.replace` passes on); give ``mass``.
     """
 
-    diameter: float = 8e-3
-    velocity: float = 0.5
-    material: Material | str = "AISI52100"
+    diameter: float
+    velocity: float
+    material: Material
+    shape: Literal["sphere", "flat"]
+    radius_of_curvature: float | None
+    given_mass: float | None
 
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.diameter) and self.diameter > 0):
-            raise ConfigError("striker.diameter_mm", f"must be a positive number, got {self.diameter * 1e3!r} mm")
-        if not (math.isfinite(self.velocity) and self.velocity > 0):
-            raise ConfigError("striker.velocity", f"must be a positive speed in m/s (towards the chain), got {self.velocity!r}")
-        object.__setattr__(self, "material", get_material(self.material))
+    def __init__(self, diameter: float = 8e-3, velocity: float = 0.5, material: Material | str = "AISI52100",
+                 mass: float | None = None, shape: Literal["sphere", "flat"] = "sphere",
+                 radius_of_curvature: float | None = None, *, given_mass: float | None = None) -> None:
+        if mass is not None and given_mass is not None:
+            raise ConfigError("striker.mass", "give mass only once")
+        mass = given_mass if mass is None else mass
+        # Strict types (True or "0.3" are not speeds); NumPy scalars are stored as floats.
+        diameter = real(diameter, "striker.diameter", unit="m")
+        velocity = real(velocity, "striker.velocity", unit="m/s")
+        if not (math.isfinite(diameter) and diameter > 0):
+            raise ConfigError("striker.diameter_mm", f"must be a positive number, got {diameter * 1e3!r} mm")
+        if not (math.isfinite(velocity) and velocity > 0):
+            raise ConfigError("striker.velocity", f"must be a positive speed in m/s (towards the chain), got {velocity!r}")
+        if mass is not None:
+            _positive(mass, "striker.mass", "a positive mass in kg")
+        if shape not in ("sphere", "flat"):
+            raise ConfigError("striker.shape", f"must be 'sphere' or 'flat', got {shape!r}")
+        if radius_of_curvature is not None:
+            if shape == "flat":
+                raise ConfigError("striker.radius_of_curvature_mm", "a flat striker has no radius of curvature")
+            _positive(radius_of_curvature, "striker.radius_of_curvature_mm", "a positive radius")
+        for name, value in (("diameter", diameter), ("velocity", velocity), ("material", get_material(material)),
+                            ("shape", shape), ("radius_of_curvature", radius_of_curvature), ("given_mass", mass)):
+            object.__setattr__(self, name, value)
 
     @property
     def mass(self) -> float:
-        """Striker mass rho pi phi^3 / 6 [kg]."""
+        """Striker mass [kg]: the given one, else rho pi phi^3 / 6."""
+        if self.given_mass is not None:
+            return self.given_mass
         return self.material.density * math.pi * self.diameter**3 / 6.0
+
+    @property
+    def face_radius(self) -> float | None:
+        """Radius of curvature of the face that hits bead 1 [m]; None for a flat face."""
+        if self.shape == "flat":
+            return None
+        return self.radius_of_curvature if self.radius_of_curvature is not None else self.diameter / 2
+
+    @property
+    def plain(self) -> bool:
+        """True for the paper's kind of striker: a sphere of its own material, no given mass."""
+        return self.shape == "sphere" and self.given_mass is None and self.radius_of_curvature is None
+
+    def describe(self) -> dict:
+        """Plain-data description (stored in result attributes)."""
+        out: dict = {"diameter_mm": self.diameter * 1e3, "velocity": self.velocity, "material": self.material.name}
+        if not self.plain:
+            out.update(mass=self.mass, shape=self.shape,
+                       radius_of_curvature_mm=None if self.face_radius is None else self.face_radius * 1e3)
+        return out
+
+    def __repr__(self) -> str:
+        extra = ""
+        if not self.plain:
+            extra = f", {self.mass * 1e3:.4g} g" + (", flat face" if self.shape == "flat" else "")
+        return f"Striker({self.diameter * 1e3:.4g} mm {self.material.name} at {self.velocity:.4g} m/s{extra})"
 
 
 @dataclass(frozen=True)
@@ -61,26 +128,85 @@ class Wall:
 
     Parameters
     ----------
-    kind : {"flat", "none"}
+    kind : {"flat", "none", "body"}
         ``"flat"`` (default): an immovable flat (radius of curvature infinite, 1/R' = 0 in paper
-        eq. 1); ``"none"``: a free end (contact N carries no force).
+        eq. 1); ``"none"``: a free end (contact N carries no force); ``"body"``: a protected
+        body, a rigid body of ``mass`` on a spring (``stiffness``) and a dashpot (``damping``)
+        to the ground, whose face the chain presses on (body N + 1).
     material : str or Material, optional
-        Material of the flat's cap (Young's modulus [Pa], Poisson ratio); the chain's last bead
-        material when None, like the paper's sensor cap.
+        Material of the flat's cap or of the body's face (Young's modulus [Pa], Poisson ratio);
+        the chain's first bead material when None (the base material of the chain: a bead
+        changed at the wall's end does not change the wall).
+    mass : float, optional
+        The body's mass [kg] (``"body"`` only).
+    stiffness : float
+        The body's mount to the ground [N/m], >= 0 (0: a free body).
+    damping : float
+        The mount's dashpot [N s/m], >= 0.
+    shape : {"flat", "sphere"}
+        The body's face: flat (default) or a spherical cap of ``radius_of_curvature``.
+    radius_of_curvature : float, optional
+        Radius [m] of a spherical body face.
     """
 
-    kind: Literal["flat", "none"] = "flat"
+    kind: Literal["flat", "none", "body"] = "flat"
     material: Material | str | None = None
+    mass: float | None = None
+    stiffness: float = 0.0
+    damping: float = 0.0
+    shape: Literal["flat", "sphere"] = "flat"
+    radius_of_curvature: float | None = None
 
     def __post_init__(self) -> None:
-        if self.kind not in ("flat", "none"):
-            raise ConfigError("wall.type", f"must be 'flat' or 'none', got {self.kind!r}")
+        if self.kind not in ("flat", "none", "body"):
+            raise ConfigError("wall.type", f"must be 'flat', 'none' or 'body', got {self.kind!r}")
         if self.material is not None:
             object.__setattr__(self, "material", get_material(self.material))
+        if self.kind != "body":
+            for name, default in (("mass", None), ("stiffness", 0.0), ("damping", 0.0), ("shape", "flat"),
+                                  ("radius_of_curvature", None)):
+                if getattr(self, name) != default:
+                    key = name + ("_mm" if name == "radius_of_curvature" else "")
+                    raise ConfigError(f"wall.{key}", f"belongs to a protected body: set wall.type = 'body' "
+                                      f"(this wall is '{self.kind}')")
+            return
+        if self.mass is None:
+            raise ConfigError("wall.mass", "a protected body (wall.type = 'body') needs its mass in kg")
+        _positive(self.mass, "wall.mass", "a positive mass in kg")
+        for name in ("stiffness", "damping"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, numbers.Real) and math.isfinite(value) and value >= 0):
+                raise ConfigError(f"wall.{name}", f"must be a finite number >= 0 ({'N/m' if name == 'stiffness' else 'N s/m'}), "
+                                  f"got {value!r}")
+        if self.shape not in ("flat", "sphere"):
+            raise ConfigError("wall.shape", f"must be 'flat' or 'sphere', got {self.shape!r}")
+        if self.shape == "sphere":
+            if self.radius_of_curvature is None:
+                raise ConfigError("wall.radius_of_curvature_mm", "a spherical body face needs its radius of curvature")
+            _positive(self.radius_of_curvature, "wall.radius_of_curvature_mm", "a positive radius")
+        elif self.radius_of_curvature is not None:
+            raise ConfigError("wall.radius_of_curvature_mm", "a flat face has no radius of curvature (shape = 'sphere')")
 
     @property
     def present(self) -> bool:
+        """Whether there is a contact N (a flat wall or a body)."""
         return self.kind != "none"
+
+    @property
+    def is_body(self) -> bool:
+        """Whether the chain ends on a protected body (a moving body N + 1)."""
+        return self.kind == "body"
+
+    @property
+    def face_radius(self) -> float | None:
+        """Radius of curvature of the face bead N presses on [m]; None for a flat."""
+        return self.radius_of_curvature if self.shape == "sphere" else None
+
+    def __repr__(self) -> str:
+        text = f"Wall({self.kind!r}" + (f", {self.material.name}" if self.material is not None else "")
+        if self.is_body:
+            text += f", {self.mass:.4g} kg on {self.stiffness:.4g} N/m, {self.damping:.4g} N s/m"
+        return text + ")"
 
 
 @dataclass(frozen=True)
@@ -88,7 +214,11 @@ class System:
     """Flat SI arrays of a model, as the compiled kernels take them. See :meth:`Model.system`.
 
     Shapes: N beads, ``nb = N + 1`` moving bodies, ``N + 2`` bodies with the ghost wall,
-    ``N + 1`` contact slots (the last one has kappa = 0 when there is no wall).
+    ``N + 1`` contact slots (the last one has kappa = 0 when there is no wall). A protected body
+    (``body``) is body N + 1 itself: it moves (1/m = 1/M), held by its mount, a linear spring and
+    dashpot to the ground that the engine treats as contact N + 1 (stiffness ``mount_k``, dashpot
+    ``mount_c``, static deflection ``mount_d0``; it pulls as well as pushes). Mass-in-mass bodies
+    carry an internal mass ``res_m`` on a spring ``res_k`` (bodies 0..N + 1; 0 where none).
     """
 
     mass: np.ndarray        # (N+2,) kg; wall ghost: inf
@@ -106,10 +236,34 @@ class System:
     misaligned: bool
     has_wall: bool
     yield_force: np.ndarray  # (N+1,) F_Y per contact [N] (inf when not defined)
+    body: bool = False       # body N + 1 is a protected body (moves) instead of the immovable ghost
+    mount_k: float = 0.0     # N/m, the body's mount (contact N + 1, linear, to the ground)
+    mount_c: float = 0.0     # N s/m
+    mount_d0: float = 0.0    # m, the mount's deflection at rest (its force k d0 carries the static load)
+    res_m: np.ndarray | None = None   # (N+2,) kg, internal masses of mass-in-mass bodies (None: none)
+    res_k: np.ndarray | None = None   # (N+2,) N/m, their springs
+    #: elastoplastic law: its limiting pressure over the paper-consistent 1.5 sigma_Y (Elastoplastic.pressure_ratio)
+    yield_pressure_ratio: float = 1.0
 
     @property
     def n_beads(self) -> int:
         return self.mass.size - 2
+
+    @property
+    def n_moving(self) -> int:
+        """Bodies the engine moves: striker and beads, and the protected body when there is one."""
+        return self.n_beads + (2 if self.body else 1)
+
+    def static_forces(self) -> np.ndarray:
+        """Force [N] every contact 0..N carries at rest, (N+1,): contact j holds the external forces
+        of bodies 0..j (precompression, weights), 0 where there is no contact."""
+        s = np.cumsum(self.fext[: self.n_beads + 1])
+        return np.where(self.kappa > 0, s, 0.0)
+
+    @property
+    def extended(self) -> bool:
+        """True when the engine needs its extension arrays: a protected body or mass-in-mass beads."""
+        return self.body or self.res_k is not None
 
     @property
     def n_contacts(self) -> int:
@@ -118,19 +272,22 @@ class System:
 
     @property
     def general(self) -> bool:
-        """True when the slower general force loop is needed (dissipation or offsets)."""
-        return self.law != 0 or self.misaligned
+        """True when the slower general force loop is needed (dissipation, offsets, a protected
+        body or mass-in-mass beads)."""
+        return self.law != 0 or self.misaligned or self.extended
 
     def yield_overlap(self) -> np.ndarray:
         """Overlap delta_y [m] at which every contact reaches its elastic limit, (N+1,).
 
         F_Y = kappa delta_y^(3/2) (:func:`hertzchain.contact.yield_force`, Thornton's F_y with
-        p_y = 1.5 sigma_Y); inf where no yield stress is given or there is no contact.
+        p_y = 1.5 sigma_Y); times ``yield_pressure_ratio`` squared for another limiting pressure
+        (delta_y ~ p_y^2); inf where no yield stress is given or there is no contact.
         """
         kap = self.kappa
         ok = (kap > 0) & np.isfinite(self.yield_force)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(ok, (self.yield_force / np.where(ok, kap, 1.0)) ** (2.0 / 3.0), np.inf)
+            dy = np.where(ok, (self.yield_force / np.where(ok, kap, 1.0)) ** (2.0 / 3.0), np.inf)
+        return dy if self.yield_pressure_ratio == 1.0 else dy * self.yield_pressure_ratio**2
 
     def max_overlap(self) -> np.ndarray:
         """Upper bound of every contact's overlap [m] over the whole run, (N+1,).
@@ -144,7 +301,7 @@ class System:
         energy = 0.5 * self.mass[0] * self.v0[0] ** 2
         kap = self.kappa
         if self.law == LAW_CODES["elastoplastic"]:
-            from .contact import thornton_loading_overlap, thornton_loading_work
+            from .plasticity import thornton_loading_overlap, thornton_loading_work
 
             dy = self.yield_overlap()
             energy += float(np.sum(np.where(kap > 0, thornton_loading_work(self.d0, kap, dy), 0.0)))
@@ -177,15 +334,34 @@ class System:
         beta_i = 2 (c_left + c_right) / m_i, and explicit damping lowers the stable step of a
         damped oscillator to 2 / (sqrt(omega^2 + beta^2 / 4) + beta / 2) (central differences
         with damping ratio beta / (2 omega)), which is 2 m / gamma for a bead held only by
-        dashpots: omega_max is taken as max_i sqrt(omega_i^2 + beta_i^2 / 4) + beta_i / 2.
+        dashpots: omega_max is taken as max_i sqrt(omega_i^2 + beta_i^2 / 4) + beta_i / 2. A
+        protected body's mount is one more (linear) contact, and a mass-in-mass bead's internal
+        spring k_in adds to its row (2 k_in / m) and gives its internal mass the row 2 k_in / m_in.
         """
         dmax = self.max_overlap()
         k = 1.5 * self.kappa * np.sqrt(dmax)
         c = self.damping_coefficients(dmax)
+        if self.extended:
+            return self._max_frequency_extended(k, c)
         nb = self.n_beads + 1
         omega2 = 2.0 * (np.concatenate([[0.0], k[: nb - 1]]) + k[:nb]) * self.inv_mass[:nb]
         beta = 2.0 * (np.concatenate([[0.0], c[: nb - 1]]) + c[:nb]) * self.inv_mass[:nb]
         return float(np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta))
+
+    def _max_frequency_extended(self, k: np.ndarray, c: np.ndarray) -> float:
+        """:meth:`max_frequency` with the mount (contact N + 1) and the internal springs."""
+        nb = self.n_moving
+        k = np.append(k, self.mount_k)  # contacts 0..N + 1
+        c = np.append(c, self.mount_c)
+        kin = np.zeros(nb) if self.res_k is None else self.res_k[:nb]
+        omega2 = 2.0 * (np.concatenate([[0.0], k[: nb - 1]]) + k[:nb] + kin) * self.inv_mass[:nb]
+        beta = 2.0 * (np.concatenate([[0.0], c[: nb - 1]]) + c[:nb]) * self.inv_mass[:nb]
+        w = float(np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta))
+        if self.res_k is not None:
+            inner = self.res_m > 0
+            if inner.any():
+                w = max(w, float(np.max(np.sqrt(2.0 * self.res_k[inner] / self.res_m[inner]))))
+        return w
 
 
 def _material_columns(materials: list[Material]) -> tuple[np.ndarray, np.ndarray]:
@@ -217,19 +393,26 @@ class Model:
         The end condition (default: immovable flat of the chain's material).
     law
         Contact law: :class:`Elastic` (paper eq. 1), :class:`Viscoelastic`, :class:`ScaledViscoelastic`,
-        :class:`Dashpot` or :class:`Elastoplastic` (Thornton 1997).
+        :class:`Dashpot`, :class:`ScaledDashpot` or :class:`Elastoplastic` (Thornton 1997).
     precompression
         Static force [N] squeezing beads 1..N against the wall before impact (0 = the paper's
         "barely touching" chain). Needs a wall.
+    gravity
+        Acceleration of gravity along the chain, towards the wall [m/s^2] (9.81 for a vertical
+        column standing on the wall, bead 1 on top; g sin(tilt) on a track inclined by ``tilt``).
+        Every body feels its weight m g; the run starts from the static equilibrium, the striker
+        resting on bead 1 (see the conventions page). 0 (default): a horizontal chain.
     """
 
     chain: Chain
     striker: Striker = field(default_factory=Striker)
     wall: Wall = field(default_factory=Wall)
-    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | Elastoplastic = field(default_factory=Elastic)
+    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot | Elastoplastic = field(default_factory=Elastic)
     precompression: float = 0.0
+    gravity: float = 0.0
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
         if self.precompression > 0 and not self.wall.present:
@@ -244,25 +427,63 @@ class Model:
             raise ConfigError("chain.offsets", f"bead 1 is offset by {e1:.3g} m from the striker's line of flight, "
                               f"more than half the sum of their radii ({reach:.3g} m); the striker would not "
                               "hit it head-on (or would miss the chain)")
+        g = self.gravity
+        if isinstance(g, bool) or not (isinstance(g, numbers.Real) and math.isfinite(g) and g >= 0):
+            raise ConfigError("chain.gravity", f"must be an acceleration >= 0 in m/s^2 (towards the wall), got {g!r}")
+        if g > 0 and not self.wall.present:
+            raise ConfigError("chain.gravity", "a chain under gravity needs a wall (or a body) to stand on; "
+                              "wall.type = 'none' would let it fall")
+        if g > 0 and not self.chain.is_aligned:
+            raise ConfigError("chain.gravity", "gravity together with bead offsets is not supported")
+        if (g > 0 or self.precompression > 0) and self.wall.is_body and self.wall.stiffness == 0:
+            raise ConfigError("wall.stiffness", "a free body (stiffness 0) cannot hold the chain's static load "
+                              "(chain.gravity, chain.precompression): give its mount a stiffness in N/m")
+
+    def __repr__(self) -> str:
+        pre = f", precompression {self.precompression:.4g} N" if self.precompression else ""
+        pre += f", gravity {self.gravity:.4g} m/s^2" if self.gravity else ""
+        return f"Model({self.chain!r}, {self.striker!r}, {self.wall!r}, {self.law!r}{pre})"
+
+    def _repr_html_(self) -> str:
+        from .display import counts_text, diameters_text, html_table
+
+        chain = self.chain
+        rows = [("chain", diameters_text(chain.diameters)),
+                ("materials", counts_text(m.name for m in chain.materials)),
+                ("striker", repr(self.striker)[len("Striker("):-1]),
+                ("wall", "free end" if not self.wall.present else
+                 f"{'protected body' if self.wall.is_body else 'flat'}, {self.wall_material.name}"),
+                ("contact law", repr(self.law))]
+        if self.precompression:
+            rows.append(("precompression", f"{self.precompression:.4g} N"))
+        return html_table("Model", rows)
 
     @property
     def wall_material(self) -> Material | None:
+        """Material of the wall's cap or the body's face: ``wall.material``, else the chain's first
+        bead material (the base material: changing the beads near the wall does not change it)."""
         if not self.wall.present:
             return None
-        return self.wall.material or self.chain.materials[-1]
+        return self.wall.material or self.chain.materials[0]
 
-    def contact_radii(self) -> list[tuple[float, float | None]]:
-        """(R, R') of every contact 0..N (R' None = flat)."""
-        r = [self.striker.diameter / 2] + list(self.chain.radii)
-        pairs: list[tuple[float, float | None]] = [(r[j], r[j + 1]) for j in range(self.chain.n_beads)]
-        pairs.append((r[-1], None))
-        return pairs
+    @property
+    def extended(self) -> bool:
+        """True when the engine needs its extension (``System.extended``): a protected body or
+        mass-in-mass beads."""
+        return self.wall.is_body or any(el.resonator_fraction > 0 for el in self.chain.elements)
 
-    def contact_materials(self) -> list[tuple[Material, Material | None]]:
-        mats = [self.striker.material] + list(self.chain.materials)
-        out: list[tuple[Material, Material | None]] = [(mats[j], mats[j + 1]) for j in range(self.chain.n_beads)]
-        out.append((mats[-1], self.wall_material))
-        return out
+    @property
+    def extension_field(self) -> str | None:
+        """The config field that makes the model extended (``"wall.type"``, ``"chain.elements"``), or None."""
+        if self.wall.is_body:
+            return "wall.type"
+        return "chain.elements" if self.extended else None
+
+    @property
+    def plain(self) -> bool:
+        """True for the paper's kind of model (sphere striker, spheres, a flat wall or a free end, no
+        gravity): its arrays are computed by the array set-up of ensembles too."""
+        return self.striker.plain and not self.wall.is_body and self.chain.plain and self.gravity == 0
 
     def system(self) -> System:
         """Flatten the model into SI arrays (see :class:`System`)."""
@@ -309,11 +530,12 @@ class Model:
             d0[1:] = (self.precompression / kappa[1:]) ** (2.0 / 3.0)
             fext[1] = self.precompression
             if self.law.name == "elastoplastic":
-                # statically loaded along Thornton's loading curve: past F_Y the line F_y + slope (d - dy)
+                # statically loaded along Thornton's loading curve: past F_y the line F_y + slope (d - dy)
+                f_y = fy[1:] * self.law.pressure_ratio**3
                 with np.errstate(invalid="ignore"):
-                    dy = (fy[1:] / kappa[1:]) ** (2.0 / 3.0)
-                    over = self.precompression > fy[1:]
-                    plastic = dy + (self.precompression - fy[1:]) / (1.5 * kappa[1:] * np.sqrt(dy))
+                    dy = (f_y / kappa[1:]) ** (2.0 / 3.0)
+                    over = self.precompression > f_y
+                    plastic = dy + (self.precompression - f_y) / (1.5 * kappa[1:] * np.sqrt(dy))
                 d0[1:] = np.where(over, plastic, d0[1:])
 
         e = np.concatenate([[0.0], self.chain.offsets, [0.0]])
@@ -326,9 +548,15 @@ class Model:
 
         v0 = np.zeros(n + 2)
         v0[0] = self.striker.velocity
-        return System(mass=mass, inv_mass=inv_mass, kappa=kappa, damping=damping, d0=d0, de=de, dx0=dx0,
-                      rsum=rsum, fext=fext, u0=np.zeros(n + 2), v0=v0, law=LAW_CODES[self.law.name],
-                      misaligned=bool(np.any(de != 0.0)), has_wall=self.wall.present, yield_force=fy)
+        parts = dict(mass=mass, inv_mass=inv_mass, kappa=kappa, damping=damping, d0=d0, de=de, dx0=dx0,
+                     rsum=rsum, fext=fext, u0=np.zeros(n + 2), v0=v0, law=LAW_CODES[self.law.name],
+                     misaligned=bool(np.any(de != 0.0)), has_wall=self.wall.present, yield_force=fy,
+                     yield_pressure_ratio=getattr(self.law, "pressure_ratio", 1.0))
+        if self.plain:
+            return System(**parts)
+        from .bodies import extend  # the striker's face, elements, the protected body, gravity
+
+        return System(**extend(self, parts))
 
     def describe(self) -> dict:
         """Plain-data description of the model (stored in result attributes)."""
@@ -340,17 +568,25 @@ class Model:
                        reference_material=self.law.material.name)
         elif self.law.name == "dashpot":
             law["gamma"] = self.law.gamma
+        elif self.law.name == "dashpot_scaled":
+            law.update(gamma=self.law.gamma, reference_diameter_mm=self.law.diameter * 1e3,
+                       reference_material=self.law.material.name)
         elif self.law.name == "elastoplastic":
-            from .contact import LIMITING_PRESSURE_FACTOR
-
-            law.update(A=self.law.A, limiting_pressure_over_yield_stress=LIMITING_PRESSURE_FACTOR)
+            law.update(A=self.law.A, limiting_pressure_factor=self.law.limiting_pressure_factor)
             if self.law.diameter is not None:
                 law.update(reference_diameter_mm=self.law.diameter * 1e3, reference_material=self.law.material.name)
-        return {
+        wall = {"type": self.wall.kind, "material": None if self.wall_material is None else self.wall_material.name}
+        if self.wall.is_body:
+            wall.update(mass=self.wall.mass, stiffness=self.wall.stiffness, damping=self.wall.damping,
+                        shape=self.wall.shape, radius_of_curvature_mm=None if self.wall.face_radius is None
+                        else self.wall.face_radius * 1e3)
+        out = {
             "chain": self.chain.describe(),
-            "striker": {"diameter_mm": self.striker.diameter * 1e3, "velocity": self.striker.velocity,
-                        "material": self.striker.material.name},
-            "wall": {"type": self.wall.kind, "material": None if self.wall_material is None else self.wall_material.name},
+            "striker": self.striker.describe(),
+            "wall": wall,
             "contact": law,
             "precompression": self.precompression,
         }
+        if self.gravity:
+            out["gravity"] = self.gravity
+        return out

@@ -7,12 +7,12 @@ rigid limit, F_s = (F_{n-1} + F_n) / 2.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import ConfigError
+from .strict import count, real
 
 __all__ = ["Probes", "sensor_forces"]
 
@@ -44,12 +44,16 @@ class Probes:
     positions: bool = False
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.sample_interval, (int, float)) and math.isfinite(self.sample_interval)
-                and self.sample_interval > 0):
+        interval = real(self.sample_interval, "run.sample_interval", unit="s")
+        if not interval > 0:
             raise ConfigError("run.sample_interval", f"must be a positive time in s, got {self.sample_interval!r}")
-        object.__setattr__(self, "sensors", tuple(int(s) for s in self.sensors))
+        object.__setattr__(self, "sample_interval", interval)
+        # Bead and contact numbers are counts (2.7 is refused, not truncated); ranges: validate().
+        object.__setattr__(self, "sensors", tuple(count(s, f"probes.sensors[{i}]", low=-2**62)
+                                                  for i, s in enumerate(self.sensors)))
         if self.contacts is not None:
-            object.__setattr__(self, "contacts", tuple(int(c) for c in self.contacts))
+            object.__setattr__(self, "contacts", tuple(count(c, f"probes.contacts[{i}]", low=-2**62)
+                                                       for i, c in enumerate(self.contacts)))
 
     def validate(self, n_beads: int, has_wall: bool) -> None:
         """Check bead and contact numbers against a chain of ``n_beads`` beads."""

@@ -24,17 +24,20 @@ from .probes import Probes, sensor_forces
 if TYPE_CHECKING:  # the compiled kernels load only when a run is made, not to read a result
     from .integrate.verlet import RawRun
 
-__all__ = ["build_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes"]
+__all__ = ["build_dataset", "fields_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes"]
 
 ENGINE = "h5netcdf"
+#: The integrators of hertzchain's own (``dt``, ``dt_max`` and ``time_step`` attributes mean steps).
+STEPPERS = ("verlet", "rkn4")
 
 
 #: Units and long name of every variable a run may hold (shared by :func:`build_dataset` and the
 #: batched engine's stacked results, which take them from :func:`run_fields`).
 VARIABLES: dict[str, tuple[str, str]] = {
     "contact_force": ("N", "contact force F_j between body j and body j+1 (paper eq. 1)"),
-    "kinetic_energy": ("J", "kinetic energy of striker and beads"),
-    "potential_energy": ("J", "Hertz potential energy sum (2/5) kappa delta^(5/2) (minus external work)"),
+    "kinetic_energy": ("J", "kinetic energy of striker and beads (and of a protected body, internal masses)"),
+    "potential_energy": ("J", "Hertz potential energy sum (2/5) kappa delta^(5/2) (plus linear springs, minus "
+                              "external work)"),
     "dissipated_energy": ("J", "energy dissipated by the contact law (viscous part)"),
     "plastic_work": ("J", "plastic work done in the contacts (elastoplastic law, Thornton 1997)"),
     "diameter": ("m", "bead diameter phi_n"),
@@ -49,6 +52,11 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "sensor_force": ("N", "force read by the sensor embedded in the bead, (F_{n-1} + F_n)/2"),
     "velocity": ("m s-1", "velocity of body (0 = striker)"),
     "displacement": ("m", "displacement of body (0 = striker) from its place at impact, along the chain"),
+    "body_force": ("N", "force the protected body passes to the ground, k x + c v (its mount)"),
+    "body_displacement": ("m", "protected body's displacement x: its mount's deflection from its unloaded length"),
+    "body_velocity": ("m s-1", "protected body's velocity"),
+    "body_acceleration": ("m s-2", "protected body's acceleration"),
+    "body_energy": ("J", "energy transmitted to the protected body: work of contact N on it since the impact"),
 }
 
 #: The ``conventions`` attribute of every result: where units and numbering are defined.
@@ -120,6 +128,8 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         arrays["velocity"] = (("time", "body"), raw.velocity)
     if raw.displacement is not None:
         arrays["displacement"] = (("time", "body"), raw.displacement)
+    if raw.body is not None:
+        arrays.update(body_arrays(raw.body, system))
     data = {}
     for name, (dims, values) in arrays.items():
         units, long_name = VARIABLES[name]
@@ -134,19 +144,20 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
 
     ratio = raw.max_force / system.yield_force[:nc]
     over = np.flatnonzero(ratio > 1.0).tolist()
-    described = model.describe()
+    model_text = json.dumps(model.describe())
     attrs = {
         "title": "hertzchain simulation",
         "hertzchain_version": __version__,
         "integrator": raw.integrator,
         "dt": raw.dt,
-        "dt_max": raw.dt_max if raw.integrator == "verlet" else 0.0,
-        "time_step": ("adaptive" if raw.adaptive else "fixed") if raw.integrator == "verlet" else "solve_ivp",
+        "dt_max": raw.dt_max if raw.integrator in STEPPERS else 0.0,
+        "time_step": ("adaptive" if raw.adaptive else "fixed") if raw.integrator in STEPPERS else "solve_ivp",
         "n_steps": raw.n_steps,
         "duration": duration,
         "sample_interval": probes.sample_interval,
-        "model": json.dumps(described),
-        "config": json.dumps(config if config is not None else {"model": described}),
+        "model": model_text,
+        # json.dumps({"model": described}), without encoding the model twice
+        "config": json.dumps(config) if config is not None else '{"model": ' + model_text + "}",
         "peak_wall_force": raw.peak_wall_force,
         "peak_wall_time": raw.peak_wall_time,
         "elastic_limit_exceeded": int(bool(over)),
@@ -155,11 +166,57 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "conventions": CONVENTIONS,
     }
+    if raw.body is not None:
+        attrs.update(body_peaks(arrays["body_force"][1], arrays["body_acceleration"][1], arrays["body_energy"][1]))
     if raw.plastic_work is not None:
         attrs["plastic_work"] = float(raw.plastic_work[-1])
         attrs["residual_overlap_max"] = float(raw.residual_overlap.max()) if raw.residual_overlap.size else 0.0
     attrs.update(extra_attrs or {})
     return RunFields(data, coords, attrs)
+
+
+def body_arrays(record: np.ndarray, system) -> dict[str, tuple[tuple[str, ...], np.ndarray]]:
+    """The protected body's variables from the engine's record (time, 4): its displacement from
+    rest u, velocity v, acceleration and the work done on it; x = u + the mount's deflection at
+    rest, and the force to the ground k x + c v.
+
+    Parameters
+    ----------
+    record : numpy.ndarray
+        (time, 4) as ``RawRun.body``.
+    system : hertzchain.model.System
+        The run's arrays (``mount_k``, ``mount_c``, ``mount_d0``).
+
+    Returns
+    -------
+    dict
+        ``{name: (dims, values)}`` of ``body_force``, ``body_displacement``, ``body_velocity``,
+        ``body_acceleration`` and ``body_energy``.
+    """
+    x = system.mount_d0 + record[:, 0]
+    v = record[:, 1].copy()
+    return {"body_force": (("time",), system.mount_k * x + system.mount_c * v),
+            "body_displacement": (("time",), x), "body_velocity": (("time",), v),
+            "body_acceleration": (("time",), record[:, 2].copy()), "body_energy": (("time",), record[:, 3].copy())}
+
+
+def body_peaks(force: np.ndarray, acceleration: np.ndarray, energy: np.ndarray) -> dict[str, float]:
+    """Attributes of a run with a protected body: ``peak_body_force`` [N] and
+    ``peak_body_acceleration`` [m/s^2] (largest magnitudes over the samples) and
+    ``peak_body_energy`` [J] (the most energy the chain had delivered to it at any sample).
+
+    Parameters
+    ----------
+    force, acceleration, energy : numpy.ndarray
+        ``body_force``, ``body_acceleration`` and ``body_energy`` over time.
+
+    Returns
+    -------
+    dict
+        The three attributes.
+    """
+    return {"peak_body_force": float(np.max(np.abs(force))), "peak_body_acceleration": float(np.max(np.abs(acceleration))),
+            "peak_body_energy": float(np.max(energy))}
 
 
 def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float, config: dict | None = None,
@@ -169,9 +226,49 @@ def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float,
 
     ``system`` is ``model.system()`` when the caller already has it (it is not free for long chains).
     """
-    f = run_fields(raw, model, probes, duration=duration, config=config, extra_attrs=extra_attrs, system=system)
-    data = {name: xr.Variable(dims, values, attrs=attrs) for name, (dims, values, attrs) in f.data.items()}
-    return xr.Dataset(data, coords=f.coords, attrs=f.attrs)
+    return fields_dataset(run_fields(raw, model, probes, duration=duration, config=config,
+                                     extra_attrs=extra_attrs, system=system))
+
+
+def fields_dataset(f: RunFields) -> xr.Dataset:
+    """The Dataset of ``f``: the one ``xr.Dataset(data, coords=f.coords, attrs=f.attrs)`` builds.
+
+    Assembled directly (variables, one pandas index per coordinate, sizes): the public
+    constructor merges and aligns the variables, which took ~0.5 ms of a ~5 ms ``simulate()``
+    (benchmarks/overhead.py) for nothing, since a run's variables are aligned by construction.
+    Falls back to the public constructor if xarray's internal ``Dataset._construct_direct`` is
+    ever missing; tests/test_overhead.py checks that both give identical Datasets.
+
+    Parameters
+    ----------
+    f : RunFields
+        From :func:`run_fields`.
+
+    Returns
+    -------
+    xarray.Dataset
+        The result.
+    """
+    try:
+        import pandas as pd
+        from xarray.core.indexes import PandasIndex
+
+        # NumPy arrays throughout, so the checks of the public constructors can be skipped
+        out = {name: xr.Variable(dims, np.asarray(values), attrs=attrs, fastpath=True)
+               for name, (dims, values, attrs) in f.data.items()}
+        indexes = {}
+        for name, (dim, values, attrs) in f.coords.items():
+            # the run's own arrays: indexed without a copy
+            index = PandasIndex(pd.Index(np.asarray(values), copy=False), dim)
+            indexes[name] = index
+            out.update(index.create_variables({name: xr.Variable(dim, values, attrs)}))
+        sizes: dict[str, int] = {}
+        for var in out.values():
+            sizes.update((d, n) for d, n in zip(var.dims, var.shape) if d not in sizes)
+        return xr.Dataset._construct_direct(out, set(f.coords), sizes, dict(f.attrs), indexes)
+    except (ImportError, AttributeError, TypeError):  # xarray's internals moved: the public way
+        variables = {name: xr.Variable(dims, values, attrs=attrs) for name, (dims, values, attrs) in f.data.items()}
+        return xr.Dataset(variables, coords=f.coords, attrs=f.attrs)
 
 
 def to_netcdf_bytes(ds: xr.Dataset, compress: bool = True, single_precision: bool = False) -> bytes:

@@ -183,6 +183,11 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
     if model.law.name == "elastoplastic":
         raise ConfigError("contact.law", "the elastoplastic law is not supported with lateral freedom (its "
                           "per-contact history is carried by the axial engine only); run it without [track]")
+    if not model.plain:
+        field_name = ("wall.type" if model.wall.is_body else "chain.gravity" if model.gravity else
+                      "chain.elements" if not model.chain.plain else "striker")
+        raise ConfigError(field_name, "lateral freedom ([track]) models spheres hit by a sphere against a flat or "
+                          "a free end, without gravity along the chain; this model is for the 1D engine only")
     system = model.system()
     probes.validate(model.chain.n_beads, model.wall.present)
     if integrator not in ("verlet", "dop853"):

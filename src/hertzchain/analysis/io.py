@@ -25,12 +25,15 @@ import numpy as np
 from ..errors import ConfigError, PulseNotFound
 from .pulse import fit_pulse
 
-__all__ = ["read_signal_csv", "analyze_signals", "ROW_KEYS"]
+__all__ = ["read_signal_csv", "analyze_signals", "ROW_KEYS", "ROW_UNITS"]
 
 #: Keys of every row returned by :func:`analyze_signals` (numbers in SI units; NaN on error).
 ROW_KEYS = ("signal", "index", "peak_force", "peak_force_err", "time_of_flight",
             "time_of_flight_err", "duration", "duration_err", "front_momentum",
             "tail_momentum", "baseline", "error")
+#: Units of the numbers of a row (SI), as ``analyze --json`` writes them beside each row.
+ROW_UNITS = {"peak_force": "N", "peak_force_err": "N", "time_of_flight": "s", "time_of_flight_err": "s",
+             "duration": "s", "duration_err": "s", "front_momentum": "N s", "tail_momentum": "N s", "baseline": "N"}
 
 _TIME_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0, "ms": 1e-3, "us": 1e-6,
                "µs": 1e-6, "μs": 1e-6, "ns": 1e-9}
@@ -238,15 +241,19 @@ def _dataset_rows(ds, signals: Iterable[str], fit_kwargs: dict) -> list[dict]:
             time = np.asarray(tcoord.values, dtype=float) * _unit_factor(tcoord.attrs, _TIME_UNITS, "time")
         others = [d for d in da.dims if d != "time"]
         values = np.asarray(da.transpose("time", *others).values, dtype=float)
-        values = values * _unit_factor(da.attrs, _FORCE_UNITS, name)
+        force_factor = _unit_factor(da.attrs, _FORCE_UNITS, name)
+        values = values * force_factor
+        kwargs = dict(fit_kwargs)
+        if "valid_max" in da.attrs and "valid_max" not in kwargs:  # the scope's full scale: clipping
+            kwargs["valid_max"] = float(da.attrs["valid_max"]) * force_factor
         if not others:
-            rows.append(_row(name, None, time, values, fit_kwargs))
+            rows.append(_row(name, None, time, values, kwargs))
             continue
         labels = [da[d].values if d in da.coords else np.arange(da.sizes[d]) for d in others]
         for pos in np.ndindex(*values.shape[1:]):
             key = tuple(lab[i].item() if hasattr(lab[i], "item") else lab[i] for lab, i in zip(labels, pos))
             index = key[0] if len(key) == 1 else key
-            rows.append(_row(name, index, time, values[(slice(None),) + pos], fit_kwargs))
+            rows.append(_row(name, index, time, values[(slice(None),) + pos], kwargs))
     return rows
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import curve_fit
 
-from ..errors import ConfigError, PulseNotFound
+from ..errors import ConfigError, PulseClipped, PulseNotFound
 from ..theory import HALF_MAX_PHASE
 
 __all__ = ["PulseFit", "fit_pulse", "cos6_pulse", "estimate_noise", "front_tail_momenta"]
@@ -113,6 +113,24 @@ class PulseFit:
         """The fields as a plain dict (``window`` as a 2-tuple)."""
         return asdict(self)
 
+    def _rows(self) -> list[tuple[str, str]]:
+        from ..display import value_text
+
+        return [("F_m", value_text(self.peak_force, self.peak_force_err, "N")),
+                ("T", value_text(self.time_of_flight, self.time_of_flight_err, "ms", 1e3)),
+                ("tau", value_text(self.duration, self.duration_err, "µs", 1e6)),
+                ("Q_F, Q_T", f"{self.front_momentum * 1e3:.4g}, {self.tail_momentum * 1e3:.4g} mN s"),
+                ("fit", f"{self.n_points} points, rms residual {self.residual_rms:.2g} N, "
+                        f"baseline {self.baseline:.2g} N")]
+
+    def __repr__(self) -> str:
+        return "PulseFit(" + ", ".join(f"{k} = {v}" for k, v in self._rows()[:3]) + ")"
+
+    def _repr_html_(self) -> str:
+        from ..display import html_table
+
+        return html_table("PulseFit (paper Sec. III: F_m cos^6((t - T)/tau))", self._rows())
+
 
 # --------------------------------------------------------------------------------------------
 # helpers
@@ -129,24 +147,56 @@ def _as_signal(time, force) -> tuple[np.ndarray, np.ndarray]:
     return t, f
 
 
-def estimate_noise(force: np.ndarray, block: int = 32) -> float:
-    """Robust sample-to-sample noise standard deviation [N] of a record.
+#: Sum of the squared autocorrelations of the second differences of white noise (lag 0: 1, lag
+#: 1: -4/6, lag 2: 1/6): the mean square of a block of b of them has a relative spread of
+#: sqrt(2 * 1.944 / b).
+_D2_CORRELATION = 1.0 + 2.0 * (4.0 / 6.0) ** 2 + 2.0 * (1.0 / 6.0) ** 2
 
-    White noise of standard deviation sigma gives second differences of standard deviation
-    sqrt(6) sigma, while a smooth pulse sampled finely gives almost none, so the median
-    absolute second difference measures the noise. The record is cut into blocks and the
-    lower quartile of the block estimates is kept, so that a pulse and its tail covering much
-    of the record (coarse sampling) do not inflate the estimate.
+
+def estimate_noise(force: np.ndarray, block: int = 32) -> float:
+    """Sample-to-sample noise standard deviation [N] of a record, unbiased for quantised records.
+
+    White noise of standard deviation sigma gives second differences of variance 6 sigma^2, while
+    a smooth pulse sampled finely gives almost none, so the mean square of the second
+    differences measures the noise. The record is cut into blocks (of ``block`` differences,
+    fewer in a short record so that there are at least eight); blocks holding the pulse's
+    curvature stand out and are left out: starting from the lower quartile of the blocks' mean
+    squares (so that a pulse covering most of a coarsely sampled record does not set the scale),
+    the blocks within 4 relative spreads of the mean of the kept ones are kept, four times over.
+
+    A mean square, unlike a median of absolute values, stays unbiased when the samples are
+    quantised (an 8-bit scope: most second differences are 0 or one code step, and their median
+    is then ~25 % low at a noise of one code step, 100 % at a third of one). The estimate is the
+    noise plus the quantisation error (variance sigma^2 + q^2 / 12), which is what the residuals
+    of a perfect model hold: a fit weighted by it has a residual variance per degree of
+    freedom of ~1.
+
+    Parameters
+    ----------
+    force : numpy.ndarray
+        The record [N].
+    block : int
+        Second differences per block (at most).
+
+    Returns
+    -------
+    float
+        sigma [N] (0 for fewer than three samples or a noise-free flat record).
     """
     d2 = np.diff(np.asarray(force, dtype=float), 2)
-    if d2.size == 0:
-        return 0.0
-    scale = 1.4826 / math.sqrt(6.0)  # MAD -> sigma for a Gaussian, and the sqrt(6) above
+    if d2.size < 8:
+        return float(math.sqrt(np.mean(d2**2) / 6.0)) if d2.size else 0.0
+    block = int(min(block, max(4, d2.size // 8)))
     n_blocks = d2.size // block
-    if n_blocks < 4:
-        return float(scale * np.median(np.abs(d2)))
-    blocks = np.abs(d2[: n_blocks * block]).reshape(n_blocks, block)
-    return float(scale * np.percentile(np.median(blocks, axis=1), 25))
+    ms = np.mean(d2[: n_blocks * block].reshape(n_blocks, block) ** 2, axis=1)
+    spread = math.sqrt(2.0 * _D2_CORRELATION / block)
+    ref = float(np.percentile(ms, 25)) / max(1.0 - 0.674 * spread, 0.2)  # a quartile of noise blocks -> their mean
+    for _ in range(4):
+        kept = ms[ms <= (1.0 + 4.0 * spread) * ref]
+        if kept.size == 0:
+            break
+        ref = float(np.mean(kept))
+    return float(math.sqrt(ref / 6.0))
 
 
 def _half_max_time(t: np.ndarray, y: np.ndarray, ip: int) -> float | None:
@@ -268,7 +318,7 @@ def front_tail_momenta(time: np.ndarray, force: np.ndarray, split: float) -> tup
 # --------------------------------------------------------------------------------------------
 def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = None, min_prominence: float = 0.2,
               snr_min: float = 8.0, fit_window: tuple[float, float] = (-1.0, 0.0),
-              max_iter: int = 50) -> PulseFit:
+              max_iter: int = 50, valid_max: float | None = None) -> PulseFit:
     """Fit the first pulse of a force record with Nesterenko's profile (paper Sec. III, eq. 4).
 
     Method, as in the paper: the loading part -tau < t - T < 0 of the first pulse is fitted with
@@ -305,6 +355,9 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
         Fitted range of (t - T)/tau; the paper's loading part is (-1, 0).
     max_iter
         Most window updates.
+    valid_max
+        The largest value the scope could record [N] (its full scale), when known: a pulse that
+        reaches it is clipped.
 
     Returns
     -------
@@ -317,6 +370,9 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
     PulseNotFound
         No pulse stands out of the noise, the record is too short, it ends before the first
         maximum or starts after the rise, or the pulse is sampled too coarsely to fit.
+    PulseClipped
+        The pulse is clipped: it reaches ``valid_max`` or its top is cut flat
+        (:func:`~hertzchain.analysis.saturation.find_clipping`).
     ConfigError
         The arrays are malformed (shapes, NaN, time not increasing).
     """
@@ -328,6 +384,11 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
     if not (fit_window[0] < fit_window[1]):
         raise ConfigError("fit_window", f"must be (low, high) with low < high, got {fit_window!r}")
 
+    from .saturation import find_clipping
+
+    clipped = find_clipping(t, f, valid_max=valid_max)
+    if clipped is not None:
+        raise PulseClipped(f"the pulse is clipped: {clipped}")
     noise = estimate_noise(f)
     # First guess of the baseline, only used to detect the pulse: a low percentile sits at the
     # quiet level of the record whether or not the record has a long pre-pulse part.

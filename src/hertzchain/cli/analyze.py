@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from .common import open_result, signal_frame, trace_options
+from .common import UnitsTable, open_result, signal_frame, trace_options
 
 _NETCDF = (".nc", ".nc4", ".netcdf", ".cdf", ".h5")
 
@@ -20,7 +20,8 @@ _NETCDF = (".nc", ".nc4", ".netcdf", ".cdf", ".h5")
 @click.option("--tail-end", type=float, default=None, metavar="SECONDS",
               help="Time [s] where the tail momentum Q_T stops (before a reflected pulse comes back).")
 @click.option("--json", "json_path", is_flag=False, flag_value="-", default=None, metavar="PATH",
-              help="Write the rows as JSON to PATH (SI units); --json alone prints them instead of the table.")
+              help="Write the rows as JSON to PATH (SI units, named in each row's \"units\"); --json alone prints "
+                   "them instead of the table. Exit status 2 when no pulse could be fitted.")
 def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitivity: float | None,
             sensor: str | None, time_unit: str | None, tail_end: float | None, json_path: str | None) -> None:
     """Fit every chosen pulse of SOURCE (a result .nc, or a measured scope file) as in the paper.
@@ -33,6 +34,7 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
     import math
 
     from ..analysis import analyze_signals
+    from ..analysis.io import ROW_UNITS
     from ..errors import ConfigError
     from ..fileio import json_text, write_text
 
@@ -40,7 +42,7 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
         raise ConfigError(str(source), "no such file")
     if tail_end is not None and not (math.isfinite(tail_end) and tail_end > 0):
         raise ConfigError("--tail-end", f"must be a positive time in s, got {tail_end}")
-    units_note = "time in s, force in N"
+    units_note = "a hertzchain result"
     if source.suffix.lower() in _NETCDF:
         if sensitivity is not None or sensor is not None or time_unit is not None:
             raise ConfigError("--sensitivity", "a hertzchain result is already in SI units (N, s); "
@@ -64,31 +66,32 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
             if da.size < 10:
                 raise ConfigError("--tail-end", f"{tail_end} s leaves {da.size} samples of {source.name}")
         rows = analyze_signals(da.to_dataset(name=da.name), signals=(da.name,))
-        units_note = f"time read in {da.attrs['time_unit']}, signal in {da.attrs['raw_unit']}"
+        units_note = f"read with time in {da.attrs['time_unit']}, signal in {da.attrs['raw_unit']}"
         if not math.isnan(da.attrs["sensitivity_mV_per_N"]):
             units_note += f" / {da.attrs['sensitivity_mV_per_N']:g} mV/N"
-        units_note += "; shown in SI"
-    # NaN (a failed fit) becomes null: valid JSON.
+    failed = all(r.get("error") for r in rows)
+    # NaN (a failed fit) becomes null: valid JSON. Every row says the units of its numbers (SI).
+    out_rows = [{**r, "units": dict(ROW_UNITS)} for r in rows]
     if json_path == "-":
-        click.echo(json_text(rows))
-        return
-    if json_path is not None:
-        write_text(json_path, json_text(rows) + "\n")
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title=f"pulse fits of {source.name} (loading part, F_m cos^6((t-T)/tau); {units_note})")
-    for col in ("signal", "F_m [N]", "T [ms]", "tau [us]", "Q_F [mN s]", "Q_T [mN s]"):
-        table.add_column(col, justify="right")
-    for r in rows:
-        label = r["signal"] + ("" if r.get("index") is None else f"[{r['index']}]")
-        if r.get("error"):
-            table.add_row(label, f"[red]{r['error']}[/red]", "", "", "", "")
-            continue
-        table.add_row(label, f"{r['peak_force']:.4g} ± {r['peak_force_err']:.1g}",
-                      f"{r['time_of_flight'] * 1e3:.5g} ± {r['time_of_flight_err'] * 1e3:.1g}",
-                      f"{r['duration'] * 1e6:.4g} ± {r['duration_err'] * 1e6:.1g}",
-                      f"{r['front_momentum'] * 1e3:.4g}", f"{r['tail_momentum'] * 1e3:.4g}")
-    Console().print(table)
-    if json_path is not None:
-        click.echo(f"wrote {json_path}")
+        click.echo(json_text(out_rows))
+    else:
+        if json_path is not None:
+            write_text(json_path, json_text(out_rows) + "\n")
+        table = UnitsTable(f"pulse fits of {source.name} ({units_note}): loading part, F_m cos^6((t-T)/tau)",
+                            [("signal", None), ("F_m", "N"), ("T", "ms"), ("tau", "us"), ("Q_F", "mN s"),
+                             ("Q_T", "mN s")])
+        for r in rows:
+            label = r["signal"] + ("" if r.get("index") is None else f"[{r['index']}]")
+            if r.get("error"):
+                table.add_row(label, r["error"], "", "", "", "", style="red")
+                continue
+            table.add_row(label, f"{r['peak_force']:.4g} ± {r['peak_force_err']:.1g}",
+                          f"{r['time_of_flight'] * 1e3:.5g} ± {r['time_of_flight_err'] * 1e3:.1g}",
+                          f"{r['duration'] * 1e6:.4g} ± {r['duration_err'] * 1e6:.1g}",
+                          f"{r['front_momentum'] * 1e3:.4g}", f"{r['tail_momentum'] * 1e3:.4g}")
+        table.print()
+        if json_path is not None:
+            click.echo(f"wrote {json_path}")
+    if failed:
+        raise ConfigError(str(source), f"no pulse could be fitted in any of its {len(rows)} signal(s) (the reasons "
+                          "are in the table): " + "; ".join(f"{r['signal']}: {r['error']}" for r in rows[:3]))

@@ -128,6 +128,68 @@ def signal_frame(ds, name: str):
 
 
 # ---------------------------------------------------------------------------------------------
+# tables
+# ---------------------------------------------------------------------------------------------
+
+class UnitsTable:
+    """A table whose every header carries its unit (``F_m [N]``) at every terminal width.
+
+    Printed as a Rich table when it fits the terminal (or the pipe's 80 columns) with every cell
+    whole; in a narrower one, as one block per row of ``header [unit]: value`` lines, rather
+    than cutting headers and numbers with ellipses or folding a number over two lines. The
+    headers are escaped (Rich takes ``[ms]`` for a style and drops it).
+
+    Parameters
+    ----------
+    title : str
+        The table's title.
+    columns : list of (str, str or None)
+        Header and unit of each column (None: no unit, e.g. a label).
+    """
+
+    def __init__(self, title: str, columns: list[tuple[str, str | None]]):
+        self.title = title
+        self.headers = [name if unit is None else f"{name} [{unit}]" for name, unit in columns]
+        self.rows: list[tuple[list[str], str | None]] = []
+
+    def add_row(self, *cells: str, style: str | None = None) -> None:
+        """Add a row of plain-text cells (``style``: a Rich style for the whole row, e.g. "red")."""
+        self.rows.append(([str(c) for c in cells], style))
+
+    def _rich(self):
+        from rich.markup import escape
+        from rich.table import Table
+
+        table = Table(title=escape(self.title))
+        for h in self.headers:
+            table.add_column(escape(h), justify="right", no_wrap=True)
+        for cells, style in self.rows:
+            table.add_row(*[escape(c) for c in cells], style=style)
+        return table
+
+    def print(self, console=None) -> None:
+        """Print to ``console`` (default: stdout)."""
+        from rich.console import Console
+        from rich.markup import escape
+
+        from rich.cells import cell_len
+
+        console = console or Console()
+        # Every cell whole on one line: the widest cell of each column, its padding and the rules.
+        widths = [max([cell_len(h)] + [cell_len(cells[j]) for cells, _ in self.rows])
+                  for j, h in enumerate(self.headers)]
+        if sum(w + 3 for w in widths) + 1 <= console.width:
+            console.print(self._rich())
+            return
+        console.print(escape(self.title))
+        for cells, style in self.rows:
+            for h, c in zip(self.headers, cells):
+                if c:
+                    console.print(f"  {escape(h)}: {escape(c)}", style=style)
+            console.print("")
+
+
+# ---------------------------------------------------------------------------------------------
 # progress, warnings, memory
 # ---------------------------------------------------------------------------------------------
 

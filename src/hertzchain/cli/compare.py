@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from .common import open_result, signal_frame, trace_options
+from .common import UnitsTable, open_result, signal_frame, trace_options
 
 
 def simulated_signal(source: Path, signal: str):
@@ -74,16 +74,12 @@ def compare(measured: Path, simulated: Path, out: Path, json_path: Path | None, 
     numbers = comp.as_json()
     if json_path is not None:
         write_text(json_path, json_text(numbers) + "\n")
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title=f"{measured.name} vs {simulated.name} ({signal}), aligned by {align}")
-    for col in ("", "F_m [N]", "T [ms]", "tau [us]"):
-        table.add_column(col, justify="right")
+    table = UnitsTable(f"{measured.name} vs {simulated.name} ({signal}), aligned by {align}",
+                       [("", None), ("F_m", "N"), ("T", "ms"), ("tau", "us")])
     for label, p in (("measured", comp.measured), ("simulated", comp.simulated)):
         table.add_row(label, f"{p['peak_force']:.4g}", f"{p['time_of_flight'] * 1e3:.5g}", f"{p['duration'] * 1e6:.4g}")
     table.add_row("sim - meas", f"{comp.peak_force_diff:+.3g}", f"{comp.time_of_flight_diff * 1e3:+.4g}",
                   f"{comp.duration_diff * 1e6:+.3g}")
-    Console().print(table)
+    table.print()
     click.echo(f"rms residual {comp.rms_residual:.4g} N after a shift of {comp.shift * 1e3:+.5g} ms; wrote {out}"
                + (f" and {json_path}" if json_path else ""))

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from .common import dask_client, freeze_imports, require_device, set_option
+from .common import dask_client, echo_warning, freeze_imports, require_device, set_option
 
 
 @click.command("design")
@@ -67,6 +67,8 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
             client.close()
     info = write_report(result, figures=not no_html)
     if quiet:
+        if not info["best"]["feasible"]:
+            echo_warning("no candidate met every constraint (best is the least infeasible)")
         return
     best = info["best"]
     value = best["objective"]

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from .common import echo_warning, progress_bar, set_option, trace_options
+from .common import UnitsTable, echo_warning, progress_bar, set_option, trace_options
 
 #: Per-trace keys of a MEASURED argument that say how to read the file (the rest are config paths).
 READ_KEYS = ("column", "sensitivity", "sensor", "time_unit")
@@ -112,18 +112,15 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
         echo_warning(doubt)
     if quiet:
         return
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title=f"fit of {config.name} on {len(traces)} trace(s): "
-                        f"{'converged' if result.converged else 'NOT converged'}, s^2 = {result.residual_variance:.3g}")
+    table = UnitsTable(f"fit of {config.name} on {len(traces)} trace(s): "
+                       f"{'converged' if result.converged else 'NOT converged'}, s^2 = {result.residual_variance:.3g}",
+                       [("parameter", None), ("unit", None), ("value", None), ("stderr", None), ("start", None)]
+                       + ([("bootstrap stderr", None)] if bootstrap else []))
     boot = result.as_json()["parameters"]
-    for col in ("parameter", "value", "stderr", "start") + (("bootstrap stderr",) if bootstrap else ()):
-        table.add_column(col, justify="right")
     for n, v, s, s0 in zip(result.names, result.values, result.stderr, result.start):
         extra = (f"{boot[n]['bootstrap']['stderr']:.2g}",) if bootstrap else ()
-        table.add_row(n, f"{v:.6g}", f"{s:.2g}", f"{s0:.6g}", *extra)
-    Console().print(table)
+        table.add_row(n, boot[n]["unit"], f"{v:.6g}", f"{s:.2g}", f"{s0:.6g}", *extra)
+    table.print()
     click.echo(f"{result.n_evaluations} evaluations ({result.n_members} chains in batched engine calls, "
                f"{result.n_tangent_runs} tangent runs; Jacobian: {result.jacobian}) in {result.elapsed:.2f} s; "
                f"wrote {', '.join(str(p) for p in paths.values())}")

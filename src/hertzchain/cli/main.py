@@ -18,6 +18,8 @@ from .animate import animate
 from .common import user_warnings
 from .compare import compare
 from .design import design
+from .explore import explore
+from .export import export
 from .fit import fit
 from .materials import materials
 from .plot import plot
@@ -44,6 +46,17 @@ cli.add_command(fit)
 cli.add_command(sweep)
 cli.add_command(design)
 cli.add_command(sensitivity)
+cli.add_command(explore)
+cli.add_command(export)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, a batch system's time limit), raised where the program is, as Ctrl-C is:
+    the same clean-up runs (temporary files removed, sweeps keep their finished chunks)."""
+
+
+def _on_sigterm(signum, frame) -> None:
+    raise Terminated()
 
 
 @user_warnings
@@ -53,15 +66,38 @@ def main(argv: list[str] | None = None) -> int:
     The one error path of the command line: a :class:`~hertzchain.errors.HertzchainError` (bad
     config, bad file, a run that diverged), a usage error, an unreadable or unwritable file
     (OSError) or a lack of memory ends with one paragraph naming what is wrong and exit status
-    2; anything else is a bug, reported as such with exit status 1.
+    2; anything else is a bug, reported as such with exit status 1. SIGTERM is handled like
+    Ctrl-C (SIGINT): the job stops where it is, cleans up, and the exit status is 143 (130 for
+    Ctrl-C).
     """
+    import signal
+    import threading
+
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        return _main(argv)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str] | None) -> int:
+    """:func:`main` with SIGTERM turned into :class:`Terminated`."""
     from ..errors import HertzchainError
 
     try:
         cli.main(args=argv, prog_name="hertzchain", standalone_mode=False)
-    except click.exceptions.Abort:
+    except click.exceptions.Abort as exc:  # Click turns KeyboardInterrupt into Abort
+        if isinstance(exc.__cause__, Terminated):
+            click.echo("terminated", err=True)
+            return 143
         click.echo("aborted", err=True)
         return 130
+    except Terminated:
+        click.echo("terminated", err=True)
+        return 143
     except click.exceptions.ClickException as exc:
         exc.show()
         return 2 if isinstance(exc, click.UsageError) else exc.exit_code

@@ -29,8 +29,11 @@ from .common import open_result, parse_window
 @click.option("--scale", type=click.Choice(["linear", "log"]), default="linear", show_default=True,
               help="--kind spacetime: colour scale of the force.")
 @click.option("--to-scale", is_flag=True, help="--kind spacetime: contacts at their positions along the chain [mm].")
+@click.option("--vmax", type=float, default=None, metavar="N",
+              help="--kind spacetime: top of the colour scale [N] (default: the largest force in the chain, "
+                   "the short striker contact drawn saturated).")
 def plot(result: Path, out: Path, kind: str, window: str | None, member: int | None, signals: tuple[str, ...],
-         contacts: tuple[int, ...], scale: str, to_scale: bool) -> None:
+         contacts: tuple[int, ...], scale: str, to_scale: bool, vmax: float | None) -> None:
     """Draw RESULT (a hertzchain .nc: a run, a batch or a sweep chunk; or a sweep's metrics.csv:
     --signal METRIC against the swept parameters) into an image."""
     from ..errors import ConfigError
@@ -47,8 +50,8 @@ def plot(result: Path, out: Path, kind: str, window: str | None, member: int | N
     span = parse_window(window)
     if kind != "signals" and (signals or contacts):
         raise ConfigError("--signal", f"--signal and --contact go with --kind signals, not --kind {kind}")
-    if kind != "spacetime" and (scale != "linear" or to_scale):
-        raise ConfigError("--scale", f"--scale and --to-scale go with --kind spacetime, not --kind {kind}")
+    if kind != "spacetime" and (scale != "linear" or to_scale or vmax is not None):
+        raise ConfigError("--scale", f"--scale, --to-scale and --vmax go with --kind spacetime, not --kind {kind}")
     ds = open_result(result)
     if kind == "signals":
         from ..viz.signals import plot_signals
@@ -57,7 +60,8 @@ def plot(result: Path, out: Path, kind: str, window: str | None, member: int | N
     elif kind == "spacetime":
         from ..viz.spacetime import plot_spacetime
 
-        plot_spacetime(ds, out, scale=scale, to_scale=to_scale, window=span, member=member)
+        plot_spacetime(ds, out, scale=scale, to_scale=to_scale, window=span, member=member,
+                       vmax="auto" if vmax is None else vmax)
     else:
         from ..viz.energy import plot_energy
 

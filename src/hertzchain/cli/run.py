@@ -12,43 +12,57 @@ from .common import echo_warning, progress_bar, set_option
 @click.command("run")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="NetCDF file to write (e.g. result.nc).")
+              help="Result file: NetCDF (result.nc, everything), or result.csv / result.mat / result.parquet "
+                   "(as hertzchain export writes them).")
 @set_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
 def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> None:
-    """Simulate the chain described by CONFIG (TOML) and save the result as NetCDF."""
+    """Simulate the chain described by CONFIG (TOML) and save the result (NetCDF, or CSV / MATLAB /
+    parquet by the suffix of --out, as hertzchain export writes them)."""
     import warnings
 
     from ..config import apply_instruments, build_instruments, build_model, build_probes, load_config, simulate_config
-    from ..errors import ConfigError, DurationWarning, ElasticLimitWarning
+    from ..errors import ConfigError, DurationWarning, ElasticLimitWarning, LongRunWarning
+    from ..exporting import EXPORT_FORMATS, check_format, export
     from ..fileio import check_not_input, check_target
     from ..result import save
     from ..simulation import auto_duration
 
-    if out.suffix.lower() not in (".nc", ".nc4", ".h5"):
-        # A result is NetCDF-4 whatever the name; a .csv or .png name is a mistake to catch before the run.
-        raise ConfigError("--out", f"a result is a NetCDF file: name it *.nc (got {out.name!r})")
+    if out.suffix.lower() not in (".nc", ".nc4", ".h5", *EXPORT_FORMATS):
+        # A .png name (or a typo) is a mistake to catch before the run.
+        raise ConfigError("--out", f"name the result *.nc (NetCDF, everything), *.csv, *.mat or *.parquet "
+                          f"(as hertzchain export writes them); got {out.name!r}")
+    if out.suffix.lower() in EXPORT_FORMATS:
+        check_format(out)  # parquet without pyarrow is said before the run
     cfg = load_config(config, overrides)
     check_not_input(out, config)
     check_target(out)  # refuse a FIFO, a link or a device as --out before any work
     model = build_model(cfg)
     probes = build_probes(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run
-    # A progress bar only when the run is long enough to be worth one (> ~1e8 bead-steps).
-    from ..integrate.verlet import auto_time_step
+    # The pre-flight, before any work: memory refused past what is available, and a projected time
+    # past a few minutes shown now (LongRunWarning), naming what to change (run.dt, run.duration).
+    from ..checks import check_resources, estimate_resources, run_time_hint
 
-    dt = cfg.run.dt or auto_time_step(model.system())
     duration = auto_duration(model) if cfg.run.duration == "auto" else cfg.run.duration
-    work = duration / dt * model.chain.n_beads
+    est = estimate_resources(model.system(), duration, probes, dt=cfg.run.dt, integrator=cfg.run.integrator,
+                             steps_per_radian=cfg.run.steps_per_radian)
+    check_resources(est, time_hint=run_time_hint(cfg.run.dt))
+    # A progress bar only when the run is long enough to be worth one (> ~1e8 bead-steps).
+    work = est.steps * model.chain.n_beads
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ElasticLimitWarning)
         warnings.simplefilter("always", DurationWarning)
         with progress_bar("simulating", enabled=not quiet and work > 1e8, lazy=True) as update:
             ds = simulate_config(cfg, model, probes, progress=update)
     for w in caught:
-        echo_warning(w.message)
+        if not issubclass(w.category, LongRunWarning):  # the pre-flight showed it before the run
+            echo_warning(w.message)
     ds = apply_instruments(ds, cfg)
-    save(ds, out)
+    if out.suffix.lower() in EXPORT_FORMATS:
+        export(ds, out)
+    else:
+        save(ds, out)
     if not quiet:
         if ds.attrs.get("time_step") == "adaptive":
             step = f"adaptive dt {ds.attrs['dt']:.3g}-{ds.attrs['dt_max']:.3g} s, {ds.attrs['n_steps']} steps"
@@ -60,4 +74,9 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
         msg = f"wrote {out} ({span}, {ds.sizes['time']} samples, {ds.sizes['contact']} contacts, {step})"
         if "wall_force" in ds:
             msg += f"; peak wall force {ds.attrs['peak_wall_force']:.4g} N at {ds.attrs['peak_wall_time'] * 1e3:.4g} ms"
+        if "peak_body_force" in ds.attrs:
+            msg += f"; the protected body passes at most {ds.attrs['peak_body_force']:.4g} N to the ground"
+        if "plastic_work" in ds.attrs:  # the elastoplastic law
+            msg += (f"; plastic work {ds.attrs['plastic_work']:.3g} J, deepest permanent dent "
+                    f"{ds.attrs['residual_overlap_max'] * 1e6:.3g} um")
         click.echo(msg)

@@ -53,10 +53,34 @@ def _as_written(internal: str, written: str):
 
 
 def build_chain(cfg: RunConfig):
-    """The :class:`~hertzchain.chain.Chain` described by ``[chain]``."""
+    """The :class:`~hertzchain.chain.Chain` described by ``[chain]`` (with the bead kinds of
+    ``[elements]``)."""
     _register_materials(cfg)
     _check_material_names(cfg)
-    return _chain(cfg.chain)
+    return _chain(cfg.chain, _element_table(cfg))
+
+
+def _element_table(cfg: RunConfig) -> dict:
+    """``{name: Element}`` of ``[elements]``, plus the plain ``"sphere"``."""
+    from ..elements import SPHERE, Element
+
+    table = {"sphere": SPHERE}
+    for name, e in cfg.elements.items():
+        if name == "sphere":
+            raise ConfigError("elements.sphere", "'sphere' is the plain bead's name; give your element another one")
+        r = e.resonator
+        table[name] = Element(name, e.shape, e.orientation, None if e.length_mm is None else e.length_mm * 1e-3,
+                              e.axis_deg, e.mass, 0.0 if r is None else r.mass_fraction,
+                              0.0 if r is None else r.frequency)
+    return table
+
+
+def _element(table: dict, name: str, field_name: str):
+    try:
+        return table[name]
+    except KeyError:
+        raise ConfigError(field_name, f"unknown element {name!r}; known: {', '.join(sorted(table))} "
+                          "(define others under [elements.NAME])") from None
 
 
 def chain_of(data: dict):
@@ -84,7 +108,7 @@ def chain_parts(data: dict) -> tuple[ChainConfig, Any]:
     """``(validated [chain] section, Chain)`` of a config mapping: :func:`chain_of` with the section,
     so that a model can later be built from it without validating ``[chain]`` again
     (:func:`build_model` with ``chain=``)."""
-    if "materials" in data or not isinstance(data.get("chain"), dict):
+    if "materials" in data or "elements" in data or not isinstance(data.get("chain"), dict):
         cfg = parse_config(data)
         return cfg.chain, build_chain(cfg)
     try:
@@ -94,8 +118,9 @@ def chain_parts(data: dict) -> tuple[ChainConfig, Any]:
     return section, _chain(section)
 
 
-def _chain(c: ChainConfig):
-    """The Chain of a validated ``[chain]`` (its materials registered)."""
+def _chain(c: ChainConfig, elements: dict | None = None):
+    """The Chain of a validated ``[chain]`` (its materials registered; ``elements``: the bead kinds
+    by name, :func:`_element_table`)."""
     import numpy as np
 
     from ..chain import TABLE_I_MM, Chain
@@ -129,10 +154,21 @@ def _chain(c: ChainConfig):
             raise ConfigError("chain.materials", f"needs one material per bead ({chain.n_beads}), got {len(c.materials)}")
         mats = c.materials
         chain = Chain(chain.diameters, tuple(mats), chain.offsets)
+    if elements is None:  # a [chain] validated alone: only the plain sphere is known
+        from ..elements import SPHERE
+
+        elements = {"sphere": SPHERE}
+    if c.elements is not None:
+        if len(c.elements) != chain.n_beads:
+            raise ConfigError("chain.elements", f"needs one element per bead ({chain.n_beads}), got {len(c.elements)}")
+        els = tuple(_element(elements, name, f"chain.elements[{i}]") for i, name in enumerate(c.elements))
+        chain = Chain(chain.diameters, chain.materials, chain.offsets, els)
     for i, sub in enumerate(c.substitutions):
         if sub.bead > chain.n_beads:
             raise ConfigError(f"chain.substitutions[{i}].bead", f"bead {sub.bead} does not exist (1..{chain.n_beads})")
-        chain = chain.substitute(sub.bead, None if sub.diameter_mm is None else sub.diameter_mm * 1e-3, sub.material)
+        el = None if sub.element is None else _element(elements, sub.element, f"chain.substitutions[{i}].element")
+        chain = chain.substitute(sub.bead, None if sub.diameter_mm is None else sub.diameter_mm * 1e-3, sub.material,
+                                 el)
     name, values = ("chain.offsets_mm", c.offsets_mm) if c.offsets_mm is not None else \
         ("chain.offsets_fraction", c.offsets_fraction)
     if values is not None:
@@ -165,8 +201,9 @@ def build_model(cfg: RunConfig, chain=None):
     Model
         Chain, striker, wall and contact law in SI units (diameters [m], speeds [m/s]).
     """
-    from ..contact import Dashpot, Elastic, Elastoplastic, ScaledViscoelastic, Viscoelastic
+    from ..contact import Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
     from ..model import Model, Striker, Wall
+    from ..plasticity import Elastoplastic
 
     if chain is None:
         chain = build_chain(cfg)
@@ -174,13 +211,16 @@ def build_model(cfg: RunConfig, chain=None):
         _register_materials(cfg)
         _check_material_names(cfg)
     s = cfg.striker
-    striker = Striker(s.diameter_mm * 1e-3, s.velocity, s.material or chain.materials[0])
-    wall = Wall(cfg.wall.type, cfg.wall.material)
+    striker = Striker(s.diameter_mm * 1e-3, s.velocity, s.material or chain.materials[0], mass=s.mass, shape=s.shape,
+                      radius_of_curvature=None if s.radius_of_curvature_mm is None else s.radius_of_curvature_mm * 1e-3)
+    w = cfg.wall
+    wall = Wall(w.type, w.material, w.mass, w.stiffness, w.damping, w.shape,
+                None if w.radius_of_curvature_mm is None else w.radius_of_curvature_mm * 1e-3)
     k = cfg.contact
     if k.law == "elastic":
         law: Any = Elastic()
     elif k.law == "elastoplastic":
-        law = Elastoplastic(k.A or 0.0)
+        law = Elastoplastic(k.A or 0.0, limiting_pressure_factor=k.limiting_pressure_factor or 1.5)
     elif k.eps is not None:
         from ..dissipation import calibrate_law
 
@@ -189,10 +229,24 @@ def build_model(cfg: RunConfig, chain=None):
         law = Viscoelastic(k.A)
     elif k.law == "viscoelastic_scaled":
         law = ScaledViscoelastic(k.A, float(chain.diameters[0]), chain.materials[0])
+    elif k.law == "dashpot_scaled":
+        law = ScaledDashpot(k.gamma, float(chain.diameters[0]), chain.materials[0])
     else:
         law = Dashpot(k.gamma)
     with _as_written("chain.offsets", _offsets_key(cfg)):
-        return Model(chain, striker, wall, law, precompression=cfg.chain.precompression)
+        return Model(chain, striker, wall, law, precompression=cfg.chain.precompression, gravity=chain_gravity(cfg.chain))
+
+
+def chain_gravity(c: ChainConfig) -> float:
+    """Gravity along the chain [m/s^2] of ``[chain]``: ``gravity``, or 9.80665 sin(``tilt_deg``)
+    for a track inclined by that angle with the wall end down (0 when neither is given)."""
+    import math
+
+    from ..bodies import STANDARD_GRAVITY
+
+    if c.tilt_deg is not None:
+        return STANDARD_GRAVITY * math.sin(math.radians(c.tilt_deg))
+    return 0.0 if c.gravity is None else float(c.gravity)
 
 
 def build_probes(cfg: RunConfig):
@@ -283,18 +337,21 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
 
         return simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                         rtol=cfg.run.rtol, progress=progress, config=config,
-                        steps_per_radian=cfg.run.steps_per_radian)
+                        steps_per_radian=cfg.run.steps_per_radian, threads=cfg.run.threads)
+    if cfg.run.threads != 1:
+        raise ConfigError("run.threads", "the lateral (2D) path of [track] runs on one thread: leave it out")
     if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:
         raise ConfigError("run.steps_per_radian", "is a setting of the 1D engine's adaptive step; the lateral "
                           "(2D) path of [track] has its own: leave it out")
-    from ..simulation import auto_duration
+    from ..simulation import SCIPY_RTOL, auto_duration
     from ..track import simulate_lateral
 
     auto = cfg.run.duration == "auto"
     track = build_track(cfg)
     with _as_written("track.groove_radius", "track.groove_radius_mm"):
         ds = simulate_lateral(model, track, auto_duration(model) if auto else cfg.run.duration, probes,
-                              integrator=cfg.run.integrator, dt=cfg.run.dt, rtol=cfg.run.rtol, config=config)
+                              integrator=cfg.run.integrator, dt=cfg.run.dt,
+                              rtol=SCIPY_RTOL if cfg.run.rtol is None else cfg.run.rtol, config=config)
     if auto:
         ds.attrs["duration_mode"] = "auto"
     return ds

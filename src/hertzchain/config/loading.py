@@ -87,8 +87,9 @@ def apply_overrides(data: dict, assignments: Iterable[str], prefix: str = "") ->
         The mapping as read from the TOML file (left unchanged; a changed copy is returned).
     assignments : iterable of str
         ``"striker.velocity=0.3"``, ``"chain.taper={n = 30, q = 0.05}"``, ``"probes.sensors=[8, 12]"``.
-        VALUE is read as a TOML value (so ``0.3`` is a number, ``"elastic"`` or a bare word a
-        string); list items are addressed as ``key[i]``.
+        VALUE is read as exactly one TOML value (so ``0.3`` is a number, ``"elastic"`` or a bare
+        word a string; anything after the value, such as a table, is refused); list items are
+        addressed as ``key[i]``.
     prefix : str
         Section the paths are relative to (``"base"`` for sweep and design files).
 
@@ -105,8 +106,18 @@ def apply_overrides(data: dict, assignments: Iterable[str], prefix: str = "") ->
             raise ConfigError("--set", f"{item!r} is not DOTTED.PATH=VALUE (e.g. striker.velocity=0.3)")
         path, raw = (part.strip() for part in item.split("=", 1))
         try:
-            value = tomllib.loads(f"v = {raw}")["v"]
+            parsed = tomllib.loads(f"v = {raw}")
         except tomllib.TOMLDecodeError:
+            parsed = None
+        if parsed is not None and set(parsed) != {"v"}:
+            # "0.3\n[run]\nduration = 9" parses as a value and a table: the rest would be dropped.
+            raise ConfigError(f"--set {path}", f"takes exactly one TOML value, got {raw!r} (more keys or tables "
+                              "after the value); give one --set per field")
+        if parsed is not None:
+            value = parsed["v"]
+        elif "\n" in raw or "\r" in raw:
+            raise ConfigError(f"--set {path}", f"takes exactly one TOML value on one line, got {raw!r}")
+        else:
             value = raw  # a bare word such as elastic: a string
         try:
             tokens = parse_path(path)

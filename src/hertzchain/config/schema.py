@@ -33,7 +33,10 @@ class _Section(BaseModel):
 BOUNDS = {
     "diameter_mm": (1e-3, 1e4),       # 1 um .. 10 m
     "beads": (1, 10_000_000),         # bead counts and numbers (memory is checked separately)
-    "velocity": (0.0, 1e3),           # m/s, > 0; far beyond yield already
+    # m/s: far beyond yield at the top; below 1 um/s the impact's overlaps (~1e-11 m in steel) are
+    # below anything a Hertz contact of real surfaces means, and the engine counts overlaps below
+    # 1e-30 m as none (a striker at 1e-300 m/s moved nothing)
+    "velocity": (1e-6, 1e3),
     "density": (1.0, 1e5),            # kg/m^3
     "young": (1e3, 1e13),             # Pa
     "yield_stress": (1e3, 1e12),      # Pa
@@ -48,6 +51,12 @@ BOUNDS = {
     # adaptive Verlet accuracy, omega dt <= 1 / steps_per_radian: below ~10 the peak force is off
     # by more than ~3e-4 (error ~ (1 / steps_per_radian)^2) and Verlet nears its stability limit
     "steps_per_radian": (10.0, 1e5),
+    "threads": (1, 1024),             # threads sharing one chain (aligned elastic chains)
+    "mass": (0.0, 1e6),               # kg, > 0: a striker, a bead or a protected body
+    "stiffness": (0.0, 1e15),         # N/m, the protected body's mount (0: a free body)
+    "damping": (0.0, 1e12),           # N s/m
+    "gravity": (0.0, 1e4),            # m/s^2 along the chain (a centrifuge reaches 1e4)
+    "frequency": (0.0, 1e9),          # Hz, > 0: a mass-in-mass bead's internal resonance
 }
 
 
@@ -84,6 +93,28 @@ class Substitution(_Section):
     bead: _BeadNumber
     diameter_mm: _Diameter | None = None
     material: str | None = None
+    element: str | None = None
+
+
+class ResonatorConfig(_Section):
+    """A mass-in-mass bead's internal mass: a fraction of the bead's mass on a linear spring."""
+
+    mass_fraction: float = Field(gt=0, lt=1, description="internal mass / whole bead mass")
+    frequency: float = _bounded("frequency", open_low=True,
+                                description="Hz, sqrt(k_in / m_in) / (2 pi) with the shell held")
+
+
+class ElementConfig(_Section):
+    """A bead kind under ``[elements.NAME]``, used by name in ``chain.elements`` (a bead's diameter
+    and material stay the chain's)."""
+
+    shape: Literal["sphere", "cylinder"] = "sphere"
+    orientation: Literal["crossed", "aligned"] = Field(
+        default="crossed", description="cylinder axis across the chain (side contacts) or along it (flat ends)")
+    length_mm: _Diameter | None = Field(default=None, description="cylinder length; absent: its diameter")
+    axis_deg: float = Field(default=0.0, ge=-360, le=360, description="crossed cylinder's axis about the chain axis")
+    mass: float | None = _bounded("mass", open_low=True, default=None, description="kg, a given bead mass")
+    resonator: ResonatorConfig | None = None
 
 
 class ChainConfig(_Section):
@@ -100,6 +131,13 @@ class ChainConfig(_Section):
     offsets_mm: list[_Offset] | None = None
     offsets_fraction: list[Annotated[float, Field(ge=-0.5, le=0.5)]] | None = None
     precompression: float = _bounded("precompression", default=0.0, description="static force, N")
+    gravity: float | None = _bounded("gravity", default=None,
+                                     description="m/s^2 along the chain towards the wall (absent: 0)")
+    tilt_deg: float | None = Field(default=None, ge=0, le=90,
+                                   description="track inclined by this angle, wall end down: gravity = "
+                                               "9.80665 sin(tilt) (instead of gravity)")
+    elements: list[str] | None = Field(default=None, description="one element name per bead ('sphere' or "
+                                                                  "a name of [elements])")
 
     @field_validator("diameters_mm")
     @classmethod
@@ -124,41 +162,65 @@ class ChainConfig(_Section):
                              f"(got {', '.join(given) if given else 'none'})")
         if self.offsets_mm is not None and self.offsets_fraction is not None:
             raise ValueError("give offsets_mm or offsets_fraction, not both")
+        if self.gravity is not None and self.tilt_deg is not None:
+            raise ValueError("give gravity or tilt_deg, not both")
         return self
 
 
 class StrikerConfig(_Section):
     diameter_mm: _Diameter = 8.0
-    velocity: float = _bounded("velocity", open_low=True, default=0.5, description="m/s towards the chain")
+    velocity: float = _bounded("velocity", default=0.5, description="m/s towards the chain")
     material: str | None = None
+    mass: float | None = _bounded("mass", open_low=True, default=None,
+                                  description="kg; absent: the sphere's rho pi phi^3 / 6")
+    shape: Literal["sphere", "flat"] = Field(default="sphere", description="its face: 'flat' meets bead 1 in a "
+                                                                           "sphere-flat contact")
+    radius_of_curvature_mm: _Diameter | None = Field(default=None, description="a curved face's radius; "
+                                                                               "absent: diameter / 2")
 
 
 class WallConfig(_Section):
-    type: Literal["flat", "none"] = "flat"
+    """``[wall]``: a flat, a free end, or a protected body (``type = "body"``: mass, mount)."""
+
+    type: Literal["flat", "none", "body"] = "flat"
     material: str | None = None
+    mass: float | None = _bounded("mass", open_low=True, default=None, description="kg, the protected body's")
+    stiffness: float = _bounded("stiffness", default=0.0, description="N/m, its mount to the ground (0: free)")
+    damping: float = _bounded("damping", default=0.0, description="N s/m, the mount's dashpot")
+    shape: Literal["flat", "sphere"] = Field(default="flat", description="the body's face")
+    radius_of_curvature_mm: _Diameter | None = Field(default=None, description="a spherical body face's radius")
 
 
 class ContactConfig(_Section):
     """``[contact]``: law and either its parameter (A [s] or gamma [N s/m]) or a target ``eps``;
     ``elastoplastic`` (Thornton) takes an optional viscous A (default 0)."""
 
-    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot", "elastoplastic"] = "elastic"
-    eps: float | None = Field(default=None, gt=0, le=1, description="per-bead factor of the paper")
+    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot", "dashpot_scaled",
+                 "elastoplastic"] = "elastic"
+    # ge=MIN_EPS (hertzchain.dissipation): no law reaches a lower eps on its weak-damping branch, and
+    # the calibration would otherwise search ever stronger damping (eps = 1e-300 ran for hours).
+    eps: float | None = Field(default=None, ge=0.5, le=1, description="per-bead factor of the paper")
     A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s "
                                   "(viscoelastic_scaled: between two beads like the chain's first)")
-    gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m")
+    limiting_pressure_factor: float | None = Field(
+        default=None, gt=0, le=10, description="elastoplastic: Thornton's limiting pressure p_y over the yield "
+                                                "stress (default 1.5: yield starts at the paper's F_Y)")
+    gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m "
+                                   "(dashpot_scaled: between two beads like the chain's first)")
 
     @model_validator(mode="after")
     def _parameter(self) -> "ContactConfig":
         if self.law == "elastic" and (self.A is not None or self.gamma is not None or
                                       (self.eps is not None and self.eps != 1.0)):
             raise ValueError("the elastic law takes no A, gamma or eps < 1; set law = 'viscoelastic' or 'dashpot'")
+        if self.law != "elastoplastic" and self.limiting_pressure_factor is not None:
+            raise ValueError("limiting_pressure_factor belongs to law = 'elastoplastic'")
         if self.law == "elastoplastic":
             if self.gamma is not None or self.eps is not None:
                 raise ValueError("law 'elastoplastic' takes an optional A (s, the viscous term on top of Thornton's "
                                  "plastic contact), not gamma or eps")
             return self
-        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma"}.get(self.law)
+        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma", "dashpot_scaled": "gamma"}.get(self.law)
         if own is not None:
             other = "gamma" if own == "A" else "A"
             if getattr(self, other) is not None:
@@ -174,11 +236,16 @@ class RunSection(_Section):
                                     "(hertzchain.simulation.auto_duration)")
     sample_interval: float = _bounded("sample_interval", default=1e-7, description="s")
     dt: float | None = _bounded("dt", default=None, description="s; automatic when absent")
-    integrator: Literal["verlet", "dop853", "rk45"] = "verlet"
-    rtol: float = _bounded("rtol", default=1e-10)
+    integrator: Literal["verlet", "rkn4", "dop853", "rk45"] = "verlet"
+    rtol: float | None = _bounded(
+        "rtol", default=None,
+        description="relative tolerance of 'dop853'/'rk45' (default 1e-10) or of the step control of 'rkn4' "
+                    "(default 1e-6); unused by 'verlet'")
     steps_per_radian: float = _bounded(
         "steps_per_radian", default=400.0,
         description="adaptive Verlet step: omega dt <= 1 / steps_per_radian; peak error ~ (1/steps_per_radian)^2")
+    threads: int = _bounded("threads", default=1,
+                            description="threads sharing one long aligned elastic chain (Verlet; pays from ~1e4 beads)")
 
     @field_validator("duration", mode="before")
     @classmethod
@@ -244,6 +311,7 @@ class RunConfig(_Section):
     """The whole run file."""
 
     materials: dict[str, MaterialConfig] = {}
+    elements: dict[str, ElementConfig] = {}
     chain: ChainConfig
     striker: StrikerConfig = StrikerConfig()
     wall: WallConfig = WallConfig()

@@ -76,6 +76,8 @@ def _to_boundary(problem: DesignProblem, evaluator: Evaluator, good: np.ndarray,
     if abs(g1) <= half or not math.isfinite(g1):
         return point(0.0)
     g2 = (_margin(problem, evaluator, point(1.0)) if f_bad is None else f_bad) - half
+    if not (g1 > 0 > g2 or g1 < 0 < g2):  # no boundary between them (both outside): nothing to find
+        return point(0.0)
     # x1: the newest point; x2: the bracket's other end (g of the other sign); x3: the one before.
     x1, x2 = 0.0, 1.0
     x3, g3 = x2, g2

@@ -3,8 +3,9 @@
 Geometry of a candidate chain: smallest bead diameter [mm], total length along the axis (sum
 of the diameters) [mm], total bead mass [kg] (m_n = rho pi phi_n^3 / 6) and bead count. Run
 outcomes: the largest contact force over its elastic limit F/F_Y (paper Sec. II; 1 is the
-onset of yield) and whether the wall pulse arrived and passed within the run (a design that
-only looks good because the pulse never reached the wall is infeasible).
+onset of yield, with every law), whether the wall pulse arrived and passed within the run (a
+design that only looks good because the pulse never reached the wall is infeasible), and with
+the elastoplastic law the plastic work [J] and the largest permanent overlap [m].
 
 A violation is measured relatively, (value - limit) / |limit| summed over the violated
 constraints, so that the search can rank infeasible candidates by how far they are from the
@@ -36,6 +37,10 @@ class Constraints(BaseModel):
         Bead count limits.
     max_force_over_yield : float
         Largest contact force over its elastic limit F_Y (1 = onset of yield, paper Sec. II).
+    max_plastic_work : float
+        Largest plastic work done in all contacts [J] (elastoplastic law).
+    max_residual_overlap : float
+        Largest permanent overlap of any contact [m] (elastoplastic law).
     pulse_at_wall : bool
         The wall pulse must peak and fall to half its peak within the run (default true).
     """
@@ -48,6 +53,8 @@ class Constraints(BaseModel):
     min_beads: int | None = Field(default=None, ge=1)
     max_beads: int | None = Field(default=None, ge=1)
     max_force_over_yield: float | None = Field(default=None, gt=0)
+    max_plastic_work: float | None = Field(default=None, gt=0)
+    max_residual_overlap: float | None = Field(default=None, gt=0)
     pulse_at_wall: bool = True
 
 
@@ -79,6 +86,32 @@ def geometric_violation(c: Constraints, geo: dict[str, Any]) -> float:
             + _excess(geo["n_beads"], c.max_beads, upper=True))
 
 
+def broken_geometry(c: Constraints, geo: dict[str, Any]) -> list[str]:
+    """The geometric constraints ``geo`` breaks, each as ``design.constraints.KEY = limit (value)``.
+
+    Parameters
+    ----------
+    c : Constraints
+        The design's constraints.
+    geo : dict
+        A candidate's :func:`geometry` (or a history row holding its keys).
+
+    Returns
+    -------
+    list of str
+        One entry per broken constraint.
+    """
+    out = []
+    for name, key, limit, upper in (("min_diameter_mm", "min_diameter_mm", c.min_diameter_mm, False),
+                                    ("max_length_mm", "length_mm", c.max_length_mm, True),
+                                    ("max_mass_kg", "mass_kg", c.max_mass_kg, True),
+                                    ("min_beads", "n_beads", c.min_beads, False),
+                                    ("max_beads", "n_beads", c.max_beads, True)):
+        if _excess(geo[key], limit, upper) > 0:
+            out.append(f"design.constraints.{name} = {limit:g} (it has {geo[key]:.4g})")
+    return out
+
+
 def geometric_margin(c: Constraints, geo: dict[str, Any]) -> float:
     """Signed distance to the nearest geometric limit: the smallest relative slack
     (limit - value) / |limit| of an upper limit, (value - limit) / |limit| of a lower one; >= 0
@@ -92,9 +125,13 @@ def geometric_margin(c: Constraints, geo: dict[str, Any]) -> float:
     return min(slack, default=float("inf"))
 
 
-def run_violation(c: Constraints, force_over_yield: float, pulse_at_wall: bool) -> float:
-    """Summed relative violation of the run constraints (worst over the scenarios; 0 when all hold)."""
+def run_violation(c: Constraints, force_over_yield: float, pulse_at_wall: bool, plastic_work: float = 0.0,
+                  residual_overlap_max: float = 0.0) -> float:
+    """Summed relative violation of the run constraints (worst over the scenarios; 0 when all hold);
+    the plastic work [J] and largest residual overlap [m] are 0 without the elastoplastic law."""
     v = _excess(force_over_yield, c.max_force_over_yield, upper=True)
+    v += _excess(plastic_work, c.max_plastic_work, upper=True)
+    v += _excess(residual_overlap_max, c.max_residual_overlap, upper=True)
     if c.pulse_at_wall and not pulse_at_wall:
         v += 1.0
     return v

@@ -33,7 +33,8 @@ import numpy as np
 from .objectives import Evaluation, Evaluator, _pulses_passed
 from .problem import DesignProblem
 
-__all__ = ["GRADIENT_RUNS", "gradient_support", "Coordinates", "local_search", "initial_points", "pick_start"]
+__all__ = ["GRADIENT_RUNS", "gradient_support", "Coordinates", "local_search", "initial_points", "pick_start",
+           "evaluate_with_gradient", "gradient_step"]
 
 #: Engine runs one value-and-gradient evaluation is charged: the taped run, then the reverse sweep
 #: (a replay of the steps and their adjoint, about two runs more; benchmarks/gradient.py).
@@ -244,8 +245,8 @@ def evaluate_with_gradient(problem: DesignProblem, evaluator: Evaluator, x: np.n
     return target, grad * span, ev, values
 
 
-def local_search(problem: DesignProblem, evaluator: Evaluator, x0: np.ndarray, max_evaluations: int,
-                 record: Callable[[np.ndarray, Evaluation, dict], None],
+def local_search(problem: DesignProblem, x0: np.ndarray, max_evaluations: int,
+                 evaluate: Callable[[np.ndarray, float | None], tuple[float, np.ndarray, Evaluation]],
                  start_value: float = math.nan) -> tuple[np.ndarray, float, int]:
     """L-BFGS-B from unit-cube point ``x0`` in the coordinates of :class:`Coordinates`, until it
     converges, stalls (:data:`STALL_EVALUATIONS`) or spends ``max_evaluations``.
@@ -254,21 +255,20 @@ def local_search(problem: DesignProblem, evaluator: Evaluator, x0: np.ndarray, m
     ----------
     problem : DesignProblem
         The design (:func:`gradient_support` is None).
-    evaluator : Evaluator
-        The search's evaluator (fidelity, candidates' geometry).
     x0 : numpy.ndarray
         Start (unit cube; monotone groups are sorted first).
     max_evaluations : int
         Most value-and-gradient evaluations.
-    record : callable
-        ``record(x, evaluation, values)`` after every evaluation (the search's history).
+    evaluate : callable
+        ``evaluate(x, smoothing) -> (value minimised, its gradient dJ/dx, Evaluation)`` of a
+        sorted unit-cube point (:func:`evaluate_with_gradient`, or a replay of saved rows).
     start_value : float
         The objective at ``x0`` (its peak wall force sets the soft maximum's width; NaN: none).
 
     Returns
     -------
     (numpy.ndarray, float, int)
-        The best point, its fitness, and the evaluations made.
+        The best point (by the objective itself), its fitness, and the evaluations made.
     """
     from scipy.optimize import minimize
 
@@ -286,9 +286,8 @@ def local_search(problem: DesignProblem, evaluator: Evaluator, x0: np.ndarray, m
             raise _Spent
         z = np.clip(w / STEP_SCALE, 0.0, 1.0)
         x = coords.x_of(z)
-        f, gx, ev, values = evaluate_with_gradient(problem, evaluator, x, smoothing)
+        f, gx, ev = evaluate(x, smoothing)
         count[0] += 1
-        record(x, ev, values)
         if not ev.feasible:
             # worse than anything seen, no direction: the line search steps back
             return 2.0 * max(worst[0], abs(best[1]) if math.isfinite(best[1]) else 1.0), np.zeros_like(z)
@@ -341,3 +340,65 @@ def pick_start(problem: DesignProblem, history: list[dict], used: list, optima: 
         if not near:
             return x, float(r[name])
     return None
+
+
+def gradient_step(problem: DesignProblem, evaluator: Evaluator, state, budget: int, clock: Callable[[], float],
+                  replay, row: Callable, restart: Callable[[], bool]) -> None:
+    """One generation of the gradient phase of :func:`hertzchain.design.search.run_design`: a local
+    search from the best point of the population generations not yet tried outside the basins
+    already searched (:func:`pick_start`, :func:`local_search`); without such a point, a CMA-ES
+    restart (``restart()``; the phase ends when it returns False) whose best is searched next.
+
+    Each evaluation is a history row (``row(problem, state, "gradient", x, evaluation, values)``)
+    that also keeps the value the search minimised and its gradient (``search_value``,
+    ``gradient``): while ``replay`` (:class:`hertzchain.design.checkpoint.Replay`) has saved rows
+    left, they are taken from it, without engine runs, and L-BFGS-B retraces its steps.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        The design.
+    evaluator : Evaluator
+        The search's evaluator.
+    state : hertzchain.design.search._State
+        The search state (history, caches, counters, ``gradient_used``, ``gradient_optima``).
+    budget : int
+        Engine runs of the search.
+    clock : callable
+        Seconds since the search started.
+    replay : Replay or None
+        The checkpoint being replayed.
+    row : callable
+        The search's history row builder.
+    restart : callable
+        Restarts CMA-ES (IPOP) and returns True, or returns False when the restarts are spent.
+    """
+    from dataclasses import replace
+
+    left = (budget - state.n_evaluations) // GRADIENT_RUNS
+    start = pick_start(problem, state.history, state.gradient_used, state.gradient_optima)
+    if left < 2:
+        state.phase = "done"
+        return
+    if start is None:
+        if not restart():
+            state.phase = "done"
+        return
+    x0, f0 = start
+    state.gradient_used.append(x0)
+    space = problem.space
+
+    def evaluate(x: np.ndarray, smoothing: float | None):
+        if replay is not None and replay.active:
+            replay.evaluate(problem, state, [x], "gradient")
+            saved = state.history[-1]
+            return float(saved["search_value"]), np.asarray(saved["gradient"], float), state.cache[space.key(x)]
+        value, grad, ev, values = evaluate_with_gradient(problem, evaluator, x, smoothing)
+        state.n_evaluations += ev.engine_runs
+        state.cache.setdefault(space.key_of(values), replace(ev, engine_runs=0))
+        state.history.append({**row(problem, state, "gradient", x, ev, values), "elapsed_s": clock(),
+                              "search_value": float(value), "gradient": [float(g) for g in grad]})
+        return value, grad, ev
+
+    x, _, _ = local_search(problem, x0, left, evaluate, start_value=f0)
+    state.gradient_optima.append(x)

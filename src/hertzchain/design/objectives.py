@@ -11,7 +11,13 @@ Objectives (all minimised, SI units):
 - ``energy_at_wall`` [J]: the largest elastic energy stored in the bead N - wall contact,
   (2/5) kappa delta^(5/2) = (2/5) F^(5/3) / kappa^(2/3) with delta = (F / kappa)^(2/3) (paper
   eq. 1), within ``window`` = [t0, t1] [s] when given: the energy the pulse delivers into the
-  wall's contact.
+  wall's contact;
+- ``plastic_work`` [J] and ``residual_overlap_max`` [m] (the elastoplastic law, Thornton 1997):
+  the plastic work done in all contacts by the end of the run, and the largest permanent
+  overlap a contact was left with (the dent a protector keeps).
+
+With a protected body (``wall.type = "body"``), what reaches the body itself:
+``peak_body_force``, ``peak_body_acceleration``, ``energy_to_body`` (:mod:`hertzchain.design.body`).
 
 Robust forms (``[design.robust]``): every candidate is run in several *scenarios*: each striker
 speed of ``velocities`` times ``draws`` Monte Carlo draws of manufacturing tolerances (the
@@ -43,9 +49,10 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from ..config import build_model, build_probes, chain_parts, parse_config
 from ..errors import PulseNotFound
+from .body import BODY_OBJECTIVES, body_objective, body_records
 from .constraints import Constraints, geometric_margin, geometric_violation, geometry, run_violation
 
-__all__ = ["OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Candidate", "Fidelity", "member_metrics",
+__all__ = ["OBJECTIVES", "PLASTIC_OBJECTIVES", "Robust", "Evaluation", "Evaluator", "Candidate", "Fidelity", "member_metrics",
            "search_interval"]
 
 #: Objective names with their units and meaning.
@@ -55,17 +62,28 @@ OBJECTIVES: dict[str, tuple[str, str]] = {
     "max_force_over_yield": ("1", "largest contact force over its elastic limit F_Y"),
     "front_momentum_at_wall": ("N s", "front momentum Q_F of the wall pulse (paper Sec. III)"),
     "energy_at_wall": ("J", "largest elastic energy in the bead N - wall contact"),
+    "peak_body_force": ("N", "peak force the protected body passes to the ground"),
+    "peak_body_acceleration": ("m s-2", "peak acceleration of the protected body"),
+    "energy_to_body": ("J", "most energy delivered to the protected body"),
+    "plastic_work": ("J", "plastic work done in all contacts (elastoplastic law)"),
+    "residual_overlap_max": ("m", "largest permanent overlap of any contact (elastoplastic law)"),
 }
+
+#: Objectives that need the elastoplastic law (the other laws do no plastic work).
+PLASTIC_OBJECTIVES = frozenset({"plastic_work", "residual_overlap_max"})
+
 
 #: Fitness of an infeasible candidate: above any feasible objective value, ranked by violation.
 INFEASIBLE = 1e12
 
 #: Objectives computed from the engine's per-step trackers alone (the wall peak is tracked and
-#: refined at every step), so that sampling the records more coarsely does not change them. The
+#: refined at every step; the plastic work and residual overlaps follow from every contact's
+#: largest overlap, a state updated at every step), so that sampling the records more coarsely
+#: does not change them. The
 #: others read sampled records: the largest contact forces (peak_contact_force,
 #: max_force_over_yield) are maxima over the samples, Q_F and the energy are read off the
 #: sampled wall force.
-SAMPLING_FREE = frozenset({"peak_wall_force"})
+SAMPLING_FREE = frozenset({"peak_wall_force", "plastic_work", "residual_overlap_max"})
 
 
 #: Samples per wall pulse that coarse search records keep (the pulse-arrival check needs a few).
@@ -163,7 +181,9 @@ class Evaluation:
         Summed relative constraint violation (0 when feasible).
     metrics : dict
         Geometry (``min_diameter_mm``, ``length_mm``, ``mass_kg``, ``n_beads``) and run outcomes
-        (``force_over_yield``, ``pulse_at_wall``, ``energy_ok``: the energy balance held).
+        (``force_over_yield``, ``pulse_at_wall``, ``energy_ok``: the energy balance held; with the
+        elastoplastic law ``plastic_work_worst`` [J] and ``residual_overlap_max_worst`` [m], the
+        largest over the scenarios).
     engine_runs : int
         Members simulated for it (0 when rejected on geometry or taken from the cache).
     fidelity : str
@@ -214,7 +234,8 @@ def member_metrics(ds, objectives: list[str], window: tuple[float, float] | None
     -------
     dict
         ``{name: array (member,)}`` for each objective, plus ``force_over_yield`` and
-        ``pulse_at_wall`` (bool).
+        ``pulse_at_wall`` (bool), and ``plastic_work`` and ``residual_overlap_max`` when a
+        member has the elastoplastic law.
     """
     return _metrics(_records_of_dataset(ds), objectives, window)
 
@@ -223,7 +244,10 @@ def member_metrics(ds, objectives: list[str], window: tuple[float, float] | None
 class _Records:
     """What the objectives and checks read of a batch, (member, ...) arrays: times [s], wall force
     samples [N], refined peak wall force [N], largest sampled force of every contact [N] (NaN
-    padded) and its F_Y [N], kappa of the bead N - wall contact [N/m^1.5], energies [J]."""
+    padded) and its F_Y [N], kappa of the bead N - wall contact [N/m^1.5], energies [J]
+    (``dissipated``: viscous and plastic losses), and the elastoplastic law's plastic work [J]
+    and largest residual overlap [m] at the end (None when no member has that law; 0 for the
+    members of other laws)."""
 
     time: np.ndarray
     wall: np.ndarray
@@ -234,16 +258,28 @@ class _Records:
     kinetic: np.ndarray
     potential: np.ndarray
     dissipated: np.ndarray
+    body: dict | None = None  # protected body: body_force [N], body_acceleration [m/s^2], body_energy [J]
+    plastic_work: np.ndarray | None = None
+    residual_overlap_max: np.ndarray | None = None
 
 
 def _records_of_dataset(ds) -> "_Records":
     """:class:`_Records` of a stacked batch result."""
     nb = ds["n_beads"].values.astype(int)
+    body = {k: ds[k].values for k in ("body_force", "body_acceleration", "body_energy")} if "body_force" in ds else None
+    dissipated = ds["dissipated_energy"].values
+    plastic = {}
+    if "plastic_work" in ds:
+        wp = np.nan_to_num(ds["plastic_work"].values)
+        dissipated = dissipated + wp
+        plastic = {"plastic_work": wp[:, -1],
+                   "residual_overlap_max": np.nan_to_num(ds["residual_overlap"].values).max(axis=1)}
     return _Records(time=ds["time"].values, wall=ds["wall_force"].values, peak_wall_force=ds["peak_wall_force"].values,
                     fmax=ds["max_contact_force"].values, yield_force=ds["yield_force"].values,
                     kappa_wall=ds["kappa"].values[np.arange(nb.size), nb],  # contact N joins bead N and the wall
                     kinetic=ds["kinetic_energy"].values, potential=ds["potential_energy"].values,
-                    dissipated=ds["dissipated_energy"].values)
+                    dissipated=dissipated, body=body, **plastic)
+
 
 
 def _records(runs, systems) -> _Records:
@@ -260,11 +296,19 @@ def _records(runs, systems) -> _Records:
         fy[i, :r.max_force.size] = sy.yield_force[:r.max_force.size]
     n = np.array([sy.n_beads for sy in systems])
     wall = np.stack([r.contact_force[:, int(np.searchsorted(r.contacts, k))] for r, k in zip(runs, n)])
+    dissipated = np.stack([r.dissipated_energy for r in runs])
+    plastic = {}
+    if any(r.plastic_work is not None for r in runs):
+        wp = np.stack([np.zeros(r.time.size) if r.plastic_work is None else r.plastic_work for r in runs])
+        dissipated = dissipated + wp
+        plastic = {"plastic_work": wp[:, -1], "residual_overlap_max": np.array(
+            [0.0 if r.residual_overlap is None or r.residual_overlap.size == 0 else float(r.residual_overlap.max())
+             for r in runs])}
     return _Records(time=runs[0].time, wall=wall, peak_wall_force=np.array([r.peak_wall_force for r in runs]),
                     fmax=fmax, yield_force=fy, kappa_wall=np.array([sy.kappa[k] for sy, k in zip(systems, n)]),
                     kinetic=np.stack([r.kinetic_energy for r in runs]),
-                    potential=np.stack([r.potential_energy for r in runs]),
-                    dissipated=np.stack([r.dissipated_energy for r in runs]))
+                    potential=np.stack([r.potential_energy for r in runs]), dissipated=dissipated,
+                    body=body_records(runs, systems), **plastic)
 
 
 def _metrics(rec: _Records, objectives: list[str], window: tuple[float, float] | None) -> dict[str, np.ndarray]:
@@ -276,6 +320,9 @@ def _metrics(rec: _Records, objectives: list[str], window: tuple[float, float] |
     ratio = np.nanmax(fmax / rec.yield_force, axis=1)
     out: dict[str, np.ndarray] = {"force_over_yield": ratio,
                                   "pulse_at_wall": _pulses_passed(wall)}
+    if rec.plastic_work is not None:
+        out["plastic_work"] = rec.plastic_work
+        out["residual_overlap_max"] = rec.residual_overlap_max
     for name in objectives:
         if name == "peak_wall_force":
             out[name] = np.asarray(rec.peak_wall_force, dtype=float)
@@ -291,11 +338,16 @@ def _metrics(rec: _Records, objectives: list[str], window: tuple[float, float] |
                 except PulseNotFound:
                     out["pulse_at_wall"][i] = False
             out[name] = q
+        elif name in PLASTIC_OBJECTIVES:
+            if name not in out:  # no member has the elastoplastic law: no plastic work done
+                out[name] = np.zeros(n)
         elif name == "energy_at_wall":
             kappa = rec.kappa_wall
             mask = np.ones(time.size, bool) if window is None else (time >= window[0]) & (time <= window[1])
             fpk = np.max(np.where(mask, np.maximum(wall, 0.0), 0.0), axis=1)
             out[name] = 0.4 * fpk ** (5.0 / 3.0) / kappa ** (2.0 / 3.0)
+        elif name in BODY_OBJECTIVES:
+            out[name] = body_objective(name, rec.body, wall.shape)
     return out
 
 
@@ -567,16 +619,21 @@ class Evaluator:
             fys = np.maximum.reduceat(merged["force_over_yield"], starts).tolist()
             pulses = np.logical_and.reduceat(merged["pulse_at_wall"], starts).tolist()
             energies = np.logical_and.reduceat(merged["energy_ok"], starts).tolist()
+            # elastoplastic law: the worst plastic work and permanent overlap over the scenarios
+            plastic = {k: np.maximum.reduceat(merged[k], starts).tolist()
+                       for k in ("plastic_work", "residual_overlap_max") if k in merged}
             values = {n: merged[n].tolist() for n in self.objectives}
             for j, (key, (i, cfg, geo, _)) in enumerate(pending.items()):
                 s0, c = int(starts[j]), counts[j]
                 fy, pulse, energy = fys[j], pulses[j], energies[j]
                 objs = {n: (summarise(merged[n][s0:s0 + c], self.robust.statistic, self.robust.k) if self.robust
                             else values[n][s0]) for n in self.objectives}
-                viol = run_violation(self.constraints, fy, pulse)
+                worst = {k: v[j] for k, v in plastic.items()}
+                viol = run_violation(self.constraints, fy, pulse, **worst)
                 if any(not math.isfinite(v) for v in objs.values()) or not energy:
                     viol = max(viol, 1.0)  # no objective value (no pulse to fit) or a wrong run: infeasible
-                metrics = {**geo, "force_over_yield": fy, "pulse_at_wall": pulse, "energy_ok": energy}
+                metrics = {**geo, "force_over_yield": fy, "pulse_at_wall": pulse, "energy_ok": energy,
+                           **{f"{k}_worst": v for k, v in worst.items()}}
                 self.cache[key] = Evaluation(objs, viol == 0, viol, metrics, fidelity=fid.name)
                 results[i] = Evaluation(objs, viol == 0, viol, metrics, engine_runs=c, fidelity=fid.name)
         self.candidates.clear()

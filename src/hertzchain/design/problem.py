@@ -36,7 +36,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from ..errors import ConfigError
 from .constraints import Constraints
-from .objectives import OBJECTIVES, SAMPLING_FREE, Fidelity, Robust
+from .body import BODY_OBJECTIVES
+from .objectives import OBJECTIVES, PLASTIC_OBJECTIVES, SAMPLING_FREE, Fidelity, Robust
 from .space import Space, parse_shape, parse_variables
 
 __all__ = ["DesignProblem", "parse_design", "load_design", "search_fidelity"]
@@ -57,7 +58,8 @@ class DesignSection(BaseModel):
     variables: dict[str, Any]
     constraints: Constraints = Constraints()
     budget: int = Field(default=2000, ge=1)
-    seed: int = 0
+    # NumPy and cma seed their generators with it (and seed + 1): 32-bit unsigned integers.
+    seed: int = Field(default=0, ge=0, le=2**32 - 2)
     population: int | None = Field(default=None, ge=4)
     polish: bool = True
     window: list[float] | None = None
@@ -151,6 +153,7 @@ def search_fidelity(problem: DesignProblem) -> Fidelity:
     if (sec.search_steps_per_radian == "full" or run.dt is not None or len(problem.objectives) > 1
             or sec.search_steps_per_radian >= run.steps_per_radian):
         return Fidelity()
+    # (the plastic constraints, like the plastic objectives, read the per-step state: sampling-free)
     coarse_sampling = set(problem.objectives) <= SAMPLING_FREE and sec.constraints.max_force_over_yield is None
     return Fidelity("search", float(sec.search_steps_per_radian), coarse_sampling)
 
@@ -211,18 +214,32 @@ def parse_design(data: dict) -> DesignProblem:
         raise ConfigError(f"base.{exc.field}", exc.message) from None
     if base_cfg.run.integrator != "verlet":
         raise ConfigError("base.run.integrator", "designs run on the batched Verlet engine; use 'verlet'")
-    if base_cfg.wall.type != "flat":
-        raise ConfigError("base.wall.type", "a design is judged at the wall: use type = 'flat'")
+    if base_cfg.wall.type == "none":
+        raise ConfigError("base.wall.type", "a design is judged at the wall: use type = 'flat' or 'body'")
+    if base_cfg.wall.material is None:
+        # Every candidate meets the same wall: the base chain's first material, written into the
+        # base (a candidate whose first bead changes material would otherwise change its wall).
+        base = copy.deepcopy(base)
+        base.setdefault("wall", {})["material"] = build_model(base_cfg).wall_material.name
 
     objectives = [sec.objective] if isinstance(sec.objective, str) else list(sec.objective)
     if not objectives:
         raise ConfigError("design.objective", f"needs at least one of {', '.join(OBJECTIVES)}")
     for i, name in enumerate(objectives):
+        field = "design.objective" if isinstance(sec.objective, str) else f"design.objective[{i}]"
         if name not in OBJECTIVES:
-            field = "design.objective" if isinstance(sec.objective, str) else f"design.objective[{i}]"
             raise ConfigError(field, f"unknown objective {name!r}; allowed: {', '.join(OBJECTIVES)}")
+        if name in BODY_OBJECTIVES and base_cfg.wall.type != "body":
+            raise ConfigError(field, f"{name!r} measures a protected body: set [base.wall] type = 'body' (with its "
+                              "mass, stiffness and damping)")
     if len(set(objectives)) != len(objectives):
         raise ConfigError("design.objective", "lists an objective twice")
+    plastic = [n for n in objectives if n in PLASTIC_OBJECTIVES] + [
+        f"constraints.{k}" for k in ("max_plastic_work", "max_residual_overlap") if getattr(sec.constraints, k) is not None]
+    if plastic and base_cfg.contact.law != "elastoplastic":
+        raise ConfigError("design.objective" if plastic[0] in PLASTIC_OBJECTIVES else f"design.{plastic[0]}",
+                          f"{plastic[0]} needs contact yield: set [base.contact] law = 'elastoplastic' (the "
+                          f"{base_cfg.contact.law} law does no plastic work)")
     if sec.window is not None and not (len(sec.window) == 2 and 0 <= sec.window[0] < sec.window[1]):
         raise ConfigError("design.window", f"must be [t0, t1] in s with 0 <= t0 < t1, got {list(sec.window)}")
     if sec.robust is not None:

@@ -102,7 +102,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     from ..errors import ElasticLimitWarning, PulseNotReachedWarning
     from ..integrate.batch import simulate_batch
     from ..probes import Probes
-    from .constraints import Constraints, geometric_violation
+    from .constraints import Constraints, geometric_violation, run_violation
     from .objectives import Evaluator
 
     prob = result.problem
@@ -127,9 +127,10 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
         # A chain whose pulse does not reach the wall within the run has no comparable value.
         ok = bool(ev.metrics["pulse_at_wall"])
         out[name] = {n: ev.objectives[n] if ok else None for n in prob.objectives}
-        feasible = ev.feasible and geometric_violation(sec.constraints, ev.metrics) == 0 and (
-            sec.constraints.max_force_over_yield is None
-            or ev.metrics["force_over_yield"] <= sec.constraints.max_force_over_yield)
+        plastic = {k: ev.metrics[f"{k}_worst"] for k in ("plastic_work", "residual_overlap_max")
+                   if f"{k}_worst" in ev.metrics}
+        feasible = (ev.feasible and geometric_violation(sec.constraints, ev.metrics) == 0
+                    and run_violation(sec.constraints, ev.metrics["force_over_yield"], True, **plastic) == 0)
         out[name].update(n_beads=ev.metrics["n_beads"], length_mm=ev.metrics["length_mm"], pulse_at_wall=ok,
                          feasible=bool(feasible))
     out["improvement_percent"] = {
@@ -137,6 +138,24 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
                   if out[ref][n] and out["best"][n] is not None else None) for n in prob.objectives}
         for ref in REFERENCES}
     return out, ds
+
+
+def _measured_against(prob, best_cfg: dict) -> dict:
+    """Which body the candidates were measured against: the base's wall (or protected body), the
+    best candidate's, and the design variables that change it (``wall.*``)."""
+    from ..config import build_model, parse_config
+    from .body import measured_against
+
+    varying = [g for g in prob.space.groups if g.startswith("wall.")]
+    return {"base": measured_against(build_model(parse_config(prob.base))),
+            "best": measured_against(build_model(parse_config(best_cfg))), "varied_by": varying}
+
+
+def _measured_sentence(m: dict) -> str:
+    if not m["varied_by"]:
+        return f"Every candidate is measured against {m['base']}."
+    return (f"Candidates are measured against the body the design variables {', '.join(m['varied_by'])} give; "
+            f"the best against {m['best']}.")
 
 
 def _fidelity_info(prob) -> dict:
@@ -273,7 +292,8 @@ def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
 <style>body{{font-family:sans-serif;max-width:60em;margin:auto}} td,th{{padding:2px 8px;border-bottom:1px solid #ddd}}</style>
 </head><body><h1>hertzchain design: {html.escape(info['objective_label'])}</h1>{feasible}
 <p>{info['n_evaluations']} engine runs in {info['generations']} engine calls, {info['elapsed_s']:.1f} s
-({info['evaluations_per_s']:.0f} runs/s), seed {info['seed']}. Improvement = (reference - best) / reference{robust}.</p>
+({info['evaluations_per_s']:.0f} runs/s), seed {info['seed']}. Improvement = (reference - best) / reference{robust}.
+{html.escape(_measured_sentence(info['measured_against']))}</p>
 <table><tr><th>chain</th><th>beads</th><th>length [mm]</th><th>meets the constraints</th>{heads}<th>improvement of the best</th></tr>{rows}</table>
 <h2>Best design</h2><table>{variables}</table>{images}</body></html>"""
 
@@ -298,7 +318,9 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
         of as many beads, improvement in percent), ``generations``, ``elapsed_s``,
         ``evaluations_per_s``, ``seed``, ``budget``, ``pareto`` (several objectives), ``hash``,
         ``search_fidelity`` (``name``: ``"search"`` or ``"full"``, ``steps_per_radian`` and
-        ``coarse_sampling`` of the search runs, ``verify_top``).
+        ``coarse_sampling`` of the search runs, ``verify_top``), ``measured_against`` (the wall or
+        protected body every candidate ends on, in words: ``base``, ``best`` and the design
+        variables ``varied_by`` that change it).
     """
     import tomli_w
 
@@ -325,6 +347,7 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
         "robust": None if prob.section.robust is None else prob.section.robust.model_dump(mode="json"),
         "search_fidelity": _fidelity_info(prob),
         "comparison": comparison,
+        "measured_against": _measured_against(prob, result.best["config"]),
         "hash": prob.hash,
         "hertzchain_version": __version__,
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
@@ -340,7 +363,8 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
     write_text(out / "history.csv", df.to_csv(index=False))
     if len(prob.objectives) > 1:
         keep = ["evaluation", "generation", *prob.space.groups, *prob.objectives, *[c for c in (
-            "min_diameter_mm", "length_mm", "mass_kg", "n_beads", "force_over_yield") if c in df]]
+            "min_diameter_mm", "length_mm", "mass_kg", "n_beads", "force_over_yield", "plastic_work_worst",
+            "residual_overlap_max_worst") if c in df]]
         front = df[df["evaluation"].isin([r["evaluation"] for r in result.pareto])][keep]
         write_text(out / "pareto.csv", front.to_csv(index=False))
     if figures:

@@ -15,7 +15,7 @@ differentiates and the objective is one it knows (:func:`~hertzchain.design.grad
 per-bead profiles, striker, law constants; no geometric constraint, no robust scenarios), the
 initial sample is followed by local searches on exact gradients (L-BFGS-B,
 :mod:`hertzchain.design.gradient`) from its best points, each outside the basins already
-searched; CMA-ES restarts supply new starts when those run out.
+searched; CMA-ES restarts supply new starts when those run out (a local search is one generation).
 
 Geometric constraints (smallest bead, length, mass, bead count) are checked without a run, and
 optima often lie on them: in a space with a real variable, a candidate that breaks one is moved
@@ -36,17 +36,18 @@ starts; ``history.csv`` says which fidelity each row has.
 
 Every generation (population or polish step) is evaluated in ONE batched engine call
 (:class:`~hertzchain.design.objectives.Evaluator`), then the whole search state (optimiser,
-random streams, history, evaluated candidates) is written to ``checkpoint.pkl`` (at most once
-a second when generations are faster than that; :mod:`hertzchain.design.checkpoint`); a rerun
-with the same design and output folder resumes from it and ends with the same result as an
-uninterrupted run. The random streams are seeded by ``[design].seed`` only.
+random streams, history, evaluated candidates) is written to ``checkpoint.npz`` (at most once
+a second when generations are faster than that), as data only (:mod:`hertzchain.design.checkpoint`);
+a rerun with the same design and output folder replays the saved generations without engine
+runs and ends with the same result as an uninterrupted run. The random streams are seeded by
+``[design].seed`` only.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -54,8 +55,8 @@ import numpy as np
 
 from ..errors import ConfigError, HertzchainError
 from .boundary import _BOUNDARY_SLACK, _margin, _repair_initial, _repair_point, _repairs, _to_boundary
-from .checkpoint import DesignMismatch, _load, _save
-from .gradient import GRADIENT_RUNS, gradient_support, initial_points, local_search, pick_start
+from .checkpoint import DesignMismatch, Replay, ReplayDiverged, _load, _save, set_aside
+from .gradient import gradient_step, gradient_support, initial_points
 from .objectives import INFEASIBLE, Evaluator, Fidelity
 from .problem import DesignProblem, search_fidelity
 
@@ -77,7 +78,8 @@ class DesignLocked(HertzchainError):
 
 
 class _Randn:
-    """Picklable normal sampler for CMA-ES (so the checkpoint carries its random stream)."""
+    """Normal sampler of CMA-ES with a generator of its own (seeded from ``[design].seed``; its
+    state is part of the checkpoint)."""
 
     def __init__(self, seed: int, restart: int):
         self.rng = np.random.default_rng([seed, 12, restart])
@@ -103,6 +105,9 @@ class _State:
     verified: bool = False
     n_evaluations: int = 0
     elapsed_s: float = 0.0
+    # JSON text of the history rows and cache entries already written to the checkpoint: they never
+    # change once added, so a save serialises only what is new (hertzchain.design.checkpoint._save).
+    written: dict = field(default_factory=dict, repr=False)
     gradient_used: list = field(default_factory=list)    # starts of the gradient phase's local searches
     gradient_optima: list = field(default_factory=list)  # where they ended
 
@@ -146,6 +151,19 @@ class DesignResult:
     elapsed_s: float
     out_dir: Path
     resumed: bool
+
+    def __repr__(self) -> str:
+        # The history holds a row per candidate (thousands): the summary says what was found.
+        best = "no candidate"
+        if self.best is not None:
+            obj = self.best["objective"]
+            value = (", ".join(f"{k} = {v:.4g}" for k, v in obj.items()) if isinstance(obj, dict)
+                     else f"{', '.join(self.problem.objectives)} = {obj:.4g}")
+            feasible = "" if self.best.get("feasible", True) else " (infeasible: the least violating)"
+            best = f"best {value} at {self.best['variables']}{feasible}"
+        front = f", Pareto front of {len(self.pareto)}" if len(self.problem.objectives) > 1 else ""
+        return (f"DesignResult({best}{front}; {self.n_evaluations} engine runs, {len(self.history)} candidates, "
+                f"{self.elapsed_s:.3g} s; {str(self.out_dir)!r})")
 
 
 def _population(problem: DesignProblem) -> int:
@@ -226,8 +244,12 @@ def _row(problem: DesignProblem, state: _State, phase: str, x: np.ndarray, ev, v
 
 
 def _evaluate(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: list[np.ndarray], phase: str,
-              clock: Callable[[], float]):
-    """Evaluate unit-cube points in one engine call; append them to the history; return their fitness."""
+              clock: Callable[[], float], replay: Replay | None = None):
+    """Evaluate unit-cube points in one engine call; append them to the history; return their fitness.
+    While ``replay`` has saved generations left, they are taken from it instead (no engine run)."""
+    if replay is not None and replay.active:
+        evaluator.candidates.clear()  # as evaluate() does: the repair's chains were for this generation
+        return replay.evaluate(problem, state, xs, phase)
     space = problem.space
     values = [space.values(x) for x in xs]
     keys = [space.key_of(v) for v in values]
@@ -283,7 +305,7 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float, evaluato
             y = x.copy()
             y[j] = min(max(y[j] + s, 0.0), 1.0)
             y = problem.space.centre(y)
-            if repair and v.kind == "real":
+            if repair and v.kind == "real" and f_x >= 0:  # stop on the boundary only from a point inside it
                 f_y = _margin(problem, evaluator, y)
                 if f_y < 0:
                     # The accepted band narrows with the step, so that the polish closes in on the
@@ -314,38 +336,8 @@ def _repair(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: lis
 
 
 
-def _gradient_step(problem: DesignProblem, evaluator: Evaluator, state: _State, budget: int, clock) -> None:
-    """One local search on exact gradients (:mod:`hertzchain.design.gradient`) from the best point
-    not yet tried outside the basins already searched; without such a point, a CMA-ES restart
-    (IPOP, a doubled population from a random point) whose best is searched next. A local search
-    is checkpointed whole: a resumed run makes an interrupted one again (the same evaluations)."""
-    left = (budget - state.n_evaluations) // GRADIENT_RUNS
-    start = pick_start(problem, state.history, state.gradient_used, state.gradient_optima)
-    if left < 2:
-        state.phase = "done"
-        return
-    if start is None:
-        if state.restarts >= _MAX_RESTARTS:
-            state.phase = "done"
-            return
-        state.restarts += 1
-        state.optimiser = _new_optimiser(problem, state.restarts)
-        state.phase, state.stall = "population", 0
-        return
-    x0, f0 = start
-    state.gradient_used.append(x0)
-    evaluator.cache = state.cache
-
-    def record(x, ev, values) -> None:
-        state.n_evaluations += ev.engine_runs
-        state.cache.setdefault(problem.space.key_of(values), replace(ev, engine_runs=0))
-        state.history.append({**_row(problem, state, "gradient", x, ev, values), "elapsed_s": clock()})
-
-    x, _, _ = local_search(problem, evaluator, x0, left, record, start_value=f0)
-    state.gradient_optima.append(x)
-
-
-def _verify(problem: DesignProblem, search: Evaluator, state: _State, budget: int, clock) -> None:
+def _verify(problem: DesignProblem, search: Evaluator, state: _State, budget: int, clock,
+            replay: Replay | None = None) -> None:
     """Run the best distinct candidates of the search again at full accuracy (phase ``verify``).
 
     The ``verify_top`` best feasible search rows go to one engine call; when none of them is
@@ -373,12 +365,84 @@ def _verify(problem: DesignProblem, search: Evaluator, state: _State, budget: in
     per = full.n_scenarios
     while queue:
         batch, queue = queue[:k], queue[k:]
-        _evaluate(problem, full, state, batch, "verify", clock)
+        _evaluate(problem, full, state, batch, "verify", clock, replay)
         if any(r["feasible"] for r in state.history if r["fidelity"] == "full"):
             return
         k = min(k, (budget - state.n_evaluations) // per)
         if k < 1:
             return
+
+
+def preflight(problem: DesignProblem, client=None, chunk_size: int | None = None):
+    """The design's pre-flight, before any candidate is built: one generation must fit the budget
+    and the memory, and a search projected past a few minutes says so (LongRunWarning).
+
+    A generation is ``design.population`` candidates x the robust scenarios, run in one engine
+    call (a Dask ``chunk_size`` at a time with a client); its records are estimated from the base
+    config's chain, and the search's time as ``design.budget`` runs of the base chain at the
+    search's accuracy, over the cores.
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        The design.
+    client : object
+        The Dask client, or None (one local engine call per generation).
+    chunk_size : int or None
+        Members per Dask task (``design.chunk_size``).
+
+    Returns
+    -------
+    hertzchain.checks.ResourceEstimate
+        The estimate of the whole search (``members``: one generation's engine runs).
+
+    Raises
+    ------
+    ConfigError
+        One generation costs more engine runs than the budget (naming ``design.population``), or
+        its records do not fit in memory (naming ``design.population`` or ``design.chunk_size``).
+    """
+    from dataclasses import replace as _replace
+
+    import numba
+
+    from ..checks import check_resources, estimate_memory, estimate_resources
+    from ..config import build_model, parse_config
+    from ..probes import Probes
+
+    sec = problem.section
+    per = Evaluator(problem.objectives, sec.constraints, sec.robust).n_scenarios
+    fidelity = search_fidelity(problem)
+    # The full-accuracy runs of the best candidates are set aside from the budget of the search.
+    reserve = sec.verify_top * per if fidelity.name != "full" else 0
+    if reserve and sec.budget <= reserve:
+        raise ConfigError("design.budget", f"{sec.budget} engine runs leave nothing to search with after the "
+                          f"{reserve} set aside to run the design.verify_top = {sec.verify_top} best candidates "
+                          "again at full accuracy; raise the budget, lower design.verify_top, or set "
+                          "design.search_steps_per_radian = \"full\"")
+    distinct = math.prod(v.n_values for v in problem.space.variables) if not problem.space.real.any() else math.inf
+    first = min(_initial_sample(problem), distinct)
+    if first * per > sec.budget - reserve:
+        raise ConfigError("design.population", f"a generation of {first:,} candidates x {per} scenario(s) costs "
+                          f"{first * per:,} engine runs, more than the {sec.budget - reserve:,} of design.budget = "
+                          f"{sec.budget:,} left for the search: lower design.population or raise design.budget")
+    cfg = parse_config(problem.base)
+    model = build_model(cfg)
+    members = min(max(_population(problem), first) * per, sec.budget)  # later generations: checked as they come
+    if client is not None:
+        members = min(members, chunk_size or sec.chunk_size)
+    probes = Probes(sample_interval=cfg.run.sample_interval, contacts=())
+    one = estimate_resources(model.system(), cfg.run.duration, probes, dt=cfg.run.dt,
+                             steps_per_radian=fidelity.steps_per_radian or cfg.run.steps_per_radian)
+    mem = estimate_memory(model.chain.n_beads, model.wall.present, cfg.run.duration, probes, members)
+    threads = numba.config.NUMBA_NUM_THREADS if client is None else 1
+    est = _replace(mem, steps=one.steps, seconds=one.seconds * sec.budget / max(1, min(threads, members)))
+    field = "design.population" if client is None else "design.chunk_size"
+    check_resources(est, memory_field=field,
+                    memory_hint=f"lower {field} ({members:,} engine runs a generation at most), raise "
+                                "run.sample_interval of [base] or shorten its run.duration",
+                    time_hint="lower design.budget, or spread the generations over a Dask cluster (--scheduler)")
+    return est
 
 
 def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, device: str | None = None,
@@ -391,7 +455,7 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
     problem : DesignProblem
         From :func:`hertzchain.load_design` / :func:`hertzchain.parse_design`.
     out_dir : str or Path
-        Output folder: ``checkpoint.pkl`` during the search (see :func:`hertzchain.write_report`
+        Output folder: ``checkpoint.npz`` during the search (see :func:`hertzchain.write_report`
         for the files written at the end).
     client : object
         None: each generation is one local engine call on all cores. A Dask
@@ -418,9 +482,13 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         ``out_dir`` holds the checkpoint of another design (and ``force`` is false).
     DesignLocked
         Another search is writing into ``out_dir``.
+    ConfigError
+        A bad setting, or one the pre-flight (:func:`preflight`) refuses: a generation beyond the
+        budget or the memory.
     """
     from ..sweep.storage import _folder_lock
 
+    preflight(problem, client)  # before any candidate or folder: the budget, the memory, the time
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -428,40 +496,38 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
     # Two searches writing one checkpoint would corrupt each other: the folder is locked (flock).
     with _folder_lock(out, "design", DesignLocked):
-        return _run_design(problem, out, client, device, progress, force, checkpoint_interval)
+        saved = _load(out, problem, force)
+        try:
+            return _run_design(problem, out, client, device, progress, checkpoint_interval, saved)
+        except ReplayDiverged as exc:
+            # Another program version (or an edited file) wrote it: its generations are not this
+            # search's. Kept aside, and the search starts from its seed.
+            set_aside(saved.path, f"does not replay to the search it was saved from ({exc})")
+            return _run_design(problem, out, client, device, progress, checkpoint_interval, None)
 
 
-def _run_design(problem: DesignProblem, out: Path, client, device, progress, force: bool,
-                checkpoint_interval: float) -> DesignResult:
-    """:func:`run_design` with the output folder locked."""
+def _run_design(problem: DesignProblem, out: Path, client, device, progress, checkpoint_interval: float,
+                saved) -> DesignResult:
+    """:func:`run_design` with the output folder locked, replaying the checkpoint ``saved`` (or None)."""
     sec = problem.section
     fidelity = search_fidelity(problem)
     coarse = fidelity.name != "full"
     evaluator = Evaluator(problem.objectives, sec.constraints, sec.robust,
                           None if sec.window is None else tuple(sec.window), client, sec.chunk_size, device,
                           fidelity=fidelity, base=problem.base)
-    state = _load(out, problem, force)
-    resumed = state is not None
-    if state is None:
-        state = _State(problem.hash)
-    for name in ("gradient_used", "gradient_optima"):  # a checkpoint written before the gradient phase
-        if not hasattr(state, name):
-            setattr(state, name, [])
+    replay = Replay(saved) if saved is not None else None
+    resumed = replay is not None
+    state = _State(problem.hash)
     per_candidate = evaluator.n_scenarios
     # The full-accuracy runs of the best candidates are set aside from the budget of the search.
-    reserve = sec.verify_top * per_candidate if coarse else 0
-    if coarse and sec.budget <= reserve:
-        raise ConfigError("design.budget", f"{sec.budget} engine runs leave nothing to search with after the "
-                          f"{reserve} set aside to run the design.verify_top = {sec.verify_top} best candidates "
-                          "again at full accuracy; raise the budget, lower design.verify_top, or set "
-                          "design.search_steps_per_radian = \"full\"")
+    reserve = sec.verify_top * per_candidate if coarse else 0  # checked by the pre-flight: < budget
     budget = sec.budget - reserve
     multi = len(problem.objectives) > 1
     # Continuous variables and an objective the sensitivity engine differentiates: local searches
     # on exact gradients (design.gradient) take the place of CMA-ES after the initial sample.
     gradients = not multi and sec.polish and gradient_support(problem) is None
     t_start = time.perf_counter()
-    t_saved = state.elapsed_s
+    t_saved = saved.elapsed_s if saved is not None else 0.0
 
     def clock() -> float:
         return t_saved + time.perf_counter() - t_start
@@ -472,8 +538,12 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
 
     def checkpoint(final: bool = False) -> None:
         state.elapsed_s = clock()
-        # Saving costs a pickle and an fsync (~10 ms): on fast generations, at most one save per
-        # checkpoint_interval seconds, so a kill loses at most that much work.
+        if replay is not None:
+            replay.check(state)  # once the saved generations are replayed: the saved state reached?
+            if replay.active:  # nothing new to save yet
+                return
+        # Saving costs a serialisation and an fsync (~10 ms): on fast generations, at most one save
+        # per checkpoint_interval seconds, so a kill loses at most that much work.
         if final or state.elapsed_s - last_save[0] >= checkpoint_interval:
             _save(out, state)
             last_save[0] = state.elapsed_s
@@ -490,6 +560,16 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
             state.best_f = f
             return True
         return False
+
+    def restart() -> bool:
+        """A CMA-ES restart (IPOP) for the gradient phase, whose best is searched next; False when
+        the restarts are spent."""
+        if state.restarts >= _MAX_RESTARTS:
+            return False
+        state.restarts += 1
+        state.optimiser = _new_optimiser(problem, state.restarts)
+        state.phase, state.stall = "population", 0
+        return True
 
     def next_cycle() -> None:
         """After a converged or stalled population phase: polish (with gradients where the design
@@ -519,13 +599,13 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
             if len({problem.space.key(x) for x in xs}) * per_candidate > budget:
                 raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of {pop0} "
                                   f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
-            _evaluate(problem, evaluator, state, xs, "population", clock)
+            _evaluate(problem, evaluator, state, xs, "population", clock, replay)
             improved()
             state.optimiser = _new_optimiser(problem, x0=np.asarray(_best_row(problem, state.history)["x"]))
             if gradients:
                 state.phase = "gradient"
         elif state.phase == "gradient":
-            _gradient_step(problem, evaluator, state, budget, clock)
+            gradient_step(problem, evaluator, state, budget, clock, replay, _row, restart)
             improved()
         elif state.phase == "population":
             if state.optimiser is None:
@@ -549,7 +629,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
                 if state.phase == "polish":
                     state.polish_x = None
                 continue
-            fit = _evaluate(problem, evaluator, state, [_coords(problem, x) for x in xs], "population", clock)
+            fit = _evaluate(problem, evaluator, state, [_coords(problem, x) for x in xs], "population", clock, replay)
             if multi:
                 pop.set("F", np.array(fit))
                 opt.tell(infills=pop)
@@ -574,7 +654,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
             if not neigh or len(new) * per_candidate > budget - state.n_evaluations:
                 state.phase = "done"  # the budget cannot pay for this step
                 continue
-            fit = _evaluate(problem, evaluator, state, neigh, "polish", clock)
+            fit = _evaluate(problem, evaluator, state, neigh, "polish", clock, replay)
             improved()
             j = int(np.argmin([f[0] for f in fit]))
             if fit[j][0] < f0 - 1e-12 * abs(f0):
@@ -589,9 +669,19 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
         checkpoint()
 
     if coarse and not state.verified:
-        _verify(problem, evaluator, state, sec.budget, clock)
+        _verify(problem, evaluator, state, sec.budget, clock, replay)
         state.verified = True
     checkpoint(final=True)
+    if state.history and not any(r["engine_runs"] for r in state.history):
+        # Every candidate broke a geometric constraint: nothing could be run, so there is no best.
+        from .constraints import broken_geometry
+
+        least = _best_row(problem, state.history)
+        closest = problem.space.values(np.asarray(least["x"]))
+        raise ConfigError("design.constraints", f"no candidate of the design space meets the geometric constraints "
+                          f"({len(state.history)} tried); the closest one, {closest}"
+                          f", breaks {'; '.join(broken_geometry(sec.constraints, least))}: relax the constraints or "
+                          "widen the variables' ranges")
     best = _best_row(problem, state.history, "full" if coarse else None)
     best_out = None
     if best is not None:
@@ -600,7 +690,8 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, for
         best_out = {"objective": objective, "variables": values, "feasible": bool(best["feasible"]),
                     "config": problem.space.config(values),
                     "metrics": {k: best[k] for k in ("min_diameter_mm", "length_mm", "mass_kg", "n_beads",
-                                                     "force_over_yield", "pulse_at_wall") if k in best}}
+                                                     "force_over_yield", "pulse_at_wall", "plastic_work_worst",
+                                                     "residual_overlap_max_worst") if k in best}}
     pareto = pareto_rows(problem, state.history) if multi else ([best] if best and best["feasible"] else [])
     return DesignResult(problem, best_out, state.history, pareto, state.n_evaluations, state.generation,
                         t_saved + time.perf_counter() - t_start, out, resumed)

@@ -45,12 +45,14 @@ import numba
 import numpy as np
 import xarray as xr
 
-from ..checks import _smaller_radius, smaller_radii, warn_members_hertz_range, warn_members_pulse_not_reached
+from ..checks import (_smaller_radius, preflight_batch, smaller_radii, warn_members_hertz_range,
+                      warn_members_pulse_not_reached)
 from ..contact import LAW_CODES
 from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
-from ..simulation import warn_elastic_limit
+from ..simulation import warn_members_elastic_limit
+from ..strict import real
 from .batch_engine import _engine
 from .batch_pack import MemberSystem, _ensemble_dts, _pack_ensemble, _setup_groups, _setup_members
 from .batch_results import _ensemble_dataset, _member_runs, _stack_members, stack_results
@@ -77,8 +79,7 @@ def _check_inputs(models: Sequence[Model], duration: float, probes, dt) -> tuple
     for i, m in enumerate(models):
         if not isinstance(m, Model):
             raise ConfigError(f"models[{i}]", f"must be a hertzchain Model, got {type(m).__name__}")
-    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
-        raise ConfigError("run.duration", f"must be a positive time in s, got {duration!r}")
+    real(duration, "run.duration", low=0.0, open_low=True, unit="s")
     plist = [p or Probes() for p in _as_list(probes, len(models), "probes")]
     dts = _as_list(dt, len(models), "run.dt")
     interval = plist[0].sample_interval
@@ -125,7 +126,8 @@ def _check_threads(n_threads) -> None:
 
 
 def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads,
-         steps_per_radian: float | None = None) -> tuple[list[RawRun], list[MemberSystem], dict[str, np.ndarray]]:
+         steps_per_radian: float | None = None, engine=None
+         ) -> tuple[list[RawRun], list[MemberSystem], dict[str, np.ndarray]]:
     """:func:`run_batch` on checked inputs. Also returns every member's :class:`MemberSystem` and
     the output buffers that are already stacked along ``member`` (row m is RawRun m's array): the
     energies always, ``recorded_force`` (member, time, recorded contact) when every member
@@ -138,7 +140,10 @@ def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: lis
     _check_no_positions(plist)
     pk, member_systems = (_setup_groups(models, plist, dts, interval, n_samples, steps_per_radian)
                           or _setup_members(models, plist, dts, interval, n_samples, steps_per_radian))
-    _engine(pk, progress, n_threads)
+    if engine is None:
+        _engine(pk, progress, n_threads)
+    else:
+        engine(pk, progress)
     runs = _member_runs(pk)
     # The output buffers seen as (member, time, ...) where every member has the same layout: row m
     # is exactly what RawRun m holds (its arrays are views of these rows).
@@ -187,18 +192,22 @@ def simulate_many(models: Sequence[Model], duration: float, probes: Probes | Seq
     Warns
     -----
     ElasticLimitWarning
-        For every member whose recorded contact forces pass the elastic limit.
+        Once per batch, naming the members whose recorded contact forces pass the elastic limit.
     """
     from ..result import build_dataset
 
+    duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")
     plist, dts = _check_inputs(models, duration, probes, dt)
+    preflight_batch(models, duration, plist, dts, n_threads=n_threads)  # memory and time, before any set-up
     cfgs = _as_list(configs, len(models), "configs") if configs is not None else [None] * len(models)
     runs, systems, _ = _run(models, duration, plist, dts, progress, n_threads)
-    out = []
+    out, flagged = [], []
     for i, (raw, model, p, cfg, system) in enumerate(zip(runs, models, plist, cfgs, systems)):
         ds = build_dataset(raw, model, p, duration=duration, config=cfg, system=system)
-        warn_elastic_limit(ds, f"member {i}: " if len(models) > 1 else "")
+        if ds.attrs.get("elastic_limit_exceeded", 1):
+            flagged.append((i, ds))
         out.append(ds)
+    warn_members_elastic_limit(flagged, len(models))
     return out
 
 
@@ -259,13 +268,14 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     Warns
     -----
     ElasticLimitWarning
-        Once per member whose contact forces pass the elastic limit.
+        Once per batch, naming the members whose contact forces pass the elastic limit.
     PulseNotReachedWarning
         Once per batch, naming the members on a wall whose record ended before the pulse reached it.
     """
     from . import cuda as _cuda
 
     _cuda.check_device(device)
+    duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")
     if device == "cuda" and not isinstance(models, Ensemble):
         _cuda.refuse_elastoplastic([LAW_CODES.get(getattr(getattr(m, "law", None), "name", None), -1)
                                     for m in models])
@@ -274,9 +284,18 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         ens = models
     elif isinstance(models, Sequence) and same_layout(models) and _one_probes(probes, len(models)) is not None:
         ens = Ensemble.from_models(models)
+    if device == "cuda" and ens is None:
+        _refuse_extended(models)
     if ens is not None:
         ds = _simulate_ensemble(ens, duration, _one_probes(probes, ens.n_members), dt, progress, n_threads,
                                 configs, device, steps_per_radian)
+    elif device == "cuda" and _one_layout(models) and _one_probes(probes, len(models)) is not None:
+        # beyond the paper's kind (a given striker, cylinders, gravity) but not extended: set up
+        # member by member, run on the GPU
+        _cuda.require_gpu()
+        ds = _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian,
+                              engine=_cuda.run_packed)
+        ds.attrs["engine"] = _cuda.ENGINE
     elif device == "cuda":
         _cuda.require_gpu()
         raise ConfigError("device", "the CUDA engine runs batches whose members share one layout (number of "
@@ -286,6 +305,21 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         ds = _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian)
     warn_members_pulse_not_reached(ds)
     return ds
+
+
+def _refuse_extended(models) -> None:
+    """The CUDA engine has no protected body nor mass-in-mass beads: a ConfigError naming the field."""
+    for i, m in enumerate(models):
+        if isinstance(m, Model) and m.extended:
+            raise ConfigError(m.extension_field, f"member {i}: the CUDA engine does not model a protected body or "
+                              "mass-in-mass beads; run this batch on the CPU (device='cpu')")
+
+
+def _one_layout(models) -> bool:
+    """Whether the models share the number of beads and the end (whatever else they are): what the
+    CUDA engine needs of a batch set up member by member (it takes every member's law as it is)."""
+    keys = {(m.chain.n_beads, m.wall.present) if isinstance(m, Model) else None for m in models}
+    return len(keys) == 1 and None not in keys
 
 
 def _one_probes(probes, n: int) -> Probes | None:
@@ -306,8 +340,7 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
 
     _check_threads(n_threads)
     nmem = ens.n_members
-    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
-        raise ConfigError("run.duration", f"must be a positive time in s, got {duration!r}")
+    real(duration, "run.duration", low=0.0, open_low=True, unit="s")
     if probes.sample_interval > duration:
         raise ConfigError("run.sample_interval",
                           f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
@@ -318,6 +351,7 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
     interval = probes.sample_interval
     n_samples = int(math.floor(duration / interval + 1e-9)) + 1
     on_gpu = _cuda.use_gpu(device, nmem)  # before the set-up: 'cuda' without a GPU fails at once
+    preflight_batch(ens, duration, probes, dts, n_threads=n_threads, steps_per_radian=steps_per_radian, on_gpu=on_gpu)
     pk, arrays = _pack_ensemble(ens, probes, dts, interval, n_samples, steps_per_radian)
     if on_gpu:
         _cuda.run_packed(pk, progress)
@@ -336,13 +370,15 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
 
 
 def _simulate_models(models, duration, probes, dt, progress, n_threads, configs,
-                     steps_per_radian: float | None = None) -> xr.Dataset:
-    """:func:`simulate_batch` of arbitrary models (members of different layouts or probes)."""
+                     steps_per_radian: float | None = None, engine=None) -> xr.Dataset:
+    """:func:`simulate_batch` of arbitrary models (members of different layouts or probes);
+    ``engine(pk, progress)`` runs the packed batch instead of the CPU engine when given."""
     # What stack_results(simulate_many(...)) gives, without one Dataset per member: every member's
     # run_fields (the arrays and attributes build_dataset would wrap) go straight into the stack.
     plist, dts = _check_inputs(models, duration, probes, dt)
+    preflight_batch(models, duration, plist, dts, n_threads=n_threads, steps_per_radian=steps_per_radian)
     cfgs = _as_list(configs, len(models), "configs") if configs is not None else [None] * len(models)
-    runs, sys_list, stacked = _run(models, duration, plist, dts, progress, n_threads, steps_per_radian)
+    runs, sys_list, stacked = _run(models, duration, plist, dts, progress, n_threads, steps_per_radian, engine)
     width = max(sy.n_contacts for sy in sys_list)
     fmax, kappa, smaller = (np.full((len(models), width), np.nan) for _ in range(3))
     for i, (run, model, sy) in enumerate(zip(runs, models, sys_list)):

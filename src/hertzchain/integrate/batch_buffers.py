@@ -67,6 +67,12 @@ class _Packed:
     fmax_off: np.ndarray
     peak: np.ndarray
     acc: np.ndarray
+    ext: np.ndarray = None        # (rows, EXT_COLUMNS): the extended members' extension arrays, one after another
+    ext_off: np.ndarray = None    # member m's rows: ext[ext_off[m]:ext_off[m + 1]] (none when not extended)
+    ext_on: np.ndarray = None     # (M,) bool
+    body_slot: np.ndarray = None  # (M,) N + 1 for a member with a protected body, else -1
+    out_b: np.ndarray = None      # flat: member m's body record out_b[b_off[m]:b_off[m + 1]] seen as (K, 4)
+    b_off: np.ndarray = None
 
     @property
     def n_members(self) -> int:
@@ -88,13 +94,22 @@ def _slot_sizes(n_slots: np.ndarray) -> np.ndarray:
 
 def _outputs(interval: float, n_samples: int, n_slots: np.ndarray, nrec: np.ndarray, rec: np.ndarray,
              nb: np.ndarray, record_v: np.ndarray, n_contacts: np.ndarray, slot_order: np.ndarray | None = None,
-             plastic: bool = False, **members) -> _Packed:
+             plastic: bool = False, ext_on: np.ndarray | None = None, body_slot: np.ndarray | None = None,
+             **members) -> _Packed:
     """Offsets and zeroed buffers of a batch (member m owns :func:`_slot_sizes` slots from
     ``off[m]``). The members' slots follow one another in the order ``slot_order`` (default: the
     members' own); every other buffer is in the members' order. With ``plastic`` (a member has
     the elastic-plastic law) the _STATE buffers and the plastic-work samples are allocated in
-    full, else empty (the kernel never reads them)."""
+    full, else empty (the kernel never reads them). ``ext_on`` (default: none) marks the members
+    with an extension array (P rows each), ``body_slot`` (default: -1) those with a protected body
+    (a (K, 4) record each)."""
+    from .extension import EXT_COLUMNS
+
     nmem = n_slots.size
+    ext_on = np.zeros(nmem, dtype=np.bool_) if ext_on is None else ext_on
+    body_slot = np.full(nmem, -1, dtype=np.int64) if body_slot is None else body_slot
+    ext_off = np.concatenate([[0], np.cumsum(np.where(ext_on, n_slots, 0))]).astype(np.int64)
+    b_off = np.concatenate([[0], np.cumsum(np.where(body_slot >= 0, 4 * n_samples, 0))]).astype(np.int64)
     sizes = _slot_sizes(n_slots)
     if slot_order is None:
         off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
@@ -119,12 +134,24 @@ def _outputs(interval: float, n_samples: int, n_slots: np.ndarray, nrec: np.ndar
                    nb=nb, record_v=record_v, fmax=np.zeros(int(fmax_off[-1])), fmax_off=fmax_off,
                    # Written every step: one cache line (8 doubles) per member (see ``sizes``).
                    peak=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE),
-                   acc=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE), **members)
+                   acc=_aligned_zeros(nmem * _LINE).reshape(nmem, _LINE), ext=np.zeros((int(ext_off[-1]), EXT_COLUMNS)),
+                   ext_off=ext_off, ext_on=ext_on, body_slot=body_slot, out_b=np.empty(int(b_off[-1])), b_off=b_off,
+                   **members)
 
 
 def _member_forces(pk: _Packed, m: int) -> np.ndarray:
     """Member m's force samples, a (time, recorded contact) view of the flat buffer."""
     return pk.out_f[pk.f_off[m]:pk.f_off[m + 1]].reshape(pk.n_samples, pk.nrec[m])
+
+
+def _member_body(pk: _Packed, m: int) -> np.ndarray:
+    """Member m's protected-body record, a (time, 4) view ((time, 0)... (0, 4) without a body)."""
+    return pk.out_b[pk.b_off[m]:pk.b_off[m + 1]].reshape(-1, 4)
+
+
+def _member_ext(pk: _Packed, m: int) -> np.ndarray:
+    """Member m's extension array (P, EXT_COLUMNS) view ((0, EXT_COLUMNS) when not extended)."""
+    return pk.ext[pk.ext_off[m]:pk.ext_off[m + 1]]
 
 
 def _member_velocities(pk: _Packed, m: int) -> np.ndarray:

@@ -30,7 +30,7 @@ CHUNK_SLOT_STEPS = 2e8
 def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap,
                   dyield, dmax, dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax,
                   k_start, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_wp, out_v, v_off, v_rows,
-                  nbody, record_v, fmax, fmax_off, peak, acc, status):
+                  nbody, record_v, fmax, fmax_off, peak, acc, ext, ext_off, ext_on, body_slot, out_b, b_off, status):
     """Advance every member from sample ``k_start`` to ``k_stop`` with :func:`kernels.verlet_run`.
 
     Member m owns the slots from ``off[m]`` of the body/contact buffers (``P + 1`` slots,
@@ -43,7 +43,9 @@ def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, dampin
     the order ``order`` (most expensive first, so that dynamic scheduling does not leave one long
     member for the end). ``status[m]`` is the kernel's return value; a member that diverged is
     not advanced again. The elastic-plastic buffers (``dyield`` ... ``kres``, ``out_wp``) are
-    empty in a batch without such a member: their slices are then empty and never read.
+    empty in a batch without such a member: their slices are then empty and never read. An
+    extended member's extension array is ``ext[ext_off[m]:ext_off[m + 1]]`` and a member with a
+    protected body records it in ``out_b[b_off[m]:b_off[m + 1]]`` seen as (K, 4).
     """
     nk = out_ke.shape[1]
     for i in prange(order.shape[0]):
@@ -56,6 +58,7 @@ def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, dampin
         r1 = rec_off[m + 1]
         f = out_f[f_off[m]:f_off[m + 1]].reshape((nk, r1 - r0))
         vv = out_v[v_off[m]:v_off[m + 1]].reshape((v_rows[m], nbody[m]))
+        bb = out_b[b_off[m]:b_off[m + 1]].reshape(((b_off[m + 1] - b_off[m]) // 4, 4))
         status[m] = kernels.verlet_run(u[s:s + p + 1], v[s:s + p + 1], a[s:s + p], g[s:s + p + 1], mass[s:s + p],
                                        inv_mass[s:s + p], kappa[s:s + p], damping[s:s + p], d0[s:s + p],
                                        de[s:s + p], dx0[s:s + p], rsum[s:s + p], fext[s:s + p], dcap[s:s + p],
@@ -63,7 +66,7 @@ def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, dampin
                                        law[m], general[m], wall_slot[m], interval, stride[m], n_sub[m], n_eval[m],
                                        c_steps[m], relax[m], k_start, k_stop, rec[r0:r1], f, out_ke[m], out_pe[m],
                                        out_ed[m], out_wp[m], vv, record_v[m], fmax[fmax_off[m]:fmax_off[m + 1]],
-                                       peak[m], acc[m])
+                                       peak[m], acc[m], ext[ext_off[m]:ext_off[m + 1]], ext_on[m], body_slot[m], bb)
 
 
 # The workqueue threading layer (the one available without TBB/OpenMP) aborts the process when two
@@ -82,7 +85,7 @@ def _engine(pk: _Packed, progress, n_threads) -> None:
     status = np.zeros(pk.n_members, dtype=np.int64)
     # Cost of one sample per member (the general force loop is roughly twice the elastic one):
     # the most expensive members go first so that the threads finish together.
-    cost = steps_per_sample * (pk.n_slots + 1) * np.where(pk.general, 2, 1)
+    cost = steps_per_sample * (pk.n_slots + 1) * np.where(pk.general, 2, 1) * np.where(pk.ext_on, 2, 1)
     order = np.argsort(-cost, kind="stable").astype(np.int64)
     samples_per_call = max(1, int(CHUNK_SLOT_STEPS * max(1, n_threads or numba.get_num_threads()) // cost.sum()))
     flat = pk.flat
@@ -104,7 +107,7 @@ def _engine(pk: _Packed, progress, n_threads) -> None:
                                   pk.wall_slot, interval, pk.stride, pk.n_sub, pk.n_eval, pk.c_steps, pk.relax, k,
                                   k_stop, pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed,
                                   pk.out_wp, pk.out_v, pk.v_off, pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak,
-                                  pk.acc, status)
+                                  pk.acc, pk.ext, pk.ext_off, pk.ext_on, pk.body_slot, pk.out_b, pk.b_off, status)
             finally:
                 numba.set_num_threads(previous)
         check_members_finite(status, k_stop * interval)

@@ -25,7 +25,8 @@ from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
 from . import kernels, verlet
-from .batch_buffers import _NAMES, _STATE, _Packed, _member_forces, _member_velocities, _outputs, _slot_sizes
+from .batch_buffers import (_NAMES, _STATE, _Packed, _member_body, _member_ext, _member_forces, _member_velocities,
+                            _outputs, _slot_sizes)
 from .ensemble import Ensemble, layout_key
 from .layout import PAD, pack
 from .ragged import Ragged, ragged
@@ -62,7 +63,9 @@ def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Pa
                   n_eval=np.array([mb.plan.n_eval for mb in members], dtype=np.int64),
                   c_steps=np.array([mb.plan.c_steps for mb in members], dtype=np.float64),
                   relax=np.array([mb.plan.relax for mb in members], dtype=np.int64),
-                  plan_dt=np.array([mb.plan.dt for mb in members], dtype=np.float64))
+                  plan_dt=np.array([mb.plan.dt for mb in members], dtype=np.float64),
+                  ext_on=np.array([mb.system.extended for mb in members], dtype=np.bool_),
+                  body_slot=np.array([w.body_slot for w in packs], dtype=np.int64))
     flat = pk.flat
     for m, w in enumerate(packs):
         s, p = pk.off[m], w.n_slots
@@ -70,6 +73,8 @@ def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Pa
             flat[k][s:s + p] = getattr(w, k)
         flat["u"][s:s + p + 1] = w.u
         flat["v"][s:s + p + 1] = w.v
+        if w.ext.size:
+            _member_ext(pk, m)[:] = w.ext
     # ---- initial state: the very function run_verlet uses, on per-member views
     for m, (mb, w) in enumerate(zip(members, packs)):
         s, p = pk.off[m], w.n_slots
@@ -79,7 +84,8 @@ def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Pa
                 setattr(w, k, flat[k][s:s + p])
         initialise(mb.system, w, u, v, g, a, mb.rec, _member_forces(pk, m),
                    pk.out_ke[m], pk.out_pe[m], pk.out_ed[m], _member_velocities(pk, m), mb.record_v,
-                   pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], pk.peak[m], pk.acc[m], pk.out_wp[m])
+                   pk.fmax[pk.fmax_off[m]:pk.fmax_off[m + 1]], pk.peak[m], pk.acc[m], pk.out_wp[m],
+                   ext=_member_ext(pk, m), out_b=_member_body(pk, m))
     return pk
 
 
@@ -244,12 +250,18 @@ class MemberSystem(NamedTuple):
     yield_force
         (N + 1,) force at which each contact reaches its elastic limit [N], as
         ``System.yield_force`` (inf where not defined).
+    mount_k, mount_c, mount_d0
+        A protected body's mount (``System.mount_k`` [N/m], ``mount_c`` [N s/m], ``mount_d0``
+        [m]); 0 without one.
     """
 
     n_beads: int
     has_wall: bool
     kappa: np.ndarray
     yield_force: np.ndarray
+    mount_k: float = 0.0
+    mount_c: float = 0.0
+    mount_d0: float = 0.0
 
     @property
     def n_contacts(self) -> int:
@@ -394,7 +406,8 @@ def _setup_members(models: Sequence[Model], plist: Sequence[Probes], dts: list, 
         rec = p.recorded_contacts(model.chain.n_beads, model.wall.present)
         members.append(_Member(system, rec, plan, bool(p.velocities)))
     return _pack_models(members, interval, n_samples), [
-        MemberSystem(mb.system.n_beads, mb.system.has_wall, mb.system.kappa, mb.system.yield_force) for mb in members]
+        MemberSystem(mb.system.n_beads, mb.system.has_wall, mb.system.kappa, mb.system.yield_force, mb.system.mount_k,
+                     mb.system.mount_c, mb.system.mount_d0) for mb in members]
 
 
 def _setup_groups(models: Sequence[Model], plist: Sequence[Probes], dts: list, interval: float, n_samples: int,

@@ -22,8 +22,8 @@ import xarray as xr
 from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
-from ..simulation import warn_elastic_limit
-from .batch_buffers import _Packed, _member_forces, _member_velocities
+from ..simulation import warn_members_elastic_limit
+from .batch_buffers import _Packed, _member_body, _member_forces, _member_velocities
 from .batch_pack import _EnsembleArrays
 from .ensemble import Ensemble
 from .kernels import LAW_ELASTOPLASTIC
@@ -40,6 +40,12 @@ _MEMBER_ATTRS = {
     "peak_wall_force": ("N", "peak wall force, refined between steps (NaN without a wall)"),
     "peak_wall_time": ("s", "time of the peak wall force (NaN without a wall)"),
     "elastic_limit_exceeded": ("1", "1 when a recorded contact force passed the elastic limit"),
+}
+#: Per-member attributes of runs with a protected body (NaN for members without one).
+_BODY_ATTRS = {
+    "peak_body_force": ("N", "largest force the protected body passed to the ground"),
+    "peak_body_acceleration": ("m s-2", "largest acceleration of the protected body"),
+    "peak_body_energy": ("J", "most energy delivered to the protected body"),
 }
 
 
@@ -158,8 +164,11 @@ def _stack(parts: Sequence[_Part], time, n_time: int, member, ready: dict[str, n
         data[name] = xr.Variable(("member",) + tuple(first_dims), out, attrs=dict(first_attrs))
 
     has_wall = np.array(["wall_force" in p.data for p in parts])
-    for key, (units, long_name) in _MEMBER_ATTRS.items():
-        vals = np.array([p.attrs[key] for p in parts], dtype=float)
+    member_attrs = dict(_MEMBER_ATTRS)
+    if any("peak_body_force" in p.attrs for p in parts):
+        member_attrs.update(_BODY_ATTRS)
+    for key, (units, long_name) in member_attrs.items():
+        vals = np.array([p.attrs.get(key, np.nan) for p in parts], dtype=float)
         if key.startswith("peak_wall"):
             vals = np.where(has_wall, vals, np.nan)  # the kernel tracks a kappa = 0 contact: 0 N, not a peak
         data[key] = xr.Variable(("member",), vals, attrs={"units": units, "long_name": long_name})
@@ -242,7 +251,8 @@ def _member_runs(pk: _Packed) -> list[RawRun]:
                            velocity=_member_velocities(pk, m) if record_v else None,
                            max_force=pk.fmax[c0:pk.fmax_off[m + 1]], peak_wall_force=f_peak, peak_wall_time=t_peak,
                            dt=dt0, integrator="verlet", n_steps=int(steps), contacts=pk.rec[r0:pk.rec_off[m + 1]],
-                           dt_max=dt1, adaptive=adaptive, **_plastic_fields(pk, m)))
+                           dt_max=dt1, adaptive=adaptive, body=_member_body(pk, m) if pk.body_slot[m] >= 0 else None,
+                           **_plastic_fields(pk, m)))
     return runs
 
 
@@ -260,7 +270,7 @@ def _stack_members(runs, models, plist, cfgs, duration, sys_list, stacked=None) 
     """The stacked Dataset from every member's RawRun (run_fields per member, then :func:`_stack`)."""
     from ..result import run_fields
 
-    parts, time = [], None
+    parts, time, flagged = [], None, []
     sys_list = sys_list or [None] * len(models)
     for i, (raw, model, p, cfg, system) in enumerate(zip(runs, models, plist, cfgs, sys_list)):
         fields = run_fields(raw, model, p, duration=duration, config=cfg, system=system)
@@ -268,11 +278,11 @@ def _stack_members(runs, models, plist, cfgs, duration, sys_list, stacked=None) 
             time = fields.coords["time"]  # every member has this time axis (shared duration and interval)
         part = _part_of_fields(fields)
         if part.attrs["elastic_limit_exceeded"]:
-            # What warn_elastic_limit reads of a member's Dataset (building one per member costs ~0.2 ms).
-            warn_elastic_limit(SimpleNamespace(attrs=part.attrs, max_contact_force=part.data["max_contact_force"][1],
-                                               yield_force=part.data["yield_force"][1]),
-                               f"member {i}: " if len(models) > 1 else "", stacklevel=4)
+            # What the elastic-limit message reads of a member's Dataset (building one costs ~0.2 ms).
+            flagged.append((i, SimpleNamespace(attrs=part.attrs, max_contact_force=part.data["max_contact_force"][1],
+                                               yield_force=part.data["yield_force"][1])))
         parts.append(part)
+    warn_members_elastic_limit(flagged, len(models), stacklevel=4)
     ready = _ready(stacked, runs[0], models[0], parts[0]) if stacked else None
     return _stack(parts, time, runs[0].time.size, None, ready=ready)
 
@@ -382,11 +392,12 @@ def _ensemble_dataset(ens: Ensemble, sy: _EnsembleArrays, pk: _Packed, probes: P
     data["config"] = xr.Variable(("member",), np.array(config_text, dtype=object),
                                  attrs={"long_name": "input of the member (JSON)"})
 
+    flagged = []
     for i in np.flatnonzero(exceeded).tolist():
         attrs = {"elastic_limit_exceeded": 1, "elastic_limit_contacts": json.dumps(np.flatnonzero(over[i]).tolist()),
                  "elastic_limit_ratio": float(ratio[i].max())}
-        warn_elastic_limit(SimpleNamespace(attrs=attrs, max_contact_force=fmax[i], yield_force=sy.yield_force[i]),
-                           f"member {i}: " if nmem > 1 else "", stacklevel=4)
+        flagged.append((i, SimpleNamespace(attrs=attrs, max_contact_force=fmax[i], yield_force=sy.yield_force[i])))
+    warn_members_elastic_limit(flagged, nmem, stacklevel=4)
 
     coords = {"member": ("member", np.arange(nmem), {"long_name": "member of the batch"}),
               "time": fields0.coords["time"]}

@@ -35,6 +35,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import ConfigError
+from . import cuda_lanes
 from .batch_buffers import check_members_finite
 # the device choice, importable from here as before
 from .cuda_device import (AUTO_MIN_MEMBERS, DEVICES, _cuda, _simulated, check_device, gpu_usable,  # noqa: F401
@@ -64,6 +65,12 @@ LAUNCH_OUTPUT_BYTES = 1 << 30
 REGISTER_MAX_SLOTS = 40
 #: Whether aligned elastic batches take the register kernel (off: the general kernels, to compare).
 USE_REGISTER_KERNEL = True
+#: Whether aligned elastic batches on one shared fixed step take the lanes-per-chain kernel
+#: (``cuda_lanes.lanes_kernel``). Off until measured on a GPU (benchmarks/gpu_kernels.py): it is
+#: checked against the CPU engine through the simulator only.
+USE_LANES_KERNEL = False
+#: ... for layouts of up to this many slots (each lane keeps P / LANES positions in registers).
+LANES_MAX_SLOTS = 64
 
 
 def refuse_elastoplastic(laws) -> None:
@@ -103,18 +110,29 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     SimulationDiverged
         When a member's state became non-finite.
     ConfigError
-        A member has the elastic-plastic law (``contact.law``), which the GPU kernels do not carry.
+        A member has the elastic-plastic law (``contact.law``), which the GPU kernels do not carry,
+        or a protected body or mass-in-mass beads (``wall.type``).
     """
     refuse_elastoplastic(pk.law)
+    if pk.ext_on is not None and np.any(pk.ext_on):
+        raise ConfigError("wall.type", "the CUDA engine does not model a protected body or mass-in-mass beads; run "
+                          "this batch on the CPU (device='cpu')")
     cuda = _cuda()
     nmem = pk.n_members
     p = int(pk.n_slots[0])
     width = int(pk.off[1])
     # aligned elastic members of a short chain: the register kernel (positions and velocities on
     # the chip), else one warp per member for small batches, one thread per member for large ones
-    register = USE_REGISTER_KERNEL and p <= REGISTER_MAX_SLOTS and not np.any(pk.general)
-    warp = not register and nmem < WARP_PER_MEMBER_BELOW
-    if register:
+    stride0 = int(pk.stride[0])
+    lanes = (USE_LANES_KERNEL and not np.any(pk.general) and stride0 > 0 and np.all(pk.stride == stride0)
+             and np.all(pk.n_sub == 1) and p % cuda_lanes.lanes() == 0 and p <= LANES_MAX_SLOTS)
+    register = not lanes and USE_REGISTER_KERNEL and p <= REGISTER_MAX_SLOTS and not np.any(pk.general)
+    warp = not (register or lanes) and nmem < WARP_PER_MEMBER_BELOW
+    if lanes:
+        pre = bool(np.any(pk.flat["d0"].reshape(nmem, width)[:, :p] != 0.0)
+                   or np.any(pk.flat["fext"].reshape(nmem, width)[:, :p] != 0.0))
+        kernel, tpb = cuda_lanes.lanes_kernel(p, cuda_lanes.lanes(), pre, cuda_lanes.chains_per_block())
+    elif register:
         pre = bool(np.any(pk.flat["d0"].reshape(nmem, width)[:, :p] != 0.0)
                    or np.any(pk.flat["fext"].reshape(nmem, width)[:, :p] != 0.0))
         kernel, tpb = _register_kernel(p, pre)
@@ -164,7 +182,12 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
         rows = k_stop - k
         tail = (float(pk.interval), ints["stride"], ints["n_sub"], ints["n_eval"], c_steps, ints["relax"], k, k_stop,
                 rec, out_f, out_ke, out_pe, out_ed, out_v, flags["record_v"], fmax, peak, acc, status)
-        if register:
+        if lanes:
+            kernel[-(-nmem // cuda_lanes.chains_per_block()), tpb](
+                d["u"], d["v"], d["a"], d["g"], d["kappa"], d["inv_mass"], d["d0"], d["fext"], d["mass"],
+                ints["wall_slot"], float(pk.interval), stride0, k, k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v,
+                flags["record_v"], fmax, peak, acc, status)
+        elif register:
             kernel[-(-nmem // tpb), tpb](
                 d["u"], d["v"], d["a"], d["g"], d["mass"], d["inv_mass"], d["kappa"], d["damping"], d["d0"], d["de"],
                 d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["wall_slot"], *tail)

@@ -155,6 +155,9 @@ def check_law(system: System) -> None:
     """
     from ..contact import LAW_CODES
 
+    if getattr(system, "extended", False):
+        raise ConfigError("wall.type", "gradients do not differentiate a protected body or mass-in-mass beads yet "
+                          "(the engine's extension); they cover chains against a flat wall or a free end")
     if system.law not in LAWS:
         name = next((k for k, v in LAW_CODES.items() if v == system.law), str(system.law))
         raise ConfigError("contact.law", f"gradients do not differentiate the '{name}' law yet; they cover "

@@ -97,6 +97,10 @@ class Ensemble:
         if not isinstance(base, Model):
             raise ConfigError("base", f"must be a hertzchain Model, got {type(base).__name__}")
         if layout_key(base) is None:
+            if base.law.name in _LAW_FIELD:
+                raise ConfigError("base", "an Ensemble holds models of the paper's kind (sphere striker and beads, a "
+                                  "flat wall or a free end, no gravity); others go through simulate_batch as a "
+                                  "list of models")
             raise ConfigError("contact.law", f"an Ensemble computes the elastic, viscoelastic and dashpot laws; "
                               f"'{base.law.name}' members go through simulate_batch as a list of models")
         n = base.chain.n_beads
@@ -401,7 +405,7 @@ class Ensemble:
                 f'{{"law": "{self.law_name}"}}'
             wall_mat = "null"
             if self.has_wall:
-                wall_mat = names[self.wall_material[i]] if given[i] else names[bm[-1]]
+                wall_mat = names[self.wall_material[i]] if given[i] else names[bm[0]]
             out.append(
                 '{"chain": {"diameters_mm": [' + ", ".join(map(rep, d_mm[i])) + '], "materials": ' + mats
                 + ', "offsets_mm": ' + (zeros if aligned[i] else "[" + ", ".join(map(rep, e_mm[i])) + "]")
@@ -450,10 +454,12 @@ def layout_key(model: Model) -> tuple[int, bool, str] | None:
     Returns
     -------
     tuple or None
-        ``(N, has_wall, law name)``; None for a law the array set-up does not compute (the
-        size-scaled viscoelastic law: its damping depends on each contact's masses).
+        ``(N, has_wall, law name)``; None for what the array set-up does not compute: the
+        size-scaled viscoelastic law (its damping depends on each contact's masses) and the models
+        beyond the paper's (``Model.plain`` is False: a given striker mass or face, cylinders,
+        mass-in-mass beads, a protected body, gravity), which are set up member by member.
     """
-    if model.law.name not in _LAW_FIELD:
+    if model.law.name not in _LAW_FIELD or not model.plain:
         return None
     return model.chain.n_beads, model.wall.present, model.law.name
 

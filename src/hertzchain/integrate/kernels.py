@@ -13,7 +13,11 @@ Padding bodies and contacts have 1/m = 0 and kappa = 0 and never move or push. T
 elastic-plastic law (Thornton 1997, :func:`elastoplastic_force`) also takes, per contact slot,
 its yield overlap ``dyield`` and a state that lives as long as the run: the largest overlap
 reached ``dmax``, and the unloading curve it implies, residual overlap ``dres`` and stiffness
-``kres`` (``layout.pack`` starts them at 0, 0, kappa). The contact
+``kres`` (``layout.pack`` starts them at 0, 0, kappa). A model with a protected body or
+mass-in-mass beads (``System.extended``) also has an extension array ``ext`` (P, EXT_COLUMNS):
+linear springs and dashpots in parallel with the contact law of a contact slot (the body's mount,
+contact N + 1, to the immovable ghost N + 2), and an internal mass on a spring per body slot,
+whose displacement and velocity are state (:func:`step_extended`). The contact
 forces are written once (:func:`forces_elastic`, branch-free so that LLVM vectorises it, and
 :func:`forces_general` for dissipative laws and misaligned beads); the same functions serve the
 Verlet loop and the scipy reference RHS, so both integrate the same equations (paper eq. 1).
@@ -26,6 +30,12 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
+
+# the energies of the probes (re-exported: kernels.potential_energy & co. are used throughout)
+from .energies import (energies_elastic, kinetic_energy, plastic_work, potential_energy,  # noqa: F401
+                       potential_energy_plastic)
+from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
+                        accelerations_extended, energies_extended, forces_linear)
 
 LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT, LAW_ELASTOPLASTIC = 0, 1, 2, 3
 
@@ -222,6 +232,79 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax
     return power
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _viscous_force(d, rate, kappa, damping, law):
+    """:func:`forces_general`'s viscoelastic or dashpot force at overlap d (aligned) and rate;
+    returns (force, elastic part). Open contacts give 0 through selects (vectorised)."""
+    dd = d if d > DELTA_MIN else 0.0
+    sd = np.sqrt(dd)
+    fel = kappa * dd * sd
+    f = fel + kappa * damping * sd * rate if law == LAW_VISCOELASTIC else fel + damping * rate
+    f = f if f > 0.0 else 0.0
+    return (f if d >= 0.0 else 0.0), fel
+
+
+@njit(cache=True, nogil=True, inline="always")
+def step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, last):
+    """One step of an aligned chain with the viscoelastic or dashpot law, fused into one pass (as
+    :func:`step_elastic`): the forces of :func:`forces_general` at velocities predicted half a step
+    ahead, v + (dt/2) a (carried from body to body), then the kick and drift (or, when ``last``,
+    the closing half kick); returns the dissipated power [W]. The same operations per contact in the
+    same order as forces_general and the update loops of :func:`verlet_run` (the same forces,
+    positions and velocities); the power is summed by :func:`dissipative_block` in a vectorised
+    order (its last bits may differ). The last slot (padding, kappa = damping = 0) is peeled off:
+    its right neighbour's prediction is 0, as in forces_general."""
+    n = a.shape[0]
+    power = 0.0
+    fprev = 0.0
+    vq = v[0] + half * a[0]
+    for i in range(n - 1):
+        vq1 = v[i + 1] + half * a[i + 1]
+        rate = vq - vq1
+        f, fel = _viscous_force(u[i] - u[i + 1] + d0[i], rate, kappa[i], damping[i], law)
+        power += (f - fel) * rate
+        g[i + 1] = f
+        ai = (fprev - f + fext[i]) * inv_mass[i]
+        a[i] = ai
+        if last:
+            v[i] += half * ai
+        else:
+            v[i] += dt * ai
+            u[i] += dt * v[i]
+        fprev = f
+        vq = vq1
+    i = n - 1
+    f, fel = _viscous_force(u[i] - u[i + 1] + d0[i], vq, kappa[i], damping[i], law)
+    g[i + 1] = f
+    ai = (fprev - f + fext[i]) * inv_mass[i]
+    a[i] = ai
+    if last:
+        v[i] += half * ai
+    else:
+        v[i] += dt * ai
+        u[i] += dt * v[i]
+    return power + (f - fel) * vq
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc"})
+def dissipative_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc):
+    """The ``ns`` steps of a block of :func:`verlet_run` for an aligned viscoelastic or dashpot
+    chain (:func:`step_dissipative`), with the dissipated energy's
+    trapezoidal integral in acc[0:2] and the wall peak; a function of its own, called once per
+    block (inlined into verlet_run's large body, LLVM left the fused loop scalar), whose power sum
+    may be reassociated: in contact order it held the loop scalar (~1.8x slower); the forces,
+    positions and velocities do not depend on it (tests/test_fused.py)."""
+    half = 0.5 * dt
+    for s in range(ns):
+        if s < ns - 1:
+            p = step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, False)
+        else:
+            p = step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, True)
+        acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
+        acc[1] = p
+        _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
+
+
 @njit(cache=True, nogil=True)
 def accelerations(g, fext, inv_mass, a):
     """a_i = (F_{i-1} - F_i + f_ext,i) / m_i for every slot (1/m = 0 for the wall and padding)."""
@@ -229,107 +312,51 @@ def accelerations(g, fext, inv_mass, a):
         a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
 
 
-#: The energy sums may be reassociated, so that LLVM vectorises them: a strict left-to-right sum
-#: of ~30 terms is a chain of dependent additions, and it made the probes ~4x slower than the step.
-_SUMS = {"reassoc"}
+@njit(cache=True, nogil=True)
+def step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dyield, dmax, dres,
+                  kres, ext, body_slot, wall_slot, t0, dt, ns, peak, acc):
+    """One block of ``ns`` steps of the general path with the extension (see :func:`verlet_run`).
 
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, aligned_elastic):
-    """Hertz potential sum (2/5) kappa delta^(5/2) (paper Sec. III) minus the work of f_ext [J].
-
-    For an aligned elastic chain U_j = (2/5) F_j delta_j reuses the forces (no extra sqrt).
+    The same kick-drift-kick as the general path, the internal masses (``ext``) stepped with the
+    beads; the mount's dashpot uses the predicted velocities, as the dissipative contacts do, and
+    its power joins the dissipated energy. With a protected body (``body_slot`` >= 0) the power
+    F_N v_body that contact N delivers to it is integrated (trapezoidal) into ext[0, EXT_ACC].
     """
-    e = 0.0
-    if aligned_elastic:
-        # Shifted views instead of u[j + 1], g[j + 1]: with the +1 in the index LLVM left this sum
-        # scalar (~14 ns for 24 contacts instead of ~5). g = 0 wherever d <= 0, so no max().
-        u1 = u[1:]
-        g1 = g[1:]
-        for j in range(kappa.shape[0]):
-            e += g1[j] * (u[j] - u1[j] + d0[j])
-        e *= 0.4
-    else:
-        for j in range(kappa.shape[0]):
-            if de[j] != 0.0:
-                dx = dx0[j] - (u[j] - u[j + 1])
-                d = rsum[j] - np.sqrt(dx * dx + de[j] * de[j])
-            else:
-                d = u[j] - u[j + 1] + d0[j]
-            if d > 0.0:
-                e += 0.4 * kappa[j] * d * d * np.sqrt(d)
-    for i in range(fext.shape[0]):
-        e -= fext[i] * u[i]
-    return e
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres):
-    """Elastic energy stored in elastic-plastic contacts minus the work of f_ext [J]: what each
-    contact's unloading curve gives back, (2/5) kres (delta - dres)^(5/2) (Hertz's
-    (2/5) kappa delta^(5/2) for a contact that never yielded: dres = 0, kres = kappa)."""
-    e = 0.0
-    for j in range(kres.shape[0]):
-        if de[j] != 0.0:
-            dx = dx0[j] - (u[j] - u[j + 1])
-            d = rsum[j] - np.sqrt(dx * dx + de[j] * de[j])
+    n = a.shape[0]
+    half = 0.5 * dt
+    for i in range(n):
+        v[i] += half * a[i]
+        u[i] += dt * v[i]
+        ext[i, EXT_WV] += half * wa[i]
+        ext[i, EXT_W] += dt * ext[i, EXT_WV]
+    for s in range(ns):
+        for i in range(n):
+            vp[i] = v[i] + half * a[i]
+        p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
+        p += forces_linear(u, vp, d0, ext, g)
+        acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
+        acc[1] = p
+        if body_slot >= 0:
+            pb = g[body_slot] * vp[body_slot]  # contact N (g[N + 1]) pushing body N + 1
+            ext[0, EXT_ACC] += half * (ext[1, EXT_ACC] + pb)
+            ext[1, EXT_ACC] = pb
+        _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
+        accelerations_extended(u, g, fext, inv_mass, ext, a, wa)
+        if s < ns - 1:
+            for i in range(n):
+                v[i] += dt * a[i]
+                u[i] += dt * v[i]
+                ext[i, EXT_WV] += dt * wa[i]
+                ext[i, EXT_W] += dt * ext[i, EXT_WV]
         else:
-            d = u[j] - u[j + 1] + d0[j]
-        x = d - dres[j]
-        if x > 0.0:
-            e += 0.4 * kres[j] * x * x * np.sqrt(x)
-    for i in range(fext.shape[0]):
-        e -= fext[i] * u[i]
-    return e
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def plastic_work(kappa, dyield, dmax, dres):
-    """Plastic work [J] done in all contacts so far, from each one's largest overlap alone.
-
-    The work along Thornton's loading curve up to dmax, (2/5) F_y dyield + F_y (dmax - dyield)
-    + (3/4) kappa dyield^(1/2) (dmax - dyield)^2, minus what its unloading curve stores,
-    (2/5) F_max (dmax - dres); 0 for a contact that never passed dyield.
-    """
-    w = 0.0
-    for j in range(kappa.shape[0]):
-        dm = dmax[j]
-        dy = dyield[j]
-        if dm > dy:
-            sy = np.sqrt(dy)
-            fy = kappa[j] * dy * sy
-            x = dm - dy
-            fmax = fy + 1.5 * kappa[j] * sy * x
-            w += 0.4 * fy * dy + fy * x + 0.75 * kappa[j] * sy * x * x - 0.4 * fmax * (dm - dres[j])
-    return w
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def energies_elastic(u, v, g, mass, d0, fext):
-    """(kinetic, potential) energy [J] of an aligned elastic chain, as :func:`kinetic_energy` and
-    :func:`potential_energy` give them, in one vectorised pass (~20 ns a sample for 24 slots,
-    against ~60 ns for the two separate sums)."""
-    u1 = u[1:]
-    g1 = g[1:]
-    ke = 0.0
-    pe = 0.0
-    for i in range(mass.shape[0]):
-        ke += mass[i] * v[i] * v[i]
-        pe += 0.4 * g1[i] * (u[i] - u1[i] + d0[i]) - fext[i] * u[i]
-    return 0.5 * ke, pe
-
-
-@njit(cache=True, nogil=True, fastmath=_SUMS)
-def kinetic_energy(v, mass):
-    """Sum of m v^2 / 2 over the slots [J] (mass = 0 for the wall and padding)."""
-    e = 0.0
-    for i in range(mass.shape[0]):
-        e += 0.5 * mass[i] * v[i] * v[i]
-    return e
+            for i in range(n):
+                v[i] += half * a[i]
+                ext[i, EXT_WV] += half * wa[i]
 
 
 @njit(cache=True, nogil=True)
-def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, law):
+def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, law,
+                    ext, ext_on):
     """Steps needed in a block of ``block`` seconds so that omega dt <= 1 / c_steps over the next ``horizon``.
 
     omega is a Gershgorin bound (omega^2 <= max_i 2 (k_left + k_right) / m_i) on the linearised
@@ -352,6 +379,10 @@ def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, 
     kappa A delta^(1/2) = (2/3) A k_j) bounded the same way, beta_i = 2 (c_left + c_right) / m_i,
     and omega becomes sqrt(omega_i^2 + beta_i^2 / 4) + beta_i / 2, the frequency whose stable
     step 2 / omega is that of the explicitly damped oscillator (System.max_frequency).
+
+    With the extension (``ext_on``) a contact slot's linear spring and dashpot add to its k_j and
+    c_j, a body's internal spring to its row, and an internal mass brings its own row
+    2 k_in / m_in, as in System.max_frequency.
     """
     kprev = 0.0
     cprev = 0.0
@@ -377,7 +408,16 @@ def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, 
                 dt_ = de_ if de_ > dt_ else dt_
             dt_ = dt_ if dt_ < dcap[j] else dcap[j]
             k = 1.5 * kappa[j] * np.sqrt(dt_) if dt_ > 0.0 else 0.0
-        if law == LAW_ELASTIC:
+        if ext_on:
+            k += ext[j, EXT_KLIN]
+            c = 0.0 if law == LAW_ELASTIC else (damping[j] if law == LAW_DASHPOT else (2.0 / 3.0) * damping[j] * k)
+            c += ext[j, EXT_CLIN]
+            om2 = 2.0 * (kprev + k + ext[j, EXT_KIN]) * inv_mass[j]
+            beta = 2.0 * (cprev + c) * inv_mass[j]
+            weff = max(weff, np.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta)
+            weff = max(weff, np.sqrt(2.0 * ext[j, EXT_KIN] * ext[j, EXT_IMIN]))
+            cprev = c
+        elif law == LAW_ELASTIC:
             w2 = max(w2, (kprev + k) * inv_mass[j])
         else:
             c = damping[j] if law == LAW_DASHPOT else (2.0 / 3.0) * damping[j] * k
@@ -386,7 +426,7 @@ def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, 
             weff = max(weff, np.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta)
             cprev = c
         kprev = k
-    w = np.sqrt(2.0 * w2) if law == LAW_ELASTIC else weff
+    w = np.sqrt(2.0 * w2) if law == LAW_ELASTIC and not ext_on else weff
     return max(1, int(np.ceil(block * c_steps * w - 1e-9)))
 
 
@@ -439,7 +479,7 @@ def _adapt_stride(req, ns, relax, acc):
 @njit(cache=True, nogil=True)
 def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres,
                law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f,
-               out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc):
+               out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, ext, ext_on, body_slot, out_b):
     """Advance from sample ``k_start`` to ``k_stop`` (samples ``interval`` seconds apart) with velocity Verlet.
 
     On entry and exit ``u, v, a, g`` hold positions, synchronised velocities, accelerations and
@@ -456,7 +496,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     second order.
 
     Between block ends the half kicks of consecutive steps are fused (leapfrog form); for an
-    aligned elastic chain a step is one pass (:func:`step_elastic`), otherwise one pass over the
+    aligned chain a step is one pass (:func:`step_elastic`; :func:`step_dissipative` for the
+    viscoelastic and dashpot laws), otherwise (offset beads) one pass over the
     contacts and one over the bodies. ``acc`` holds [dissipated energy (J),
     last dissipated power (W), step count, current ns, relax count, largest ns allowed in the
     relax window, largest ns used, smallest ns used]. ``peak`` tracks contact ``wall_slot`` (the
@@ -469,6 +510,11 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     ``out_wp`` receives its plastic work (:func:`plastic_work`) at every sample (other laws leave
     it alone). Returns 0, or 1 when the state became non-finite.
 
+    A model with the extension (``ext_on``: a protected body, mass-in-mass beads) steps with
+    :func:`step_extended` and its energies include the internal masses and the linear springs;
+    with a protected body (``body_slot`` = N + 1, else -1) sample k of ``out_b`` receives its
+    displacement [m], velocity [m/s], acceleration [m/s^2] and the work done on it so far [J].
+
     Velocities used by the dissipative forces at t + dt are predicted as v(t + dt/2) + a(t) dt/2;
     the error is O(dt^2) per step, so the scheme stays second order.
     """
@@ -478,10 +524,16 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     adaptive = stride == 0
     ns = stride if not adaptive else int(acc[3])
     vp = np.zeros_like(v)
+    wa = np.zeros(n)
+    if ext_on:  # the internal masses' accelerations: a function of the positions, not state
+        for i in range(n):
+            wa[i] = ext[i, EXT_KIN] * (u[i] - ext[i, EXT_W]) * ext[i, EXT_IMIN]
     step = int(acc[2])
     lean = n >= LEAN_SLOTS  # long chain without precompression (d0 = fext = 0): step_elastic_lean
+    aligned = True  # no offsets: the dissipative laws' fused steps (step_dissipative)
     for i in range(n):
         lean = lean and d0[i] == 0.0 and fext[i] == 0.0
+        aligned = aligned and de[i] == 0.0
     # Recorded contacts r0, r0 + 1, ... (the default: all of them) are copied as one slice.
     contiguous = nout > 0
     for j in range(1, nout):
@@ -491,15 +543,25 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
         for b in range(n_sub):
             if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
                 req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, n_eval * block, block,
-                                      c_steps, damping, law)
+                                      c_steps, damping, law, ext, ext_on)
                 ns = _adapt_stride(req, ns, relax, acc)
             dt = block / ns
             half = 0.5 * dt
             t0 = (k - 1) * interval + b * block
+            if ext_on:
+                step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dyield, dmax,
+                              dres, kres, ext, body_slot, wall_slot, t0, dt, ns, peak, acc)
+                step += ns
+                continue
             for i in range(n):
                 v[i] += half * a[i]
                 u[i] += dt * v[i]
-            if general:
+            if general and aligned and law != LAW_ELASTOPLASTIC:
+                # aligned viscous chains: one fused pass per step, the same numbers as below (the
+                # elastic-plastic law branches per contact; its two passes below beat one fused
+                # scalar pass: benchmarks/dissipative.py)
+                dissipative_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc)
+            elif general:
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + half * a[i]
@@ -548,6 +610,15 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
             pe = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
         else:
             ke, pe = energies_elastic(u, v, g, mass, d0, fext)
+        if ext_on:
+            ke_in, pe_lin = energies_extended(u, d0, ext)
+            ke += ke_in
+            pe += pe_lin
+            if body_slot >= 0:
+                out_b[k, 0] = u[body_slot]
+                out_b[k, 1] = v[body_slot]
+                out_b[k, 2] = a[body_slot]
+                out_b[k, 3] = ext[0, EXT_ACC]
         out_ke[k] = ke
         out_pe[k] = pe
         out_ed[k] = acc[0]
@@ -562,7 +633,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
 
 
 def flush_stale_cache(*kernels_using: object) -> None:
-    """Drop the on-disk cache of these compiled functions when this module is newer than it.
+    """Drop the on-disk cache of these compiled functions when this module (or ``extension.py``
+    or ``energies.py``, whose functions it compiles in) is newer than it.
 
     Numba's cache only checks the source file of the cached function itself, not of the
     functions it calls; the batched engine's loops (``batch_engine._batch_kernel``,
@@ -574,10 +646,18 @@ def flush_stale_cache(*kernels_using: object) -> None:
     *kernels_using
         Numba dispatchers (``@njit(cache=True)``) that call functions of this module.
     """
+    # what the kernels compile in
+    sources = (Path(__file__), Path(__file__).with_name("extension.py"), Path(__file__).with_name("energies.py"))
+    newest = max(p.stat().st_mtime for p in sources)
     for fn in kernels_using:
         try:
             index = Path(fn._cache._cache_file._index_path)
-            if index.exists() and index.stat().st_mtime < Path(__file__).stat().st_mtime:
+            if index.exists() and index.stat().st_mtime < newest:
                 fn._cache.flush()
         except (AttributeError, OSError):  # private Numba API moved or no cache: nothing to protect
             pass
+
+
+# The stepping loop compiles the extension's functions (extension.py) into itself: an edit there
+# must recompile it too (Numba's cache only checks the file of the function it caches).
+flush_stale_cache(step_extended, verlet_run)

@@ -167,7 +167,7 @@ def _stride_2d(u, v, a, y, kappa, d0, de_now, dx0, rsum, flat, dcap, inv_mass, s
     for j in range(kappa.shape[0]):
         de_now[j] = 0.0 if flat[j] else y[j + 1] - y[j]
     ns = kernels.required_stride(u, v, a, kappa, d0, de_now, dx0, rsum, dcap, inv_mass, horizon, block, c_steps,
-                                 damping, law)
+                                 damping, law, np.zeros((0, kernels.EXT_COLUMNS)), False)
     w2 = 0.0
     for i in range(stiffness.shape[0]):
         w2 = max(w2, stiffness[i] * inv_mass[i])

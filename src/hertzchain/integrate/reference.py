@@ -17,6 +17,7 @@ from scipy.optimize import minimize_scalar
 from ..errors import ConfigError, SimulationDiverged
 from ..model import System
 from . import kernels
+from .layout import pack
 from .verlet import RawRun
 
 __all__ = ["run_reference", "make_rhs"]
@@ -35,8 +36,12 @@ def _check_law(system: System) -> None:
 
 
 def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
-    """dy/dt for y = [u_0..u_N, v_0..v_N, E_dissipated] (SI units); not for the elastic-plastic law."""
+    """dy/dt for y = [u_0..u_N, v_0..v_N, E_dissipated] (SI units); not for the elastic-plastic law. An
+    extended system (a protected body, mass-in-mass beads: :func:`_make_rhs_extended`) has more
+    components."""
     _check_law(system)
+    if system.extended:
+        return _make_rhs_extended(system)
     nb = system.n_beads + 1
     u = np.zeros(nb + 1)
     v = np.zeros(nb + 1)
@@ -55,6 +60,52 @@ def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
             power = 0.0
         kernels.accelerations(g, s.fext, s.inv_mass, a)
         return np.concatenate([v[:nb], a, [power]])
+
+    return rhs
+
+
+class _Extended:
+    """The arrays of an extended system laid out as the kernels take them (``layout.pack``), and
+    the state vector's parts: y = [u (nb), v (nb), w (nb), wv (nb), E_dissipated, W_body], nb the
+    moving bodies (the protected body included), w and wv the internal masses' motion."""
+
+    def __init__(self, system: System) -> None:
+        w = pack(system)
+        self.w = w
+        self.nb = system.n_moving
+        p = w.n_slots
+        self.u = np.zeros(p + 1)
+        self.v = np.zeros(p + 1)
+        self.g = np.zeros(p + 1)
+        self.a = np.zeros(p)
+        self.wa = np.zeros(p)
+        self.ext = w.ext.copy()
+
+    def load(self, y: np.ndarray) -> None:
+        nb, e = self.nb, self.ext
+        self.u[:nb] = y[:nb]
+        self.v[:nb] = y[nb:2 * nb]
+        e[:nb, kernels.EXT_W] = y[2 * nb:3 * nb]
+        e[:nb, kernels.EXT_WV] = y[3 * nb:4 * nb]
+
+    def forces(self, law: int) -> float:
+        w = self.w
+        power = kernels.forces_general(self.u, self.v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, law, self.g,
+                                       w.dyield, w.dmax, w.dres, w.kres)
+        return power + kernels.forces_linear(self.u, self.v, w.d0, self.ext, self.g)
+
+
+def _make_rhs_extended(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
+    """dy/dt of an extended system (see :class:`_Extended`)."""
+    x = _Extended(system)
+    nb, b = x.nb, x.w.body_slot
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        x.load(y)
+        power = x.forces(system.law)
+        kernels.accelerations_extended(x.u, x.g, x.w.fext, x.w.inv_mass, x.ext, x.a, x.wa)
+        work = x.g[b] * x.v[b] if b >= 0 else 0.0
+        return np.concatenate([x.v[:nb], x.a[:nb], x.ext[:nb, kernels.EXT_WV], x.wa[:nb], [power, work]])
 
     return rhs
 
@@ -87,6 +138,9 @@ def run_reference(system: System, duration: float, sample_interval: float, metho
     (ConfigError naming ``run.integrator``).
     """
     _check_law(system)
+    if system.extended:
+        return _run_reference_extended(system, duration, sample_interval, method, rtol, atol_scale,
+                                       record_velocities, record_positions)
     nb = system.n_beads + 1
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
     time = np.arange(n_samples) * sample_interval
@@ -134,3 +188,57 @@ def run_reference(system: System, duration: float, sample_interval: float, metho
                   peak_wall_force=peak_f, peak_wall_time=peak_t, dt=0.0,
                   integrator=f"scipy.solve_ivp({method}, rtol={rtol:g})", n_steps=int(sol.nfev), contacts=np.arange(nc),
                   displacement=u[:, :nb].copy() if record_positions else None)
+
+
+def _run_reference_extended(system: System, duration: float, sample_interval: float, method: str, rtol: float,
+                            atol_scale: float | None, record_velocities: bool, record_positions: bool) -> RawRun:
+    """:func:`run_reference` of an extended system (a protected body, mass-in-mass beads)."""
+    x = _Extended(system)
+    nb, n, b = x.nb, system.n_beads, x.w.body_slot
+    n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
+    time = np.arange(n_samples) * sample_interval
+    y0 = np.concatenate([system.u0[:nb], system.v0[:nb], np.zeros(2 * nb + 2)])
+    v_scale = max(abs(system.v0).max(), 1e-12)
+    energy = 0.5 * system.mass[0] * system.v0[0] ** 2
+    d_scale = (2.5 * energy / system.kappa[0]) ** 0.4 if system.kappa[0] > 0 else 1e-6
+    tol = rtol if atol_scale is None else atol_scale
+    atol = np.concatenate([np.full(nb, tol * d_scale), np.full(nb, tol * v_scale), np.full(nb, tol * d_scale),
+                           np.full(nb, tol * v_scale), [tol * energy, tol * energy]])
+    sol = solve_ivp(make_rhs(system), (0.0, time[-1]), y0, method=method, rtol=rtol, atol=atol, t_eval=time,
+                    dense_output=True)
+    if not sol.success or not np.all(np.isfinite(sol.y)):
+        raise SimulationDiverged(f"solve_ivp({method}) failed: {sol.message}")
+    nc = system.n_contacts
+    forces = np.empty((n_samples, nc))
+    ke, pe = np.empty(n_samples), np.empty(n_samples)
+    body = np.empty((n_samples, 4)) if b >= 0 else None
+    w = x.w
+    for k in range(n_samples):
+        x.load(sol.y[:, k])
+        x.forces(system.law)
+        kernels.accelerations_extended(x.u, x.g, w.fext, w.inv_mass, x.ext, x.a, x.wa)
+        forces[k] = x.g[1:nc + 1]
+        ke_in, pe_lin = kernels.energies_extended(x.u, w.d0, x.ext)
+        ke[k] = kernels.kinetic_energy(x.v, w.mass) + ke_in
+        pe[k] = kernels.potential_energy(x.u, x.g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False) + pe_lin
+        if body is not None:
+            body[k] = (x.u[b], x.v[b], x.a[b], sol.y[-1, k])
+
+    def wall_force(t: float) -> float:
+        x.load(sol.sol(t))
+        x.forces(system.law)
+        return float(x.g[n + 1])
+
+    peak_f, peak_t = 0.0, 0.0
+    if system.has_wall:
+        k = int(np.argmax(forces[:, -1]))
+        lo, hi = time[max(k - 1, 0)], time[min(k + 1, n_samples - 1)]
+        if hi > lo:
+            res = minimize_scalar(lambda t: -wall_force(t), bounds=(lo, hi), method="bounded", options={"xatol": 1e-13})
+            peak_f, peak_t = -float(res.fun), float(res.x)
+        peak_f = max(peak_f, float(forces[k, -1]))
+    return RawRun(time=time, contact_force=forces, kinetic_energy=ke, potential_energy=pe, max_force=forces.max(axis=0),
+                  dissipated_energy=sol.y[-2].copy(), velocity=sol.y[nb:nb + n + 1].T.copy() if record_velocities else None,
+                  peak_wall_force=peak_f, peak_wall_time=peak_t, dt=0.0,
+                  integrator=f"scipy.solve_ivp({method}, rtol={rtol:g})", n_steps=int(sol.nfev), contacts=np.arange(nc),
+                  displacement=sol.y[:n + 1].T.copy() if record_positions else None, body=body)

@@ -204,6 +204,7 @@ def _tangent_loop(general: bool, aligned: bool):
         n = a.shape[0]
         nd = th.shape[1]
         lw = law if general else 0
+        no_ext = np.zeros((0, 8))  # models with the extension are refused upstream
         block = interval / n_sub
         adaptive = stride == 0
         ns = stride if not adaptive else int(acc[3])
@@ -257,7 +258,7 @@ def _tangent_loop(general: bool, aligned: bool):
                 bi = (k - 1) * n_sub + b
                 if adaptive and bi % n_eval == 0:
                     req = kernels.required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, n_eval * block,
-                                                  block, c_steps, damping, law)
+                                                  block, c_steps, damping, law, no_ext, False)
                     ns = kernels._adapt_stride(req, ns, relax, acc)
                 dt = block / ns
                 _open_block(u, v, a, dt)

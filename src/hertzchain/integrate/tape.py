@@ -125,6 +125,7 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
     rows for it (6 rows: u, v, a, dmax, dres, kres).
     """
     n = a.shape[0]
+    no_ext = np.zeros((0, 8))  # the extension (a protected body, mass-in-mass beads) is not taped
     plastic_rows = ckpt.shape[1] > 3
     block = interval / n_sub
     adaptive = stride == 0
@@ -139,7 +140,7 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
             bi = (k - 1) * n_sub + b
             if adaptive and bi % n_eval == 0:
                 req = kernels.required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, n_eval * block,
-                                              block, c_steps, damping, law)
+                                              block, c_steps, damping, law, no_ext, False)
                 ns = kernels._adapt_stride(req, ns, relax, acc)
             if bi % group == 0:
                 c = bi // group

@@ -71,6 +71,7 @@ class RawRun:
     dt_max: float = 0.0         # s, the largest step used (= dt for a fixed step)
     adaptive: bool = False      # True when the step was chosen as the run went
     displacement: np.ndarray | None = None  # (K, N+1) m, bodies 0..N, when positions were asked for
+    body: np.ndarray | None = None  # (K, 4) protected body: displacement [m] from rest, velocity, acceleration, work [J]
     plastic_work: np.ndarray | None = None  # (K,) J, elastic-plastic law only
     residual_overlap: np.ndarray | None = None  # (n_contacts,) m, at the end (elastic-plastic law only)
     max_overlap: np.ndarray | None = None  # (n_contacts,) m, largest overlap reached (elastic-plastic law only)
@@ -146,14 +147,15 @@ def step_plan(system: System, sample_interval: float, dt: float | None,
 
 
 def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_v: bool,
-               fmax, peak, acc, out_wp=None) -> None:
+               fmax, peak, acc, out_wp=None, ext=None, out_b=None) -> None:
     """State at t = 0 (forces, accelerations) and sample 0 of every probe, written in place.
 
     Shared by :func:`run_verlet` and the batched engine, which passes per-member views, so
     both start from exactly the same numbers. ``peak`` and ``acc`` (8 slots each) are the
     kernel's wall-peak tracker and accumulators (see ``kernels.verlet_run``). ``out_wp`` receives
     the plastic work of the elastic-plastic law (the state ``w.dmax``... is that of the static
-    overlaps after this call).
+    overlaps after this call). An extended system also takes its extension array ``ext``
+    (``w.ext`` when None) and, with a protected body, the body's record ``out_b``.
     """
     power0 = 0.0
     if system.general:
@@ -161,7 +163,12 @@ def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe
                                         w.dyield, w.dmax, w.dres, w.kres)
     else:
         kernels.forces_elastic(u, w.kappa, w.d0, g)
-    kernels.accelerations(g, w.fext, w.inv_mass, a)
+    if system.extended:
+        ext = w.ext if ext is None else ext
+        power0 += kernels.forces_linear(u, v, w.d0, ext, g)
+        kernels.accelerations_extended(u, g, w.fext, w.inv_mass, ext, a, np.zeros(a.size))
+    else:
+        kernels.accelerations(g, w.fext, w.inv_mass, a)
     out_f[0] = g[rec + 1]
     out_ke[0] = kernels.kinetic_energy(v, w.mass)
     if system.law == kernels.LAW_ELASTOPLASTIC:
@@ -169,6 +176,14 @@ def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe
         out_wp[0] = kernels.plastic_work(w.kappa, w.dyield, w.dmax, w.dres)
     else:
         out_pe[0] = kernels.potential_energy(u, g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False)
+    if system.extended:
+        ke_in, pe_lin = kernels.energies_extended(u, w.d0, ext)
+        out_ke[0] += ke_in
+        out_pe[0] += pe_lin
+        if system.body:
+            b = w.body_slot
+            ext[1, kernels.EXT_ACC] = g[b] * v[b]  # power of contact N on the body at t = 0
+            out_b[0] = (u[b], v[b], a[b], 0.0)
     out_ed[0] = 0.0
     if record_v:
         out_v[0] = v[: out_v.shape[1]]
@@ -222,11 +237,12 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     plastic = system.law == kernels.LAW_ELASTOPLASTIC
     out_wp = np.empty(n_samples if plastic else 1)
     out_v = np.empty((n_samples if record_velocities else 1, nb))
+    out_b = np.empty((n_samples if system.body else 0, 4))
     fmax = np.empty(nc)
     peak = np.empty(8)
     acc = np.zeros(8)
     initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc,
-               out_wp)
+               out_wp, out_b=out_b)
 
     samples_per_chunk = 1 if record_positions else max(1, round(chunk_steps * plan.dt / sample_interval))
     out_u = np.empty((n_samples, nb)) if record_positions else None
@@ -243,7 +259,8 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
                                     w.rsum, w.fext, w.dcap, w.dyield, w.dmax, w.dres, w.kres, system.law,
                                     system.general, w.wall_slot, sample_interval, plan.stride, plan.n_sub,
                                     plan.n_eval, plan.c_steps, plan.relax, k, k_stop, rec, out_f, out_ke, out_pe,
-                                    out_ed, out_wp, out_v, record_velocities, fmax, peak, acc)
+                                    out_ed, out_wp, out_v, record_velocities, fmax, peak, acc, w.ext, system.extended,
+                                    w.body_slot, out_b)
         if status != 0:
             used = _dt_used(plan, acc, sample_interval)[0]
             advice = (f"with run.dt = {dt:.3g} s; use a smaller run.dt (or leave it out for the automatic step)"
@@ -266,7 +283,7 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
                   peak_wall_force=fpk, peak_wall_time=t_pk, dt=dt_min, integrator="verlet",
                   n_steps=int(acc[2]), contacts=rec, dt_max=dt_max, adaptive=plan.adaptive, displacement=out_u,
                   plastic_work=out_wp if plastic else None, residual_overlap=w.dres[:nc].copy() if plastic else None,
-                  max_overlap=w.dmax[:nc].copy() if plastic else None)
+                  max_overlap=w.dmax[:nc].copy() if plastic else None, body=out_b if system.body else None)
 
 
 def _dt_used(plan: StepPlan, acc: np.ndarray, sample_interval: float) -> tuple[float, float]:

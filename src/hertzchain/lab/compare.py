@@ -5,7 +5,7 @@ Both records are fitted as in the paper (Sec. III: F_m cos^6((t - T)/tau) on the
 are reported. The simulated record is then shifted onto the measured clock, either so that the
 two fitted times of flight coincide (``align="fit"``, the default) or by the lag that maximises
 their cross-correlation (``align="xcorr"``), interpolated at the measured sample times, and the
-residual measured - simulated gives the rms difference.
+residual simulated - measured (the sign of the reported differences) gives the rms difference.
 """
 
 from __future__ import annotations
@@ -16,7 +16,12 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["Comparison", "compare_traces"]
+__all__ = ["Comparison", "compare_traces", "UNITS"]
+
+#: Units of the numbers of :meth:`Comparison.as_json` (SI), by key (the pulse fits' keys included).
+UNITS = {"peak_force_diff": "N", "time_of_flight_diff": "s", "duration_diff": "s", "rms_residual": "N", "shift": "s",
+         "peak_force": "N", "peak_force_err": "N", "time_of_flight": "s", "time_of_flight_err": "s", "duration": "s",
+         "duration_err": "s"}
 
 
 @dataclass
@@ -42,7 +47,9 @@ class Comparison:
         The paper's pulse parameters of each (``peak_force``, ``time_of_flight``, ``duration``
         and their ``_err``) [N, s].
     time, measured_force, simulated_force, residual : numpy.ndarray
-        The measured samples [s, N], the aligned simulation there [N] and the difference [N].
+        The measured samples [s, N], the aligned simulation there [N] and the residual
+        simulated - measured [N] (the sign of the ``*_diff`` fields: positive where the
+        simulation is above the measurement).
     """
 
     peak_force_diff: float
@@ -65,19 +72,23 @@ class Comparison:
         -------
         dict
             ``peak_force_diff`` [N], ``time_of_flight_diff`` [s], ``duration_diff`` [s],
-            ``rms_residual`` [N], ``shift`` [s], ``align`` and both pulse fits.
+            ``rms_residual`` [N], ``shift`` [s], ``align``, both pulse fits and ``units`` (the
+            unit of every number, by key; the pulse fits' keys too).
         """
         keys = ("peak_force_diff", "time_of_flight_diff", "duration_diff", "rms_residual", "shift", "align",
                 "measured", "simulated")
-        return {k: getattr(self, k) for k in keys}
+        return {**{k: getattr(self, k) for k in keys}, "units": dict(UNITS)}
 
 
 def _pulse(da, what: str) -> dict:
     from ..analysis.pulse import fit_pulse
-    from ..errors import PulseNotFound
+    from ..errors import PulseClipped, PulseNotFound
 
+    valid_max = da.attrs.get("valid_max")
     try:
-        fit = fit_pulse(da["time"].values, da.values)
+        fit = fit_pulse(da["time"].values, da.values, valid_max=None if valid_max is None else float(valid_max))
+    except PulseClipped as exc:
+        raise ConfigError(what, f"cannot be compared: {exc}") from None
     except PulseNotFound as exc:
         raise ConfigError(what, f"no pulse found to compare ({exc})") from None
     return {k: float(getattr(fit, k)) for k in ("peak_force", "peak_force_err", "time_of_flight",
@@ -105,7 +116,8 @@ def compare_traces(measured, simulated, align: str = "fit") -> Comparison:
     Raises
     ------
     ConfigError
-        Unknown ``align`` or a record without a fittable pulse.
+        Unknown ``align``, a record without a fittable pulse, or a clipped one (its pulse reaches
+        the ``valid_max`` attribute, the scope's full scale, or its top is cut flat).
     """
     if align not in ("fit", "xcorr"):
         raise ConfigError("--align", f"must be 'fit' or 'xcorr', got {align!r}")
@@ -125,7 +137,7 @@ def compare_traces(measured, simulated, align: str = "fit") -> Comparison:
         c = correlate(fs - fs.mean(), fm - fm.mean(), mode="full", method="fft")
         shift = float(grid_s[0] + (int(np.argmax(c)) - (grid_m.size - 1)) * dt - grid_m[0])
     sim_on_m = np.interp(tm + shift, ts, ys, left=ys[0], right=ys[-1])
-    residual = ym - sim_on_m
+    residual = sim_on_m - ym  # simulated - measured, like the differences of F_m, T and tau
     return Comparison(
         peak_force_diff=ps["peak_force"] - pm["peak_force"],
         time_of_flight_diff=ps["time_of_flight"] - pm["time_of_flight"],

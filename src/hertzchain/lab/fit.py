@@ -38,6 +38,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import ConfigError
+from .fit_checks import check_records, fit_doubts, parameter_unit
 
 __all__ = ["Trace", "FitResult", "fit_traces", "MEASUREMENT_PARAMETERS"]
 
@@ -50,8 +51,6 @@ FD_STEP = 1e-4
 #: error) and relative step in the parameters' natural units.
 FTOL = 1e-6
 XTOL = 1e-6
-#: Residual variance (in units of the estimated noise variance) above which a fit is flagged.
-MAX_RESIDUAL_VARIANCE = 10.0
 #: Condition number of the column-normalised Jacobian above which a parameter set is refused
 #: as not identifiable (a combination of parameters leaves the traces unchanged).
 MAX_CONDITION = 1e7
@@ -133,8 +132,10 @@ class FitResult:
     bootstrap : numpy.ndarray
         Parameter vectors of the bootstrap refits, shape (refits, parameters); empty without.
     warnings : list of str
-        What makes the result doubtful (not converged; residuals far above the noise, the mark
-        of a local minimum or of physics the model lacks).
+        What makes the result doubtful (:func:`~hertzchain.lab.fit_checks.fit_doubts`: not
+        converged; residuals far above the noise, the mark of a local minimum or of physics the
+        model lacks; a model pulse that leaves a record's window; a fitted pulse hardly above
+        the noise).
     elapsed : float
         Wall time of the fit [s].
     jacobian : str
@@ -165,18 +166,25 @@ class FitResult:
     jacobian: str = "exact"
     n_tangent_runs: int = 0
 
+    def __repr__(self) -> str:
+        pars = ", ".join(f"{n} = {v:.6g} ± {e:.2g}" for n, v, e in zip(self.names, self.values, self.stderr))
+        state = "converged" if self.converged else "NOT converged"
+        return (f"FitResult({pars}; {len(self.traces)} trace(s), {self.n_points} points, s^2 = "
+                f"{self.residual_variance:.3g}, {state}, {self.n_evaluations} engine calls"
+                + (f"; {len(self.warnings)} warning(s)" if self.warnings else "") + ")")
+
     def as_json(self) -> dict:
         """The result as the ``fit.json`` mapping (SI units).
 
         Returns
         -------
         dict
-            ``parameters`` ({name: {value, stderr, start[, bootstrap]}}), ``correlation``,
+            ``parameters`` ({name: {value, stderr, start, unit[, bootstrap]}}), ``correlation``,
             ``cost``, ``residual_variance``, ``n_points``, ``n_parameters``, ``n_evaluations``,
             ``n_members``, ``jacobian`` (``"exact"``, or ``"finite differences (why)"``),
             ``n_tangent_runs``, ``converged``, ``message``, ``warnings``, ``elapsed_s``, ``traces``.
         """
-        pars = {n: {"value": float(v), "stderr": float(e), "start": float(s)}
+        pars = {n: {"value": float(v), "stderr": float(e), "start": float(s), "unit": parameter_unit(n)}
                 for n, v, e, s in zip(self.names, self.values, self.stderr, self.start)}
         if self.bootstrap.size:
             for i, n in enumerate(self.names):
@@ -287,6 +295,9 @@ class _Problem:
         # keeps a noise-free record (a simulation, a finely written file) from getting a weight
         # set by rounding errors.
         self.sigma = np.array([max(estimate_noise(y), 1e-6 * float(np.ptp(y))) for y in self.y])
+        # Before any run: a record of noise alone, or a clipped one, cannot calibrate anything.
+        check_records([self._label(k) for k in range(K)], self.t, self.y, self.sigma,
+                      [tr.data.attrs.get("valid_max") for tr in self.traces])
         # A trace whose time offset is not free reads the simulation on its own clock.
         self.tau_fixed = np.zeros(K)
         self.n_evaluations = 0
@@ -546,9 +557,11 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     Raises
     ------
     ConfigError
-        An unknown or non-numeric free field, a bad start (the starting model gives no pulse
-        where the records are, or a gain of the wrong sign), or a parameter the traces cannot
-        determine (the message names it and what it is confused with).
+        A record without a significant pulse or a clipped one
+        (:func:`~hertzchain.lab.fit_checks.check_records`, naming the trace), an unknown or
+        non-numeric free field, a bad start (the starting model gives no pulse where the records
+        are, or a gain of the wrong sign), or a parameter the traces cannot determine (the
+        message names it and what it is confused with).
     """
     from ..config import apply_overrides, read_toml
 
@@ -616,17 +629,9 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     cov = (vt.T / s**2) @ vt
     err = np.sqrt(np.diag(cov))
     corr = cov / np.outer(err, err)
-    doubts = []
-    if not sol.status > 0:
-        doubts.append(f"not converged after {sol.nfev} evaluations ({sol.message}); raise --max-evaluations "
-                      "or start closer")
-    # With the noise estimated from the records themselves, s^2 is ~1 for a model that fits;
-    # far above it the optimum is a local one (e.g. a pulse aligned on the wrong peak) or the
-    # model misses part of the physics.
-    if s2 > MAX_RESIDUAL_VARIANCE:
-        doubts.append(f"the residuals are {math.sqrt(s2):.3g} times the noise: the model does not describe "
-                      "the records (a local minimum from a poor start, or physics the model lacks); look at "
-                      "fit.png before trusting the values")
+    _, gains, taus, _, _ = prob.split(x)
+    doubts = fit_doubts(sol, s2, [prob._label(k) for k in range(len(prob.traces))], prob.t, prob.sigma, taus, gains,
+                        parts)
     samples = np.empty((0, p))
     if bootstrap:
         samples = _bootstrap(prob, x, parts, bootstrap, seed,

@@ -8,9 +8,10 @@
   CSV: ``Horizontal Units,s`` ... then ``TIME,CH1``);
 - Tektronix TDS CSV (the metadata in the first two columns, time and value in the 4th and 5th);
 - PicoScope CSV/TXT exports (``Time,Channel A`` then ``(ms),(V)``);
-- Tektronix ``.isf`` (the scope's ``WFMPRE`` header and its ``CURVE`` block);
-- LeCroy ``.trc`` (the ``WAVEDESC`` descriptor, parsed with ``lecroyparser``: ``pip install
-  hertzchain[lab]``);
+- Tektronix ``.isf`` (the scope's ``WFMPRE`` header and its ``CURVE`` block: every encoding,
+  sample format, width and byte order; :mod:`hertzchain.lab.formats`);
+- LeCroy ``.trc`` (the ``WAVEDESC`` descriptor: byte and word samples, either byte order;
+  :mod:`hertzchain.lab.formats`);
 - a signal of a hertzchain result (``.nc``), the instrument model's ``measured_*`` included.
 
 The separator and the decimal mark are worked out here; the numbers are then parsed by
@@ -28,13 +29,13 @@ import io
 import math
 import os
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError
 from ..instrument import PCB_200B02_MV_PER_N, PCB_208A11_MV_PER_N
+from .formats import _Table, read_isf, read_trc
 
 __all__ = ["read_trace", "SENSOR_PRESETS", "PLAUSIBLE_SAMPLE_INTERVAL", "PLAUSIBLE_RECORD_LENGTH"]
 
@@ -80,18 +81,6 @@ def _unit_factor(unit: str, where: str) -> tuple[float, str]:
         if q.check(ureg(si).dimensionality):
             return float(q.to(si).magnitude), kind
     raise ConfigError(where, f"unit {unit!r} is neither a time, a force nor a voltage")
-
-
-@dataclass
-class _Table:
-    """What a text or binary reader found, before units and checks."""
-
-    columns: list[str]
-    data: np.ndarray                     # (n_rows, n_columns) floats
-    units: list[str | None]
-    lines: np.ndarray                    # file line number of each row (0 for binary formats)
-    meta: dict = field(default_factory=dict)
-    fmt: str = "text"
 
 
 # ------------------------------------------------------------------------------------------
@@ -249,100 +238,6 @@ def _read_tds_csv(path: Path, numbered: list[tuple[int, str]]) -> _Table:
                   np.asarray(lines), meta, "tektronix-csv")
 
 
-# ------------------------------------------------------------------------------------------
-# binary formats
-# ------------------------------------------------------------------------------------------
-_ISF_KEYS = {"BYT_N": "BYT_NR", "BIT_N": "BIT_NR", "ENC": "ENCDG", "BN_F": "BN_FMT", "BYT_O": "BYT_OR",
-             "NR_P": "NR_PT", "WFI": "WFID", "PT_F": "PT_FMT", "XIN": "XINCR", "PT_O": "PT_OFF",
-             "XZE": "XZERO", "XUN": "XUNIT", "YMU": "YMULT", "YZE": "YZERO", "YOF": "YOFF", "YUN": "YUNIT"}
-
-
-def _read_isf(path: Path, raw: bytes) -> _Table:
-    """Tektronix ``.isf``: a ``:WFMPRE:`` header of ``KEY value;`` pairs, then ``:CURVE #<n><len><data>``.
-
-    Sample i is at ``XZERO + XINCR (i - PT_OFF)`` and reads ``(code - YOFF) YMULT + YZERO``
-    (Tektronix programmer manual, WFMPre). The ``isfreader`` package does not read files of
-    the TDS1000/2000 series (it requires header keys they do not write) and fails on NumPy 2,
-    so the few lines are here.
-    """
-    where = str(path)
-    pos = raw.find(b":CURV")
-    if not raw.startswith(b":WFMP") or pos < 0:
-        raise ConfigError(where, "is not a Tektronix .isf file (no ':WFMPRE:' header or ':CURVE' block)")
-    header_text = raw[:pos].decode("latin-1")
-    hdr: dict[str, str] = {}
-    for item in header_text.replace(":WFMPRE:", "").replace(":WFMP:", "").split(";"):
-        item = item.strip()
-        if " " in item:
-            key, value = item.split(" ", 1)
-            key = key.lstrip(":")
-            hdr[_ISF_KEYS.get(key, key)] = value.strip().strip('"')
-    try:
-        block = raw.index(b"#", pos)
-        ndig = int(raw[block + 1:block + 2])
-        nbytes = int(raw[block + 2:block + 2 + ndig])
-        n = int(hdr["NR_PT"])
-        xincr, xzero = float(hdr["XINCR"]), float(hdr["XZERO"])
-        pt_off = int(float(hdr.get("PT_OFF", 0)))
-        ymult, yzero, yoff = float(hdr["YMULT"]), float(hdr.get("YZERO", 0)), float(hdr.get("YOFF", 0))
-    except (ValueError, KeyError) as exc:
-        raise ConfigError(where, f"broken .isf header ({exc}); needs NR_PT, XINCR, XZERO, YMULT and a "
-                          "'#<n><length>' curve block") from None
-    payload = raw[block + 2 + ndig:block + 2 + ndig + nbytes]
-    if hdr.get("ENCDG", "BIN").upper().startswith("ASC"):
-        codes = np.array([float(c) for c in payload.decode("latin-1").split(",") if c.strip()])
-    else:
-        width = int(hdr.get("BYT_NR", 1))
-        kind = "i" if hdr.get("BN_FMT", "RI").upper() == "RI" else "u"
-        order = ">" if hdr.get("BYT_OR", "MSB").upper() == "MSB" else "<"
-        if len(payload) != nbytes or nbytes != n * width:
-            raise ConfigError(where, f"the curve block holds {len(payload)} bytes, the header announces "
-                              f"{n} points of {width} byte(s) ({n * width} bytes): the file is truncated")
-        codes = np.frombuffer(payload, dtype=f"{order}{kind}{width}").astype(float)
-    if codes.size != n:
-        raise ConfigError(where, f"the curve holds {codes.size} points, the header says NR_PT {n}")
-    t = xzero + xincr * (np.arange(n) - pt_off)
-    y = (codes - yoff) * ymult + yzero
-    source = hdr.get("WFID", "CH1").split(",")[0].strip() or "CH1"
-    return _Table(["TIME", source], np.column_stack([t, y]), [hdr.get("XUNIT"), hdr.get("YUNIT")],
-                  np.zeros(n, int), hdr, "tektronix-isf")
-
-
-def _read_trc(path: Path, raw: bytes) -> _Table:
-    """LeCroy ``.trc``: the WAVEDESC block (LeCroy remote control manual, template LECROY_2_3).
-
-    ``lecroyparser`` decodes the descriptor and the ADC codes (``VERTICAL_GAIN * code -
-    VERTICAL_OFFSET``); the time axis is built here from the template, ``HORIZ_OFFSET +
-    i HORIZ_INTERVAL``, because lecroyparser spreads the points over ``count x interval``
-    (one interval too many), and the units are read from VERTUNIT/HORUNIT (offsets 196, 244).
-    """
-    where = str(path)
-    head = raw[:50]
-    if b"WAVEDESC" not in head:
-        raise ConfigError(where, "is not a LeCroy .trc file (no WAVEDESC descriptor in its first bytes)")
-    try:
-        import lecroyparser
-    except ImportError:
-        raise ConfigError(where, "reading LeCroy .trc files needs lecroyparser: pip install 'hertzchain[lab]'") from None
-    try:
-        scope = lecroyparser.ScopeData(data=raw)
-    except Exception as exc:  # the library raises bare errors on a broken descriptor
-        raise ConfigError(where, f"broken LeCroy .trc file ({type(exc).__name__}: {exc})") from None
-    n = int(scope.waveArrayCount)
-    y = np.asarray(scope.y, dtype=float)
-    if y.size != n or n < 1:
-        raise ConfigError(where, f"the wave array holds {y.size} points, WAVE_ARRAY_COUNT says {n}: truncated file")
-    t = float(scope.horizOffset) + float(scope.horizInterval) * np.arange(n)
-    base = scope.posWAVEDESC
-
-    def unit(offset: int) -> str | None:
-        text = raw[base + offset:base + offset + 48].split(b"\x00")[0].decode("ascii", "replace").strip()
-        return text or None
-
-    return _Table(["TIME", str(scope.waveSource)], np.column_stack([t, y]), [unit(244), unit(196)],
-                  np.zeros(n, int), {"instrument": scope.instrumentName}, "lecroy-trc")
-
-
 def _read_result(path: Path, column) -> _Table:
     """A signal of a hertzchain result; ``column`` names it (``sensor_force:12`` for one sensor)."""
     import xarray as xr
@@ -376,8 +271,9 @@ def _read_result(path: Path, column) -> _Table:
     if np.issubdtype(t.dtype, np.timedelta64):
         t = t / np.timedelta64(1, "s")
     label = name + (f":{index}" if others else "")
+    valid_max = da.attrs.get("valid_max")  # the instrument model's full scale (measured_* signals)
     return _Table(["time", label], np.column_stack([np.asarray(t, float), da.values.astype(float)]), ["s", "N"],
-                  np.zeros(t.size, int), {}, "hertzchain")
+                  np.zeros(t.size, int), {}, "hertzchain", None if valid_max is None else float(valid_max))
 
 
 # ------------------------------------------------------------------------------------------
@@ -505,7 +401,9 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
         The force [N] along ``time`` [s] (attribute ``units``), named after the column; attrs
         ``source``, ``format`` (``text``, ``tektronix-csv``, ``tektronix-isf``, ``lecroy-trc``,
         ``hertzchain``), ``column``, ``raw_unit``, ``time_unit``, ``sensitivity_mV_per_N``
-        (NaN when none was applied) and ``baseline`` [N] (the level removed).
+        (NaN when none was applied), ``baseline`` [N] (the level removed) and, for the integer
+        samples of ``.isf`` and ``.trc`` files, ``valid_max`` [N]: the value of the format's
+        largest code, the scope's full scale (a pulse that reaches it is clipped).
 
     Raises
     ------
@@ -544,9 +442,9 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
         if not raw.strip():
             raise ConfigError(where, "is empty")
         if raw.startswith(b":WFMP") or suffix == ".isf":
-            table = _read_isf(path, raw)
-        elif suffix == ".trc" or b"WAVEDESC" in raw[:50]:
-            table = _read_trc(path, raw)
+            table = read_isf(path, raw)
+        elif suffix == ".trc" or b"WAVEDESC" in raw[:64]:
+            table = read_trc(path, raw)
         else:
             table = _read_text(path, raw)
     if time_column is not None:
@@ -593,8 +491,10 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
         raise ConfigError(where, f"holds {t.size} samples; a pulse record needs at least 10")
     bad = np.flatnonzero(~np.isfinite(y))
     if bad.size:
-        raise ConfigError(where, f"line {table.lines[bad[0]]}: the signal is {y_raw[bad[0]]} (the scope was out "
-                          "of range, or a gap): record again with a wider vertical range, or cut the file")
+        i = int(bad[0])
+        at = f"line {table.lines[i]}" if table.lines[i] else f"sample {i}"
+        raise ConfigError(where, f"{at}: the signal is {y_raw[i]} (the scope was out of range, or a gap, or a scale "
+                          "beyond float range): record again with a wider vertical range, or cut the file")
     steps = np.diff(t)
     back = np.flatnonzero(~(steps > 0))
     if back.size:
@@ -620,10 +520,13 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
                               f"record of [{lo_span:g}, {hi_span:g}] s{hint}")
     level = _baseline(t, y) if baseline else 0.0
     name = table.columns[ci]
-    return xr.DataArray(
-        y - level, dims="time", name=name,
-        coords={"time": ("time", t, {"units": "s", "long_name": "time"})},
-        attrs={"units": "N", "long_name": f"force ({name})", "source": str(path), "format": table.fmt,
-               "column": name, "raw_unit": y_unit, "time_unit": t_unit,
-               "sensitivity_mV_per_N": float("nan") if sensitivity is None or y_kind != "voltage" else float(sensitivity),
-               "baseline": level})
+    attrs = {"units": "N", "long_name": f"force ({name})", "source": str(path), "format": table.fmt,
+             "column": name, "raw_unit": y_unit, "time_unit": t_unit,
+             "sensitivity_mV_per_N": float("nan") if sensitivity is None or y_kind != "voltage" else float(sensitivity),
+             "baseline": level}
+    if table.valid_max is not None and ci == 1:
+        # The scope's full scale in the record's units (CF convention valid_max): a pulse reaching
+        # it is clipped (hertzchain.analysis.saturation).
+        attrs["valid_max"] = table.valid_max * y_factor - level
+    return xr.DataArray(y - level, dims="time", name=name,
+                        coords={"time": ("time", t, {"units": "s", "long_name": "time"})}, attrs=attrs)

@@ -72,11 +72,12 @@ def plot_comparison(comp, out: str | Path, measured_label: str = "measured",
     ax.plot(t_ms, comp.simulated_force, lw=1.1, color="C3", label=f"{simulated_label} (shifted {comp.shift * 1e3:+.4g} ms)")
     ax.set_ylabel("F [N]")
     ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(f"dF_m = {comp.peak_force_diff:+.3g} N, dT = {comp.time_of_flight_diff * 1e6:+.3g} us, "
-                 f"dtau = {comp.duration_diff * 1e6:+.3g} us, rms = {comp.rms_residual:.3g} N", fontsize=9)
+    ax.set_title(f"simulated - measured: dF_m = {comp.peak_force_diff:+.3g} N, "
+                 f"dT = {comp.time_of_flight_diff * 1e6:+.3g} us, dtau = {comp.duration_diff * 1e6:+.3g} us, "
+                 f"rms = {comp.rms_residual:.3g} N", fontsize=9)
     axr.plot(t_ms, comp.residual, lw=0.8, color="C0")
     axr.axhline(0, color="0.5", lw=0.6)
-    axr.set_ylabel("residual [N]")
+    axr.set_ylabel("simulated -\nmeasured [N]")
     axr.set_xlabel("t [ms] (measured clock)")
     for a in (ax, axr):
         a.grid(alpha=0.3)
@@ -157,7 +158,7 @@ def fit_html(result, png: bytes) -> str:
         b = boot[n]["bootstrap"]
         return f"<td>{b['stderr']:.2g}</td><td>[{b['interval_68'][0]:.6g}, {b['interval_68'][1]:.6g}]</td>"
 
-    rows = "".join(f"<tr><td>{e(n)}</td><td>{v:.6g}</td><td>{s:.2g}</td><td>{abs(s / v) * 100 if v else float('nan'):.2g} %</td>"
+    rows = "".join(f"<tr><td>{e(n)}</td><td>{e(boot[n]['unit'])}</td><td>{v:.6g}</td><td>{s:.2g}</td><td>{abs(s / v) * 100 if v else float('nan'):.2g} %</td>"
                    f"<td>{s0:.6g}</td>{boot_cells(n)}</tr>"
                    for n, v, s, s0 in zip(result.names, result.values, result.stderr, result.start))
     boot_head = (f"<th>bootstrap stderr ({result.bootstrap.shape[0]} refits)</th><th>bootstrap 68 % interval</th>"
@@ -180,7 +181,7 @@ cost (half the sum of squared noise-weighted residuals) {result.cost:.6g}; {resu
 residuals are the noise); {result.n_evaluations} evaluations ({result.n_members} chains in batched engine calls,
 {result.n_tangent_runs} tangent runs; Jacobian: {e(result.jacobian)}) in {result.elapsed:.2f} s.</p>
 <h2>Parameters (SI units; standard errors from s<sup>2</sup> (J<sup>T</sup>J)<sup>-1</sup>)</h2>
-<table><tr><th>parameter</th><th>value</th><th>stderr</th><th>rel.</th><th>start</th>{boot_head}</tr>{rows}</table>
+<table><tr><th>parameter</th><th>unit</th><th>value</th><th>stderr</th><th>rel.</th><th>start</th>{boot_head}</tr>{rows}</table>
 <h2>Correlations</h2><table><tr><th></th>{head}</tr>{corr}</table>
 <h2>Traces</h2><table><tr><th>trace</th><th>signal</th><th>samples</th><th>noise [N]</th><th>rms residual [N]</th></tr>{traces}</table>
 <h2>Traces, model and residuals</h2><img alt="fit" style="max-width:100%" src="data:image/png;base64,{img}">

@@ -47,12 +47,16 @@ def start_laws_figure(out_dir: str | Path) -> Callable[..., dict[str, Path]] | N
         reports or skips it), one usable core, or no ``fork`` on this platform (the caller
         draws the figure itself).
     """
+    from .inputs import check_laws
+
     try:
         summary = json.loads((Path(out_dir) / "summary.json").read_bytes().decode("utf-8"))
         laws = summary["fidelity"]["laws"]
         eps = summary["settings"].get("eps_target") or PAPER["eps"]
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         return None
+    if check_laws(laws) is not None or not (isinstance(eps, (int, float)) and 0 < eps <= 1):
+        return None  # damaged: the redraw names what is wrong
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux

@@ -41,7 +41,7 @@ __all__ = ["LAW_VARIANTS", "TRACKS", "TAIL_WINDOW_S", "run_law_variants", "law_n
            "count_variant_runs"]
 
 #: Contact-law variants of the chain studies (the run's own law is one of them or is added).
-LAW_VARIANTS = ("elastic", "viscoelastic", "viscoelastic_scaled")
+LAW_VARIANTS = ("elastic", "viscoelastic", "viscoelastic_scaled", "dashpot_scaled")
 
 #: Lateral-freedom variants of Fig. 3a-b. The paper does not describe its track; a round groove
 #: of 15 mm radius (just wider than the 26 mm beads) gives the 16 mm bead a gravity restoring
@@ -151,8 +151,11 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
     variant (1 elastic, else the calibrated target); Q_fit, eps measured back, the tail's share
     Q_T/Q_F, the spread of Q_F + Q_T, the force left at the sensor in bead 12 after the pulse
     (a reflected wave would show there); ``figures`` holds the spectral centroids, the time-of-flight
-    gain and the Fig. 4 collapse of :func:`hertzchain.paper.figures.figure_summary`.
+    gain and the Fig. 4 collapse of :func:`hertzchain.paper.figures.figure_summary`;
+    ``striker_restitution`` the two-body restitution of the striker hitting a free first bead at
+    the run's speed under the variant's calibrated law (:func:`hertzchain.restitution`).
     """
+    from ..collision import restitution
     from .figures import figure_summary
 
     out = {}
@@ -162,12 +165,21 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
         row = {name: _chain_numbers(study, eps) for name, study in studies.items()}
         fs = figure_summary(studies["chain1"], studies["chain2"], None, None, s)
         row["figures"] = {"spectra": fs["spectra"], "tof_gain_s": fs["tof_gain_s"], "collapse_rms": fs["collapse_rms"]}
-        row["law"] = {"law": law, **({"A": studies["chain1"].law.A} if hasattr(studies["chain1"].law, "A") else {})}
+        the_law = studies["chain1"].law
+        row["law"] = {"law": law, **{k: getattr(the_law, k) for k in ("A", "gamma") if hasattr(the_law, k)}}
+        chain = studies["chain1"].chain
+        row["striker_restitution"] = restitution(s.striker_velocity, the_law, s.striker_diameter, s.material,
+                                                 float(chain.diameters[0]), chain.materials[0])
         out[law] = row
     return out
 
 
-def run_lateral_misalignment(settings: protocol.Settings, beads=(22, 28), fractions=(0.05, 0.10),
+#: Offsets (fractions of the bead's diameter) of the lateral-freedom variant of Fig. 3a-b.
+LATERAL_FRACTIONS = (0.05, 0.10)
+
+
+def run_lateral_misalignment(settings: protocol.Settings, beads=protocol.MISALIGNED_BEADS,
+                             fractions=LATERAL_FRACTIONS,
                              progress: Callable[[str], None] | None = None) -> tuple[dict, dict]:
     """Fig. 3a-b with lateral freedom: chain 2, bead ``b`` offset by ``fraction`` phi_b, on each track of :data:`TRACKS`.
 
@@ -284,7 +296,7 @@ def fig3_lateral(rigid: dict, lateral: dict) -> Figure:
     matplotlib.figure.Figure
         One row per bead, one column per variant.
     """
-    from ..viz.style import STYLE, paper_figure
+    from ..viz.style import STYLE, panel_tag, paper_figure
     from .figures import PULSE_WINDOW_MS
 
     import matplotlib
@@ -311,6 +323,7 @@ def fig3_lateral(rigid: dict, lateral: dict) -> Figure:
                 ax.set_xlim(*PULSE_WINDOW_MS)
                 ax.set_title(f"bead {b}: {titles.get(var, var)}", pad=3)
                 ax.set_xlabel("t - T [ms]")
+                panel_tag(ax, f"({chr(ord('a') + i * len(variants) + j)})")  # before the pulse: empty
             axes[i, 0].set_ylabel("wall force [N]")
             axes[i, 0].legend(loc="upper right")
     return fig

@@ -295,8 +295,8 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
     (reference) and with the dq/q = +1 and -1 single-bead substitutions. In each panel the time
     axis is t - T with T the time of flight of the panel's reference (aligned / unmodified)
     chain, so arrival-time shifts stay visible. The offsets change F by less than 0.1 % of F_m,
-    so below (a) and (b) the difference from the aligned chain, F - F(aligned) [mN], is drawn on
-    its own scale (a', b'), titled with the changes of the cos^6 fits (F_m, tau, T).
+    so below each panel the difference from its reference chain, F - F(reference) [mN], is drawn
+    on its own scale (a', b', c'), its key giving the changes of the cos^6 fits (F_m, tau, T).
 
     Parameters
     ----------
@@ -307,13 +307,14 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
     settings:
         The run's settings (unused beyond the title; kept for a uniform signature).
     """
-    fig = paper_figure(3.4, 8.6)
-    # (a), (b): the forces, and below each the difference from the aligned chain on its own
-    # scale (the effect is < 0.1 % of F_m: the curves above coincide); (c) differs visibly.
-    grid = fig.add_gridspec(5, 1, height_ratios=[2.0, 1.15, 2.0, 1.15, 2.3])
-    axes = [fig.add_subplot(grid[i]) for i in range(5)]
+    fig = paper_figure(3.4, 9.4)
+    # Each panel: the forces, and below them the difference from the reference chain on its own
+    # scale ((a), (b): the effect is < 0.1 % of F_m and the curves above coincide); the changes
+    # of the cos^6 fits are the difference panel's key, so no text stands between the panels.
+    grid = fig.add_gridspec(6, 1, height_ratios=[2.0, 1.15, 2.0, 1.15, 2.0, 1.15])
+    axes = [fig.add_subplot(grid[i]) for i in range(6)]
     force_axes = [axes[0], axes[2], axes[4]]
-    diff_axes = [axes[1], axes[3], None]
+    diff_axes = [axes[1], axes[3], axes[5]]
     beads = sorted({b for b, _ in misalignment})
     colours = [CK, C1, C2, C3, "#9467bd", "#8c564b"]
     styles = ["-", "--", "-.", ":", "-", "--"]
@@ -337,7 +338,7 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
             b = int(changed[0]) + 1
             lab = f"{lab} ($\\phi_{{{b}}}$ = {ds.diameter.values[b - 1] * 1e3:g} mm)"
         labelled.append((lab, ds))
-        short.append(lab.split(" (")[0].replace("dq/q = ", ""))
+        short.append(lab.split(" (")[0])
     panels.append((f"chain 1 cut after bead {ref_phi.size}: one bead substituted", labelled, short))
 
     for k, (ax, dax, (title, entries, short)) in enumerate(zip(force_axes, diff_axes, panels)):
@@ -346,39 +347,35 @@ def fig3(misalignment: dict, substitutions: dict, settings) -> Figure:
         t_ref = ref_fit.time_of_flight
         shown = lambda t: (t - t_ref >= PULSE_WINDOW_MS[0] * 1e-3) & (t - t_ref <= PULSE_WINDOW_MS[1] * 1e-3)  # noqa: E731
         fmax = 0.0
-        deltas = []
         for j, (lab, ds) in enumerate(entries):
             t, f = ds.time.values, ds.wall_force.values
             sel = shown(t)
-            if j > 0:  # the changes are small: quote them (cos^6 fit of each pulse)
+            if j > 0:  # quote the changes of the cos^6 fit of each pulse in the difference panel's key
                 fit = analysis.fit_pulse(t, f)
-                deltas.append(f"{short[j]}: $\\Delta F_m$ {100 * (fit.peak_force / ref_fit.peak_force - 1):+.2f} %, "
-                              f"$\\Delta\\tau$ {100 * (fit.duration / ref_fit.duration - 1):+.2f} %, "
-                              f"$\\Delta T$ {1e6 * (fit.time_of_flight - t_ref):+.1f} $\\mu$s")
-                if dax is not None:
-                    diff = (f - np.interp(t, ref_ds.time.values, ref_ds.wall_force.values)) * 1e3
-                    dax.plot((t[sel] - t_ref) * 1e3, diff[sel], color=colours[j % 6], ls=styles[j % 6])
+                delta = (f"$\\Delta F_m$ {100 * (fit.peak_force / ref_fit.peak_force - 1):+.2f} %, "
+                         f"$\\Delta\\tau$ {100 * (fit.duration / ref_fit.duration - 1):+.2f} %, "
+                         f"$\\Delta T$ {1e6 * (fit.time_of_flight - t_ref):+.1f} $\\mu$s")
+                diff = (f - np.interp(t, ref_ds.time.values, ref_ds.wall_force.values)) * 1e3
+                dax.plot((t[sel] - t_ref) * 1e3, diff[sel], color=colours[j % 6], ls=styles[j % 6],
+                         label=f"{short[j]}: {delta}")
             ax.plot((t[sel] - t_ref) * 1e3, f[sel], color=colours[j % 6], ls=styles[j % 6], label=lab)
             fmax = max(fmax, float(np.max(f[sel])))
         ax.set_xlim(*PULSE_WINDOW_MS)
-        ax.set_ylim(-0.04 * fmax, 1.7 * fmax)
+        ax.set_ylim(-0.04 * fmax, 1.12 * fmax)  # the data's range: the key sits above the tail
         ax.set_ylabel("F [N]")
-        table = f"vs. {short[0]}:\n" + "\n".join(deltas)
-        ax.set_title(title + ("\n" + table if dax is None else ""), pad=3, fontsize=7.5)
-        ax.legend(loc="upper right")
+        ax.set_title(title, pad=3, fontsize=7.5)
+        ax.legend(loc="upper right", fontsize=6.5)
         panel_tag(ax, f"({'abc'[k]})")
-        if dax is None:
-            ax.set_xlabel("t - T [ms]")
-            continue
         ax.tick_params(labelbottom=False)
         dax.sharex(ax)
         dax.axhline(0.0, color=CK, lw=0.6)
-        dax.set_ylabel("F - F(aligned)\n[mN]")
+        dax.set_ylabel(f"F - F({short[0]})\n[mN]")
         dax.set_xlabel("t - T [ms]")
-        dax.set_title(table, fontsize=7, pad=2, loc="left")
         lo, hi = dax.get_ylim()
-        dax.set_ylim(lo, hi + 0.25 * (hi - lo))  # room for the panel tag
-        panel_tag(dax, f"({'ab'[k]}')")
+        dax.set_ylim(lo, hi + 1.0 * (hi - lo))  # the upper half holds the key, the curves the lower
+        dax.legend(loc="upper right", fontsize=5.5, handlelength=1.8, borderaxespad=0.2, borderpad=0.2,
+                   labelspacing=0.2)
+        panel_tag(dax, f"({'abc'[k]}')")
     return fig
 
 
@@ -584,14 +581,17 @@ def fig6(study1, study2, settings) -> Figure:
         ax.plot(n_s, T_s * 1e3, "o", color=CK, mfc="none", label="embedded sensors")
         ax.plot(n_w, T_w * 1e3, "o", color=CK, label=f"wall, shifted {shift_us:+.0f} $\\mu$s\n"
                 f"(to meet the sensors at n = {n0})")
-        ax.plot(beads0, T_q0 * 1e3, color=C2, ls="--", label="T($\\epsilon$; q = 0)")
+        # from bead 1: the fit's value at "bead 0" (the striker) is an extrapolation, slightly negative
+        ax.plot(beads0[1:], T_q0[1:] * 1e3, color=C2, ls="--", label="T($\\epsilon$; q = 0)")
         ax.plot(beads0[n0:], T_q[n0:] * 1e3, color=C1, label=f"ballistic, q = {study.q * 100:.2f} %")
         ax.set_ylabel("T [ms]")
         lo, hi = ax.get_ylim()
-        ax.set_ylim(lo - 0.2 * (hi - lo), hi)  # room below the data for the key
-        ax.legend(loc="lower right")  # the empty corner: late beads, short times
+        # A time of flight is never negative: the axis starts at the impact; the key sits in the
+        # empty corner (early beads, long times), above the data.
+        ax.set_ylim(0.0, 1.4 * hi)
+        ax.legend(loc="upper left")
         ax.set_title(f"chain {label} ($q_{label}$)")
-        panel_tag(ax, f"(a{label})", "upper left")
+        panel_tag(ax, f"(a{label})", "lower right")
 
         ax = axes[1, col]
         ax.axhline(0, color=C2, ls="--", lw=0.8)

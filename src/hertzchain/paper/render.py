@@ -1,5 +1,6 @@
 """The reproduction report's blocks as Markdown (``report.md``) and as a standalone HTML page
-(``report.html``: figures embedded as base64 PNG, CSS inline, MathJax from its CDN).
+(``report.html``: figures embedded as base64 PNG, CSS inline, formulas drawn as inline SVG when the
+page is written, so it needs no network and no script).
 
 A block is a tuple: ``("h1" | "h2" | "h3", text)``, ``("p", text)``, ``("table", header, rows[,
 "verbatim"])`` or ``("figure", name, title, png, what, agree)``; the ASCII formulas of its text
@@ -9,7 +10,9 @@ are turned into TeX (:func:`_texify`).
 from __future__ import annotations
 
 import base64
+import functools
 import html
+import io
 import os
 import re
 from pathlib import Path
@@ -17,7 +20,7 @@ from pathlib import Path
 
 # ------------------------------------------------------------------------------------------
 # maths: the notes are written with ASCII formulas (F_m, tau, Q^(n-n')); both documents show
-# them as maths ($...$ for Markdown renderers, MathJax in the HTML page)
+# them as maths ($...$ for Markdown renderers, SVG drawn by Matplotlib's mathtext in the HTML page)
 # ------------------------------------------------------------------------------------------
 _GREEK = {"tau": r"\tau", "eps": r"\varepsilon", "phi": r"\phi", "delta": r"\delta", "sigma": r"\sigma",
           "kappa": r"\kappa", "omega": r"\omega"}
@@ -149,15 +152,30 @@ def _display_width(png: Path) -> int | None:
     return round(int.from_bytes(head[16:20], "big") / _FIGURE_DPI * _PX_PER_INCH)
 
 
-#: MathJax typesets the $...$ formulas of the page (shown as TeX source when offline).
-_MATHJAX = ("<script>window.MathJax = {tex: {inlineMath: [['\\\\(', '\\\\)']]}};</script>"
-            '<script id="MathJax-script" async src="https://cdn.jsdelivr.net/npm/mathjax@3/es5/tex-chtml.js">'
-            "</script>")
+@functools.lru_cache(maxsize=None)
+def _svg_formula(tex: str) -> str:
+    """One formula as inline SVG (Matplotlib's mathtext, glyphs as paths: no font, script or
+    network needed to show it), lowered to sit on the text's baseline; the TeX is kept in
+    ``data-tex`` and as the accessible label."""
+    from matplotlib import rc_context
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.mathtext import math_to_image
+
+    buf = io.BytesIO()
+    with rc_context({"svg.fonttype": "path", "mathtext.fontset": "dejavusans", "svg.hashsalt": "hertzchain"}):
+        depth = math_to_image(f"${tex}$", buf, prop=FontProperties(size=11), format="svg")
+    svg = buf.getvalue().decode("utf-8")
+    svg = svg[svg.index("<svg"):]
+    svg = re.sub(r"<metadata>.*?</metadata>", "", svg, flags=re.S)
+    label = html.escape(tex, quote=True)
+    svg = svg.replace("<svg ", f'<svg role="img" aria-label="{label}" style="vertical-align: -{depth:.2f}pt" ', 1)
+    return f'<span class="math" data-tex="{label}">{svg.strip()}</span>'
 
 
 def _html_math(text: str) -> str:
-    """Escape a note for HTML and mark its formulas \\(...\\) for MathJax."""
-    return re.sub(r"\$([^$]+)\$", lambda mm: f"\\({mm.group(1)}\\)", html.escape(_texify(str(text))))
+    """Escape a note for HTML, its $...$ formulas drawn as inline SVG (:func:`_svg_formula`)."""
+    parts = re.split(r"\$([^$]+)\$", _texify(str(text)))
+    return "".join(_svg_formula(p) if i % 2 else html.escape(p) for i, p in enumerate(parts))
 
 
 def _to_html(blocks: list[tuple]) -> str:
@@ -193,5 +211,5 @@ def _to_html(blocks: list[tuple]) -> str:
             body.append(f"<figcaption><b>Shows:</b> {m(what)}<br><b>Against the paper:</b> {m(agree)}"
                         "</figcaption></figure>")
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-            f"<title>{e(title)}</title><style>{_CSS}</style>{_MATHJAX}</head><body>\n"
+            f"<title>{e(title)}</title><style>{_CSS}</style></head><body>\n"
             + "\n".join(body) + "\n</body></html>\n")

@@ -17,6 +17,7 @@ from .. import __version__, theory
 from ..result import save as _save
 from . import fidelity, protocol
 from .claims import build_claims
+from .inputs import SUB_TAGS, check_laws, check_settings, expected_traces
 from .protocol import ChainStudy, Settings
 from .values import PAPER
 
@@ -132,7 +133,7 @@ def _law_desc(law) -> dict:
     out = {"law": law.name}
     if law.name in ("viscoelastic", "viscoelastic_scaled"):
         out["A"] = law.A
-    elif law.name == "dashpot":
+    elif law.name in ("dashpot", "dashpot_scaled"):
         out["gamma"] = law.gamma
     return out
 
@@ -171,7 +172,6 @@ def build_summary(studies: dict[str, ChainStudy], ratio: dict, speed: dict, sett
     }
 
 
-_SUB_TAGS = {"reference": "reference", "dq/q = +1": "dq_plus", "dq/q = -1": "dq_minus"}
 
 
 def _save_data(out: Path, studies, mis, subs, ratio) -> None:
@@ -187,7 +187,7 @@ def _save_data(out: Path, studies, mis, subs, ratio) -> None:
     for (bead, frac), ds in mis.items():
         save(ds, data / f"fig3_chain2_offset_bead{bead}_e{frac:.2f}.nc")
     for label, ds in subs.items():
-        save(ds, data / f"fig3c_chain1_24_{_SUB_TAGS[label]}.nc")
+        save(ds, data / f"fig3c_chain1_24_{SUB_TAGS[label]}.nc")
     save(ratio["dataset"], data / "uniform16_elastic_wall_chain_ratio.nc")
 
 
@@ -278,7 +278,7 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
 
     chains = {name: sorted(data.glob(f"{name}_truncated_*.nc")) for name in ("chain1", "chain2")}
     mis_files = sorted(data.glob("fig3_chain2_offset_bead*_e*.nc"))
-    sub_files = {label: data / f"fig3c_chain1_24_{tag}.nc" for label, tag in _SUB_TAGS.items()}
+    sub_files = {label: data / f"fig3c_chain1_24_{tag}.nc" for label, tag in SUB_TAGS.items()}
     ratio_file = data / "uniform16_elastic_wall_chain_ratio.nc"
     # A truncated or foreign file is named before anything is read (and before the Fig. 3
     # traces, read first, set a drawing process going); a missing one when its turn comes.
@@ -290,6 +290,13 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
     for name, files in chains.items():
         if not files:
             raise ConfigError(str(data), f"holds no {name} traces")
+    # Every trace the reproduction writes must be there (a missing truncation or offset would
+    # silently leave a point out of a figure, or break the fit of the series).
+    missing = [name for name in expected_traces(protocol.N0) if not (data / name).is_file()]
+    if missing:
+        raise ConfigError(str(data / missing[0]), f"is missing ({len(missing)} trace(s) missing: "
+                          f"{', '.join(missing[:4])}{', ...' if len(missing) > 4 else ''}); rerun 'hertzchain "
+                          "reproduce' without --from-data")
     mis = {}
     for p in mis_files:
         m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
@@ -453,13 +460,14 @@ def _redraw(out: Path, tick: Callable[[str], None], early: list) -> dict:
         summary = json.loads((out / "summary.json").read_bytes().decode("utf-8"))
     except (OSError, ValueError) as exc:
         raise ConfigError(str(out / "summary.json"), f"cannot read it ({exc})") from None
-    try:
-        known = {k: v for k, v in summary["settings"].items() if k in Settings.__dataclass_fields__}
-        settings = Settings(**known, eps=summary["settings"].get("eps_target") or PAPER["eps"],
-                            elastic=summary["settings"]["law"] == "elastic")
-    except (KeyError, TypeError, AttributeError, ValueError) as exc:
-        raise ConfigError(str(out / "summary.json"), f"is not the summary of a reproduction: its 'settings' "
-                          f"are missing or damaged ({type(exc).__name__}: {exc})") from None
+    where = str(out / "summary.json")
+    raw_settings = check_settings(summary, where)  # every field of the right type, or the key named
+    known = {k: v for k, v in raw_settings.items() if k in Settings.__dataclass_fields__}
+    settings = Settings(**known, eps=raw_settings.get("eps_target") or PAPER["eps"],
+                        elastic=raw_settings["law"] == "elastic")
+    laws = (summary.get("fidelity") or {}).get("laws") if isinstance(summary.get("fidelity"), dict) else None
+    if laws is not None and check_laws(laws):
+        raise ConfigError(where, f"is damaged: {check_laws(laws)}; rerun 'hertzchain reproduce' without --from-data")
     lateral = _lateral_files(out)
     if not early:  # not started early (one core, no fork): drawn here, or not at all without its numbers
         early += [_draw_early(out, makers) for makers in [_fidelity_makers(summary, {}, {})] if makers]
@@ -484,7 +492,13 @@ def _redraw(out: Path, tick: Callable[[str], None], early: list) -> dict:
         if "fig3" in drawn:
             tick("drew fig3")
     paths = {name: paths[name] for name in [*FIGURE_NAMES, *(n for n in paths if n not in FIGURE_NAMES)]}
-    write_report(out, _round(summary), paths, summary["settings"])
+    try:
+        write_report(out, _round(summary), paths, summary["settings"])
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        # The report reads the summary's numbers (comparison table, notes): a hand-edited or foreign
+        # summary.json is named, not reported as a bug.
+        raise ConfigError(where, f"is damaged: the report cannot read it ({type(exc).__name__}: {exc}); rerun "
+                          "'hertzchain reproduce' without --from-data") from None
     tick("wrote the report")
     return summary
 

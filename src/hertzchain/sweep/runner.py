@@ -16,8 +16,8 @@ import numpy as np
 
 from ..errors import ConfigError, SimulationDiverged
 from .schema import SweepConfig, _member_ensemble, load_sweep, parse_sweep
-from .storage import (_CHUNK_NAME, _METRIC_UNITS, METRIC_COLUMNS, _chunk_is_done, _folder_lock, _metrics_table,
-                      _prepare_out_dir, _write_chunk)
+from .storage import (_CHUNK_NAME, _METRIC_UNITS, METRIC_COLUMNS, PLASTIC_METRICS, _chunk_is_done, _folder_lock,
+                      _metrics_table, _prepare_out_dir, _write_chunk)
 
 # ------------------------------------------------------------------------------ computing chunks
 @dataclass
@@ -83,6 +83,13 @@ def compute_chunk(task: _ChunkTask):
             values[k][i] = m[k]
     for k, (units, long_name) in _METRIC_UNITS.items():
         ds[k] = xr.Variable(("member",), values[k], attrs={"units": units, "long_name": long_name})
+    if "plastic_work" in ds:  # an elastoplastic member: its plastic work and largest permanent overlap
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows of the other members
+            plastic = {"plastic_work": ds["plastic_work"].values[:, -1],
+                       "residual_overlap_max": np.nanmax(ds["residual_overlap"].values, axis=1)}
+        for k, (var, units, long_name) in PLASTIC_METRICS.items():
+            ds[var] = xr.Variable(("member",), plastic[k], attrs={"units": units, "long_name": long_name})
     ds["fit_error"] = xr.Variable(("member",), np.array(errors, dtype=object),
                                   attrs={"long_name": "why the wall pulse has no metrics (empty when fitted)"})
     ds["parameters"] = xr.Variable(("member",), np.array([json.dumps(p) for p in task.params], dtype=object),
@@ -101,6 +108,8 @@ def _check_members_energy(ds, task: _ChunkTask) -> None:
 
     time = ds["time"].values
     ke, pe, ed = (ds[v].values for v in ("kinetic_energy", "potential_energy", "dissipated_energy"))
+    if "plastic_work" in ds:  # every loss counts: viscous and plastic (NaN rows: other laws)
+        ed = ed + np.nan_to_num(ds["plastic_work"].values)
     for i, model in enumerate(task.models):
         dt = task.dt[i] if isinstance(task.dt, list) else task.dt
         # the adaptive step's largest step is not stored per member: the minimum allowance then
@@ -214,8 +223,10 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         parameter (named by its path), ``dt`` [s], ``peak_wall_force`` [N] and ``peak_wall_time``
         [s] (integrator), ``elastic_limit_exceeded``, the wall-pulse metrics ``F_m`` [N], ``T``
         [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s] (NaN with ``fit_error`` saying why when the
-        member has no wall or no fitted pulse). Also written to ``metrics.csv`` (and
-        ``metrics.parquet`` when pyarrow is installed).
+        member has no wall or no fitted pulse); with protected bodies also ``peak_body_force`` [N],
+        ``peak_body_acceleration`` [m/s^2] and ``peak_body_energy`` [J]; with an elastoplastic
+        member also ``plastic_work`` [J] and ``residual_overlap_max`` [m] (NaN for members of other
+        laws). Also written to ``metrics.csv`` (and ``metrics.parquet`` when pyarrow is installed).
 
     Raises
     ------

@@ -28,6 +28,10 @@ _METRIC_UNITS = {"F_m": ("N", "peak wall force F_m of the cos^6 fit"),
                  "tau": ("s", "duration tau of the wall pulse"),
                  "Q_F": ("N s", "front momentum Q_F (integral of F up to T + tau)"),
                  "Q_T": ("N s", "tail momentum Q_T (integral of F after T + tau)")}
+#: Elastic-plastic metrics of each member (elastoplastic law): table column -> (chunk variable,
+#: units, meaning). In a chunk only when one of its members has the law (NaN for the others).
+PLASTIC_METRICS = {"plastic_work": ("plastic_work_total", "J", "plastic work done in all contacts by the end"),
+                   "residual_overlap_max": ("residual_overlap_max", "m", "largest residual (permanent) overlap")}
 _CHUNK_NAME = "chunk_{:05d}.nc"
 
 
@@ -172,7 +176,9 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
     import pandas as pd
 
     cols = ["dt", "peak_wall_force", "peak_wall_time", "elastic_limit_exceeded", *METRIC_COLUMNS, "fit_error"]
-    rows: dict[str, list] = {"member": [], "chunk": [], **{c: [] for c in cols}}
+    # a protected body's peaks (wall.type = "body"), where some chunk has them; NaN for other members
+    body = ["peak_body_force", "peak_body_acceleration", "peak_body_energy"]
+    rows: dict[str, list] = {"member": [], "chunk": [], **{c: [] for c in cols + body}}
     for index in range(len(cfg.chunks())):
         # Only these small per-member variables are read (h5netcdf directly: see _chunk_is_done).
         with h5netcdf.File(chunks_dir / _CHUNK_NAME.format(index), "r") as f:
@@ -181,10 +187,21 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
             rows["chunk"] += [index] * members.size
             for c in cols:
                 rows[c] += [_text(x) for x in f.variables[c][...].tolist()]
+            for c in body:
+                rows[c] += f.variables[c][...].tolist() if c in f.variables else [float("nan")] * members.size
+            for c, (var, *_) in PLASTIC_METRICS.items():
+                rows.setdefault(c, [np.nan] * (len(rows["member"]) - members.size))
+                rows[c] += f.variables[var][...].tolist() if var in f.variables else [np.nan] * members.size
+    if all(v != v for c in body for v in rows[c]):  # NaN everywhere: no member has a body
+        for c in body:
+            del rows[c]
     table = {"member": rows.pop("member"), "chunk": rows.pop("chunk")}
     for name in cfg.parameter_names:
         vals = [cfg.members[m][name] for m in table["member"]]
         table[name] = [json.dumps(v) if isinstance(v, (list, dict)) else v for v in vals]
+    for c in PLASTIC_METRICS:  # only sweeps with an elastoplastic member have these columns
+        if c in rows and not np.any(np.isfinite(np.asarray(rows[c], dtype=float))):
+            del rows[c]
     table.update(rows)
     df = pd.DataFrame(table)
     df["elastic_limit_exceeded"] = df["elastic_limit_exceeded"].astype(bool)

@@ -85,8 +85,9 @@ def chain_frames(ds: xr.Dataset, n_frames: int = 100, *, window: Sequence[float]
     member : int or None
         Member of a batch.
     exaggeration : float or None
-        Factor on the displacements; default: the 1-2-5 value that makes the largest one a
-        quarter of the smallest bead. Ignored (0) when the result holds no displacements.
+        Factor on the displacements; default: the 1-2-5 value that makes the largest bead
+        displacement (the striker's left out: it rebounds millimetres away) at most a quarter of
+        the smallest bead. Ignored (0) when the result holds no displacements.
 
     Returns
     -------
@@ -120,7 +121,10 @@ def chain_frames(ds: xr.Dataset, n_frames: int = 100, *, window: Sequence[float]
     if "displacement" in run:
         u = run.displacement.values[index]
         if exaggeration is None:
-            biggest = float(np.max(np.abs(u)))
+            # Scaled to the beads' own motion (micrometres), not the striker's: after its rebound the
+            # striker travels millimetres, and a factor sized to that left the beads visibly still.
+            # The striker, exaggerated alike, flies out of the picture (the view follows the beads).
+            biggest = float(np.max(np.abs(u[:, 1:])))
             exaggeration = _nice(0.25 * float(phi.min()) / biggest) if biggest > 0 else 1.0
         if not (math.isfinite(exaggeration) and exaggeration > 0):
             raise ConfigError("--exaggeration", f"must be a positive factor, got {exaggeration!r}")
@@ -174,7 +178,9 @@ def _frame_figure(run: xr.Dataset, fr: ChainFrames, title: str) -> _FrameFigure:
     colours = ScalarMappable(norm=norm, cmap=matplotlib.colormaps["magma_r"])
     circles = [ax_chain.add_patch(Circle((x, e), rad, edgecolor="0.3", linewidth=0.5))
                for x, e, rad in zip(fr.centre[0], fr.offset, r)]
-    left = float(fr.centre[:, 0].min() - r[0])
+    # The view follows the beads and the striker's place at impact; an exaggerated rebound
+    # carries the striker out of it to the left, as it leaves the chain.
+    left = float(min(fr.centre[0, 0] - r[0], (fr.centre[:, 1:] - r[1:]).min()) - r[0])
     right = float(fr.wall_x if fr.wall_x is not None else fr.centre[:, -1].max() + r[-1])
     if fr.wall_x is not None:
         ax_chain.axvline(fr.wall_x, color="0.2", lw=3)

@@ -12,7 +12,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["plot_metrics", "swept_parameters"]
+__all__ = ["plot_metrics", "metrics_figure", "swept_parameters", "MAX_TICK_LABELS"]
+
+#: Most labelled cells along each axis of a sweep map; beyond, every k-th cell is labelled
+#: (40 swept values labelled one by one overlapped into a black bar).
+MAX_TICK_LABELS = {"x": 10, "y": 15}
+
+
+def _cell_ticks(n: int, most: int):
+    """Centres of the cells to label among n: every k-th, k the smallest that keeps at most ``most``."""
+    import math
+
+    import numpy as np
+
+    step = max(1, math.ceil(n / most))
+    return np.arange(0, n, step)
+
 
 _UNITS = {"peak_wall_force": "N", "F_m": "N", "T": "s", "tau": "s", "Q_F": "N s", "Q_T": "N s", "dt": "s",
           "peak_wall_time": "s"}
@@ -26,44 +41,28 @@ def swept_parameters(df) -> list[str]:
     return cols[cols.index("chunk") + 1:cols.index("dt")]
 
 
-def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str | None = None,
-                 y: str | None = None) -> Path:
-    """Draw ``metric`` of a sweep's ``metrics.csv`` against one or two swept parameters.
+def metrics_figure(path: str | Path, metric: str = "F_m", x: str | None = None, y: str | None = None):
+    """The figure of :func:`plot_metrics`, not written.
 
     Parameters
     ----------
     path : str or Path
         The sweep's ``metrics.csv``.
-    out : str or Path
-        Image file (PNG, PDF or SVG), written atomically.
-    metric : str
-        Column to draw: ``F_m`` [N] (default), ``peak_wall_force`` [N], ``T`` [s], ``tau`` [s],
-        ``Q_F`` [N s], ``Q_T`` [N s].
-    x : str or None
-        Swept parameter on the horizontal axis (default: the first one).
-    y : str or None
-        Second swept parameter (a colour map); default: the second one when exactly two were
-        swept, else none (lines, one per combination of the others).
+    metric, x, y : str or None
+        As for :func:`plot_metrics`.
 
     Returns
     -------
-    Path
-        The image written.
-
-    Raises
-    ------
-    ConfigError
-        Unknown metric or parameter, or a table that is not a sweep's metrics.csv.
+    matplotlib.figure.Figure
+        One axes (and its colour bar for a map); a map labels at most ``MAX_TICK_LABELS`` cells
+        per axis.
     """
     import numpy as np
     import pandas as pd
 
     from ..errors import ConfigError
-    from ..fileio import atomic_path
-    from .common import image_format
 
-    path, out = Path(path), Path(out)
-    fmt = image_format(out)
+    path = Path(path)
     try:
         df = pd.read_csv(path)
     except (OSError, ValueError) as exc:
@@ -111,14 +110,55 @@ def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str 
             # A grid: one cell per pair of values, labelled with them (swept values are rarely evenly spaced).
             mesh = ax.pcolormesh(np.arange(table.shape[1] + 1), np.arange(table.shape[0] + 1),
                                  np.ma.masked_invalid(table.values))
-            ax.set_xticks(np.arange(table.shape[1]) + 0.5, [f"{v:.4g}" for v in table.columns.values])
-            ax.set_yticks(np.arange(table.shape[0]) + 0.5, [f"{v:.4g}" for v in table.index.values])
+            cols = _cell_ticks(table.shape[1], MAX_TICK_LABELS["x"])
+            rows = _cell_ticks(table.shape[0], MAX_TICK_LABELS["y"])
+            ax.set_xticks(cols + 0.5, [f"{v:.4g}" for v in table.columns.values[cols]],
+                          rotation=45 if cols.size > 6 else 0, ha="right" if cols.size > 6 else "center")
+            ax.set_yticks(rows + 0.5, [f"{v:.4g}" for v in table.index.values[rows]])
         else:  # random draws: one coloured point per member
             mesh = ax.scatter(df[x], df[y], c=df[metric], s=18)
         fig.colorbar(mesh, ax=ax, label=label)
         ax.set_xlabel(x)
         ax.set_ylabel(y)
     ax.set_title(f"{metric} of {path.name}")
+    return fig
+
+
+def plot_metrics(path: str | Path, out: str | Path, metric: str = "F_m", x: str | None = None,
+                 y: str | None = None) -> Path:
+    """Draw ``metric`` of a sweep's ``metrics.csv`` against one or two swept parameters.
+
+    Parameters
+    ----------
+    path : str or Path
+        The sweep's ``metrics.csv``.
+    out : str or Path
+        Image file (PNG, PDF or SVG), written atomically.
+    metric : str
+        Column to draw: ``F_m`` [N] (default), ``peak_wall_force`` [N], ``T`` [s], ``tau`` [s],
+        ``Q_F`` [N s], ``Q_T`` [N s].
+    x : str or None
+        Swept parameter on the horizontal axis (default: the first one).
+    y : str or None
+        Second swept parameter (a colour map); default: the second one when exactly two were
+        swept, else none (lines, one per combination of the others).
+
+    Returns
+    -------
+    Path
+        The image written.
+
+    Raises
+    ------
+    ConfigError
+        Unknown metric or parameter, or a table that is not a sweep's metrics.csv.
+    """
+    from ..fileio import atomic_path
+    from .common import image_format
+
+    out = Path(out)
+    fmt = image_format(out)
+    fig = metrics_figure(path, metric, x, y)
     with atomic_path(out) as tmp:
         fig.savefig(tmp, format=fmt, dpi=120, bbox_inches="tight")
     return out

@@ -21,10 +21,11 @@ __all__ = ["SIGNALS", "signal_list", "plot_signals"]
 TIME_DIMS = ("time", "wall_scope_time", "sensor_scope_time")
 #: Signals of a result that ``plot --kind signals`` draws (each in its own panel).
 SIGNALS = ("wall_force", "sensor_force", "contact_force", "measured_wall_force", "measured_sensor_force",
-           "velocity", "displacement")
+           "velocity", "displacement", "body_force", "body_displacement")
 
 _LABELS = {"wall_force": "wall force", "measured_wall_force": "wall force as measured",
-           "velocity": "velocity", "displacement": "displacement"}
+           "velocity": "velocity", "displacement": "displacement", "body_force": "body -> ground",
+           "body_displacement": "body displacement"}
 _DISPLAY = {"N": ("F [N]", 1.0), "m s-1": ("v [m/s]", 1.0), "m": ("u [µm]", 1e6)}
 
 
@@ -41,8 +42,9 @@ def signal_list(ds: xr.Dataset, signals: Sequence[str] | None = None,
     ds : xarray.Dataset
         One run (see :func:`select_member`).
     signals : sequence of str or None
-        Names from ``SIGNALS``; default: the wall and sensor forces, and their measured
-        versions when the instrument model was on (else the contact forces).
+        Names from ``SIGNALS``; default: the wall and sensor forces, a protected body's force on
+        the ground, and the measured versions when the instrument model was on (else the contact
+        forces).
     contacts : sequence of int or None
         Contacts drawn for ``contact_force`` (default: about six spread along the chain).
 
@@ -53,8 +55,8 @@ def signal_list(ds: xr.Dataset, signals: Sequence[str] | None = None,
         scope's for measured signals, relative to its trigger).
     """
     if not signals:
-        signals = [s for s in ("wall_force", "sensor_force", "measured_wall_force", "measured_sensor_force")
-                   if s in ds] or ["contact_force"]
+        signals = [s for s in ("wall_force", "sensor_force", "body_force", "measured_wall_force",
+                               "measured_sensor_force") if s in ds] or ["contact_force"]
     out: list[tuple[str, str, str, np.ndarray, np.ndarray]] = []
     recorded = [s for s in SIGNALS if s in ds and (s != "contact_force" or ds.sizes.get("contact", 0) > 0)]
     for name in signals:

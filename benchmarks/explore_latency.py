@@ -1,0 +1,83 @@
+"""How long the explorer takes from a control change to the updated plot, in a real browser.
+
+``hertzchain explore`` is started as a subprocess and opened in headless Chromium (the project's
+browser-test machinery, ``tests/browser.py``); the striker-velocity box is set to a new value as a
+user would (the digits typed, then Enter), ``REPEAT`` times with alternating values on the
+paper's 30-bead chain 1. The clock starts when Enter is sent and stops when the browser's copy
+of the plotted wall force (the Bokeh data source) holds the new run; polled every 5 ms, so a
+time is at most ~5 ms late. The server-side share (config, simulation, fit, map, energies,
+theory) is the explorer's own "computed in" figure.
+
+Run from the repository root (needs the ``[explore]`` extra, selenium, ``/usr/bin/chromium`` and
+``/usr/bin/chromedriver``)::
+
+    python benchmarks/explore_latency.py      # prints, and writes benchmarks/results/explore_latency.json
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import sys
+import time
+
+from _common import RESULTS, REPO, machine_info
+
+sys.path.insert(0, str(REPO / "tests"))
+from browser import (JS_INPUT, JS_MAX, JS_TEXT, chromium, free_port, start_explorer, stop,  # noqa: E402
+                     wait_for)
+
+REPEAT = 12
+VELOCITIES = (0.35, 0.2, 0.5, 0.25)
+
+
+def main() -> None:
+    from selenium.webdriver.common.keys import Keys
+
+    port = free_port()
+    started = time.perf_counter()
+    proc = start_explorer(port)
+    server_start = time.perf_counter() - started
+    latencies, computed = [], []
+    try:
+        with chromium() as driver:
+            t0 = time.perf_counter()
+            driver.get(f"http://127.0.0.1:{port}/")
+            peak = wait_for(driver, JS_MAX, "wall_source", "force")
+            first_page = time.perf_counter() - t0
+            for k in range(REPEAT):
+                v = VELOCITIES[k % len(VELOCITIES)]
+                box = wait_for(driver, JS_INPUT, "striker velocity [m/s]")
+                box.click()
+                old = box.get_attribute("value") or ""
+                box.send_keys(Keys.END, *[Keys.BACKSPACE] * (len(old) + 2), str(v))
+                t0 = time.perf_counter()
+                box.send_keys(Keys.ENTER)
+                peak = wait_for(driver, JS_MAX, "wall_source", "force", until=lambda x, p=peak: x is not None and x != p)
+                latencies.append(time.perf_counter() - t0)
+                readout = wait_for(driver, JS_TEXT, "hc-readout", until=lambda x: x and "computed in" in x)
+                computed.append(float(readout.split("computed in ")[1].split(" ms")[0]) * 1e-3)
+    finally:
+        stop(proc)
+    result = {
+        "what": "explorer: control change (Enter in the striker-velocity box) -> plotted wall force updated, "
+                "paper's chain 1 (30 beads), elastic, headless Chromium",
+        "repeat": REPEAT,
+        "latency_s": {"median": statistics.median(latencies), "min": min(latencies), "max": max(latencies),
+                      "all": latencies},
+        "server_compute_s": {"median": statistics.median(computed), "min": min(computed), "max": max(computed)},
+        "server_start_s": server_start,
+        "first_page_s": first_page,
+        "machine": machine_info(),
+    }
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "explore_latency.json").write_text(json.dumps(result, indent=2) + "\n")
+    print(f"control change -> new plot: median {result['latency_s']['median'] * 1e3:.0f} ms "
+          f"(min {min(latencies) * 1e3:.0f}, max {max(latencies) * 1e3:.0f}, {REPEAT} changes); "
+          f"of which computing the view: median {result['server_compute_s']['median'] * 1e3:.0f} ms; "
+          f"server start {server_start:.1f} s, first page {first_page:.1f} s; "
+          f"load average {result['machine'].get('load_average_at_start')}")
+
+
+if __name__ == "__main__":
+    main()

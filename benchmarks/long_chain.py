@@ -1,0 +1,108 @@
+"""One long chain on several cores: ``simulate(model, threads=T)`` against one thread.
+
+Usage::
+
+    python benchmarks/long_chain.py [--json PATH] [--quick] [--threads T]
+
+Uniform chains of 26 mm AISI 52100 beads (1e4, 1e5 and, without ``--quick``, 1e6), the paper's
+striker at 0.5 m/s, flat wall, the automatic (adaptive) step, probes of the striker and wall
+contacts and the energies every 100 ns (every contact of a 1e5-bead chain every 100 ns would be
+~20 GB): ``hertzchain.integrate.verlet.run_verlet`` (one thread) and
+``hertzchain.integrate.threaded.run_verlet_threaded`` with T threads (default: every core),
+alternated, best of N, each run >= 0.3 s. Throughput in bead-steps per second; the speed-up is
+the ratio of the two in the same run. Every timed pair is checked bit for bit (forces, steps).
+The load average is recorded before and after every measurement: the target (>= 1.7x on 2 cores
+at 1e5 beads) is meant for a quiet machine, and other work on the cores stalls the threads at
+every barrier (one per step).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RESULTS, machine_info, quiet, save_json, table, uniform_model  # noqa: E402
+
+TARGET_SPEEDUP = 1.7
+SAMPLE = 1e-7
+
+
+def measure(n_beads: int, threads: int, repeat: int, min_time: float) -> dict:
+    """Bead-steps/s of one thread and of ``threads`` threads on a chain of ``n_beads`` beads."""
+    from hertzchain.integrate.threaded import run_verlet_threaded
+    from hertzchain.integrate.verlet import run_verlet
+
+    system = uniform_model(n_beads).system()
+    rec = np.array([0, n_beads])
+    # calibrate the duration on one thread: >= min_time per run
+    duration = 2e-6
+    while True:
+        t0 = time.perf_counter()
+        run_verlet(system, duration, SAMPLE, contacts=rec)
+        if time.perf_counter() - t0 >= min_time:
+            break
+        duration *= 2
+    one_t, many_t, loads = [], [], []
+    one = many = None
+    for _ in range(repeat):
+        loads.append(os.getloadavg()[0])
+        t0 = time.perf_counter()
+        one = run_verlet(system, duration, SAMPLE, contacts=rec)
+        one_t.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        many = run_verlet_threaded(system, duration, SAMPLE, threads, contacts=rec)
+        many_t.append(time.perf_counter() - t0)
+    loads.append(os.getloadavg()[0])
+    same = bool(np.array_equal(one.contact_force, many.contact_force) and one.n_steps == many.n_steps
+                and one.peak_wall_force == many.peak_wall_force)
+    work = n_beads * one.n_steps
+    return {"n_beads": n_beads, "threads": threads, "duration_s": duration, "steps": one.n_steps,
+            "one_thread_s": min(one_t), "threads_s": min(many_t), "one_thread_times_s": one_t, "threads_times_s": many_t,
+            "one_thread_bead_steps_per_s": work / min(one_t), "threads_bead_steps_per_s": work / min(many_t),
+            "speedup": min(one_t) / min(many_t), "bit_identical_forces_and_steps": same,
+            "load_average_1min": loads}
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--json", type=Path, default=RESULTS / "long_chain.json", help="where to save the results")
+    ap.add_argument("--quick", action="store_true", help="1e4 and 1e5 beads, fewer repetitions")
+    ap.add_argument("--threads", type=int, default=os.cpu_count(), help="threads of the split chain")
+    args = ap.parse_args(argv)
+    quiet()
+    repeat, min_time = (3, 0.2) if args.quick else (5, 0.3)
+    sizes = (10_000, 100_000) if args.quick else (10_000, 100_000, 1_000_000)
+    info = machine_info()
+    print(f"long chains — {info['cpu_model']}, {info['usable_cores']} usable cores, load {info['load_average_at_start']}")
+    # warm the JIT (and its cache) on a chain long enough to be split
+    from hertzchain.integrate.threaded import run_verlet_threaded
+
+    run_verlet_threaded(uniform_model(5000).system(), 1e-6, SAMPLE, args.threads)
+    rows = [measure(n, args.threads, repeat, min_time) for n in sizes]
+    res = {"benchmark": "long_chain", "quick": args.quick, "machine": info, "rows": rows,
+           "load_average_at_end": list(os.getloadavg())}
+    at_1e5 = next(r for r in rows if r["n_beads"] == 100_000)
+    res["speedup_1e5"] = at_1e5["speedup"]
+    res["targets"] = {"speedup_1e5_on_2_cores": TARGET_SPEEDUP,
+                      "met": bool(at_1e5["speedup"] >= TARGET_SPEEDUP and args.threads == 2)}
+    print(table([(f"{r['n_beads']:,}", r["steps"], f"{r['one_thread_bead_steps_per_s']:.3g}",
+                  f"{r['threads_bead_steps_per_s']:.3g}", f"{r['speedup']:.2f}",
+                  "yes" if r["bit_identical_forces_and_steps"] else "NO",
+                  " ".join(f"{x:.1f}" for x in r["load_average_1min"])) for r in rows],
+                ("beads", "steps", "1 thread", f"{args.threads} threads", "speed-up", "bit-identical",
+                 "load (1 min) during")))
+    print(f"\n>= {TARGET_SPEEDUP}x on 2 cores at 1e5 beads: {res['speedup_1e5']:.2f}x with {args.threads} threads -> "
+          f"{'MET' if res['targets']['met'] else 'NOT MET'} (load at the end {res['load_average_at_end'][0]:.1f})")
+    save_json(res, args.json)
+    print(f"saved {args.json}")
+    return res
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,211 @@
+"""Time to accuracy: the fourth-order integrator ``"rkn4"`` against scipy DOP853 on the paper's
+chain 1, its convergence order, and the Python that ``simulate()`` adds around its kernel.
+
+Usage::
+
+    python benchmarks/time_to_accuracy.py [--json PATH] [--quick]
+
+Measures, in one run, after a warm-up (single core: ``NUMBA_NUM_THREADS=1``):
+
+1. **Time to a 1e-6 peak wall force** on the paper's Table I chain 1 (striker 8 mm at 0.5 m/s,
+   flat wall, 2.5 ms, default probes: every contact force and the energies every 100 ns, the
+   Dataset built): ``simulate(model, 2.5e-3, integrator="rkn4")`` at its default tolerance, and
+   the default Verlet for comparison, against ``solve_ivp`` DOP853 and RK45 tightened rtol =
+   1e-4, 1e-5, ... until their peak is within 1e-6 of DOP853 at rtol = 1e-12
+   (``_common.time_to_solution``; NumPy right-hand side, and hertzchain's compiled one as the
+   stronger baseline). Target: ``speedup_vs_dop853`` >= 20.
+2. **simulate() overhead**: ``simulate()`` minus its kernel alone (``run_rkn`` / ``run_verlet``
+   with the same probes), best of N each, and where it goes (model arrays, checks, Dataset).
+   Target: <= 0.5 ms.
+3. **Convergence order** on chain 1 and on a two-body impact (8 mm striker on one free 26 mm
+   bead at 0.2 m/s, rebound velocity against the closed form (m1 - m2) / (m1 + m2) v): error
+   against steps for the controlled step (rtol = 1e-4 ... 1e-10) and for fixed steps, and the
+   fitted order. A fixed step crosses contact openings and closings at random phases, where the
+   force is not smooth: its order is ~2 and erratic; the contact-aware step restores ~4.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ["NUMBA_NUM_THREADS"] = "1"  # one core, before numba is imported anywhere
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import (RESULTS, best_of, machine_info, paper_chain1_model, quiet, save_json, table,  # noqa: E402
+                     time_to_solution, time_to_solution_rows)
+
+DURATION = 2.5e-3
+TOLERANCE = 1e-6
+TARGET_SPEEDUP = 20.0
+TARGET_OVERHEAD_S = 0.5e-3
+
+
+def order(steps, errors) -> float:
+    """-slope of log(error) against log(steps)."""
+    return -float(np.polyfit(np.log(steps), np.log(errors), 1)[0])
+
+
+def convergence(quick: bool) -> dict:
+    """Errors against steps, controlled and fixed, on chain 1 and the two-body impact."""
+    import hertzchain as hc
+    from hertzchain.integrate.rkn import run_rkn
+
+    out = {}
+    # chain 1: velocities of every body at every microsecond against a much finer run
+    s = paper_chain1_model().system()
+    ref = run_rkn(s, DURATION, 1e-6, rtol=1e-13, record_velocities=True)
+    rows = []
+    for rtol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9) + (() if quick else (1e-10,)):
+        r = run_rkn(s, DURATION, 1e-6, rtol=rtol, record_velocities=True)
+        rows.append({"rtol": rtol, "steps": r.n_steps, "velocity_error": float(np.abs(r.velocity - ref.velocity).max())})
+    fixed = []
+    for dt in (1e-6, 5e-7, 2.5e-7, 1.25e-7) + (() if quick else (6.25e-8,)):
+        r = run_rkn(s, DURATION, 1e-6, dt=dt, record_velocities=True)
+        fixed.append({"dt": dt, "steps": r.n_steps, "velocity_error": float(np.abs(r.velocity - ref.velocity).max())})
+    out["chain1"] = {"what": "max |v - v_ref| over bodies and 1 us samples, 2.5 ms; v_ref: rkn4 at rtol 1e-13",
+                     "controlled": rows, "fixed": fixed,
+                     "order_controlled": order([x["steps"] for x in rows], [x["velocity_error"] for x in rows]),
+                     "order_fixed": order([x["steps"] for x in fixed], [x["velocity_error"] for x in fixed])}
+    # two-body impact: rebound velocity of the striker against the closed form
+    v = 0.2
+    model = hc.Model(hc.Chain.uniform(1, 26e-3), hc.Striker(8e-3, v), hc.Wall("none"))
+    s = model.system()
+    m1, m2 = s.mass[0], s.mass[1]
+    dm = (5 / (1 / m1 + 1 / m2) * v**2 / (4 * s.kappa[0])) ** 0.4
+    duration = 1.6 * 2.9432752 * dm / v
+    exact = (m1 - m2) / (m1 + m2) * v
+    rows = []
+    for rtol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9):
+        r = run_rkn(s, duration, duration / 50, rtol=rtol, record_velocities=True)
+        rows.append({"rtol": rtol, "steps": r.n_steps, "error": float(abs(r.velocity[-1, 0] / exact - 1))})
+    fixed = []
+    for n in (50, 100, 200, 400, 800):
+        r = run_rkn(s, duration, duration / 50, dt=duration / 50 / max(1, n // 50), record_velocities=True)
+        fixed.append({"dt": duration / 50 / max(1, n // 50), "steps": r.n_steps,
+                      "error": float(abs(r.velocity[-1, 0] / exact - 1))})
+    out["two_body"] = {"what": "relative error of the striker's rebound velocity vs (m1 - m2) / (m1 + m2) v",
+                       "controlled": rows, "fixed": fixed,
+                       "order_controlled": order([x["steps"] for x in rows], [x["error"] for x in rows]),
+                       "order_fixed": order([x["steps"] for x in fixed], [x["error"] for x in fixed])}
+    return out
+
+
+def overhead(repeat: int) -> dict:
+    """simulate() minus its kernel, for both integrators, and the pieces of it."""
+    import hertzchain as hc
+    from hertzchain.checks import check_after_run, check_before_run
+    from hertzchain.integrate.rkn import run_rkn
+    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.result import build_dataset
+    from hertzchain.simulation import warn_elastic_limit
+
+    model = paper_chain1_model()
+    system = model.system()
+    probes = hc.Probes()
+    out = {}
+    for name, kernel in (("rkn4", run_rkn), ("verlet", run_verlet)):
+        hc.simulate(model, DURATION, integrator=name)
+        # alternated, so that a disturbance hits both alike
+        ts, tk = [], []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            hc.simulate(model, DURATION, integrator=name)
+            ts.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            kernel(system, DURATION, 1e-7)
+            tk.append(time.perf_counter() - t0)
+        raw = kernel(system, DURATION, 1e-7)
+        pieces = {
+            "model.system": best_of(model.system, repeat)[0],
+            "check_before_run": best_of(lambda: check_before_run(model, system, DURATION, probes, integrator=name),
+                                        repeat)[0],
+            "build_dataset": best_of(lambda: build_dataset(raw, model, probes, duration=DURATION, system=system),
+                                     repeat)[0],
+        }
+        ds = build_dataset(raw, model, probes, duration=DURATION, system=system)
+        pieces["check_after_run"] = best_of(lambda: check_after_run(ds, model, system, integrator=name), repeat)[0]
+        pieces["warn_elastic_limit"] = best_of(lambda: warn_elastic_limit(ds), repeat)[0]
+        out[name] = {"simulate_s": min(ts), "kernel_s": min(tk), "overhead_s": min(ts) - min(tk),
+                     "overhead_median_s": float(np.median(np.array(ts) - np.array(tk))), "pieces_s": pieces}
+    return out
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--json", type=Path, default=RESULTS / "time_to_accuracy.json", help="where to save the results")
+    ap.add_argument("--quick", action="store_true", help="fewer repetitions")
+    args = ap.parse_args(argv)
+    quiet()
+    repeat, repeat_scipy = (5, 1) if args.quick else (21, 3)
+    info = machine_info()
+    print(f"time to accuracy — {info['cpu_model']}, load {info['load_average_at_start']}, {info['date_utc']}")
+
+    model = paper_chain1_model()
+    res = {"benchmark": "time_to_accuracy", "quick": args.quick, "machine": info,
+           "settings": {"model": "paper chain 1 (Table I), striker 8 mm at 0.5 m/s, flat wall", "duration_s": DURATION,
+                        "probes": "default: every contact force + energies every 100 ns, Dataset built",
+                        "tolerance": TOLERANCE, "repeat": repeat}}
+    rkn = time_to_solution(model, DURATION, TOLERANCE, repeat, repeat_scipy, integrator="rkn4")
+    res["rkn4"] = rkn
+    # the default Verlet against the same scipy times (not run again)
+    vt, _, vds = best_of(lambda: __import__("hertzchain").simulate(model, DURATION), repeat)
+    ref = rkn["reference"]["peak_wall_force"]
+    res["verlet"] = {"time_s": vt, "n_steps": int(vds.attrs["n_steps"]),
+                     "rel_error": abs(float(vds.attrs["peak_wall_force"]) / ref - 1),
+                     "speedup_vs_dop853": rkn["scipy"]["DOP853_numpy"].get("time_s", float("nan")) / vt}
+    res["speedup_vs_dop853"] = rkn["speedup_vs_dop853"]
+    res["overhead"] = overhead(repeat)
+    res["convergence"] = convergence(args.quick)
+    res["load_average_at_end"] = list(os.getloadavg())
+    res["targets"] = {
+        "speedup_vs_dop853": TARGET_SPEEDUP, "speedup_vs_dop853_met": bool(res["speedup_vs_dop853"] >= TARGET_SPEEDUP),
+        "simulate_overhead_s": TARGET_OVERHEAD_S,
+        "simulate_overhead_met": bool(res["overhead"]["rkn4"]["overhead_s"] <= TARGET_OVERHEAD_S),
+    }
+    report(res)
+    save_json(res, args.json)
+    print(f"\nsaved {args.json}")
+    return res
+
+
+def report(res: dict) -> None:
+    t = res["rkn4"]
+    print(f"\nTime to a peak wall force within {TOLERANCE:g} of DOP853 rtol=1e-12 "
+          f"({t['reference']['peak_wall_force']:.10g} N), chain 1, 2.5 ms, default probes")
+    print(table(time_to_solution_rows(t, TOLERANCE), ("solver", "rtol", "time ms", "peak rel err", "<= 1e-6",
+                                                      "x slower")))
+    v = res["verlet"]
+    print(f"  default Verlet: {v['time_s'] * 1e3:.2f} ms, {v['n_steps']} steps, error {v['rel_error']:.1e} "
+          f"({v['speedup_vs_dop853']:.1f}x DOP853)")
+    print(f"  rkn4 vs DOP853 (NumPy RHS): {res['speedup_vs_dop853']:.1f}x; vs the fastest scipy: "
+          f"{t['speedup_vs_scipy']:.1f}x; vs scipy on hertzchain's compiled RHS: {t['speedup_vs_scipy_compiled_rhs']:.1f}x")
+    print("\nsimulate() minus its kernel (best of each, alternated)")
+    for name, o in res["overhead"].items():
+        pieces = ", ".join(f"{k} {x * 1e3:.3f}" for k, x in o["pieces_s"].items())
+        print(f"  {name}: simulate {o['simulate_s'] * 1e3:.2f} ms, kernel {o['kernel_s'] * 1e3:.2f} ms, overhead "
+              f"{o['overhead_s'] * 1e3:.2f} ms (median {o['overhead_median_s'] * 1e3:.2f}); pieces [ms]: {pieces}")
+    print("\nConvergence (error against steps; order = -slope of log error vs log steps)")
+    for case, c in res["convergence"].items():
+        key = "velocity_error" if case == "chain1" else "error"
+        ctl = ", ".join(f"{x['steps']}: {x[key]:.1e}" for x in c["controlled"])
+        fix = ", ".join(f"{x['steps']}: {x[key]:.1e}" for x in c["fixed"])
+        print(f"  {case}: controlled order {c['order_controlled']:.2f} ({ctl})")
+        print(f"  {' ' * len(case)}  fixed order {c['order_fixed']:.2f} ({fix})")
+    g = res["targets"]
+    print("\nTargets")
+    print(f"  >= {g['speedup_vs_dop853']:.0f}x scipy DOP853 at 1e-6: {res['speedup_vs_dop853']:.1f}x -> "
+          f"{'MET' if g['speedup_vs_dop853_met'] else 'NOT MET'}")
+    o = res["overhead"]["rkn4"]["overhead_s"]
+    print(f"  simulate() overhead <= {g['simulate_overhead_s'] * 1e3:.1f} ms: {o * 1e3:.2f} ms -> "
+          f"{'MET' if g['simulate_overhead_met'] else 'NOT MET'}")
+
+
+if __name__ == "__main__":
+    main()

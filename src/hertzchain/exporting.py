@@ -1,0 +1,174 @@
+"""A result written for colleagues who do not read NetCDF: CSV (spreadsheets), MATLAB ``.mat`` and
+parquet (pandas, R, Julia), SI units throughout.
+
+- CSV and parquet: one row per sample; the columns are ``time`` and every signal on the
+  simulation's time axis (wall force, sensor forces, contact forces, energies, velocities,
+  displacements), one column per contact, sensor or body; the CSV header names each column with
+  its unit (``wall_force [N]``, ``contact_force[3] [N]``), parquet keeps the units in its schema
+  metadata.
+- MATLAB: one variable per result variable and coordinate (``time``, ``wall_force``,
+  ``contact_force`` as a time x contact matrix, ``contact``, ``diameter``...), a struct ``units``
+  (``units.wall_force = 'N'``) and a struct ``attrs`` with the run's attributes (the config and
+  the model as JSON text).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from .errors import ConfigError
+
+__all__ = ["EXPORT_FORMATS", "check_format", "export", "signal_table"]
+
+#: File suffixes :func:`export` writes, and what they are.
+EXPORT_FORMATS = {".csv": "CSV, units in the header", ".mat": "MATLAB v5, scipy.io.savemat",
+                  ".parquet": "pandas + pyarrow, the [export] extra"}
+#: Signals first in a table, in this order (the rest follow as stored).
+_ORDER = ("wall_force", "sensor_force", "contact_force", "kinetic_energy", "potential_energy", "dissipated_energy",
+          "velocity", "displacement")
+
+
+def check_format(path: str | Path) -> str:
+    """The export format of ``path`` by its suffix, checked before any work.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file to write.
+
+    Returns
+    -------
+    str
+        ``".csv"``, ``".mat"`` or ``".parquet"``; a ConfigError naming ``--out`` for another
+        suffix, or for parquet without pyarrow (naming the ``[export]`` extra).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in EXPORT_FORMATS:
+        raise ConfigError("--out", f"{path.name!r}: export writes "
+                          + ", ".join(f"*{s} ({what})" for s, what in EXPORT_FORMATS.items()))
+    if suffix == ".parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise ConfigError("--out", "writing parquet needs pyarrow: pip install 'hertzchain[export]' "
+                              "(or write *.csv or *.mat, which need nothing more)") from None
+    return suffix
+
+
+def _one_run(ds: xr.Dataset) -> xr.Dataset:
+    if "time" not in ds.coords:
+        raise ConfigError("RESULT", "is not a hertzchain result (no time axis)")
+    if "member" in ds.dims:
+        raise ConfigError("RESULT", f"holds {ds.sizes['member']} runs (a batch or sweep chunk); export one: "
+                          "ds.sel(member=N) in Python")
+    return ds
+
+
+def signal_table(ds: xr.Dataset):
+    """The signals of a result on its ``time`` axis as one table, units in the column names.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        One run (a result of :func:`hertzchain.simulate` or a file written by :func:`hertzchain.save`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Column ``time [s]`` then one column per signal and per contact/sensor/body:
+        ``wall_force [N]``, ``contact_force[j] [N]``, ``sensor_force[n] [N]``, ``velocity[k] [m s-1]``...
+    """
+    import pandas as pd
+
+    run = _one_run(ds)
+    columns = {f"time [{run.time.attrs.get('units', 's')}]": run.time.values}
+    names = sorted(run.data_vars, key=lambda n: _ORDER.index(n) if n in _ORDER else len(_ORDER))
+    for name in names:
+        var = run[name]
+        if var.dims[:1] != ("time",) or var.ndim > 2 or not np.issubdtype(var.dtype, np.number):
+            continue
+        unit = var.attrs.get("units", "")
+        if var.ndim == 1:
+            columns[f"{name} [{unit}]"] = var.values
+        else:
+            dim = var.dims[1]
+            for k, label in enumerate(run[dim].values):
+                columns[f"{name}[{label}] [{unit}]"] = var.values[:, k]
+    return pd.DataFrame(columns)
+
+
+def _matlab_name(name: str) -> str:
+    """A valid MATLAB identifier (letters, digits, underscores; a letter first; <= 63 characters)."""
+    out = re.sub(r"\W", "_", name)
+    if not out[:1].isalpha():
+        out = "v_" + out
+    return out[:63]
+
+
+def _write_mat(run: xr.Dataset, path: Path) -> None:
+    from scipy.io import savemat
+
+    variables, units = {}, {}
+    for name in [*run.coords, *run.data_vars]:
+        var = run[name]
+        if not (np.issubdtype(var.dtype, np.number) or var.dtype == bool):
+            continue
+        key = _matlab_name(str(name))
+        variables[key] = np.asarray(var.values, dtype=float if var.dtype != bool else np.uint8)
+        units[key] = var.attrs.get("units", "")
+    attrs = {}
+    for key, value in run.attrs.items():
+        if isinstance(value, (str, int, float, np.number)) and not isinstance(value, bool):
+            attrs[_matlab_name(key)] = value
+        elif isinstance(value, (bool, np.bool_)):
+            attrs[_matlab_name(key)] = int(value)
+        elif isinstance(value, (list, tuple, np.ndarray)):
+            attrs[_matlab_name(key)] = np.asarray(value)
+        else:
+            attrs[_matlab_name(key)] = json.dumps(value, default=str)
+    variables["units"] = units
+    variables["attrs"] = attrs
+    with open(path, "wb") as fh:
+        savemat(fh, variables, do_compression=True, oned_as="column")
+
+
+def export(ds: xr.Dataset, path: str | Path) -> Path:
+    """Write a result as CSV, MATLAB or parquet, by the file's suffix (SI units).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        One run (:func:`hertzchain.simulate`, :func:`hertzchain.load`).
+    path : str or pathlib.Path
+        ``*.csv`` (signals on the time axis, units in the header), ``*.mat`` (every variable,
+        a ``units`` struct and an ``attrs`` struct; ``time`` [s] and ``wall_force`` [N] among
+        them) or ``*.parquet`` (the CSV's table; needs pyarrow, the ``[export]`` extra).
+        Written atomically; its folder is created.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    from .fileio import atomic_path
+
+    path = Path(path)
+    suffix = check_format(path)
+    run = _one_run(ds)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        if suffix == ".csv":
+            signal_table(run).to_csv(tmp, index=False, float_format="%.10g")
+        elif suffix == ".parquet":
+            table = signal_table(run)
+            table.attrs = {"units": "in the column names, SI", "conventions": str(run.attrs.get("conventions", ""))}
+            table.to_parquet(tmp, index=False)
+        else:
+            _write_mat(run, Path(tmp))
+    return path

@@ -1,0 +1,222 @@
+"""Design checkpoints are data: a planted pickle runs no code, a damaged file is named and kept aside,
+and a resumed search replays to the state it was saved in (CMA-ES and NSGA-II) and ends as an
+uninterrupted one."""
+
+from __future__ import annotations
+
+import io
+import json
+import pickle
+import warnings
+
+import numpy as np
+import pytest
+
+from hertzchain.cli.main import main
+from hertzchain.design import parse_design, run_design
+from hertzchain.design.checkpoint import _CHECKPOINT, _load, _read
+from hertzchain.errors import CheckpointWarning
+
+RUN = {"duration": 2.0e-3, "sample_interval": 1e-6}
+
+
+def _design(**over) -> dict:
+    d = {"base": {"chain": {"uniform": {"n": 4, "diameter_mm": 26.0}, "taper": {"n": 4, "q": 0.05}},
+                  "striker": {"diameter_mm": 8.0, "velocity": 0.2}, "run": dict(RUN)},
+         "design": {"objective": "peak_wall_force",
+                    "variables": {"chain.taper.n": [2, 12], "chain.taper.q": [0.0, 0.15]},
+                    "constraints": {"min_diameter_mm": 15.0}, "budget": 60, "seed": 3}}
+    d["design"].update(over)
+    return d
+
+
+class _Payload:
+    """What an attacker plants: unpickling it runs ``code`` (through NumPy's own helper that
+    executes a string, which the allow-list of the pickle checkpoint let through)."""
+
+    def __init__(self, code: str):
+        self.code = code
+
+    def __reduce__(self):
+        from numpy.testing._private.utils import runstring
+
+        return runstring, (self.code, {})
+
+
+def _touch(marker) -> str:
+    return f"open({str(marker)!r}, 'w').write('ran')"
+
+
+def _killed(out, design: dict, after: int = 3) -> None:
+    """Run the design in ``out`` and stop it (as Ctrl-C would) after ``after`` engine calls."""
+    calls = []
+
+    def killer(done, total):
+        calls.append(done)
+        if len(calls) == after:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_design(parse_design(design), out, progress=killer, checkpoint_interval=0)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """An uninterrupted search and the checkpoint of the same search killed after 3 engine calls."""
+    base = tmp_path_factory.mktemp("ref")
+    ref = run_design(parse_design(_design()), base / "ref")
+    _killed(base / "killed", _design())
+    return ref, (base / "killed" / _CHECKPOINT).read_bytes()
+
+
+def _edit_meta(good: bytes, edit) -> bytes:
+    """The checkpoint ``good`` with its JSON document changed by ``edit(meta)`` (which may return
+    raw bytes to store instead)."""
+    with np.load(io.BytesIO(good), allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    meta = json.loads(arrays["meta"].tobytes())
+    text = edit(meta)
+    arrays["meta"] = np.frombuffer(text if text is not None else json.dumps(meta).encode(), np.uint8)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+def _plant(tmp_path, data: bytes):
+    """A design folder holding the checkpoint ``data``."""
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / _CHECKPOINT).write_bytes(data)
+    return out
+
+
+def _same_search(a, b) -> None:
+    assert [r["x"] for r in a.history] == [r["x"] for r in b.history]
+    assert a.best["variables"] == b.best["variables"] and a.best["objective"] == b.best["objective"]
+    assert a.n_evaluations == b.n_evaluations and a.generations == b.generations
+
+
+@pytest.mark.parametrize("name", ["checkpoint.pkl", "checkpoint.npz"])
+def test_a_planted_pickle_runs_no_code_and_the_user_is_told(tmp_path, reference, name):
+    """The payload would create a file when unpickled: no code runs, a warning names the file, which is
+    kept aside (renamed), and the search starts afresh and ends as an uninterrupted one."""
+    ref, _ = reference
+    marker = tmp_path / "ran"
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / name).write_bytes(pickle.dumps(_Payload(_touch(marker))))
+    with pytest.warns(CheckpointWarning, match=name) as seen:
+        res = run_design(parse_design(_design()), out)
+    assert not marker.exists()
+    assert "starts afresh" in str(seen[0].message)
+    assert not res.resumed
+    _same_search(res, ref)
+    kept = list(out.glob(f"{name}.unreadable-*"))
+    assert len(kept) == 1 and kept[0].read_bytes() == pickle.dumps(_Payload(_touch(marker)))
+
+
+def test_an_npz_with_a_pickled_object_array_is_not_unpickled(tmp_path):
+    """An archive whose arrays hold Python objects (np.save pickles them) is refused unread."""
+    marker = tmp_path / "ran"
+    out = tmp_path / "d"
+    out.mkdir()
+    buf = io.BytesIO()
+    np.savez(buf, meta=np.array([_Payload(_touch(marker))], dtype=object))
+    (out / _CHECKPOINT).write_bytes(buf.getvalue())
+    problem = parse_design(_design())
+    with pytest.warns(CheckpointWarning, match="not a NumPy .npz archive of plain arrays"):
+        assert _load(out, problem, force=False) is None
+    assert not marker.exists() and not (out / _CHECKPOINT).exists()
+
+
+def test_cli_tells_about_a_planted_checkpoint_and_exits_0(tmp_path, capsys):
+    import tomli_w
+
+    marker = tmp_path / "ran"
+    f = tmp_path / "d.toml"
+    f.write_text(tomli_w.dumps(_design(polish=False)))
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "checkpoint.pkl").write_bytes(pickle.dumps(_Payload(_touch(marker))))
+    assert main(["design", str(f), "--out", str(out), "-q", "--no-html"]) == 0
+    err = capsys.readouterr().err
+    assert "warning:" in err and "checkpoint.pkl" in err and "never reads" in err
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("damage", ["truncated", "empty", "text", "bad-json", "wrong-type", "other-schema"])
+def test_a_damaged_checkpoint_is_named_kept_aside_and_the_search_restarts(tmp_path, reference, damage):
+    ref, good = reference
+    data = {"truncated": lambda: good[: len(good) // 2], "empty": lambda: b"", "text": lambda: b"not a checkpoint\n",
+            "bad-json": lambda: _edit_meta(good, lambda m: b"{" + json.dumps(m).encode()[:40]),
+            "wrong-type": lambda: _edit_meta(good, lambda m: m["history"][0].update(x="0.5")),
+            "other-schema": lambda: _edit_meta(good, lambda m: m.update(schema=99))}[damage]()
+    out = _plant(tmp_path, data)
+    with pytest.warns(CheckpointWarning, match=r"checkpoint\.npz: is damaged or not a design checkpoint"):
+        res = run_design(parse_design(_design()), out)
+    assert not res.resumed
+    _same_search(res, ref)
+    assert [p.read_bytes() for p in out.glob("checkpoint.npz.unreadable-*")] == [data]
+
+
+def test_resumed_search_replays_to_the_saved_state_and_ends_as_uninterrupted(tmp_path, reference):
+    """CMA-ES: the replay asks for the saved candidates, reaches the saved mean, sigma, covariance,
+    counters and random streams (no CheckpointWarning), and goes on to the uninterrupted result."""
+    ref, good = reference
+    out = _plant(tmp_path, good)
+    saved = _read(out / _CHECKPOINT, parse_design(_design()))
+    assert saved.scalars["optimiser"] == "cma-es" and saved.generation >= 1
+    assert {"cma_mean", "cma_C", "cma_pc", "cma_ps", "numpy_random_key"} <= set(saved.arrays)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CheckpointWarning)
+        res = run_design(parse_design(_design()), out)
+    assert res.resumed
+    _same_search(res, ref)
+    # The replay of a finished search's checkpoint is the whole search: the same result again.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CheckpointWarning)
+        again = run_design(parse_design(_design()), out)
+    assert again.resumed
+    _same_search(again, ref)
+
+
+def test_a_checkpoint_that_replays_elsewhere_is_set_aside(tmp_path, reference):
+    """A well-formed checkpoint whose candidates are not those the search asks for (an edited file, or
+    one of another version) is reported and the search starts from its seed."""
+    ref, good = reference
+    out = _plant(tmp_path, _edit_meta(good, lambda m: m["history"][-1]["x"].__setitem__(0, 0.123456789)))
+    with pytest.warns(CheckpointWarning, match="does not replay to the search it was saved from"):
+        res = run_design(parse_design(_design()), out)
+    assert not res.resumed
+    _same_search(res, ref)
+
+
+def test_replay_checks_the_optimiser_state(tmp_path, reference):
+    """The saved CMA-ES state is compared with the replayed one: a sigma changed in its last digit is
+    caught, reported and the search restarts."""
+    ref, good = reference
+    out = _plant(tmp_path, _edit_meta(good, lambda m: m["state"]["cma"].update(sigma=m["state"]["cma"]["sigma"]
+                                                                                * (1.0 + 1e-12))))
+    with pytest.warns(CheckpointWarning, match="replayed optimiser differs from the saved one in cma"):
+        res = run_design(parse_design(_design()), out)
+    assert not res.resumed
+    _same_search(res, ref)
+
+
+def test_nsga2_resumes_by_replay_to_its_saved_population(tmp_path):
+    """Several objectives (NSGA-II, pymoo): the replay reaches the saved generation and population."""
+    pytest.importorskip("pymoo")
+    design = _design(objective=["peak_wall_force", "front_momentum_at_wall"], budget=40, population=8)
+    ref = run_design(parse_design(design), tmp_path / "a")
+    _killed(tmp_path / "b", design, after=3)
+    saved = _read(tmp_path / "b" / _CHECKPOINT, parse_design(design))
+    assert saved.scalars["optimiser"] == "nsga-ii" and "nsga_X" in saved.arrays
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CheckpointWarning)
+        res = run_design(parse_design(design), tmp_path / "b")
+    assert res.resumed
+    assert [r["x"] for r in res.history] == [r["x"] for r in ref.history]
+    def timeless(rows):
+        return [{k: v for k, v in r.items() if k != "elapsed_s"} for r in rows]
+
+    assert timeless(res.pareto) == timeless(ref.pareto)
