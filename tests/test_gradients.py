@@ -98,6 +98,21 @@ def test_offsets_of_a_misaligned_chain():
     assert_matches(sensitivity(cfg, paths), cfg, paths, rel=1e-3)
 
 
+def test_a_protected_body_and_its_mount():
+    """[wall] type = "body": a mass on a spring and a dashpot behind the last bead; the peak force on
+    its face by the body's mass and its mount's stiffness and damping (the issue names the body's
+    stiffness), a given striker mass, and the size-scaled dashpot whose gamma_j follows the body's
+    reduced mass too."""
+    cfg = _with(BASE, wall={"type": "body", "mass": 0.05, "stiffness": 2e5, "damping": 5.0},
+                striker={"mass": 0.004}, contact={"law": "dashpot_scaled", "gamma": 20.0})
+    paths = ["wall.stiffness", "wall.damping", "wall.mass", "striker.mass", "contact.gamma", "chain.diameters_mm[3]"]
+    s = sensitivity(cfg, paths)
+    assert s.units["wall.stiffness"] == "N/m" and s.units["wall.damping"] == "N s/m"
+    # the mount's derivatives are small (the pulse is over before the mount moves much): a step of
+    # 1e-4 keeps the difference above the run's rounding
+    assert_matches(s, cfg, paths, rel=1e-4)
+
+
 def test_fields_of_chains_given_by_builders():
     cfg = copy.deepcopy(BASE)
     cfg["chain"] = {"uniform": {"n": 4, "diameter_mm": 20.0}, "taper": {"n": 4, "q": 0.08},
@@ -250,6 +265,10 @@ def test_refusals_name_the_field():
         sensitivity(_with(BASE, run={"integrator": "dop853"}), ["striker.velocity"])
     with pytest.raises(ConfigError, match="contact.law"):
         sensitivity(_with(BASE, contact={"law": "elastoplastic"}), ["striker.velocity"])
+    with pytest.raises(ConfigError, match="striker.shape"):
+        sensitivity(_with(BASE, striker={"shape": "flat"}), ["striker.velocity"])
+    with pytest.raises(ConfigError, match="chain.gravity"):
+        sensitivity(_with(BASE, chain={"gravity": 9.81}), ["striker.velocity"])
     with pytest.raises(ConfigError, match="track"):
         sensitivity(_with(BASE, track={"spring": 10.0}), ["striker.velocity"])
     with pytest.raises(ConfigError, match="wall"):

@@ -37,6 +37,8 @@ CASES = {
     "precompressed": _cfg(chain__precompression=5.0),
     "misaligned": _cfg(chain__offsets_mm=[0.0, 0.5, 1.0, 0.2, 0.0, -0.3, 0.0, 0.1]),
     "free end": _cfg(wall__type="none"),
+    "protected body": _cfg(wall__type="body", wall__mass=0.05, wall__stiffness=2e5, wall__damping=5.0,
+                           contact__law="viscoelastic", contact__A=1e-6),
 }
 
 
@@ -80,7 +82,8 @@ def _all_directions(system, names):
     return dirs, labels
 
 
-@pytest.mark.parametrize("name", ["elastic adaptive", "viscoelastic", "dashpot", "precompressed", "misaligned"])
+@pytest.mark.parametrize("name", ["elastic adaptive", "viscoelastic", "dashpot", "precompressed", "misaligned",
+                                  "protected body"])
 def test_adjoint_equals_tangent_for_every_parameter(name):
     system, cfg = _system(CASES[name])
     args = (cfg.run.duration, cfg.run.sample_interval)
@@ -95,6 +98,12 @@ def test_adjoint_equals_tangent_for_every_parameter(name):
     if name == "precompressed":  # d0 and f_ext are differentiated where the chain carries a static load
         names += ["d0", "fext"]
     dirs, labels = _all_directions(system, names)
+    if system.body:  # the mount's spring and dashpot, one direction each
+        for n in ("mount_k", "mount_c"):
+            dirs = {k: np.concatenate([v, np.zeros((1, v.shape[1]))]) for k, v in dirs.items()}
+            dirs[n] = np.zeros((len(labels) + 1, 1))
+            dirs[n][-1, 0] = 1.0
+            labels.append((n, 0))
     _, _, _, dj = D.tangents(system, dirs, *args, seeds=seeds, **kw)
     adj = np.array([grad[n][i] for n, i in labels])
     scale = np.abs(adj).max()

@@ -16,7 +16,9 @@ Fields (units: the config's own, so ``diameters_mm`` is per mm):
   ``chain.precompression``;
 - ``striker.diameter_mm``, ``striker.velocity``, and ``striker.mass`` [kg] (the striker's mass at
   fixed size: not a config field yet);
-- ``contact.A``, ``contact.gamma``;
+- ``contact.A``, ``contact.gamma`` (constant or size-scaled laws);
+- a protected body (``[wall] type = "body"``): ``wall.mass`` [kg], ``wall.stiffness`` [N/m] and
+  ``wall.damping`` [N s/m] of its mount;
 - ``materials.NAME.density``, ``.young``, ``.poisson``, ``.yield_stress`` for a material of the
   config's ``[materials]`` or of the catalogue (``materials.AISI52100.young``): every body made
   of it, the wall cap included.
@@ -37,15 +39,17 @@ from ..errors import ConfigError
 __all__ = ["SetupDerivatives", "setup_derivatives", "ARRAYS", "expand_paths"]
 
 #: System arrays the set-up gives derivatives of (the engines' parameters, plus the masses and
-#: the elastic limits the results may read directly), and the beads' diameters and offsets [m].
+#: the elastic limits the results may read directly), the beads' diameters and offsets [m], and
+#: a protected body's mount (spring [N/m], dashpot [N s/m], deflection at rest [m]; (1,) each).
 ARRAYS = ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mass", "yield_force",
-          "diameter", "offset")
+          "diameter", "offset", "mount_k", "mount_c", "mount_d0")
 #: The complex step (any h far below the value's own scale works: no subtraction is made).
 STEP = 1e-30
 
 _MATERIAL_FIELDS = ("density", "young", "poisson", "yield_stress")
 _SCALAR_FIELDS = ("chain.uniform.diameter_mm", "chain.taper.q", "chain.precompression", "striker.diameter_mm",
-                  "striker.velocity", "striker.mass", "contact.A", "contact.gamma")
+                  "striker.velocity", "striker.mass", "contact.A", "contact.gamma", "wall.mass", "wall.stiffness",
+                  "wall.damping")
 _LISTS = ("chain.diameters_mm", "chain.offsets_mm", "chain.offsets_fraction")
 
 
@@ -158,7 +162,10 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     theta, rho, sigma = (np.concatenate([props[m][k] for m in names], axis=1) for k in range(3))
     phi = np.concatenate([read("striker.diameter_mm", s.diameter_mm) * 1e-3, d], axis=1)
     mass = rho * math.pi * phi**3 / 6.0
-    mass[:, :1] = read("striker.mass", mass[0, 0].real) + 1j * mass[:, :1].imag
+    if s.mass is not None:  # a given striker mass (its size still sets its contact)
+        mass[:, :1] = read("striker.mass", s.mass)
+    else:
+        mass[:, :1] = read("striker.mass", mass[0, 0].real) + 1j * mass[:, :1].imag
     r = phi / 2.0
     inv_r = 1.0 / r[:, :-1] + 1.0 / r[:, 1:]
     t_sum = theta[:, :-1] + theta[:, 1:]
@@ -179,14 +186,24 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
         fy[:, :m] = np.where(np.isnan(s_min.real), np.inf, (math.pi * s_min) ** 3 * (t_sum / inv_r) ** 2)
     inv_mass = np.zeros((rows, n + 2), dtype=complex)
     inv_mass[:, :n + 1] = 1.0 / mass
+    w = cfg.wall
+    body = w.type == "body"
+    zero = np.zeros((rows, 1))
+    body_mass = read("wall.mass", w.mass) if body else zero + np.inf
+    if body:  # a protected body: body N + 1 moves, held by its mount (contact N + 1)
+        inv_mass[:, n + 1:] = 1.0 / body_mass
     damping = _damping(cfg, read, kappa, inv_mass, d, mats)
     d0 = np.zeros((rows, n + 1), dtype=complex)
     fext = np.zeros((rows, n + 2), dtype=complex)
     f0 = read("chain.precompression", cfg.chain.precompression)
+    mount_k = read("wall.stiffness", w.stiffness) if body else zero
+    mount_c = read("wall.damping", w.damping) if body else zero
+    mount_d0 = zero.astype(complex)
     if f0[0, 0].real > 0:
         d0[:, 1:] = (f0 / kappa[:, 1:]) ** (2.0 / 3.0)
         fext[:, 1:2] = f0
-    zero = np.zeros((rows, 1))
+        if body:  # the mount carries the static load (bodies.extend)
+            mount_d0 = f0 / mount_k
     de = np.diff(np.concatenate([zero, offsets, zero], axis=1), axis=1)
     de[:, n] = 0.0
     rr = np.concatenate([r, zero], axis=1)
@@ -195,8 +212,9 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     v0 = np.zeros((rows, n + 2), dtype=complex)
     v0[:, :1] = read("striker.velocity", s.velocity)
     return {"kappa": kappa, "damping": damping, "d0": d0, "de": de, "dx0": dx0, "rsum": rsum, "fext": fext,
-            "inv_mass": inv_mass, "v0": v0, "mass": np.concatenate([mass, zero + np.inf], axis=1),
-            "yield_force": fy, "diameter": d, "offset": offsets}
+            "inv_mass": inv_mass, "v0": v0, "mass": np.concatenate([mass, body_mass], axis=1),
+            "yield_force": fy, "diameter": d, "offset": offsets, "mount_k": mount_k + 0j, "mount_c": mount_c + 0j,
+            "mount_d0": mount_d0}
 
 
 def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
@@ -213,18 +231,24 @@ def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
                           "and write the calibrated value (the result's 'model' attribute holds it) in its place")
     if k.law == "dashpot":
         return np.where(on, read("contact.gamma", k.gamma), 0.0)
-    a = read("contact.A", k.A)
-    if k.law == "viscoelastic":
-        return np.where(on, a, 0.0)
-    # size-scaled: A_j = A t_j / t_ref, t = (mu / kappa)^(2/5), the reference two beads like bead 1
+    if k.law in ("viscoelastic", "viscoelastic_scaled"):
+        a = read("contact.A", k.A)
+        if k.law == "viscoelastic":
+            return np.where(on, a, 0.0)
+    else:
+        a = read("contact.gamma", k.gamma)
+    # size-scaled laws: the reference is two beads like bead 1 (contact._reference_pair)
     nc = kappa.shape[1]
     mu = 1.0 / (inv_mass[:, :nc] + inv_mass[:, 1:nc + 1])
     theta, rho, _ = _theta(_material(mats[0]), read)
     d1 = d[:, :1]
     k_ref = 1.0 / (2.0 * theta * np.sqrt(4.0 / d1))
-    t_ref = collision_time_scale(0.5 * rho * math.pi * d1**3 / 6.0, k_ref)
+    mu_ref = 0.5 * rho * math.pi * d1**3 / 6.0
     safe = np.where(on, kappa, 1.0)
-    return np.where(on, a * collision_time_scale(mu, safe) / t_ref, 0.0)
+    if k.law == "viscoelastic_scaled":  # A_j = A t_j / t_ref, t = (mu / kappa)^(2/5)
+        return np.where(on, a * collision_time_scale(mu, safe) / collision_time_scale(mu_ref, k_ref), 0.0)
+    # dashpot_scaled: gamma_j = gamma (kappa_j / kappa_ref)^(2/5) (mu_j / mu_ref)^(3/5)
+    return np.where(on, a * (safe / k_ref) ** 0.4 * (mu / mu_ref) ** 0.6, 0.0)
 
 
 def expand_paths(cfg, variables) -> list[str]:
@@ -339,8 +363,9 @@ def setup_derivatives(cfg, system, paths: list[str]) -> SetupDerivatives:
 
 def _check_against(values: dict[str, np.ndarray], system) -> None:
     """Refuse a config whose System this module does not reproduce (a set-up it does not know)."""
-    for name in ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mass", "yield_force"):
-        ref = np.asarray(getattr(system, name), dtype=float)
+    for name in ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mass", "yield_force",
+                 "mount_k", "mount_c", "mount_d0"):
+        ref = np.atleast_1d(np.asarray(getattr(system, name, 0.0), dtype=float))
         mine = values[name]
         if ref.shape != mine.shape or not np.allclose(mine, ref, rtol=1e-12, atol=0.0, equal_nan=True):
             raise ConfigError("config", f"gradients cannot reproduce this model's set-up (System.{name} differs); the "

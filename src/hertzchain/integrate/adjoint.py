@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .extension import EXT_CLIN, EXT_KLIN
 from .kernels import DELTA_MIN
 from .partials import contact_partials
 from .tape import replay_group
@@ -47,10 +48,11 @@ def _clear_seeds(p, q, fb, seed_contact):
 
 @njit(cache=True, nogil=True)
 def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
-                   d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, ptr, grad):
+                   d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, ptr, grad, ext):
     """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse, general forces; returns the seed pointer.
 
-    ``grad`` rows: kappa, damping, d0, de, dx0, rsum, fext, inv_mass (adjoints accumulated).
+    ``grad`` rows: kappa, damping, d0, de, dx0, rsum, fext, inv_mass, then the linear spring and
+    dashpot of every contact (``ext``: a protected body's mount; an empty ``ext`` has none).
     Seeds are sorted by step; ``ptr`` is one past the last seed not consumed yet. ``fb`` (zero on
     entry and exit) receives a step's seeds; ``fs, wb, rb`` are scratch (size P + 1, slot 0 zero).
     The loops read shifted views (``x1[j]`` for x[j + 1], made once) so that LLVM vectorises them,
@@ -62,8 +64,10 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
     n = ab.shape[0]
     p = ptr
     gk, gdamp, gd0, gde, gdx0, grs, gfext, ginv = grad[0], grad[1], grad[2], grad[3], grad[4], grad[5], grad[6], grad[7]
+    gkl, gcl = grad[8], grad[9]
     ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
     m = n - 1
+    linear = ext.shape[0] > 0
     for sl in range(nsteps - 1, -1, -1):
         h = hstore[sl]
         hh = 0.5 * h
@@ -73,6 +77,16 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
                                                                    vpstore[sl, j + 1], kappa[j], damping[j], d0[j],
                                                                    de[j], dx0[j], rsum[j], law)
             fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            if linear and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
+                # the mount's spring and dashpot (extension.forces_linear): k delta + c d(delta)/dt
+                dl = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
+                rl = vpstore[sl, j] - vpstore[sl, j + 1]
+                f += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
+                gw += ext[j, EXT_KLIN]
+                g0 += ext[j, EXT_KLIN]
+                gv += ext[j, EXT_CLIN]
+                gkl[j] += fbar * dl
+                gcl[j] += fbar * rl
             fs1[j] = f
             wb1[j] = fbar * gw
             rb1[j] = fbar * gv
@@ -168,7 +182,7 @@ def _steps_plain(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mass
 
 @njit(cache=True, nogil=True)
 def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
-                     seed_step, seed_contact, seed_w, ptr, grad):
+                     seed_step, seed_contact, seed_w, ptr, grad, ext):
     """The state at t = 0: a_0 = (F(u_0, v_0)_{i-1} - F(u_0, v_0)_i + f_ext,i) / m_i (seeds of step -1)."""
     n = ab.shape[0]
     fb = np.zeros(n)
@@ -184,6 +198,15 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
                                                                damping[j], d0[j], de[j], dx0[j], rsum[j],
                                                                law if general else 0)
         fbar = fb[j] + inv_mass[j + 1] * ab[j + 1] - inv_mass[j] * ab[j]
+        if ext.shape[0] > 0 and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
+            dl = u0[j] - u0[j + 1] + d0[j]
+            rl = v0[j] - v0[j + 1]
+            f += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
+            gw += ext[j, EXT_KLIN]
+            g0 += ext[j, EXT_KLIN]
+            gv += ext[j, EXT_CLIN]
+            grad[8, j] += fbar * dl
+            grad[9, j] += fbar * rl
         fs[j + 1] = f
         wb[j + 1] = fbar * gw
         rb[j + 1] = fbar * gv
@@ -203,7 +226,7 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
 
 @njit(cache=True, nogil=True)
 def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
-                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows):
+                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext):
     """The whole reverse sweep: every group replayed and differentiated, last group first, then
     the initial state. On entry ``ub, vb, ab`` hold the seeds on the final state (usually zero);
     on exit the adjoints of (u_0, v_0, a_0), and ``grad`` the parameter gradients (rows as in
@@ -239,10 +262,11 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
         b0 = gi * group
         b1 = min(b0 + group, n_blocks)
         rows = replay_group(ckpt[gi], u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
-                            wall_slot, ns_log, b0, b1, block, ustore, vpstore, hstore, dyield, dmax, dres, kres)
+                            wall_slot, ns_log, b0, b1, block, ustore, vpstore, hstore, dyield, dmax, dres, kres, ext,
+                            ext.shape[0] > 0)
         if general:
             p = _steps_general(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
-                               damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad)
+                               damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad, ext)
         elif static:
             p = _steps_static(rows, ustore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, inv_mass, kappa, d0, fext,
                               seed_step, seed_contact, seed_w, p, grad)
@@ -250,4 +274,4 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
             p = _steps_plain(rows, ustore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, inv_mass, kappa, seed_step,
                              seed_contact, seed_w, p, grad)
     return _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
-                            seed_step, seed_contact, seed_w, p, grad)
+                            seed_step, seed_contact, seed_w, p, grad, ext)

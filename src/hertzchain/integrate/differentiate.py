@@ -32,8 +32,12 @@ from .verlet import StepPlan, initialise, refine_peak, step_plan
 
 __all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHECKPOINT_BYTES"]
 
-#: System arrays the engines differentiate, in the order of the kernels' gradient rows (v0 last).
-PARAMETERS = ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0")
+#: System arrays the engines differentiate, in the order of the kernels' gradient rows (v0 last):
+#: then a protected body's mount, its spring ``mount_k`` [N/m], dashpot ``mount_c`` [N s/m] and
+#: deflection at rest ``mount_d0`` [m] (scalars, as the System holds them).
+PARAMETERS = ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mount_k", "mount_c",
+              "mount_d0")
+_ROWS = 10  # gradient rows of the kernels: the eight per-slot arrays, then the linear k and c
 #: Most memory [bytes] the checkpoints of a reverse sweep may take; past it, checkpoints are kept
 #: every few blocks (the replay of a group then stores more steps at once).
 CHECKPOINT_BYTES = 256 * 2**20
@@ -155,9 +159,9 @@ def check_law(system: System) -> None:
     """
     from ..contact import LAW_CODES
 
-    if getattr(system, "extended", False):
-        raise ConfigError("wall.type", "gradients do not differentiate a protected body or mass-in-mass beads yet "
-                          "(the engine's extension); they cover chains against a flat wall or a free end")
+    if getattr(system, "res_k", None) is not None:
+        raise ConfigError("chain.elements", "gradients do not differentiate mass-in-mass beads yet; they cover "
+                          "chains of plain beads against a flat wall, a protected body or a free end")
     if system.law not in LAWS:
         name = next((k for k, v in LAW_CODES.items() if v == system.law), str(system.law))
         raise ConfigError("contact.law", f"gradients do not differentiate the '{name}' law yet; they cover "
@@ -203,7 +207,8 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     peak = np.empty(8)
     acc = np.zeros(8)
     scratch = np.empty(n_samples)
-    initialise(system, w, u, v, g, a, rec, out_f, scratch, scratch, scratch, np.empty((1, 1)), False, fmax, peak, acc)
+    initialise(system, w, u, v, g, a, rec, out_f, scratch, scratch, scratch, np.empty((1, 1)), False, fmax, peak, acc,
+               np.empty(n_samples), w.ext, np.empty((1, 4)))
     n_blocks = (n_samples - 1) * plan.n_sub
     per_ckpt = 3 * w.n_slots * 8
     ns_max = plan.stride if plan.stride > 0 else math.ceil(sample_interval / plan.n_sub / plan.dt - 1e-9)
@@ -214,9 +219,9 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     fmax_k = np.zeros(nc, dtype=np.int64)
     kstar = np.full(1, -1, dtype=np.int64)
     status = tape_forward(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
-                          w.dyield, w.dmax, w.dres, w.kres, system.law, system.general, w.wall_slot, sample_interval, plan.stride, plan.n_sub,
-                          plan.n_eval, plan.c_steps, plan.relax, n_samples, rec, out_f, fmax, fmax_k, peak, kstar,
-                          acc, ns_log, step_end, ckpt, group)
+                          w.dyield, w.dmax, w.dres, w.kres, system.law, system.general, w.wall_slot, sample_interval,
+                          plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, rec, out_f, fmax,
+                          fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group, w.ext, w.ext.shape[0] > 0)
     if status != 0:
         raise SimulationDiverged("the integration diverged (non-finite state); check the inputs")
     fpk, t_pk = refine_peak(peak)
@@ -234,9 +239,10 @@ def _check_seeds(tape: Tape, seeds: Seeds) -> None:
 
 
 def _unpack(system: System, grad: np.ndarray, v0bar: np.ndarray) -> dict[str, np.ndarray]:
-    """Gradient rows of the padded slots -> arrays shaped like the System's."""
+    """Gradient rows of the padded slots -> arrays shaped like the System's (the mount's as scalars)."""
     nc = system.kappa.size
     nbody = system.mass.size
+    moving = getattr(system, "n_moving", system.n_beads + 1)  # bodies that move (a protected body too)
     out = {}
     for name, row in zip(PARAMETERS[:8], grad):
         size = nbody if name in ("fext", "inv_mass") else nc
@@ -244,12 +250,17 @@ def _unpack(system: System, grad: np.ndarray, v0bar: np.ndarray) -> dict[str, np
         m = min(size, row.size)
         arr[:m] = row[:m]
         out[name] = arr
-    out["inv_mass"][system.n_beads + 1:] = 0.0  # the wall ghost has 1/m = 0 for good
-    out["fext"][system.n_beads + 1:] = 0.0
+    out["inv_mass"][moving:] = 0.0  # the wall (or ground) ghost has 1/m = 0 for good
+    out["fext"][moving:] = 0.0
     v0 = np.zeros(nbody)
     v0[:min(nbody, v0bar.size)] = v0bar[:nbody]
-    v0[system.n_beads + 1:] = 0.0
+    v0[moving:] = 0.0
     out["v0"] = v0
+    mount = system.n_beads + 1  # a protected body's mount: contact N + 1 of the padded slots
+    body = bool(getattr(system, "body", False))
+    out["mount_k"] = np.array([grad[8, mount] if body else 0.0])
+    out["mount_c"] = np.array([grad[9, mount] if body else 0.0])
+    out["mount_d0"] = np.array([grad[2, mount] if body else 0.0])
     return out
 
 
@@ -276,7 +287,7 @@ def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
     n = w.n_slots
     n_blocks = (tape.time.size - 1) * tape.plan.n_sub
     ub, vb, ab = np.zeros(n), np.zeros(n), np.zeros(n)
-    grad = np.zeros((8, n))
+    grad = np.zeros((_ROWS, n))
     group_steps = np.add.reduceat(tape.ns_log, np.arange(0, max(n_blocks, 1), tape.group)) if n_blocks else np.ones(1)
     max_rows = int(max(1, group_steps.max()))
     if max_rows * (n + 1) * 8 * (2 if sy.general else 1) > GROUP_BYTES * 4:
@@ -286,26 +297,31 @@ def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
     if n_blocks:
         _adjoint.reverse_sweep(tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab,
                                w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general,
-                               w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows)
+                               w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext)
     else:
         _adjoint._adjoint_initial(tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
                                   w.rsum, w.fext, sy.law, sy.general, seeds.step, seeds.contact, seeds.weight,
-                                  seeds.step.size, grad)
+                                  seeds.step.size, grad, w.ext)
     return _unpack(sy, grad, vb)
 
 
 def _pad_rows(system: System, directions: dict[str, np.ndarray], n_dirs: int, n_slots: int):
-    th = np.zeros((8, n_dirs, n_slots))
+    th = np.zeros((_ROWS, n_dirs, n_slots))
     v0t = np.zeros((n_dirs, n_slots))
+    moving = getattr(system, "n_moving", system.n_beads + 1)
+    mount = system.n_beads + 1
     for name, arr in directions.items():
         arr = np.atleast_2d(np.asarray(arr, dtype=float))
         if name == "v0":
-            m = min(arr.shape[1], system.n_beads + 1)
+            m = min(arr.shape[1], moving)
             v0t[:, :m] = arr[:, :m]
             continue
+        if name in ("mount_k", "mount_c", "mount_d0"):
+            th[{"mount_k": 8, "mount_c": 9, "mount_d0": 2}[name], :, mount] += arr[:, 0]
+            continue
         r = PARAMETERS.index(name)
-        m = min(arr.shape[1], n_slots, system.n_beads + 1 if name in ("fext", "inv_mass") else system.kappa.size)
-        th[r, :, :m] = arr[:, :m]
+        m = min(arr.shape[1], n_slots, moving if name in ("fext", "inv_mass") else system.kappa.size)
+        th[r, :, :m] += arr[:, :m]
     return th, v0t
 
 
@@ -353,14 +369,15 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
     peak = np.empty(8)
     acc = np.zeros(8)
     scratch = np.empty(n_samples)
-    initialise(system, w, u, v, g, a, rec, out_f, scratch, scratch, scratch, np.empty((1, 1)), False, fmax, peak, acc)
+    initialise(system, w, u, v, g, a, rec, out_f, scratch, scratch, scratch, np.empty((1, 1)), False, fmax, peak, acc,
+               np.empty(n_samples), w.ext, np.empty((1, 4)))
     out_ft = np.zeros((n_dirs, n_samples, rec.size))
     dj = np.zeros(n_dirs)
     seeds = seeds or Seeds.build([])
     status = _tangent.tangent_run(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
                                   w.dcap, system.law, system.general, w.wall_slot, sample_interval, plan.stride,
                                   plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, acc, th, v0t, rec,
-                                  out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj)
+                                  out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj, w.ext)
     if status != 0:
         raise SimulationDiverged("the integration diverged (non-finite state); check the inputs")
     return rec, out_f, out_ft, dj

@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from . import kernels
+from .extension import EXT_CLIN, EXT_KLIN
 from .partials import contact_partials
 from .tape import _open_block
 
@@ -65,9 +66,10 @@ def _elastic_last_step(u, v, a, g, kappa, d0, fext, inv_mass, half, gw, gk):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt, last, gp):
-    """One step of ``tape._general_block`` (forces of ``kernels.forces_general``, the same numbers),
-    writing also the contacts' partials into the rows of ``gp`` (see :func:`_tangent_step`)."""
+def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt, last, gp, ext):
+    """One step of ``tape._general_block`` (forces of ``kernels.forces_general``, and of
+    ``kernels.forces_linear`` for a protected body's mount in ``ext``: the same numbers), writing also
+    the contacts' partials into the rows of ``gp`` (rows 8, 9: by the mount's k and c)."""
     n = a.shape[0]
     half = 0.5 * dt
     for i in range(n):
@@ -76,6 +78,15 @@ def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_m
         fj, gw, gv, gk, ga, g0, gdd, gx, gr = contact_partials(u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j],
                                                                d0[j], de[j], dx0[j], rsum[j], law)
         g[j + 1] = fj
+        if ext.shape[0] > 0 and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
+            dl = u[j] - u[j + 1] + d0[j]
+            rl = vp[j] - vp[j + 1]
+            g[j + 1] += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
+            gw += ext[j, EXT_KLIN]
+            g0 += ext[j, EXT_KLIN]
+            gv += ext[j, EXT_CLIN]
+            gp[8, j] = dl
+            gp[9, j] = rl
         gp[0, j] = gw
         gp[1, j] = gv
         gp[2, j] = gk
@@ -155,7 +166,8 @@ def _parameter_forces(gp, gw, gk, th, pf, general):
         if general:
             for j in range(n - 1):
                 pf[o + j] = (gp[2, j] * th[0, dd, j] + gp[3, j] * th[1, dd, j] + gp[4, j] * th[2, dd, j]
-                             + gp[5, j] * th[3, dd, j] + gp[6, j] * th[4, dd, j] + gp[7, j] * th[5, dd, j])
+                             + gp[5, j] * th[3, dd, j] + gp[6, j] * th[4, dd, j] + gp[7, j] * th[5, dd, j]
+                             + gp[8, j] * th[8, dd, j] + gp[9, j] * th[9, dd, j])
         else:
             for j in range(n - 1):
                 pf[o + j] = gk[j] * th[0, dd, j] + gw[j] * th[2, dd, j]
@@ -190,10 +202,11 @@ def _tangent_loop(general: bool, aligned: bool):
 
     @njit(cache=True, nogil=True)
     def run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, interval, stride, n_sub, n_eval,
-            c_steps, relax, n_samples, acc, th, v0t, rec, out_f, out_ft, seed_step, seed_contact, seed_w, dj):
+            c_steps, relax, n_samples, acc, th, v0t, rec, out_f, out_ft, seed_step, seed_contact, seed_w, dj, ext):
         """The primal run from t = 0 (state as ``verlet.initialise`` leaves it) with D tangents.
 
-        ``th`` (8, D, P): parameter tangents, rows kappa, damping, d0, de, dx0, rsum, fext, inv_mass;
+        ``th`` (10, D, P): parameter tangents, rows kappa, damping, d0, de, dx0, rsum, fext, inv_mass,
+        the linear spring and dashpot of every contact (``ext``: a protected body's mount);
         ``v0t`` (D, P): tangent of the initial velocities. Records, at every sample k, the primal
         forces ``out_f[k]`` and tangent forces ``out_ft[:, k]`` of the contacts ``rec``; accumulates
         dj[dd] += seed_w F'^(seed_step)_(seed_contact) (seeds sorted by step; step -1: t = 0).
@@ -204,7 +217,7 @@ def _tangent_loop(general: bool, aligned: bool):
         n = a.shape[0]
         nd = th.shape[1]
         lw = law if general else 0
-        no_ext = np.zeros((0, 8))  # models with the extension are refused upstream
+        ext_on = ext.shape[0] > 0
         block = interval / n_sub
         adaptive = stride == 0
         ns = stride if not adaptive else int(acc[3])
@@ -214,7 +227,7 @@ def _tangent_loop(general: bool, aligned: bool):
         ft = np.zeros(nd * (n + 1))
         vpt = np.zeros(n + 1)
         vp = np.zeros_like(v)
-        gp = np.zeros((8, n))  # partials: dF/dw, dF/dvrel, then kappa, damping, d0, de, dx0, rsum
+        gp = np.zeros((10, n))  # partials: dF/dw, dF/dvrel, then kappa, damping, d0, de, dx0, rsum, k, c
         gw, gv, gk, ga, g0 = gp[0], gp[1], gp[2], gp[3], gp[4]
         pf = np.zeros(nd * (n + 1))
         thf = np.zeros(nd * (n + 1))  # tangents of f_ext and 1/m, flat like the states
@@ -237,6 +250,12 @@ def _tangent_loop(general: bool, aligned: bool):
             gp[5, j] = gdd0
             gp[6, j] = gx0
             gp[7, j] = gr0
+            if ext_on and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):  # the mount at t = 0
+                gp[0, j] += ext[j, EXT_KLIN]
+                gp[4, j] += ext[j, EXT_KLIN]
+                gp[1, j] += ext[j, EXT_CLIN]
+                gp[8, j] = u[j] - u[j + 1] + d0[j]
+                gp[9, j] = v[j] - v[j + 1]
         _parameter_forces(gp, gw, gk, th, pf, True)
         for dd in range(nd):
             o = dd * (n + 1)
@@ -258,7 +277,7 @@ def _tangent_loop(general: bool, aligned: bool):
                 bi = (k - 1) * n_sub + b
                 if adaptive and bi % n_eval == 0:
                     req = kernels.required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, n_eval * block,
-                                                  block, c_steps, damping, law, no_ext, False)
+                                                  block, c_steps, damping, law, ext, ext_on)
                     ns = kernels._adapt_stride(req, ns, relax, acc)
                 dt = block / ns
                 _open_block(u, v, a, dt)
@@ -270,7 +289,7 @@ def _tangent_loop(general: bool, aligned: bool):
                                       gk, ga, g0)
                     elif general:
                         _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt,
-                                      s == ns - 1, gp)
+                                      s == ns - 1, gp, ext)
                     elif s < ns - 1:
                         _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, gw, gk)
                     else:
@@ -301,15 +320,16 @@ _TANGENT_RUNS = {"elastic": _tangent_loop(False, True), "aligned": _tangent_loop
 
 def tangent_run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general, wall_slot,
                 interval, stride, n_sub, n_eval, c_steps, relax, n_samples, acc, th, v0t, rec, out_f, out_ft,
-                seed_step, seed_contact, seed_w, dj):
+                seed_step, seed_contact, seed_w, dj, ext):
     """The primal run from t = 0 (state as ``verlet.initialise`` leaves it) with D tangents (see the
-    loop's docstring above); ``general``, the law and the offsets choose the compiled run."""
+    loop's docstring above); ``general``, the law, the offsets and the extension ``ext`` (a
+    protected body's mount) choose the compiled run."""
     if not general:
         kind = "elastic"
-    elif law in (kernels.LAW_VISCOELASTIC, kernels.LAW_DASHPOT) and not np.any(de):
+    elif law in (kernels.LAW_VISCOELASTIC, kernels.LAW_DASHPOT) and not np.any(de) and ext.shape[0] == 0:
         kind = "aligned"
     else:
         kind = "general"
     return _TANGENT_RUNS[kind](u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law,
                                              interval, stride, n_sub, n_eval, c_steps, relax, n_samples, acc, th, v0t,
-                                             rec, out_f, out_ft, seed_step, seed_contact, seed_w, dj)
+                                             rec, out_f, out_ft, seed_step, seed_contact, seed_w, dj, ext)

@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from . import kernels
+from .extension import forces_linear
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -42,9 +43,15 @@ def _store(dst, row, src):
 
 @njit(cache=True, nogil=True, inline="always")
 def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt, t0,
-                   step, peak, kstar, store, ustore, vpstore, hstore, s0, dyield, dmax, dres, kres):
+                   step, peak, kstar, store, stores, s0, state, ext, ext_on):
     """One block of ``ns`` steps of length ``dt`` after :func:`_open_block`, as ``kernels.verlet_run`` steps it,
-    with ``kernels.forces_general`` (dissipation, offsets)."""
+    with ``kernels.forces_general`` (dissipation, offsets), and with ``ext_on`` the linear mount of a
+    protected body (``kernels.forces_linear``: ``kernels.step_extended``'s numbers for a model
+    without mass-in-mass beads, whose internal terms are then zero). ``stores`` is (ustore, vpstore,
+    hstore), ``state`` the elastic-plastic law's (dyield, dmax, dres, kres): tuples, because a call
+    with more than 30 arguments compiles to a star-args call, which Numba cannot inline."""
+    ustore, vpstore, hstore = stores
+    dyield, dmax, dres, kres = state
     n = a.shape[0]
     half = 0.5 * dt
     for s in range(ns):
@@ -55,6 +62,8 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
             _store(vpstore, s0 + s, vp)
             hstore[s0 + s] = dt
         kernels.forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
+        if ext_on:  # a protected body's mount (kernels.step_extended, without internal masses)
+            forces_linear(u, vp, d0, ext, g)
         before = peak[0]
         kernels._track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
         if g[wall_slot + 1] > before:
@@ -110,7 +119,7 @@ def _open_block(u, v, a, dt):
 @njit(cache=True, nogil=True)
 def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres, law,
                  general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, n_samples, rec, out_f, fmax,
-                 fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group):
+                 fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group, ext, ext_on):
     """The primal run from t = 0 to sample ``n_samples - 1``, taped.
 
     State on entry as :func:`hertzchain.integrate.verlet.initialise` leaves it (sample 0 of
@@ -125,7 +134,6 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
     rows for it (6 rows: u, v, a, dmax, dres, kres).
     """
     n = a.shape[0]
-    no_ext = np.zeros((0, 8))  # the extension (a protected body, mass-in-mass beads) is not taped
     plastic_rows = ckpt.shape[1] > 3
     block = interval / n_sub
     adaptive = stride == 0
@@ -140,7 +148,7 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
             bi = (k - 1) * n_sub + b
             if adaptive and bi % n_eval == 0:
                 req = kernels.required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, n_eval * block,
-                                              block, c_steps, damping, law, no_ext, False)
+                                              block, c_steps, damping, law, ext, ext_on)
                 ns = kernels._adapt_stride(req, ns, relax, acc)
             if bi % group == 0:
                 c = bi // group
@@ -161,7 +169,8 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
             _open_block(u, v, a, dt)
             if general:
                 _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns,
-                               dt, t0, step, peak, kstar, False, dummy, dummy, dummy_h, 0, dyield, dmax, dres, kres)
+                               dt, t0, step, peak, kstar, False, (dummy, dummy, dummy_h), 0, (dyield, dmax, dres, kres),
+                               ext, ext_on)
             else:
                 _elastic_block(u, v, a, g, inv_mass, kappa, d0, fext, wall_slot, ns, dt, block, t0, step, peak, kstar)
             step += ns
@@ -183,7 +192,7 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
 
 @njit(cache=True, nogil=True)
 def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
-                 ns_log, b0, b1, block, ustore, vpstore, hstore, dyield, dmax, dres, kres):
+                 ns_log, b0, b1, block, ustore, vpstore, hstore, dyield, dmax, dres, kres, ext, ext_on):
     """Run blocks ``b0`` to ``b1 - 1`` again from their group's checkpoint ``ckpt_g`` with the taped
     step counts, storing every step's force-evaluation state (:func:`_general_block`); returns the
     number of steps stored. ``u, v, a, g`` (and the elastic-plastic state) are scratch."""
@@ -207,7 +216,8 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
         _open_block(u, v, a, dt)
         if general:
             _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt,
-                           0.0, 0, peak, kstar, True, ustore, vpstore, hstore, s0, dyield, dmax, dres, kres)
+                           0.0, 0, peak, kstar, True, (ustore, vpstore, hstore), s0, (dyield, dmax, dres, kres), ext,
+                           ext_on)
         else:
             _elastic_block_stored(u, v, a, g, inv_mass, kappa, d0, fext, ns, dt, ustore, hstore, s0)
         s0 += ns
