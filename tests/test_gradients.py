@@ -263,8 +263,6 @@ def test_refusals_name_the_field():
         sensitivity(_with(BASE, contact={"law": "viscoelastic", "eps": 0.98}), ["striker.velocity"])
     with pytest.raises(ConfigError, match="run.integrator"):
         sensitivity(_with(BASE, run={"integrator": "dop853"}), ["striker.velocity"])
-    with pytest.raises(ConfigError, match="contact.law"):
-        sensitivity(_with(BASE, contact={"law": "elastoplastic"}), ["striker.velocity"])
     with pytest.raises(ConfigError, match="striker.shape"):
         sensitivity(_with(BASE, striker={"shape": "flat"}), ["striker.velocity"])
     with pytest.raises(ConfigError, match="chain.gravity"):

@@ -16,7 +16,8 @@ Fields (units: the config's own, so ``diameters_mm`` is per mm):
   ``chain.precompression``;
 - ``striker.diameter_mm``, ``striker.velocity``, and ``striker.mass`` [kg] (the striker's mass at
   fixed size: not a config field yet);
-- ``contact.A``, ``contact.gamma`` (constant or size-scaled laws);
+- ``contact.A``, ``contact.gamma`` (constant or size-scaled laws); the elastic-plastic law's
+  ``contact.A`` and ``contact.limiting_pressure_factor`` (its yield overlaps scale as its square);
 - a protected body (``[wall] type = "body"``): ``wall.mass`` [kg], ``wall.stiffness`` [N/m] and
   ``wall.damping`` [N s/m] of its mount;
 - ``materials.NAME.density``, ``.young``, ``.poisson``, ``.yield_stress`` for a material of the
@@ -42,14 +43,14 @@ __all__ = ["SetupDerivatives", "setup_derivatives", "ARRAYS", "expand_paths"]
 #: the elastic limits the results may read directly), the beads' diameters and offsets [m], and
 #: a protected body's mount (spring [N/m], dashpot [N s/m], deflection at rest [m]; (1,) each).
 ARRAYS = ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mass", "yield_force",
-          "diameter", "offset", "mount_k", "mount_c", "mount_d0")
+          "diameter", "offset", "mount_k", "mount_c", "mount_d0", "dyield")
 #: The complex step (any h far below the value's own scale works: no subtraction is made).
 STEP = 1e-30
 
 _MATERIAL_FIELDS = ("density", "young", "poisson", "yield_stress")
 _SCALAR_FIELDS = ("chain.uniform.diameter_mm", "chain.taper.q", "chain.precompression", "striker.diameter_mm",
-                  "striker.velocity", "striker.mass", "contact.A", "contact.gamma", "wall.mass", "wall.stiffness",
-                  "wall.damping")
+                  "striker.velocity", "striker.mass", "contact.A", "contact.gamma", "contact.limiting_pressure_factor",
+                  "wall.mass", "wall.stiffness", "wall.damping")
 _LISTS = ("chain.diameters_mm", "chain.offsets_mm", "chain.offsets_fraction")
 
 
@@ -193,6 +194,12 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     if body:  # a protected body: body N + 1 moves, held by its mount (contact N + 1)
         inv_mass[:, n + 1:] = 1.0 / body_mass
     damping = _damping(cfg, read, kappa, inv_mass, d, mats)
+    plastic = cfg.contact.law == "elastoplastic"
+    ratio = read("contact.limiting_pressure_factor", cfg.contact.limiting_pressure_factor or 1.5) / 1.5 if plastic \
+        else np.ones((rows, 1))
+    ok = (kappa.real > 0) & np.isfinite(fy.real)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dyield = np.where(ok, (fy / np.where(ok, kappa, 1.0)) ** (2.0 / 3.0) * ratio**2, np.inf)
     d0 = np.zeros((rows, n + 1), dtype=complex)
     fext = np.zeros((rows, n + 2), dtype=complex)
     f0 = read("chain.precompression", cfg.chain.precompression)
@@ -202,6 +209,12 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     if f0[0, 0].real > 0:
         d0[:, 1:] = (f0 / kappa[:, 1:]) ** (2.0 / 3.0)
         fext[:, 1:2] = f0
+        if plastic:  # statically loaded along Thornton's loading curve (Model.system)
+            f_y = fy[:, 1:] * ratio**3
+            with np.errstate(invalid="ignore", divide="ignore"):
+                dy = (f_y / kappa[:, 1:]) ** (2.0 / 3.0)
+                line = dy + (f0 - f_y) / (1.5 * kappa[:, 1:] * np.sqrt(dy))
+            d0[:, 1:] = np.where(f0.real > f_y.real, line, d0[:, 1:])
         if body:  # the mount carries the static load (bodies.extend)
             mount_d0 = f0 / mount_k
     de = np.diff(np.concatenate([zero, offsets, zero], axis=1), axis=1)
@@ -214,7 +227,7 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     return {"kappa": kappa, "damping": damping, "d0": d0, "de": de, "dx0": dx0, "rsum": rsum, "fext": fext,
             "inv_mass": inv_mass, "v0": v0, "mass": np.concatenate([mass, body_mass], axis=1),
             "yield_force": fy, "diameter": d, "offset": offsets, "mount_k": mount_k + 0j, "mount_c": mount_c + 0j,
-            "mount_d0": mount_d0}
+            "mount_d0": mount_d0, "dyield": dyield}
 
 
 def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
@@ -225,6 +238,8 @@ def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
     on = kappa[0].real > 0
     if k.law == "elastic":
         return np.zeros(kappa.shape, dtype=complex)
+    if k.law == "elastoplastic":  # a constant A (config.build: no size scaling)
+        return np.where(on, read("contact.A", k.A or 0.0), 0.0)
     if k.eps is not None:
         raise ConfigError("contact.eps", "gradients need the law's own parameter: the calibration that turns eps into "
                           f"{'gamma' if k.law == 'dashpot' else 'A'} is a simulation of its own; run the config once "
@@ -364,8 +379,9 @@ def setup_derivatives(cfg, system, paths: list[str]) -> SetupDerivatives:
 def _check_against(values: dict[str, np.ndarray], system) -> None:
     """Refuse a config whose System this module does not reproduce (a set-up it does not know)."""
     for name in ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mass", "yield_force",
-                 "mount_k", "mount_c", "mount_d0"):
-        ref = np.atleast_1d(np.asarray(getattr(system, name, 0.0), dtype=float))
+                 "mount_k", "mount_c", "mount_d0", "dyield"):
+        ref = system.yield_overlap() if name == "dyield" else getattr(system, name, 0.0)
+        ref = np.atleast_1d(np.asarray(ref, dtype=float))
         mine = values[name]
         if ref.shape != mine.shape or not np.allclose(mine, ref, rtol=1e-12, atol=0.0, equal_nan=True):
             raise ConfigError("config", f"gradients cannot reproduce this model's set-up (System.{name} differs); the "

@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import ConfigError, SimulationDiverged
 from ..model import System
 from . import adjoint as _adjoint
+from . import kernels
 from . import tangent as _tangent
 from .layout import Packed, pack
 from .tape import tape_forward
@@ -34,10 +35,11 @@ __all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHE
 
 #: System arrays the engines differentiate, in the order of the kernels' gradient rows (v0 last):
 #: then a protected body's mount, its spring ``mount_k`` [N/m], dashpot ``mount_c`` [N s/m] and
-#: deflection at rest ``mount_d0`` [m] (scalars, as the System holds them).
+#: deflection at rest ``mount_d0`` [m] (scalars, as the System holds them), and the elastic-plastic
+#: law's yield overlaps ``dyield`` [m] (``System.yield_overlap()``; per contact).
 PARAMETERS = ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mount_k", "mount_c",
-              "mount_d0")
-_ROWS = 10  # gradient rows of the kernels: the eight per-slot arrays, then the linear k and c
+              "mount_d0", "dyield")
+_ROWS = 11  # gradient rows of the kernels: the eight per-slot arrays, the linear k and c, dyield
 #: Most memory [bytes] the checkpoints of a reverse sweep may take; past it, checkpoints are kept
 #: every few blocks (the replay of a group then stores more steps at once).
 CHECKPOINT_BYTES = 256 * 2**20
@@ -145,19 +147,32 @@ def _samples(duration: float, sample_interval: float) -> int:
     return int(math.floor(duration / sample_interval + 1e-9)) + 1
 
 
-#: Contact laws the derivative engines differentiate (``contact.LAW_CODES`` values).
-LAWS = frozenset({0, 1, 2})
+#: Contact laws the derivative engines differentiate (``contact.LAW_CODES`` values); the tangent
+#: model (forward mode) does not differentiate the elastic-plastic law (3): the adjoint does.
+LAWS = frozenset({0, 1, 2, 3})
+TANGENT_LAWS = frozenset({0, 1, 2})
 
 
-def check_law(system: System) -> None:
-    """Refuse (ConfigError naming ``contact.law``) a law the engines do not differentiate.
+def check_law(system: System, tangent: bool = False) -> None:
+    """Refuse (ConfigError naming the field) a law or model the engines do not differentiate.
 
     Parameters
     ----------
     system : System
         The model's arrays.
+    tangent : bool
+        For the tangent model (which leaves the elastic-plastic law to the adjoint).
     """
     from ..contact import LAW_CODES
+
+    if system.law == kernels.LAW_ELASTOPLASTIC:
+        if tangent:
+            raise ConfigError("contact.law", "the tangent model (forward mode: trace_sensitivity, the fit's exact "
+                              "Jacobian) does not differentiate the 'elastoplastic' law yet; sensitivity() does "
+                              "(reverse mode)")
+        if system.misaligned:
+            raise ConfigError("chain.offsets_mm", "gradients of the 'elastoplastic' law cover aligned chains; "
+                              "offsets are not differentiated with it yet")
 
     if getattr(system, "res_k", None) is not None:
         raise ConfigError("chain.elements", "gradients do not differentiate mass-in-mass beads yet; they cover "
@@ -165,7 +180,7 @@ def check_law(system: System) -> None:
     if system.law not in LAWS:
         name = next((k for k, v in LAW_CODES.items() if v == system.law), str(system.law))
         raise ConfigError("contact.law", f"gradients do not differentiate the '{name}' law yet; they cover "
-                          "'elastic', 'viscoelastic', 'viscoelastic_scaled' and 'dashpot'")
+                          "'elastic', 'viscoelastic', 'viscoelastic_scaled', 'dashpot' and 'elastoplastic'")
 
 
 def record(system: System, duration: float, sample_interval: float, dt: float | None = None,
@@ -210,10 +225,11 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     initialise(system, w, u, v, g, a, rec, out_f, scratch, scratch, scratch, np.empty((1, 1)), False, fmax, peak, acc,
                np.empty(n_samples), w.ext, np.empty((1, 4)))
     n_blocks = (n_samples - 1) * plan.n_sub
-    per_ckpt = 3 * w.n_slots * 8
+    rows = 6 if system.law == kernels.LAW_ELASTOPLASTIC else 3  # u, v, a (and dmax, dres, kres)
+    per_ckpt = rows * w.n_slots * 8
     ns_max = plan.stride if plan.stride > 0 else math.ceil(sample_interval / plan.n_sub / plan.dt - 1e-9)
     group = max(1, GROUP_STEPS // max(ns_max, 1), math.ceil(n_blocks * per_ckpt / CHECKPOINT_BYTES))
-    ckpt = np.empty((max(1, -(-n_blocks // group)), 3, w.n_slots))
+    ckpt = np.empty((max(1, -(-n_blocks // group)), rows, w.n_slots))
     ns_log = np.zeros(max(n_blocks, 1), dtype=np.int64)
     step_end = np.zeros(n_samples, dtype=np.int64)
     fmax_k = np.zeros(nc, dtype=np.int64)
@@ -261,6 +277,9 @@ def _unpack(system: System, grad: np.ndarray, v0bar: np.ndarray) -> dict[str, np
     out["mount_k"] = np.array([grad[8, mount] if body else 0.0])
     out["mount_c"] = np.array([grad[9, mount] if body else 0.0])
     out["mount_d0"] = np.array([grad[2, mount] if body else 0.0])
+    dy = np.zeros(nc)
+    dy[:min(nc, grad.shape[1])] = grad[10, :nc]
+    out["dyield"] = dy
     return out
 
 
@@ -290,18 +309,19 @@ def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
     grad = np.zeros((_ROWS, n))
     group_steps = np.add.reduceat(tape.ns_log, np.arange(0, max(n_blocks, 1), tape.group)) if n_blocks else np.ones(1)
     max_rows = int(max(1, group_steps.max()))
-    if max_rows * (n + 1) * 8 * (2 if sy.general else 1) > GROUP_BYTES * 4:
+    per_step = 5 if sy.law == kernels.LAW_ELASTOPLASTIC else 2 if sy.general else 1  # arrays of P stored per step
+    if max_rows * (n + 1) * 8 * per_step > GROUP_BYTES * 4:
         raise ConfigError("run.dt", f"a group of {max_rows} steps between two checkpoints needs more memory than the "
                           "reverse sweep allows; use a larger run.dt or a shorter run.duration")
     block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub if tape.time.size > 1 else 0.0
     if n_blocks:
         _adjoint.reverse_sweep(tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab,
                                w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general,
-                               w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext)
+                               w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield)
     else:
         _adjoint._adjoint_initial(tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
                                   w.rsum, w.fext, sy.law, sy.general, seeds.step, seeds.contact, seeds.weight,
-                                  seeds.step.size, grad, w.ext)
+                                  seeds.step.size, grad, w.ext, w.dyield, np.zeros((2, n)))
     return _unpack(sy, grad, vb)
 
 
@@ -315,6 +335,10 @@ def _pad_rows(system: System, directions: dict[str, np.ndarray], n_dirs: int, n_
         if name == "v0":
             m = min(arr.shape[1], moving)
             v0t[:, :m] = arr[:, :m]
+            continue
+        if name == "dyield":
+            m = min(arr.shape[1], n_slots)
+            th[10, :, :m] += arr[:, :m]
             continue
         if name in ("mount_k", "mount_c", "mount_d0"):
             th[{"mount_k": 8, "mount_c": 9, "mount_d0": 2}[name], :, mount] += arr[:, 0]
@@ -352,7 +376,7 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
         Contacts recorded (C,), forces (K, C) [N], their derivatives (D, K, C) [N per unit of
         the direction] and the seeded scalar's directional derivatives (D,).
     """
-    check_law(system)
+    check_law(system, tangent=True)
     plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = _samples(duration, sample_interval)
     w = pack(system)

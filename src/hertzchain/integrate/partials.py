@@ -22,7 +22,12 @@ derivative of the branch the computed state is on):
 - the clipping f = max(f, 0) of the dissipative laws (no attraction while unloading): derivative
   zero where the clipped force is zero;
 - the dashpot force jumps from 0 to gamma d(delta)/dt at closure: the computed result jumps where a
-  parameter change moves a closure across a step; the derivative is that between the jumps.
+  parameter change moves a closure across a step; the derivative is that between the jumps;
+- the elastic-plastic law (:func:`elastoplastic_adjoint`) has a state, and a branch per step:
+  loading past the largest overlap (Hertz below the yield overlap, Thornton's line above it)
+  or unloading/reloading on the present unloading curve. The branch a step took is held fixed;
+  the onset of yield (d = dyield: the force is C1 there, the unloading curve's derivative is
+  not) and the turn from loading to unloading are the measure-zero switches.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
+from .kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC, elastoplastic_force
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -106,3 +111,51 @@ def contact_partials(uj, uj1, vj, vj1, kappa, damping, d0, de, dx0, rsum, law):
     dc_dde = -dx * de * inv3
     gde = dc_dde * f + c * (-fd * de / dist + fr * vrel * dc_dde)
     return c * f, gw, c * c * fr, c * fk, c * fa, 0.0, gde, -gw, c * fd
+
+
+@njit(cache=True, nogil=True, inline="always")
+def elastoplastic_adjoint(d, rate, kappa, damping, dyield, dmax, dres, kres, fbar, dresb, kresb):
+    """Reverse-mode derivative of one call of ``kernels.elastoplastic_force`` (Thornton's law).
+
+    The call maps (overlap d >= 0, rate, kappa, A, dyield, state in: dmax, dres, kres) to the force
+    f and the state out. Given the adjoints of f (``fbar``) and of the state out (``dresb``,
+    ``kresb``; the largest overlap dmax only enters comparisons, so its adjoint is zero), returns
+    (f, dbar, ratebar, kappabar, dampingbar, dyieldbar, dresb in, kresb in): f exactly as the kernel
+    computes it, the adjoints of the inputs, and those of the state in. Branches as the kernel's:
+
+    - loading past yield (d > dmax, d > dyield): f = kappa sy (1.5 d - 0.5 dy) + A kappa d^(1/2) rate
+      (sy = dy^(1/2); kres x^(1/2) = kappa d^(1/2)), new state x = d - dres = sy (1.5 d - 0.5 dy) / d^(1/2),
+      kres = kappa d^(1/2) / x^(1/2): the state in is overwritten (adjoint zero);
+    - Hertz loading (dmax < d <= dyield): f = kappa d^(3/2) + A kres d^(1/2) rate, state carried;
+    - unloading or reloading (d <= dmax): f = kres x^(3/2) + A kres x^(1/2) rate, x = d - dres,
+      zero for x <= DELTA_MIN; state carried.
+
+    A force clipped at zero has no partials (its state's still flow).
+    """
+    f, _, _, _, _ = elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres)
+    fb = fbar if f > 0.0 else 0.0
+    if d > dmax:
+        sd = np.sqrt(d)
+        if d > dyield:
+            sy = np.sqrt(dyield)
+            p = 1.5 * d - 0.5 * dyield
+            x = sy * p / sd
+            sx = np.sqrt(x)
+            x_d = sy * (0.75 / sd + 0.25 * dyield / (d * sd))
+            x_dy = (0.75 * d / sy - 0.75 * sy) / sd
+            c = 0.5 * kappa * sd / (x * sx)  # -d kres / dx
+            kr_d = 0.5 * kappa / (sd * sx) - c * x_d
+            dbar = fb * (1.5 * kappa * sy + 0.5 * damping * kappa * rate / sd) + dresb * (1.0 - x_d) + kresb * kr_d
+            dybar = fb * kappa * (0.75 * d / sy - 0.75 * sy) - dresb * x_dy - kresb * c * x_dy
+            kbar = fb * (sy * p + damping * sd * rate) + kresb * sd / sx
+            return f, dbar, fb * damping * kappa * sd, kbar, fb * kappa * sd * rate, dybar, 0.0, 0.0
+        dbar = fb * (1.5 * kappa * sd + 0.5 * damping * kres * rate / sd)
+        return (f, dbar, fb * damping * kres * sd, fb * d * sd, fb * kres * sd * rate, 0.0, dresb,
+                kresb + fb * damping * sd * rate)
+    x = d - dres
+    if x > DELTA_MIN:
+        sx = np.sqrt(x)
+        fx = fb * (1.5 * kres * sx + 0.5 * damping * kres * rate / sx)
+        return (f, fx, fb * damping * kres * sx, 0.0, fb * kres * sx * rate, 0.0, dresb - fx,
+                kresb + fb * (x * sx + damping * sx * rate))
+    return f, 0.0, 0.0, 0.0, 0.0, 0.0, dresb, kresb

@@ -48,12 +48,14 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
     with ``kernels.forces_general`` (dissipation, offsets), and with ``ext_on`` the linear mount of a
     protected body (``kernels.forces_linear``: ``kernels.step_extended``'s numbers for a model
     without mass-in-mass beads, whose internal terms are then zero). ``stores`` is (ustore, vpstore,
-    hstore), ``state`` the elastic-plastic law's (dyield, dmax, dres, kres): tuples, because a call
+    hstore, pstore: the elastic-plastic state before each step, (3, steps, P)), ``state`` the
+    elastic-plastic law's (dyield, dmax, dres, kres): tuples, because a call
     with more than 30 arguments compiles to a star-args call, which Numba cannot inline."""
-    ustore, vpstore, hstore = stores
+    ustore, vpstore, hstore, pstore = stores
     dyield, dmax, dres, kres = state
     n = a.shape[0]
     half = 0.5 * dt
+    plastic = store and law == kernels.LAW_ELASTOPLASTIC
     for s in range(ns):
         for i in range(n):
             vp[i] = v[i] + half * a[i]
@@ -61,6 +63,11 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
             _store(ustore, s0 + s, u)
             _store(vpstore, s0 + s, vp)
             hstore[s0 + s] = dt
+        if plastic:  # the elastic-plastic state the step's forces start from
+            for i in range(n):
+                pstore[0, s0 + s, i] = dmax[i]
+                pstore[1, s0 + s, i] = dres[i]
+                pstore[2, s0 + s, i] = kres[i]
         kernels.forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
         if ext_on:  # a protected body's mount (kernels.step_extended, without internal masses)
             forces_linear(u, vp, d0, ext, g)
@@ -141,6 +148,7 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
     vp = np.zeros_like(v)
     dummy = np.zeros((1, 1))
     dummy_h = np.zeros(1)
+    dummy_p = np.zeros((3, 1, 1))
     step = 0
     step_end[0] = 0
     for k in range(1, n_samples):
@@ -169,8 +177,8 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
             _open_block(u, v, a, dt)
             if general:
                 _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns,
-                               dt, t0, step, peak, kstar, False, (dummy, dummy, dummy_h), 0, (dyield, dmax, dres, kres),
-                               ext, ext_on)
+                               dt, t0, step, peak, kstar, False, (dummy, dummy, dummy_h, dummy_p), 0,
+                               (dyield, dmax, dres, kres), ext, ext_on)
             else:
                 _elastic_block(u, v, a, g, inv_mass, kappa, d0, fext, wall_slot, ns, dt, block, t0, step, peak, kstar)
             step += ns
@@ -192,10 +200,11 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
 
 @njit(cache=True, nogil=True)
 def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
-                 ns_log, b0, b1, block, ustore, vpstore, hstore, dyield, dmax, dres, kres, ext, ext_on):
+                 ns_log, b0, b1, block, stores, dyield, dmax, dres, kres, ext, ext_on):
     """Run blocks ``b0`` to ``b1 - 1`` again from their group's checkpoint ``ckpt_g`` with the taped
-    step counts, storing every step's force-evaluation state (:func:`_general_block`); returns the
-    number of steps stored. ``u, v, a, g`` (and the elastic-plastic state) are scratch."""
+    step counts, storing every step's force-evaluation state into ``stores`` = (ustore, vpstore,
+    hstore, pstore) (:func:`_general_block`; ``pstore``: the elastic-plastic state before each
+    step); returns the number of steps stored. ``u, v, a, g`` (and the elastic-plastic state) are scratch."""
     n = a.shape[0]
     for i in range(n):
         u[i] = ckpt_g[0, i]
@@ -216,9 +225,9 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
         _open_block(u, v, a, dt)
         if general:
             _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt,
-                           0.0, 0, peak, kstar, True, (ustore, vpstore, hstore), s0, (dyield, dmax, dres, kres), ext,
+                           0.0, 0, peak, kstar, True, stores, s0, (dyield, dmax, dres, kres), ext,
                            ext_on)
         else:
-            _elastic_block_stored(u, v, a, g, inv_mass, kappa, d0, fext, ns, dt, ustore, hstore, s0)
+            _elastic_block_stored(u, v, a, g, inv_mass, kappa, d0, fext, ns, dt, stores[0], stores[2], s0)
         s0 += ns
     return s0
