@@ -29,9 +29,9 @@ import numpy as np
 from numba import njit
 
 from .extension import EXT_CLIN, EXT_KLIN
-from .kernels import DELTA_MIN, LAW_ELASTOPLASTIC
+from .kernels import DELTA_MIN, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 from .partials import contact_partials, elastoplastic_adjoint
-from .tape import replay_group
+from .tape import _fused, replay_group
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -102,6 +102,66 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
             gde[j] += fbar * gdd
             gdx0[j] += fbar * gx
             grs[j] += fbar * gr
+        for i in range(n):
+            abi = ab[i] + hh * vb[i]
+            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+            gfext[i] += abi * inv_mass[i]
+            ub[i] += wb1[i] - wb[i]
+            vpb = rb1[i] - rb[i]
+            vh = vb[i] + h * ub[i] + vpb
+            ab[i] = hh * (vh + vpb)
+            vb[i] = vh
+        _clear_seeds(p, q, fb, seed_contact)
+        p = q
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _steps_dissipative(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
+                       d0, fext, law, seed_step, seed_contact, seed_w, ptr, grad):
+    """:func:`_steps_general` for an aligned viscoelastic or dashpot chain without a protected body
+    (the chains ``kernels.verlet_run`` steps with its fused dissipative step): the partials of
+    ``partials.viscoelastic_partials`` / ``dashpot_partials`` written out with selects, so that
+    LLVM vectorises the contact loop."""
+    n = ab.shape[0]
+    p = ptr
+    gk, gdamp, gd0, gfext, ginv = grad[0], grad[1], grad[2], grad[6], grad[7]
+    ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
+    m = n - 1
+    visco = law == LAW_VISCOELASTIC
+    for sl in range(nsteps - 1, -1, -1):
+        h = hstore[sl]
+        hh = 0.5 * h
+        q = _take_seeds(step0 + sl, p, fb, seed_step, seed_contact, seed_w)
+        for j in range(m):
+            d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
+            dd = d if d > DELTA_MIN else 0.0
+            sd = np.sqrt(dd)
+            rate = vpstore[sl, j] - vpstore[sl, j + 1]
+            k = kappa[j]
+            c = damping[j]
+            if visco:
+                f = k * dd * sd + k * c * sd * rate
+                inv = 1.0 / sd if sd > 0.0 else 0.0
+                fd = k * (1.5 * sd + 0.5 * c * rate * inv) if sd > 0.0 else 0.0
+                fr = k * c * sd
+                fk = dd * sd + c * sd * rate
+                fa = k * sd * rate
+            else:
+                f = k * dd * sd + c * rate
+                fd = 1.5 * k * sd
+                fr = c
+                fk = dd * sd
+                fa = rate
+            on = d >= 0.0 and f > 0.0
+            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fb_on = fbar if on else 0.0
+            fs1[j] = f if on else 0.0
+            wb1[j] = fb_on * fd
+            rb1[j] = fb_on * fr
+            gk[j] += fb_on * fk
+            gdamp[j] += fb_on * fa
+            gd0[j] += fb_on * fd
         for i in range(n):
             abi = ab[i] + hh * vb[i]
             ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
@@ -351,6 +411,7 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     for i in range(n_groups):
         starts[i + 1] += starts[i]
     p = seed_step.shape[0]
+    fused = _fused(general, law, de, ext.shape[0] > 0)
     for gi in range(n_groups - 1, -1, -1):
         b0 = gi * group
         b1 = min(b0 + group, n_blocks)
@@ -361,6 +422,9 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
             p = _steps_plastic(rows, ustore, vpstore, hstore, pstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, sb,
                                inv_mass, kappa, damping, d0, fext, dyield, seed_step, seed_contact, seed_w, p, grad,
                                ext)
+        elif fused:
+            p = _steps_dissipative(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass,
+                                   kappa, damping, d0, fext, law, seed_step, seed_contact, seed_w, p, grad)
         elif general:
             p = _steps_general(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
                                damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad, ext)

@@ -87,6 +87,28 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _dissipative_block(u, v, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, t0, step, peak, kstar,
+                       store, ustore, vpstore, hstore, s0):
+    """One block for an aligned viscoelastic or dashpot chain with the engine's fused step
+    (``kernels.step_dissipative``, as ``kernels.dissipative_block``: the same numbers as
+    :func:`_general_block`, in one pass); with ``store`` every step's positions and predicted
+    velocities v + dt/2 a are stored (the velocities the forces see)."""
+    half = 0.5 * dt
+    n = a.shape[0]
+    for s in range(ns):
+        if store:
+            _store(ustore, s0 + s, u)
+            for i in range(n):
+                vpstore[s0 + s, i] = v[i] + half * a[i]
+            hstore[s0 + s] = dt
+        kernels.step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, s == ns - 1)
+        before = peak[0]
+        kernels._track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
+        if g[wall_slot + 1] > before:
+            kstar[0] = step + s
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _elastic_block(u, v, a, g, inv_mass, kappa, d0, fext, wall_slot, ns, dt, block, t0, step, peak, kstar):
     """One block of ``ns`` steps for an aligned elastic chain (``kernels.step_elastic``)."""
     for s in range(ns - 1):
@@ -124,6 +146,16 @@ def _open_block(u, v, a, dt):
 
 
 @njit(cache=True, nogil=True)
+def _fused(general, law, de, ext_on):
+    """Whether ``kernels.verlet_run`` steps this system with its fused dissipative step: an
+    aligned viscoelastic or dashpot chain without a protected body."""
+    aligned = True
+    for i in range(de.shape[0]):
+        aligned = aligned and de[i] == 0.0
+    return general and aligned and not ext_on and (law == kernels.LAW_VISCOELASTIC or law == kernels.LAW_DASHPOT)
+
+
+@njit(cache=True, nogil=True)
 def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres, law,
                  general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, n_samples, rec, out_f, fmax,
                  fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group, ext, ext_on):
@@ -146,6 +178,7 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
     adaptive = stride == 0
     ns = stride if not adaptive else int(acc[3])
     vp = np.zeros_like(v)
+    fused = _fused(general, law, de, ext_on)
     dummy = np.zeros((1, 1))
     dummy_h = np.zeros(1)
     dummy_p = np.zeros((3, 1, 1))
@@ -175,7 +208,10 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
             dt = block / ns
             t0 = (k - 1) * interval + b * block
             _open_block(u, v, a, dt)
-            if general:
+            if fused:
+                _dissipative_block(u, v, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, t0, step,
+                                   peak, kstar, False, dummy, dummy, dummy_h, 0)
+            elif general:
                 _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns,
                                dt, t0, step, peak, kstar, False, (dummy, dummy, dummy_h, dummy_p), 0,
                                (dyield, dmax, dres, kres), ext, ext_on)
@@ -216,6 +252,7 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
             dres[i] = ckpt_g[4, i]
             kres[i] = ckpt_g[5, i]
     vp = np.zeros_like(v)
+    fused = _fused(general, law, de, ext_on)
     peak = np.zeros(8)
     kstar = np.zeros(1, dtype=np.int64)
     s0 = 0
@@ -223,7 +260,10 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
         ns = ns_log[b]
         dt = block / ns
         _open_block(u, v, a, dt)
-        if general:
+        if fused:
+            _dissipative_block(u, v, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, 0.0, 0, peak,
+                               kstar, True, stores[0], stores[1], stores[2], s0)
+        elif general:
             _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt,
                            0.0, 0, peak, kstar, True, stores, s0, (dyield, dmax, dres, kres), ext,
                            ext_on)
