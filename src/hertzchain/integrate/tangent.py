@@ -105,65 +105,78 @@ def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_m
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _aligned_step(u, v, a, g, vp, kappa, damping, d0, fext, inv_mass, law, dt, last, gw, gv, gk, ga, g0):
-    """:func:`_general_step` for an aligned chain with a Kuwabara-Kono or dashpot law: the forces of
-    ``kernels.forces_general`` (the same expressions), the partials of ``partials.law_partials``,
-    written branch-free (selects) so that LLVM vectorises the loop. The partials' rows come as
-    views made once per run (a view made per step costs two atomic reference counts each)."""
-    n = a.shape[0]
-    half = 0.5 * dt
-    for i in range(n):
-        vp[i] = v[i] + half * a[i]
+def _aligned_contact(d, rate, kappa, damping, law):
+    """``kernels._viscous_force`` (the same expressions) with the partials of
+    ``partials.law_partials``: (f, dF/dw, dF/drate, dF/dkappa, dF/ddamping), zero where the contact
+    is open or the force clipped; written with selects."""
+    dd = d if d > kernels.DELTA_MIN else 0.0
+    sd = np.sqrt(dd)
+    fel = kappa * dd * sd
     if law == kernels.LAW_VISCOELASTIC:
-        for j in range(n - 1):
-            d = u[j] - u[j + 1] + d0[j]
-            dd = d if d > kernels.DELTA_MIN else 0.0
-            sd = np.sqrt(dd)
-            r = vp[j] - vp[j + 1]
-            f = kappa[j] * dd * sd + kappa[j] * damping[j] * sd * r
-            on = (d >= 0.0) & (f > 0.0)  # no short-circuit branch: LLVM vectorises selects
-            isd = 1.0 / sd if sd > 0.0 else 0.0
-            g[j + 1] = f if on else 0.0
-            fd = kappa[j] * (1.5 * sd + 0.5 * damping[j] * r * isd)
-            gw[j] = fd if on else 0.0
-            g0[j] = fd if on else 0.0
-            gv[j] = kappa[j] * damping[j] * sd if on else 0.0
-            gk[j] = dd * sd + damping[j] * sd * r if on else 0.0
-            ga[j] = kappa[j] * sd * r if on else 0.0
+        f = fel + kappa * damping * sd * rate
+        isd = 1.0 / sd if sd > 0.0 else 0.0
+        fd = kappa * (1.5 * sd + 0.5 * damping * rate * isd)
+        fr = kappa * damping * sd
+        fk = dd * sd + damping * sd * rate
+        fa = kappa * sd * rate
     else:  # dashpot
-        for j in range(n - 1):
-            d = u[j] - u[j + 1] + d0[j]
-            dd = d if d > kernels.DELTA_MIN else 0.0
-            sd = np.sqrt(dd)
-            r = vp[j] - vp[j + 1]
-            f = kappa[j] * dd * sd + damping[j] * r
-            on = (d >= 0.0) & (f > 0.0)
-            g[j + 1] = f if on else 0.0
-            fd = 1.5 * kappa[j] * sd
-            gw[j] = fd if on else 0.0
-            g0[j] = fd if on else 0.0
-            gv[j] = damping[j] if on else 0.0
-            gk[j] = dd * sd if on else 0.0
-            ga[j] = r if on else 0.0
-    if last:
-        for i in range(n):
-            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-            v[i] += half * a[i]
-    else:
-        for i in range(n):
-            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-            v[i] += dt * a[i]
-            u[i] += dt * v[i]
+        f = fel + damping * rate
+        fd = 1.5 * kappa * sd
+        fr = damping
+        fk = dd * sd
+        fa = rate
+    on = (d >= 0.0) & (f > 0.0)
+    return (f if on else 0.0), (fd if on else 0.0), (fr if on else 0.0), (fk if on else 0.0), (fa if on else 0.0)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _parameter_forces(gp, gw, gk, th, pf, general):
-    """pf[dd (P + 1) + j] = sum over parameters of dF_j/dtheta theta'_j along direction dd (a step's)."""
+def _aligned_step(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, last, gw, gv, gk, ga):
+    """``kernels.step_dissipative`` (an aligned Kuwabara-Kono or dashpot chain: one fused pass, the
+    same arithmetic in the same order), writing also each contact's partials (dF/dw = dF/dd0 in
+    ``gw``, dF/drate, dF/dkappa, dF/ddamping). The padding slot's contact (kappa = 0) is left out."""
+    n = a.shape[0]
+    half = 0.5 * dt
+    fprev = 0.0
+    vq = v[0] + half * a[0]
+    for i in range(n - 1):
+        vq1 = v[i + 1] + half * a[i + 1]
+        f, gw[i], gv[i], gk[i], ga[i] = _aligned_contact(u[i] - u[i + 1] + d0[i], vq - vq1, kappa[i], damping[i],
+                                                         law)
+        g[i + 1] = f
+        ai = (fprev - f + fext[i]) * inv_mass[i]
+        a[i] = ai
+        if last:
+            v[i] += half * ai
+        else:
+            v[i] += dt * ai
+            u[i] += dt * v[i]
+        fprev = f
+        vq = vq1
+    i = n - 1
+    f, _, _, _, _ = _aligned_contact(u[i] - u[i + 1] + d0[i], vq, kappa[i], damping[i], law)
+    g[i + 1] = f
+    ai = (fprev - f + fext[i]) * inv_mass[i]
+    a[i] = ai
+    if last:
+        v[i] += half * ai
+    else:
+        v[i] += dt * ai
+        u[i] += dt * v[i]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _parameter_forces(gp, gw, gk, th, pf, general, aligned):
+    """pf[dd (P + 1) + j] = sum over parameters of dF_j/dtheta theta'_j along direction dd (a step's):
+    all rows (general), kappa, damping and d0 (aligned dissipative: dF/dd0 = dF/dw, in ``gw``), or
+    kappa and d0 (elastic)."""
     nd = th.shape[1]
     n = th.shape[2]
     for dd in range(nd):
         o = dd * (n + 1)
-        if general:
+        if general and aligned:
+            for j in range(n - 1):
+                pf[o + j] = gp[2, j] * th[0, dd, j] + gp[3, j] * th[1, dd, j] + gw[j] * th[2, dd, j]
+        elif general:
             for j in range(n - 1):
                 pf[o + j] = (gp[2, j] * th[0, dd, j] + gp[3, j] * th[1, dd, j] + gp[4, j] * th[2, dd, j]
                              + gp[5, j] * th[3, dd, j] + gp[6, j] * th[4, dd, j] + gp[7, j] * th[5, dd, j]
@@ -228,7 +241,12 @@ def _tangent_loop(general: bool, aligned: bool):
         vpt = np.zeros(n + 1)
         vp = np.zeros_like(v)
         gp = np.zeros((10, n))  # partials: dF/dw, dF/dvrel, then kappa, damping, d0, de, dx0, rsum, k, c
-        gw, gv, gk, ga, g0 = gp[0], gp[1], gp[2], gp[3], gp[4]
+        gw, gv, gk, ga = gp[0], gp[1], gp[2], gp[3]
+        params = False  # any parameter tangent (else pf stays zero: only v0 moves)
+        for r in range(th.shape[0]):
+            for dd in range(nd):
+                for i in range(n):
+                    params = params or th[r, dd, i] != 0.0
         pf = np.zeros(nd * (n + 1))
         thf = np.zeros(nd * (n + 1))  # tangents of f_ext and 1/m, flat like the states
         thm = np.zeros(nd * (n + 1))
@@ -256,7 +274,7 @@ def _tangent_loop(general: bool, aligned: bool):
                 gp[1, j] += ext[j, EXT_CLIN]
                 gp[8, j] = u[j] - u[j + 1] + d0[j]
                 gp[9, j] = v[j] - v[j + 1]
-        _parameter_forces(gp, gw, gk, th, pf, True)
+        _parameter_forces(gp, gw, gk, th, pf, True, False)
         for dd in range(nd):
             o = dd * (n + 1)
             for i in range(n):
@@ -285,8 +303,8 @@ def _tangent_loop(general: bool, aligned: bool):
                     # the primal step (forces at u_{s+1}, partials there), then the tangents' step s;
                     # ``general`` is a constant of the closure: the branch not taken is not compiled
                     if general and aligned:
-                        _aligned_step(u, v, a, g, vp, kappa, damping, d0, fext, inv_mass, law, dt, s == ns - 1, gw, gv,
-                                      gk, ga, g0)
+                        _aligned_step(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, s == ns - 1, gw, gv, gk,
+                                      ga)
                     elif general:
                         _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt,
                                       s == ns - 1, gp, ext)
@@ -294,7 +312,8 @@ def _tangent_loop(general: bool, aligned: bool):
                         _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, gw, gk)
                     else:
                         _elastic_last_step(u, v, a, g, kappa, d0, fext, inv_mass, 0.5 * dt, gw, gk)
-                    _parameter_forces(gp, gw, gk, th, pf, general)
+                    if params:
+                        _parameter_forces(gp, gw, gk, th, pf, general, aligned)
                     for dd in range(nd):
                         _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fext, dt)
                     while p < ns_seed and seed_step[p] == step + s:
