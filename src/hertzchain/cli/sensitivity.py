@@ -20,8 +20,8 @@ from .common import parse_window, set_option
                    "front_momentum_at_wall, energy_at_wall, peak_contact_force, peak_contact_force[j], "
                    "max_force_over_yield.")
 @click.option("--mode", type=click.Choice(["auto", "adjoint", "tangent"]), default="auto", show_default=True,
-              help="Reverse (adjoint) or forward (tangent) differentiation; both give the same numbers; auto: the adjoint "
-                   "(the cheaper for any number of fields).")
+              help="Reverse (adjoint) or forward (tangent) differentiation; both give the same numbers; auto: the tangent "
+                   "for one field, the adjoint for more (the cheaper of the two).")
 @click.option("--window", default=None, metavar="T0,T1", help="Time window [ms] of energy_at_wall.")
 @set_option
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
