@@ -77,6 +77,7 @@ def plot_sensitivity(sens, out: str | Path | None = None, title: str | None = No
         top = max(range(len(vals)), key=lambda k: abs(vals[k]))
         ax.annotate(f"bead {beads[top]}", (beads[top], vals[top]), textcoords="offset points",
                     xytext=(0, 4 if vals[top] > 0 else -10), ha="center", fontsize=7)
+        ax.margins(y=0.15)  # room for the label inside the frame
         ax.set_xlabel("bead")
         ax.set_ylabel(f"derivative [{sens.unit}/{unit}]")
         ax.set_title(f"by {name} (one bar per bead)", fontsize=8)
