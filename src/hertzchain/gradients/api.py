@@ -243,6 +243,10 @@ def _derived_value(path: str, sd) -> float:
         return math.nan if v is None else float(v)
     if path == "striker.mass":
         return float(sd.values["mass"][0])
+    if path == "contact.limiting_pressure_factor":  # the elastic-plastic law's default
+        from ..plasticity import LIMITING_PRESSURE_FACTOR
+
+        return float(LIMITING_PRESSURE_FACTOR)
     return math.nan
 
 
