@@ -115,7 +115,7 @@ def test_batch_too_large_for_memory_is_refused_before_any_allocation():
     base = hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.2))
     ens = hc.Ensemble(base, striker_velocity=np.full(10_000, 0.2))
     t0 = time.perf_counter()
-    with pytest.raises(ConfigError, match=r"probes.contacts: .* x 10,000 members, about \d+ GiB.*split the 10,000 "
+    with pytest.raises(ConfigError, match=r"probes.contacts: .* x 10,000 members, about [\d.]+ GiB.*split the 10,000 "
                                           r"members \(models\)"):
         hc.simulate_batch(ens, 2.5e-3)
     with pytest.raises(ConfigError, match="probes.contacts"):

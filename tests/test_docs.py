@@ -50,7 +50,7 @@ def _text(page: Path) -> str:
 
 def test_site_builds_with_every_page(site):
     pages = ["index", "conventions", "theory", "benchmarks", "validation", "api/index", "gallery/index", "architecture"]
-    pages += [f"guide/{p}" for p in ("config", "running", "explore", "results", "analysis", "reproduction", "sweeps",
+    pages += [f"guide/{p}" for p in ("config", "running", "explore", "results", "analysis", "reproduction", "sweeps", "cluster",
                                      "instrument", "lab", "design", "gpu", "plotting", "fidelity", "bodies", "plasticity", "errors")]
     for page in pages:
         assert (site / f"{page}.html").is_file(), page

@@ -149,23 +149,27 @@ def _tolerance_sweep(n: int = 6, **tol) -> dict:
 
 
 def test_sweep_members_as_one_ensemble_are_the_models_number_for_number():
+    from hertzchain.integrate.ensemble import Ensemble
     from hertzchain.sweep import parse_sweep
-    from hertzchain.sweep.schema import _member_ensemble
+    from hertzchain.sweep.schema import chunk_members
 
     cfg = parse_sweep(_tolerance_sweep())
-    ens, dts = _member_ensemble(cfg)
-    models = cfg.models()
-    assert ens is not None and len(ens) == len(models) == 6 and dts == [None] * 6
+    ens, dts = chunk_members(cfg, range(6))
+    models = [cfg.member_model(i) for i in range(6)]
+    assert isinstance(ens, Ensemble) and len(ens) == len(models) == 6 and dts == [None] * 6
     assert ens.describe() == [__import__("json").dumps(m.describe()) for m in models]
     sy = systems(ens)
     for i, m in enumerate(models):
         ref = m.system()
         for name in ("mass", "kappa", "de", "dx0", "rsum", "v0", "yield_force"):
             assert np.array_equal(getattr(sy, name)[i], getattr(ref, name)), (i, name)
+    # A chunk is built from its members alone: the same numbers as in the whole sweep.
+    part, _ = chunk_members(cfg.subset([3, 4]), [3, 4])
+    assert np.array_equal(part.diameters, ens.diameters[3:5]) and np.array_equal(part.offsets, ens.offsets[3:5])
     # members of different lengths cannot share arrays: the sweep then builds one Model per member
     mixed = _tolerance_sweep()
     mixed["sweep"]["parameters"] = {"chain.uniform.n": [3, 4]}
-    assert _member_ensemble(parse_sweep(mixed))[0] is None
+    assert isinstance(chunk_members(parse_sweep(mixed), range(2))[0], list)
 
 
 def test_sweep_tolerances_out_of_range_name_the_field():

@@ -185,9 +185,11 @@ def test_records_that_cannot_fit_in_memory_are_refused_before_allocation():
     model = hc.Model(hc.Chain.uniform(16, 26e-3))
     probes = hc.Probes(sample_interval=1e-7)
     est = checks.estimate_resources(model.system(), 12.0, probes)
-    # samples x (contacts + energies + time + wall) x 16 bytes
-    assert est.samples == 120_000_001 and est.signals == 17 + 4
-    assert est.memory_bytes == 16 * est.samples * est.signals
+    # samples x (contacts, the wall's among them, + 3 energies) x 12 bytes (the record and its compressed file)
+    assert est.samples == 120_000_001 and est.signals == 17 + 3
+    assert est.memory_bytes == checks.BYTES_PER_VALUE * est.samples * est.signals == 12 * est.samples * est.signals
+    # the peak: the process as it is (at least the runtime's own) plus the job
+    assert est.peak_bytes == est.memory_bytes + est.process_bytes and est.process_bytes >= checks.RUNTIME_BYTES
     with pytest.raises(hc.ConfigError, match=r"^run\.duration: .*GiB.*more than"):
         checks.check_resources(est, available=2**30)
     checks.check_resources(checks.estimate_resources(model.system(), 1e-3, probes), available=2**30)
@@ -251,7 +253,7 @@ def test_sweep_member_that_gains_energy_stops_the_sweep(tmp_path, monkeypatch):
 def test_estimate_counts_every_recorded_signal():
     system = hc.Model(hc.Chain.uniform(10, 26e-3)).system()
     base = checks.estimate_resources(system, 1e-3, hc.Probes(sample_interval=1e-6, contacts=()))
-    assert base.samples == 1001 and base.signals == 1 + 4  # the wall contact, 3 energies, time
+    assert base.samples == 1001 and base.signals == 1 + 3  # the wall contact, 3 energies
     both = checks.estimate_resources(system, 1e-3, hc.Probes(sample_interval=1e-6, contacts=(), sensors=(3,),
                                                              velocities=True, positions=True))
     assert both.signals == base.signals + 2 + 1 + 2 * 11  # sensor's contacts, its force, bodies 0..10 twice

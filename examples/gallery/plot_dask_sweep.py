@@ -4,8 +4,9 @@ A sweep on a local Dask cluster
 
 :func:`hertzchain.run_sweep` farms the chunks of a sweep out to a Dask cluster and writes each
 chunk as it comes back. Here a ``LocalCluster`` of two workers sweeps the tapering factor q of a
-short chain; on real hardware the same code takes the ``Client`` of a cluster
-(``hertzchain sweep FILE --out DIR --scheduler tcp://HOST:8786`` from the shell).
+short chain; on real hardware the same code takes the ``Client`` of a cluster of processes or
+machines (``hertzchain sweep FILE --out DIR --scheduler tcp://HOST:8786`` from the shell; how to
+start one: the user guide's "Running on a cluster").
 """
 
 import tempfile
@@ -24,7 +25,8 @@ sweep = {
     "sweep": {"mode": "grid", "chunk_size": 4,
               "parameters": {"chain.taper.q": [0.0, 0.02, 0.04, 0.06, 0.08, 0.10, 0.12, 0.14]}},
 }
-# Threads in this process: no worker start-up cost, and the compiled kernels are shared.
+# Threads in this process: no worker start-up cost, and the compiled kernels are shared. Worker
+# processes (LocalCluster's default, or `dask worker` on other machines) give the same chunks.
 with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
         Client(cluster) as client, tempfile.TemporaryDirectory() as out:
     metrics = hc.run_sweep(sweep, out, client=client).metrics

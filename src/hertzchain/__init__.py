@@ -52,7 +52,8 @@ _EXPORTS = {
     "yield_limit": "theory", "predict_chain": "theory", "nesterenko_force": "theory",
     # pictures of results and sweeps
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
-    "animate": "viz.animation", "plot_metrics": "viz.metrics", "plot_sensitivity": "viz.sensitivity",
+    "animate": "viz.animation", "plot_metrics": "viz.metrics", "plot_ensemble": "viz.ensemble",
+    "plot_sensitivity": "viz.sensitivity",
     # the interactive explorer (Panel; the [explore] extra)
     "explore": "explorer",
 }

@@ -26,7 +26,8 @@ from .errors import ConfigError, HertzRangeWarning, LongRunWarning, PulseNotReac
 
 __all__ = ["ResourceEstimate", "estimate_resources", "check_resources", "check_before_run", "check_after_run",
            "preflight_batch", "duration_text", "run_time_hint",
-           "check_energy_balance", "energy_gain", "estimate_memory", "energy_tolerance", "energy_cause", "available_memory", "HERTZ_MAX_OVERLAP",
+           "check_energy_balance", "energy_gain", "estimate_memory", "energy_tolerance", "energy_cause", "available_memory",
+           "process_baseline", "HERTZ_MAX_OVERLAP",
            "LONG_RUN_S"]
 
 #: Largest overlap delta / R_min (R_min the smaller radius of the pair) taken as inside the range of
@@ -48,8 +49,13 @@ SCIPY_S_PER_STEP = 2e-5
 #: Share of the available memory a run may plan to use (the result is copied once when it is
 #: assembled and written).
 MEMORY_SHARE = 0.8
-#: Bytes kept per recorded number: the float64 record plus one copy while the result is built.
-BYTES_PER_VALUE = 16
+#: Bytes per recorded number: 12 when the records are written (the float64 record, which the
+#: Dataset views, and the compressed file built in memory), 8 when they are only reduced to
+#: numbers (a metrics-only sweep, a design generation). benchmarks/memory_estimates.py checks them.
+BYTES_PER_VALUE, BYTES_PER_VALUE_UNWRITTEN = 12, 8
+#: Resident memory of a process that has run the engine once [bytes]: the interpreter, NumPy,
+#: SciPy, xarray, Numba and its kernels (~295 MiB measured, Linux x86-64, Python 3.11, the CLI's).
+RUNTIME_BYTES = 300 * 2**20
 
 
 def available_memory() -> int | None:
@@ -80,11 +86,13 @@ class ResourceEstimate:
     members : int
         Runs held in memory at once (1, or a sweep chunk).
     memory_bytes : int
-        Memory the records need [bytes] (with one copy while the result is built).
+        Memory the job allocates [bytes]: its records and the file built from them, if written.
     steps : float
         Time steps of one member (an upper estimate for the adaptive step).
     seconds : float
         Projected run time [s] on one core.
+    process_bytes : int
+        Resident memory of the process besides the job [bytes] (:func:`process_baseline`).
     """
 
     samples: int
@@ -93,10 +101,26 @@ class ResourceEstimate:
     memory_bytes: int
     steps: float
     seconds: float
+    process_bytes: int = 0
+
+    @property
+    def peak_bytes(self) -> int:
+        """The process's peak resident memory during the job [bytes]: ``process_bytes + memory_bytes``."""
+        return self.process_bytes + self.memory_bytes
+
+
+def process_baseline() -> int:
+    """Resident memory a job starts from [bytes]: this process's now (Linux), at least :data:`RUNTIME_BYTES`."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as fh:
+            return max(int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE"), RUNTIME_BYTES)
+    except (OSError, ValueError, IndexError, AttributeError):
+        return RUNTIME_BYTES
 
 
 def estimate_resources(system, duration: float, probes, dt: float | None = None, members: int = 1,
-                       integrator: str = "verlet", steps_per_radian: float | None = None) -> ResourceEstimate:
+                       integrator: str = "verlet", steps_per_radian: float | None = None,
+                       written: bool = True) -> ResourceEstimate:
     """Samples x recorded signals x members and the steps for ``duration``, before any allocation.
 
     Parameters
@@ -116,6 +140,8 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
         ``"verlet"``, ``"rkn4"``, or a scipy method (``"dop853"``, ``"rk45"``; a rougher estimate).
     steps_per_radian : float or None
         Accuracy of the adaptive step (``run.steps_per_radian``; None: the default).
+    written : bool
+        Whether the records are written to a file (a result, a sweep chunk) or only reduced to numbers.
 
     Returns
     -------
@@ -125,7 +151,7 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
     from .integrate.verlet import step_plan
 
     n = system.n_beads
-    samples, signals, memory = _records_size(n, system.has_wall, duration, probes, members)
+    samples, signals, memory = _records_size(n, system.has_wall, duration, probes, members, written)
     if integrator == "verlet":
         plan = step_plan(system, probes.sample_interval, dt, steps_per_radian)
         steps = duration / plan.dt
@@ -140,19 +166,22 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
         steps = duration * system.max_frequency() / SCIPY_RADIANS_PER_STEP
         seconds = steps * (SCIPY_S_PER_STEP + (n + 1) * NS_PER_BEAD_STEP["general"]) * members
     return ResourceEstimate(samples=samples, signals=signals, members=members, memory_bytes=int(memory),
-                            steps=steps, seconds=seconds)
+                            steps=steps, seconds=seconds, process_bytes=process_baseline())
 
 
-def _records_size(n_beads: int, has_wall: bool, duration: float, probes, members: int) -> tuple[int, int, int]:
-    """Samples per member, recorded numbers per sample and member, and the records' bytes."""
+def _records_size(n_beads: int, has_wall: bool, duration: float, probes, members: int,
+                  written: bool = True) -> tuple[int, int, int]:
+    """Samples per member, recorded numbers per sample and member, and the job's bytes."""
     samples = int(math.floor(duration / probes.sample_interval + 1e-9)) + 1
     recorded = probes.recorded_contacts(n_beads, has_wall).size
     bodies = (n_beads + 1) * (int(bool(probes.velocities)) + int(bool(getattr(probes, "positions", False))))
-    signals = recorded + 4 + len(probes.sensors) + bodies  # + 3 energies, time, wall
-    return samples, signals, BYTES_PER_VALUE * samples * signals * members
+    signals = recorded + 3 + len(probes.sensors) + bodies  # the wall's contact among the recorded; 3 energies
+    per_value = BYTES_PER_VALUE if written else BYTES_PER_VALUE_UNWRITTEN
+    return samples, signals, per_value * samples * signals * members
 
 
-def estimate_memory(n_beads: int, has_wall: bool, duration: float, probes, members: int = 1) -> ResourceEstimate:
+def estimate_memory(n_beads: int, has_wall: bool, duration: float, probes, members: int = 1,
+                    written: bool = False) -> ResourceEstimate:
     """:func:`estimate_resources` without the run time (``steps`` and ``seconds`` 0): what the
     records need, from the bead count alone (no System to build; a design search checks every
     generation).
@@ -169,14 +198,16 @@ def estimate_memory(n_beads: int, has_wall: bool, duration: float, probes, membe
         What is recorded, and how often.
     members : int
         Runs held in memory together.
+    written : bool
+        Whether the records are written to a file (a design generation's are not).
 
     Returns
     -------
     ResourceEstimate
     """
-    samples, signals, memory = _records_size(n_beads, has_wall, duration, probes, members)
+    samples, signals, memory = _records_size(n_beads, has_wall, duration, probes, members, written)
     return ResourceEstimate(samples=samples, signals=signals, members=members, memory_bytes=int(memory), steps=0.0,
-                            seconds=0.0)
+                            seconds=0.0, process_bytes=process_baseline())
 
 
 def _gib(x: float) -> str:

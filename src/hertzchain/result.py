@@ -24,7 +24,8 @@ from .probes import Probes, sensor_forces
 if TYPE_CHECKING:  # the compiled kernels load only when a run is made, not to read a result
     from .integrate.verlet import RawRun
 
-__all__ = ["build_dataset", "fields_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes"]
+__all__ = ["build_dataset", "fields_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes",
+           "netcdf_bytes"]
 
 ENGINE = "h5netcdf"
 #: The integrators of hertzchain's own (``dt``, ``dt_max`` and ``time_step`` attributes mean steps).
@@ -295,7 +296,35 @@ def to_netcdf_bytes(ds: xr.Dataset, compress: bool = True, single_precision: boo
             enc["dtype"] = "float32"
         if enc:
             encoding[name] = enc
-    return bytes(ds.to_netcdf(None, engine=ENGINE, encoding=encoding))
+    return bytes(netcdf_bytes(ds, encoding))
+
+
+def netcdf_bytes(ds: xr.Dataset, encoding: dict) -> memoryview:
+    """``ds.to_netcdf`` into memory with ``encoding``, whatever Dask scheduler is active.
+
+    xarray guards a write with a lock of the active Dask scheduler; with a ``distributed.Client``
+    as the default that is a lock held by the cluster's scheduler, named after the target, and an
+    in-memory target has no name the cluster can know ("Semaphore or Lock ... not known"). The
+    file is written here, by this thread, from arrays already in memory: the local synchronous
+    scheduler's lock is the right one, wherever this runs (the client, a Dask worker).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The data, in memory.
+    encoding : dict
+        Per-variable NetCDF encoding (compression, dtype).
+
+    Returns
+    -------
+    memoryview
+        The file's content (a view of the in-memory file: no copy of a file that may be as large
+        as the records).
+    """
+    import dask
+
+    with dask.config.set(scheduler="synchronous"):
+        return memoryview(ds.to_netcdf(None, engine=ENGINE, encoding=encoding))
 
 
 def save(ds: xr.Dataset, path: str | Path, compress: bool = True, single_precision: bool = False) -> Path:

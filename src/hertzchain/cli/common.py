@@ -71,17 +71,13 @@ def require_device(device: str) -> None:
 
 
 def dask_client(scheduler: str | None):
-    """A Dask ``Client`` connected to ``--scheduler`` (None when absent); a clean error naming it."""
+    """A Dask ``Client`` connected to ``--scheduler`` (None when absent); a clean error naming it
+    (:func:`hertzchain.parallel.connect`)."""
     if scheduler is None:
         return None
-    from ..errors import ConfigError
+    from ..parallel import connect
 
-    try:
-        from distributed import Client
-
-        return Client(scheduler, timeout="20s")
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ConfigError("--scheduler", f"cannot connect to the Dask scheduler at {scheduler!r}: {exc}") from None
+    return connect(scheduler)
 
 
 # ---------------------------------------------------------------------------------------------

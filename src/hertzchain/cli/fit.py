@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from .common import UnitsTable, echo_warning, progress_bar, set_option, trace_options
+from .common import UnitsTable, dask_client, echo_warning, progress_bar, set_option, trace_options
 
 #: Per-trace keys of a MEASURED argument that say how to read the file (the rest are config paths).
 READ_KEYS = ("column", "sensitivity", "sensor", "time_unit")
@@ -63,10 +63,12 @@ def parse_measured(item: str) -> tuple[Path, str | None, list[str], dict]:
                    "or forward finite differences (one batched run per field).")
 @click.option("--bootstrap", type=int, default=0, metavar="N",
               help="Also N residual-bootstrap refits: errors that do not assume a linear model (N x the fit's cost).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Dask scheduler address (e.g. tcp://host:8786): the --bootstrap refits run on its workers.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or table.")
 def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Path, signal: str, column: str | None,
         sensitivity: float | None, sensor: str | None, time_unit: str | None, overrides: tuple[str, ...],
-        max_evaluations: int, jacobian: str, bootstrap: int, quiet: bool) -> None:
+        max_evaluations: int, jacobian: str, bootstrap: int, scheduler: str | None, quiet: bool) -> None:
     """Calibrate the --free fields of CONFIG on the MEASURED traces by least squares.
 
     Each MEASURED is a scope file, optionally followed by settings for that trace only:
@@ -107,9 +109,14 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
             if update is not None:
                 update(min(n, budget - 1), budget)
 
-        result = fit_traces(data, traces, free, overrides=overrides, max_evaluations=max_evaluations,
-                            bootstrap=bootstrap, progress=tick,
-                            jacobian="exact" if jacobian == "exact" else "finite differences")
+        client = dask_client(scheduler) if bootstrap else None
+        try:
+            result = fit_traces(data, traces, free, overrides=overrides, max_evaluations=max_evaluations,
+                                bootstrap=bootstrap, progress=tick, client=client,
+                                jacobian="exact" if jacobian == "exact" else "finite differences")
+        finally:
+            if client is not None:
+                client.close()
         if update is not None:
             update(budget, budget)
     paths = write_fit_outputs(result, out)

@@ -26,6 +26,7 @@ from .plot import plot
 from .reproduce import reproduce
 from .run import run
 from .sensitivity import sensitivity
+from .summary import summary
 from .sweep import sweep
 
 
@@ -44,6 +45,7 @@ cli.add_command(analyze)
 cli.add_command(compare)
 cli.add_command(fit)
 cli.add_command(sweep)
+cli.add_command(summary)
 cli.add_command(design)
 cli.add_command(sensitivity)
 cli.add_command(explore)

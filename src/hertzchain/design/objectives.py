@@ -499,7 +499,7 @@ class Evaluator:
         return len(self.robust.velocities or [None]) * self.robust.draws
 
     def _scenario_models(self, cfg: dict, nominal) -> list:
-        from ..sweep.schema import Tolerances, _apply_tolerances
+        from ..sweep.tolerances import Tolerances, apply_to_model
 
         if self.robust is None:
             return [nominal]
@@ -509,7 +509,7 @@ class Evaluator:
             model = nominal if v is None else build_model(parse_config(
                 {**cfg, "striker": {**cfg.get("striker", {}), "velocity": v}}))
             for d in range(self.robust.draws):
-                out.append(model if tol is None else _apply_tolerances(model, tol, d))
+                out.append(model if tol is None else apply_to_model(model, tol, d))
         return out
 
     def _check_memory(self, models: list, duration: float, probes) -> None:
@@ -645,14 +645,6 @@ class Evaluator:
 
 def _gather(client, tasks: list[_Task]) -> list[dict]:
     """Run the tasks here (client None) or on the client, results in task order."""
-    if client is None:
-        return [run_task(t) for t in tasks]
-    from ..sweep.runner import _results
+    from ..parallel import results_in_order
 
-    indexed = [(i, t) for i, t in enumerate(tasks)]
-    got = dict(_results(client, _run_indexed, indexed))
-    return [got[i] for i in range(len(tasks))]
-
-
-def _run_indexed(item: tuple[int, _Task]) -> tuple[int, dict]:
-    return item[0], run_task(item[1])
+    return results_in_order(client, run_task, tasks)

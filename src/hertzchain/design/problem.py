@@ -190,7 +190,7 @@ def parse_design(data: dict) -> DesignProblem:
     from pydantic import ValidationError
 
     from ..config import build_model, parse_config
-    from ..sweep.schema import Tolerances
+    from ..sweep.tolerances import Tolerances
 
     try:
         parsed = _DesignFile.model_validate(data)

@@ -494,8 +494,11 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
-    # Two searches writing one checkpoint would corrupt each other: the folder is locked (flock).
-    with _folder_lock(out, "design", DesignLocked):
+    from ..interrupts import latched
+
+    # Two searches writing one checkpoint would corrupt each other: the folder is locked (flock);
+    # a Ctrl-C is never swallowed by a cleanup between engine calls (hertzchain.interrupts).
+    with _folder_lock(out, "design", DesignLocked), latched():
         saved = _load(out, problem, force)
         try:
             return _run_design(problem, out, client, device, progress, checkpoint_interval, saved)

@@ -17,6 +17,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from ..interrupts import check as check_interrupt
 from . import kernels
 from .batch_buffers import _Packed, check_members_finite
 
@@ -111,6 +112,7 @@ def _engine(pk: _Packed, progress, n_threads) -> None:
             finally:
                 numba.set_num_threads(previous)
         check_members_finite(status, k_stop * interval)
+        check_interrupt()  # a Ctrl-C swallowed by a cleanup while the kernel ran (hertzchain.interrupts)
         k = k_stop
         if progress is not None:
             progress(k - 1, n_samples - 1)

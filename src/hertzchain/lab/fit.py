@@ -511,7 +511,8 @@ def _identifiability(names: list[str], J: np.ndarray, when: str) -> None:
 def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, overrides: Sequence[str] = (),
                rel_step: float = FD_STEP, max_evaluations: int = 100, n_threads: int | None = None,
                bootstrap: int = 0, seed: int | None = 0,
-               progress: Callable[[int, float], None] | None = None, jacobian: str = "exact") -> FitResult:
+               progress: Callable[[int, float], None] | None = None, jacobian: str = "exact",
+               client=None) -> FitResult:
     """Calibrate the free parameters of a run config on measured traces (least squares).
 
     Parameters
@@ -546,6 +547,9 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     jacobian : {"exact", "finite differences"}
         How the config fields' columns of the Jacobian are made: the tangent model (default; forward
         differences where it does not apply) or forward differences (``rel_step``) throughout.
+    client : object, optional
+        Where the bootstrap refits run: None (here) or a Dask ``distributed.Client`` (or an
+        executor), one task per refit (:mod:`hertzchain.lab.bootstrap`); the same numbers either way.
 
     Returns
     -------
@@ -634,8 +638,9 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
                         parts)
     samples = np.empty((0, p))
     if bootstrap:
-        samples = _bootstrap(prob, x, parts, bootstrap, seed,
-                             lambda: _solve(prob.residuals, prob.jacobian, x, scale, lower, upper, max_evaluations).x)
+        from .bootstrap import bootstrap as run_bootstrap
+
+        samples = run_bootstrap(prob, _solve, x, parts, bootstrap, seed, scale, lower, upper, max_evaluations, client)
     cfg_values = x[:P]
     calibrated = apply_overrides(data, [f"{path}={_assign(v)}" for path, v in zip(prob.cfg_paths, cfg_values)])
     out_traces = []
@@ -674,22 +679,3 @@ def _solve(fun, jac, x0: np.ndarray, scale: np.ndarray, lower: np.ndarray, upper
                         xtol=XTOL, ftol=FTOL, gtol=1e-8)
     sol.x = x0 + sol.x * scale
     return sol
-
-
-def _bootstrap(prob: _Problem, x: np.ndarray, parts: list, n_refits: int, seed: int | None, refit) -> np.ndarray:
-    """Residual bootstrap: ``refit()`` on the best model + resampled residuals, ``n_refits`` times."""
-    rng = np.random.default_rng(seed)
-    data = prob.y
-    n = sum(y.size for y in data)
-    inflate = math.sqrt(n / max(n - x.size, 1))
-    best = [parts[k][3] for k in range(len(data))]
-    out = []
-    try:
-        for _ in range(n_refits):
-            prob.y = [m + inflate * rng.choice(y - m, size=y.size) for y, m in zip(data, best)]
-            prob._cache = {}
-            out.append(refit())
-    finally:
-        prob.y = data
-        prob._cache = {}
-    return np.array(out)

@@ -18,11 +18,13 @@ Parameters are dotted paths into the base config (``chain.taper.q``, ``chain.dia
 length) are walked together, as one axis of the grid (or one draw in random mode), e.g. bead
 count and tapering factor chosen so the last bead keeps its size. ``mode = "random"`` draws ``n`` members with ``seed``; each parameter is then a list to choose
 from or a range ``{ low = 0.1, high = 0.4 }`` (options ``log = true``, ``integer = true``).
-``tolerances`` perturbs every member's beads with seeded random deviations (manufacturing
-tolerances): each diameter phi_n -> phi_n (1 + diameter_rel z) and each perpendicular offset
-e_n -> e_n + offset_mm z' [mm], z, z' standard normal (``distribution = "uniform"``: uniform in
-[-1, 1], so the values are half-widths). Random draws depend only on (seed, member index): a
-member is the same whatever ``n`` or ``chunk_size`` is.
+``tolerances`` perturbs every member with seeded random deviations (manufacturing tolerances:
+relative and absolute diameter deviations, per bead or for all, beads of one production lot
+correlated, perpendicular offsets, the impact velocity; the statistical model is in
+:mod:`hertzchain.sweep.tolerances`). Random draws depend only on (seed, member index): a
+member is the same whatever ``n`` or ``chunk_size`` is. ``store = "metrics"`` keeps only each
+member's metrics (a few hundred bytes: a million-member ensemble runs out of core, chunk by
+chunk) and ``traces = [...]`` the full records of the members named.
 
 :func:`run_sweep` writes into ``out_dir``:
 
@@ -35,19 +37,24 @@ member is the same whatever ``n`` or ``chunk_size`` is.
   file, checked before a chunk is skipped: a chunk damaged on disk is computed again;
 - ``.sweep.lock``: held (``flock``) while a sweep writes into the folder; a second sweep on the
   same folder is refused (:class:`SweepLocked`) instead of mixing files with the first;
+- ``chunks/traces_00012.nc`` (store = "metrics" with ``traces``): the full records of the
+  traced members of chunk 12, written before the chunk file;
 - ``metrics.csv`` (and ``metrics.parquet`` when pyarrow is installed): one row per member, the
   swept parameter values and the wall-pulse metrics of the paper (Sec. III), SI units:
-  ``F_m`` [N], ``T`` [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s].
+  ``F_m`` [N], ``T`` [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s], with the peak wall force
+  and its time, the energies at the end and the largest contact force over yield.
 
 Parallelism is passed in: locally each chunk already uses every core
-(Numba ``prange``); with a Dask ``distributed.Client`` (or any executor with ``submit``, or
-anything with ``map``) the chunks are farmed out and written as they finish.
+(Numba ``prange``); with a Dask ``distributed.Client`` (worker processes here or on other
+machines), an executor with ``submit``, or anything with ``map``, the chunks are farmed out
+(:mod:`hertzchain.parallel`) and written here as they come back.
 
-The package has three parts: :mod:`~hertzchain.sweep.schema` (the sweep file: its tables, the
-members and their tolerances), :mod:`~hertzchain.sweep.storage` (the output folder: chunk files
-and their checksums, the folder lock, ``sweep.json`` and ``metrics.csv``) and
-:mod:`~hertzchain.sweep.runner` (:func:`run_sweep`: one chunk computed, the chunks mapped over a
-Dask client or run here).
+The package has five parts: :mod:`~hertzchain.sweep.schema` (the sweep file: its tables and
+members; the models of a chunk), :mod:`~hertzchain.sweep.tolerances` (the deviations and their
+statistical model), :mod:`~hertzchain.sweep.storage` (the output folder: chunk files and their
+checksums, the folder lock, ``sweep.json`` and ``metrics.csv``), :mod:`~hertzchain.sweep.runner`
+(:func:`run_sweep`: one chunk computed, the chunks mapped over a Dask client or run here) and
+:mod:`~hertzchain.sweep.statistics` (the metrics' statistics).
 """
 
 from __future__ import annotations

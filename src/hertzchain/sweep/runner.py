@@ -1,6 +1,12 @@
 """Running a sweep: :func:`run_sweep` validates it, then computes the chunks not yet on disk
-(:func:`compute_chunk`, here or mapped over a Dask client or an executor) and writes each one as
-it comes back; the metrics table is collected at the end.
+(:func:`compute_chunk`, here or on a Dask cluster or an executor) and writes each one as it comes
+back; the metrics table is collected at the end.
+
+A chunk task is a recipe (the base config, the chunk's parameter values and tolerances), not
+its models: a worker in another process or on another machine builds its members itself
+(:func:`~hertzchain.sweep.schema.chunk_members`, the same numbers wherever it runs), so a
+task is small and a million-member ensemble never exists in memory at once. Results come back
+as arrays (an xarray Dataset in memory); only this process writes files.
 """
 
 from __future__ import annotations
@@ -15,26 +21,32 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from ..errors import ConfigError, SimulationDiverged
-from .schema import SweepConfig, _member_ensemble, load_sweep, parse_sweep
-from .storage import (_CHUNK_NAME, _METRIC_UNITS, METRIC_COLUMNS, PLASTIC_METRICS, _chunk_is_done, _folder_lock,
-                      _metrics_table, _prepare_out_dir, _write_chunk)
+from .schema import SweepConfig, chunk_members, load_sweep, parse_sweep
+from .storage import (_CHUNK_NAME, _METRIC_UNITS, METRIC_COLUMNS, PLASTIC_METRICS, RUN_METRICS, _chunk_is_done,
+                      _folder_lock, _metrics_table, _prepare_out_dir, _traces_path, _write_chunk)
 
 # ------------------------------------------------------------------------------ computing chunks
 @dataclass
 class _ChunkTask:
-    """Everything a worker needs for one chunk (picklable; no file access on the worker)."""
+    """Everything a worker needs for one chunk (picklable and small; no file access on the worker).
+
+    ``recipe`` is the sweep with only this chunk's members (:meth:`SweepConfig.subset`);
+    ``probes`` what every member records; ``traced`` the members (of this chunk) whose full
+    records, with ``trace_probes``, come back too (store = "metrics").
+    """
 
     index: int
     members: list[int]
-    models: Any  # the members: a list of Models, or an Ensemble (array set-up) when they share a layout
-    params: list[dict]
+    recipe: SweepConfig
     duration: float
     probes: Any
-    dt: float | None
     n_threads: int | None
     sweep_hash: str
     device: str = "auto"
     steps_per_radian: float | None = None
+    metrics_only: bool = False
+    traced: tuple[int, ...] = ()
+    trace_probes: Any = None
 
 
 def _wall_metrics(time: np.ndarray, force: np.ndarray) -> dict[str, float]:
@@ -49,28 +61,47 @@ def _wall_metrics(time: np.ndarray, force: np.ndarray) -> dict[str, float]:
 
 
 def compute_chunk(task: _ChunkTask):
-    """Simulate one chunk with the batched engine and fit the wall pulses; returns its Dataset.
+    """Build one chunk's members, simulate them with the batched engine and fit the wall pulses.
 
-    Runs wherever it is sent (locally, a Dask worker): it only needs the task. Elastic-limit
+    Runs wherever it is sent (here, a Dask worker): it only needs the task. Elastic-limit
     warnings are not raised per member (a sweep would print thousands); the
     ``elastic_limit_exceeded`` variable and the metrics table carry them.
+
+    Parameters
+    ----------
+    task : _ChunkTask
+        The chunk.
+
+    Returns
+    -------
+    xarray.Dataset or tuple
+        The chunk's Dataset: the batched results stacked along ``member`` with every member's
+        metrics; with ``task.metrics_only`` the metrics alone (per-member variables, a few
+        hundred bytes per member) and the Dataset of the traced members (or None), as a pair.
     """
     import xarray as xr
 
     from ..errors import ElasticLimitWarning, PulseNotFound, PulseNotReachedWarning
     from ..integrate.batch import simulate_batch
+    from ..interrupts import check
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ElasticLimitWarning)
-        warnings.simplefilter("ignore", PulseNotReachedWarning)  # fit_error says "no pulse" per member
-        ds = simulate_batch(task.models, task.duration, task.probes, dt=task.dt, n_threads=task.n_threads,
-                            configs=None, device=task.device, steps_per_radian=task.steps_per_radian)
+    models, dts = chunk_members(task.recipe, task.members)
+
+    def simulate(which, which_dts, probes):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ElasticLimitWarning)
+            warnings.simplefilter("ignore", PulseNotReachedWarning)  # fit_error says "no pulse" per member
+            return simulate_batch(which, task.duration, probes, dt=which_dts, n_threads=task.n_threads,
+                                  configs=None, device=task.device, steps_per_radian=task.steps_per_radian)
+
+    ds = simulate(models, dts, task.probes)
     ds = ds.assign_coords(member=("member", np.asarray(task.members, dtype=np.int64), ds["member"].attrs))
-    _check_members_energy(ds, task)
+    _check_members_energy(ds, models, dts, task)
     values = {k: np.full(len(task.members), np.nan) for k in METRIC_COLUMNS}
     errors = [""] * len(task.members)
     time = ds["time"].values
     for i in range(len(task.members)):
+        check()  # a Ctrl-C swallowed by a cleanup stops the chunk here
         if not ds["has_wall"].values[i]:
             errors[i] = "no wall: no wall pulse"
             continue
@@ -81,88 +112,99 @@ def compute_chunk(task: _ChunkTask):
             continue
         for k in METRIC_COLUMNS:
             values[k][i] = m[k]
-    for k, (units, long_name) in _METRIC_UNITS.items():
-        ds[k] = xr.Variable(("member",), values[k], attrs={"units": units, "long_name": long_name})
+    metrics = {k: xr.Variable(("member",), values[k], attrs={"units": u, "long_name": n})
+               for k, (u, n) in _METRIC_UNITS.items()}
+    metrics.update(_run_metrics(ds))
     if "plastic_work" in ds:  # an elastoplastic member: its plastic work and largest permanent overlap
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows of the other members
             plastic = {"plastic_work": ds["plastic_work"].values[:, -1],
                        "residual_overlap_max": np.nanmax(ds["residual_overlap"].values, axis=1)}
         for k, (var, units, long_name) in PLASTIC_METRICS.items():
-            ds[var] = xr.Variable(("member",), plastic[k], attrs={"units": units, "long_name": long_name})
-    ds["fit_error"] = xr.Variable(("member",), np.array(errors, dtype=object),
-                                  attrs={"long_name": "why the wall pulse has no metrics (empty when fitted)"})
-    ds["parameters"] = xr.Variable(("member",), np.array([json.dumps(p) for p in task.params], dtype=object),
-                                   attrs={"long_name": "swept parameter values of the member (JSON)"})
-    ds.attrs.update(sweep_hash=task.sweep_hash, chunk=task.index, title="hertzchain sweep chunk")
-    # A chunk is a function of the sweep and its index: no creation time (sweep.json has the
-    # sweep's), so that a recomputed chunk has the same bytes and checksum as the first one.
-    ds.attrs.pop("created_utc", None)
-    return ds
+            metrics[var] = xr.Variable(("member",), plastic[k], attrs={"units": units, "long_name": long_name})
+    metrics["fit_error"] = xr.Variable(("member",), np.array(errors, dtype=object),
+                                       attrs={"long_name": "why the wall pulse has no metrics (empty when fitted)"})
+    metrics["parameters"] = xr.Variable(("member",), np.array([json.dumps(task.recipe.members[m])
+                                                               for m in task.members], dtype=object),
+                                        attrs={"long_name": "swept parameter values of the member (JSON)"})
+    attrs = dict(sweep_hash=task.sweep_hash, chunk=task.index, title="hertzchain sweep chunk")
+    if not task.metrics_only:
+        ds = ds.assign(metrics)
+        ds.attrs.update(attrs)
+        # A chunk is a function of the sweep and its index: no creation time (sweep.json has the
+        # sweep's), so that a recomputed chunk has the same bytes and checksum as the first one.
+        ds.attrs.pop("created_utc", None)
+        return ds
+    # The per-member numbers; not the member's description (``model``, ``config``: ~1 kB each, and
+    # the sweep file and the member's index give it again: SweepConfig.member_model).
+    keep = [v for v in ds.data_vars if ds[v].dims == ("member",) and v not in ("model", "config")]
+    table = xr.Dataset({**{v: ds[v].variable for v in keep}, **metrics}, coords={"member": ds["member"]},
+                       attrs={**attrs, "title": "hertzchain sweep chunk (metrics only)", "engine": ds.attrs.get("engine", "")})
+    traces = None
+    if task.traced:
+        rows = [task.members.index(m) for m in task.traced]
+        sub = models.subset(rows) if hasattr(models, "subset") else [models[r] for r in rows]
+        traces = simulate(sub, [dts[r] for r in rows], task.trace_probes)
+        traces = traces.assign_coords(member=("member", np.asarray(task.traced, dtype=np.int64),
+                                              traces["member"].attrs))
+        traces = traces.assign({k: v[rows] for k, v in metrics.items()})
+        traces.attrs.update({**attrs, "title": "hertzchain sweep traces"})
+        traces.attrs.pop("created_utc", None)
+    return table, traces
 
 
-def _check_members_energy(ds, task: _ChunkTask) -> None:
+def _run_metrics(ds) -> dict:
+    """Per-member energies at the end [J] and the largest contact force over its yield force."""
+    import xarray as xr
+
+    out = {}
+    for name, var in (("kinetic_energy_end", "kinetic_energy"), ("potential_energy_end", "potential_energy"),
+                      ("dissipated_energy_end", "dissipated_energy")):
+        out[name] = ds[var].values[:, -1].copy()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = ds["max_contact_force"].values / ds["yield_force"].values
+    # NaN where a member has no such contact (members of different lengths)
+    ratio = np.where(np.isnan(ratio), -np.inf, ratio).max(axis=1)
+    out["force_over_yield"] = np.where(np.isfinite(ratio), ratio, np.nan)
+    return {k: xr.Variable(("member",), v, attrs={"units": RUN_METRICS[k][0], "long_name": RUN_METRICS[k][1]})
+            for k, v in out.items()}
+
+
+#: Members whose energy balance is checked together (see _check_members_energy).
+_ENERGY_ROWS = 16
+
+
+def _check_members_energy(ds, models, dts: list, task: _ChunkTask) -> None:
     """The energy balance of every member (hertzchain.checks), which the batched engine does not
-    check itself: a member that gains energy stops the sweep, naming the member and the cause."""
-    from ..checks import check_energy_balance, energy_cause, energy_tolerance
+    check itself: a member that gains energy stops the sweep, naming the member and the cause.
 
-    time = ds["time"].values
+    All members at once; the tolerance of a member with an automatic step is the floor
+    (its largest step is not stored per member), of one with a fixed step that of its step."""
+    from ..checks import check_energy_balance, energy_cause, energy_gain, energy_tolerance
+
     ke, pe, ed = (ds[v].values for v in ("kinetic_energy", "potential_energy", "dissipated_energy"))
     if "plastic_work" in ds:  # every loss counts: viscous and plastic (NaN rows: other laws)
         ed = ed + np.nan_to_num(ds["plastic_work"].values)
-    for i, model in enumerate(task.models):
-        dt = task.dt[i] if isinstance(task.dt, list) else task.dt
-        # the adaptive step's largest step is not stored per member: the minimum allowance then
-        tol = energy_tolerance(model.system(), dt) if dt is not None else energy_tolerance(model.system(), 0.0)
+    model = models.model if hasattr(models, "model") else models.__getitem__
+    tol = np.array([energy_tolerance(model(i).system(), dt) if dt is not None else energy_tolerance(None, 0.0)
+                    for i, dt in enumerate(dts)])
+    # A block of members at a time: the gain's temporaries stay a few rows, not a chunk's worth of
+    # records (the memory estimate counts the records and the engine's buffers only).
+    bad = np.empty(0, dtype=np.int64)
+    for r in range(0, len(dts), _ENERGY_ROWS):
+        rows = slice(r, r + _ENERGY_ROWS)
+        gain = energy_gain(ke[rows], pe[rows], ed[rows])
+        bad = np.flatnonzero(np.any(~np.isfinite(gain) | (gain > tol[rows, None]), axis=1)) + r
+        if bad.size:
+            break
+    if bad.size:
+        i = int(bad[0])
         try:
-            check_energy_balance(time, ke[i], pe[i], ed[i], tolerance=tol, cause=energy_cause(model, dt))
+            check_energy_balance(ds["time"].values, ke[i], pe[i], ed[i], tolerance=tol[i],
+                                 cause=energy_cause(model(i), dts[i]))
         except SimulationDiverged as exc:
-            raise SimulationDiverged(f"sweep member {task.members[i]} ({task.params[i]}): {exc}") from None
-
-
-
-def _results(client, fn: Callable, tasks: list) -> Iterator:
-    """Yield ``fn(task)`` for every task, each as soon as it is available.
-
-    ``client``: None (here, in order), a Dask ``distributed.Client`` (``submit`` +
-    ``as_completed``), a ``concurrent.futures.Executor``, anything with ``submit`` and ``gather``,
-    or anything with ``map`` (results taken as the iterator yields them).
-    """
-    if client is None:
-        for t in tasks:
-            yield fn(t)
-        return
-    try:
-        import distributed
-    except ImportError:  # pragma: no cover - a dependency, but keep the generic paths usable
-        distributed = None
-    import concurrent.futures as cf
-
-    if distributed is not None and isinstance(client, distributed.Client):
-        futures = [client.submit(fn, t, pure=False) for t in tasks]
-        try:
-            for fut in distributed.as_completed(futures):
-                yield fut.result()
-                fut.release()
-        finally:  # stopped early (error, kill): do not leave work running on the cluster
-            client.cancel([f for f in futures if not f.done()])
-    elif isinstance(client, cf.Executor):
-        futures = [client.submit(fn, t) for t in tasks]
-        try:
-            for fut in cf.as_completed(futures):
-                yield fut.result()
-        finally:
-            for f in futures:
-                f.cancel()
-    elif hasattr(client, "submit") and hasattr(client, "gather"):
-        futures = [client.submit(fn, t) for t in tasks]
-        for fut in futures:
-            yield client.gather(fut)
-    elif hasattr(client, "map"):
-        yield from client.map(fn, tasks)
-    else:
-        raise ConfigError("client", f"must have submit/gather or map (a Dask client, an executor), "
-                          f"got {type(client).__name__}")
+            member = task.members[i]
+            raise SimulationDiverged(f"sweep member {member} ({task.recipe.members[member]}): {exc}") from None
 
 
 @dataclass
@@ -203,9 +245,10 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         Output folder (see the module docstring for its content).
     client
         None: chunks are computed here, one after the other, each across all cores. A Dask
-        ``distributed.Client``, a ``concurrent.futures.Executor``, anything with ``submit`` +
-        ``gather`` or with ``map``: chunks are sent to it and written here as they come back (the
-        workers need no access to ``out_dir``).
+        ``distributed.Client`` (worker processes here or on other machines), a
+        ``concurrent.futures.Executor``, anything with ``submit`` + ``gather`` or with ``map``:
+        chunks are sent to it and written here as they come back (the workers need no access
+        to ``out_dir``; a worker that dies costs only its chunk, run again elsewhere).
     progress
         Called as ``progress(done_members, total_members)`` after each chunk file is written
         (and once at the start with the members found finished on disk).
@@ -223,10 +266,12 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
         parameter (named by its path), ``dt`` [s], ``peak_wall_force`` [N] and ``peak_wall_time``
         [s] (integrator), ``elastic_limit_exceeded``, the wall-pulse metrics ``F_m`` [N], ``T``
         [s], ``tau`` [s], ``Q_F`` [N s], ``Q_T`` [N s] (NaN with ``fit_error`` saying why when the
-        member has no wall or no fitted pulse); with protected bodies also ``peak_body_force`` [N],
-        ``peak_body_acceleration`` [m/s^2] and ``peak_body_energy`` [J]; with an elastoplastic
-        member also ``plastic_work`` [J] and ``residual_overlap_max`` [m] (NaN for members of other
-        laws). Also written to ``metrics.csv`` (and ``metrics.parquet`` when pyarrow is installed).
+        member has no wall or no fitted pulse), ``kinetic_energy_end``, ``potential_energy_end``,
+        ``dissipated_energy_end`` [J] and ``force_over_yield``; with protected bodies also
+        ``peak_body_force`` [N], ``peak_body_acceleration`` [m/s^2] and ``peak_body_energy`` [J];
+        with an elastoplastic member also ``plastic_work`` [J] and ``residual_overlap_max`` [m]
+        (NaN for members of other laws). Also written to ``metrics.csv`` (and ``metrics.parquet``
+        when pyarrow is installed).
 
     Raises
     ------
@@ -238,8 +283,7 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     SweepLocked
         Another sweep is writing into ``out_dir``.
     """
-    from ..config import build_probes, parse_config
-    from ..probes import Probes
+    from ..interrupts import latched
 
     if isinstance(sweep_cfg, (str, Path)):
         cfg = load_sweep(sweep_cfg)
@@ -251,95 +295,178 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     from ..integrate.cuda import check_device
 
     check_device(device)
-    # Everything is validated (every member's model, the memory a chunk needs) before anything is
-    # written: an invalid sweep leaves no sweep.json behind to block the corrected one. Members
-    # that share a layout are built as one array ensemble (microseconds per member), others as
-    # one Model each.
-    ensemble, member_dts = _member_ensemble(cfg)
-    models = ensemble if ensemble is not None else cfg.models()
+    with latched():  # a Ctrl-C is never swallowed (hertzchain.interrupts)
+        plan = _plan(cfg, device)
+        if out.exists() and not out.is_dir():
+            raise ConfigError(str(out), "exists and is not a folder; --out names the sweep's output folder")
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
+        with _folder_lock(out):
+            chunks_dir = _prepare_out_dir(cfg, out, force)
+            return _run_chunks(cfg, plan, out, chunks_dir, client, progress)
+
+
+@dataclass
+class _Plan:
+    """What every chunk of a validated sweep shares (:func:`_plan`)."""
+
+    duration: float
+    probes: Any
+    trace_probes: Any
+    device: str
+    steps_per_radian: float | None
+    estimate: Any = None
+
+
+def _plan(cfg: SweepConfig, device: str) -> _Plan:
+    """Validate every member (chunk by chunk: nothing but the estimates' inputs is kept), fix the
+    shared duration and probes, and check that a chunk fits in memory.
+
+    Everything is validated (every member's model and deviations, the memory a chunk needs)
+    before anything is written: an invalid sweep leaves no sweep.json behind to block the
+    corrected one.
+    """
+    from ..config import build_probes, parse_config
+    from ..interrupts import check
+    from ..probes import Probes
+
     run_cfg = parse_config(cfg.base)
     base_probes = build_probes(run_cfg)
-    if cfg.sweep.store == "wall":
+    if cfg.sweep.store == "probes":
+        probes: Any = base_probes
+    elif cfg.sweep.store == "wall":
         # The wall force (always recorded with contacts=()), the sensors and the energies only:
         # every contact of every member would be ~N times larger and the metrics do not need it.
-        probes: Any = Probes(sample_interval=base_probes.sample_interval, sensors=base_probes.sensors, contacts=())
-    else:
-        probes = base_probes
-    duration = run_cfg.run.duration
-    if duration == "auto":
-        from ..simulation import auto_duration
+        probes = Probes(sample_interval=base_probes.sample_interval, sensors=base_probes.sensors, contacts=())
+    else:  # metrics: what the metrics need, the wall force and the energies, and nothing is kept
+        probes = Probes(sample_interval=base_probes.sample_interval, contacts=())
+    auto = run_cfg.run.duration == "auto"
+    duration = 0.0 if auto else run_cfg.run.duration
+    built: dict = {}
+    largest = None  # (beads, a model of that length, its dt)
+    for members in cfg.chunks():
+        check()
+        models, dts = chunk_members(cfg, members, built)
+        n_beads = models.n_beads if hasattr(models, "n_beads") else max(m.chain.n_beads for m in models)
+        if largest is None or n_beads > largest[0]:
+            r = 0 if hasattr(models, "n_beads") else max(range(len(models)), key=lambda i: models[i].chain.n_beads)
+            largest = (n_beads, models.model(r) if hasattr(models, "model") else models[r], dts[r])
+        if auto:
+            from ..simulation import auto_duration
 
-        # Members share one time axis (the batched engine): the slowest member's duration.
-        duration = max(auto_duration(m) for m in models)
-    _check_sweep_resources(cfg, models, duration, probes, member_dts)
-
-    if out.exists() and not out.is_dir():
-        raise ConfigError(str(out), "exists and is not a folder; --out names the sweep's output folder")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
-    with _folder_lock(out):
-        chunks_dir = _prepare_out_dir(cfg, out, force)
-        return _run_chunks(cfg, out, chunks_dir, models, duration, probes, member_dts, client, progress, device)
+            # Members share one time axis (the batched engine): the slowest member's duration.
+            duration = max(duration, max(auto_duration(m) for m in models))
+    est = _sweep_estimate(cfg, largest[1], largest[2], duration, probes, base_probes if cfg.sweep.traces else None)
+    _check_sweep_resources(cfg, est)
+    return _Plan(duration=duration, probes=probes, trace_probes=base_probes, device=device,
+                 steps_per_radian=run_cfg.run.steps_per_radian, estimate=est)
 
 
-def _check_sweep_resources(cfg: SweepConfig, models, duration: float, probes, member_dts: list) -> None:
-    """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep.
+#: Memory of metrics.csv's table while it is collected and written, per member [bytes]: its numeric
+#: columns and the Python strings of its text columns (447 measured for 1e6 members of an ensemble).
+TABLE_BYTES_PER_MEMBER = 450
 
-    ``models``: a list of Models, or an Ensemble (members of one length: member 0 stands for all).
-    """
+
+def _sweep_estimate(cfg: SweepConfig, model, dt, duration: float, probes, trace_probes):
+    """The memory of one chunk (the largest member stands for all, ``dt`` its fixed step), and of
+    the metrics table at the end, whichever is larger; the run time of the whole sweep."""
     from dataclasses import replace as _replace
 
-    from ..checks import check_resources, estimate_resources
+    from ..checks import estimate_resources
 
-    if isinstance(models, list):
-        largest = max(range(len(models)), key=lambda i: models[i].chain.n_beads)
-        model = models[largest]
-    else:
-        largest, model = 0, models.model(0)
     members = min(cfg.sweep.chunk_size, cfg.n_members)
-    est = estimate_resources(model.system(), duration, probes, dt=member_dts[largest], members=members)
+    system = model.system()
+    est = estimate_resources(system, duration, probes, dt=dt, members=members, written=cfg.sweep.store != "metrics")
+    if trace_probes is not None:  # the traced members of a chunk are run again with every probe
+        extra = estimate_resources(system, duration, trace_probes, dt=dt, members=min(members, len(cfg.sweep.traces)))
+        est = _replace(est, memory_bytes=est.memory_bytes + extra.memory_bytes)
+    return est
+
+
+def _check_sweep_resources(cfg: SweepConfig, est) -> None:
+    """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep."""
+    from dataclasses import replace as _replace
+
+    from ..checks import check_resources
+
     check_resources(_replace(est, seconds=0.0), memory_field="sweep.chunk_size")
-    total = _replace(est, members=cfg.n_members, memory_bytes=0, seconds=est.seconds / members * cfg.n_members)
+    # the metrics table of every member, collected at the end (450 MB for a million members)
+    check_resources(_replace(est, seconds=0.0, memory_bytes=TABLE_BYTES_PER_MEMBER * cfg.n_members),
+                    memory_field="sweep.n")
+    total = _replace(est, members=cfg.n_members, memory_bytes=0, seconds=est.seconds / est.members * cfg.n_members)
     check_resources(total)
 
 
-def _run_chunks(cfg: SweepConfig, out: Path, chunks_dir: Path, models, duration: float, probes,
-                member_dts: list, client, progress, device: str = "auto") -> SweepResult:
-    """Compute the chunks not yet on disk and write the metrics table (folder lock held).
+def estimate_sweep(cfg: SweepConfig):
+    """What a sweep will need, before it runs (every member is validated to know it).
 
-    ``models``: a list of Models, or an Ensemble whose rows are the members; ``device`` as in
-    :func:`run_sweep`.
+    Parameters
+    ----------
+    cfg : SweepConfig
+        The sweep.
+
+    Returns
+    -------
+    hertzchain.checks.ResourceEstimate
+        ``members``: a chunk's; ``memory_bytes``: what the process allocates at most, a chunk's
+        records or the metrics table of every member at the end, whichever is larger;
+        ``peak_bytes``: the process's peak resident memory; ``seconds``: one chunk on one core.
     """
-    from ..config import parse_config
-    from ..fileio import atomic_path
+    from dataclasses import replace as _replace
 
-    steps_per_radian = parse_config(cfg.base).run.steps_per_radian  # shared by every member (_SHARED)
+    est = _plan(cfg, "auto").estimate
+    return _replace(est, memory_bytes=max(est.memory_bytes, TABLE_BYTES_PER_MEMBER * cfg.n_members))
+
+
+def _tasks(cfg: SweepConfig, plan: _Plan, todo: list[int]) -> Iterator[_ChunkTask]:
+    """The tasks of the chunks ``todo``, made one at a time as they are submitted."""
+    chunks = cfg.chunks()
+    traced = set(cfg.sweep.traces)
+    for index in todo:
+        members = list(chunks[index])
+        yield _ChunkTask(index=index, members=members, recipe=cfg.subset(members), duration=plan.duration,
+                         probes=plan.probes, n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash,
+                         device=plan.device, steps_per_radian=plan.steps_per_radian,
+                         metrics_only=cfg.sweep.store == "metrics",
+                         traced=tuple(m for m in members if m in traced), trace_probes=plan.trace_probes)
+
+
+def _run_chunks(cfg: SweepConfig, plan: _Plan, out: Path, chunks_dir: Path, client, progress) -> SweepResult:
+    """Compute the chunks not yet on disk and write the metrics table (folder lock held)."""
+    from ..fileio import atomic_path
+    from ..interrupts import check
+    from ..parallel import results_as_completed
 
     total = cfg.n_members
     done_members = 0
     skipped, todo = [], []
+    traced = set(cfg.sweep.traces)
     for index, members in enumerate(cfg.chunks()):
-        if _chunk_is_done(chunks_dir / _CHUNK_NAME.format(index), cfg.hash, members):
+        path = chunks_dir / _CHUNK_NAME.format(index)
+        if _chunk_is_done(path, cfg.hash, members, [m for m in members if m in traced]):
             skipped.append(index)
             done_members += len(members)
         else:
-            chunk_models = [models[m] for m in members] if isinstance(models, list) else models.subset(members)
-            todo.append(_ChunkTask(index=index, members=list(members), models=chunk_models,
-                                   params=[cfg.members[m] for m in members], duration=duration,
-                                   probes=probes, dt=[member_dts[m] for m in members],
-                                   n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash, device=device,
-                                   steps_per_radian=steps_per_radian))
+            todo.append(index)
     if progress is not None:
         progress(done_members, total)
 
     computed = []
-    for ds in _results(client, compute_chunk, todo):
-        index = int(ds.attrs["chunk"])
-        _write_chunk(ds, chunks_dir / _CHUNK_NAME.format(index))
+    for result in results_as_completed(client, compute_chunk, _tasks(cfg, plan, todo)):
+        check()  # a Ctrl-C swallowed while the chunk came back stops the sweep here
+        table, traces = result if isinstance(result, tuple) else (result, None)
+        index = int(table.attrs["chunk"])
+        path = chunks_dir / _CHUNK_NAME.format(index)
+        if traces is not None:  # first: a chunk file on disk says its traces are too
+            _write_chunk(traces, _traces_path(path))
+        _write_chunk(table, path)
+        check()  # ... or while it was written (h5py's cleanups run weakref callbacks)
         computed.append(index)
-        done_members += ds.sizes["member"]
+        done_members += table.sizes["member"]
+        # let the chunk go before the next one is computed (a chunk's records are the estimate)
+        del result, table, traces
         if progress is not None:
             progress(done_members, total)
 

@@ -2,8 +2,8 @@
 
 :func:`parse_sweep` and :func:`load_sweep` turn a sweep mapping or TOML file (described in
 :mod:`hertzchain.sweep`) into a :class:`SweepConfig`: the base run config and every member's
-parameter values, with the seeded manufacturing tolerances that make each member's beads
-(:meth:`SweepConfig.models`, or all members as one array ensemble: :func:`_member_ensemble`).
+parameter values; :func:`chunk_members` builds the models of some members (a chunk), with the
+seeded manufacturing tolerances of :mod:`hertzchain.sweep.tolerances` applied.
 """
 
 from __future__ import annotations
@@ -13,15 +13,16 @@ import hashlib
 import itertools
 import json
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Literal
+from typing import Any, Iterable, Literal, Sequence
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..config import parse_path, set_path
 from ..errors import ConfigError
+from .tolerances import Tolerances, apply_to_ensemble, apply_to_model
 
 #: Sections of a run config that members may not differ in: the batched engine shares them.
 _SHARED = {"run.duration", "run.sample_interval", "run.integrator", "run.rtol", "run.steps_per_radian"}
@@ -48,15 +49,6 @@ class Range(_Section):
     integer: bool = False
 
 
-class Tolerances(_Section):
-    """Per-bead random deviations (manufacturing tolerances), seeded per member index."""
-
-    diameter_rel: float = Field(default=0.0, ge=0, lt=0.1, description="relative diameter deviation (1 sigma)")
-    offset_mm: float = Field(default=0.0, ge=0, le=1e3, description="perpendicular offset deviation, mm (1 sigma)")
-    distribution: Literal["normal", "uniform"] = "normal"
-    seed: int = _SEED
-
-
 class SweepSection(_Section):
     """The ``[sweep]`` table (cross-field rules are checked in :func:`parse_sweep`)."""
 
@@ -66,7 +58,8 @@ class SweepSection(_Section):
     seed: int = _SEED
     chunk_size: int = Field(default=32, ge=1, le=MAX_MEMBERS, description="members per chunk file")
     tolerances: Tolerances | None = None
-    store: Literal["wall", "probes"] = "wall"
+    store: Literal["wall", "probes", "metrics"] = "wall"
+    traces: list[int] = Field(default=[], description="members whose records are kept (store = 'metrics')")
     n_threads: int | None = Field(default=None, ge=1, le=4096)
     zip: list[list[str]] = Field(default=[], description="groups of parameters varied together (coupled)")
 
@@ -106,7 +99,8 @@ class SweepConfig:
     sweep:
         The validated ``[sweep]`` table.
     members:
-        One ``{path: value}`` mapping per member, in member order.
+        One ``{path: value}`` mapping per member, in member order (for a chunk's recipe,
+        :meth:`subset`, a mapping by member index).
     hash:
         SHA-256 of the normalised definition (base + sweep): two sweeps with the same hash have
         the same members, chunks and results.
@@ -114,7 +108,7 @@ class SweepConfig:
 
     base: dict
     sweep: SweepSection
-    members: list[dict[str, Any]]
+    members: list[dict[str, Any]] | dict[int, dict[str, Any]]
     hash: str
     _models: list | None = field(default=None, repr=False)
 
@@ -138,31 +132,39 @@ class SweepConfig:
             _set_path(cfg, path, value)
         return cfg
 
+    def subset(self, members) -> "SweepConfig":
+        """The sweep with only some members' values (a chunk's recipe, small enough to send to a
+        worker); ``members`` is then a mapping by member index, and :func:`chunk_members` of
+        those indices builds the same models as on the whole sweep."""
+        return SweepConfig(base=self.base, sweep=self.sweep, members={m: self.members[m] for m in members},
+                           hash=self.hash)
+
     def definition(self) -> dict:
         """Plain-data definition (what the hash covers)."""
         return {"base": self.base, "sweep": self.sweep.model_dump(mode="json"),
                 "parameter_order": self.parameter_names}
 
     def models(self) -> list:
-        """Every member's :class:`~hertzchain.model.Model`, tolerances applied (built once, cached).
+        """Every member's :class:`~hertzchain.model.Model`, tolerances applied (built once, cached;
+        for inspection: a sweep builds its members chunk by chunk, :func:`chunk_members`).
 
         Raises :class:`ConfigError` naming the field, with the member and its values, when a
         member's config is invalid (e.g. a swept value out of range).
         """
         if self._models is None:
-            from ..config import build_model, parse_config
-
-            out = []
-            for i in range(self.n_members):
-                try:
-                    model = build_model(parse_config(self.member_config(i)))
-                except ConfigError as exc:
-                    raise _member_error(exc, i, self.members[i]) from None
-                if self.sweep.tolerances is not None:
-                    model = _apply_tolerances(model, self.sweep.tolerances, i)
-                out.append(model)
-            self._models = out
+            self._models = [self.member_model(i) for i in range(self.n_members)]
         return self._models
+
+    def member_model(self, i: int):
+        """The :class:`~hertzchain.model.Model` of member ``i``, tolerances applied, built alone
+        (Model by Model: the reference the chunks' array set-up must match number for number)."""
+        from ..config import build_model, parse_config
+
+        try:
+            model = build_model(parse_config(self.member_config(i)))
+        except ConfigError as exc:
+            raise _member_error(exc, i, self.members[i]) from None
+        return model if self.sweep.tolerances is None else apply_to_model(model, self.sweep.tolerances, i)
 
 
 def _member_error(exc: ConfigError, index: int, values: dict[str, Any]) -> ConfigError:
@@ -176,42 +178,42 @@ def _member_error(exc: ConfigError, index: int, values: dict[str, Any]) -> Confi
     return ConfigError(field_name, f"{exc.field}: {exc.message} (sweep member {index}: {values})")
 
 
-def _apply_tolerances(model, tol: Tolerances, index: int):
-    """Perturb the beads of ``model`` with the seeded deviations of member ``index``."""
-    from ..chain import Chain
+def chunk_members(cfg: SweepConfig, members: Sequence[int], built: dict | None = None) -> tuple[Any, list]:
+    """The models of some members, tolerances applied, and their ``run.dt``.
 
-    # One stream per (seed, member): a member's deviations do not depend on the others; both
-    # rows are always drawn so that changing one tolerance leaves the other's draws alone.
-    z = _tolerance_draws(tol, index, model.chain.n_beads)
-    chain = model.chain
-    diameters = chain.diameters * (1.0 + tol.diameter_rel * z[0])
-    offsets = chain.offsets + tol.offset_mm * 1e-3 * z[1] if tol.offset_mm > 0 else chain.offsets
-    try:
-        return replace(model, chain=Chain(diameters, chain.materials, offsets))
-    except ConfigError as exc:
-        raise ConfigError("sweep.tolerances", f"member {index}: {exc.field}: {exc.message}") from None
+    One model is built per distinct set of parameter values (``built`` caches them across calls:
+    a tolerance Monte Carlo builds one for the whole sweep); members that share a layout come back
+    as one :class:`~hertzchain.integrate.ensemble.Ensemble` (array code, microseconds per member),
+    others as a list of Models. Either way member r is, number for number, the model of member
+    ``members[r]``: its draws depend on (seed, member index) alone, so a chunk built here, on a
+    Dask worker or as part of the whole sweep is the same.
 
+    Parameters
+    ----------
+    cfg : SweepConfig
+        The sweep.
+    members : sequence of int
+        Member indices.
+    built : dict or None
+        Cache of nominal models by parameter values (filled here).
 
-def _tolerance_draws(tol: Tolerances, index: int, n: int) -> np.ndarray:
-    """The (2, n) standard deviates of member ``index`` (diameters, offsets), as _apply_tolerances draws them."""
-    rng = np.random.default_rng([tol.seed, index, 1])
-    return rng.standard_normal((2, n)) if tol.distribution == "normal" else rng.uniform(-1.0, 1.0, (2, n))
+    Returns
+    -------
+    (Ensemble or list of Model, list of float or None)
+        The members and their fixed time steps [s] (None: automatic).
 
-
-def _member_ensemble(cfg: SweepConfig) -> tuple[Any, list]:
-    """Every member as one :class:`~hertzchain.integrate.ensemble.Ensemble` (None when their layouts
-    differ) and every member's ``run.dt``.
-
-    Array code instead of a Model per member: one model is built per distinct set of parameter
-    values (a tolerance Monte Carlo builds one), and the tolerances are applied to the stacked
-    diameters and offsets; the members are those of :meth:`SweepConfig.models`, number for number.
+    Raises
+    ------
+    ConfigError
+        Naming the field and the member when a member's model or its deviations are invalid.
     """
     from ..config import build_model, parse_config
     from ..integrate.ensemble import Ensemble, same_layout
 
-    built: dict[str, tuple] = {}
+    built = {} if built is None else built
     bases, dts = [], []
-    for i, params in enumerate(cfg.members):
+    for i in members:
+        params = cfg.members[i]
         key = json.dumps(params, sort_keys=True, default=str)
         hit = built.get(key)
         if hit is None:
@@ -219,23 +221,14 @@ def _member_ensemble(cfg: SweepConfig) -> tuple[Any, list]:
                 run_cfg = parse_config(cfg.member_config(i))
                 hit = built[key] = (build_model(run_cfg), run_cfg.run.dt)
             except ConfigError as exc:
-                raise ConfigError(exc.field, f"{exc.message} (sweep member {i}: {params})") from None
+                raise _member_error(exc, i, params) from None
         bases.append(hit[0])
         dts.append(hit[1])
-    if not same_layout(bases):
-        return None, dts
-    ens = Ensemble.from_models(bases)
     tol = cfg.sweep.tolerances
-    if tol is not None:
-        z = np.stack([_tolerance_draws(tol, i, ens.n_beads) for i in range(ens.n_members)])
-        arrays = {"diameters": ens.diameters * (1.0 + tol.diameter_rel * z[:, 0])}
-        if tol.offset_mm > 0:
-            arrays["offsets"] = ens.offsets + tol.offset_mm * 1e-3 * z[:, 1]
-        try:
-            ens = ens.replace(**arrays)
-        except ConfigError as exc:
-            raise ConfigError("sweep.tolerances", f"{exc.field}: {exc.message}") from None
-    return ens, dts
+    if not same_layout(bases):
+        return [b if tol is None else apply_to_model(b, tol, i) for b, i in zip(bases, members)], dts
+    ens = Ensemble.from_models(bases)
+    return (ens if tol is None else apply_to_ensemble(ens, tol, list(members))), dts
 
 
 def _draw(spec: list | Range, rng: np.random.Generator) -> Any:
@@ -349,6 +342,8 @@ def parse_sweep(data: dict) -> SweepConfig:
         for c in combos:
             member = {k: specs[k][i] for ax, i in zip(axes, c) for k in ax}
             members.append({k: member[k] for k in names})
+    elif not axes:  # an ensemble: n copies of the base, made different by their tolerances alone
+        members = [{}] * sw.n  # one empty mapping, shared (members are read, never changed): 8 bytes each
     else:
         members = []
         for i in range(sw.n):
@@ -368,12 +363,26 @@ def parse_sweep(data: dict) -> SweepConfig:
                   "parameter_order": names}
     digest = hashlib.sha256(json.dumps(definition, sort_keys=True, default=str).encode()).hexdigest()
     cfg = SweepConfig(base=base, sweep=sw, members=members, hash=digest)
-    # Every member must be a valid run config: fail now, naming the field, not halfway through.
+    # Every member must be a valid run config: fail now, naming the field, not halfway through
+    # (each distinct set of values once: an ensemble's million members are one config).
+    seen = set()
     for i in range(cfg.n_members):
+        key = json.dumps(members[i], sort_keys=True, default=str)
+        if key in seen:
+            continue
+        seen.add(key)
         try:
             parse_config(cfg.member_config(i))
         except ConfigError as exc:
             raise _member_error(exc, i, members[i]) from None
+    for k, m in enumerate(sw.traces):
+        if sw.store != "metrics":
+            raise ConfigError("sweep.traces", f"goes with store = 'metrics' (store = '{sw.store}' keeps every "
+                              "member's records already)")
+        if not 0 <= m < cfg.n_members:
+            raise ConfigError(f"sweep.traces[{k}]", f"member {m} is not in the sweep (members 0..{cfg.n_members - 1})")
+    if len(set(sw.traces)) != len(sw.traces):
+        raise ConfigError("sweep.traces", "lists a member twice")
     return cfg
 
 

@@ -28,11 +28,27 @@ _METRIC_UNITS = {"F_m": ("N", "peak wall force F_m of the cos^6 fit"),
                  "tau": ("s", "duration tau of the wall pulse"),
                  "Q_F": ("N s", "front momentum Q_F (integral of F up to T + tau)"),
                  "Q_T": ("N s", "tail momentum Q_T (integral of F after T + tau)")}
+#: What every member's run leaves besides its pulse fit (computed from its records in the chunk).
+RUN_METRICS = {"kinetic_energy_end": ("J", "kinetic energy at the end of the run"),
+               "potential_energy_end": ("J", "elastic (Hertz) energy at the end of the run"),
+               "dissipated_energy_end": ("J", "energy dissipated by the contacts during the run"),
+               "force_over_yield": ("1", "largest contact force over its elastic limit (yield) during the run")}
+#: Per-member variables of every chunk, in the order of metrics.csv (after member, chunk and the
+#: swept parameters), with their units.
+TABLE_COLUMNS = {"dt": "s", "peak_wall_force": "N", "peak_wall_time": "s", "elastic_limit_exceeded": "1",
+                 **{k: u for k, (u, _) in _METRIC_UNITS.items()}, **{k: u for k, (u, _) in RUN_METRICS.items()},
+                 "fit_error": ""}
 #: Elastic-plastic metrics of each member (elastoplastic law): table column -> (chunk variable,
 #: units, meaning). In a chunk only when one of its members has the law (NaN for the others).
 PLASTIC_METRICS = {"plastic_work": ("plastic_work_total", "J", "plastic work done in all contacts by the end"),
                    "residual_overlap_max": ("residual_overlap_max", "m", "largest residual (permanent) overlap")}
+#: A protected body's peaks (wall.type = "body"), per member, with their units.
+_BODY_COLUMNS = {"peak_body_force": "N", "peak_body_acceleration": "m/s^2", "peak_body_energy": "J"}
+#: Units of every column metrics.csv may have (the optional ones after fit_error when present).
+COLUMN_UNITS = {**TABLE_COLUMNS, **_BODY_COLUMNS, **{c: u for c, (_, u, _) in PLASTIC_METRICS.items()}}
 _CHUNK_NAME = "chunk_{:05d}.nc"
+#: The full records of the members named by ``sweep.traces`` (store = "metrics"), one file per chunk.
+_TRACES_NAME = "traces_{:05d}.nc"
 
 
 class SweepMismatch(HertzchainError):
@@ -50,12 +66,12 @@ def _write_chunk(ds, path: Path) -> None:
     file comes second, so a chunk without one (killed in between) is simply computed again.
     """
     from ..fileio import write_bytes, write_text
-    from ..result import ENGINE
+    from ..result import netcdf_bytes
 
     # Force records are mostly zeros before the pulse arrives: gzip shrinks them ~5-10x, losslessly.
     encoding = {name: {"compression": "gzip", "compression_opts": 4, "shuffle": True}
                 for name, var in ds.data_vars.items() if var.dtype.kind == "f" and var.size > 1000}
-    data = bytes(ds.to_netcdf(None, engine=ENGINE, encoding=encoding))
+    data = netcdf_bytes(ds, encoding)
     write_bytes(path, data)
     write_text(_checksum_path(path), hashlib.sha256(data).hexdigest() + "\n")
 
@@ -77,18 +93,30 @@ def _checksum_ok(path: Path) -> bool:
     return digest.hexdigest() == recorded
 
 
-def _chunk_is_done(path: Path, sweep_hash: str, members: range) -> bool:
-    """True when ``path`` is a complete, undamaged chunk of this sweep holding exactly ``members``."""
-    import h5netcdf
+def _chunk_is_done(path: Path, sweep_hash: str, members, traced: list[int] = ()) -> bool:
+    """True when ``path`` is a complete, undamaged chunk of this sweep holding exactly ``members``
+    (and, with ``traced``, its traces file beside it holding exactly those members)."""
+    if not _file_holds(path, sweep_hash, members):
+        return False
+    return not traced or _file_holds(_traces_path(path), sweep_hash, traced)
+
+
+def _traces_path(chunk: Path) -> Path:
+    return chunk.with_name(_TRACES_NAME.format(int(chunk.stem.split("_")[1])))
+
+
+def _file_holds(path: Path, sweep_hash: str, members) -> bool:
+    import h5py
 
     if not path.exists() or not _checksum_ok(path):
         return False
     try:
-        # h5netcdf directly: ~10x faster than xarray.open_dataset, which decodes every variable.
-        with h5netcdf.File(path, "r") as f:
+        # h5py directly (a NetCDF-4 file is an HDF5 file): ~10x faster than h5netcdf, ~100x than
+        # xarray.open_dataset, which decodes every variable; a million members are 2000 chunks.
+        with h5py.File(path, "r") as f:
             return (_text(f.attrs.get("sweep_hash")) == sweep_hash
-                    and np.array_equal(f.variables["member"][...], np.asarray(members)))
-    except (OSError, ValueError, KeyError):  # unreadable or foreign: recompute it
+                    and np.array_equal(f["member"][...], np.asarray(members)))
+    except (OSError, ValueError, KeyError, TypeError):  # unreadable or foreign: recompute it
         return False
 
 
@@ -148,14 +176,15 @@ def _prepare_out_dir(cfg: SweepConfig, out: Path, force: bool) -> Path:
             if not force:
                 raise SweepMismatch(f"{out} holds the results of a different sweep (hash {str(old)[:12]}, this one "
                                     f"{cfg.hash[:12]}); choose another output folder or use --force to replace them")
-            for p in [*chunks.glob("chunk_*.nc"), *chunks.glob("chunk_*.nc.sha256"),
-                      out / "metrics.csv", out / "metrics.parquet"]:
+            for p in [*chunks.glob("chunk_*.nc"), *chunks.glob("chunk_*.nc.sha256"), *chunks.glob("traces_*.nc"),
+                      *chunks.glob("traces_*.nc.sha256"), out / "metrics.csv", out / "metrics.parquet"]:
                 p.unlink(missing_ok=True)
     elif chunks.exists() and any(chunks.glob("chunk_*.nc")) and not force:
         raise SweepMismatch(f"{chunks} holds chunk files but no sweep.json; use --force to replace them")
     chunks.mkdir(parents=True, exist_ok=True)
     # Temporary files left by a killed run (never a finished file); safe to remove under the lock.
-    for p in [*chunks.glob(".chunk_*.tmp"), *out.glob(".metrics.*.tmp"), *out.glob(".sweep.json.*.tmp")]:
+    for p in [*chunks.glob(".chunk_*.tmp"), *chunks.glob(".traces_*.tmp"), *out.glob(".metrics.*.tmp"),
+              *out.glob(".sweep.json.*.tmp")]:
         p.unlink(missing_ok=True)
     if not meta.exists() or _recorded_hash(meta) != cfg.hash:  # a resumed sweep keeps its original record
         write_text(meta, json.dumps(_sweep_json(cfg), indent=2, default=str))
@@ -171,40 +200,40 @@ def _recorded_hash(meta: Path) -> str | None:
 
 
 def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
-    """Collect the per-member metrics of every chunk file into one DataFrame (ordered by member)."""
-    import h5netcdf
+    """Collect the per-member metrics of every chunk file into one DataFrame (ordered by member).
+
+    Column by column as NumPy arrays (a million members are ~150 MB of numbers, not a billion
+    Python objects); only the small per-member variables of each chunk file are read.
+    """
+    import h5py
     import pandas as pd
 
-    cols = ["dt", "peak_wall_force", "peak_wall_time", "elastic_limit_exceeded", *METRIC_COLUMNS, "fit_error"]
-    # a protected body's peaks (wall.type = "body"), where some chunk has them; NaN for other members
-    body = ["peak_body_force", "peak_body_acceleration", "peak_body_energy"]
-    rows: dict[str, list] = {"member": [], "chunk": [], **{c: [] for c in cols + body}}
+    cols = list(TABLE_COLUMNS)
+    # columns only some sweeps have (NaN for the members without them, left out where no member
+    # has them): a protected body's peaks (wall.type = "body"), the elastoplastic metrics
+    optional = {c: c for c in _BODY_COLUMNS} | {c: var for c, (var, *_) in PLASTIC_METRICS.items()}
+    parts: dict[str, list] = {"member": [], "chunk": [], **{c: [] for c in [*cols, *optional]}}
     for index in range(len(cfg.chunks())):
-        # Only these small per-member variables are read (h5netcdf directly: see _chunk_is_done).
-        with h5netcdf.File(chunks_dir / _CHUNK_NAME.format(index), "r") as f:
-            members = f.variables["member"][...]
-            rows["member"] += members.tolist()
-            rows["chunk"] += [index] * members.size
+        with h5py.File(chunks_dir / _CHUNK_NAME.format(index), "r") as f:  # h5py: see _file_holds
+            members = np.asarray(f["member"][...])
+            parts["member"].append(members)
+            parts["chunk"].append(np.full(members.size, index, dtype=np.int64))
             for c in cols:
-                rows[c] += [_text(x) for x in f.variables[c][...].tolist()]
-            for c in body:
-                rows[c] += f.variables[c][...].tolist() if c in f.variables else [float("nan")] * members.size
-            for c, (var, *_) in PLASTIC_METRICS.items():
-                rows.setdefault(c, [np.nan] * (len(rows["member"]) - members.size))
-                rows[c] += f.variables[var][...].tolist() if var in f.variables else [np.nan] * members.size
-    if all(v != v for c in body for v in rows[c]):  # NaN everywhere: no member has a body
-        for c in body:
-            del rows[c]
-    table = {"member": rows.pop("member"), "chunk": rows.pop("chunk")}
+                parts[c].append(np.asarray(f[c][...]) if c in f else np.full(members.size, np.nan))
+            for c, var in optional.items():
+                parts[c].append(np.asarray(f[var][...], dtype=float) if var in f else np.full(members.size, np.nan))
+    table = {"member": np.concatenate(parts.pop("member")), "chunk": np.concatenate(parts.pop("chunk"))}
     for name in cfg.parameter_names:
-        vals = [cfg.members[m][name] for m in table["member"]]
+        vals = [cfg.members[m][name] for m in table["member"].tolist()]
         table[name] = [json.dumps(v) if isinstance(v, (list, dict)) else v for v in vals]
-    for c in PLASTIC_METRICS:  # only sweeps with an elastoplastic member have these columns
-        if c in rows and not np.any(np.isfinite(np.asarray(rows[c], dtype=float))):
-            del rows[c]
-    table.update(rows)
+    for c in cols:
+        table[c] = np.concatenate(parts[c])
+    for c in optional:
+        values = np.concatenate(parts[c])
+        if np.isfinite(values).any():
+            table[c] = values
     df = pd.DataFrame(table)
     df["elastic_limit_exceeded"] = df["elastic_limit_exceeded"].astype(bool)
+    df["fit_error"] = [_text(x) for x in df["fit_error"].tolist()]
     df["fit_error"] = df["fit_error"].fillna("").astype(str)
     return df
-

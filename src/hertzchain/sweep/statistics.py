@@ -1,0 +1,152 @@
+"""Statistics of a sweep's or an ensemble's metrics: what ``hertzchain summary`` prints and what
+the ensemble pictures (:mod:`hertzchain.viz.ensemble`) write on their panels.
+
+:func:`read_metrics` reads ``metrics.csv`` (a sweep's output folder or the file itself, checked
+as data: the columns :func:`~hertzchain.sweep.run_sweep` writes); :func:`summarize` gives, per
+metric, the number of members with a value, the mean, the standard deviation (n - 1), the
+extremes and the quantiles :data:`QUANTILES`, in SI units; :func:`display_unit` picks the unit
+(with an SI prefix) in which a metric's values read best.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from .storage import COLUMN_UNITS
+
+__all__ = ["read_metrics", "metric_columns", "summarize", "display_unit", "QUANTILES"]
+
+#: Quantiles reported for every metric (5 %, median, 95 %: the central 90 % of the members).
+QUANTILES = (0.05, 0.5, 0.95)
+
+#: Metrics that are not statistics of interest (the step is an input).
+_SKIP = {"dt", "elastic_limit_exceeded", "fit_error"}
+
+_PREFIXES = [(1e-9, "n"), (1e-6, "u"), (1e-3, "m"), (1.0, ""), (1e3, "k")]
+
+
+def read_metrics(path: str | Path):
+    """The metrics table of a sweep: ``DIR/metrics.csv`` of an output folder, or the file itself.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The sweep's output folder or its ``metrics.csv``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per member.
+
+    Raises
+    ------
+    ConfigError
+        (naming the file) when it is missing, unreadable or not a sweep's metrics table.
+    """
+    import pandas as pd
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / "metrics.csv"
+    if not path.is_file():
+        raise ConfigError(str(path), "no such file; give a sweep's output folder (it holds metrics.csv) or the "
+                          "metrics.csv itself")
+    try:
+        df = pd.read_csv(path, keep_default_na=False, na_values=["", "nan", "NaN"])
+    except (OSError, ValueError, UnicodeDecodeError) as exc:
+        raise ConfigError(str(path), f"cannot be read as a metrics table: {exc}") from None
+    need = ["member", "chunk", "dt", "F_m"]
+    missing = [c for c in need if c not in df.columns]
+    if missing:
+        raise ConfigError(str(path), f"is not a sweep's metrics.csv: no column {', '.join(missing)} (hertzchain "
+                          "sweep writes member, chunk, the swept parameters, dt and the metrics)")
+    return df
+
+
+def metric_columns(df) -> list[str]:
+    """The numeric metric columns of a metrics table (after ``dt``), in table order."""
+    cols = list(df.columns)
+    start = cols.index("dt") + 1 if "dt" in cols else 0
+    return [c for c in cols[start:] if c not in _SKIP and df[c].dtype.kind in "fiu"]
+
+
+def summarize(df, metrics: list[str] | None = None) -> dict[str, Any]:
+    """Per metric: members with a value, mean, standard deviation, extremes and quantiles (SI units).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A metrics table (:func:`read_metrics`).
+    metrics : list of str or None
+        The columns to summarise (default: :func:`metric_columns`).
+
+    Returns
+    -------
+    dict
+        ``n_members``, ``fit_failures`` (members without a fitted wall pulse),
+        ``elastic_limit_exceeded`` (members past the elastic limit) and ``metrics``:
+        ``{name: {units, n, mean, std, min, max, quantiles: {"0.05": ..., "0.5": ..., "0.95": ...}}}``
+        (NaN-free members only; ``std`` with n - 1, NaN for fewer than two).
+
+    Raises
+    ------
+    ConfigError
+        (``--signal``) naming a metric the table does not have.
+    """
+    available = metric_columns(df)
+    metrics = available if metrics is None else list(metrics)
+    for m in metrics:
+        if m not in available:
+            raise ConfigError("--signal", f"unknown metric {m!r}; this table has {', '.join(available)}")
+    out: dict[str, Any] = {"n_members": int(len(df))}
+    if "fit_error" in df:
+        out["fit_failures"] = int((df["fit_error"].fillna("").astype(str) != "").sum())
+    if "elastic_limit_exceeded" in df:
+        out["elastic_limit_exceeded"] = int(df["elastic_limit_exceeded"].astype(bool).sum())
+    stats = {}
+    for m in metrics:
+        x = df[m].to_numpy(dtype=float)
+        x = x[np.isfinite(x)]
+        entry: dict[str, Any] = {"units": COLUMN_UNITS.get(m, ""), "n": int(x.size)}
+        if x.size:
+            q = np.quantile(x, QUANTILES)
+            entry.update(mean=float(x.mean()), std=float(x.std(ddof=1)) if x.size > 1 else math.nan,
+                         min=float(x.min()), max=float(x.max()),
+                         quantiles={f"{p:g}": float(v) for p, v in zip(QUANTILES, q)})
+        else:
+            entry.update(mean=math.nan, std=math.nan, min=math.nan, max=math.nan,
+                         quantiles={f"{p:g}": math.nan for p in QUANTILES})
+        stats[m] = entry
+    out["metrics"] = stats
+    return out
+
+
+def display_unit(unit: str, values) -> tuple[str, float]:
+    """The unit with an SI prefix in which ``values`` read best, and the factor to multiply them by.
+
+    Parameters
+    ----------
+    unit : str
+        The SI unit (``N``, ``s``, ``N s``, ``J``; ``1`` or empty for numbers without one).
+    values : array_like
+        Values in ``unit``.
+
+    Returns
+    -------
+    (str, float)
+        E.g. ``("ms", 1e3)`` for times of a few milliseconds; ``(unit, 1.0)`` when no prefix helps.
+    """
+    if unit in ("", "1"):
+        return unit, 1.0
+    x = np.asarray(values, dtype=float)
+    x = np.abs(x[np.isfinite(x) & (x != 0)])
+    if not x.size:
+        return unit, 1.0
+    typical = float(np.median(x))
+    factor, prefix = max((p for p in _PREFIXES if p[0] <= typical), default=_PREFIXES[0])
+    return prefix + unit, 1.0 / factor
