@@ -241,7 +241,8 @@ def elastic_limit_message(ds: xr.Dataset, where: str = "") -> str | None:
         name = "bead N-wall" if worst == n else f"bead {worst}-bead {worst + 1}"
     return (f"{where}contact forces pass the elastic limit F_Y of the paper (Sec. II) at {len(over)} of "
             f"{ratio.size} contacts ({_ranges(over)}); worst: contact {worst} ({name}) at "
-            f"{ratio[worst]:.2f} x F_Y. Beads would yield plastically: lower the striker velocity")
+            f"{ratio[worst]:.2f} x F_Y. Beads would yield plastically: lower the striker velocity, or let "
+            f"the contacts yield (contact.law = \"elastoplastic\", Thornton's law)")
 
 
 def _law_name(ds) -> str | None:
