@@ -14,9 +14,11 @@ wall sensor and an 8-bit 2.5 MS/s scope (5 mV noise, random clock phase, 1000 po
   each bead n = 16..30 (15 traces), striker.velocity and gain shared, one time_offset per trace
   (17 parameters); target < 60 s.
 
-Each fit starts from 0.2 m/s. Reported: wall time (best of 3 for the single trace, after a
-warm-up that compiles the engine), batched engine calls and chains simulated, the recovered
-values in standard errors from the truth. Baseline in the same run: the Jacobian members of one
+Each fit starts from 0.2 m/s. Reported, for the exact Jacobian (the tangent model, the default)
+and for forward differences (``jacobian="finite differences"``, what the fit did before) in the
+same run: wall time (best of 3 for the single trace, after a warm-up that compiles the engine),
+evaluations, chains simulated by the batched engine, tangent runs, the cost reached and the
+recovered values in standard errors from the truth. Baseline in the same run: the Jacobian members of one
 series iteration (15 chains) simulated one by one with :func:`hertzchain.simulate`, against the
 one batched call the fit makes. Saves JSON (default benchmarks/results/fit.json) with machine
 info. Takes ~1 min on a quiet 2-core machine.
@@ -63,11 +65,11 @@ def records(truncations, seed: int = 0):
     return out
 
 
-def run_fit(recs):
+def run_fit(recs, jacobian: str = "exact"):
     from hertzchain.lab import Trace, fit_traces
 
     traces = [Trace(da, overrides=(f"chain.truncate={n}",) if n else (), name=f"n={n or 30}") for n, da, _ in recs]
-    return fit_traces(CONFIG, traces, ["striker.velocity", "gain", "time_offset"])
+    return fit_traces(CONFIG, traces, ["striker.velocity", "gain", "time_offset"], jacobian=jacobian)
 
 
 def summary(result, recs) -> dict:
@@ -77,6 +79,7 @@ def summary(result, recs) -> dict:
         truth["time_offset" if len(offsets) == 1 else f"time_offset[{k}]"] = tau
     z = {n: (v - truth[n]) / e for n, v, e in zip(result.names, result.values, result.stderr)}
     return {"elapsed_s": result.elapsed, "n_evaluations": result.n_evaluations, "n_members": result.n_members,
+            "jacobian": result.jacobian, "n_tangent_runs": result.n_tangent_runs, "cost": result.cost,
             "n_parameters": len(result.names), "n_points": result.n_points, "converged": result.converged,
             "values": dict(zip(result.names, result.values.tolist())),
             "stderr": dict(zip(result.names, result.stderr.tolist())),
@@ -105,24 +108,34 @@ def main(argv: list[str] | None = None) -> dict:
     quiet()
     t0 = time.perf_counter()
     single = records([None])
-    run_fit(single)  # warm-up: compiles (or loads) the batched engine, imports scipy.optimize
+    run_fit(single)  # warm-up: compiles (or loads) the engine and the tangent model, imports scipy.optimize
+    run_fit(single, "finite differences")
     warm_s = time.perf_counter() - t0
-    best, times, result = best_of(lambda: run_fit(single), 1 if args.quick else 3)
-    one = summary(result, single) | {"best_s": best, "times_s": times}
     series = records(list(SERIES), seed=100)
-    t1 = time.perf_counter()
-    result = run_fit(series)
-    many = summary(result, series) | {"best_s": time.perf_counter() - t1, "n_traces": len(series)}
+    out = {}
+    rows = []
+    for kind in ("exact", "finite differences"):  # after (the exact Jacobian) and before, in the same run
+        best, times, result = best_of(lambda: run_fit(single, kind), 1 if args.quick else 3)
+        one = summary(result, single) | {"best_s": best, "times_s": times}
+        t1 = time.perf_counter()
+        result = run_fit(series, kind)
+        many = summary(result, series) | {"best_s": time.perf_counter() - t1, "n_traces": len(series)}
+        out[kind] = {"single": one, "series": many}
+        for name, r, target in (("single trace, 3 parameters", one, "< 5"),
+                                (f"series of {len(series)} traces, {many['n_parameters']} parameters", many, "< 60")):
+            rows.append((f"{name}; Jacobian {kind}", f"{r['best_s']:.2f}", target, r["n_evaluations"], r["n_members"],
+                         r["n_tangent_runs"], f"{r['cost']:.6g}", f"{r['max_abs_z']:.2f}"))
+    one, many = out["exact"]["single"], out["exact"]["series"]
     base = batch_vs_serial(series, 1 if args.quick else 3)
-    print(table([("single trace, 3 parameters", f"{one['best_s']:.2f}", "< 5", one["n_evaluations"], one["n_members"],
-                  f"{one['max_abs_z']:.2f}"),
-                 (f"series of {len(series)} traces, {many['n_parameters']} parameters", f"{many['best_s']:.2f}", "< 60",
-                  many["n_evaluations"], many["n_members"], f"{many['max_abs_z']:.2f}")],
-                ("fit", "time s", "target s", "engine calls", "chains", "max |z|")))
-    print(f"one series Jacobian ({base['members']} chains): batched {base['batched_s']:.3f} s, one by one "
-          f"{base['serial_s']:.3f} s ({base['speedup']:.2f}x)")
+    print(table(rows, ("fit", "time s", "target s", "evaluations", "batched chains", "tangent runs", "cost",
+                       "max |z|")))
+    print(f"one series Jacobian by differences ({base['members']} chains): batched {base['batched_s']:.3f} s, one by "
+          f"one {base['serial_s']:.3f} s ({base['speedup']:.2f}x)")
+    import os
+
+    print(f"load average at start {machine_info()['load_average_at_start']}, now {list(os.getloadavg())}")
     res = {"benchmark": "fit", "machine": machine_info(), "warmup_s": warm_s, "single": one, "series": many,
-           "jacobian_batch_vs_serial": base,
+           "finite_differences": out["finite differences"], "jacobian_batch_vs_serial": base,
            "targets_s": {"single": 5.0, "series": 60.0},
            "meets_targets": {"single": one["best_s"] < 5.0, "series": many["best_s"] < 60.0}}
     save_json(res, args.json)

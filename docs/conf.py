@@ -151,6 +151,7 @@ _GROUP_TITLES = {
     "hertzchain.analysis": "Analysis",
     "hertzchain.theory": "Theory",
     "hertzchain.viz": "Pictures",
+    "hertzchain.gradients": "Sensitivities",
     "hertzchain.exporting": "Exporting results (CSV, MATLAB, parquet)",
     "hertzchain.explorer": "Explorer",
 }

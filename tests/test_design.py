@@ -168,9 +168,12 @@ def test_infeasible_candidates_never_win_and_pulse_must_reach_the_wall(tmp_path)
     assert all(not r["pulse_at_wall"] for r in res.history if "pulse_at_wall" in r)
 
 
-def test_best_taper_of_the_paper_length_beats_uniform_and_chain1(tmp_path):
+def test_best_taper_of_the_paper_length_beats_its_base_and_a_uniform_chain(tmp_path):
     """Physics: an exponentially tapered chain no longer than chain 1 (660.65 mm) and with no bead below
-    its smallest (11 mm) transmits a smaller peak force to the wall than chain 1 and the uniform chain."""
+    its smallest (11 mm) transmits a smaller peak force to the wall than the design's base chain
+    (16 x 26 mm, then 14 beads tapered with q = 0.05) and than a uniform chain of as many beads.
+    The references are like for like: the base configuration itself, and the uniform chain with
+    the best design's bead count, the base chain's first diameter and material, the same run."""
     length_chain1 = sum(hc.TABLE_I_MM["chain1"])
     design = {"base": {"chain": {"uniform": {"n": 16, "diameter_mm": 26.0}, "taper": {"n": 14, "q": 0.05}},
                        "striker": dict(STRIKER), "run": {"duration": 3.0e-3, "sample_interval": 1e-6}},
@@ -182,17 +185,19 @@ def test_best_taper_of_the_paper_length_beats_uniform_and_chain1(tmp_path):
     assert res.best["feasible"] and res.best["metrics"]["length_mm"] <= length_chain1 + 1e-9
     info = write_report(res, figures=False)
     cmp = info["comparison"]
-    # chain 1 itself is in the space's neighbourhood only approximately (it is not exponential):
-    # the comparison runs it exactly, with the same striker and run.
-    assert cmp["best"]["peak_wall_force"] < cmp["chain1"]["peak_wall_force"] < cmp["uniform"]["peak_wall_force"]
+    assert set(cmp) == {"best", "base", "uniform", "improvement_percent"}
+    assert cmp["uniform"]["n_beads"] == cmp["best"]["n_beads"] and cmp["base"]["n_beads"] == 30
+    assert cmp["best"]["peak_wall_force"] < cmp["base"]["peak_wall_force"] < cmp["uniform"]["peak_wall_force"]
     imp = info["comparison"]["improvement_percent"]
-    assert imp["chain1"]["peak_wall_force"] == pytest.approx(
-        100 * (1 - cmp["best"]["peak_wall_force"] / cmp["chain1"]["peak_wall_force"]))
-    assert imp["chain1"]["peak_wall_force"] > 5.0 and imp["uniform"]["peak_wall_force"] > 20.0
-    # The reference run of chain 1 is the one a user gets from hertzchain.simulate.
-    alone = hc.simulate(hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.2), hc.Wall("flat"), hc.Elastic()),
-                        3.0e-3, hc.Probes(sample_interval=1e-6, contacts=()))
-    assert cmp["chain1"]["peak_wall_force"] == pytest.approx(alone.attrs["peak_wall_force"], rel=1e-12)
+    assert imp["base"]["peak_wall_force"] == pytest.approx(
+        100 * (1 - cmp["best"]["peak_wall_force"] / cmp["base"]["peak_wall_force"]))
+    assert imp["base"]["peak_wall_force"] > 5.0 and imp["uniform"]["peak_wall_force"] > 20.0
+    # The base reference is what hertzchain.simulate gives for the base config itself.
+    alone = hc.run_config(design["base"])
+    assert cmp["base"]["peak_wall_force"] == pytest.approx(alone.attrs["peak_wall_force"], rel=1e-12)
+    uni = hc.run_config({**design["base"], "chain": {"uniform": {"n": cmp["best"]["n_beads"], "diameter_mm": 26.0}}})
+    assert cmp["uniform"]["peak_wall_force"] == pytest.approx(uni.attrs["peak_wall_force"], rel=1e-12)
+    assert info["objective_label"] == "peak_wall_force"
 
 
 def test_other_design_in_the_same_folder_needs_force(tmp_path, capsys):
@@ -255,3 +260,18 @@ def test_device_option_reaches_the_engine(tmp_path, capsys):
     if not cuda.gpu_usable():
         assert main(["design", str(f), "--out", str(tmp_path / "gpu"), "-q", "--no-html", "--device", "cuda"]) == 2
         assert "--device" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("robust, label", [
+    (None, "peak_wall_force"),
+    ({"velocities": [0.2, 0.3], "draws": 2, "tolerances": {"diameter_rel": 0.001, "seed": 1},
+      "statistic": "mean+ksigma", "k": 2.0}, "peak_wall_force, mean + 2 sigma over 4 scenarios"),
+    ({"velocities": [0.2, 0.3], "statistic": "worst"}, "peak_wall_force, worst case over 2 scenarios"),
+])
+def test_the_printed_objective_says_how_scenarios_are_summarised(robust, label):
+    from hertzchain.design.report import objective_label
+
+    data = _nq_design(budget=40, polish=False, population=8)
+    if robust is not None:
+        data["design"]["robust"] = robust
+    assert objective_label(parse_design(data)) == label

@@ -1,9 +1,11 @@
-"""The viscous laws' fused step (kernels.step_dissipative) against the general path it replaces
-for aligned chains (the predicted velocities, kernels.forces_general, the update loops):
+"""The fused steps against the general path they replace (the predicted velocities,
+kernels.forces_general, the update loops): the viscous laws' step of aligned chains
+(kernels.step_dissipative) and the elastic and viscous steps of misaligned chains (integrate/fused.py):
 positions, velocities, accelerations and forces bit for bit over a whole pulse; the dissipated
-power, summed in a vectorised order (kernels.dissipative_block), within 1e-14 of the
-contact-order sum. (The elastic-plastic law keeps the general path's two passes: faster than a
-fused scalar pass, benchmarks/dissipative.py.)"""
+power, summed in a vectorised order (kernels.dissipative_block, fused.offset_dissipative_block),
+within 1e-14 of the contact-order sum; the energies of the probes of a misaligned chain
+(fused.energies_offset) within rounding of kernels.potential_energy's. (The elastic-plastic law
+keeps the general path's two passes: faster than a fused scalar pass, benchmarks/dissipative.py.)"""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ import pytest
 from numba import njit
 
 import hertzchain as hc
+from hertzchain.integrate import fused as FU
 from hertzchain.integrate import kernels as K
 from hertzchain.integrate.layout import pack
 
@@ -47,6 +50,23 @@ def _fused(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, n_steps, pow
                                        s == n_steps - 1)
 
 
+def _block_start(s):
+    """A system's packed arrays, forces and accelerations at t = 0, after a block's opening half kick
+    and drift (dt = 10 ns, as verlet_run), and room for the powers of 60,000 steps (0.6 ms: the
+    pulse through the chain and off the wall)."""
+    w = pack(s)
+    p = w.n_slots
+    a = np.zeros(p)
+    g = np.zeros(p + 1)
+    K.forces_general(w.u, w.v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, s.law, g, w.dyield, w.dmax, w.dres,
+                     w.kres)
+    K.accelerations(g, w.fext, w.inv_mass, a)
+    for i in range(p):
+        w.v[i] += 0.5e-8 * a[i]
+        w.u[i] += 1e-8 * w.v[i]
+    return w, a, g, np.zeros(60_000)
+
+
 @pytest.mark.parametrize("law", [hc.Viscoelastic(A=2e-6), hc.Dashpot(gamma=20.0)], ids=["viscoelastic", "dashpot"])
 @pytest.mark.parametrize("precompression", [0.0, 20.0])
 def test_fused_step_is_the_general_path(law, precompression):
@@ -55,17 +75,8 @@ def test_fused_step_is_the_general_path(law, precompression):
     s = model.system()
     runs = []
     for fused in (False, True):
-        w = pack(s)
+        w, a, g, powers = _block_start(s)
         p = w.n_slots
-        a = np.zeros(p)
-        g = np.zeros(p + 1)
-        K.forces_general(w.u, w.v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, s.law, g, w.dyield, w.dmax, w.dres,
-                         w.kres)
-        K.accelerations(g, w.fext, w.inv_mass, a)
-        for i in range(p):  # a block's opening half kick and drift, as verlet_run
-            w.v[i] += 0.5e-8 * a[i]
-            w.u[i] += 1e-8 * w.v[i]
-        powers = np.zeros(60_000)  # 0.6 ms at 10 ns: the pulse through the chain and off the wall
         if fused:
             _fused(w.u, w.v, a, g, w.kappa, w.damping, w.d0, w.fext, w.inv_mass, s.law, 1e-8, powers.size, powers)
         else:
@@ -87,3 +98,68 @@ def test_simulate_uses_the_fused_steps_for_aligned_dissipative_chains():
     ref = hc.simulate(model, 1e-3, integrator="dop853", rtol=1e-11)
     assert ds.attrs["peak_wall_force"] == pytest.approx(ref.attrs["peak_wall_force"], rel=1e-5)
     assert ds.dissipated_energy.values[-1] == pytest.approx(ref.dissipated_energy.values[-1], rel=1e-4)
+
+
+@njit
+def _fused_offset(u, v, a, g, e, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt, n_steps, powers):
+    half = 0.5 * dt
+    for s in range(n_steps):
+        last = s == n_steps - 1
+        if law == K.LAW_ELASTIC:
+            FU.step_offset_elastic(u, v, a, g, e, kappa, d0, de, dx0, rsum, fext, inv_mass, dt, half, last)
+        else:
+            powers[s] = FU.step_offset_dissipative(u, v, a, g, e, kappa, damping, d0, de, dx0, rsum, fext, inv_mass,
+                                                   law, dt, half, last)
+
+
+#: Offsets [m] of a tapered chain's beads: misaligned pairs, an aligned pair (beads 8 and 9 share
+#: an offset) and an aligned end (the last bead on the axis, then the wall).
+OFFSETS = {1: 2e-5, 2: -1e-5, 4: 3e-5, 5: 1e-5, 8: -2e-5, 9: -2e-5, 13: 1.5e-5}
+
+
+@pytest.mark.parametrize("law", [None, hc.Viscoelastic(A=2e-6), hc.Dashpot(gamma=20.0)],
+                         ids=["elastic", "viscoelastic", "dashpot"])
+@pytest.mark.parametrize("wall", ["flat", "none"])
+def test_fused_offset_step_is_the_general_path(law, wall):
+    chain = hc.Chain.from_diameters(np.r_[np.full(12, 26e-3), np.geomspace(26e-3, 14e-3, 9)]).with_offsets(OFFSETS)
+    kw = {} if law is None else {"law": law}
+    s = hc.Model(chain, hc.Striker(8e-3, 1.0), wall=hc.Wall(wall), **kw).system()
+    assert s.misaligned and np.any(s.de == 0.0) and np.any(s.de != 0.0)
+    runs = []
+    for fused in (False, True):
+        w, a, g, powers = _block_start(s)
+        p = w.n_slots
+        e = np.zeros(p)
+        if fused:
+            _fused_offset(w.u, w.v, a, g, e, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.inv_mass, s.law,
+                          1e-8, powers.size, powers)
+        else:
+            _general(w.u, w.v, a, g, np.zeros(p + 1), w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
+                     w.inv_mass, s.law, w.dyield, w.dmax, w.dres, w.kres, 1e-8, powers.size, powers)
+        runs.append((w, a, g, e, powers))
+    (wg, ag, gg, _, pg), (wf, af, gf, ef, pf) = runs
+    for name, x, y in (("u", wg.u, wf.u), ("v", wg.v, wf.v), ("a", ag, af), ("g", gg, gf)):
+        assert np.array_equal(x, y), name
+    assert np.max(gg) > 1.0  # forces acted
+    if law is not None:
+        assert np.max(pg) > 0.0  # energy was dissipated
+        assert np.abs(pg - pf).max() <= POWER_REL * np.abs(pg).max()
+    # the probes' energies from the contact energies the last step stored
+    ke, pe = FU.energies_offset(wf.u, wf.v, wf.mass, wf.fext, ef)
+    pe_ref = K.potential_energy(wf.u, gf, wf.kappa, wf.d0, wf.de, wf.dx0, wf.rsum, wf.fext, False)
+    assert ke == pytest.approx(K.kinetic_energy(wf.v, wf.mass), rel=1e-14)
+    assert pe == pytest.approx(pe_ref, rel=1e-13, abs=1e-14 * ke)
+
+
+def test_simulate_uses_the_fused_steps_for_misaligned_chains():
+    """A misaligned run agrees with DOP853 (the fused steps are the general path's arithmetic) and
+    its energy balance holds at every sample (the probes read the energies the steps stored)."""
+    chain = hc.Chain.uniform(10, 20e-3).with_offsets({3: 2e-4, 4: -1e-4, 7: 3e-4})
+    for law in (None, hc.Viscoelastic(A=2e-6)):
+        model = hc.Model(chain, hc.Striker(8e-3, 0.3), **({} if law is None else {"law": law}))
+        ds = hc.simulate(model, 1e-3)
+        ref = hc.simulate(model, 1e-3, integrator="dop853", rtol=1e-11)
+        assert ds.attrs["peak_wall_force"] == pytest.approx(ref.attrs["peak_wall_force"], rel=1e-5)
+        total = ds.kinetic_energy.values + ds.potential_energy.values + ds.dissipated_energy.values
+        assert np.abs(total - total[0]).max() < 1e-4 * total[0]
+        assert ds.potential_energy.values.max() > 0.1 * total[0]  # the contacts stored energy

@@ -38,6 +38,8 @@ _EXPORTS = {
     # design search
     "load_design": "design", "parse_design": "design", "run_design": "design", "write_report": "design",
     "DesignProblem": "design", "DesignResult": "design",
+    # sensitivities (exact derivatives of results by config fields)
+    "sensitivity": "gradients", "Sensitivity": "gradients", "trace_sensitivity": "gradients",
     # dissipation
     "calibrate_law": "dissipation", "measure_eps": "dissipation", "restitution": "collision",
     # measurement, analysis, theory
@@ -51,6 +53,7 @@ _EXPORTS = {
     # pictures of results and sweeps
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
     "animate": "viz.animation", "plot_metrics": "viz.metrics", "plot_ensemble": "viz.ensemble",
+    "plot_sensitivity": "viz.sensitivity",
     # the interactive explorer (Panel; the [explore] extra)
     "explore": "explorer",
 }

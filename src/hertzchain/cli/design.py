@@ -75,10 +75,11 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
     units = info["units"]
     shown = (f"{value:.6g} {units[problem.objectives[0]]}" if not isinstance(value, dict)
              else ", ".join(f"{k} {v:.6g} {units[k]}" for k, v in value.items()))
-    msg = (f"best {problem.objective_name}: {shown} ({info['n_evaluations']} engine runs, "
+    n_uniform = info["comparison"]["uniform"]["n_beads"]
+    msg = (f"best {info['objective_label']}: {shown} ({info['n_evaluations']} engine runs, "
            f"{info['evaluations_per_s']:.0f}/s{', resumed' if result.resumed else ''}); "
-           f"lower than chain 1 by {_improvement(info, 'chain1')}, than the uniform chain by "
-           f"{_improvement(info, 'uniform')}; wrote {out}/")
+           f"lower than the base configuration by {_improvement(info, 'base')}, than a uniform chain of {n_uniform} "
+           f"beads by {_improvement(info, 'uniform')}; wrote {out}/")
     if not best["feasible"]:
         msg += "; warning: no candidate met every constraint (best is the least infeasible)"
     click.echo(msg)

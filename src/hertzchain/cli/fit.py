@@ -1,4 +1,4 @@
-"""``hertzchain fit``: calibrate config fields on measured traces (least squares, batched Jacobian)."""
+"""``hertzchain fit``: calibrate config fields on measured traces (least squares, exact Jacobian)."""
 
 from __future__ import annotations
 
@@ -57,7 +57,10 @@ def parse_measured(item: str) -> tuple[Path, str | None, list[str], dict]:
 @trace_options
 @set_option
 @click.option("--max-evaluations", type=int, default=100, show_default=True,
-              help="Most model evaluations (each one batched engine call).")
+              help="Most model evaluations (each one run per trace).")
+@click.option("--jacobian", type=click.Choice(["exact", "differences"]), default="exact", show_default=True,
+              help="The config fields' columns of the Jacobian: exact (the tangent model, docs: Sensitivities) "
+                   "or forward finite differences (one batched run per field).")
 @click.option("--bootstrap", type=int, default=0, metavar="N",
               help="Also N residual-bootstrap refits: errors that do not assume a linear model (N x the fit's cost).")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
@@ -65,15 +68,16 @@ def parse_measured(item: str) -> tuple[Path, str | None, list[str], dict]:
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or table.")
 def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Path, signal: str, column: str | None,
         sensitivity: float | None, sensor: str | None, time_unit: str | None, overrides: tuple[str, ...],
-        max_evaluations: int, bootstrap: int, scheduler: str | None, quiet: bool) -> None:
+        max_evaluations: int, jacobian: str, bootstrap: int, scheduler: str | None, quiet: bool) -> None:
     """Calibrate the --free fields of CONFIG on the MEASURED traces by least squares.
 
     Each MEASURED is a scope file, optionally followed by settings for that trace only:
     FILE@chain.truncate=16 (the paper's protocol: the wall trace of each truncated chain),
     FILE@signal=sensor:12@sensor=pcb_200b02 (the embedded sensor, read with its own sensitivity),
     FILE@column=CH2. The model is seen through the instrument (sampled
-    at the scope's times, times gain, shifted by time_offset, plus baseline); the Jacobian of each
-    iteration comes from one batched engine call.
+    at the scope's times, times gain, shifted by time_offset, plus baseline); the Jacobian's config
+    columns are exact (the tangent model beside each trace's run), or finite differences where the
+    tangent model does not cover the model (the summary line says which).
     """
     from ..config import apply_overrides, parse_config, read_toml
     from ..errors import ConfigError
@@ -108,7 +112,8 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
         client = dask_client(scheduler) if bootstrap else None
         try:
             result = fit_traces(data, traces, free, overrides=overrides, max_evaluations=max_evaluations,
-                                bootstrap=bootstrap, progress=tick, client=client)
+                                bootstrap=bootstrap, progress=tick, client=client,
+                                jacobian="exact" if jacobian == "exact" else "finite differences")
         finally:
             if client is not None:
                 client.close()
@@ -128,5 +133,6 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
         extra = (f"{boot[n]['bootstrap']['stderr']:.2g}",) if bootstrap else ()
         table.add_row(n, boot[n]["unit"], f"{v:.6g}", f"{s:.2g}", f"{s0:.6g}", *extra)
     table.print()
-    click.echo(f"{result.n_evaluations} engine calls ({result.n_members} chains) in {result.elapsed:.2f} s; "
+    click.echo(f"{result.n_evaluations} evaluations ({result.n_members} chains in batched engine calls, "
+               f"{result.n_tangent_runs} tangent runs; Jacobian: {result.jacobian}) in {result.elapsed:.2f} s; "
                f"wrote {', '.join(str(p) for p in paths.values())}")

@@ -25,6 +25,7 @@ from .materials import materials
 from .plot import plot
 from .reproduce import reproduce
 from .run import run
+from .sensitivity import sensitivity
 from .summary import summary
 from .sweep import sweep
 
@@ -46,6 +47,7 @@ cli.add_command(fit)
 cli.add_command(sweep)
 cli.add_command(summary)
 cli.add_command(design)
+cli.add_command(sensitivity)
 cli.add_command(explore)
 cli.add_command(export)
 

@@ -49,7 +49,7 @@ _LEGACY = "checkpoint.pkl"
 #: Version of the checkpoint's layout; another version is set aside, not guessed at.
 SCHEMA = 1
 _FORMAT = "hertzchain design checkpoint"
-_PHASES = ("population", "polish", "verify")
+_PHASES = ("population", "polish", "gradient", "verify")
 _FIDELITIES = ("search", "full")
 
 
@@ -266,7 +266,8 @@ def _read(path: Path, problem) -> Saved:
         _need(isinstance(meta.get(k), int) and not isinstance(meta[k], bool) and meta[k] >= 0, f"{k} is a count")
     _need(_number(meta.get("elapsed_s")) and math.isfinite(meta["elapsed_s"]) and meta["elapsed_s"] >= 0,
           "elapsed_s is a time")
-    _need(meta.get("phase") in ("population", "polish", "done"), "phase is population, polish or done")
+    _need(meta.get("phase") in ("population", "polish", "gradient", "done"),
+          "phase is population, polish, gradient or done")
     _need(isinstance(meta.get("state"), dict), "no optimiser state")
     for name, arr in files.items():
         _need(arr.dtype.kind in "fiub", f"array {name!r} holds numbers")
@@ -385,7 +386,7 @@ class Replay:
         xs : list of numpy.ndarray
             The points the search evaluates.
         phase : str
-            ``population``, ``polish`` or ``verify``.
+            ``population``, ``polish``, ``gradient`` or ``verify``.
 
         Returns
         -------

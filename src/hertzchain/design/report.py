@@ -1,10 +1,11 @@
 """Design outputs: best.toml, design.json, history.csv, pareto.csv and design.html.
 
-The best design is compared with the paper's chain 1 (Table I) and with a uniform chain of as
-many beads (the diameter of the base chain's first bead), all three run with the base config's
-striker, wall, contact law and run settings and scored as the search scored candidates (robust
-scenarios included); the improvement is (reference - best) / reference in percent (positive:
-the design transmits less).
+The best design is compared like for like: with the problem's own base configuration (``[base]``
+as it stands, what the design starts from) and with a uniform chain of as many beads as the best
+design, of the base chain's first diameter and material, all three run with the same striker,
+wall, contact law and run settings (duration included) and scored as the search scored
+candidates (robust scenarios included, summarised the same way); the improvement is
+(reference - best) / reference in percent (positive: the design transmits less).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 from .objectives import OBJECTIVES
 from .search import DesignResult
 
-__all__ = ["write_report", "compare_with_references"]
+__all__ = ["write_report", "compare_with_references", "objective_label", "REFERENCES"]
 
 
 def _toml_ready(x: Any) -> Any:
@@ -36,21 +37,47 @@ def _toml_ready(x: Any) -> Any:
     return x
 
 
+#: The references of the comparison, after the best design.
+REFERENCES = ("base", "uniform")
+
+
 def _reference_configs(base: dict, best_cfg: dict) -> dict[str, dict]:
-    from ..chain import TABLE_I_MM
+    """The best design, the base configuration and the uniform chain (see the module docstring)."""
     from ..config import build_chain, parse_config
 
-    material = base.get("chain", {}).get("material", "AISI52100")
-    first = float(build_chain(parse_config(base)).diameters[0] * 1e3)
+    base_chain = build_chain(parse_config(base))
+    n_best = build_chain(parse_config(best_cfg)).n_beads
     common = {k: v for k, v in best_cfg.items() if k != "chain"}
-    return {"best": best_cfg,
-            "chain1": {**common, "chain": {"preset": "chain1", "material": material}},
-            "uniform": {**common, "chain": {"uniform": {"n": len(TABLE_I_MM["chain1"]), "diameter_mm": first},
-                                            "material": material}}}
+    uniform = {"uniform": {"n": n_best, "diameter_mm": float(f"{base_chain.diameters[0] * 1e3:.12g}")},
+               "material": base_chain.materials[0].name}
+    return {"best": best_cfg, "base": base, "uniform": {**common, "chain": uniform}}
+
+
+def objective_label(problem) -> str:
+    """How the objective is scored: ``peak_wall_force``, or with ``[design.robust]`` the statistic
+    over the scenarios (``peak_wall_force, mean + 2 sigma over 6 scenarios``).
+
+    Parameters
+    ----------
+    problem : DesignProblem
+        The design.
+
+    Returns
+    -------
+    str
+        The label (what the printed and written objective values are).
+    """
+    rob = problem.section.robust
+    if rob is None:
+        return problem.objective_name
+    n = len(rob.velocities or [None]) * rob.draws
+    stat = {"worst": "worst case", "mean": "mean", "mean+ksigma": f"mean + {rob.k:g} sigma"}[rob.statistic]
+    return f"{problem.objective_name}, {stat} over {n} scenarios" if n > 1 else problem.objective_name
 
 
 def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
-    """Objectives of the best design, chain 1 and the uniform chain, as the search scored them.
+    """Objectives of the best design, the base configuration and the uniform chain, as the search
+    scored them.
 
     The three chains are evaluated like candidates (in every scenario of ``[design.robust]``,
     summarised the same way), so the improvement compares like with like; their nominal wall
@@ -64,9 +91,9 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     Returns
     -------
     (dict, xarray.Dataset)
-        ``{"best" | "chain1" | "uniform": {name: value [SI] (None when the pulse does not reach
+        ``{"best" | "base" | "uniform": {name: value [SI] (None when the pulse does not reach
         the wall within the run), "n_beads", "length_mm", "feasible"}, "improvement_percent":
-        {"chain1" | "uniform": {name: (reference - best) / reference [%]}}}`` and the nominal
+        {"base" | "uniform": {name: (reference - best) / reference [%]}}}`` and the nominal
         batch result (wall forces of the three, members in that order).
     """
     import warnings
@@ -83,7 +110,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     window = None if sec.window is None else tuple(sec.window)
     cfgs = _reference_configs(prob.base, result.best["config"])
     # No geometric rejection here: the references get values even where they break the design's
-    # constraints (the uniform chain is longer than chain 1); feasibility is reported beside them.
+    # constraints (the uniform chain may be longer or heavier); feasibility is reported beside them.
     scorer = Evaluator(prob.objectives, Constraints(pulse_at_wall=sec.constraints.pulse_at_wall), sec.robust, window)
     evs = scorer.evaluate(list(cfgs), list(cfgs.values()))
     runs = [parse_config(c) for c in cfgs.values()]
@@ -109,7 +136,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     out["improvement_percent"] = {
         ref: {n: (100.0 * (out[ref][n] - out["best"][n]) / out[ref][n]
                   if out[ref][n] and out["best"][n] is not None else None) for n in prob.objectives}
-        for ref in ("chain1", "uniform")}
+        for ref in REFERENCES}
     return out, ds
 
 
@@ -185,7 +212,7 @@ def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]
     ax.plot(runs, vals, ".", ms=3, color="0.6", label="feasible candidates")
     best_so_far = np.fmin.accumulate(np.where(np.isnan(vals), np.inf, vals))
     ax.step(runs, np.where(np.isinf(best_so_far), np.nan, best_so_far), where="post", color="C0", label="best so far")
-    for ref, style in (("chain1", "C3--"), ("uniform", "C2:")):
+    for ref, style in (("base", "C3--"), ("uniform", "C2:")):
         if comparison[ref][obj] is not None:
             ax.axhline(comparison[ref][obj], color=style[:2], ls=style[2:],
                        label=f"{ref} ({comparison[ref][obj]:.4g} {unit})")
@@ -208,7 +235,7 @@ def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]
         figs.append(("Pareto front", _png(fig)))
         plt.close(fig)
 
-    labels = ["best", "chain1", "uniform"]
+    labels = ["best", *REFERENCES]
     diam = ds["diameter"].values * 1e3
     length = max(float(np.nansum(d)) for d in diam)
     fig, ax = plt.subplots(figsize=(9, 3.2))
@@ -248,7 +275,7 @@ def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
     cmp = info["comparison"]
     names = result.problem.objectives
     rows = ""
-    for ref in ("best", "chain1", "uniform"):
+    for ref in ("best", *REFERENCES):
         cells = "".join(f"<td>{_num(cmp[ref][n], '.5g')}</td>" for n in names)
         imp = "" if ref == "best" else "; ".join(_num(cmp["improvement_percent"][ref][n], "+.2f", " %") for n in names)
         ok = "yes" if cmp[ref]["feasible"] else "no"
@@ -258,11 +285,12 @@ def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
     variables = "".join(f"<tr><td><code>{html.escape(k)}</code></td><td>{html.escape(json.dumps(v))}</td></tr>"
                         for k, v in info["best"]["variables"].items())
     images = "".join(f"<h2>{html.escape(t)}</h2><img src='data:image/png;base64,{b}'/>" for t, b in figs)
-    robust = "" if info["robust"] is None else ", every chain scored over the same robust scenarios"
+    robust = "" if info["robust"] is None else (f", every chain scored over the same robust scenarios "
+                                                f"({html.escape(info['objective_label'])})")
     feasible = "" if info["best"]["feasible"] else "<p><b>No candidate met every constraint; this is the least infeasible.</b></p>"
     return f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>hertzchain design</title>
 <style>body{{font-family:sans-serif;max-width:60em;margin:auto}} td,th{{padding:2px 8px;border-bottom:1px solid #ddd}}</style>
-</head><body><h1>hertzchain design: {html.escape(info['objective_name'])}</h1>{feasible}
+</head><body><h1>hertzchain design: {html.escape(info['objective_label'])}</h1>{feasible}
 <p>{info['n_evaluations']} engine runs in {info['generations']} engine calls, {info['elapsed_s']:.1f} s
 ({info['evaluations_per_s']:.0f} runs/s), seed {info['seed']}. Improvement = (reference - best) / reference{robust}.
 {html.escape(_measured_sentence(info['measured_against']))}</p>
@@ -284,8 +312,10 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
     -------
     dict
         The content of ``design.json``: ``best: {objective, variables, feasible, metrics}``,
-        ``n_evaluations``, ``objective_name``, ``objectives``, ``units``, ``comparison`` (chain 1
-        and the uniform chain, improvement in percent), ``generations``, ``elapsed_s``,
+        ``n_evaluations``, ``objective_name``, ``objective_label`` (with ``[design.robust]``: the
+        statistic over the scenarios, e.g. ``peak_wall_force, mean + 2 sigma over 6 scenarios``),
+        ``objectives``, ``units``, ``comparison`` (the base configuration and the uniform chain
+        of as many beads, improvement in percent), ``generations``, ``elapsed_s``,
         ``evaluations_per_s``, ``seed``, ``budget``, ``pareto`` (several objectives), ``hash``,
         ``search_fidelity`` (``name``: ``"search"`` or ``"full"``, ``steps_per_radian`` and
         ``coarse_sampling`` of the search runs, ``verify_top``), ``measured_against`` (the wall or
@@ -304,6 +334,7 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
     comparison, ds = compare_with_references(result)
     info = {
         "objective_name": prob.objective_name,
+        "objective_label": objective_label(prob),
         "objectives": prob.objectives,
         "units": {n: OBJECTIVES[n][0] for n in prob.objectives},
         "best": {k: result.best[k] for k in ("objective", "variables", "feasible", "metrics")},
@@ -324,7 +355,7 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
     if len(prob.objectives) > 1:
         info["pareto"] = [{"objectives": {n: r[n] for n in prob.objectives},
                            "variables": {g: r[g] for g in prob.space.groups}} for r in result.pareto]
-    header = (f"# Best design found by hertzchain design ({prob.objective_name} = "
+    header = (f"# Best design found by hertzchain design ({info['objective_label']} = "
               f"{json.dumps(_json_ready(info['best']['objective']))}); run it with: hertzchain run best.toml --out best.nc\n")
     write_text(out / "best.toml", header + tomli_w.dumps(_toml_ready(result.best["config"])))
     write_text(out / "design.json", json.dumps(_json_ready(info), indent=2))

@@ -10,6 +10,13 @@ one engine call; move to the best improving neighbour, else halve h, until h < 1
 budget is spent. Several objectives: NSGA-II (:mod:`pymoo`) and the non-dominated feasible
 candidates ever evaluated as the Pareto front.
 
+Gradients: where every variable is a continuous config field that the sensitivity engine
+differentiates and the objective is one it knows (:func:`~hertzchain.design.gradient.gradient_support`:
+per-bead profiles, striker, law constants; no geometric constraint, no robust scenarios), the
+initial sample is followed by local searches on exact gradients (L-BFGS-B,
+:mod:`hertzchain.design.gradient`) from its best points, each outside the basins already
+searched; CMA-ES restarts supply new starts when those run out (a local search is one generation).
+
 Geometric constraints (smallest bead, length, mass, bead count) are checked without a run, and
 optima often lie on them: in a space with a real variable, a candidate that breaks one is moved
 onto its boundary by root finding on the geometry (:mod:`hertzchain.design.boundary`), towards the
@@ -49,6 +56,7 @@ import numpy as np
 from ..errors import ConfigError, HertzchainError
 from .boundary import _BOUNDARY_SLACK, _margin, _repair_initial, _repair_point, _repairs, _to_boundary
 from .checkpoint import DesignMismatch, Replay, ReplayDiverged, _load, _save, set_aside
+from .gradient import gradient_step, gradient_support, initial_points
 from .objectives import INFEASIBLE, Evaluator, Fidelity
 from .problem import DesignProblem, search_fidelity
 
@@ -100,6 +108,8 @@ class _State:
     # JSON text of the history rows and cache entries already written to the checkpoint: they never
     # change once added, so a save serialises only what is new (hertzchain.design.checkpoint._save).
     written: dict = field(default_factory=dict, repr=False)
+    gradient_used: list = field(default_factory=list)    # starts of the gradient phase's local searches
+    gradient_optima: list = field(default_factory=list)  # where they ended
 
 
 @dataclass
@@ -486,8 +496,8 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
     from ..interrupts import latched
 
-    # Two searches writing one checkpoint would corrupt each other: the folder is locked (flock).
-    # A Ctrl-C is never swallowed by a cleanup between engine calls (hertzchain.interrupts).
+    # Two searches writing one checkpoint would corrupt each other: the folder is locked (flock);
+    # a Ctrl-C is never swallowed by a cleanup between engine calls (hertzchain.interrupts).
     with _folder_lock(out, "design", DesignLocked), latched():
         saved = _load(out, problem, force)
         try:
@@ -516,6 +526,9 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
     reserve = sec.verify_top * per_candidate if coarse else 0  # checked by the pre-flight: < budget
     budget = sec.budget - reserve
     multi = len(problem.objectives) > 1
+    # Continuous variables and an objective the sensitivity engine differentiates: local searches
+    # on exact gradients (design.gradient) take the place of CMA-ES after the initial sample.
+    gradients = not multi and sec.polish and gradient_support(problem) is None
     t_start = time.perf_counter()
     t_saved = saved.elapsed_s if saved is not None else 0.0
 
@@ -551,9 +564,22 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
             return True
         return False
 
+    def restart() -> bool:
+        """A CMA-ES restart (IPOP) for the gradient phase, whose best is searched next; False when
+        the restarts are spent."""
+        if state.restarts >= _MAX_RESTARTS:
+            return False
+        state.restarts += 1
+        state.optimiser = _new_optimiser(problem, state.restarts)
+        state.phase, state.stall = "population", 0
+        return True
+
     def next_cycle() -> None:
-        """After a converged or stalled population phase: polish; after a polish: restart (IPOP)."""
-        if state.phase == "population" and sec.polish and not multi:
+        """After a converged or stalled population phase: polish (with gradients where the design
+        allows them); after a polish: restart (IPOP)."""
+        if state.phase == "population" and gradients:
+            state.phase = "gradient"
+        elif state.phase == "population" and sec.polish and not multi:
             state.phase, state.polish_x = "polish", None
         elif state.restarts < _MAX_RESTARTS and not multi:
             state.restarts += 1
@@ -571,12 +597,19 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
             pop0 = _initial_sample(problem)
             xs = list(qmc.LatinHypercube(d=problem.space.dim, seed=np.random.default_rng([sec.seed, 11])).random(pop0))
             xs = _repair_initial(problem, evaluator, xs)
+            if gradients:
+                xs = initial_points(problem, xs)
             if len({problem.space.key(x) for x in xs}) * per_candidate > budget:
                 raise ConfigError("design.budget", f"{budget} engine runs cannot pay for one generation of {pop0} "
                                   f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
             _evaluate(problem, evaluator, state, xs, "population", clock, replay)
             improved()
             state.optimiser = _new_optimiser(problem, x0=np.asarray(_best_row(problem, state.history)["x"]))
+            if gradients:
+                state.phase = "gradient"
+        elif state.phase == "gradient":
+            gradient_step(problem, evaluator, state, budget, clock, replay, _row, restart)
+            improved()
         elif state.phase == "population":
             if state.optimiser is None:
                 state.optimiser = _new_optimiser(problem)
@@ -665,4 +698,3 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
     pareto = pareto_rows(problem, state.history) if multi else ([best] if best and best["feasible"] else [])
     return DesignResult(problem, best_out, state.history, pareto, state.n_evaluations, state.generation,
                         t_saved + time.perf_counter() - t_start, out, resumed)
-

@@ -20,7 +20,9 @@ contact N + 1, to the immovable ghost N + 2), and an internal mass on a spring p
 whose displacement and velocity are state (:func:`step_extended`). The contact
 forces are written once (:func:`forces_elastic`, branch-free so that LLVM vectorises it, and
 :func:`forces_general` for dissipative laws and misaligned beads); the same functions serve the
-Verlet loop and the scipy reference RHS, so both integrate the same equations (paper eq. 1).
+Verlet loop and the scipy reference RHS, so both integrate the same equations (paper eq. 1). The
+Verlet loop's fused steps (one pass per step) compute the same numbers: :func:`step_elastic`,
+:func:`step_dissipative` here, those of misaligned chains in :mod:`hertzchain.integrate.fused`.
 Probes are sampled inside the loop every ``stride`` steps (no Python call per step).
 """
 
@@ -37,12 +39,10 @@ from .energies import (energies_elastic, kinetic_energy, plastic_work, potential
 from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
                         accelerations_extended, energies_extended, forces_linear)
 
-LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT, LAW_ELASTOPLASTIC = 0, 1, 2, 3
-
-#: Overlaps below this [m] count as zero (forces below ~1e-35 N). Without it the numerical
-#: precursor ahead of a pulse decays into subnormal floats (~1e-300), which x86 handles ~30x
-#: slower: 2.4 instead of 1.6 ns per bead-step while a pulse crosses a 30-bead chain.
-DELTA_MIN = 1e-30
+from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
+# the law codes, the overlap floor and the helpers the fused steps share (re-exported: kernels.DELTA_MIN & co.)
+from .primitives import (DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC,  # noqa: F401
+                         _track_peak, _viscous_force)
 
 
 @njit(cache=True, nogil=True)
@@ -233,18 +233,6 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _viscous_force(d, rate, kappa, damping, law):
-    """:func:`forces_general`'s viscoelastic or dashpot force at overlap d (aligned) and rate;
-    returns (force, elastic part). Open contacts give 0 through selects (vectorised)."""
-    dd = d if d > DELTA_MIN else 0.0
-    sd = np.sqrt(dd)
-    fel = kappa * dd * sd
-    f = fel + kappa * damping * sd * rate if law == LAW_VISCOELASTIC else fel + damping * rate
-    f = f if f > 0.0 else 0.0
-    return (f if d >= 0.0 else 0.0), fel
-
-
-@njit(cache=True, nogil=True, inline="always")
 def step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, last):
     """One step of an aligned chain with the viscoelastic or dashpot law, fused into one pass (as
     :func:`step_elastic`): the forces of :func:`forces_general` at velocities predicted half a step
@@ -430,22 +418,6 @@ def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, 
     return max(1, int(np.ceil(block * c_steps * w - 1e-9)))
 
 
-@njit(cache=True, nogil=True)
-def _track_peak(fw, t, dt, peak):
-    """Running maximum of the wall force with its neighbours (see verlet_run)."""
-    if fw > peak[0]:
-        peak[0] = fw
-        peak[1] = t
-        peak[2] = peak[5]
-        peak[6] = dt
-        peak[4] = 1.0
-    elif peak[4] != 0.0:
-        peak[3] = fw
-        peak[7] = dt
-        peak[4] = 0.0
-    peak[5] = fw
-
-
 @njit(cache=True, nogil=True, inline="always")
 def _adapt_stride(req, ns, relax, acc):
     """Next steps per block from the required ``req`` and the current ``ns`` (see verlet_run).
@@ -495,10 +467,11 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     sequence of symmetric kick-drift-kick steps, so the scheme stays time-reversible and
     second order.
 
-    Between block ends the half kicks of consecutive steps are fused (leapfrog form); for an
-    aligned chain a step is one pass (:func:`step_elastic`; :func:`step_dissipative` for the
-    viscoelastic and dashpot laws), otherwise (offset beads) one pass over the
-    contacts and one over the bodies. ``acc`` holds [dissipated energy (J),
+    Between block ends the half kicks of consecutive steps are fused (leapfrog form); a step is
+    one pass (aligned chains: :func:`step_elastic`, :func:`step_dissipative` for the viscoelastic
+    and dashpot laws; offset beads: the steps of :mod:`hertzchain.integrate.fused`, whose probes
+    read the contact energies the last step stored), but for the elastic-plastic law: one pass
+    over the contacts and one over the bodies. ``acc`` holds [dissipated energy (J),
     last dissipated power (W), step count, current ns, relax count, largest ns allowed in the
     relax window, largest ns used, smallest ns used]. ``peak`` tracks contact ``wall_slot`` (the
     wall): [max force, its time, force one step before, force one step after, waiting flag,
@@ -525,6 +498,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     ns = stride if not adaptive else int(acc[3])
     vp = np.zeros_like(v)
     wa = np.zeros(n)
+    ec = np.zeros(n)  # contact energies at a block's end (offset chains' fused steps, their probes)
     if ext_on:  # the internal masses' accelerations: a function of the positions, not state
         for i in range(n):
             wa[i] = ext[i, EXT_KIN] * (u[i] - ext[i, EXT_W]) * ext[i, EXT_IMIN]
@@ -561,6 +535,12 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
                 # elastic-plastic law branches per contact; its two passes below beat one fused
                 # scalar pass: benchmarks/dissipative.py)
                 dissipative_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc)
+            elif general and law == LAW_ELASTIC:  # offsets: the fused steps of fused.py, the same numbers
+                offset_elastic_block(u, v, a, g, ec, kappa, d0, de, dx0, rsum, fext, inv_mass, ns, dt, t0, wall_slot,
+                                     peak)
+            elif general and law != LAW_ELASTOPLASTIC:
+                offset_dissipative_block(u, v, a, g, ec, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, ns,
+                                         dt, t0, wall_slot, peak, acc)
             elif general:
                 for s in range(ns):
                     for i in range(n):
@@ -605,6 +585,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
             ke = kinetic_energy(v, mass)
             pe = potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres)
             out_wp[k] = plastic_work(kappa, dyield, dmax, dres)
+        elif general and not aligned and not ext_on:  # the contact energies the fused steps left in ec
+            ke, pe = energies_offset(u, v, mass, fext, ec)
         elif general:
             ke = kinetic_energy(v, mass)
             pe = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
@@ -633,8 +615,9 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
 
 
 def flush_stale_cache(*kernels_using: object) -> None:
-    """Drop the on-disk cache of these compiled functions when this module (or ``extension.py``
-    or ``energies.py``, whose functions it compiles in) is newer than it.
+    """Drop the on-disk cache of these compiled functions when this module (or ``extension.py``,
+    ``energies.py``, ``primitives.py`` or ``fused.py``, whose functions it compiles in) is newer
+    than it.
 
     Numba's cache only checks the source file of the cached function itself, not of the
     functions it calls; the batched engine's loops (``batch_engine._batch_kernel``,
@@ -647,7 +630,8 @@ def flush_stale_cache(*kernels_using: object) -> None:
         Numba dispatchers (``@njit(cache=True)``) that call functions of this module.
     """
     # what the kernels compile in
-    sources = (Path(__file__), Path(__file__).with_name("extension.py"), Path(__file__).with_name("energies.py"))
+    sources = [Path(__file__).with_name(name) for name in ("kernels.py", "extension.py", "energies.py",
+                                                            "primitives.py", "fused.py")]
     newest = max(p.stat().st_mtime for p in sources)
     for fn in kernels_using:
         try:
@@ -658,6 +642,6 @@ def flush_stale_cache(*kernels_using: object) -> None:
             pass
 
 
-# The stepping loop compiles the extension's functions (extension.py) into itself: an edit there
-# must recompile it too (Numba's cache only checks the file of the function it caches).
-flush_stale_cache(step_extended, verlet_run)
+# The stepping loop compiles the functions of extension.py, primitives.py and fused.py into itself:
+# an edit there must recompile it too (Numba's cache only checks the file of the function it caches).
+flush_stale_cache(step_extended, dissipative_block, offset_elastic_block, offset_dissipative_block, verlet_run)

@@ -16,10 +16,12 @@ Residuals are weighted by each trace's noise (robust sample-to-sample estimate,
 :func:`hertzchain.analysis.estimate_noise`), and minimised with
 :func:`scipy.optimize.least_squares` (trust region reflective, positive bounds on the config
 fields and the gain), after a first fit of gain, time offsets and baselines alone on the
-starting model (time offsets first placed by cross-correlation). The Jacobian of every iteration costs one batched engine call
-(:func:`hertzchain.integrate.batch.simulate_batch`): one forward-difference member per trace
-and free config field; the derivatives in gain, time offset and baseline are exact (the
-simulated signal, its time derivative, one). The covariance is ``s^2 (J^T J)^-1`` with ``s^2``
+starting model (time offsets first placed by cross-correlation). The Jacobian is exact: its
+config-field columns are the derivatives of the simulated signals by the tangent model of the
+engine's steps (:mod:`hertzchain.lab.jacobian`, one run per trace), falling back to forward
+differences (one batched member per trace and field) for a field the sensitivity engine does
+not differentiate; the derivatives in gain, time offset and baseline are the simulated signal,
+its time derivative and one. The covariance is ``s^2 (J^T J)^-1`` with ``s^2``
 the residual variance per degree of freedom, taken trace by trace (each trace's rows of J are
 scaled by its own), so the standard errors hold when the noise estimates are off.
 """
@@ -115,8 +117,7 @@ class FitResult:
     n_points : int
         Number of samples fitted.
     n_evaluations : int
-        Batched engine calls made (each runs one member per trace, or per trace and
-        finite-difference step).
+        Residual evaluations (each one batched engine call, or one tangent run per trace).
     n_members : int
         Chains simulated in all.
     converged : bool
@@ -137,6 +138,11 @@ class FitResult:
         the noise).
     elapsed : float
         Wall time of the fit [s].
+    jacobian : str
+        ``"exact"`` (the config fields' columns by the tangent model), or ``"finite differences"``
+        with the reason (a field or model the sensitivity engine does not differentiate).
+    n_tangent_runs : int
+        Runs of the tangent model made for the Jacobians (one per trace and Jacobian).
     """
 
     names: list[str]
@@ -157,6 +163,8 @@ class FitResult:
     bootstrap: np.ndarray = field(default_factory=lambda: np.empty((0, 0)), repr=False)
     warnings: list[str] = field(default_factory=list)
     elapsed: float = 0.0
+    jacobian: str = "exact"
+    n_tangent_runs: int = 0
 
     def __repr__(self) -> str:
         pars = ", ".join(f"{n} = {v:.6g} ± {e:.2g}" for n, v, e in zip(self.names, self.values, self.stderr))
@@ -173,7 +181,8 @@ class FitResult:
         dict
             ``parameters`` ({name: {value, stderr, start, unit[, bootstrap]}}), ``correlation``,
             ``cost``, ``residual_variance``, ``n_points``, ``n_parameters``, ``n_evaluations``,
-            ``n_members``, ``converged``, ``message``, ``warnings``, ``elapsed_s``, ``traces``.
+            ``n_members``, ``jacobian`` (``"exact"``, or ``"finite differences (why)"``),
+            ``n_tangent_runs``, ``converged``, ``message``, ``warnings``, ``elapsed_s``, ``traces``.
         """
         pars = {n: {"value": float(v), "stderr": float(e), "start": float(s), "unit": parameter_unit(n)}
                 for n, v, e, s in zip(self.names, self.values, self.stderr, self.start)}
@@ -189,7 +198,7 @@ class FitResult:
             "cost": float(self.cost), "residual_variance": float(self.residual_variance),
             "n_points": int(self.n_points), "n_parameters": len(self.names),
             "n_evaluations": int(self.n_evaluations), "n_members": int(self.n_members),
-            "converged": bool(self.converged), "message": self.message, "warnings": list(self.warnings),
+            "jacobian": self.jacobian, "n_tangent_runs": int(self.n_tangent_runs), "converged": bool(self.converged), "message": self.message, "warnings": list(self.warnings),
             "elapsed_s": float(self.elapsed),
             "traces": [{"name": t["name"], "signal": t["signal"], "n_points": int(t["time"].size),
                         "noise": float(t["noise"]), "rms_residual": float(t["rms_residual"])} for t in self.traces],
@@ -293,6 +302,8 @@ class _Problem:
         self.tau_fixed = np.zeros(K)
         self.n_evaluations = 0
         self.n_members = 0
+        self.n_tangent_runs = 0
+        self.jacobian_kind = "exact"  # or "finite differences (why)": lab.jacobian.config_columns
         self._cache: dict[bytes, tuple] = {}
         self._sim_cache: dict[bytes, tuple] = {}
 
@@ -362,6 +373,8 @@ class _Problem:
 
     def model(self, x: np.ndarray):
         """Weighted residuals and, per trace, the simulated (time, force) used."""
+        from .jacobian import signals
+
         key = x.tobytes()
         if key in self._cache:
             return self._cache[key]
@@ -376,7 +389,7 @@ class _Problem:
         else:
             span = max(float(t[-1] - t[0]) for t in self.t)
             duration = need + 0.25 * span + 2 * self.sample_interval
-            sims = self.simulate([cfg], taus, duration=duration)[0]
+            sims = signals(self, cfg, taus, duration)  # the tangent model's run when the Jacobian is exact
             self._sim_cache = {cfg.tobytes(): (float(sims[0][0][-1]), sims)}
         res, parts = [], []
         for k, (ts, f) in enumerate(sims):
@@ -392,7 +405,8 @@ class _Problem:
         return self.model(x)[0]
 
     def jacobian(self, x: np.ndarray, config_fields: bool = True) -> np.ndarray:
-        """d residual / d x: one batched call for the config fields, exact for the rest
+        """d residual / d x, exact: the config fields' columns by the tangent model
+        (:func:`hertzchain.lab.jacobian.config_columns`), the measurement's from the simulated signal
         (``config_fields=False``: those columns are left at zero and no engine call is made)."""
         res, parts = self.model(x)
         cfg, gains, taus, bases, K = self.split(x)
@@ -401,18 +415,9 @@ class _Problem:
         edges = np.concatenate([[0], np.cumsum(sizes)])
         J = np.zeros((res.size, len(self.names)))
         if P:
-            steps = self.rel_step * np.maximum(np.abs(cfg), 1e-300)
-            sets = []
-            for j in range(P):
-                v = cfg.copy()
-                v[j] += steps[j]
-                sets.append(v)
-            sims = self.simulate(sets, taus)
-            for j in range(P):
-                for k in range(K):
-                    ts, f = sims[j][k]
-                    dm = gains[k] * (np.interp(self.t[k] + taus[k], ts, f) - parts[k][2]) / steps[j]
-                    J[edges[k]:edges[k + 1], j] = -dm / self.sigma[k]
+            from .jacobian import config_columns
+
+            config_columns(self, cfg, gains, taus, parts, edges, J)
         for k in range(K):
             ts, f, fk, mk = parts[k]
             rows = slice(edges[k], edges[k + 1])
@@ -506,7 +511,8 @@ def _identifiability(names: list[str], J: np.ndarray, when: str) -> None:
 def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, overrides: Sequence[str] = (),
                rel_step: float = FD_STEP, max_evaluations: int = 100, n_threads: int | None = None,
                bootstrap: int = 0, seed: int | None = 0,
-               progress: Callable[[int, float], None] | None = None, client=None) -> FitResult:
+               progress: Callable[[int, float], None] | None = None, jacobian: str = "exact",
+               client=None) -> FitResult:
     """Calibrate the free parameters of a run config on measured traces (least squares).
 
     Parameters
@@ -538,6 +544,9 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
         Seed of the bootstrap's random draws.
     progress : callable, optional
         ``progress(n_evaluations, cost)`` after each residual evaluation.
+    jacobian : {"exact", "finite differences"}
+        How the config fields' columns of the Jacobian are made: the tangent model (default; forward
+        differences where it does not apply) or forward differences (``rel_step``) throughout.
     client : object, optional
         Where the bootstrap refits run: None (here) or a Dask ``distributed.Client`` (or an
         executor), one task per refit (:mod:`hertzchain.lab.bootstrap`); the same numbers either way.
@@ -566,6 +575,9 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
     data = read_toml(config) if isinstance(config, (str, Path)) else dict(config)
     data = apply_overrides(data, overrides)
     prob = _Problem(data, traces, free, rel_step, n_threads)
+    if jacobian not in ("exact", "finite differences"):
+        raise ConfigError("jacobian", f"must be 'exact' or 'finite differences', got {jacobian!r}")
+    prob.jacobian_kind = jacobian
     x0 = prob.start()
     P = len(prob.cfg_paths)
     lower = np.full(x0.size, -np.inf)
@@ -642,7 +654,7 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
                      cost=float(sol.cost), residual_variance=s2, n_points=n, n_evaluations=prob.n_evaluations,
                      n_members=prob.n_members, converged=bool(sol.status > 0), message=str(sol.message),
                      config=calibrated, traces=out_traces, bootstrap=samples, warnings=doubts,
-                     elapsed=_time.perf_counter() - t0)
+                     elapsed=_time.perf_counter() - t0, jacobian=prob.jacobian_kind, n_tangent_runs=prob.n_tangent_runs)
 
 
 def _put(x: np.ndarray, index: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -178,7 +178,8 @@ td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}}</style></head><b
 {''.join(f'<b>Warning:</b> {e(w)}<br>' for w in result.warnings)}
 cost (half the sum of squared noise-weighted residuals) {result.cost:.6g}; {result.n_points} samples,
 {len(result.names)} parameters; residual variance s<sup>2</sup> = {result.residual_variance:.4g} (1 when the
-residuals are the noise); {result.n_evaluations} batched engine calls ({result.n_members} chains) in {result.elapsed:.2f} s.</p>
+residuals are the noise); {result.n_evaluations} evaluations ({result.n_members} chains in batched engine calls,
+{result.n_tangent_runs} tangent runs; Jacobian: {e(result.jacobian)}) in {result.elapsed:.2f} s.</p>
 <h2>Parameters (SI units; standard errors from s<sup>2</sup> (J<sup>T</sup>J)<sup>-1</sup>)</h2>
 <table><tr><th>parameter</th><th>unit</th><th>value</th><th>stderr</th><th>rel.</th><th>start</th>{boot_head}</tr>{rows}</table>
 <h2>Correlations</h2><table><tr><th></th>{head}</tr>{corr}</table>

@@ -1,0 +1,388 @@
+"""Exact derivatives of the set-up map, run config -> System arrays (:meth:`hertzchain.Model.system`).
+
+The map is re-written here in a form that accepts complex numbers, so that every derivative is
+taken by the complex step: f'(x) = Im f(x + i h) / h with h = 1e-30, exact to rounding (no
+subtraction, so no step-size error; Squire & Trapp, SIAM Rev. 40 (1998) 110). Every number of the
+config is read through one function that adds the step to the field being differentiated: a
+variable is a config field, addressed by its dotted path, with exactly the config's meaning
+(a list item that a substitution overrides, or that a truncation drops, has derivative zero).
+The real part is checked against ``Model.system()`` of the same config at every use, so a change
+of the set-up that this module does not know of is refused instead of differentiated wrongly.
+
+Fields (units: the config's own, so ``diameters_mm`` is per mm):
+
+- ``chain.diameters_mm[i]``, ``chain.uniform.diameter_mm``, ``chain.taper.q``,
+  ``chain.substitutions[i].diameter_mm``, ``chain.offsets_mm[i]``, ``chain.offsets_fraction[i]``,
+  ``chain.precompression``;
+- ``striker.diameter_mm``, ``striker.velocity``, and ``striker.mass`` [kg] (the striker's mass at
+  fixed size: not a config field yet);
+- ``contact.A``, ``contact.gamma`` (constant or size-scaled laws); the elastic-plastic law's
+  ``contact.A`` and ``contact.limiting_pressure_factor`` (its yield overlaps scale as its square);
+- a protected body (``[wall] type = "body"``): ``wall.mass`` [kg], ``wall.stiffness`` [N/m] and
+  ``wall.damping`` [N s/m] of its mount;
+- ``materials.NAME.density``, ``.young``, ``.poisson``, ``.yield_stress`` for a material of the
+  config's ``[materials]`` or of the catalogue (``materials.AISI52100.young``): every body made
+  of it, the wall cap included.
+
+For a config whose chain is not a list (``preset``, ``uniform``, ``taper``), ``chain.diameters_mm[i]``
+(and ``chain.offsets_mm[i]``) address bead i + 1 of the chain as built.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+
+__all__ = ["SetupDerivatives", "setup_derivatives", "ARRAYS", "expand_paths"]
+
+#: System arrays the set-up gives derivatives of (the engines' parameters, plus the masses and
+#: the elastic limits the results may read directly), the beads' diameters and offsets [m], and
+#: a protected body's mount (spring [N/m], dashpot [N s/m], deflection at rest [m]; (1,) each).
+ARRAYS = ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mass", "yield_force",
+          "diameter", "offset", "mount_k", "mount_c", "mount_d0", "dyield")
+#: The complex step (any h far below the value's own scale works: no subtraction is made).
+STEP = 1e-30
+
+_MATERIAL_FIELDS = ("density", "young", "poisson", "yield_stress")
+_SCALAR_FIELDS = ("chain.uniform.diameter_mm", "chain.taper.q", "chain.precompression", "striker.diameter_mm",
+                  "striker.velocity", "striker.mass", "contact.A", "contact.gamma", "contact.limiting_pressure_factor",
+                  "wall.mass", "wall.stiffness", "wall.damping")
+_LISTS = ("chain.diameters_mm", "chain.offsets_mm", "chain.offsets_fraction")
+
+
+class _Reader:
+    """Every config number goes through :meth:`__call__` (a scalar) or :meth:`items` (a list): the
+    value comes back with one row per variable, and the complex step added in the row of the
+    variable that is this field. Remembers which fields the config has."""
+
+    def __init__(self, paths: list[str]):
+        self.index = {p: i for i, p in enumerate(paths)}
+        self.rows = max(len(paths), 1)
+        self.seen: set[str] = set()
+        self.lists: dict[str, int] = {}
+
+    def __call__(self, path: str, value: float) -> np.ndarray:
+        """(rows, 1) complex column: ``value``, plus i h in the row of ``path``."""
+        self.seen.add(path)
+        out = np.full((self.rows, 1), complex(value))
+        i = self.index.get(path)
+        if i is not None:
+            out[i, 0] += 1j * STEP
+        return out
+
+    def items(self, prefix: str, values) -> np.ndarray:
+        """(rows, n) complex: list ``prefix`` of the config, plus i h at item k in the row of ``prefix[k]``."""
+        vals = np.asarray(values, dtype=complex)
+        self.lists[prefix] = vals.size
+        out = np.tile(vals, (self.rows, 1))
+        for path, i in self.index.items():
+            if path.startswith(prefix + "["):
+                k = int(path[len(prefix) + 1:-1])
+                if k < vals.size:
+                    out[i, k] += 1j * STEP
+        return out
+
+    def known(self, path: str) -> bool:
+        """Whether ``path`` is a field this config's set-up reads."""
+        if path in self.seen:
+            return True
+        head, _, rest = path.partition("[")
+        return bool(rest) and rest[:-1].isdigit() and int(rest[:-1]) < self.lists.get(head, 0)
+
+
+def _material(name: str):
+    from ..materials import get_material
+
+    return get_material(name)
+
+
+def _theta(mat, read: _Reader) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(compliance theta [1/Pa], density [kg/m^3], yield stress [Pa] or NaN) of a material, (rows, 1) each."""
+    key = f"materials.{mat.name}."
+    young = read(key + "young", mat.young)
+    nu = read(key + "poisson", mat.poisson)
+    rho = read(key + "density", mat.density)
+    sy = read(key + "yield_stress", mat.yield_stress) if mat.yield_stress is not None else \
+        np.full((read.rows, 1), complex(np.nan))
+    return 3.0 * (1.0 - nu * nu) / (4.0 * young), rho, sy
+
+
+def _diameters(cfg, read: _Reader) -> tuple[np.ndarray, list[str], np.ndarray]:
+    """Bead diameters and offsets [m] (rows, N) and material names, as config.build._chain."""
+    from ..chain import TABLE_I_MM
+
+    c = cfg.chain
+    listed = c.diameters_mm is not None
+    if c.preset is not None:
+        d = np.tile(np.array(TABLE_I_MM[c.preset], dtype=complex) * 1e-3, (read.rows, 1))
+    elif c.uniform is not None:
+        d = read("chain.uniform.diameter_mm", c.uniform.diameter_mm) * 1e-3 * np.ones(c.uniform.n)
+    else:
+        d = read.items("chain.diameters_mm", c.diameters_mm) * 1e-3
+    if c.taper is not None:
+        q = read("chain.taper.q", c.taper.q)
+        d = np.concatenate([d, d[:, -1:] * (1.0 - q) ** np.arange(1, c.taper.n + 1)], axis=1)
+    mats = [c.material] * d.shape[1]
+    if c.truncate is not None:
+        d, mats = d[:, :c.truncate], mats[:c.truncate]
+    if c.materials is not None:
+        mats = list(c.materials)
+    for i, sub in enumerate(c.substitutions):
+        if sub.diameter_mm is not None:
+            d[:, sub.bead - 1] = read(f"chain.substitutions[{i}].diameter_mm", sub.diameter_mm)[:, 0] * 1e-3
+        if sub.material is not None:
+            mats[sub.bead - 1] = sub.material
+    n = d.shape[1]
+    if not listed:  # bead i + 1 as built, addressed as a list item
+        d = d + read.items("chain.diameters_mm", np.zeros(n)) * 1e-3
+    if c.offsets_mm is not None:
+        offsets = read.items("chain.offsets_mm", c.offsets_mm) * 1e-3
+    elif c.offsets_fraction is not None:
+        offsets = read.items("chain.offsets_fraction", c.offsets_fraction) * d
+    else:
+        offsets = read.items("chain.offsets_mm", np.zeros(n)) * 1e-3
+    return d, [_material(m).name for m in mats], offsets
+
+
+def _weaker(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """np.fmin of yield stresses (NaN: none given), keeping the complex part of the one chosen."""
+    return np.where(np.isnan(a.real), b, np.where(np.isnan(b.real), a, np.where(a.real <= b.real, a, b)))
+
+
+def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
+    """The System arrays of ``cfg``, (rows, size) complex: the formulas of ``Model.system``."""
+    d, mats, offsets = _diameters(cfg, read)
+    n = d.shape[1]
+    s = cfg.striker
+    names = [_material(s.material or mats[0]).name] + mats
+    props = {name: _theta(_material(name), read) for name in dict.fromkeys(names)}
+    theta, rho, sigma = (np.concatenate([props[m][k] for m in names], axis=1) for k in range(3))
+    phi = np.concatenate([read("striker.diameter_mm", s.diameter_mm) * 1e-3, d], axis=1)
+    mass = rho * math.pi * phi**3 / 6.0
+    if s.mass is not None:  # a given striker mass (its size still sets its contact)
+        mass[:, :1] = read("striker.mass", s.mass)
+    else:
+        mass[:, :1] = read("striker.mass", mass[0, 0].real) + 1j * mass[:, :1].imag
+    r = phi / 2.0
+    inv_r = 1.0 / r[:, :-1] + 1.0 / r[:, 1:]
+    t_sum = theta[:, :-1] + theta[:, 1:]
+    s_min = _weaker(sigma[:, :-1], sigma[:, 1:])
+    if cfg.wall.type != "none":
+        wall = _material(cfg.wall.material or mats[-1]).name
+        wt, _, ws = props[wall] if wall in props else _theta(_material(wall), read)
+        inv_r = np.concatenate([inv_r, 1.0 / r[:, -1:]], axis=1)
+        t_sum = np.concatenate([t_sum, theta[:, -1:] + wt], axis=1)
+        s_min = np.concatenate([s_min, _weaker(sigma[:, -1:], ws)], axis=1)
+    m = inv_r.shape[1]
+    rows = read.rows
+    kappa = np.zeros((rows, n + 1), dtype=complex)
+    kappa[:, :m] = 1.0 / (t_sum * np.sqrt(inv_r))
+    fy = np.full((rows, n + 1), np.inf, dtype=complex)
+    with np.errstate(invalid="ignore"):
+        # (pi sigma_Y)^3 (3 R* / (4 E*))^2, 3 R* / (4 E*) = R* (theta + theta')
+        fy[:, :m] = np.where(np.isnan(s_min.real), np.inf, (math.pi * s_min) ** 3 * (t_sum / inv_r) ** 2)
+    inv_mass = np.zeros((rows, n + 2), dtype=complex)
+    inv_mass[:, :n + 1] = 1.0 / mass
+    w = cfg.wall
+    body = w.type == "body"
+    zero = np.zeros((rows, 1))
+    body_mass = read("wall.mass", w.mass) if body else zero + np.inf
+    if body:  # a protected body: body N + 1 moves, held by its mount (contact N + 1)
+        inv_mass[:, n + 1:] = 1.0 / body_mass
+    damping = _damping(cfg, read, kappa, inv_mass, d, mats)
+    plastic = cfg.contact.law == "elastoplastic"
+    ratio = read("contact.limiting_pressure_factor", cfg.contact.limiting_pressure_factor or 1.5) / 1.5 if plastic \
+        else np.ones((rows, 1))
+    ok = (kappa.real > 0) & np.isfinite(fy.real)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dyield = np.where(ok, (fy / np.where(ok, kappa, 1.0)) ** (2.0 / 3.0) * ratio**2, np.inf)
+    d0 = np.zeros((rows, n + 1), dtype=complex)
+    fext = np.zeros((rows, n + 2), dtype=complex)
+    f0 = read("chain.precompression", cfg.chain.precompression)
+    mount_k = read("wall.stiffness", w.stiffness) if body else zero
+    mount_c = read("wall.damping", w.damping) if body else zero
+    mount_d0 = zero.astype(complex)
+    if f0[0, 0].real > 0:
+        d0[:, 1:] = (f0 / kappa[:, 1:]) ** (2.0 / 3.0)
+        fext[:, 1:2] = f0
+        if plastic:  # statically loaded along Thornton's loading curve (Model.system)
+            f_y = fy[:, 1:] * ratio**3
+            with np.errstate(invalid="ignore", divide="ignore"):
+                dy = (f_y / kappa[:, 1:]) ** (2.0 / 3.0)
+                line = dy + (f0 - f_y) / (1.5 * kappa[:, 1:] * np.sqrt(dy))
+            d0[:, 1:] = np.where(f0.real > f_y.real, line, d0[:, 1:])
+        if body:  # the mount carries the static load (bodies.extend)
+            mount_d0 = f0 / mount_k
+    de = np.diff(np.concatenate([zero, offsets, zero], axis=1), axis=1)
+    de[:, n] = 0.0
+    rr = np.concatenate([r, zero], axis=1)
+    rsum = rr[:, :-1] + rr[:, 1:]
+    dx0 = np.sqrt(rsum**2 - de**2)
+    v0 = np.zeros((rows, n + 2), dtype=complex)
+    v0[:, :1] = read("striker.velocity", s.velocity)
+    return {"kappa": kappa, "damping": damping, "d0": d0, "de": de, "dx0": dx0, "rsum": rsum, "fext": fext,
+            "inv_mass": inv_mass, "v0": v0, "mass": np.concatenate([mass, body_mass], axis=1),
+            "yield_force": fy, "diameter": d, "offset": offsets, "mount_k": mount_k + 0j, "mount_c": mount_c + 0j,
+            "mount_d0": mount_d0, "dyield": dyield}
+
+
+def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
+    """Per-contact law parameter (Model.system): A or gamma where kappa > 0; A_j of the size-scaled law."""
+    from ..contact import collision_time_scale
+
+    k = cfg.contact
+    on = kappa[0].real > 0
+    if k.law == "elastic":
+        return np.zeros(kappa.shape, dtype=complex)
+    if k.law == "elastoplastic":  # a constant A (config.build: no size scaling)
+        return np.where(on, read("contact.A", k.A or 0.0), 0.0)
+    if k.eps is not None:
+        raise ConfigError("contact.eps", "gradients need the law's own parameter: the calibration that turns eps into "
+                          f"{'gamma' if k.law == 'dashpot' else 'A'} is a simulation of its own; run the config once "
+                          "and write the calibrated value (the result's 'model' attribute holds it) in its place")
+    if k.law == "dashpot":
+        return np.where(on, read("contact.gamma", k.gamma), 0.0)
+    if k.law in ("viscoelastic", "viscoelastic_scaled"):
+        a = read("contact.A", k.A)
+        if k.law == "viscoelastic":
+            return np.where(on, a, 0.0)
+    else:
+        a = read("contact.gamma", k.gamma)
+    # size-scaled laws: the reference is two beads like bead 1 (contact._reference_pair)
+    nc = kappa.shape[1]
+    mu = 1.0 / (inv_mass[:, :nc] + inv_mass[:, 1:nc + 1])
+    theta, rho, _ = _theta(_material(mats[0]), read)
+    d1 = d[:, :1]
+    k_ref = 1.0 / (2.0 * theta * np.sqrt(4.0 / d1))
+    mu_ref = 0.5 * rho * math.pi * d1**3 / 6.0
+    safe = np.where(on, kappa, 1.0)
+    if k.law == "viscoelastic_scaled":  # A_j = A t_j / t_ref, t = (mu / kappa)^(2/5)
+        return np.where(on, a * collision_time_scale(mu, safe) / collision_time_scale(mu_ref, k_ref), 0.0)
+    # dashpot_scaled: gamma_j = gamma (kappa_j / kappa_ref)^(2/5) (mu_j / mu_ref)^(3/5)
+    return np.where(on, a * (safe / k_ref) ** 0.4 * (mu / mu_ref) ** 0.6, 0.0)
+
+
+def expand_paths(cfg, variables) -> list[str]:
+    """Variable paths with list ranges written out: ``chain.diameters_mm`` (every bead) and
+    ``chain.diameters_mm[a:b]`` become one path per item; material names are written as the
+    catalogue spells them (``materials.steel.young`` -> ``materials.AISI52100.young``).
+
+    Parameters
+    ----------
+    cfg : RunConfig
+        The validated config.
+    variables : str or sequence of str
+        Dotted paths.
+
+    Returns
+    -------
+    list of str
+        One path per derivative, in order, without repeats.
+    """
+    import re
+
+    from ..config import build_chain
+
+    if isinstance(variables, str):
+        variables = [variables]
+    if not variables:
+        raise ConfigError("variables", "name at least one config field to differentiate by, e.g. 'striker.velocity'")
+    n_beads = build_chain(cfg).n_beads
+    out: list[str] = []
+    for raw in variables:
+        if not isinstance(raw, str):
+            raise ConfigError("variables", f"each variable is a dotted path (a string), got {raw!r}")
+        path = raw.strip()
+        m = re.fullmatch(r"(chain\.\w+)(?:\[(\d+):(\d+)\])?", path)
+        if m and m.group(1) in _LISTS:
+            lo, hi = (int(m.group(2)), int(m.group(3))) if m.group(2) else (0, n_beads)
+            if not 0 <= lo < hi <= n_beads:
+                raise ConfigError(raw, f"range [{lo}:{hi}] must lie inside the chain's beads [0:{n_beads}]")
+            out += [f"{m.group(1)}[{i}]" for i in range(lo, hi)]
+            continue
+        m = re.fullmatch(r"materials\.([^.]+)\.(\w+)", path)
+        if m:
+            try:
+                name = _material(m.group(1)).name
+            except ConfigError:
+                raise ConfigError(raw, f"names no material of the config or the catalogue ({m.group(1)!r})") from None
+            if m.group(2) not in _MATERIAL_FIELDS:
+                raise ConfigError(raw, f"a material's differentiable constants are {', '.join(_MATERIAL_FIELDS)}")
+            path = f"materials.{name}.{m.group(2)}"
+        out.append(path)
+    return list(dict.fromkeys(out))
+
+
+@dataclass
+class SetupDerivatives:
+    """The System arrays of a config and their derivatives by each variable.
+
+    Attributes
+    ----------
+    values : dict
+        ``{array name: real array}`` (:data:`ARRAYS`), as ``Model.system()`` gives them.
+    derivatives : dict
+        ``{variable path: {array name: d array / d variable}}``, per the variable's config unit.
+    """
+
+    values: dict[str, np.ndarray]
+    derivatives: dict[str, dict[str, np.ndarray]]
+
+
+def _supported(path: str) -> str:
+    return ("gradients know the continuous fields " + ", ".join(_SCALAR_FIELDS) + ", chain.diameters_mm[i], "
+            "chain.offsets_mm[i], chain.offsets_fraction[i], chain.substitutions[i].diameter_mm and "
+            "materials.NAME.{density,young,poisson,yield_stress}")
+
+
+def setup_derivatives(cfg, system, paths: list[str]) -> SetupDerivatives:
+    """Derivatives of the System arrays of ``cfg`` by every config field of ``paths`` (complex step).
+
+    Parameters
+    ----------
+    cfg : RunConfig
+        The validated config.
+    system : System
+        ``build_model(cfg).system()``: the real part is checked against it.
+    paths : list of str
+        Variables (:func:`expand_paths`).
+
+    Returns
+    -------
+    SetupDerivatives
+        Values and derivatives.
+
+    Raises
+    ------
+    ConfigError
+        A path that is no continuous field of this config (naming it and the fields known), or a
+        set-up this module cannot reproduce.
+    """
+    read = _Reader(paths)
+    arrays = _arrays(cfg, read)
+    values = {k: v[0].real.copy() for k, v in arrays.items()}
+    _check_against(values, system)
+    out = {}
+    for i, path in enumerate(paths):
+        if not read.known(path):
+            kind = "an integer (a discrete choice: no derivative)" if path.endswith((".n", "truncate", ".bead")) else \
+                "not a continuous parameter of this config's model"
+            raise ConfigError(path, f"is {kind}; {_supported(path)}")
+        out[path] = {k: np.where(np.isfinite(v[i].real), v[i].imag / STEP, 0.0) for k, v in arrays.items()}
+    return SetupDerivatives(values, out)
+
+
+def _check_against(values: dict[str, np.ndarray], system) -> None:
+    """Refuse a config whose System this module does not reproduce (a set-up it does not know)."""
+    for name in ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mass", "yield_force",
+                 "mount_k", "mount_c", "mount_d0", "dyield"):
+        ref = system.yield_overlap() if name == "dyield" else getattr(system, name, 0.0)
+        ref = np.atleast_1d(np.asarray(ref, dtype=float))
+        mine = values[name]
+        if ref.shape != mine.shape or not np.allclose(mine, ref, rtol=1e-12, atol=0.0, equal_nan=True):
+            raise ConfigError("config", f"gradients cannot reproduce this model's set-up (System.{name} differs); the "
+                              "config uses a feature the sensitivity engine does not differentiate yet")

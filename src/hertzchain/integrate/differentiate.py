@@ -1,0 +1,407 @@
+"""Driver of the derivative engines: a System's taped primal run (:func:`record`), the gradient of a
+scalar result by the adjoint (:func:`gradient`), and directional derivatives of the recorded
+forces by the tangent model (:func:`tangents`).
+
+A result is described to the engines by its *seeds* (:class:`Seeds`): the partial derivatives
+of the result with respect to the forces of the steps it reads. Gradients come back per
+System array (:data:`PARAMETERS`: kappa, damping, d0, de, dx0, rsum, fext, inv_mass, v0), shaped
+like the System's own arrays; the chain rule to config fields is the caller's
+(:mod:`hertzchain.gradients`).
+
+What the derivative means: that of the result the engine computes, on the step sequence it used
+(the adaptive step is held fixed, see :mod:`~hertzchain.integrate.tape`). A finite difference
+with the adaptive step sees small jumps (of the order of the integration error, ~1e-6 relative at
+the default accuracy) where a parameter change alters the sequence; with a fixed ``run.dt`` the
+two agree to the finite difference's own error.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError, SimulationDiverged
+from ..model import System
+from . import adjoint as _adjoint
+from . import kernels
+from . import tangent as _tangent
+from .layout import Packed, pack
+from .tape import tape_forward
+from .verlet import StepPlan, initialise, refine_peak, step_plan
+
+__all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHECKPOINT_BYTES"]
+
+#: System arrays the engines differentiate, in the order of the kernels' gradient rows (v0 last):
+#: then a protected body's mount, its spring ``mount_k`` [N/m], dashpot ``mount_c`` [N s/m] and
+#: deflection at rest ``mount_d0`` [m] (scalars, as the System holds them), and the elastic-plastic
+#: law's yield overlaps ``dyield`` [m] (``System.yield_overlap()``; per contact).
+PARAMETERS = ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mount_k", "mount_c",
+              "mount_d0", "dyield")
+_ROWS = 11  # gradient rows of the kernels: the eight per-slot arrays, the linear k and c, dyield
+#: Most memory [bytes] the checkpoints of a reverse sweep may take; past it, checkpoints are kept
+#: every few blocks (the replay of a group then stores more steps at once).
+CHECKPOINT_BYTES = 256 * 2**20
+#: Most memory [bytes] the steps of one replayed group may take.
+GROUP_BYTES = 64 * 2**20
+#: Steps between two checkpoints (at most, at the smallest step the run can take): the replayed
+#: states of a group then stay in the caches, and the checkpoints are few (writing one per block,
+#: a few steps, made the taped run twice as slow as the engine's: memory traffic).
+GROUP_STEPS = 256
+
+
+@dataclass(frozen=True)
+class Seeds:
+    """Partials dJ/dF^(s)_j of a scalar result J: ``weight[i]`` on the force of contact
+    ``contact[i]`` at step ``step[i]`` (-1: t = 0), sorted by step."""
+
+    step: np.ndarray
+    contact: np.ndarray
+    weight: np.ndarray
+
+    @staticmethod
+    def build(items: list[tuple[int, int, float]]) -> "Seeds":
+        """Seeds from (step, contact, weight) triples (any order; zero weights dropped).
+
+        Parameters
+        ----------
+        items : list of (int, int, float)
+            Step (-1 for t = 0), contact number and weight [result unit per N].
+
+        Returns
+        -------
+        Seeds
+            Sorted by step.
+        """
+        items = sorted((int(s), int(c), float(w)) for s, c, w in items if w != 0.0)
+        if not items:
+            return Seeds(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        s, c, w = zip(*items)
+        return Seeds(np.array(s, np.int64), np.array(c, np.int64), np.array(w, float))
+
+
+@dataclass
+class Tape:
+    """A taped primal run: what :func:`gradient` needs, and the records results are read from.
+
+    Attributes
+    ----------
+    system : System
+        The run's arrays.
+    time : numpy.ndarray
+        Sample times [s], (K,).
+    contacts : numpy.ndarray
+        Contacts whose forces are recorded.
+    forces : numpy.ndarray
+        (K, len(contacts)) recorded forces [N].
+    max_force, max_force_sample : numpy.ndarray
+        Every contact's largest sampled force [N] and the sample it came from.
+    peak : numpy.ndarray
+        The wall-peak tracker (``kernels.verlet_run``); ``peak_step`` the step of its maximum.
+    peak_wall_force, peak_wall_time : float
+        Refined as :func:`hertzchain.integrate.verlet.refine_peak` does [N, s].
+    step_end : numpy.ndarray
+        Steps made up to each sample (the forces of sample k are those of step step_end[k] - 1).
+    n_steps : int
+        Steps of the run.
+    """
+
+    system: System
+    plan: StepPlan
+    packed: Packed
+    time: np.ndarray
+    contacts: np.ndarray
+    forces: np.ndarray
+    max_force: np.ndarray
+    max_force_sample: np.ndarray
+    peak: np.ndarray
+    peak_step: int
+    peak_wall_force: float
+    peak_wall_time: float
+    step_end: np.ndarray
+    n_steps: int
+    ns_log: np.ndarray
+    ckpt: np.ndarray
+    group: int
+    u0: np.ndarray
+    v0: np.ndarray
+
+    def sample_step(self, k: int) -> int:
+        """Global step whose forces are sample ``k`` (-1 for sample 0, t = 0).
+
+        Parameters
+        ----------
+        k : int
+            Sample number.
+
+        Returns
+        -------
+        int
+            The step.
+        """
+        return int(self.step_end[k]) - 1
+
+
+def _samples(duration: float, sample_interval: float) -> int:
+    return int(math.floor(duration / sample_interval + 1e-9)) + 1
+
+
+#: Contact laws the derivative engines differentiate (``contact.LAW_CODES`` values); the tangent
+#: model (forward mode) does not differentiate the elastic-plastic law (3): the adjoint does.
+LAWS = frozenset({0, 1, 2, 3})
+TANGENT_LAWS = frozenset({0, 1, 2})
+
+
+def check_law(system: System, tangent: bool = False) -> None:
+    """Refuse (ConfigError naming the field) a law or model the engines do not differentiate.
+
+    Parameters
+    ----------
+    system : System
+        The model's arrays.
+    tangent : bool
+        For the tangent model (which leaves the elastic-plastic law to the adjoint).
+    """
+    from ..contact import LAW_CODES
+
+    if system.law == kernels.LAW_ELASTOPLASTIC:
+        if tangent:
+            raise ConfigError("contact.law", "the tangent model (forward mode: trace_sensitivity, the fit's exact "
+                              "Jacobian) does not differentiate the 'elastoplastic' law yet; sensitivity() does "
+                              "(reverse mode)")
+        if system.misaligned:
+            raise ConfigError("chain.offsets_mm", "gradients of the 'elastoplastic' law cover aligned chains; "
+                              "offsets are not differentiated with it yet")
+
+    if getattr(system, "res_k", None) is not None:
+        raise ConfigError("chain.elements", "gradients do not differentiate mass-in-mass beads yet; they cover "
+                          "chains of plain beads against a flat wall, a protected body or a free end")
+    if system.law not in LAWS:
+        name = next((k for k, v in LAW_CODES.items() if v == system.law), str(system.law))
+        raise ConfigError("contact.law", f"gradients do not differentiate the '{name}' law yet; they cover "
+                          "'elastic', 'viscoelastic', 'viscoelastic_scaled', 'dashpot' and 'elastoplastic'")
+
+
+def record(system: System, duration: float, sample_interval: float, dt: float | None = None,
+           steps_per_radian: float | None = None, contacts=None) -> Tape:
+    """Run ``system`` as :func:`hertzchain.integrate.verlet.run_verlet` does, keeping the tape.
+
+    Parameters
+    ----------
+    system : System
+        The model's arrays.
+    duration, sample_interval : float
+        Run length and sample spacing [s].
+    dt : float, optional
+        Fixed step [s]; adaptive when None.
+    steps_per_radian : float, optional
+        Accuracy of the adaptive step.
+    contacts : sequence of int, optional
+        Contacts whose forces are recorded at every sample (the wall contact is always added
+        when there is a wall).
+
+    Returns
+    -------
+    Tape
+        Records and checkpoints.
+    """
+    check_law(system)
+    plan = step_plan(system, sample_interval, dt, steps_per_radian)
+    n_samples = _samples(duration, sample_interval)
+    w = pack(system)
+    nc = system.n_contacts
+    rec = sorted(set(int(c) for c in (contacts or ())) | ({system.n_beads} if system.has_wall else set()))
+    rec = np.array(rec or [0], dtype=np.int64)
+    u, v = w.u, w.v
+    u0, v0 = u.copy(), v.copy()
+    g = np.zeros(w.n_slots + 1)
+    a = np.zeros(w.n_slots)
+    out_f = np.empty((n_samples, rec.size))
+    fmax = np.empty(nc)
+    peak = np.empty(8)
+    acc = np.zeros(8)
+    scratch = np.empty(n_samples)
+    initialise(system, w, u, v, g, a, rec, out_f, scratch, scratch, scratch, np.empty((1, 1)), False, fmax, peak, acc,
+               np.empty(n_samples), w.ext, np.empty((1, 4)))
+    n_blocks = (n_samples - 1) * plan.n_sub
+    rows = 6 if system.law == kernels.LAW_ELASTOPLASTIC else 3  # u, v, a (and dmax, dres, kres)
+    per_ckpt = rows * w.n_slots * 8
+    ns_max = plan.stride if plan.stride > 0 else math.ceil(sample_interval / plan.n_sub / plan.dt - 1e-9)
+    group = max(1, GROUP_STEPS // max(ns_max, 1), math.ceil(n_blocks * per_ckpt / CHECKPOINT_BYTES))
+    ckpt = np.empty((max(1, -(-n_blocks // group)), rows, w.n_slots))
+    ns_log = np.zeros(max(n_blocks, 1), dtype=np.int64)
+    step_end = np.zeros(n_samples, dtype=np.int64)
+    fmax_k = np.zeros(nc, dtype=np.int64)
+    kstar = np.full(1, -1, dtype=np.int64)
+    status = tape_forward(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
+                          w.dyield, w.dmax, w.dres, w.kres, system.law, system.general, w.wall_slot, sample_interval,
+                          plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, rec, out_f, fmax,
+                          fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group, w.ext, w.ext.shape[0] > 0)
+    if status != 0:
+        raise SimulationDiverged("the integration diverged (non-finite state); check the inputs")
+    fpk, t_pk = refine_peak(peak)
+    return Tape(system=system, plan=plan, packed=w, time=np.arange(n_samples) * sample_interval, contacts=rec,
+                forces=out_f, max_force=fmax, max_force_sample=fmax_k, peak=peak.copy(), peak_step=int(kstar[0]),
+                peak_wall_force=fpk, peak_wall_time=t_pk, step_end=step_end, n_steps=int(acc[2]), ns_log=ns_log,
+                ckpt=ckpt, group=group, u0=u0, v0=v0)
+
+
+def _check_seeds(tape: Tape, seeds: Seeds) -> None:
+    if seeds.step.size and (seeds.step[0] < -1 or seeds.step[-1] >= tape.n_steps):
+        raise ValueError(f"seeds address steps {seeds.step[0]}..{seeds.step[-1]}; the run has 0..{tape.n_steps - 1}")
+    if seeds.contact.size and (seeds.contact.min() < 0 or seeds.contact.max() >= tape.system.n_contacts):
+        raise ValueError("seeds address a contact the system does not have")
+
+
+def _unpack(system: System, grad: np.ndarray, v0bar: np.ndarray) -> dict[str, np.ndarray]:
+    """Gradient rows of the padded slots -> arrays shaped like the System's (the mount's as scalars)."""
+    nc = system.kappa.size
+    nbody = system.mass.size
+    moving = getattr(system, "n_moving", system.n_beads + 1)  # bodies that move (a protected body too)
+    out = {}
+    for name, row in zip(PARAMETERS[:8], grad):
+        size = nbody if name in ("fext", "inv_mass") else nc
+        arr = np.zeros(size)
+        m = min(size, row.size)
+        arr[:m] = row[:m]
+        out[name] = arr
+    out["inv_mass"][moving:] = 0.0  # the wall (or ground) ghost has 1/m = 0 for good
+    out["fext"][moving:] = 0.0
+    v0 = np.zeros(nbody)
+    v0[:min(nbody, v0bar.size)] = v0bar[:nbody]
+    v0[moving:] = 0.0
+    out["v0"] = v0
+    mount = system.n_beads + 1  # a protected body's mount: contact N + 1 of the padded slots
+    body = bool(getattr(system, "body", False))
+    out["mount_k"] = np.array([grad[8, mount] if body else 0.0])
+    out["mount_c"] = np.array([grad[9, mount] if body else 0.0])
+    out["mount_d0"] = np.array([grad[2, mount] if body else 0.0])
+    dy = np.zeros(nc)
+    dy[:min(nc, grad.shape[1])] = grad[10, :nc]
+    out["dyield"] = dy
+    return out
+
+
+def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
+    """dJ/d(System arrays) of the scalar result J whose partials are ``seeds`` (one reverse sweep).
+
+    Parameters
+    ----------
+    tape : Tape
+        From :func:`record`.
+    seeds : Seeds
+        dJ/dF of the forces J reads.
+
+    Returns
+    -------
+    dict
+        ``{name: array}`` for every name of :data:`PARAMETERS`, shaped like the System's array
+        (``v0``: the initial velocities; ``inv_mass``: 1/m [1/kg]). ``d0`` and ``fext`` are zero
+        unless the chain is precompressed (an aligned elastic chain without a static load skips
+        them: nothing moves them there, and the sweep is faster without).
+    """
+    _check_seeds(tape, seeds)
+    w, sy = tape.packed, tape.system
+    n = w.n_slots
+    n_blocks = (tape.time.size - 1) * tape.plan.n_sub
+    ub, vb, ab = np.zeros(n), np.zeros(n), np.zeros(n)
+    grad = np.zeros((_ROWS, n))
+    group_steps = np.add.reduceat(tape.ns_log, np.arange(0, max(n_blocks, 1), tape.group)) if n_blocks else np.ones(1)
+    max_rows = int(max(1, group_steps.max()))
+    per_step = 5 if sy.law == kernels.LAW_ELASTOPLASTIC else 2 if sy.general else 1  # arrays of P stored per step
+    if max_rows * (n + 1) * 8 * per_step > GROUP_BYTES * 4:
+        raise ConfigError("run.dt", f"a group of {max_rows} steps between two checkpoints needs more memory than the "
+                          "reverse sweep allows; use a larger run.dt or a shorter run.duration")
+    block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub if tape.time.size > 1 else 0.0
+    if n_blocks:
+        _adjoint.reverse_sweep(tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab,
+                               w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general,
+                               w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield)
+    else:
+        _adjoint._adjoint_initial(tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
+                                  w.rsum, w.fext, sy.law, sy.general, seeds.step, seeds.contact, seeds.weight,
+                                  seeds.step.size, grad, w.ext, w.dyield, np.zeros((2, n)))
+    return _unpack(sy, grad, vb)
+
+
+def _pad_rows(system: System, directions: dict[str, np.ndarray], n_dirs: int, n_slots: int):
+    th = np.zeros((_ROWS, n_dirs, n_slots))
+    v0t = np.zeros((n_dirs, n_slots))
+    moving = getattr(system, "n_moving", system.n_beads + 1)
+    mount = system.n_beads + 1
+    for name, arr in directions.items():
+        arr = np.atleast_2d(np.asarray(arr, dtype=float))
+        if name == "v0":
+            m = min(arr.shape[1], moving)
+            v0t[:, :m] = arr[:, :m]
+            continue
+        if name == "dyield":
+            m = min(arr.shape[1], n_slots)
+            th[10, :, :m] += arr[:, :m]
+            continue
+        if name in ("mount_k", "mount_c", "mount_d0"):
+            th[{"mount_k": 8, "mount_c": 9, "mount_d0": 2}[name], :, mount] += arr[:, 0]
+            continue
+        r = PARAMETERS.index(name)
+        m = min(arr.shape[1], n_slots, moving if name in ("fext", "inv_mass") else system.kappa.size)
+        th[r, :, :m] += arr[:, :m]
+    return th, v0t
+
+
+def tangents(system: System, directions: dict[str, np.ndarray], duration: float, sample_interval: float,
+             dt: float | None = None, steps_per_radian: float | None = None, contacts=None,
+             seeds: Seeds | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Directional derivatives of the recorded forces (and of a seeded scalar) by the tangent model.
+
+    Parameters
+    ----------
+    system : System
+        The model's arrays.
+    directions : dict
+        ``{name: (D, size) array}``: the derivative of System array ``name`` (a name of
+        :data:`PARAMETERS`) along each of the D directions (arrays not given: zero).
+    duration, sample_interval : float
+        Run length and sample spacing [s].
+    dt, steps_per_radian : float, optional
+        Fixed step [s], or the adaptive step's accuracy.
+    contacts : sequence of int, optional
+        Contacts recorded (default: the wall contact, or contact 0 without a wall).
+    seeds : Seeds, optional
+        Partials of a scalar result on the step forces (as for :func:`gradient`).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        Contacts recorded (C,), forces (K, C) [N], their derivatives (D, K, C) [N per unit of
+        the direction] and the seeded scalar's directional derivatives (D,).
+    """
+    check_law(system, tangent=True)
+    plan = step_plan(system, sample_interval, dt, steps_per_radian)
+    n_samples = _samples(duration, sample_interval)
+    w = pack(system)
+    n = w.n_slots
+    n_dirs = max((np.atleast_2d(x).shape[0] for x in directions.values()), default=1)
+    th, v0t = _pad_rows(system, directions, n_dirs, n)
+    default = [system.n_beads] if system.has_wall else [0]
+    rec = np.array(sorted(set(int(c) for c in (contacts if contacts is not None else default))), dtype=np.int64)
+    u, v = w.u, w.v
+    g = np.zeros(n + 1)
+    a = np.zeros(n)
+    out_f = np.empty((n_samples, rec.size))
+    fmax = np.empty(system.n_contacts)
+    peak = np.empty(8)
+    acc = np.zeros(8)
+    scratch = np.empty(n_samples)
+    initialise(system, w, u, v, g, a, rec, out_f, scratch, scratch, scratch, np.empty((1, 1)), False, fmax, peak, acc,
+               np.empty(n_samples), w.ext, np.empty((1, 4)))
+    out_ft = np.zeros((n_dirs, n_samples, rec.size))
+    dj = np.zeros(n_dirs)
+    seeds = seeds or Seeds.build([])
+    status = _tangent.tangent_run(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
+                                  w.dcap, system.law, system.general, w.wall_slot, sample_interval, plan.stride,
+                                  plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, acc, th, v0t, rec,
+                                  out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj, w.ext)
+    if status != 0:
+        raise SimulationDiverged("the integration diverged (non-finite state); check the inputs")
+    return rec, out_f, out_ft, dj
