@@ -6,6 +6,7 @@ Run as a script to refresh the screenshot shown in the docs::
 
     python tests/browser.py --screenshot docs/_static/explorer.png
     python tests/browser.py --screenshot docs/_static/explorer_taper.png --taper
+    python tests/browser.py --screenshot docs/_static/explorer_body.png --body
 """
 
 from __future__ import annotations
@@ -167,13 +168,14 @@ def wait_for(driver, script: str, *args, timeout: float = 60.0, until=lambda v: 
 
 def set_input(driver, label: str, text: str) -> None:
     """Type ``text`` into the input labelled ``label`` as a user would, and commit it (Enter)."""
+    from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.keys import Keys
 
     box = wait_for(driver, JS_INPUT, label)
     box.click()
-    old = box.get_attribute("value") or ""
-    box.send_keys(Keys.END, *[Keys.BACKSPACE] * (len(old) + 2))  # erase the old value as a user would
-    box.send_keys(text, Keys.ENTER)
+    # select the old value and type over it, as a user would: a number box emptied first shows
+    # "NaN" (Bokeh's spinner) while the server still receives the typed number
+    ActionChains(driver).key_down(Keys.CONTROL).send_keys("a").key_up(Keys.CONTROL).send_keys(text, Keys.ENTER).perform()
 
 
 def choose(driver, label: str, option: str) -> None:
@@ -183,9 +185,27 @@ def choose(driver, label: str, option: str) -> None:
     Select(wait_for(driver, JS_INPUT, label)).select_by_visible_text(option)
 
 
-def screenshot(out: Path, taper: bool = False) -> None:
+#: The protected body of the screenshot and the browser test: 0.5 kg on a 2e6 N/m mount (its half
+#: period 1.6 ms), typed into the page.
+BODY = {"protected body: mass [kg]": "0.5", "protected body: mount stiffness [N/m]": "2000000"}
+BODY_OPTION = "protected body (mass on a mount)"
+
+
+def show_body(driver, values: dict = BODY) -> float:
+    """Choose the protected body and type its values, as a user would; the plotted body force peak
+    once the last value is on the page."""
+    choose(driver, "wall", BODY_OPTION)
+    peak = wait_for(driver, JS_MAX, "body_source", "force", until=lambda v: v is not None)
+    for label, text in values.items():
+        set_input(driver, label, text)
+        peak = wait_for(driver, JS_MAX, "body_source", "force", until=lambda v, p=peak: v is not None and v != p)
+    return peak
+
+
+def screenshot(out: Path, taper: bool = False, body: bool = False) -> None:
     """Open the explorer and save a screenshot of the page; with ``taper``, first switch to a
-    uniform block + taper with Kuwabara-Kono contacts (the taper's controls shown)."""
+    uniform block + taper with Kuwabara-Kono contacts (the taper's controls shown); with ``body``,
+    to a protected body (:data:`BODY`) with the size-scaled dashpot (the reproduction's law)."""
     port = free_port()
     proc = start_explorer(port)
     try:
@@ -197,7 +217,17 @@ def screenshot(out: Path, taper: bool = False) -> None:
                 peak = wait_for(driver, JS_MAX, "wall_source", "force", until=lambda v: v is not None and v != peak)
                 choose(driver, "contact law", "Kuwabara-Kono, calibrated to eps")
                 wait_for(driver, JS_MAX, "wall_source", "force", until=lambda v: v is not None and v != peak)
+            if body:
+                show_body(driver)
+                peak = wait_for(driver, JS_MAX, "wall_source", "force")
+                choose(driver, "contact law", "size-scaled dashpot, calibrated to eps (the reproduction's)")
+                wait_for(driver, JS_MAX, "wall_source", "force", until=lambda v: v is not None and v != peak)
             time.sleep(1.0)
+            # the whole page, however tall the controls and the theory table make it
+            height = driver.execute_script("return document.documentElement.scrollHeight")
+            driver.set_window_size(1400, max(1100, int(height) + 40))
+            driver.execute_script("document.activeElement.blur(); window.scrollTo(0, 0);")
+            time.sleep(0.5)
             out.parent.mkdir(parents=True, exist_ok=True)
             driver.save_screenshot(str(out))
     finally:
@@ -210,5 +240,6 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--screenshot", type=Path, required=True, help="PNG file to write")
     parser.add_argument("--taper", action="store_true", help="a uniform block + taper, Kuwabara-Kono contacts")
+    parser.add_argument("--body", action="store_true", help="a protected body, the size-scaled dashpot")
     args = parser.parse_args()
-    screenshot(args.screenshot, taper=args.taper)
+    screenshot(args.screenshot, taper=args.taper, body=args.body)

@@ -1,6 +1,8 @@
 """The explorer in a real browser: ``hertzchain explore --port PORT --no-browser`` started as a
 subprocess, Debian's headless Chromium (Selenium) types into a control as a user would, and the
-plotted wall peak must become the one :func:`hertzchain.simulate` gives for the new settings.
+plotted wall peak must become the one :func:`hertzchain.simulate` gives for the new settings;
+with a protected body chosen and its mass and mount typed in, the plotted body force is the one
+:func:`hertzchain.simulate` gives for that model.
 
 Needs ``/usr/bin/chromium`` and ``/usr/bin/chromedriver`` (``.ci/run`` installs them): skipped
 elsewhere with the reason, never skipped under CI.
@@ -15,7 +17,8 @@ from urllib.parse import urlparse
 import numpy as np
 import pytest
 
-from browser import JS_HOSTS, JS_MAX, JS_TEXT, browser_missing, chromium, free_port, set_input, start_explorer, stop, wait_for
+from browser import (BODY, JS_HOSTS, JS_INPUT, JS_MAX, JS_TEXT, browser_missing, chromium, free_port, set_input,
+                     show_body, start_explorer, stop, wait_for)
 
 _missing = browser_missing()
 if _missing and os.environ.get("CI"):
@@ -57,6 +60,31 @@ def test_control_change_replots_the_wall_peak_simulate_gives(page):
     readout = wait_for(page, JS_TEXT, "hc-peak", until=lambda v: v and v.endswith(" N") and float(v[:-2]) > 0.9 * expected)
     assert float(readout[:-2]) == pytest.approx(expected, rel=1e-3)  # the refined peak, quoted to 4 digits
     print(f"control change -> new plot: {elapsed * 1e3:.0f} ms")
+
+
+def test_protected_body_plots_the_body_force_simulate_gives(page):
+    """Choose "protected body", type a mass and a mount stiffness: the plotted force the mount passes
+    to the ground is the body_force of hertzchain.simulate for that model, built here with the
+    Python API (not through the explorer's config)."""
+    import hertzchain as hc
+    from hertzchain.explorer.settings import ExplorerSettings
+
+    velocity = float(wait_for(page, JS_INPUT, "striker velocity [m/s]").get_attribute("value"))  # whatever ran before
+    plotted = show_body(page)
+    mass, stiffness = (float(v) for v in BODY.values())
+    model = hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, velocity), hc.Wall("body", mass=mass, stiffness=stiffness))
+    # the explorer runs past the automatic duration by half the mount's period (its config says how long)
+    duration = ExplorerSettings(striker_velocity=velocity, wall="body", body_mass=mass,
+                                body_stiffness=stiffness).config()["run"]["duration"]
+    assert duration > hc.auto_duration(model)
+    ds = hc.simulate(model, duration, hc.Probes(5e-7))
+    assert plotted == pytest.approx(float(ds.body_force.max()), rel=1e-12)
+    # the mount's peak lies inside the record (not cut at its end), and it is what the readout quotes
+    assert int(np.argmax(ds.body_force.values)) < ds.time.size - 10
+    quoted = wait_for(page, JS_TEXT, "hc-body-peak", until=lambda v: v and v.endswith(" N"))
+    assert float(quoted[:-2]) == pytest.approx(ds.attrs["peak_body_force"], rel=1e-3)
+    # the force on the body's face (wall_force) is drawn beside it, and it is simulate's too
+    assert wait_for(page, JS_MAX, "wall_source", "force") == pytest.approx(float(ds.wall_force.max()), rel=1e-12)
 
 
 def test_page_loads_nothing_from_another_host_and_logs_no_error(page):

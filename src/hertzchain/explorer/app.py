@@ -15,9 +15,12 @@ import panel as pn
 from bokeh.models import ColorBar, ColumnDataSource, LinearColorMapper, Range1d
 from bokeh.plotting import figure
 
+from ..config.schema import BOUNDS
 from ..errors import HertzchainError
+from .ballistic import RATIOS_NOTE
 from .compute import ExplorerView, compute_view
-from .settings import CHAIN_KINDS, EPS_LAWS, LAWS, ExplorerSettings
+from .settings import (CHAIN_KINDS, EPS_LAWS, LAWS, MAX_BODY_DURATION, STRIKER_SHAPES, WALLS, ExplorerSettings,
+                       mount_half_period)
 
 __all__ = ["Explorer"]
 
@@ -29,6 +32,41 @@ def _materials() -> list[str]:
     from ..materials import CATALOGUE
 
     return list(CATALOGUE)
+
+
+def _readout(view: ExplorerView) -> str:
+    """The line of numbers above the plots (HTML; the browser test reads the ``hc-*`` ids)."""
+    res, s = view.result, view.settings
+    parts = [f"{res.sizes['bead']} beads"]
+    if "wall_force" in res:
+        face = " on the body's face" if view.body_force is not None else ""
+        parts.append(f"peak wall force{face} <b id='hc-peak'>{res.attrs['peak_wall_force']:.4g} N</b>")
+    else:
+        parts.append("peak wall force <b id='hc-peak'>no wall</b>")
+    if view.body_force is not None:
+        parts.append(f"peak body force (mount to ground) <b id='hc-body-peak'>{res.attrs['peak_body_force']:.4g} N</b>")
+    fit = view.fit
+    parts.append(f"cos<sup>6</sup> fit: F<sub>m</sub> = <b>{fit.peak_force:.4g} N</b>, "
+                 f"T = <b>{fit.time_of_flight * 1e3:.4g} ms</b>, τ = <b>{fit.duration * 1e6:.4g} µs</b>"
+                 if fit is not None else "no pulse found to fit")
+    record = f"simulated to {res.attrs['duration'] * 1e3:.3g} ms"
+    if view.body_force is not None and s.body_stiffness > 0:
+        half = mount_half_period(s.body_mass, s.body_stiffness)
+        record += f" (the mount's half period is {half * 1e3:.3g} ms"
+        if res.attrs["duration"] >= MAX_BODY_DURATION:  # cut short (ExplorerSettings.config)
+            record += ": <span style='color:#a00'>the record ends before the body's first swing is over</span>"
+        record += ")"
+    parts.append(f"{record}, computed in {view.seconds * 1e3:.0f} ms")
+    if "plastic_work" in res:  # the elastoplastic law: how much of the striker's energy the yield took
+        e0 = float(res.kinetic_energy.values[0])
+        dent = res.residual_overlap  # per contact (contact_all), m
+        parts.append(f"plastic work <b id='hc-plastic'>{res.attrs['plastic_work']:.3g} J</b> "
+                     f"({res.attrs['plastic_work'] / e0:.1%} of the striker's energy); deepest residual overlap "
+                     f"<b id='hc-residual'>{res.attrs['residual_overlap_max'] * 1e6:.3g} µm</b> "
+                     f"(contact {int(dent.contact_all[int(np.argmax(dent.values))])})")
+    elif res.attrs.get("elastic_limit_exceeded"):
+        parts.append("<span style='color:#a00'>elastic limit passed: beads would yield</span>")
+    return f"<div id='hc-readout'>{'; '.join(parts)}</div>"
 
 
 class Explorer(pn.viewable.Viewer):
@@ -61,14 +99,26 @@ class Explorer(pn.viewable.Viewer):
             "material": w.Select(label="bead material", options=mats, value=s.material),
             "bead_materials": w.TextInput(label="per-bead materials (empty: all the same)", value=s.bead_materials,
                                           placeholder="e.g. AISI52100 x 28, brass x 2"),
+            "gravity": w.FloatInput(label="gravity along the chain [m/s^2] (9.81: a column on the wall)",
+                                    value=s.gravity, start=0.0, end=BOUNDS["gravity"][1], step=0.5),
             "striker_diameter_mm": w.FloatInput(label="striker diameter [mm]", value=s.striker_diameter_mm,
                                                 start=0.5, end=100.0, step=0.5),
             "striker_velocity": w.FloatInput(label="striker velocity [m/s]", value=s.striker_velocity,
                                              start=0.001, end=10.0, step=0.05),
             "striker_material": w.Select(label="striker material", options=mats, value=s.striker_material),
-            "wall": w.Select(label="wall", options={"flat wall (the paper's sensor cap)": "flat", "free end": "none"},
-                             value=s.wall),
-            "wall_material": w.Select(label="wall material", options=mats, value=s.wall_material),
+            "striker_mass": w.FloatInput(label="striker mass [kg] (empty: the sphere's)", value=s.striker_mass,
+                                         start=0.0, end=BOUNDS["mass"][1], step=0.01,
+                                         placeholder="the sphere's rho pi phi^3 / 6"),
+            "striker_shape": w.Select(label="striker face", options=STRIKER_SHAPES, value=s.striker_shape),
+            "wall": w.Select(label="wall", options=WALLS, value=s.wall),
+            "wall_material": w.Select(label="wall material (the cap, or the body's face)", options=mats,
+                                      value=s.wall_material),
+            "body_mass": w.FloatInput(label="protected body: mass [kg]", value=s.body_mass, start=0.0,
+                                      end=BOUNDS["mass"][1], step=0.1),
+            "body_stiffness": w.FloatInput(label="protected body: mount stiffness [N/m]", value=s.body_stiffness,
+                                           start=0.0, end=BOUNDS["stiffness"][1], step=1e5),
+            "body_damping": w.FloatInput(label="protected body: mount damping [N s/m]", value=s.body_damping,
+                                         start=0.0, end=BOUNDS["damping"][1], step=10.0),
             "law": w.Select(label="contact law", options=LAWS, value=s.law),
             "eps": w.FloatSlider(label="per-bead factor eps (Sec. III)", start=0.9, end=1.0, step=0.001, value=s.eps,
                                  format="0.000"),
@@ -89,10 +139,12 @@ class Explorer(pn.viewable.Viewer):
             pn.pane.HTML("<h3>hertzchain explorer</h3>"),
             pn.pane.HTML("<b>Chain</b>"), *(self.widgets[k] for k in ("chain", "uniform_n", "uniform_diameter_mm",
                                                                      "taper_n", "taper_q", "diameters_mm", "material",
-                                                                     "bead_materials")),
+                                                                     "bead_materials", "gravity")),
             pn.pane.HTML("<b>Striker</b>"), *(self.widgets[k] for k in ("striker_diameter_mm", "striker_velocity",
-                                                                       "striker_material")),
-            pn.pane.HTML("<b>Wall</b>"), self.widgets["wall"], self.widgets["wall_material"],
+                                                                       "striker_material", "striker_mass",
+                                                                       "striker_shape")),
+            pn.pane.HTML("<b>Wall</b>"), *(self.widgets[k] for k in ("wall", "wall_material", "body_mass",
+                                                                    "body_stiffness", "body_damping")),
             pn.pane.HTML("<b>Contact law</b>"), self.widgets["law"], self.widgets["eps"],
             self.save, self.message, width=330)
         pictures = pn.Column(self.readout, pn.pane.Bokeh(self.wall_fig), pn.Row(pn.pane.Bokeh(self.map_fig),
@@ -107,12 +159,18 @@ class Explorer(pn.viewable.Viewer):
     def _build_plots(self) -> None:
         self.wall_source = ColumnDataSource({"t": [], "force": []}, name="wall_source")
         self.fit_source = ColumnDataSource({"t": [], "force": []}, name="fit_source")
+        self.body_source = ColumnDataSource({"t": [], "force": []}, name="body_source")
         fig = figure(width=760, height=300, x_axis_label="t [ms]", y_axis_label="F [N]",
                      title="wall force and the paper's cos^6 fit", tools="pan,wheel_zoom,box_zoom,reset,save")
-        fig.line("t", "force", source=self.wall_source, line_width=1.5, color=_PALETTE[0], legend_label="simulated")
+        fig.line("t", "force", source=self.wall_source, line_width=1.5, color=_PALETTE[0],
+                 legend_label="wall_force (simulated)")
         fig.line("t", "force", source=self.fit_source, line_width=2, color="#d62728", line_dash="dashed",
                  legend_label="F_m cos^6((t - T)/tau)")
+        # with a protected body: what its mount passes to the ground (k x + c dx/dt), slower and smaller
+        self.body_line = fig.line("t", "force", source=self.body_source, line_width=2, color=_PALETTE[2],
+                                  legend_label="body_force (mount to ground)")
         fig.legend.location = "top_left"
+        self.body_legend = fig.legend[0].items[-1]  # shown only with a protected body
         self.wall_fig = fig
 
         self.map_source = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []}, name="map_source")
@@ -137,10 +195,19 @@ class Explorer(pn.viewable.Viewer):
     def _update(self, view: ExplorerView) -> None:
         """Put ``view`` on the page: new data in the plots' sources, new text."""
         self.view = view
-        self.wall_fig.title.text = ("wall force and the paper's cos^6 fit" if view.signal == "wall_force"
-                                    else f"force at {view.signal} (free end) and the paper's cos^6 fit")
+        if view.signal != "wall_force":
+            title = f"force at {view.signal} (free end) and the paper's cos^6 fit"
+        elif view.body_force is not None:
+            title = "force on the protected body's face (wall_force), its cos^6 fit, and the mount's body_force"
+        else:
+            title = "wall force and the paper's cos^6 fit"
+        self.wall_fig.title.text = title
         self.wall_source.data = {"t": view.time * 1e3, "force": view.force}
         self.fit_source.data = {"t": view.fit_time * 1e3, "force": view.fit_force}
+        body = view.body_force is not None
+        self.body_source.data = {"t": view.time * 1e3 if body else [], "force": view.body_force if body else []}
+        self.body_line.visible = body
+        self.body_legend.visible = body
         x, t, f = view.map_x, view.map_time, view.map_force
         dx = float(x[1] - x[0]) if x.size > 1 else 1.0
         dt = float(t[1] - t[0]) if t.size > 1 else 1e-6
@@ -154,26 +221,14 @@ class Explorer(pn.viewable.Viewer):
         for name in _ENERGIES:
             data.setdefault(name, np.full(view.energy_time.size, np.nan))
         self.energy_source.data = data
-        res = view.result
-        peak = f"{res.attrs['peak_wall_force']:.4g} N" if "wall_force" in res else "no wall"
-        fit = view.fit
-        fit_text = (f"F<sub>m</sub> = <b>{fit.peak_force:.4g} N</b>, T = <b>{fit.time_of_flight * 1e3:.4g} ms</b>, "
-                    f"τ = <b>{fit.duration * 1e6:.4g} µs</b>" if fit is not None else "no pulse found to fit")
-        limit = ""
-        if "plastic_work" in res:  # the elastoplastic law: how much of the striker's energy the yield took
-            e0 = float(sum(e[0] for name, e in view.energies if name != "total"))
-            limit = f"; plastic work <b>{float(res.plastic_work[-1]) / e0:.1%}</b> of the striker's energy"
-        elif res.attrs.get("elastic_limit_exceeded"):
-            limit = " <span style='color:#a00'>elastic limit passed: beads would yield</span>"
-        self.readout.object = (f"<div id='hc-readout'>{res.sizes['bead']} beads; peak wall force "
-                               f"<b id='hc-peak'>{peak}</b>; cos<sup>6</sup> fit: {fit_text}; "
-                               f"computed in {view.seconds * 1e3:.0f} ms{limit}</div>")
-        rows = "".join(f"<tr><td>{r.quantity}</td><td>{r.equation}</td><td>{r.theory}</td><td>{r.simulated}</td></tr>"
-                       for r in view.theory)
+        self.readout.object = _readout(view)
+        rows = "".join(f"<tr><td>{r.quantity}</td><td>{r.equation}</td><td>{r.theory}</td><td>{r.simulated}</td>"
+                       f"<td style='font-size:85%'>{r.how}</td></tr>" for r in view.theory)
         self.theory.object = ("<b>Ballistic theory (paper Sec. III) beside the simulation</b>"
-                              "<table style='border-collapse:collapse' border='1' cellpadding='4'>"
-                              "<tr><th>quantity</th><th>from</th><th>theory</th><th>simulated</th></tr>"
-                              f"{rows}</table>")
+                              "<table id='hc-theory' style='border-collapse:collapse' border='1' cellpadding='4'>"
+                              "<tr><th>quantity</th><th>from</th><th>theory</th><th>simulated</th>"
+                              "<th>simulated: measured how</th></tr>"
+                              f"{rows}</table><p style='font-size:85%;max-width:760px'>{RATIOS_NOTE}</p>")
 
     # -- controls -------------------------------------------------------------------------------
     def _visibility(self) -> None:
@@ -181,7 +236,9 @@ class Explorer(pn.viewable.Viewer):
         for key in ("uniform_n", "uniform_diameter_mm", "taper_n", "taper_q"):
             self.widgets[key].visible = kind == "uniform"
         self.widgets["diameters_mm"].visible = kind == "diameters"
-        self.widgets["wall_material"].visible = self.settings.wall == "flat"
+        self.widgets["wall_material"].visible = self.settings.wall in ("flat", "body")
+        for key in ("body_mass", "body_stiffness", "body_damping"):
+            self.widgets[key].visible = self.settings.wall == "body"
         self.widgets["eps"].visible = self.settings.law in EPS_LAWS
 
     def _changed(self, key: str, value) -> None:

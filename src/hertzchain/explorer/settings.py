@@ -9,11 +9,13 @@ config of :meth:`ExplorerSettings.config` (validated by the one config schema,
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 from ..errors import ConfigError
 
-__all__ = ["CHAIN_KINDS", "LAWS", "EPS_LAWS", "ExplorerSettings"]
+__all__ = ["CHAIN_KINDS", "LAWS", "EPS_LAWS", "WALLS", "STRIKER_SHAPES", "MAX_BODY_DURATION", "ExplorerSettings",
+           "mount_half_period"]
 
 #: The chain controls: the paper's two chains (Table I), a uniform block with an optional taper,
 #: or the diameters bead by bead.
@@ -21,9 +23,19 @@ CHAIN_KINDS = {"paper chain 1 (Table I, q = 5.60 %)": "chain1", "paper chain 2 (
                "uniform block + taper": "uniform", "per-bead diameters": "diameters"}
 #: Contact laws offered (``[contact] law``); the dissipative ones are calibrated to the per-bead factor eps.
 LAWS = {"elastic (Hertz, paper eq. 1)": "elastic", "Kuwabara-Kono, calibrated to eps": "viscoelastic",
-        "dashpot, calibrated to eps": "dashpot", "elastoplastic (Thornton): yields above F_Y": "elastoplastic"}
+        "dashpot, calibrated to eps": "dashpot",
+        "size-scaled dashpot, calibrated to eps (the reproduction's)": "dashpot_scaled",
+        "elastoplastic (Thornton): yields above F_Y": "elastoplastic"}
 #: The laws calibrated to the per-bead factor eps (the others take none).
-EPS_LAWS = ("viscoelastic", "dashpot")
+EPS_LAWS = ("viscoelastic", "dashpot", "dashpot_scaled")
+#: What ends the chain (``[wall] type``).
+WALLS = {"flat wall (the paper's sensor cap)": "flat", "protected body (mass on a mount)": "body",
+         "free end": "none"}
+#: The striker's face (``[striker] shape``).
+STRIKER_SHAPES = {"sphere": "sphere", "flat face": "flat"}
+#: Longest run [s] the explorer extends to for a protected body (see :meth:`ExplorerSettings.config`):
+#: a slow mount (a 1 kg body on 1e4 N/m swings in 0.2 s) would otherwise cost seconds per view.
+MAX_BODY_DURATION = 25e-3
 
 
 def _diameters(text: str) -> list[float]:
@@ -50,6 +62,38 @@ def _materials(text: str) -> list[str]:
     return out
 
 
+def mount_half_period(mass: float, stiffness: float) -> float:
+    """Half the period pi sqrt(M/k) [s] of a protected body swinging on its mount.
+
+    Parameters
+    ----------
+    mass : float
+        The body's mass M [kg].
+    stiffness : float
+        Its mount's stiffness k [N/m] (> 0).
+
+    Returns
+    -------
+    float
+        pi sqrt(M/k) [s]: the chain pushes the body, which then swings on its mount, so the force
+        the mount passes to the ground peaks within about this time after the pulse arrives.
+    """
+    return math.pi * math.sqrt(float(mass) / float(stiffness))
+
+
+def _body_duration(config: dict, mass: float, stiffness: float) -> float:
+    """The run's automatic duration (:func:`hertzchain.auto_duration`) plus half the mount's period,
+    at most MAX_BODY_DURATION (or the automatic one when longer), rounded up to 1 us."""
+    from ..config import build_model, parse_config
+    from ..simulation import auto_duration
+
+    # the automatic duration depends on the beads and the striker only: an elastic stand-in
+    # spares a calibration
+    auto = auto_duration(build_model(parse_config({**config, "contact": {"law": "elastic"}})))
+    duration = min(auto + mount_half_period(mass, stiffness), max(auto, MAX_BODY_DURATION))
+    return math.ceil(duration * 1e6) / 1e6
+
+
 @dataclass(frozen=True)
 class ExplorerSettings:
     """One view of the explorer (units in the names; the rest SI).
@@ -69,13 +113,27 @@ class ExplorerSettings:
     bead_materials : str
         One material per bead from the impact end, overriding ``material`` when not empty:
         names, commas or spaces, ``NAME x N`` for N beads in a row (``AISI52100 x 28, brass x 2``).
+    gravity : float
+        Acceleration of gravity along the chain, towards the wall [m/s^2] (``[chain] gravity``;
+        0: a horizontal chain, 9.81: a column standing on the wall).
     striker_diameter_mm, striker_velocity : float
         Striker diameter [mm] and impact speed [m/s].
+    striker_mass : float or None
+        A given striker mass [kg] (``[striker] mass``: a drop hammer); None: the sphere's
+        rho pi phi^3 / 6.
+    striker_shape : str
+        The striker's face: ``"sphere"`` or ``"flat"`` (a sphere-flat contact with bead 1).
     wall : str
-        ``"flat"`` (an immovable flat, the paper's sensor cap) or ``"none"`` (a free end).
+        ``"flat"`` (an immovable flat, the paper's sensor cap), ``"body"`` (a protected body of
+        ``body_mass`` on a mount of ``body_stiffness`` and ``body_damping`` to the ground) or
+        ``"none"`` (a free end).
+    body_mass, body_stiffness, body_damping : float
+        The protected body: mass [kg], its mount's stiffness [N/m] (0: a free body) and dashpot
+        [N s/m] (``[wall] mass``, ``stiffness``, ``damping``).
     law : str
-        ``"elastic"``, ``"viscoelastic"`` (Kuwabara-Kono), ``"dashpot"`` or ``"elastoplastic"``
-        (Thornton: the contact yields above the materials' elastic limit F_Y).
+        ``"elastic"``, ``"viscoelastic"`` (Kuwabara-Kono), ``"dashpot"``, ``"dashpot_scaled"``
+        (the size-scaled dashpot, the reproduction's law) or ``"elastoplastic"`` (Thornton: the
+        contact yields above the materials' elastic limit F_Y).
     eps : float
         Per-bead factor of the paper (Sec. III) the viscoelastic and dashpot laws are calibrated to.
     sample_interval : float
@@ -90,11 +148,17 @@ class ExplorerSettings:
     diameters_mm: str = "26, 26, 26, 26, 26, 26, 26, 26, 24, 23, 22, 21, 20"
     material: str = "AISI52100"
     bead_materials: str = ""
+    gravity: float = 0.0
     striker_diameter_mm: float = 8.0
     striker_velocity: float = 0.2
     striker_material: str = "AISI52100"
+    striker_mass: float | None = None
+    striker_shape: str = "sphere"
     wall: str = "flat"
     wall_material: str = "AISI52100"
+    body_mass: float = 1.0
+    body_stiffness: float = 1.0e6
+    body_damping: float = 0.0
     law: str = "elastic"
     eps: float = 0.985
     sample_interval: float = 5e-7
@@ -117,10 +181,15 @@ class ExplorerSettings:
     def config(self) -> dict:
         """The run config (a TOML mapping) of this view.
 
+        The bead velocities are recorded (``[probes] velocities``): the theory table measures the
+        per-bead velocity ratio of paper eq. 6 on them. A protected body on a mount is simulated
+        past the automatic duration by half its mount's period (:func:`mount_half_period`), at most
+        to :data:`MAX_BODY_DURATION`: the mount's force peaks as the body swings, after the pulse.
+
         Returns
         -------
         dict
-            Sections ``chain``, ``striker``, ``wall``, ``contact``, ``run``; valid for
+            Sections ``chain``, ``striker``, ``wall``, ``contact``, ``run``, ``probes``; valid for
             :func:`hertzchain.parse_config` when the values are (checked there, with errors
             naming the config field).
         """
@@ -137,17 +206,30 @@ class ExplorerSettings:
         chain["material"] = self.material
         if self.bead_materials.strip():
             chain["materials"] = _materials(self.bead_materials)
+        if self.gravity:  # absent (or an emptied box) is a horizontal chain (0), which also runs without a wall
+            chain["gravity"] = float(self.gravity)
+        striker: dict = {"diameter_mm": float(self.striker_diameter_mm), "velocity": float(self.striker_velocity),
+                         "material": self.striker_material, "shape": self.striker_shape}
+        if self.striker_mass is not None:
+            striker["mass"] = float(self.striker_mass)
+        wall: dict = {"type": self.wall}
+        if self.wall in ("flat", "body"):
+            wall["material"] = self.wall_material
+        if self.wall == "body":
+            for key, value, unit in (("mass", self.body_mass, "kg"), ("stiffness", self.body_stiffness, "N/m"),
+                                     ("damping", self.body_damping, "N s/m")):
+                if value is None:  # an emptied box
+                    raise ConfigError(f"wall.{key}", f"give the protected body's {key} in {unit}")
+                wall[key] = float(value)
         contact: dict = {"law": self.law}
         if self.law in EPS_LAWS:
             contact["eps"] = float(self.eps)
-        return {
-            "chain": chain,
-            "striker": {"diameter_mm": float(self.striker_diameter_mm), "velocity": float(self.striker_velocity),
-                        "material": self.striker_material},
-            "wall": {"type": self.wall, **({"material": self.wall_material} if self.wall == "flat" else {})},
-            "contact": contact,
-            "run": {"duration": "auto", "sample_interval": float(self.sample_interval)},
-        }
+        config = {"chain": chain, "striker": striker, "wall": wall, "contact": contact,
+                  "run": {"duration": "auto", "sample_interval": float(self.sample_interval)},
+                  "probes": {"velocities": True}}
+        if self.wall == "body" and self.body_stiffness > 0:
+            config["run"]["duration"] = _body_duration(config, self.body_mass, self.body_stiffness)
+        return config
 
     def toml(self) -> str:
         """The run config as a TOML file that ``hertzchain run`` reproduces the view from.
