@@ -33,6 +33,35 @@ def test_huge_stiff_body_is_the_immovable_wall():
     assert 0 < body.attrs["peak_body_force"] < 2.01 * peak
 
 
+@pytest.mark.parametrize("mass, stiffness", [(1.0, 1e6), (0.5, 2e6), (1.0, 1e4)])
+def test_automatic_duration_holds_the_mounts_peak(mass, stiffness):
+    """The force a mount passes to the ground peaks as the body swings, after the pulse: the
+    automatic duration runs half the mount's period pi sqrt(M/k) past the pulse's own (at most
+    25 ms in all), so the automatic run's peak body force is that of a run long enough to see
+    the body turn back (1 kg on 1e6 N/m behind chain 1: 1.444 N at 4.4 ms, where the pulse alone
+    would stop the record at 3.6 ms and report 1.142 N). A slow mount (1 kg on 1e4 N/m, half
+    period 31 ms) is cut at 25 ms and the record says so by its length."""
+    from hertzchain.bodies import MAX_BODY_DURATION, mount_half_period
+
+    body = hc.Wall("body", mass=mass, stiffness=stiffness)
+    model = hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.2), body)
+    pulse_only = hc.auto_duration(hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.2)))
+    half = mount_half_period(mass, stiffness)
+    assert half == pytest.approx(math.pi * math.sqrt(mass / stiffness), rel=1e-15)
+    auto = hc.auto_duration(model)
+    assert auto == pytest.approx(min(pulse_only + half, MAX_BODY_DURATION), rel=1e-12)
+    if pulse_only + half > MAX_BODY_DURATION:
+        return
+    probes = hc.Probes(1e-6)
+    short = hc.simulate(model, "auto", probes)
+    long = hc.simulate(model, pulse_only + 3 * half, probes)
+    assert int(np.argmax(short.body_force.values)) < short.time.size - 10  # a peak, not the record's end
+    assert short.attrs["peak_body_force"] == pytest.approx(long.attrs["peak_body_force"], rel=1e-9)
+    # a free body (no mount) has nothing to swing back: the pulse's duration
+    assert hc.auto_duration(hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.2), hc.Wall("body", mass=1.0))) \
+        == pulse_only
+
+
 def test_free_body_conserves_momentum_and_energy():
     """Stiffness 0: nothing holds the system, so the striker's momentum ends up shared by beads and
     body to 1e-9 and the energy stays constant to 1e-6; in the end the body carries it away."""

@@ -26,7 +26,30 @@ import numpy as np
 from .elements import Face, contact_constants, face_of
 from .errors import ConfigError
 
-__all__ = ["extend", "STANDARD_GRAVITY"]
+__all__ = ["extend", "STANDARD_GRAVITY", "mount_half_period", "MAX_BODY_DURATION"]
+
+#: The longest run [s] the automatic duration makes for a protected body's swing (a slow mount's
+#: half period is cut there; an explicit ``run.duration`` is never cut).
+MAX_BODY_DURATION = 25e-3
+
+
+def mount_half_period(mass: float, stiffness: float) -> float:
+    """Half the period pi sqrt(M/k) [s] of a protected body swinging on its mount.
+
+    Parameters
+    ----------
+    mass : float
+        The body's mass M [kg].
+    stiffness : float
+        Its mount's stiffness k [N/m]; 0 (a free body) gives 0: nothing swings back.
+
+    Returns
+    -------
+    float
+        pi sqrt(M/k) [s]: the chain pushes the body, which then swings on its mount, so the force
+        the mount passes to the ground peaks within about this time after the pulse arrives.
+    """
+    return float(np.pi * np.sqrt(float(mass) / float(stiffness))) if stiffness > 0 else 0.0
 
 #: Standard acceleration of gravity [m/s^2] (CGPM 1901), for a track tilted by an angle.
 STANDARD_GRAVITY = 9.80665

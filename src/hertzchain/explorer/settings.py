@@ -9,9 +9,9 @@ config of :meth:`ExplorerSettings.config` (validated by the one config schema,
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
+from ..bodies import MAX_BODY_DURATION, mount_half_period
 from ..errors import ConfigError
 
 __all__ = ["CHAIN_KINDS", "LAWS", "EPS_LAWS", "WALLS", "STRIKER_SHAPES", "MAX_BODY_DURATION", "ExplorerSettings",
@@ -33,9 +33,6 @@ WALLS = {"flat wall (the paper's sensor cap)": "flat", "protected body (mass on 
          "free end": "none"}
 #: The striker's face (``[striker] shape``).
 STRIKER_SHAPES = {"sphere": "sphere", "flat face": "flat"}
-#: Longest run [s] the explorer extends to for a protected body (see :meth:`ExplorerSettings.config`):
-#: a slow mount (a 1 kg body on 1e4 N/m swings in 0.2 s) would otherwise cost seconds per view.
-MAX_BODY_DURATION = 25e-3
 
 
 def _diameters(text: str) -> list[float]:
@@ -60,38 +57,6 @@ def _materials(text: str) -> list[str]:
         else:
             out += words
     return out
-
-
-def mount_half_period(mass: float, stiffness: float) -> float:
-    """Half the period pi sqrt(M/k) [s] of a protected body swinging on its mount.
-
-    Parameters
-    ----------
-    mass : float
-        The body's mass M [kg].
-    stiffness : float
-        Its mount's stiffness k [N/m] (> 0).
-
-    Returns
-    -------
-    float
-        pi sqrt(M/k) [s]: the chain pushes the body, which then swings on its mount, so the force
-        the mount passes to the ground peaks within about this time after the pulse arrives.
-    """
-    return math.pi * math.sqrt(float(mass) / float(stiffness))
-
-
-def _body_duration(config: dict, mass: float, stiffness: float) -> float:
-    """The run's automatic duration (:func:`hertzchain.auto_duration`) plus half the mount's period,
-    at most MAX_BODY_DURATION (or the automatic one when longer), rounded up to 1 us."""
-    from ..config import build_model, parse_config
-    from ..simulation import auto_duration
-
-    # the automatic duration depends on the beads and the striker only: an elastic stand-in
-    # spares a calibration
-    auto = auto_duration(build_model(parse_config({**config, "contact": {"law": "elastic"}})))
-    duration = min(auto + mount_half_period(mass, stiffness), max(auto, MAX_BODY_DURATION))
-    return math.ceil(duration * 1e6) / 1e6
 
 
 @dataclass(frozen=True)
@@ -182,9 +147,10 @@ class ExplorerSettings:
         """The run config (a TOML mapping) of this view.
 
         The bead velocities are recorded (``[probes] velocities``): the theory table measures the
-        per-bead velocity ratio of paper eq. 6 on them. A protected body on a mount is simulated
-        past the automatic duration by half its mount's period (:func:`mount_half_period`), at most
-        to :data:`MAX_BODY_DURATION`: the mount's force peaks as the body swings, after the pulse.
+        per-bead velocity ratio of paper eq. 6 on them. The duration is the automatic one
+        (:func:`hertzchain.auto_duration`), which runs past the pulse by half a protected body's
+        mount period (:func:`~hertzchain.bodies.mount_half_period`, at most to
+        :data:`~hertzchain.bodies.MAX_BODY_DURATION`): the mount's force peaks as the body swings.
 
         Returns
         -------
@@ -227,8 +193,6 @@ class ExplorerSettings:
         config = {"chain": chain, "striker": striker, "wall": wall, "contact": contact,
                   "run": {"duration": "auto", "sample_interval": float(self.sample_interval)},
                   "probes": {"velocities": True}}
-        if self.wall == "body" and self.body_stiffness > 0:
-            config["run"]["duration"] = _body_duration(config, self.body_mass, self.body_stiffness)
         return config
 
     def toml(self) -> str:
