@@ -20,7 +20,6 @@ from scipy.optimize import curve_fit
 
 from ..errors import ConfigError, PulseClipped, PulseNotFound
 from ..theory import HALF_MAX_PHASE
-from .window_fit import window_fixed_point
 
 __all__ = ["PulseFit", "fit_pulse", "cos6_pulse", "estimate_noise", "front_tail_momenta"]
 
@@ -242,7 +241,7 @@ def _first_pulse_peak(t: np.ndarray, y: np.ndarray, threshold: float) -> int:
 
 
 def _fit_loading(t: np.ndarray, y: np.ndarray, p0: tuple[float, float, float],
-                 fit_window: tuple[float, float], max_iter: int):
+                 fit_window: tuple[float, float], max_iter: int, compiled: bool = False):
     """Fit F_m cos^6((t - T)/tau) on the window fit_window*tau around T, iterated to a fixed point.
 
     The fit runs in scaled variables (force / F_0, (t - T_0) / tau_0) so that the three
@@ -266,13 +265,17 @@ def _fit_loading(t: np.ndarray, y: np.ndarray, p0: tuple[float, float, float],
         d_c = np.where(inside, 6.0 * a * cu**5 * su * u / c, 0.0)
         return np.column_stack([d_a, d_b, d_c])
 
-    # The window's fixed point is found first with a few plain Gauss-Newton steps (microseconds
-    # each), so that scipy's Levenberg-Marquardt, whose Python wrapping costs ~0.4 ms a call, runs
-    # once on the final window instead of once per window update (~8 times on a simulated pulse):
-    # a metrics-only ensemble spends most of its time here. curve_fit still gives the answer and
-    # its covariance; the loop below refits if its window moves again.
-    params, moves = window_fixed_point(s, z, params, float(fit_window[0]), float(fit_window[1]), MIN_FIT_POINTS,
-                                       max_iter)
+    moves = 0
+    if compiled:
+        # The window's fixed point found first by plain Gauss-Newton steps in compiled code
+        # (microseconds each), so that scipy's Levenberg-Marquardt, whose Python wrapping costs
+        # ~0.4 ms a call, runs once on the final window instead of once per window update (~8 on
+        # a simulated pulse, 50 when the window cycles). Loading the compiled code costs ~0.2 s
+        # once per process: worth it for many fits (an ensemble), not for one.
+        from .window_fit import window_fixed_point
+
+        params, moves = window_fixed_point(s, z, params, float(fit_window[0]), float(fit_window[1]),
+                                           MIN_FIT_POINTS, max_iter)
     previous = None
     for iteration in range(moves + 1, max_iter + 1):
         a, b, c = params
@@ -329,7 +332,7 @@ def front_tail_momenta(time: np.ndarray, force: np.ndarray, split: float) -> tup
 # --------------------------------------------------------------------------------------------
 def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = None, min_prominence: float = 0.2,
               snr_min: float = 8.0, fit_window: tuple[float, float] = (-1.0, 0.0),
-              max_iter: int = 50, valid_max: float | None = None) -> PulseFit:
+              max_iter: int = 50, valid_max: float | None = None, compiled: bool = False) -> PulseFit:
     """Fit the first pulse of a force record with Nesterenko's profile (paper Sec. III, eq. 4).
 
     Method, as in the paper: the loading part -tau < t - T < 0 of the first pulse is fitted with
@@ -369,6 +372,11 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
     valid_max
         The largest value the scope could record [N] (its full scale), when known: a pulse that
         reaches it is clipped.
+    compiled
+        Run the window updates of step 4 as compiled Gauss-Newton steps and fit with scipy once on
+        the final window: the same fit (window, updates, and parameters to the solver's own
+        convergence, ~1e-9), ~3x faster per pulse, but loading the compiled code costs ~0.2 s
+        once per process: for many fits (ensembles, the explorer).
 
     Returns
     -------
@@ -427,7 +435,7 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
     p0 = (float(y[ip]), T0, tau0)
 
     for _ in range(5):
-        value, err, idx, rms, iterations = _fit_loading(t, f - b, p0, fit_window, max_iter)
+        value, err, idx, rms, iterations = _fit_loading(t, f - b, p0, fit_window, max_iter, compiled)
         if baseline is not None:
             break
         pre = t < value[1] - PRE_PULSE_GAP * value[2]
@@ -438,7 +446,7 @@ def fit_pulse(time: ArrayLike, force: ArrayLike, *, baseline: float | None = Non
         if converged:
             break
     else:  # the baseline kept moving: fit once more with the last one
-        value, err, idx, rms, iterations = _fit_loading(t, f - b, p0, fit_window, max_iter)
+        value, err, idx, rms, iterations = _fit_loading(t, f - b, p0, fit_window, max_iter, compiled)
 
     peak_force, tof, duration = (float(v) for v in value)
     if not peak_force > snr_min * noise:  # e.g. a fit to a noise wiggle of a noise-only record

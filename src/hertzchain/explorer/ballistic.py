@@ -167,7 +167,7 @@ def measure_ratios(result, n0: int) -> MeasuredRatios:
     timed = np.concatenate([[first - 1], beads])  # the time at the bead before the first gives its speed
     forces = result.contact_force.sel(contact=timed).values
     # every contact rests at its static force (0, or the weight it carries) until the pulse arrives
-    fits = [fit_pulse(t, forces[:, k], baseline=forces[0, k]) for k in range(timed.size)]
+    fits = [fit_pulse(t, forces[:, k], baseline=forces[0, k], compiled=True) for k in range(timed.size)]
     times = np.array([f.time_of_flight for f in fits])
     peaks = np.array([f.peak_force for f in fits[1:]])
     force = fit_velocity_growth(beads, peaks)

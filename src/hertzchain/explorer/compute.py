@@ -113,7 +113,7 @@ def compute_view(settings: ExplorerSettings) -> ExplorerView:
         signal, force = f"contact {int(result.contact.values[-1])}", result.contact_force.values[:, -1]
     t = result.time.values
     try:
-        fit = fit_pulse(t, force)
+        fit = fit_pulse(t, force, compiled=True)  # the server fits at every change
         half = 0.5 * math.pi * fit.duration
         fit_t = np.linspace(fit.time_of_flight - half, fit.time_of_flight + half, 200)
         fit_f = fit.baseline + fit.peak_force * np.cos((fit_t - fit.time_of_flight) / fit.duration) ** 6
