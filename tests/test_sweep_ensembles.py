@@ -200,3 +200,35 @@ def test_metrics_only_keeps_the_elastoplastic_and_body_metrics(tmp_path):
     m = runs["metrics"]
     assert (m["plastic_work"] > 0).all() and (m["residual_overlap_max"] > 0).all() and (m["force_over_yield"] > 1).all()
     assert (m["peak_body_force"] > 0).all() and m["plastic_work"].std() > 0
+
+
+def test_a_long_sweep_is_projected_on_the_cores_that_run_it(monkeypatch, tmp_path):
+    """The time a sweep is projected to take, warned before it starts, is the members' one-core
+    time shared by the cores the local engine runs each chunk on (sweep.n_threads, or every
+    usable core); through a cluster, whose size is not known here, it is quoted for one core.
+    The warning says on how many cores and what would be faster."""
+    import hertzchain.checks as checks
+    from hertzchain.errors import LongRunWarning
+    from hertzchain.sweep import runner
+
+    monkeypatch.setattr(checks, "NS_PER_BEAD_STEP", {"elastic": 1.0, "general": 1.0, "rkn4": 1.0})
+    cfg = parse_sweep(ensemble(n=8, chunk_size=4, n_threads=3, store="metrics"))
+    projected = []
+    real_check = checks.check_resources
+
+    def record(est, **kwargs):
+        projected.append(est.seconds)
+        real_check(est, **kwargs)
+
+    monkeypatch.setattr(checks, "check_resources", record)
+    with pytest.warns(LongRunWarning, match=r"that is on 3 cores; fewer members \(sweep.n\)"):
+        runner._plan(cfg, "auto", cores=3)
+    on_three = projected[-1]
+    with pytest.warns(LongRunWarning) as caught:
+        runner._plan(cfg, "auto", cores=1)
+    assert not any("cores" in str(w.message) for w in caught)
+    assert projected[-1] == pytest.approx(3 * on_three, rel=1e-12)
+    # run_sweep shares the time by sweep.n_threads when it runs locally
+    monkeypatch.setattr(runner, "_plan", lambda cfg, device, cores=1: (_ for _ in ()).throw(AssertionError(cores)))
+    with pytest.raises(AssertionError, match="^3$"):
+        run_sweep(cfg, tmp_path / "local", progress=None)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -296,7 +297,9 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
 
     check_device(device)
     with latched():  # a Ctrl-C is never swallowed (hertzchain.interrupts)
-        plan = _plan(cfg, device)
+        # the local engine runs each chunk across the cores: the projected time is shared by them
+        # (a cluster's size is not known here: its time is quoted for one core)
+        plan = _plan(cfg, device, cores=1 if client is not None else cfg.sweep.n_threads or _usable_cores())
         if out.exists() and not out.is_dir():
             raise ConfigError(str(out), "exists and is not a folder; --out names the sweep's output folder")
         try:
@@ -320,7 +323,7 @@ class _Plan:
     estimate: Any = None
 
 
-def _plan(cfg: SweepConfig, device: str) -> _Plan:
+def _plan(cfg: SweepConfig, device: str, cores: int = 1) -> _Plan:
     """Validate every member (chunk by chunk: nothing but the estimates' inputs is kept), fix the
     shared duration and probes, and check that a chunk fits in memory.
 
@@ -359,7 +362,7 @@ def _plan(cfg: SweepConfig, device: str) -> _Plan:
             # Members share one time axis (the batched engine): the slowest member's duration.
             duration = max(duration, max(auto_duration(m) for m in models))
     est = _sweep_estimate(cfg, largest[1], largest[2], duration, probes, base_probes if cfg.sweep.traces else None)
-    _check_sweep_resources(cfg, est)
+    _check_sweep_resources(cfg, est, cores)
     return _Plan(duration=duration, probes=probes, trace_probes=base_probes, device=device,
                  steps_per_radian=run_cfg.run.steps_per_radian, estimate=est)
 
@@ -385,8 +388,17 @@ def _sweep_estimate(cfg: SweepConfig, model, dt, duration: float, probes, trace_
     return est
 
 
-def _check_sweep_resources(cfg: SweepConfig, est) -> None:
-    """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep."""
+def _usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity), at least 1."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except (AttributeError, OSError):
+        return max(os.cpu_count() or 1, 1)
+
+
+def _check_sweep_resources(cfg: SweepConfig, est, cores: int = 1) -> None:
+    """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep,
+    its projected time shared by the ``cores`` the local engine runs each chunk on."""
     from dataclasses import replace as _replace
 
     from ..checks import check_resources
@@ -395,8 +407,10 @@ def _check_sweep_resources(cfg: SweepConfig, est) -> None:
     # the metrics table of every member, collected at the end (450 MB for a million members)
     check_resources(_replace(est, seconds=0.0, memory_bytes=TABLE_BYTES_PER_MEMBER * cfg.n_members),
                     memory_field="sweep.n")
-    total = _replace(est, members=cfg.n_members, memory_bytes=0, seconds=est.seconds / est.members * cfg.n_members)
-    check_resources(total)
+    total = _replace(est, members=cfg.n_members, memory_bytes=0,
+                     seconds=est.seconds / est.members * cfg.n_members / cores)
+    check_resources(total, time_hint=(f"that is on {cores} cores; " if cores > 1 else "")
+                    + "fewer members (sweep.n), a shorter run.duration or a Dask cluster (--scheduler) would be faster")
 
 
 def estimate_sweep(cfg: SweepConfig):
