@@ -8,6 +8,7 @@ The default suite runs a bounded number of examples; ``-m slow`` runs a longer c
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import shutil
@@ -103,13 +104,13 @@ def mutated_configs(draw) -> tuple[dict, str]:
             node = node[k]
         action = draw(st.sampled_from(["value", "value", "scale", "delete", "add"]))
         if action == "value":
-            node[path[-1]] = draw(HOSTILE)
+            node[path[-1]] = copy.deepcopy(draw(HOSTILE))  # sampled_from hands out the same object
         elif action == "scale" and isinstance(node[path[-1]], (int, float)) and not isinstance(node[path[-1]], bool):
             node[path[-1]] = node[path[-1]] * draw(st.sampled_from([-1, 0, 1e-30, 1e3, 1e30]))
         elif action == "delete":
             del node[path[-1]]
         else:
-            node[draw(st.sampled_from(["extra", "diameter", "Velocity"]))] = draw(HOSTILE)
+            node[draw(st.sampled_from(["extra", "diameter", "Velocity"]))] = copy.deepcopy(draw(HOSTILE))
     return data, to_toml(data)
 
 
