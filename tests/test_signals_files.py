@@ -92,3 +92,27 @@ def test_main_restores_the_previous_sigterm_handler():
     before = signal.getsignal(signal.SIGTERM)
     assert main(["materials"]) == 0
     assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_forked_figure_workers_stop_quietly_under_the_clis_sigterm_handler(tmp_path):
+    """reproduce draws figures in a forked pool; the pool stops its workers with SIGTERM at its end.
+    A fork inherits the CLI's SIGTERM handler (raise, as Ctrl-C), so each idle worker printed a
+    traceback under a successful `hertzchain reproduce` (seen in the docs-commands check). With
+    the pool's initializer the workers take SIGTERM's default and ignore SIGINT (the parent stops
+    the pool on Ctrl-C): the pool's end prints nothing, whatever the workers were doing."""
+    p = _python("""
+        import multiprocessing, signal, sys, time
+        from hertzchain.cli.main import _on_sigterm
+        from hertzchain.interrupts import forked_worker_init
+
+        signal.signal(signal.SIGTERM, _on_sigterm)  # what the CLI installs
+        for _ in range(5):
+            with multiprocessing.get_context("fork").Pool(2, initializer=forked_worker_init) as pool:
+                assert pool.apply(signal.getsignal, (signal.SIGTERM,)) == signal.SIG_DFL
+                assert pool.apply(signal.getsignal, (signal.SIGINT,)) == signal.SIG_IGN
+                pool.map_async(time.sleep, [0.2, 0.2])  # busy workers, stopped by the with block
+                time.sleep(0.05)
+        print("done")
+    """, tmp_path)
+    assert p.returncode == 0 and p.stdout.strip() == "done", p.stderr
+    assert "Traceback" not in p.stderr and "Terminated" not in p.stderr, p.stderr

@@ -17,7 +17,7 @@ import threading
 from contextlib import contextmanager
 from typing import Iterator
 
-__all__ = ["latched", "check"]
+__all__ = ["latched", "check", "forked_worker_init"]
 
 _state = {"depth": 0, "pending": False}
 
@@ -54,3 +54,20 @@ def check() -> None:
     if _state["pending"]:
         _state["pending"] = False
         raise KeyboardInterrupt
+
+
+def forked_worker_init() -> None:
+    """Initializer of a forked pool's workers (the figures ``reproduce`` draws in parallel).
+
+    A fork inherits the parent's signal handlers: the CLI's SIGTERM handler (raise, as Ctrl-C
+    does) then ran in every worker when the pool stopped them with SIGTERM at its end, and each
+    printed a traceback under a successful run; a Ctrl-C, sent to the whole process group, did
+    the same. The workers take SIGTERM's default (they just stop) and ignore SIGINT (the parent
+    handles it and stops the pool). The imports are also frozen out of the garbage collector
+    (``gc.freeze``): the workers then leave the parent's pages shared.
+    """
+    import gc
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    gc.freeze()

@@ -10,13 +10,13 @@ that idle core (measured on two cores: benchmarks/README.md, ``ux_timings.py``).
 
 from __future__ import annotations
 
-import gc
 import json
 import multiprocessing
 import os
 from pathlib import Path
 from typing import Callable
 
+from ..interrupts import forked_worker_init
 from .values import PAPER
 
 __all__ = ["start_laws_figure"]
@@ -63,7 +63,7 @@ def start_laws_figure(out_dir: str | Path) -> Callable[..., dict[str, Path]] | N
         cores = os.cpu_count() or 1
     if not laws or cores < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return None
-    pool = multiprocessing.get_context("fork").Pool(1, initializer=gc.freeze)
+    pool = multiprocessing.get_context("fork").Pool(1, initializer=forked_worker_init)
     pending = pool.apply_async(_draw_laws, (str(out_dir), laws, eps))
 
     def finish(cancel: bool = False) -> dict[str, Path]:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import gc
 import json
 import math
 import multiprocessing
@@ -13,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..interrupts import forked_worker_init
 from .. import __version__, theory
 from ..result import save as _save
 from . import fidelity, protocol
@@ -368,7 +368,7 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     _DRAW_JOB = (out_dir, makers)
     try:
         if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
-            with multiprocessing.get_context("fork").Pool(workers, initializer=gc.freeze) as pool:
+            with multiprocessing.get_context("fork").Pool(workers, initializer=forked_worker_init) as pool:
                 for name, path in pool.imap_unordered(_draw_one, order):
                     done(name, path)
         else:
@@ -396,7 +396,7 @@ def _draw_early(out_dir: str | Path, makers: dict[str, Callable]) -> Callable[..
         return lambda cancel=False: {} if cancel else drawn
     _DRAW_JOB = (out_dir, makers)
     try:
-        pool = multiprocessing.get_context("fork").Pool(1, initializer=gc.freeze)
+        pool = multiprocessing.get_context("fork").Pool(1, initializer=forked_worker_init)
     finally:
         _DRAW_JOB = None
     pending = pool.map_async(_draw_one, order)
