@@ -64,6 +64,9 @@ def connect(address: str, timeout: str = "20s"):
     ConfigError
         (field ``--scheduler``) when no scheduler answers at ``address``.
     """
+    from .extras import require
+
+    require("cluster", "--scheduler", ("distributed",))
     try:
         from distributed import Client
 
@@ -76,7 +79,7 @@ def connect(address: str, timeout: str = "20s"):
 def _is_dask(client) -> bool:
     try:
         import distributed
-    except ImportError:  # pragma: no cover - a dependency, but keep the generic paths usable
+    except ImportError:  # the [cluster] extra is not installed: no client can be a Dask one
         return False
     return isinstance(client, distributed.Client)
 

@@ -486,8 +486,11 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         A bad setting, or one the pre-flight (:func:`preflight`) refuses: a generation beyond the
         budget or the memory.
     """
+    from ..extras import require
     from ..sweep.storage import _folder_lock
 
+    # CMA-ES and the best.toml writer are the [design] extra: said before any work.
+    require("design", "design", ("cma", "tomli_w") if len(problem.objectives) == 1 else ("cma", "tomli_w", "pymoo"))
     preflight(problem, client)  # before any candidate or folder: the budget, the memory, the time
     out = Path(out_dir)
     try:
