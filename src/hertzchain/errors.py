@@ -28,6 +28,11 @@ class ConfigError(HertzchainError, ValueError):
         super().__init__(f"{field}: {message}")
 
 
+class TooManySteps(ConfigError):
+    """A run would take an absurd number of time steps (:func:`hertzchain.checks.check_step_count`);
+    ``field`` names the input that sets its step."""
+
+
 class SimulationDiverged(HertzchainError, FloatingPointError):
     """The integration produced non-finite numbers (time step far too large, bad input)."""
 
