@@ -413,6 +413,11 @@ class Model:
         object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
+        if self.chain.n_beads == 0 and not self.wall.present:
+            raise ConfigError("chain.uniform.n", "a chain of zero beads needs a wall or a body for the striker to hit "
+                              "(wall.type = 'none' leaves it flying)")
+        if self.chain.n_beads == 0 and self.precompression > 0:
+            raise ConfigError("chain.precompression", "a chain of zero beads has nothing to precompress")
         if self.precompression > 0 and not self.wall.present:
             raise ConfigError("chain.precompression", "a static precompression needs a wall to push against")
         if self.precompression > 0 and not self.chain.is_aligned:
@@ -420,8 +425,8 @@ class Model:
         # The striker's contact obeys the same head-on rule as the chain's (Chain checks beads n, n+1):
         # the striker flies along the axis, so bead 1's offset e_1 must stay below (R_s + R_1) / 2;
         # past R_s + R_1 it would miss the chain and the run would report 0 N.
-        e1, reach = abs(float(self.chain.offsets[0])), 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])
-        if e1 >= reach:
+        e1 = abs(float(self.chain.offsets[0])) if self.chain.n_beads else 0.0
+        if e1 and e1 >= (reach := 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])):
             raise ConfigError("chain.offsets", f"bead 1 is offset by {e1:.3g} m from the striker's line of flight, "
                               f"more than half the sum of their radii ({reach:.3g} m); the striker would not "
                               "hit it head-on (or would miss the chain)")
@@ -471,6 +476,8 @@ class Model:
         bead material (the base material: changing the beads near the wall does not change it)."""
         if not self.wall.present:
             return None
+        if self.wall.material is None and not self.chain.n_beads:  # no beads: the striker's (a config: the chain's)
+            return self.striker.material
         return self.wall.material or self.chain.materials[0]
 
     @property

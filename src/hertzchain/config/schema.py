@@ -49,7 +49,8 @@ class MaterialConfig(_Section):
 
 
 class UniformBlock(_Section):
-    n: _BeadNumber
+    # 0: no chain, the striker hits the wall or the protected body (the reference of a protector)
+    n: int = Field(ge=0, le=BOUNDS["beads"][1], description="number of beads (0: the striker hits the wall directly)")
     diameter_mm: _Diameter
 
 
@@ -139,7 +140,10 @@ class ChainConfig(_Section):
 class StrikerConfig(_Section):
     diameter_mm: _Diameter = 8.0
     velocity: float = _bounded("velocity", default=0.5, description="m/s towards the chain")
-    material: str | None = None
+    # one rule in config and API (hc.Striker): the paper's steel ball unless given, whatever the
+    # chain is made of (a config's striker used to take the chain's first material)
+    material: str = Field(default="AISI52100", description="the striker's material (default: AISI 52100, as "
+                                                            "hc.Striker's, whatever the chain's)")
     mass: float | None = _bounded("mass", default=None,
                                   description="kg; absent: the sphere's rho pi phi^3 / 6")
     shape: Literal["sphere", "flat"] = Field(default="sphere", description="its face: 'flat' meets bead 1 in a "
