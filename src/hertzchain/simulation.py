@@ -251,7 +251,8 @@ def elastic_limit_message(ds: xr.Dataset, where: str = "") -> str | None:
         return None
     worst = int(np.argmax(ratio))
     if worst == 0:
-        name = "striker-bead 1" if ds.sizes.get("bead", 1) else "striker-wall"  # no beads: the striker hits the wall
+        sizes = getattr(ds, "sizes", None)  # a batch's member view has none (it has beads)
+        name = "striker-wall" if sizes is not None and sizes.get("bead", 1) == 0 else "striker-bead 1"
     else:  # the bead count, to name the wall's contact (reading the model text only then: ~40 us)
         try:
             n = len(json.loads(ds.attrs["model"])["chain"]["diameters_mm"])

@@ -66,7 +66,7 @@ def _unit_factor(unit: str, where: str) -> tuple[float, str]:
     try:
         factor, dims = parse_unit(text)
     except UnitError as exc:
-        raise ConfigError(where, f"unit {unit!r} is not one a scope writes ({exc}); use a time unit (s, ms, us, "
+        raise ConfigError(where, f"unknown unit {unit!r}, not one a scope writes ({exc}); use a time unit (s, ms, us, "
                           "ns), a force unit (N, mN, kN) or a voltage (V, mV)") from None
     kind = UNIT_KINDS.get(dims)
     if kind is None:
