@@ -156,3 +156,21 @@ def test_a_config_and_its_python_transcription_hit_with_the_same_striker():
     a, b = hc.run_config(cfg), hc.simulate(api, 3e-4)
     assert a.attrs["peak_wall_force"] == b.attrs["peak_wall_force"]
     assert np.array_equal(a.contact_force.values, b.contact_force.values)
+
+
+def test_a_sweep_under_gravity_tabulates_the_dynamic_peak_and_takes_no_chain(tmp_path):
+    """metrics.csv: peak_wall_force_dynamic = peak_wall_force - the weights, per member; a member of
+    zero beads (chain.uniform.n = 0) is the striker's two-body impact on the wall."""
+    from hertzchain.sweep import run_sweep
+
+    base = {"chain": {"uniform": {"n": 3, "diameter_mm": 10.0}, "gravity": 9.81},
+            "striker": {"velocity": 0.2}, "run": {"duration": 2e-4, "sample_interval": 1e-6}}
+    sweep = {"mode": "grid", "chunk_size": 2, "parameters": {"chain.uniform.n": [0, 3]}}
+    df = run_sweep({"base": base, "sweep": sweep}, tmp_path).metrics
+    for _, row in df.iterrows():
+        cfg = {**base, "chain": {**base["chain"], "uniform": {"n": int(row["chain.uniform.n"]), "diameter_mm": 10.0}}}
+        model = hc.build_model(hc.parse_config(cfg))
+        weight = 9.81 * (model.striker.mass + model.chain.masses.sum())
+        assert row["peak_wall_force_dynamic"] == pytest.approx(row["peak_wall_force"] - weight, rel=1e-9)
+    alone = hc.run_config({**base, "chain": {"uniform": {"n": 0, "diameter_mm": 10.0}, "gravity": 9.81}})
+    assert df.loc[df["chain.uniform.n"] == 0, "peak_wall_force"].item() == alone.attrs["peak_wall_force"]

@@ -168,7 +168,10 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "conventions": CONVENTIONS,
     }
     if model.gravity > 0 and model.wall.present:
-        attrs.update(dynamic_peak(raw.peak_wall_force, float(system.static_forces()[n])))
+        # the wall contact holds bodies 0..N at rest (System.static_forces()[N], from the model: a
+        # batch member's arrays hold no external forces)
+        static = model.precompression + model.gravity * (model.striker.mass + float(np.sum(model.chain.masses)))
+        attrs.update(dynamic_peak(raw.peak_wall_force, static))
     if raw.body is not None:
         attrs.update(body_peaks(arrays["body_force"][1], arrays["body_acceleration"][1], arrays["body_energy"][1]))
     if raw.plastic_work is not None:
