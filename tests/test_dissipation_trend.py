@@ -8,8 +8,6 @@ plasticity.rst "Restitution that falls with speed"): every law calibrated to the
 - the reproduction's ``dashpot_scaled`` keeps the striker's e = 0.958 but rises with speed;
 - only a size dependence stronger than the collision time's (A ~ t^2, not a catalogue law) does all
   three, with no measurement of the paper behind it.
-
-Slow (a few calibrations): ``pytest -m slow tests/test_dissipation_trend.py``.
 """
 
 from __future__ import annotations
@@ -24,8 +22,6 @@ from scipy.optimize import brentq
 import hertzchain as hc
 from hertzchain.contact import ScaledViscoelastic, collision_time_scale
 from hertzchain.dissipation import calibrate_law, measure_eps
-
-pytestmark = pytest.mark.slow
 
 SPEEDS = np.array([1e-4, 1e-2, 0.2, 1.0])
 STRIKER = hc.Striker(8e-3, 0.2)
