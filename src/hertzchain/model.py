@@ -473,7 +473,8 @@ class Model:
     @property
     def wall_material(self) -> Material | None:
         """Material of the wall's cap or the body's face: ``wall.material``, else the chain's first
-        bead material (the base material: changing the beads near the wall does not change it)."""
+        bead material (the base material: changing the beads near the wall does not change it);
+        with zero beads, the striker's (a config passes ``chain.material``)."""
         if not self.wall.present:
             return None
         if self.wall.material is None and not self.chain.n_beads:  # no beads: the striker's (a config: the chain's)

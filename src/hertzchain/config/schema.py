@@ -353,6 +353,10 @@ def _raise_config_error(exc: ValidationError, prefix: tuple[str, ...] = ()) -> N
     if err["type"] == "missing":
         raise ConfigError(name, "is required") from None
     msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
+    bound = {"greater_than_equal": ("ge", "at least"), "greater_than": ("gt", "greater than"),
+             "less_than_equal": ("le", "at most"), "less_than": ("lt", "less than")}.get(err["type"])
+    if bound is not None and isinstance(err.get("ctx", {}).get(bound[0]), (int, float)):
+        msg = f"must be {bound[1]} {err['ctx'][bound[0]]:g}"  # 1e-15, not 0.000000000000001
     value = err.get("input")
     if not isinstance(value, (dict, list)):
         msg += f" (got {value!r})"
