@@ -20,7 +20,6 @@ Sources of the catalogue
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from .bounds import check_bound

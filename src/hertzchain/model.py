@@ -17,10 +17,10 @@ from typing import Literal
 
 import numpy as np
 
+from .bounds import check_bound
 from .chain import Chain
 from .contact import LAW_CODES, Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
 from .plasticity import Elastoplastic
-from .bounds import check_bound
 from .errors import ConfigError
 from .materials import Material, get_material
 from .strict import real

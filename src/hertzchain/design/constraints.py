@@ -15,7 +15,6 @@ feasible set.
 from __future__ import annotations
 
 import math
-
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
