@@ -43,14 +43,14 @@ def test_zero_beads_is_the_two_body_hertz_impact_on_a_flat(velocity):
     exact = two_body_impact(mass, kappa, velocity)
     ds = hc.simulate(model, probes=hc.Probes(sample_interval=1e-9, velocities=True))
     assert ds.sizes["bead"] == 0 and list(ds.contact.values) == [0]
-    assert ds.attrs["peak_wall_force"] == pytest.approx(exact["peak_force"], rel=1e-5)
+    assert ds.attrs["peak_wall_force"] == pytest.approx(exact["peak_force"], rel=1e-6)  # the adaptive step's bound
     f = ds.wall_force.values
     touching = ds.time.values[f > 0]
     assert touching[-1] - touching[0] == pytest.approx(exact["contact_time"], abs=2e-9)
     assert f[-1] == 0.0  # the automatic duration holds the whole collision
     assert float(ds.velocity.values[-1, 0]) == pytest.approx(-velocity, rel=1e-6)
     # the overlap at the peak, from the force (F = kappa delta^(3/2))
-    assert (ds.attrs["peak_wall_force"] / kappa) ** (2 / 3) == pytest.approx(exact["max_overlap"], rel=1e-5)
+    assert (ds.attrs["peak_wall_force"] / kappa) ** (2 / 3) == pytest.approx(exact["max_overlap"], rel=1e-6)
 
 
 def test_zero_beads_from_a_config_is_the_api_run_and_analyses(tmp_path):
@@ -145,13 +145,13 @@ def test_gravity_dynamic_peak_in_the_run_summary(tmp_path, capsys):
 
 # ------------------------------------------------------------------ one default striker
 def test_a_config_and_its_python_transcription_hit_with_the_same_striker():
-    """A brass chain without striker.material: both are hit by AISI 52100 (the config's striker
+    """A glass chain without striker.material: both are hit by AISI 52100 (the config's striker
     took the chain's material, hc.Striker's default was AISI 52100)."""
-    cfg = {"chain": {"uniform": {"n": 3, "diameter_mm": 20.0}, "material": "brass"},
+    cfg = {"chain": {"uniform": {"n": 3, "diameter_mm": 20.0}, "material": "glass"},
            "striker": {"velocity": 0.3}, "run": {"duration": 3e-4}}
     model = hc.build_model(hc.parse_config(cfg))
     assert model.striker.material.name == "AISI52100"
-    api = hc.Model(hc.Chain.uniform(3, 20e-3, "brass"), hc.Striker(8e-3, 0.3))
+    api = hc.Model(hc.Chain.uniform(3, 20e-3, "glass"), hc.Striker(8e-3, 0.3))
     assert api.striker.material.name == "AISI52100"
     a, b = hc.run_config(cfg), hc.simulate(api, 3e-4)
     assert a.attrs["peak_wall_force"] == b.attrs["peak_wall_force"]
