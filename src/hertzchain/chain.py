@@ -242,6 +242,8 @@ class Chain:
         # One line: the diameters grouped in runs and the materials counted (not 30 full Materials).
         from .display import counts_text, diameters_text
 
+        if not self.n_beads:
+            return "Chain(no beads: the striker hits the wall)"
         text = f"Chain({diameters_text(self.diameters)}; {counts_text(m.name for m in self.materials)}"
         if not self.is_aligned:
             text += f"; offsets up to {np.abs(self.offsets).max() * 1e3:.3g} mm"
