@@ -217,8 +217,8 @@ def build_model(cfg: RunConfig, chain=None):
                       radius_of_curvature=None if s.radius_of_curvature_mm is None else s.radius_of_curvature_mm * 1e-3)
     w = cfg.wall
     # the wall's default material is the chain's (its first bead's); with no beads, chain.material
-    wall = Wall(w.type, w.material or (None if chain.n_beads else cfg.chain.material), w.mass, w.stiffness, w.damping, w.shape,
-                None if w.radius_of_curvature_mm is None else w.radius_of_curvature_mm * 1e-3)
+    wall = Wall(w.type, w.material or (None if chain.n_beads else cfg.chain.material), w.mass, w.stiffness, w.damping,
+                w.shape, None if w.radius_of_curvature_mm is None else w.radius_of_curvature_mm * 1e-3)
     k = cfg.contact
     # the beads a calibration (eps) and a size-scaled law refer to: the chain's first; with zero beads
     # (chain.uniform.n = 0, the striker onto the wall) the uniform block's diameter, as in its chain

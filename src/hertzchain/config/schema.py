@@ -176,8 +176,9 @@ class ContactConfig(_Section):
     A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s "
                                   "(viscoelastic_scaled: between two beads like the chain's first)")
     limiting_pressure_factor: float | None = _bounded(
-        "limiting_pressure_factor", default=None, description="elastoplastic: Thornton's limiting pressure p_y over the yield "
-                                                "stress (default 1.5: yield starts at the paper's F_Y)")
+        "limiting_pressure_factor", default=None,
+        description="elastoplastic: Thornton's limiting pressure p_y over the yield stress (default 1.5: yield "
+                    "starts at the paper's F_Y)")
     gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m "
                                    "(dashpot_scaled: between two beads like the chain's first)")
 
