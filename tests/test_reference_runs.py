@@ -174,3 +174,26 @@ def test_a_sweep_under_gravity_tabulates_the_dynamic_peak_and_takes_no_chain(tmp
         assert row["peak_wall_force_dynamic"] == pytest.approx(row["peak_wall_force"] - weight, rel=1e-9)
     alone = hc.run_config({**base, "chain": {"uniform": {"n": 0, "diameter_mm": 10.0}, "gravity": 9.81}})
     assert df.loc[df["chain.uniform.n"] == 0, "peak_wall_force"].item() == alone.attrs["peak_wall_force"]
+
+
+def test_every_command_takes_a_zero_bead_run_or_refuses_it_by_name(tmp_path, capsys):
+    """run, analyze, plot and export handle the striker onto the wall; sensitivity and animate, which
+    are about a chain, refuse it naming why (exit 2), never an internal error."""
+    import tomli_w
+
+    from hertzchain.cli.main import main
+
+    cfg = tmp_path / "zero.toml"
+    cfg.write_text(tomli_w.dumps({"chain": {"uniform": {"n": 0, "diameter_mm": 26.0}}, "striker": {"velocity": 0.2}}),
+                   encoding="utf-8")
+    nc = tmp_path / "zero.nc"
+    assert main(["run", str(cfg), "--out", str(nc), "-q"]) == 0
+    assert main(["analyze", str(nc)]) == 0
+    for kind in ("signals", "spacetime", "energy"):
+        assert main(["plot", str(nc), "--kind", kind, "-o", str(tmp_path / f"{kind}.png")]) == 0
+    assert main(["export", str(nc), "--out", str(tmp_path / "zero.csv")]) == 0
+    capsys.readouterr()
+    for argv in (["sensitivity", str(cfg), "--wrt", "striker.velocity"], ["animate", str(nc), "-o", str(tmp_path / "a.gif")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "internal error" not in err and ("chain.uniform.n" in err or "RESULT" in err)
