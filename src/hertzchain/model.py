@@ -437,14 +437,14 @@ class Model:
                               "wall.type = 'none' would let it fall")
         if g > 0 and not self.chain.is_aligned:
             raise ConfigError("chain.gravity", "gravity together with bead offsets is not supported")
-        if self.law.name == "elastoplastic":
-            # Thornton's law needs a limiting pressure at every contact; a material without a yield
-            # stress would silently stay elastic (plastic work 0, yield_force NaN)
+        if hasattr(self.law, "limiting_pressure_factor"):
+            # a law with a limiting pressure (Thornton's) needs it at every contact; a material without
+            # a yield stress would silently stay elastic (plastic work 0, yield_force NaN)
             used = [self.striker.material, *self.chain.materials] + ([self.wall_material] if self.wall.present else [])
             bare = next((m for m in used if m.yield_stress is None), None)
             if bare is not None:
                 raise ConfigError(f"materials.{bare.name}.yield_stress",
-                                  f"material {bare.name!r} has no yield stress, which law 'elastoplastic' needs at "
+                                  f"material {bare.name!r} has no yield stress, which law {self.law.name!r} needs at "
                                   "every contact (its limiting pressure p_y = factor x sigma_Y): give it one in Pa "
                                   "under [materials.NAME], or use an elastic or viscoelastic law")
         if (g > 0 or self.precompression > 0) and self.wall.is_body and self.wall.stiffness == 0:
