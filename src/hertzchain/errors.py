@@ -28,17 +28,17 @@ class ConfigError(HertzchainError, ValueError):
         super().__init__(f"{field}: {message}")
 
 
-class TooManySteps(ConfigError):
-    """A run would take an absurd number of time steps (:func:`hertzchain.checks.check_step_count`);
-    ``field`` names the input that sets its step."""
-
-
 class SimulationDiverged(HertzchainError, FloatingPointError):
     """The integration produced non-finite numbers (time step far too large, bad input)."""
 
 
 class PulseNotFound(HertzchainError, ValueError):
     """A signal holds no pulse that the analysis can fit."""
+
+
+class TooManySteps(ConfigError):
+    """A run would take an absurd number of time steps (:func:`hertzchain.checks.check_step_count`);
+    ``field`` names the input that sets its step."""
 
 
 class PulseClipped(PulseNotFound):
