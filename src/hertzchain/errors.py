@@ -36,13 +36,13 @@ class PulseNotFound(HertzchainError, ValueError):
     """A signal holds no pulse that the analysis can fit."""
 
 
+class PulseClipped(PulseNotFound):
+    """The pulse of a record is clipped (a saturated sensor or scope): its fit would be wrong."""
+
+
 class TooManySteps(ConfigError):
     """A run would take an absurd number of time steps (:func:`hertzchain.checks.check_step_count`);
     ``field`` names the input that sets its step."""
-
-
-class PulseClipped(PulseNotFound):
-    """The pulse of a record is clipped (a saturated sensor or scope): its fit would be wrong."""
 
 
 class ElasticLimitWarning(UserWarning):
