@@ -71,6 +71,21 @@ def test_h5md_trajectories_follow_newton_with_units(result, tmp_path):
     assert np.max(np.abs(dv - impulse)) < 2e-3 * np.max(np.abs(dv))
 
 
+def test_h5md_opens_in_pyh5md(result, tmp_path):
+    """pyh5md, the H5MD reference library, opens the file and finds the time-dependent elements."""
+    pyh5md = pytest.importorskip("pyh5md", reason="pyh5md (the [test] extra) is H5MD's reference reader")
+    path, ds = result
+    out = hc.export(ds, tmp_path / "r.h5md")
+    with pyh5md.File(str(out), "r") as f:
+        chain = f.particles_group("chain")
+        pos, vel = pyh5md.element(chain, "position"), pyh5md.element(chain, "velocity")
+        assert pos.value.shape == (ds.sizes["time"], ds.sizes["bead"] + 1, 3)
+        np.testing.assert_array_equal(pos.time[()], ds.time.values)
+        np.testing.assert_array_equal(vel.value[:, :, 0], ds.velocity.values)
+        wall = pyh5md.element(f["observables"], "wall_force")
+        np.testing.assert_array_equal(wall.value[()], ds.wall_force.values)
+
+
 def test_paraview_series_read_by_vtk(result, tmp_path):
     vtk = pytest.importorskip("vtk", reason="VTK (the [test] extra) reads the frames as ParaView does")
     from vtk.util.numpy_support import vtk_to_numpy
