@@ -8,6 +8,9 @@ import click
 
 from .common import parse_window, set_option
 
+#: The API's argument names (what its errors name) -> this command's options.
+_OPTIONS = {"variables": "--wrt", "objective": "--objective", "window": "--window"}
+
 
 @click.command("sensitivity")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
@@ -45,8 +48,16 @@ def sensitivity(config: Path, variables: tuple[str, ...], objective: str, mode: 
 
     if plot_path is not None:
         image_format(plot_path, "--plot")  # a bad suffix fails before the run
+    from ..errors import ConfigError
+
     cfg = load_config(config, overrides)
-    sens = compute(cfg, list(variables), objective, mode=mode, window=parse_window(window))
+    try:
+        sens = compute(cfg, list(variables), objective, mode=mode, window=parse_window(window))
+    except ConfigError as exc:  # the API's argument names, as this command's options
+        option = _OPTIONS.get(exc.field)
+        if option is None:
+            raise
+        raise type(exc)(option, exc.message) from None
     data = sens.as_dict()
     if json_path == "-":
         click.echo(json_text(data))

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigError, PulseNotFound
+from ..errors import ConfigError, ObjectiveUndefined, PulseNotFound
 
 __all__ = ["OBJECTIVES", "Reading", "read_objective", "objective_unit", "contacts_needed", "soft_peak"]
 
@@ -157,8 +157,15 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
     m = _CONTACT.fullmatch(name)
     if m:
         j = int(m.group(1))
+        if not tape.max_force[j] > 0.0:
+            raise ObjectiveUndefined("run.duration", f"contact {j} never closes within the run "
+                                     f"({_span(tape)}): {name} is 0 N and so is every derivative; lengthen "
+                                     "run.duration (or leave it 'auto') or choose another contact")
+        if tape.max_force_sample[j] == tape.time.size - 1:
+            raise _rising(tape, name)
         return Reading(float(tape.max_force[j]), samples=[(int(tape.max_force_sample[j]), j, 1.0)])
     if name in ("peak_wall_force", "peak_wall_time"):
+        _check_wall_peak(tape, name)
         return _peak(tape, wall, name == "peak_wall_time")
     if name == "peak_contact_force":
         j = int(np.argmax(tape.max_force))
@@ -178,17 +185,64 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
     if name == "energy_at_wall":
         t = tape.time
         mask = np.ones(t.size, bool) if window is None else (t >= window[0]) & (t <= window[1])
+        if not mask.any():
+            raise ObjectiveUndefined("window", f"[{window[0] * 1e3:g}, {window[1] * 1e3:g}] ms holds no sample of the "
+                                     f"run ({_span(tape)}): energy_at_wall is undefined there; choose a window "
+                                     "inside the run, or lengthen run.duration")
         fw = np.where(mask, np.maximum(f, 0.0), 0.0)
         k = int(np.argmax(fw))
+        if not fw[k] > 0.0:
+            where = "within the window" if window is not None else "during the run"
+            raise ObjectiveUndefined("window" if window is not None else "run.duration",
+                                     f"the wall force is 0 {where} ({_span(tape, window)}): energy_at_wall is 0 J "
+                                     "and so is every derivative; move the window to the wall pulse or lengthen "
+                                     "run.duration (or leave it 'auto')")
+        if k == t.size - 1:
+            raise _rising(tape, name)
         fpk, kap = fw[k], sy.kappa[wall]
         direct = np.zeros(sy.kappa.size)
         direct[wall] = -(2.0 / 3.0) * 0.4 * fpk ** (5.0 / 3.0) * kap ** (-5.0 / 3.0)
         seed = (2.0 / 3.0) * fpk ** (2.0 / 3.0) / kap ** (2.0 / 3.0) if fpk > 0 else 0.0
         return Reading(float(0.4 * fpk ** (5.0 / 3.0) / kap ** (2.0 / 3.0)), samples=[(k, wall, seed)],
                        direct={"kappa": direct})
-    value, weights = pulse_partials(tape.time, f, name)
+    if not np.any(f > 0.0):
+        raise ObjectiveUndefined("run.duration", f"the pulse does not reach the wall within the run ({_span(tape)}): "
+                                 f"{name} is undefined; lengthen run.duration (or leave it 'auto')")
+    try:
+        value, weights = pulse_partials(tape.time, f, name)
+    except PulseNotFound as exc:
+        raise ObjectiveUndefined("run.duration", f"{name} is undefined: the wall record of the run ({_span(tape)}) "
+                                 f"holds no whole pulse to fit ({exc}); lengthen run.duration (or leave it "
+                                 "'auto')") from None
     return Reading(value, samples=[(int(k), wall, float(w)) for k, w in zip(np.flatnonzero(weights),
                                                                            weights[weights != 0])])
+
+
+def _span(tape, window=None) -> str:
+    """The run's time span in words (ms), for the refusals."""
+    text = f"0 to {tape.time[-1] * 1e3:.4g} ms"
+    return text if window is None else f"window {window[0] * 1e3:g} to {window[1] * 1e3:g} ms of a run of {text}"
+
+
+def _check_wall_peak(tape, name: str) -> None:
+    """Refuse a wall peak that is no peak: a wall force that never rises above its value at t = 0
+    (zero without a static load: the pulse does not reach the wall), or one still rising when the
+    run ends (the pulse arriving: the maximum is the last step's force, its time the run's end)."""
+    if tape.peak_step < 0:  # the tracker's step of the maximum: -1 until the force rises above t = 0's
+        raise ObjectiveUndefined("run.duration", f"the pulse does not reach the wall within the run ({_span(tape)}): "
+                                 f"the wall force never rises above its value at t = 0 ({tape.peak[0]:.4g} N), so "
+                                 f"{name} is that of the start and every derivative is 0; lengthen run.duration "
+                                 "(or leave it 'auto')")
+    if tape.peak_step >= tape.n_steps - 1:
+        raise _rising(tape, name)
+
+
+def _rising(tape, name: str) -> ObjectiveUndefined:
+    """The refusal of a maximum found at the run's last step: the force is still rising when the run
+    ends (the pulse is arriving), so the maximum is no peak, and its time is the run's end."""
+    return ObjectiveUndefined("run.duration", f"the force {name} reads is still rising when the run ends "
+                              f"({_span(tape)}): its peak lies beyond the run; lengthen run.duration (or leave it "
+                              "'auto')")
 
 
 def soft_peak(tape, width: float) -> Reading:

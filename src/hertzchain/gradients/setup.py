@@ -52,6 +52,10 @@ _SCALAR_FIELDS = ("chain.uniform.diameter_mm", "chain.taper.q", "chain.precompre
                   "striker.velocity", "striker.mass", "contact.A", "contact.gamma", "contact.limiting_pressure_factor",
                   "wall.mass", "wall.stiffness", "wall.damping")
 _LISTS = ("chain.diameters_mm", "chain.offsets_mm", "chain.offsets_fraction")
+#: What a variable may look like (the refusal of a malformed path says it).
+_PATH_GRAMMAR = ("dotted names with whole-number indices, as in the config and --set: chain.diameters_mm[3], "
+                 "chain.diameters_mm[16:30] (a range), chain.diameters_mm (every bead), striker.velocity, "
+                 "materials.AISI52100.young")
 
 
 class _Reader:
@@ -285,7 +289,7 @@ def expand_paths(cfg, variables) -> list[str]:
     """
     import re
 
-    from ..config import build_chain
+    from ..config import build_chain, parse_path
 
     if isinstance(variables, str):
         variables = [variables]
@@ -297,12 +301,20 @@ def expand_paths(cfg, variables) -> list[str]:
         if not isinstance(raw, str):
             raise ConfigError("variables", f"each variable is a dotted path (a string), got {raw!r}")
         path = raw.strip()
-        m = re.fullmatch(r"(chain\.\w+)(?:\[(\d+):(\d+)\])?", path)
+        m = re.fullmatch(r"(chain\.\w+)\[(\d+):(\d+)\]", path)  # a range of a list field
         if m and m.group(1) in _LISTS:
-            lo, hi = (int(m.group(2)), int(m.group(3))) if m.group(2) else (0, n_beads)
+            lo, hi = int(m.group(2)), int(m.group(3))
             if not 0 <= lo < hi <= n_beads:
                 raise ConfigError(raw, f"range [{lo}:{hi}] must lie inside the chain's beads [0:{n_beads}]")
             out += [f"{m.group(1)}[{i}]" for i in range(lo, hi)]
+            continue
+        try:  # the grammar of the config's own paths (--set, sweeps, design variables)
+            tokens = parse_path(path)
+        except ValueError:
+            raise ConfigError("variables", f"{raw!r} is not a config path: {_PATH_GRAMMAR}") from None
+        path = "".join(f"[{t}]" if isinstance(t, int) else ("." if i else "") + t for i, t in enumerate(tokens))
+        if path in _LISTS:  # a list field without an index: every bead
+            out += [f"{path}[{i}]" for i in range(n_beads)]
             continue
         m = re.fullmatch(r"materials\.([^.]+)\.(\w+)", path)
         if m:
