@@ -27,7 +27,7 @@ from ..model import System
 from . import adjoint as _adjoint
 from . import kernels
 from . import tangent as _tangent
-from .layout import Packed, pack
+from .layout import PAD, Packed, pack
 from .tape import tape_forward
 from .verlet import StepPlan, initialise, refine_peak, step_plan
 
@@ -45,6 +45,9 @@ _ROWS = 11  # gradient rows of the kernels: the eight per-slot arrays, the linea
 CHECKPOINT_BYTES = 256 * 2**20
 #: Most memory [bytes] the steps of one replayed group may take.
 GROUP_BYTES = 64 * 2**20
+#: Most memory [bytes] the reverse sweep's stored steps of one group may take (checked before the
+#: run by :mod:`hertzchain.gradients.memory` with :func:`engine_bytes`).
+GROUP_LIMIT = 4 * GROUP_BYTES
 #: Steps between two checkpoints (at most, at the smallest step the run can take): the replayed
 #: states of a group then stay in the caches, and the checkpoints are few (writing one per block,
 #: a few steps, made the taped run twice as slow as the engine's: memory traffic).
@@ -183,6 +186,58 @@ def check_law(system: System, tangent: bool = False) -> None:
                           "'elastic', 'viscoelastic', 'viscoelastic_scaled', 'dashpot' and 'elastoplastic'")
 
 
+def _checkpoints(system: System, plan: StepPlan, n_samples: int, sample_interval: float,
+                 n_slots: int) -> tuple[int, int, int, int]:
+    """(blocks, rows per checkpoint, blocks per checkpoint, most steps of a block) of a taped run."""
+    n_blocks = (n_samples - 1) * plan.n_sub
+    rows = 6 if system.law == kernels.LAW_ELASTOPLASTIC else 3  # u, v, a (and dmax, dres, kres)
+    per_ckpt = rows * n_slots * 8
+    ns_max = plan.stride if plan.stride > 0 else math.ceil(sample_interval / plan.n_sub / plan.dt - 1e-9)
+    group = max(1, GROUP_STEPS // max(ns_max, 1), math.ceil(n_blocks * per_ckpt / CHECKPOINT_BYTES))
+    return n_blocks, rows, group, ns_max
+
+
+def engine_bytes(system: System, duration: float, sample_interval: float, dt: float | None = None,
+                 steps_per_radian: float | None = None, recorded: int = 1, directions: int = 0) -> dict[str, int]:
+    """Memory [bytes] the derivative engines will take for a run, before anything is allocated.
+
+    Parameters
+    ----------
+    system : System
+        The model's arrays.
+    duration, sample_interval : float
+        Run length and sample spacing [s].
+    dt, steps_per_radian : float, optional
+        As for :func:`record`.
+    recorded : int
+        Contacts recorded at every sample.
+    directions : int
+        Tangent directions (0: the adjoint: a taped run and one reverse sweep).
+
+    Returns
+    -------
+    dict
+        ``{"tape": ..., "sweep": ..., "group": ...}`` (the adjoint: checkpoints, step log, records;
+        the reverse sweep; of it, the steps of one replayed group, which :func:`gradient` bounds by
+        4 GROUP_BYTES) or ``{"tangent": ...}`` (the D tangents and their
+        records); every part linear in the bodies, the samples and the directions.
+    """
+    plan = step_plan(system, sample_interval, dt, steps_per_radian)
+    n_samples = _samples(duration, sample_interval)
+    p = -(-(system.n_moving + 1) // PAD) * PAD  # the padded slots (layout.pack): moving bodies, ghost
+    records = n_samples * (recorded + 4) * 8  # forces, times, step ends, scratch
+    state = 24 * p * 8  # the packed System, the state, forces, trackers
+    if directions:
+        per_dir = (_ROWS + 1 + 7) * (p + 1) * 8 + n_samples * recorded * 8  # th, v0t, the tangents, their records
+        return {"tangent": records + state + directions * per_dir}
+    n_blocks, rows, group, ns_max = _checkpoints(system, plan, n_samples, sample_interval, p)
+    tape = records + state + max(1, -(-n_blocks // group)) * rows * p * 8 + max(n_blocks, 1) * 8
+    per_step = 5 if system.law == kernels.LAW_ELASTOPLASTIC else 2 if system.general else 1
+    group_rows = group * ns_max + 1
+    sweep = group_rows * (p + 1) * 8 * (per_step + 1) + (_ROWS + 16) * p * 8
+    return {"tape": tape, "sweep": sweep, "group": group_rows * (p + 1) * 8 * per_step}
+
+
 def record(system: System, duration: float, sample_interval: float, dt: float | None = None,
            steps_per_radian: float | None = None, contacts=None) -> Tape:
     """Run ``system`` as :func:`hertzchain.integrate.verlet.run_verlet` does, keeping the tape.
@@ -224,11 +279,7 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     scratch = np.empty(n_samples)
     initialise(system, w, u, v, g, a, rec, out_f, scratch, scratch, scratch, np.empty((1, 1)), False, fmax, peak, acc,
                np.empty(n_samples), w.ext, np.empty((1, 4)))
-    n_blocks = (n_samples - 1) * plan.n_sub
-    rows = 6 if system.law == kernels.LAW_ELASTOPLASTIC else 3  # u, v, a (and dmax, dres, kres)
-    per_ckpt = rows * w.n_slots * 8
-    ns_max = plan.stride if plan.stride > 0 else math.ceil(sample_interval / plan.n_sub / plan.dt - 1e-9)
-    group = max(1, GROUP_STEPS // max(ns_max, 1), math.ceil(n_blocks * per_ckpt / CHECKPOINT_BYTES))
+    n_blocks, rows, group, _ = _checkpoints(system, plan, n_samples, sample_interval, w.n_slots)
     ckpt = np.empty((max(1, -(-n_blocks // group)), rows, w.n_slots))
     ns_log = np.zeros(max(n_blocks, 1), dtype=np.int64)
     step_end = np.zeros(n_samples, dtype=np.int64)
@@ -310,7 +361,7 @@ def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
     group_steps = np.add.reduceat(tape.ns_log, np.arange(0, max(n_blocks, 1), tape.group)) if n_blocks else np.ones(1)
     max_rows = int(max(1, group_steps.max()))
     per_step = 5 if sy.law == kernels.LAW_ELASTOPLASTIC else 2 if sy.general else 1  # arrays of P stored per step
-    if max_rows * (n + 1) * 8 * per_step > GROUP_BYTES * 4:
+    if max_rows * (n + 1) * 8 * per_step > GROUP_LIMIT:
         raise ConfigError("run.dt", f"a group of {max_rows} steps between two checkpoints needs more memory than the "
                           "reverse sweep allows; use a larger run.dt or a shorter run.duration")
     block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub if tape.time.size > 1 else 0.0
