@@ -308,7 +308,7 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     """
     from ..integrate import differentiate as D
     from .memory import check_memory, estimate_memory
-    from .objectives import check_objective, objective_unit, read_objective, soft_peak
+    from .objectives import check_objective, contacts_needed, objective_unit, read_objective, soft_peak
     from .setup import expand_paths, setup_derivatives
 
     t0 = _time.perf_counter()
@@ -323,7 +323,7 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     check_memory(estimate_memory(cfg, system, duration, paths, use_tangent))
     sd = setup_derivatives(cfg, system, paths)
     tape = D.record(system, duration, cfg.run.sample_interval, dt=cfg.run.dt,
-                    steps_per_radian=cfg.run.steps_per_radian)
+                    steps_per_radian=cfg.run.steps_per_radian, contacts=contacts_needed(objective, system))
     reading = read_objective(objective, tape, window)
     value = reading.value
     if smoothing is not None:

@@ -8,7 +8,11 @@ Objectives (SI units; the names of the design objectives mean the same numbers a
   holds the step of the maximum fixed: the envelope theorem makes it the derivative of the true
   maximum as the step goes to zero, and where two separate maxima are equal the objective has a
   kink (one-sided derivatives: the gradient is that of the maximum the run found);
-- ``peak_wall_time`` [s]: the time of that vertex;
+- ``peak_wall_time`` [s]: the time of that vertex; where the wall contact yields (Thornton's law
+  without a viscous part), the time the wall overlap stops growing, the vertex of the parabola
+  through the overlap at three steps (the force's curvature jumps there; the overlap is smooth,
+  so the time and its derivative agree with central differences; it differs from the run's
+  ``peak_wall_time`` attribute by a fraction of a step);
 - ``time_of_flight`` [s], ``pulse_duration`` [s], ``front_momentum_at_wall`` [N s]: T, tau and Q_F of
   the wall pulse's cos^6 fit (paper Sec. III, :func:`hertzchain.analysis.fit_pulse`), differentiated
   through the fit's optimality conditions (implicit function theorem). The fit reads the samples
@@ -50,7 +54,12 @@ OBJECTIVES: dict[str, tuple[str, str]] = {
     "energy_at_wall": ("J", "largest elastic energy in the bead N - wall contact"),
     "peak_contact_force": ("N", "largest sampled force of any contact (peak_contact_force[j]: of contact j)"),
     "max_force_over_yield": ("1", "largest contact force over its elastic limit F_Y"),
+    "peak_body_force": ("N", "peak force the protected body's mount passes to the ground, |k x + c v|"),
+    "peak_body_acceleration": ("m s-2", "peak acceleration of the protected body"),
 }
+#: Objectives of a protected body (``[wall] type = "body"``), as the design search computes them
+#: (:mod:`hertzchain.design.body`): the largest magnitude over the samples.
+BODY = frozenset({"peak_body_force", "peak_body_acceleration"})
 _NEEDS_WALL = {"peak_wall_force", "peak_wall_time", "time_of_flight", "pulse_duration", "front_momentum_at_wall",
                "energy_at_wall"}
 _CONTACT = re.compile(r"peak_contact_force\[(\d+)\]")
@@ -115,6 +124,9 @@ def check_objective(name: str, system) -> None:
                           "peak_contact_force[j]")
     if name in _NEEDS_WALL and not system.has_wall:
         raise ConfigError("objective", f"{name} reads the wall force, but wall.type = 'none'")
+    if name in BODY and not system.body:
+        raise ConfigError("objective", f"{name} is a protected body's: it needs [wall] type = 'body' (with its mass, "
+                          "stiffness and damping)")
 
 
 def contacts_needed(name: str, system) -> list[int]:
@@ -130,9 +142,9 @@ def contacts_needed(name: str, system) -> list[int]:
     Returns
     -------
     list of int
-        Contact numbers.
+        Contact numbers: the wall's; with a protected body its mount's too (contact N + 1).
     """
-    return [system.n_beads] if system.has_wall else []
+    return [system.n_beads] + ([system.n_beads + 1] if system.body else []) if system.has_wall else []
 
 
 def read_objective(name: str, tape, window: tuple[float, float] | None = None) -> Reading:
@@ -164,6 +176,8 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
         if tape.max_force_sample[j] == tape.time.size - 1:
             raise _rising(tape, name)
         return Reading(float(tape.max_force[j]), samples=[(int(tape.max_force_sample[j]), j, 1.0)])
+    if name in BODY:
+        return _body_peak(tape, name)
     if name in ("peak_wall_force", "peak_wall_time"):
         _check_wall_peak(tape, name)
         return _peak(tape, wall, name == "peak_wall_time")
@@ -286,10 +300,116 @@ def _vertex(fb, fpk, fa, h0, h1, t_pk):
     return fpk - 0.25 * b * b / c, t_pk - 0.5 * b / c
 
 
+def _body_peak(tape, name: str) -> Reading:
+    """The largest magnitude over the samples of the protected body's force to the ground
+    k x + c v (x = u_b + the mount's deflection at rest) or of its acceleration
+    (F_N - F_(N+1) + f_ext) / M, and its partials: on the body's state after the sample's last step
+    (state seeds) or on the two forces of that step, and on the mount's k, c, deflection and 1/M.
+
+    The sample of the maximum is held fixed (as every maximum over samples). The force's sample is
+    found from the mount's recorded force (which sees the velocity half a step earlier), then
+    among its neighbours on the exact k x + c v of the state run again from a checkpoint."""
+    from ..integrate import differentiate as D
+
+    sy, w = tape.system, tape.packed
+    n = sy.n_beads
+    b = n + 1
+    col = {int(c): i for i, c in enumerate(tape.contacts)}
+    fn, fm = tape.forces[:, col[n]], tape.forces[:, col[b]]
+    if name == "peak_body_acceleration":
+        acc = (fn - fm + w.fext[b]) * w.inv_mass[b]
+        k = int(np.argmax(np.abs(acc)))
+        if not abs(acc[k]) > 0.0:
+            raise _never(tape, name)
+        sign = 1.0 if acc[k] > 0 else -1.0
+        step = tape.sample_step(k)
+        inv_mass, fext = np.zeros(sy.mass.size), np.zeros(sy.mass.size)
+        inv_mass[b] = sign * (fn[k] - fm[k] + w.fext[b])
+        fext[b] = sign * w.inv_mass[b]
+        return Reading(float(abs(acc[k])), steps=[(step, n, sign * w.inv_mass[b]), (step, b, -sign * w.inv_mass[b])],
+                       direct={"inv_mass": inv_mass, "fext": fext})
+    k0 = int(np.argmax(np.abs(fm)))
+    if not abs(fm[k0]) > 0.0:
+        raise _never(tape, name)
+    best = None
+    for k in range(max(k0 - 2, 1), min(k0 + 3, tape.time.size)):
+        u, v, _ = D.state_after(tape, k)
+        x = float(sy.mount_d0) + u[b]
+        f = float(sy.mount_k) * x + float(sy.mount_c) * v[b]
+        if best is None or abs(f) > abs(best[1]):
+            best = (k, f, x, v[b])
+    k, f, x, vb = best
+    if k == tape.time.size - 1:
+        raise _rising(tape, name)
+    sign = 1.0 if f > 0 else -1.0
+    step = tape.sample_step(k)
+    return Reading(abs(f), steps=[(step, D.state_seed(b), sign * float(sy.mount_k)),
+                                  (step, D.state_seed(b, velocity=True), sign * float(sy.mount_c))],
+                   direct={"mount_k": np.array([sign * x]), "mount_c": np.array([sign * vb]),
+                           "mount_d0": np.array([sign * float(sy.mount_k)])})
+
+
+def _never(tape, name: str) -> ObjectiveUndefined:
+    """The refusal of a body objective that stays zero: the pulse never reaches the body."""
+    return ObjectiveUndefined("run.duration", f"the pulse does not reach the protected body within the run "
+                              f"({_span(tape)}): {name} is 0 and so is every derivative; lengthen run.duration (or "
+                              "leave it 'auto')")
+
+
+def _yielded_wall(tape, wall: int) -> bool:
+    """Whether the wall contact went plastic (Thornton's law, its largest overlap past the yield
+    overlap) without a viscous part: its force then peaks where its overlap stops growing, with a
+    kink in the force's curvature there (loading line, steeper unloading curve)."""
+    from ..integrate import kernels
+
+    w = tape.packed
+    return (tape.system.law == kernels.LAW_ELASTOPLASTIC and w.damping[wall] == 0.0
+            and w.dmax[wall] > w.dyield[wall])
+
+
+def _overlap_peak_time(tape, wall: int) -> Reading:
+    """The time the wall overlap stops growing: the vertex of the parabola through the overlap
+    delta_N = u_N - u_(N+1) + d0_N at the three steps around its largest value, and its partials
+    on those positions (state seeds). The overlap is smooth there (its second derivative is the
+    relative acceleration, continuous), where the force's curvature jumps from Thornton's loading
+    line to the stiffer unloading curve: a parabola through three forces across that kink misplaces
+    the peak by a fraction of a step that cycles as the peak moves from step to step, and its
+    derivative then differs from the trend by ~13 % (issue 38); the overlap's vertex does not."""
+    from ..integrate import differentiate as D
+
+    starts = np.concatenate([[0], np.cumsum(np.add.reduceat(tape.ns_log, np.arange(0, tape.ns_log.size,
+                                                                                    tape.group)))])
+    gi = int(np.searchsorted(starts, tape.peak_step, side="right")) - 1
+    first, u, h = D.replay(tape, gi - 1, gi + 1)
+    body = wall + 1
+    delta = u[:, wall] - u[:, body] + tape.packed.d0[wall]
+    r = int(np.argmax(delta))
+    if not 0 < r < delta.size - 1:  # the largest overlap at an end of the run: no vertex
+        raise _rising(tape, "peak_wall_time")
+    t = (max(gi - 1, 0) * tape.group) * float(tape.time[1] - tape.time[0]) / tape.plan.n_sub + np.cumsum(h)
+    weights = []
+    for i in range(3):
+        e = [0j, 0j, 0j]
+        e[i] = 1j * _STEP
+        _, tv = _vertex(delta[r - 1] + e[0], delta[r] + e[1], delta[r + 1] + e[2], h[r], h[r + 1], t[r])
+        weights.append(tv.imag / _STEP)
+    _, time = _vertex(delta[r - 1], delta[r], delta[r + 1], h[r], h[r + 1], t[r])
+    seeds = []
+    for i, wgt in enumerate(weights):
+        step = first + r - 1 + i
+        seeds.append((step, D.state_seed(wall), wgt))
+        if tape.system.body:  # a protected body moves: its position enters the overlap too
+            seeds.append((step, D.state_seed(body), -wgt))
+    return Reading(float(time.real), steps=seeds)
+
+
 def _peak(tape, wall: int, want_time: bool) -> Reading:
-    """The refined wall peak (or its time) and its partials on the three steps around the maximum."""
+    """The refined wall peak (or its time) and its partials on the three steps around the maximum;
+    the time of a wall contact that yielded is that of its overlap's peak (:func:`_overlap_peak_time`)."""
     from ..integrate.verlet import refine_peak
 
+    if want_time and _yielded_wall(tape, wall):
+        return _overlap_peak_time(tape, wall)
     pk = tape.peak
     k = tape.peak_step
     fpk, t_pk, fb, fa, h0, h1 = pk[0], pk[1], pk[2], pk[3], pk[6], pk[7]

@@ -27,11 +27,13 @@ from ..model import System
 from . import adjoint as _adjoint
 from . import kernels
 from . import tangent as _tangent
+from .adjoint import STATE_U, STATE_V
 from .layout import PAD, Packed, pack
-from .tape import tape_forward
+from .tape import replay_group, tape_forward
 from .verlet import StepPlan, initialise, refine_peak, step_plan
 
-__all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHECKPOINT_BYTES"]
+__all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHECKPOINT_BYTES", "state_seed", "replay", "state_after",
+           "STATE_U", "STATE_V", "engine_bytes"]
 
 #: System arrays the engines differentiate, in the order of the kernels' gradient rows (v0 last):
 #: then a protected body's mount, its spring ``mount_k`` [N/m], dashpot ``mount_c`` [N s/m] and
@@ -57,7 +59,9 @@ GROUP_STEPS = 256
 @dataclass(frozen=True)
 class Seeds:
     """Partials dJ/dF^(s)_j of a scalar result J: ``weight[i]`` on the force of contact
-    ``contact[i]`` at step ``step[i]`` (-1: t = 0), sorted by step."""
+    ``contact[i]`` at step ``step[i]`` (-1: t = 0), sorted by step. A contact number
+    :data:`STATE_U` + i (:data:`STATE_V` + i) seeds the position (velocity) of slot i after the
+    step instead (:func:`state_seed`): a result that reads the state, as a body's speed."""
 
     step: np.ndarray
     contact: np.ndarray
@@ -298,11 +302,103 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
                 ckpt=ckpt, group=group, u0=u0, v0=v0)
 
 
+def state_seed(slot: int, velocity: bool = False) -> int:
+    """The contact number of a seed on the position (or velocity) of ``slot`` (body) after a step.
+
+    Parameters
+    ----------
+    slot : int
+        The body (0: striker, N + 1: a protected body).
+    velocity : bool
+        The velocity instead of the position.
+
+    Returns
+    -------
+    int
+        The number to give :meth:`Seeds.build`.
+    """
+    return (STATE_V if velocity else STATE_U) + int(slot)
+
+
 def _check_seeds(tape: Tape, seeds: Seeds) -> None:
     if seeds.step.size and (seeds.step[0] < -1 or seeds.step[-1] >= tape.n_steps):
         raise ValueError(f"seeds address steps {seeds.step[0]}..{seeds.step[-1]}; the run has 0..{tape.n_steps - 1}")
-    if seeds.contact.size and (seeds.contact.min() < 0 or seeds.contact.max() >= tape.system.n_contacts):
-        raise ValueError("seeds address a contact the system does not have")
+    n = tape.packed.n_slots
+    c = seeds.contact % STATE_U  # the slot of a state seed, the contact of a force's
+    if c.size and (seeds.contact.min() < 0 or seeds.contact.max() >= STATE_V + n or c.max() >= n):
+        raise ValueError("seeds address a contact or body the system does not have")
+
+
+def state_after(tape: Tape, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The state (positions [m], velocities [m/s], accelerations [m/s^2] of every slot) at sample
+    ``k``, as the engine had it (run again from the last checkpoint before it).
+
+    Parameters
+    ----------
+    tape : Tape
+        From :func:`record`.
+    k : int
+        Sample number (> 0).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        u, v, a.
+    """
+    end = k * tape.plan.n_sub  # blocks up to sample k
+    g0 = (end - 1) // tape.group
+    u, v, a = _replay(tape, g0 * tape.group, end, None)
+    return u, v, a
+
+
+def _replay(tape: Tape, b0: int, b1: int, stores) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Blocks b0 .. b1 - 1 run again from the checkpoint of b0 (a multiple of the group), storing the
+    steps into ``stores`` (``tape.replay_group``; None: into scratch of one step); the state after."""
+    w, sy = tape.packed, tape.system
+    n = w.n_slots
+    if stores is None:
+        steps = int(tape.ns_log[b0:b1].max()) * (b1 - b0) if b1 > b0 else 1
+        plastic = sy.law == kernels.LAW_ELASTOPLASTIC
+        stores = (np.zeros((steps, n)), np.zeros((steps if sy.general else 1, n)), np.zeros(steps),
+                  np.zeros((3, steps if plastic else 1, n if plastic else 1)))
+    block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub
+    u, v, a, g = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n), np.zeros(n + 1)
+    dmax, dres, kres = np.zeros(n), np.zeros(n), w.kappa.copy()
+    replay_group(tape.ckpt[b0 // tape.group], u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
+                 w.fext, sy.law, sy.general, w.wall_slot, tape.ns_log, b0, b1, block, stores, w.dyield, dmax, dres,
+                 kres, w.ext, w.ext.shape[0] > 0)
+    return u, v, a
+
+
+def replay(tape: Tape, first_group: int, last_group: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """The positions after every step of groups ``first_group`` .. ``last_group`` (of checkpoints),
+    run again from the first's checkpoint with the taped step counts.
+
+    Parameters
+    ----------
+    tape : Tape
+        From :func:`record`.
+    first_group, last_group : int
+        Groups (inclusive), clipped to the run's.
+
+    Returns
+    -------
+    (int, numpy.ndarray, numpy.ndarray)
+        The global number of the first step, the positions after each step (steps, slots) [m]
+        and each step's length [s].
+    """
+    sy = tape.system
+    n = tape.packed.n_slots
+    n_blocks = (tape.time.size - 1) * tape.plan.n_sub
+    g0 = max(0, first_group)
+    b0, b1 = g0 * tape.group, min((last_group + 1) * tape.group, n_blocks)
+    first = int(tape.ns_log[:b0].sum())
+    steps = int(tape.ns_log[b0:b1].sum())
+    plastic = sy.law == kernels.LAW_ELASTOPLASTIC
+    stores = (np.zeros((steps, n)), np.zeros((steps if sy.general else 1, n)), np.zeros(steps),
+              np.zeros((3, steps if plastic else 1, n if plastic else 1)))
+    _replay(tape, b0, b1, stores)
+    return first, stores[0], stores[2]
 
 
 def _unpack(system: System, grad: np.ndarray, v0bar: np.ndarray) -> dict[str, np.ndarray]:
