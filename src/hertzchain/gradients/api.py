@@ -181,18 +181,9 @@ def _prepare(cfg):
 
 
 def _refuse_unknown_models(cfg, model) -> None:
-    """Refuse, naming the field, what the derivative engines do not cover yet: a non-spherical or
-    curved striker face, a protected body's curved face, gravity, elements (cylinders,
-    mass-in-mass beads)."""
-    s = cfg.striker
-    if s.shape != "sphere" or s.radius_of_curvature_mm is not None:
-        field = "striker.shape" if s.shape != "sphere" else "striker.radius_of_curvature_mm"
-        raise ConfigError(field, "gradients cover a spherical striker (its size sets its contact); a flat or "
-                          "curved face is not differentiated yet")
-    w = cfg.wall
-    if w.type == "body" and (w.shape != "flat" or w.radius_of_curvature_mm is not None):
-        raise ConfigError("wall.shape", "gradients cover a protected body with a flat face; a curved face is not "
-                          "differentiated yet")
+    """Refuse, naming the field, what the derivative engines do not cover yet: gravity, elements
+    (cylinders, mass-in-mass beads). (Striker faces, flat or curved, and a protected body's flat
+    or spherical face are differentiated: :mod:`~hertzchain.gradients.setup`.)"""
     if getattr(model, "gravity", 0.0):
         raise ConfigError("chain.gravity" if cfg.chain.gravity is not None else "chain.tilt_deg",
                           "gradients do not differentiate gravity's static state yet")

@@ -15,11 +15,12 @@ Fields (units: the config's own, so ``diameters_mm`` is per mm):
   ``chain.substitutions[i].diameter_mm``, ``chain.offsets_mm[i]``, ``chain.offsets_fraction[i]``,
   ``chain.precompression``;
 - ``striker.diameter_mm``, ``striker.velocity``, and ``striker.mass`` [kg] (the striker's mass at
-  fixed size: not a config field yet);
+  fixed size: not a config field yet); a flat face (``striker.shape = "flat"``, 1/R' = 0) or a
+  curved one (``striker.radius_of_curvature_mm``, a field of its own);
 - ``contact.A``, ``contact.gamma`` (constant or size-scaled laws); the elastic-plastic law's
   ``contact.A`` and ``contact.limiting_pressure_factor`` (its yield overlaps scale as its square);
 - a protected body (``[wall] type = "body"``): ``wall.mass`` [kg], ``wall.stiffness`` [N/m] and
-  ``wall.damping`` [N s/m] of its mount;
+  ``wall.damping`` [N s/m] of its mount, and a spherical face's ``wall.radius_of_curvature_mm``;
 - ``materials.NAME.density``, ``.young``, ``.poisson``, ``.yield_stress`` for a material of the
   config's ``[materials]`` or of the catalogue (``materials.AISI52100.young``): every body made
   of it, the wall cap included.
@@ -49,8 +50,9 @@ STEP = 1e-30
 
 _MATERIAL_FIELDS = ("density", "young", "poisson", "yield_stress")
 _SCALAR_FIELDS = ("chain.uniform.diameter_mm", "chain.taper.q", "chain.precompression", "striker.diameter_mm",
-                  "striker.velocity", "striker.mass", "contact.A", "contact.gamma", "contact.limiting_pressure_factor",
-                  "wall.mass", "wall.stiffness", "wall.damping")
+                  "striker.velocity", "striker.mass", "striker.radius_of_curvature_mm", "contact.A", "contact.gamma",
+                  "contact.limiting_pressure_factor",
+                  "wall.mass", "wall.stiffness", "wall.damping", "wall.radius_of_curvature_mm")
 _LISTS = ("chain.diameters_mm", "chain.offsets_mm", "chain.offsets_fraction")
 #: What a variable may look like (the refusal of a malformed path says it).
 _PATH_GRAMMAR = ("dotted names with whole-number indices, as in the config and --set: chain.diameters_mm[3], "
@@ -179,12 +181,20 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
         mass[:, :1] = read("striker.mass", mass[0, 0].real) + 1j * mass[:, :1].imag
     r = phi / 2.0
     inv_r = 1.0 / r[:, :-1] + 1.0 / r[:, 1:]
+    if s.shape == "flat":  # a flat face meets bead 1 sphere-on-flat: 1/R' = 0 (paper eq. 1)
+        inv_r[:, :1] = 1.0 / r[:, 1:2]
+    elif s.radius_of_curvature_mm is not None:  # a curved face of its own radius
+        face = read("striker.radius_of_curvature_mm", s.radius_of_curvature_mm) * 1e-3
+        inv_r[:, :1] = 1.0 / face + 1.0 / r[:, 1:2]
     t_sum = theta[:, :-1] + theta[:, 1:]
     s_min = _weaker(sigma[:, :-1], sigma[:, 1:])
     if cfg.wall.type != "none":
         wall = _material(cfg.wall.material or mats[-1]).name
         wt, _, ws = props[wall] if wall in props else _theta(_material(wall), read)
-        inv_r = np.concatenate([inv_r, 1.0 / r[:, -1:]], axis=1)
+        face = 0.0  # a flat (the wall's cap, a body's flat face), or a body's spherical face
+        if cfg.wall.type == "body" and cfg.wall.shape == "sphere":
+            face = 1.0 / (read("wall.radius_of_curvature_mm", cfg.wall.radius_of_curvature_mm) * 1e-3)
+        inv_r = np.concatenate([inv_r, 1.0 / r[:, -1:] + face], axis=1)
         t_sum = np.concatenate([t_sum, theta[:, -1:] + wt], axis=1)
         s_min = np.concatenate([s_min, _weaker(sigma[:, -1:], ws)], axis=1)
     m = inv_r.shape[1]
