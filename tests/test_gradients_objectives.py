@@ -17,15 +17,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import test_gradients as tg
+from test_gradients import BASE, _with
 
 import hertzchain as hc
-import test_gradients as tg
 from hertzchain.config import build_model, parse_config
 from hertzchain.errors import ConfigError
 from hertzchain.gradients import sensitivity
 from hertzchain.gradients.objectives import contacts_needed, read_objective
 from hertzchain.integrate import differentiate as D
-from test_gradients import BASE, _with
 
 BODY = _with(BASE, wall={"type": "body", "mass": 0.05, "stiffness": 2e5, "damping": 5.0},
              striker={"shape": "flat", "mass": 0.004}, run={"duration": 1.2e-3})

@@ -299,7 +299,13 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     """
     from ..integrate import differentiate as D
     from .memory import check_memory, estimate_memory
-    from .objectives import check_objective, contacts_needed, objective_unit, read_objective, soft_peak
+    from .objectives import (
+        check_objective,
+        contacts_needed,
+        objective_unit,
+        read_objective,
+        soft_peak,
+    )
     from .setup import expand_paths, setup_derivatives
 
     t0 = _time.perf_counter()

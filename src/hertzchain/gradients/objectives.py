@@ -36,11 +36,13 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import ConfigError, ObjectiveUndefined, PulseNotFound
+from . import state
+from .reading import STEP, Reading, rising, span, vertex
+from .state import BODY
 
 __all__ = ["OBJECTIVES", "Reading", "read_objective", "objective_unit", "contacts_needed", "soft_peak"]
 
@@ -57,35 +59,10 @@ OBJECTIVES: dict[str, tuple[str, str]] = {
     "peak_body_force": ("N", "peak force the protected body's mount passes to the ground, |k x + c v|"),
     "peak_body_acceleration": ("m s-2", "peak acceleration of the protected body"),
 }
-#: Objectives of a protected body (``[wall] type = "body"``), as the design search computes them
-#: (:mod:`hertzchain.design.body`): the largest magnitude over the samples.
-BODY = frozenset({"peak_body_force", "peak_body_acceleration"})
+
 _NEEDS_WALL = {"peak_wall_force", "peak_wall_time", "time_of_flight", "pulse_duration", "front_momentum_at_wall",
                "energy_at_wall"}
 _CONTACT = re.compile(r"peak_contact_force\[(\d+)\]")
-_STEP = 1e-30
-
-
-@dataclass
-class Reading:
-    """An objective's value and partials.
-
-    Attributes
-    ----------
-    value : float
-        The objective [its unit].
-    samples : list of (int, int, float)
-        (sample, contact, dJ/dF) partials on recorded forces.
-    steps : list of (int, int, float)
-        (step, contact, dJ/dF) partials on the forces of single steps.
-    direct : dict
-        ``{System array name: dJ/d array}`` where the objective reads a System array itself.
-    """
-
-    value: float
-    samples: list = field(default_factory=list)
-    steps: list = field(default_factory=list)
-    direct: dict = field(default_factory=dict)
 
 
 def objective_unit(name: str) -> str:
@@ -171,13 +148,13 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
         j = int(m.group(1))
         if not tape.max_force[j] > 0.0:
             raise ObjectiveUndefined("run.duration", f"contact {j} never closes within the run "
-                                     f"({_span(tape)}): {name} is 0 N and so is every derivative; lengthen "
+                                     f"({span(tape)}): {name} is 0 N and so is every derivative; lengthen "
                                      "run.duration (or leave it 'auto') or choose another contact")
         if tape.max_force_sample[j] == tape.time.size - 1:
-            raise _rising(tape, name)
+            raise rising(tape, name)
         return Reading(float(tape.max_force[j]), samples=[(int(tape.max_force_sample[j]), j, 1.0)])
     if name in BODY:
-        return _body_peak(tape, name)
+        return state.body_peak(tape, name)
     if name in ("peak_wall_force", "peak_wall_time"):
         _check_wall_peak(tape, name)
         return _peak(tape, wall, name == "peak_wall_time")
@@ -201,18 +178,18 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
         mask = np.ones(t.size, bool) if window is None else (t >= window[0]) & (t <= window[1])
         if not mask.any():
             raise ObjectiveUndefined("window", f"[{window[0] * 1e3:g}, {window[1] * 1e3:g}] ms holds no sample of the "
-                                     f"run ({_span(tape)}): energy_at_wall is undefined there; choose a window "
+                                     f"run ({span(tape)}): energy_at_wall is undefined there; choose a window "
                                      "inside the run, or lengthen run.duration")
         fw = np.where(mask, np.maximum(f, 0.0), 0.0)
         k = int(np.argmax(fw))
         if not fw[k] > 0.0:
             where = "within the window" if window is not None else "during the run"
             raise ObjectiveUndefined("window" if window is not None else "run.duration",
-                                     f"the wall force is 0 {where} ({_span(tape, window)}): energy_at_wall is 0 J "
+                                     f"the wall force is 0 {where} ({span(tape, window)}): energy_at_wall is 0 J "
                                      "and so is every derivative; move the window to the wall pulse or lengthen "
                                      "run.duration (or leave it 'auto')")
         if k == t.size - 1:
-            raise _rising(tape, name)
+            raise rising(tape, name)
         fpk, kap = fw[k], sy.kappa[wall]
         direct = np.zeros(sy.kappa.size)
         direct[wall] = -(2.0 / 3.0) * 0.4 * fpk ** (5.0 / 3.0) * kap ** (-5.0 / 3.0)
@@ -220,22 +197,16 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
         return Reading(float(0.4 * fpk ** (5.0 / 3.0) / kap ** (2.0 / 3.0)), samples=[(k, wall, seed)],
                        direct={"kappa": direct})
     if not np.any(f > 0.0):
-        raise ObjectiveUndefined("run.duration", f"the pulse does not reach the wall within the run ({_span(tape)}): "
+        raise ObjectiveUndefined("run.duration", f"the pulse does not reach the wall within the run ({span(tape)}): "
                                  f"{name} is undefined; lengthen run.duration (or leave it 'auto')")
     try:
         value, weights = pulse_partials(tape.time, f, name)
     except PulseNotFound as exc:
-        raise ObjectiveUndefined("run.duration", f"{name} is undefined: the wall record of the run ({_span(tape)}) "
+        raise ObjectiveUndefined("run.duration", f"{name} is undefined: the wall record of the run ({span(tape)}) "
                                  f"holds no whole pulse to fit ({exc}); lengthen run.duration (or leave it "
                                  "'auto')") from None
     return Reading(value, samples=[(int(k), wall, float(w)) for k, w in zip(np.flatnonzero(weights),
                                                                            weights[weights != 0])])
-
-
-def _span(tape, window=None) -> str:
-    """The run's time span in words (ms), for the refusals."""
-    text = f"0 to {tape.time[-1] * 1e3:.4g} ms"
-    return text if window is None else f"window {window[0] * 1e3:g} to {window[1] * 1e3:g} ms of a run of {text}"
 
 
 def _check_wall_peak(tape, name: str) -> None:
@@ -243,20 +214,12 @@ def _check_wall_peak(tape, name: str) -> None:
     (zero without a static load: the pulse does not reach the wall), or one still rising when the
     run ends (the pulse arriving: the maximum is the last step's force, its time the run's end)."""
     if tape.peak_step < 0:  # the tracker's step of the maximum: -1 until the force rises above t = 0's
-        raise ObjectiveUndefined("run.duration", f"the pulse does not reach the wall within the run ({_span(tape)}): "
+        raise ObjectiveUndefined("run.duration", f"the pulse does not reach the wall within the run ({span(tape)}): "
                                  f"the wall force never rises above its value at t = 0 ({tape.peak[0]:.4g} N), so "
                                  f"{name} is that of the start and every derivative is 0; lengthen run.duration "
                                  "(or leave it 'auto')")
     if tape.peak_step >= tape.n_steps - 1:
-        raise _rising(tape, name)
-
-
-def _rising(tape, name: str) -> ObjectiveUndefined:
-    """The refusal of a maximum found at the run's last step: the force is still rising when the run
-    ends (the pulse is arriving), so the maximum is no peak, and its time is the run's end."""
-    return ObjectiveUndefined("run.duration", f"the force {name} reads is still rising when the run ends "
-                              f"({_span(tape)}): its peak lies beyond the run; lengthen run.duration (or leave it "
-                              "'auto')")
+        raise rising(tape, name)
 
 
 def soft_peak(tape, width: float) -> Reading:
@@ -291,125 +254,13 @@ def soft_peak(tape, width: float) -> Reading:
     return Reading(top + width * math.log(z), samples=[(int(k), wall, float(w[k])) for k in keep])
 
 
-def _vertex(fb, fpk, fa, h0, h1, t_pk):
-    """Vertex (value, time) of the parabola through three steps (``verlet.refine_peak``), complex-safe."""
-    s01 = (fpk - fb) / h0
-    s12 = (fa - fpk) / h1
-    c = (s12 - s01) / (h0 + h1)
-    b = s12 - c * h1
-    return fpk - 0.25 * b * b / c, t_pk - 0.5 * b / c
-
-
-def _body_peak(tape, name: str) -> Reading:
-    """The largest magnitude over the samples of the protected body's force to the ground
-    k x + c v (x = u_b + the mount's deflection at rest) or of its acceleration
-    (F_N - F_(N+1) + f_ext) / M, and its partials: on the body's state after the sample's last step
-    (state seeds) or on the two forces of that step, and on the mount's k, c, deflection and 1/M.
-
-    The sample of the maximum is held fixed (as every maximum over samples). The force's sample is
-    found from the mount's recorded force (which sees the velocity half a step earlier), then
-    among its neighbours on the exact k x + c v of the state run again from a checkpoint."""
-    from ..integrate import differentiate as D
-
-    sy, w = tape.system, tape.packed
-    n = sy.n_beads
-    b = n + 1
-    col = {int(c): i for i, c in enumerate(tape.contacts)}
-    fn, fm = tape.forces[:, col[n]], tape.forces[:, col[b]]
-    if name == "peak_body_acceleration":
-        acc = (fn - fm + w.fext[b]) * w.inv_mass[b]
-        k = int(np.argmax(np.abs(acc)))
-        if not abs(acc[k]) > 0.0:
-            raise _never(tape, name)
-        sign = 1.0 if acc[k] > 0 else -1.0
-        step = tape.sample_step(k)
-        inv_mass, fext = np.zeros(sy.mass.size), np.zeros(sy.mass.size)
-        inv_mass[b] = sign * (fn[k] - fm[k] + w.fext[b])
-        fext[b] = sign * w.inv_mass[b]
-        return Reading(float(abs(acc[k])), steps=[(step, n, sign * w.inv_mass[b]), (step, b, -sign * w.inv_mass[b])],
-                       direct={"inv_mass": inv_mass, "fext": fext})
-    k0 = int(np.argmax(np.abs(fm)))
-    if not abs(fm[k0]) > 0.0:
-        raise _never(tape, name)
-    best = None
-    for k in range(max(k0 - 2, 1), min(k0 + 3, tape.time.size)):
-        u, v, _ = D.state_after(tape, k)
-        x = float(sy.mount_d0) + u[b]
-        f = float(sy.mount_k) * x + float(sy.mount_c) * v[b]
-        if best is None or abs(f) > abs(best[1]):
-            best = (k, f, x, v[b])
-    k, f, x, vb = best
-    if k == tape.time.size - 1:
-        raise _rising(tape, name)
-    sign = 1.0 if f > 0 else -1.0
-    step = tape.sample_step(k)
-    return Reading(abs(f), steps=[(step, D.state_seed(b), sign * float(sy.mount_k)),
-                                  (step, D.state_seed(b, velocity=True), sign * float(sy.mount_c))],
-                   direct={"mount_k": np.array([sign * x]), "mount_c": np.array([sign * vb]),
-                           "mount_d0": np.array([sign * float(sy.mount_k)])})
-
-
-def _never(tape, name: str) -> ObjectiveUndefined:
-    """The refusal of a body objective that stays zero: the pulse never reaches the body."""
-    return ObjectiveUndefined("run.duration", f"the pulse does not reach the protected body within the run "
-                              f"({_span(tape)}): {name} is 0 and so is every derivative; lengthen run.duration (or "
-                              "leave it 'auto')")
-
-
-def _yielded_wall(tape, wall: int) -> bool:
-    """Whether the wall contact went plastic (Thornton's law, its largest overlap past the yield
-    overlap) without a viscous part: its force then peaks where its overlap stops growing, with a
-    kink in the force's curvature there (loading line, steeper unloading curve)."""
-    from ..integrate import kernels
-
-    w = tape.packed
-    return (tape.system.law == kernels.LAW_ELASTOPLASTIC and w.damping[wall] == 0.0
-            and w.dmax[wall] > w.dyield[wall])
-
-
-def _overlap_peak_time(tape, wall: int) -> Reading:
-    """The time the wall overlap stops growing: the vertex of the parabola through the overlap
-    delta_N = u_N - u_(N+1) + d0_N at the three steps around its largest value, and its partials
-    on those positions (state seeds). The overlap is smooth there (its second derivative is the
-    relative acceleration, continuous), where the force's curvature jumps from Thornton's loading
-    line to the stiffer unloading curve: a parabola through three forces across that kink misplaces
-    the peak by a fraction of a step that cycles as the peak moves from step to step, and its
-    derivative then differs from the trend by ~13 % (issue 38); the overlap's vertex does not."""
-    from ..integrate import differentiate as D
-
-    starts = np.concatenate([[0], np.cumsum(np.add.reduceat(tape.ns_log, np.arange(0, tape.ns_log.size,
-                                                                                    tape.group)))])
-    gi = int(np.searchsorted(starts, tape.peak_step, side="right")) - 1
-    first, u, h = D.replay(tape, gi - 1, gi + 1)
-    body = wall + 1
-    delta = u[:, wall] - u[:, body] + tape.packed.d0[wall]
-    r = int(np.argmax(delta))
-    if not 0 < r < delta.size - 1:  # the largest overlap at an end of the run: no vertex
-        raise _rising(tape, "peak_wall_time")
-    t = (max(gi - 1, 0) * tape.group) * float(tape.time[1] - tape.time[0]) / tape.plan.n_sub + np.cumsum(h)
-    weights = []
-    for i in range(3):
-        e = [0j, 0j, 0j]
-        e[i] = 1j * _STEP
-        _, tv = _vertex(delta[r - 1] + e[0], delta[r] + e[1], delta[r + 1] + e[2], h[r], h[r + 1], t[r])
-        weights.append(tv.imag / _STEP)
-    _, time = _vertex(delta[r - 1], delta[r], delta[r + 1], h[r], h[r + 1], t[r])
-    seeds = []
-    for i, wgt in enumerate(weights):
-        step = first + r - 1 + i
-        seeds.append((step, D.state_seed(wall), wgt))
-        if tape.system.body:  # a protected body moves: its position enters the overlap too
-            seeds.append((step, D.state_seed(body), -wgt))
-    return Reading(float(time.real), steps=seeds)
-
-
 def _peak(tape, wall: int, want_time: bool) -> Reading:
     """The refined wall peak (or its time) and its partials on the three steps around the maximum;
-    the time of a wall contact that yielded is that of its overlap's peak (:func:`_overlap_peak_time`)."""
+    the time of a wall contact that yielded is that of its overlap's peak (:func:`~hertzchain.gradients.state.overlap_peak_time`)."""
     from ..integrate.verlet import refine_peak
 
-    if want_time and _yielded_wall(tape, wall):
-        return _overlap_peak_time(tape, wall)
+    if want_time and state.yielded_wall(tape, wall):
+        return state.overlap_peak_time(tape, wall)
     pk = tape.peak
     k = tape.peak_step
     fpk, t_pk, fb, fa, h0, h1 = pk[0], pk[1], pk[2], pk[3], pk[6], pk[7]
@@ -421,9 +272,9 @@ def _peak(tape, wall: int, want_time: bool) -> Reading:
     w = []
     for i in range(3):
         e = [0j, 0j, 0j]
-        e[i] = 1j * _STEP
-        v, t = _vertex(fb + e[0], fpk + e[1], fa + e[2], h0, h1, t_pk)
-        w.append(((t if want_time else v).imag) / _STEP)
+        e[i] = 1j * STEP
+        v, t = vertex(fb + e[0], fpk + e[1], fa + e[2], h0, h1, t_pk)
+        w.append(((t if want_time else v).imag) / STEP)
     return Reading(float(time if want_time else value),
                    steps=[(k - 1, wall, w[0]), (k, wall, w[1]), (k + 1, wall, w[2])])
 
@@ -482,8 +333,8 @@ def pulse_partials(time: np.ndarray, force: np.ndarray, name: str) -> tuple[floa
     H = J.T @ J
     for k in range(3):
         e = np.zeros(3, complex)
-        e[k] = 1j * _STEP
-        d2 = _cos6_jacobian(s[W], p + e).imag / _STEP  # d (grad m_i) / d p_k
+        e[k] = 1j * STEP
+        d2 = _cos6_jacobian(s[W], p + e).imag / STEP  # d (grad m_i) / d p_k
         H[:, k] -= d2.T @ r
     # The window (b + w0 c, b + w1 c] follows the fit: as its ends move, samples enter and leave it,
     # and the values jump once per sample. Differentiated with the ends moving continuously (the

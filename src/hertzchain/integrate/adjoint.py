@@ -33,7 +33,6 @@ from .kernels import DELTA_MIN, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 from .partials import contact_partials, elastoplastic_adjoint
 from .tape import _fused, replay_group
 
-
 #: Seeds on the state rather than on a force: a seed's contact number STATE_U + i (STATE_V + i)
 #: is the position (velocity) of slot i after the step (``differentiate.Seeds``).
 STATE_U = 1 << 30
@@ -387,13 +386,15 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
 
 @njit(cache=True, nogil=True)
 def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
-                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield):
+                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb):
     """The whole reverse sweep: every group replayed and differentiated, last group first, then
     the initial state. On entry ``ub, vb, ab`` hold the seeds on the final state (usually zero);
     on exit the adjoints of (u_0, v_0, a_0), and ``grad`` the parameter gradients (rows as in
     :func:`_steps_general`; row 10: the yield overlaps of the elastic-plastic law). ``max_rows``:
     most steps in one group. With the elastic-plastic law the checkpoints hold its state too
-    (rows 3-5), and the adjoints of its state (``sb``) cross from group to group."""
+    (rows 3-5), and the adjoints of its state (``sb``, (2, P): residual overlap and unloading
+    stiffness; on entry those of the final state, for a result that reads it, as the plastic work)
+    cross from group to group."""
     n = ab.shape[0]
     u = np.zeros(n + 1)
     v = np.zeros(n + 1)
@@ -407,7 +408,6 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     vpstore = np.zeros((max_rows if general else 1, n))
     hstore = np.zeros(max_rows)
     pstore = np.zeros((3, max_rows if plastic else 1, n if plastic else 1))
-    sb = np.zeros((2, n))
     fb = np.zeros(n)
     fs = np.zeros(n + 1)
     wb = np.zeros(n + 1)

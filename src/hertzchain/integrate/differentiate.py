@@ -430,7 +430,7 @@ def _unpack(system: System, grad: np.ndarray, v0bar: np.ndarray) -> dict[str, np
     return out
 
 
-def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
+def gradient(tape: Tape, seeds: Seeds, final_dres: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """dJ/d(System arrays) of the scalar result J whose partials are ``seeds`` (one reverse sweep).
 
     Parameters
@@ -439,6 +439,9 @@ def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
         From :func:`record`.
     seeds : Seeds
         dJ/dF of the forces J reads.
+    final_dres : numpy.ndarray, optional
+        dJ/d(residual overlap of every contact at the end of the run) [per m], for a result that
+        reads the elastic-plastic law's final state (the plastic work).
 
     Returns
     -------
@@ -461,14 +464,18 @@ def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
         raise ConfigError("run.dt", f"a group of {max_rows} steps between two checkpoints needs more memory than the "
                           "reverse sweep allows; use a larger run.dt or a shorter run.duration")
     block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub if tape.time.size > 1 else 0.0
+    sb = np.zeros((2, n))  # adjoints of the elastic-plastic state (residual overlap, stiffness) at the end
+    if final_dres is not None:
+        sb[0, :final_dres.size] = final_dres
     if n_blocks:
         _adjoint.reverse_sweep(tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab,
                                w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general,
-                               w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield)
+                               w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield,
+                               sb)
     else:
         _adjoint._adjoint_initial(tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
                                   w.rsum, w.fext, sy.law, sy.general, seeds.step, seeds.contact, seeds.weight,
-                                  seeds.step.size, grad, w.ext, w.dyield, np.zeros((2, n)))
+                                  seeds.step.size, grad, w.ext, w.dyield, sb)
     return _unpack(sy, grad, vb)
 
 

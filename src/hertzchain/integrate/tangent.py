@@ -21,8 +21,8 @@ import numpy as np
 from numba import njit
 
 from . import kernels
-from .extension import EXT_CLIN, EXT_KLIN
 from .adjoint import STATE_U, STATE_V
+from .extension import EXT_CLIN, EXT_KLIN
 from .partials import contact_partials
 from .tape import _open_block
 
