@@ -1,10 +1,13 @@
-"""Sensitivity objectives of a protected body and striker faces (issue 36 item 3), and the time of
-a yielded wall peak (issue 38): each derivative against central differences of whole runs at a
-fixed small step (the same step sequence on both sides), each value against what the run reports.
+"""Sensitivity objectives of the design search (issue 36 item 3: a protected body's peaks, the
+energy delivered to it, the plastic work), striker faces, and the time of a yielded wall peak
+(issue 38): each derivative against central differences of whole runs at a fixed small step (the
+same step sequence on both sides, 1e-5 relative), each value against what the run reports.
 
-- ``peak_body_force`` (|k x + c v| of the mount) and ``peak_body_acceleration`` read the body's
-  state and the forces on it: the engines seed positions and velocities (state seeds) as well as
-  forces; checked on a short chain ending on a protected body, struck by a flat-faced striker.
+- ``peak_body_force`` (|k x + c v| of the mount), ``peak_body_acceleration`` and
+  ``energy_to_body`` (the trapezoids of F_N v_body the engine sums) read the body's state and the
+  forces on it: the engines seed positions and velocities (state seeds) as well as forces;
+  checked on a short chain ending on a protected body, struck by a flat-faced striker.
+- ``plastic_work`` reads every contact's final elastic-plastic state.
 - a flat striker face (1/R' = 0), a curved one (its radius a variable) and a body's spherical face.
 - ``peak_wall_time`` where the wall contact yields without viscosity (Thornton): the force's
   curvature jumps at the peak; the time where the overlap stops growing is smooth, so its
@@ -46,7 +49,8 @@ def _records_what_the_objective_reads(monkeypatch):
 
 
 @pytest.mark.parametrize("objective, record", [("peak_body_force", "body_force"),
-                                               ("peak_body_acceleration", "body_acceleration")])
+                                               ("peak_body_acceleration", "body_acceleration"),
+                                               ("energy_to_body", "body_energy")])
 def test_body_objectives_are_the_runs_and_match_differences(objective, record):
     paths = ["striker.velocity", "striker.mass", "chain.diameters_mm[7]", "wall.mass", "wall.stiffness", "wall.damping"]
     s = sensitivity(BODY, paths, objective)
@@ -81,6 +85,23 @@ def test_the_time_of_a_yielded_wall_peak_follows_the_trend():
     tg.assert_matches(s, cfg, paths, "peak_wall_time", rel=1e-3, tol=1e-3)  # the trend, not a sawtooth's slope
 
 
+def test_plastic_work_is_the_runs_and_matches_differences():
+    """The plastic work at the end of the run: partials on every contact's largest overlap (the
+    positions of the step that reached it), its final residual overlap (carried back by the reverse
+    sweep), kappa and the yield overlaps."""
+    cfg = _with(BASE, materials=SOFT, contact={"law": "elastoplastic", "A": 1e-6})
+    paths = ["striker.velocity", "chain.diameters_mm[0]", "chain.diameters_mm[5]", "contact.A",
+             "materials.mysteel.yield_stress", "materials.mysteel.young"]
+    s = sensitivity(cfg, paths, "plastic_work")
+    assert s.value == pytest.approx(float(hc.run_config(cfg)["plastic_work"].values[-1]), rel=1e-12)
+    tg.assert_matches(s, cfg, paths, "plastic_work", rel=1e-6, tol=1e-5)
+
+
 def test_body_objectives_need_a_body():
     with pytest.raises(ConfigError, match="type = 'body'"):
         sensitivity(BASE, ["striker.velocity"], "peak_body_force")
+    with pytest.raises(ConfigError, match="elastoplastic"):
+        sensitivity(BASE, ["striker.velocity"], "plastic_work")
+    # a chain that stays elastic does no plastic work: refused, not a gradient of zeros
+    with pytest.raises(ConfigError, match="yield overlap"):
+        sensitivity(_with(BASE, contact={"law": "elastoplastic"}), ["striker.velocity"], "plastic_work")

@@ -327,14 +327,15 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
         if objective != "peak_wall_force" or not smoothing > 0:
             raise ConfigError("smoothing", "is a width > 0 [N] of the soft maximum of peak_wall_force")
         reading = soft_peak(tape, float(smoothing))
-    seeds = D.Seeds.build([(tape.sample_step(k), j, w) for k, j, w in reading.samples] + list(reading.steps))
+    seeds = D.Seeds.build([(tape.sample_step(k), j, w) for k, j, w in reading.samples] + list(reading.steps),
+                          reading.arrays)
     if use_tangent:
         dirs = {name: np.array([sd.dense(p, name) for p in paths]) for name in D.PARAMETERS}
         _, _, _, dj = D.tangents(system, dirs, duration, cfg.run.sample_interval, dt=cfg.run.dt,
                                  steps_per_radian=cfg.run.steps_per_radian, seeds=seeds)
         grad = {p: float(dj[i]) + sd.dot(p, reading.direct) for i, p in enumerate(paths)}
     else:
-        grad = _parameter_gradient(sd, D.gradient(tape, seeds), reading.direct)
+        grad = _parameter_gradient(sd, D.gradient(tape, seeds, reading.final_dres), reading.direct)
     records = {"time": tape.time, "max_contact_force": tape.max_force,
                "yield_force": system.yield_force[:system.n_contacts]}
     if system.has_wall:

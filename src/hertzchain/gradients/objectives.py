@@ -40,6 +40,7 @@ import re
 import numpy as np
 
 from ..errors import ConfigError, ObjectiveUndefined, PulseNotFound
+from ..integrate import kernels
 from . import state
 from .reading import STEP, Reading, rising, span, vertex
 from .state import BODY
@@ -58,6 +59,8 @@ OBJECTIVES: dict[str, tuple[str, str]] = {
     "max_force_over_yield": ("1", "largest contact force over its elastic limit F_Y"),
     "peak_body_force": ("N", "peak force the protected body's mount passes to the ground, |k x + c v|"),
     "peak_body_acceleration": ("m s-2", "peak acceleration of the protected body"),
+    "energy_to_body": ("J", "most energy delivered to the protected body"),
+    "plastic_work": ("J", "plastic work done in all contacts by the end of the run (elastoplastic law)"),
 }
 
 _NEEDS_WALL = {"peak_wall_force", "peak_wall_time", "time_of_flight", "pulse_duration", "front_momentum_at_wall",
@@ -101,6 +104,9 @@ def check_objective(name: str, system) -> None:
                           "peak_contact_force[j]")
     if name in _NEEDS_WALL and not system.has_wall:
         raise ConfigError("objective", f"{name} reads the wall force, but wall.type = 'none'")
+    if name == "plastic_work" and system.law != kernels.LAW_ELASTOPLASTIC:
+        raise ConfigError("objective", "plastic_work is the elastic-plastic law's: it needs contact.law = "
+                          "'elastoplastic' (the other laws do no plastic work)")
     if name in BODY and not system.body:
         raise ConfigError("objective", f"{name} is a protected body's: it needs [wall] type = 'body' (with its mass, "
                           "stiffness and damping)")
@@ -153,6 +159,10 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
         if tape.max_force_sample[j] == tape.time.size - 1:
             raise rising(tape, name)
         return Reading(float(tape.max_force[j]), samples=[(int(tape.max_force_sample[j]), j, 1.0)])
+    if name == "energy_to_body":
+        return state.energy_to_body(tape)
+    if name == "plastic_work":
+        return state.plastic_work(tape)
     if name in BODY:
         return state.body_peak(tape, name)
     if name in ("peak_wall_force", "peak_wall_time"):

@@ -28,12 +28,18 @@ class Reading:
         (step, contact, dJ/dF) partials on the forces of single steps.
     direct : dict
         ``{System array name: dJ/d array}`` where the objective reads a System array itself.
+    arrays : tuple of three arrays, optional
+        More (step, contact, dJ/dF) partials as arrays (an objective that reads every step).
+    final_dres : numpy.ndarray, optional
+        dJ/d(each contact's residual overlap at the end of the run) (the plastic work).
     """
 
     value: float
     samples: list = field(default_factory=list)
     steps: list = field(default_factory=list)
     direct: dict = field(default_factory=dict)
+    arrays: tuple | None = None
+    final_dres: object = None
 
 
 def span(tape, window=None) -> str:
@@ -50,8 +56,11 @@ def rising(tape, name: str) -> ObjectiveUndefined:
                               "'auto')")
 
 
-def never(tape, name: str) -> ObjectiveUndefined:
-    """The refusal of a body objective that stays zero: the pulse never reaches the body."""
+def never(tape, name: str, why: str | None = None) -> ObjectiveUndefined:
+    """The refusal of an objective that stays zero over the run: the pulse never reaches the
+    protected body (or ``why``, naming what to change)."""
+    if why is not None:
+        return ObjectiveUndefined("objective", f"{name} is 0 and so is every derivative: {why}")
     return ObjectiveUndefined("run.duration", f"the pulse does not reach the protected body within the run "
                               f"({span(tape)}): {name} is 0 and so is every derivative; lengthen run.duration (or "
                               "leave it 'auto')")

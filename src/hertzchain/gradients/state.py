@@ -11,7 +11,7 @@ import numpy as np
 
 from .reading import STEP, Reading, never, rising, vertex
 
-__all__ = ["body_peak", "yielded_wall", "overlap_peak_time", "BODY"]
+__all__ = ["body_peak", "yielded_wall", "overlap_peak_time", "energy_to_body", "plastic_work", "BODY"]
 
 #: Objectives of a protected body (``[wall] type = "body"``), as the design search computes them
 #: (:mod:`hertzchain.design.body`).
@@ -112,3 +112,136 @@ def overlap_peak_time(tape, wall: int) -> Reading:
         if tape.system.body:  # a protected body moves: its position enters the overlap too
             seeds.append((step, D.state_seed(body), -wgt))
     return Reading(float(time.real), steps=seeds)
+
+
+def energy_to_body(tape) -> Reading:
+    """The most energy the chain had delivered to the protected body at a sample: the work of
+    contact N on it, W = sum over steps of h/2 (P_(s-1) + P_s), P_s = F_N^(s) vp_b^(s), the
+    trapezoids the engine sums (``kernels``: the body's record), and its partials.
+
+    The run is replayed group by group for the body's position and velocity at every step; the
+    force of contact N at step s is M a_(s+1) + F_mount^(s) - f_ext, with a_(s+1) from velocity
+    Verlet's kicks (:func:`_accelerations`), exact to rounding, and the recorded one at the samples'
+    steps. The partials: on F_N of every step up to the sample of the maximum
+    (held fixed), and on the velocity the step sees, vp_s = v_s + h_s a_s: the state after step
+    s - 1 (a state seed) and the forces on the body then."""
+    from ..integrate import differentiate as D
+
+    sy, w = tape.system, tape.packed
+    n = sy.n_beads
+    b = n + 1
+    col = {int(c): i for i, c in enumerate(tape.contacts)}
+    inv_m, fext = float(w.inv_mass[b]), float(w.fext[b])
+    k_m, c_m, d0_m = float(sy.mount_k), float(sy.mount_c), float(sy.mount_d0)
+    pos, vel, hs = [], [], []
+    for _, u, vp, h in D.replay_groups(tape, tape.n_steps - 1):
+        pos.append(u[:, b].copy())
+        vel.append(vp[:, b].copy())
+        hs.append(h.copy())
+    ub, vp, h = np.concatenate(pos), np.concatenate(vel), np.concatenate(hs)
+    fm = k_m * (ub + d0_m) + c_m * vp  # the mount's force at every step (kernels.forces_linear)
+    a0 = (tape.forces[0, col[n]] - tape.forces[0, col[b]] + fext) * inv_m
+    acc = _accelerations(vp, h, a0)  # a_s after step s - 1, s = 0 .. steps
+    fn = acc[1:] / inv_m + fm - fext
+    ends = tape.step_end[1:] - 1  # the steps of samples 1..: their recorded forces, exactly
+    fn[ends] = tape.forces[1:, col[n]]
+    power = fn * vp
+    p_prev = np.concatenate([[tape.forces[0, col[n]] * float(sy.v0[b])], power[:-1]])
+    work = np.cumsum(0.5 * h * (p_prev + power))
+    series = np.concatenate([[0.0], work[ends]])
+    k = int(np.argmax(series))
+    if not series[k] > 0.0:
+        raise never(tape, "energy_to_body")
+    if k == series.size - 1:
+        raise rising(tape, "energy_to_body")
+    last = int(ends[k - 1])
+    steps = np.arange(last + 1)
+    c = 0.5 * h[:last + 1]
+    c[:-1] += 0.5 * h[1:last + 1]  # each P_s enters two trapezoids (one, the last)
+    a_s = acc[:last + 1]  # after step s - 1 (the initial one for s = 0)
+    wv = c * fn[:last + 1]  # dW/d vp_s
+    wa = wv * h[:last + 1]  # dW/d a_s: vp_s = v_s + h_s a_s
+    prev = steps - 1
+    arrays = (np.concatenate([steps, prev, prev, prev]),
+              np.concatenate([np.full(steps.size, n), np.full(steps.size, D.state_seed(b, velocity=True)),
+                              np.full(steps.size, n), np.full(steps.size, b)]),
+              np.concatenate([c * vp[:last + 1], wv, wa * inv_m, -wa * inv_m]))
+    d_inv_mass, d_fext = np.zeros(sy.mass.size), np.zeros(sy.mass.size)
+    d_inv_mass[b] = float(np.sum(wa * a_s)) / inv_m  # a_s = net force x 1/M
+    d_fext[b] = float(np.sum(wa)) * inv_m
+    return Reading(float(series[k]), arrays=arrays, direct={"inv_mass": d_inv_mass, "fext": d_fext})
+
+
+def _accelerations(vp: np.ndarray, h: np.ndarray, a0: float) -> np.ndarray:
+    """A body's accelerations a_s after every step s - 1 (a_0 given) from the velocities its forces
+    see, vp_s = v_s + h_s a_s (``tape``'s step convention): v_(s+1) = vp_s - h_s/2 a_s + h_s/2 a_(s+1),
+    so a_(s+1) = (vp_(s+1) - vp_s + h_s/2 a_s) / (h_s/2 + h_(s+1)) (the last with h_(s+1) = h_s:
+    its own vp is not needed, its force is recorded)."""
+    out = np.empty(h.size + 1)
+    out[0] = a0
+    hn = np.append(h[1:], h[-1])
+    vn = np.append(vp[1:], np.nan)
+    a = a0
+    for s in range(h.size):  # a recursion: a short loop of floats (the errors shrink by ~1/3 a step)
+        a = (vn[s] - vp[s] + 0.5 * h[s] * a) / (0.5 * h[s] + hn[s])
+        out[s + 1] = a
+    return out
+
+
+def _plastic_work(kappa, dy, dm, dres):
+    """Each contact's plastic work [J] (``integrate.energies.plastic_work``, vectorised, complex-safe)."""
+    sy = np.sqrt(dy)
+    fy = kappa * dy * sy
+    x = dm - dy
+    fmax = fy + 1.5 * kappa * sy * x
+    return 0.4 * fy * dy + fy * x + 0.75 * kappa * sy * x * x - 0.4 * fmax * (dm - dres)
+
+
+def plastic_work(tape) -> Reading:
+    """The plastic work done in all contacts by the end of the run (Thornton's law:
+    ``integrate.energies.plastic_work`` of every contact's largest overlap d_max and residual
+    overlap at the end), and its partials: on kappa and the yield overlaps (direct), on the final
+    residual overlaps (the reverse sweep carries them back to the loading steps), and on d_max,
+    the overlap of the step where each contact reached it (state seeds on its two beads'
+    positions, found by running the tape again)."""
+    from ..integrate import differentiate as D
+    from ..integrate.energies import plastic_work as total
+
+    sy, w = tape.system, tape.packed
+    nc = sy.n_contacts
+    value = float(total(w.kappa, w.dyield, w.dmax, w.dres))
+    yielded = np.flatnonzero(w.dmax[:nc] > w.dyield[:nc])
+    if not value > 0.0 or yielded.size == 0:
+        raise never(tape, "plastic_work", "no contact passes its yield overlap during the run (none deforms "
+                    "plastically); a faster striker (striker.velocity), a longer run (run.duration) or a lower "
+                    "materials.NAME.yield_stress would make one")
+    args = [w.kappa[yielded], w.dyield[yielded], w.dmax[yielded], w.dres[yielded]]
+    grads = []
+    for i in range(4):
+        z = [a.astype(complex) for a in args]
+        z[i] = z[i] + 1j * STEP
+        grads.append(_plastic_work(*z).imag / STEP)
+    g_kappa, g_dy, g_dm, g_dres = grads
+    # the step where each yielded contact's overlap reached its final d_max (first time: the law
+    # updates d_max when an overlap exceeds it)
+    dmax = w.dmax[yielded]
+    found = np.full(yielded.size, -2, dtype=np.int64)
+    u0 = tape.u0
+    start = u0[yielded] - u0[yielded + 1] + w.d0[yielded]
+    found[start == dmax] = -1
+    for first, u, _, _ in D.replay_groups(tape, tape.n_steps - 1):
+        delta = u[:, yielded] - u[:, yielded + 1] + w.d0[yielded]
+        hit = (delta == dmax) & (found == -2)
+        rows = np.argmax(hit, axis=0)
+        new = hit[rows, np.arange(yielded.size)]
+        found[new] = first + rows[new]
+    if np.any(found == -2):
+        raise RuntimeError("the largest overlaps of the replayed run differ from the taped run's")
+    size = sy.kappa.size
+    d_kappa, d_dyield, d_d0, final = (np.zeros(size) for _ in range(4))
+    d_kappa[yielded], d_dyield[yielded], d_d0[yielded], final[yielded] = g_kappa, g_dy, g_dm, g_dres
+    arrays = (np.concatenate([found, found]),
+              np.concatenate([D.state_seed(0) + yielded, D.state_seed(0) + yielded + 1]),
+              np.concatenate([g_dm, -g_dm]))
+    return Reading(value, arrays=arrays, direct={"kappa": d_kappa, "dyield": d_dyield, "d0": d_d0},
+                   final_dres=final)

@@ -32,7 +32,7 @@ from .layout import PAD, Packed, pack
 from .tape import replay_group, tape_forward
 from .verlet import StepPlan, initialise, refine_peak, step_plan
 
-__all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHECKPOINT_BYTES", "state_seed", "replay", "state_after",
+__all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHECKPOINT_BYTES", "state_seed", "replay", "state_after", "replay_groups",
            "STATE_U", "STATE_V", "engine_bytes"]
 
 #: System arrays the engines differentiate, in the order of the kernels' gradient rows (v0 last):
@@ -68,24 +68,32 @@ class Seeds:
     weight: np.ndarray
 
     @staticmethod
-    def build(items: list[tuple[int, int, float]]) -> "Seeds":
+    def build(items: list[tuple[int, int, float]], arrays=None) -> "Seeds":
         """Seeds from (step, contact, weight) triples (any order; zero weights dropped).
 
         Parameters
         ----------
         items : list of (int, int, float)
             Step (-1 for t = 0), contact number and weight [result unit per N].
+        arrays : (array, array, array), optional
+            More seeds as three arrays (steps, contacts, weights).
 
         Returns
         -------
         Seeds
             Sorted by step.
         """
-        items = sorted((int(s), int(c), float(w)) for s, c, w in items if w != 0.0)
-        if not items:
-            return Seeds(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
-        s, c, w = zip(*items)
-        return Seeds(np.array(s, np.int64), np.array(c, np.int64), np.array(w, float))
+        items = [(int(s), int(c), float(w)) for s, c, w in items if w != 0.0]
+        step = np.array([i[0] for i in items], np.int64)
+        contact = np.array([i[1] for i in items], np.int64)
+        weight = np.array([i[2] for i in items], float)
+        if arrays is not None:  # many seeds (one per step of a run) come as arrays
+            keep = np.asarray(arrays[2]) != 0.0
+            step = np.concatenate([step, np.asarray(arrays[0], np.int64)[keep]])
+            contact = np.concatenate([contact, np.asarray(arrays[1], np.int64)[keep]])
+            weight = np.concatenate([weight, np.asarray(arrays[2], float)[keep]])
+        order = np.lexsort((contact, step))
+        return Seeds(step[order], contact[order], weight[order])
 
 
 @dataclass
@@ -368,6 +376,42 @@ def _replay(tape: Tape, b0: int, b1: int, stores) -> tuple[np.ndarray, np.ndarra
                  w.fext, sy.law, sy.general, w.wall_slot, tape.ns_log, b0, b1, block, stores, w.dyield, dmax, dres,
                  kres, w.ext, w.ext.shape[0] > 0)
     return u, v, a
+
+
+def replay_groups(tape: Tape, last_step: int):
+    """The run again from its start, group of checkpoints by group, up to the group holding step
+    ``last_step``: yields (global number of the group's first step, positions after each step
+    (steps, slots) [m], the velocities the forces of each step see (steps, slots) [m/s], each
+    step's length [s]); memory of one group at a time.
+
+    Parameters
+    ----------
+    tape : Tape
+        From :func:`record` (a general model: dissipation, offsets, a protected body, plasticity,
+        whose replays store the velocities).
+    last_step : int
+        The last step needed.
+
+    Yields
+    ------
+    tuple
+        As above.
+    """
+    sy = tape.system
+    n = tape.packed.n_slots
+    n_blocks = (tape.time.size - 1) * tape.plan.n_sub
+    plastic = sy.law == kernels.LAW_ELASTOPLASTIC
+    first = 0
+    for b0 in range(0, n_blocks, tape.group):
+        b1 = min(b0 + tape.group, n_blocks)
+        steps = int(tape.ns_log[b0:b1].sum())
+        stores = (np.zeros((steps, n)), np.zeros((steps, n)), np.zeros(steps),
+                  np.zeros((3, steps if plastic else 1, n if plastic else 1)))
+        _replay(tape, b0, b1, stores)
+        yield first, stores[0], stores[1], stores[2]
+        first += steps
+        if first > last_step:
+            return
 
 
 def replay(tape: Tape, first_group: int, last_group: int) -> tuple[int, np.ndarray, np.ndarray]:
