@@ -7,7 +7,7 @@ same step sequence on both sides, 1e-5 relative), each value against what the ru
   ``energy_to_body`` (the trapezoids of F_N v_body the engine sums) read the body's state and the
   forces on it: the engines seed positions and velocities (state seeds) as well as forces;
   checked on a short chain ending on a protected body, struck by a flat-faced striker.
-- ``plastic_work`` reads every contact's final elastic-plastic state.
+- ``plastic_work`` and ``residual_overlap_max`` read every contact's final elastic-plastic state.
 - a flat striker face (1/R' = 0), a curved one (its radius a variable) and a body's spherical face.
 - ``peak_wall_time`` where the wall contact yields without viscosity (Thornton): the force's
   curvature jumps at the peak; the time where the overlap stops growing is smooth, so its
@@ -85,16 +85,19 @@ def test_the_time_of_a_yielded_wall_peak_follows_the_trend():
     tg.assert_matches(s, cfg, paths, "peak_wall_time", rel=1e-3, tol=1e-3)  # the trend, not a sawtooth's slope
 
 
-def test_plastic_work_is_the_runs_and_matches_differences():
+@pytest.mark.parametrize("objective, record", [("plastic_work", "plastic_work"),
+                                               ("residual_overlap_max", "residual_overlap")])
+def test_plastic_objectives_are_the_runs_and_match_differences(objective, record):
     """The plastic work at the end of the run: partials on every contact's largest overlap (the
     positions of the step that reached it), its final residual overlap (carried back by the reverse
-    sweep), kappa and the yield overlaps."""
+    sweep), kappa and the yield overlaps; the largest residual overlap (the dent kept)."""
     cfg = _with(BASE, materials=SOFT, contact={"law": "elastoplastic", "A": 1e-6})
     paths = ["striker.velocity", "chain.diameters_mm[0]", "chain.diameters_mm[5]", "contact.A",
              "materials.mysteel.yield_stress", "materials.mysteel.young"]
-    s = sensitivity(cfg, paths, "plastic_work")
-    assert s.value == pytest.approx(float(hc.run_config(cfg)["plastic_work"].values[-1]), rel=1e-12)
-    tg.assert_matches(s, cfg, paths, "plastic_work", rel=1e-6, tol=1e-5)
+    s = sensitivity(cfg, paths, objective)
+    run = hc.run_config(cfg)[record].values
+    assert s.value == pytest.approx(float(run[-1] if objective == "plastic_work" else run.max()), rel=1e-12)
+    tg.assert_matches(s, cfg, paths, objective, rel=1e-6, tol=1e-5)
 
 
 def test_body_objectives_need_a_body():

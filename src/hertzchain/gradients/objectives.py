@@ -61,6 +61,7 @@ OBJECTIVES: dict[str, tuple[str, str]] = {
     "peak_body_acceleration": ("m s-2", "peak acceleration of the protected body"),
     "energy_to_body": ("J", "most energy delivered to the protected body"),
     "plastic_work": ("J", "plastic work done in all contacts by the end of the run (elastoplastic law)"),
+    "residual_overlap_max": ("m", "largest permanent overlap of any contact at the end (elastoplastic law)"),
 }
 
 _NEEDS_WALL = {"peak_wall_force", "peak_wall_time", "time_of_flight", "pulse_duration", "front_momentum_at_wall",
@@ -104,8 +105,8 @@ def check_objective(name: str, system) -> None:
                           "peak_contact_force[j]")
     if name in _NEEDS_WALL and not system.has_wall:
         raise ConfigError("objective", f"{name} reads the wall force, but wall.type = 'none'")
-    if name == "plastic_work" and system.law != kernels.LAW_ELASTOPLASTIC:
-        raise ConfigError("objective", "plastic_work is the elastic-plastic law's: it needs contact.law = "
+    if name in ("plastic_work", "residual_overlap_max") and system.law != kernels.LAW_ELASTOPLASTIC:
+        raise ConfigError("objective", f"{name} is the elastic-plastic law's: it needs contact.law = "
                           "'elastoplastic' (the other laws do no plastic work)")
     if name in BODY and not system.body:
         raise ConfigError("objective", f"{name} is a protected body's: it needs [wall] type = 'body' (with its mass, "
@@ -163,6 +164,8 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
         return state.energy_to_body(tape)
     if name == "plastic_work":
         return state.plastic_work(tape)
+    if name == "residual_overlap_max":
+        return state.residual_overlap_max(tape)
     if name in BODY:
         return state.body_peak(tape, name)
     if name in ("peak_wall_force", "peak_wall_time"):

@@ -11,7 +11,8 @@ import numpy as np
 
 from .reading import STEP, Reading, never, rising, vertex
 
-__all__ = ["body_peak", "yielded_wall", "overlap_peak_time", "energy_to_body", "plastic_work", "BODY"]
+__all__ = ["body_peak", "yielded_wall", "overlap_peak_time", "energy_to_body", "plastic_work",
+           "residual_overlap_max", "BODY"]
 
 #: Objectives of a protected body (``[wall] type = "body"``), as the design search computes them
 #: (:mod:`hertzchain.design.body`).
@@ -245,3 +246,20 @@ def plastic_work(tape) -> Reading:
               np.concatenate([g_dm, -g_dm]))
     return Reading(value, arrays=arrays, direct={"kappa": d_kappa, "dyield": d_dyield, "d0": d_d0},
                    final_dres=final)
+
+
+def residual_overlap_max(tape) -> Reading:
+    """The largest permanent overlap a contact is left with at the end of the run (the dent a
+    protector keeps; Thornton's residual overlap), and its partial: on that contact's final residual
+    overlap (the reverse sweep carries it back to the loading steps that set it). The contact of
+    the maximum is held fixed."""
+    sy, w = tape.system, tape.packed
+    nc = sy.n_contacts
+    j = int(np.argmax(w.dres[:nc]))
+    if not w.dres[j] > 0.0:
+        raise never(tape, "residual_overlap_max", "no contact passes its yield overlap during the run (none keeps a "
+                    "dent); a faster striker (striker.velocity), a longer run (run.duration) or a lower "
+                    "materials.NAME.yield_stress would make one")
+    final = np.zeros(sy.kappa.size)
+    final[j] = 1.0
+    return Reading(float(w.dres[j]), final_dres=final)
