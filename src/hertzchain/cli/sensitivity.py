@@ -21,7 +21,8 @@ _OPTIONS = {"variables": "--wrt", "objective": "--objective", "window": "--windo
 @click.option("--objective", default="peak_wall_force", show_default=True,
               help="Result to differentiate: peak_wall_force, peak_wall_time, time_of_flight, pulse_duration, "
                    "front_momentum_at_wall, energy_at_wall, peak_contact_force, peak_contact_force[j], "
-                   "max_force_over_yield.")
+                   "max_force_over_yield; a protected body's peak_body_force, peak_body_acceleration, "
+                   "energy_to_body; the elastic-plastic law's plastic_work, residual_overlap_max.")
 @click.option("--mode", type=click.Choice(["auto", "adjoint", "tangent"]), default="auto", show_default=True,
               help="Reverse (adjoint) or forward (tangent) differentiation; both give the same numbers; auto: the tangent "
                    "for one field, the adjoint for more (the cheaper of the two).")

@@ -317,7 +317,7 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     paths = expand_paths(cfg, variables)
     use_tangent = mode == "tangent" or (mode == "auto" and len(paths) <= TANGENT_MAX_VARIABLES
                                         and system.law in D.TANGENT_LAWS)
-    check_memory(estimate_memory(cfg, system, duration, paths, use_tangent))
+    check_memory(estimate_memory(cfg, system, duration, paths, use_tangent, objective))
     sd = setup_derivatives(cfg, system, paths)
     tape = D.record(system, duration, cfg.run.sample_interval, dt=cfg.run.dt,
                     steps_per_radian=cfg.run.steps_per_radian, contacts=contacts_needed(objective, system))

@@ -13,7 +13,8 @@ derivatives were once a dense variables x beads matrix, 0.57 GB at 1,000 beads a
 - the engines (:func:`hertzchain.integrate.differentiate.engine_bytes`): the taped run's
   checkpoints, step log and records, and the reverse sweep's replayed group; or, in tangent mode,
   the D tangents;
-- the result: a few Python objects per variable.
+- the result: a few Python objects per variable;
+- ``energy_to_body``: a few numbers per step of the run (the body's state at every step).
 """
 
 from __future__ import annotations
@@ -31,6 +32,9 @@ PER_VARIABLE_BYTES = 6 * 1024
 SETUP_ARRAYS = 24
 #: Arrays of the set-up a scalar field (a material constant, the striker's speed) moves, every entry.
 SETUP_OUTPUTS = 17
+#: Bytes per step of the run that ``energy_to_body`` keeps (the body's state at every step, the
+#: trapezoids, four seeds a step and their sorted copies).
+ENERGY_BYTES_PER_STEP = 400
 
 
 @dataclass
@@ -58,7 +62,8 @@ class MemoryEstimate:
         return int(sum(self.parts.values()))
 
 
-def estimate_memory(cfg, system, duration: float, paths: list[str], tangent: bool) -> MemoryEstimate:
+def estimate_memory(cfg, system, duration: float, paths: list[str], tangent: bool,
+                    objective: str = "peak_wall_force") -> MemoryEstimate:
     """Memory of :func:`hertzchain.sensitivity` for a validated config (see the module docstring).
 
     Parameters
@@ -73,6 +78,8 @@ def estimate_memory(cfg, system, duration: float, paths: list[str], tangent: boo
         The variables (expanded).
     tangent : bool
         Tangent mode (one direction per variable) instead of the adjoint.
+    objective : str
+        The result (``energy_to_body`` keeps a few numbers per step of the run).
 
     Returns
     -------
@@ -91,9 +98,12 @@ def estimate_memory(cfg, system, duration: float, paths: list[str], tangent: boo
                            steps_per_radian=cfg.run.steps_per_radian, recorded=1,
                            directions=len(paths) if tangent else 0)
     group = engines.pop("group", 0)
+    steps = engines.pop("steps")
     parts = {"setup": setup, "variables": PER_VARIABLE_BYTES * len(paths), **engines}
+    if objective == "energy_to_body":
+        parts["objective"] = ENERGY_BYTES_PER_STEP * steps
     fields = {"setup": "variables", "variables": "variables", "tape": "run.duration", "sweep": "run.duration",
-              "tangent": "mode"}
+              "tangent": "mode", "objective": "run.duration"}
     return MemoryEstimate(parts, fields, group)
 
 
@@ -124,7 +134,8 @@ def check_memory(est: MemoryEstimate, available: int | None = None) -> None:
     hints = {"variables": "differentiate by fewer variables (--wrt)",
              "tape": "shorten run.duration or raise run.sample_interval",
              "sweep": "shorten run.duration or raise run.sample_interval",
-             "tangent": "use the adjoint (mode 'adjoint'), whose memory does not grow with the variables"}
+             "tangent": "use the adjoint (mode 'adjoint'), whose memory does not grow with the variables",
+             "objective": "energy_to_body keeps every step of the run: shorten run.duration"}
     detail = ", ".join(f"{k} {v / 2**30:.2g} GiB" for k, v in est.parts.items())
     raise ConfigError(est.fields[part], f"the sensitivity would need about {est.total / 2**30:.3g} GiB ({detail}), "
                       f"more than the {available / 2**30:.3g} GiB of memory available; the largest part is the "

@@ -231,23 +231,25 @@ def engine_bytes(system: System, duration: float, sample_interval: float, dt: fl
     dict
         ``{"tape": ..., "sweep": ..., "group": ...}`` (the adjoint: checkpoints, step log, records;
         the reverse sweep; of it, the steps of one replayed group, which :func:`gradient` bounds by
-        4 GROUP_BYTES) or ``{"tangent": ...}`` (the D tangents and their
-        records); every part linear in the bodies, the samples and the directions.
+        4 GROUP_BYTES; and the most steps the run can take, a count) or ``{"tape": ..., "tangent": ...}``
+        (the taped run, the D tangents and their records); every part linear in the bodies, the
+        samples and the directions.
     """
     plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = _samples(duration, sample_interval)
     p = -(-(system.n_moving + 1) // PAD) * PAD  # the padded slots (layout.pack): moving bodies, ghost
     records = n_samples * (recorded + 4) * 8  # forces, times, step ends, scratch
     state = 24 * p * 8  # the packed System, the state, forces, trackers
-    if directions:
-        per_dir = (_ROWS + 1 + 7) * (p + 1) * 8 + n_samples * recorded * 8  # th, v0t, the tangents, their records
-        return {"tangent": records + state + directions * per_dir}
+    per_dir = (_ROWS + 1 + 7) * (p + 1) * 8 + n_samples * recorded * 8  # th, v0t, the tangents, their records
     n_blocks, rows, group, ns_max = _checkpoints(system, plan, n_samples, sample_interval, p)
     tape = records + state + max(1, -(-n_blocks // group)) * rows * p * 8 + max(n_blocks, 1) * 8
+    if directions:  # sensitivity() tapes the run, then runs the tangents (trace_sensitivity only the latter)
+        return {"tape": tape, "tangent": records + state + directions * per_dir, "steps": max(n_blocks, 1) * ns_max}
     per_step = 5 if system.law == kernels.LAW_ELASTOPLASTIC else 2 if system.general else 1
     group_rows = group * ns_max + 1
     sweep = group_rows * (p + 1) * 8 * (per_step + 1) + (_ROWS + 16) * p * 8
-    return {"tape": tape, "sweep": sweep, "group": group_rows * (p + 1) * 8 * per_step}
+    return {"tape": tape, "sweep": sweep, "group": group_rows * (p + 1) * 8 * per_step,
+            "steps": max(n_blocks, 1) * ns_max}
 
 
 def record(system: System, duration: float, sample_interval: float, dt: float | None = None,
