@@ -28,17 +28,18 @@ class ConfigError(HertzchainError, ValueError):
         super().__init__(f"{field}: {message}")
 
 
-class ObjectiveUndefined(ConfigError):
-    """A result asked for (a sensitivity's objective) is identically zero or undefined over the run
-    (the pulse never reaches the wall, a window outside the run); ``field`` names what to change."""
-
-
 class SimulationDiverged(HertzchainError, FloatingPointError):
     """The integration produced non-finite numbers (time step far too large, bad input)."""
 
 
 class PulseNotFound(HertzchainError, ValueError):
     """A signal holds no pulse that the analysis can fit."""
+
+
+class ObjectiveUndefined(ConfigError, PulseNotFound):
+    """A result asked for (a sensitivity's objective) is identically zero or undefined over the run
+    (the pulse never reaches the wall, a window outside the run); ``field`` names what to change.
+    A PulseNotFound too: a search that ranks such a candidate as infeasible catches both."""
 
 
 class PulseClipped(PulseNotFound):
