@@ -101,7 +101,8 @@ def _chain_claims(laws: dict, main: str) -> list[dict]:
         rows.append(_row(
             f"The pulse duration follows the ballistic prediction with tapering, eq. 8 (chain {k})",
             "Sec. III, Fig. 5c",
-            f"position of tau(N)/tau(16) between eq. 8 with q = 0 (0) and with q{k} (1), chain {k}",
+            f"position of tau(N)/tau(16) between tau_n = (phi_n/2) sqrt(10)/v_n with the real phi_n and the "
+            f"speeds of eq. 8 with q = 0 (0) or with q{k} (1), chain {k}",
             "within 0.25 of 1 (partly: closer to 1 than to 0)",
             _per_law(laws, lambda r: (r[chain]["duration_ratio"] - r[chain]["eq8_duration_ratio_q0"])
                      / (r[chain]["eq8_duration_ratio"] - r[chain]["eq8_duration_ratio_q0"])), main,
@@ -173,12 +174,12 @@ def _collision_claims(laws: dict, main: str) -> list[dict]:
     # they chose the reproduction's law, so they are never counted as agreement with the paper.
     return [
         _row("The steel striker bounces off the first bead like a steel ball",
-             "the project's own check (not in the paper): two-body impacts of steel balls",
+             "project's own check, not in the paper; two-body impacts of steel balls",
              "restitution of the 8 mm striker on a free 26 mm bead at the run's speed, under the variant's law",
              f">= {STEEL_RESTITUTION} (partly: >= 0.9)", _per_law(laws, lambda r: r["striker_restitution"]), main,
              lambda v: v >= STEEL_RESTITUTION, lambda v: v >= 0.9, origin="project"),
         _row("One dissipation gives both the chain's eps and a steel-like striker bounce",
-             "the project's own check (not in the paper): Sec. III's eps = 0.985 with two-body impacts",
+             "project's own check, not in the paper; Sec. III's eps = 0.985 with two-body impacts",
              f"striker restitution where eps measured back in chain 1 is within {EPS_TOLERANCE} of "
              f"{PAPER['eps']}, else 0", f">= {STEEL_RESTITUTION} (partly: >= 0.9)", _per_law(laws, both), main,
              lambda v: v >= STEEL_RESTITUTION, lambda v: v >= 0.9, origin="project"),
@@ -349,7 +350,7 @@ def report_blocks(summary: dict, figures: dict) -> list[tuple]:
                              _fmt(c["eq8_duration_ratio"]), _fmt(c["eq8_duration_ratio_q0"])])
         blocks += [("h3", "F_m and tau along the chains under each contact law"),
                    ("table", ["law", "chain", "F_m(N)/F_m(16)", "eq. 7 (q)", "eq. 7 (q = 0)", "tau(N)/tau(16)",
-                              "eq. 8 (q)", "eq. 8 (q = 0)"], rows)]
+                              "eq. 8 (q)", "eq. 8 speeds of q = 0, real phi_n"], rows)]
     mis = fid.get("misalignment") or {}
     if mis:
         rows = []
@@ -385,8 +386,9 @@ def _png(path):
 #: What each variant figure shows (the numbers are in the tables above it).
 FIGURE_NOTES = {
     "fig5_laws": "Peak force and duration of the wall pulse of the chains truncated after bead n, over their "
-                 "values at n = 16, under the three contact laws, with eqs. 7-8 for eps = 1 and the paper's eps "
-                 "(with the chain's q, and q = 0: dissipation alone).",
+                 "values at n = 16, under each contact law, with eqs. 7-8 for eps = 1 and the paper's eps "
+                 "(with the chain's q, and q = 0: dissipation alone; the durations all use the chain's real "
+                 "diameters, tau_n = (phi_n/2) sqrt(10)/v_n, so the q = 0 one is not a uniform chain's).",
     "fig3_lateral": "Wall force of chain 2 with bead 22 or 28 offset by 5 % and 10 % of its diameter: held on "
                     "its line (1D model), free in a round groove, and in the groove with Coulomb friction; the "
                     "shaded band is the tail window where the paper sees the oscillation damped.",

@@ -383,7 +383,8 @@ def _fig5_note(summary: dict, settings_desc: dict | None) -> tuple[str, str]:
         spread = _relative_spread([a + b for a, b in zip(qf, qt) if a is not None and b is not None])
         parts.append(f"chain {k}: F_m({N})/F_m({n0}) = {_f(f_sim)} (eq. 7: {f_pred:.3f} with q, {f_pred0:.3f} "
                      f"with q = 0), tau({N})/tau({n0}) = {_f(t_sim)} (eq. 8: {_f(tau_pred)} with q, "
-                     f"{_f(tau_pred0)} with q = 0), Q_F + Q_T constant to {_f(spread, '.0f', 100)} % (relative standard deviation)")
+                     f"{_f(tau_pred0)} with the speeds of q = 0 and the real diameters), Q_F + Q_T constant "
+                     f"to {_f(spread, '.0f', 100)} % (relative standard deviation)")
         if f_sim is not None:
             f_dev.append((k, f_sim / f_pred - 1, f_sim < f_pred0))
         if t_sim is not None and tau_pred is not None:
