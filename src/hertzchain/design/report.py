@@ -323,11 +323,14 @@ def objective_signal(name: str, ds) -> tuple[str, str, np.ndarray, np.ndarray]:
             return "largest force of any contact [N]", "time [ms]", t, np.nanmax(force, axis=2)
         fy = ds["yield_force"].sel(contact_all=ds["contact"].values).values  # (member, contact)
         return ("largest F / F_Y of any contact [1]", "time [ms]", t, np.nanmax(force / fy[:, None, :], axis=2))
+    # without the elastoplastic law no work is plastic and no contact keeps a dent (member_metrics: 0)
     if name == "plastic_work":
-        return "plastic work done in all contacts [J]", "time [ms]", t, np.nan_to_num(ds["plastic_work"].values)
+        work = ds["plastic_work"].values if "plastic_work" in ds else np.zeros((n_beads.size, t.size))
+        return "plastic work done in all contacts [J]", "time [ms]", t, np.nan_to_num(work)
     if name == "residual_overlap_max":
-        return ("permanent overlap of each contact [m]", "contact (0 = striker - bead 1)", ds["contact_all"].values,
-                np.nan_to_num(ds["residual_overlap"].values))
+        x = ds["contact_all"].values
+        dent = ds["residual_overlap"].values if "residual_overlap" in ds else np.zeros((n_beads.size, x.size))
+        return "permanent overlap of each contact [m]", "contact (0 = striker - bead 1)", x, np.nan_to_num(dent)
     return "force on the wall [N]", "time [ms]", t, ds["wall_force"].values
 
 

@@ -147,9 +147,8 @@ class Explorer(pn.viewable.Viewer):
                                                                     "body_stiffness", "body_damping")),
             pn.pane.HTML("<b>Contact law</b>"), self.widgets["law"], self.widgets["eps"],
             self.save, width=330)
-        pictures = pn.Column(self.message, self.readout, pn.pane.Bokeh(self.wall_fig), pn.Row(pn.pane.Bokeh(self.map_fig),
-                                                                               pn.pane.Bokeh(self.energy_fig)),
-                             self.theory)
+        pictures = pn.Column(self.message, self.readout, pn.pane.Bokeh(self.wall_fig),
+                             pn.Row(pn.pane.Bokeh(self.map_fig), pn.pane.Bokeh(self.energy_fig)), self.theory)
         self.layout = pn.Row(controls, pictures)
 
     def __panel__(self):
