@@ -50,7 +50,7 @@ def test_design_html_draws_the_objectives_own_signal(designed):
         "The force on the wall (or the body&#x27;s face), for reference")
 
 
-def test_references_breaking_the_constraints_are_marked(designed, capsys):
+def test_references_breaking_the_constraints_are_marked(designed):
     res, info, out = designed
     cmp = info["comparison"]
     assert info["best"]["feasible"] and cmp["best"]["breaks"] == []
@@ -64,6 +64,11 @@ def test_references_breaking_the_constraints_are_marked(designed, capsys):
     page = (out / "design.html").read_text()
     assert "<p id='headline'>" in page and page.count("<b>no</b>: breaks design.constraints.max_length_mm") == 2
     assert page.count("(against a chain that breaks the constraints)") == 2
+    # ... and the line `hertzchain design` prints
+    from hertzchain.cli.design import _improvement
+
+    for ref in ("base", "uniform"):
+        assert "% (which breaks the constraints: design.constraints.max_length_mm = 190" in _improvement(info, ref)
 
 
 def test_energy_and_plastic_signals_peak_at_their_objectives():
