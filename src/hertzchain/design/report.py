@@ -294,7 +294,7 @@ def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]
             ax.plot(x, y[i], marker, ms=3, lw=1.4 if label == "best" else 1.0, label=label + bad)
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes: clear of the curves
         figs.append((title, _png(fig)))
         plt.close(fig)
     return figs
@@ -373,12 +373,17 @@ def headline_sentence(info: dict) -> str:
     shown = (f"{value:.6g} {units[info['objectives'][0]]}" if not isinstance(value, dict)
              else ", ".join(f"{k} {v:.6g} {units[k]}" for k, v in value.items()))
     parts = []
-    for ref, words in (("base", "the base configuration"), ("uniform", f"a uniform chain of {cmp['uniform']['n_beads']} beads")):
+    refs = (("base", "the base configuration"), ("uniform", f"a uniform chain of {cmp['uniform']['n_beads']} beads"),
+            ("no_chain", "no chain (the striker straight onto the wall or body)"))
+    for ref, words in refs:
+        if ref not in cmp:  # no_chain is left out where it is no Hertz contact
+            continue
         imp = cmp["improvement_percent"][ref]
         if all(v is None for v in imp.values()):
             text = f"no comparison with {words} (its pulse does not reach the wall within the run)"
         else:
-            text = ", ".join("n/a" if v is None else f"{v:.1f} %" for v in imp.values()) + f" lower than {words}"
+            text = ", ".join("n/a" if v is None else f"{abs(v):.1f} % {'lower' if v >= 0 else 'higher'}"
+                             for v in imp.values()) + f" than {words}"
         if cmp[ref]["breaks"]:
             text += f" (which breaks the constraints: {'; '.join(cmp[ref]['breaks'])})"
         parts.append(text)
