@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .fit_checks import check_records, fit_doubts, parameter_unit
-from .quantised import expected, refit_noise
+from .quantised import expected, refit_noise, robust_covariance
 
 __all__ = ["Trace", "FitResult", "fit_traces", "MEASUREMENT_PARAMETERS"]
 
@@ -646,7 +646,7 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
         s2k = float(rk @ rk) / max(rk.size * (n - p) / n, 1)
         Jw[edges[k]:edges[k + 1]] /= math.sqrt(s2k)
     _, s, vt = np.linalg.svd(Jw, full_matrices=False)
-    cov = (vt.T / s**2) @ vt
+    cov = robust_covariance(prob, J, res, (vt.T / s**2) @ vt)
     for column, sd in noise_columns(x):  # the fitted noise under the codes: its error moves the others
         shift = -np.linalg.lstsq(J, column, rcond=None)[0]
         cov = cov + np.outer(shift, shift) * sd**2

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-__all__ = ["DITHERED", "expected", "noise_by_likelihood", "refit_noise"]
+__all__ = ["DITHERED", "expected", "noise_by_likelihood", "refit_noise", "robust_covariance"]
 
 #: sigma / q above which the rounding averages out (its bias below 1e-4 of a code): the record
 #: is then fitted as it is.
@@ -168,3 +168,33 @@ def refit_noise(prob, sol, solve, rounds: int = 8):
         return out
 
     return sol, columns
+
+
+def robust_covariance(prob, J: np.ndarray, res: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """The parameters' covariance of a fit with quantised traces, robust to their uneven variance.
+
+    The residuals of a quantised record are independent with mean 0 but not of one variance: a
+    sample whose signal sits at a level's centre hardly ever leaves it, one between two levels
+    takes either with equal chance. ``s^2 (J^T J)^-1`` assumes one variance; the sandwich
+    ``(J^T J)^-1 J^T diag(r^2) J (J^T J)^-1`` (White's, with the n / (n - p) correction) does not.
+
+    Parameters
+    ----------
+    prob : hertzchain.lab.fit._Problem
+        The problem (``code_noise``: whether a trace is fitted as quantised).
+    J, res : numpy.ndarray
+        Jacobian and residuals at the optimum (weighted).
+    cov : numpy.ndarray
+        The plain covariance, returned as it is when no trace is fitted as quantised.
+
+    Returns
+    -------
+    numpy.ndarray
+        The covariance.
+    """
+    if all(s is None for s in prob.code_noise):
+        return cov
+    n, p = J.shape
+    bread = np.linalg.pinv(J.T @ J)
+    meat = (J * res[:, None] ** 2).T @ J * (n / max(n - p, 1))
+    return bread @ meat @ bread

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import ConfigError
 from .storage import COLUMN_UNITS
 
-__all__ = ["read_metrics", "metric_columns", "summarize", "display_unit", "QUANTILES"]
+__all__ = ["read_metrics", "metric_columns", "summarize", "display_unit", "past_elastic_limit", "QUANTILES"]
 
 #: Quantiles reported for every metric (5 %, median, 95 %: the central 90 % of the members).
 QUANTILES = (0.05, 0.5, 0.95)
@@ -75,6 +75,31 @@ def metric_columns(df) -> list[str]:
     return [c for c in cols[start:] if c not in _SKIP and df[c].dtype.kind in "fiu"]
 
 
+def past_elastic_limit(df) -> int:
+    """Members whose contacts passed the elastic limit under a law that does not model yield.
+
+    A member of the elastoplastic law (its ``plastic_work`` column has a value) passes the limit
+    by design: its contacts yield, and the law models it, so it is not counted (the docs promise
+    no warning for it).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A metrics table.
+
+    Returns
+    -------
+    int
+        The count (0 when the table has no ``elastic_limit_exceeded`` column).
+    """
+    if "elastic_limit_exceeded" not in df:
+        return 0
+    over = np.array(df["elastic_limit_exceeded"].astype(bool), dtype=bool)
+    if "plastic_work" in df:
+        over &= ~np.isfinite(df["plastic_work"].to_numpy(dtype=float))
+    return int(over.sum())
+
+
 def summarize(df, metrics: list[str] | None = None) -> dict[str, Any]:
     """Per metric: members with a value, mean, standard deviation, extremes and quantiles (SI units).
 
@@ -89,7 +114,8 @@ def summarize(df, metrics: list[str] | None = None) -> dict[str, Any]:
     -------
     dict
         ``n_members``, ``fit_failures`` (members without a fitted wall pulse),
-        ``elastic_limit_exceeded`` (members past the elastic limit) and ``metrics``:
+        ``elastic_limit_exceeded`` (members past the elastic limit under a law that does not
+        model yield, :func:`past_elastic_limit`) and ``metrics``:
         ``{name: {units, n, mean, std, min, max, quantiles: {"0.05": ..., "0.5": ..., "0.95": ...}}}``
         (NaN-free members only; ``std`` with n - 1, NaN for fewer than two).
 
@@ -107,7 +133,7 @@ def summarize(df, metrics: list[str] | None = None) -> dict[str, Any]:
     if "fit_error" in df:
         out["fit_failures"] = int((df["fit_error"].fillna("").astype(str) != "").sum())
     if "elastic_limit_exceeded" in df:
-        out["elastic_limit_exceeded"] = int(df["elastic_limit_exceeded"].astype(bool).sum())
+        out["elastic_limit_exceeded"] = past_elastic_limit(df)
     stats = {}
     for m in metrics:
         x = df[m].to_numpy(dtype=float)
