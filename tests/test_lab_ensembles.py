@@ -172,3 +172,17 @@ def test_projection_on_a_dask_cluster_counts_its_threads(monkeypatch):
     with pytest.warns(LongRunWarning):
         runner._plan(cfg, "auto", 1)
     assert projected[-1] == pytest.approx(6 * on_cluster, rel=1e-12)
+
+
+def test_metrics_table_has_a_sidecar_with_units_and_the_sweep(ensemble):
+    """metrics.csv.json gives every column of metrics.csv its unit and meaning (the drawn
+    diameters in mm, F_m in N), and the sweep's definition (its tolerances and seed)."""
+    import json
+
+    cfg, result = ensemble
+    side = json.loads((result.out_dir / "metrics.csv.json").read_text())
+    assert list(side["columns"]) == list(result.metrics.columns)
+    assert side["columns"]["diameter_mm_2"] == {"units": "mm", "long_name": "drawn diameter of bead 2"}
+    assert side["columns"]["F_m"]["units"] == "N" and side["columns"]["striker_velocity"]["units"] == "m/s"
+    assert side["definition"]["sweep"]["tolerances"]["seed"] == TOL["seed"]
+    assert side["n_members"] == len(result.metrics)

@@ -26,6 +26,37 @@ from .schema import SweepConfig, chunk_members, load_sweep, parse_sweep
 from .storage import (_CHUNK_NAME, _METRIC_UNITS, METRIC_COLUMNS, PLASTIC_METRICS, RUN_METRICS, _chunk_is_done,
                       _folder_lock, _metrics_table, _prepare_out_dir, _traces_path, _write_chunk)
 
+def _table_sidecar(cfg: SweepConfig, df) -> dict:
+    """``metrics.csv.json``: what a reader of ``metrics.csv`` alone needs to know about it.
+
+    Every column's unit and meaning, the hertzchain version, and the sweep's definition (base
+    config, parameters, tolerances and seed, as in ``sweep.json``).
+    """
+    from .. import __version__
+    from .storage import _BODY_COLUMNS, COLUMN_UNITS, PLASTIC_METRICS
+
+    meaning = {"member": ("", "member index"), "chunk": ("", "chunk file holding the member"),
+               "dt": ("s", "time step of the member's run"), "peak_wall_force": ("N", "peak wall force, refined "
+               "between the engine's steps"), "peak_wall_time": ("s", "time of the peak wall force"),
+               "elastic_limit_exceeded": ("1", "a contact force passed the elastic limit F_Y"),
+               "fit_error": ("", "why the wall pulse has no metrics (empty when fitted)"),
+               "striker_velocity": ("m/s", "drawn impact velocity"),
+               **_METRIC_UNITS, **RUN_METRICS,
+               **{k: (u, d) for k, (_, u, d) in PLASTIC_METRICS.items()},
+               **{k: (u, "peak of the protected body") for k, u in _BODY_COLUMNS.items()}}
+    columns = {}
+    for c in df.columns:
+        unit, text = meaning.get(c, (COLUMN_UNITS.get(c, ""), ""))
+        for prefix, what in (("diameter_mm_", "drawn diameter of bead "), ("offset_mm_", "drawn offset of bead ")):
+            if c.startswith(prefix) and c[len(prefix):].isdigit():
+                unit, text = "mm", what + c[len(prefix):]
+        if c in cfg.parameter_names:
+            text = "swept parameter (config path)"
+        columns[c] = {"units": unit, "long_name": text}
+    return {"table": "metrics.csv", "hertzchain_version": __version__, "n_members": int(len(df)),
+            "columns": columns, "definition": cfg.definition()}
+
+
 def _drawn_columns(cfg: SweepConfig, members: np.ndarray) -> dict[str, np.ndarray]:
     """Each member's drawn tolerances, for the metrics table beside its metrics.
 
@@ -542,7 +573,7 @@ def _tasks(cfg: SweepConfig, plan: _Plan, todo: list[int]) -> Iterator[_ChunkTas
 
 def _run_chunks(cfg: SweepConfig, plan: _Plan, out: Path, chunks_dir: Path, client, progress) -> SweepResult:
     """Compute the chunks not yet on disk and write the metrics table (folder lock held)."""
-    from ..fileio import atomic_path
+    from ..fileio import atomic_path, json_text, write_text
     from ..interrupts import check
     from ..parallel import results_as_completed
 
@@ -582,6 +613,7 @@ def _run_chunks(cfg: SweepConfig, plan: _Plan, out: Path, chunks_dir: Path, clie
         df.insert(df.columns.get_loc("dt"), name, values)  # inputs, before dt; the metrics follow it
     with atomic_path(out / "metrics.csv") as tmp:
         df.to_csv(tmp, index=False)
+    write_text(out / "metrics.csv.json", json_text(_table_sidecar(cfg, df)))
     if importlib.util.find_spec("pyarrow") is not None:
         with atomic_path(out / "metrics.parquet") as tmp:
             df.to_parquet(tmp, index=False)
