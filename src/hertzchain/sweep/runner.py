@@ -85,31 +85,35 @@ def _drawn_columns(cfg: SweepConfig, members: np.ndarray) -> dict[str, np.ndarra
     from ..interrupts import check
     from .tolerances import _any
 
-    draws: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}
+    order = np.argsort(members)
+
+    def widen(a: np.ndarray, width: int) -> np.ndarray:
+        return np.pad(a, ((0, 0), (0, width - a.shape[1])), constant_values=np.nan)
+
+    diam = offs = vel = None
     built: dict = {}
     for chunk in cfg.chunks():
         check()
         models, _ = chunk_members(cfg, chunk, built)
-        if hasattr(models, "diameters"):  # one Ensemble
-            for r, i in enumerate(chunk):
-                draws[i] = (models.diameters[r], models.offsets[r], float(models.striker_velocity[r]))
-        else:
-            for m, i in zip(models, chunk):
-                draws[i] = (m.chain.diameters, m.chain.offsets, float(m.striker.velocity))
-    n = max(d.size for d, _, _ in draws.values())
-    rows = [draws[int(i)] for i in members]
-
-    def table(k: int) -> np.ndarray:
-        out = np.full((len(rows), n), np.nan)
-        for r, row in enumerate(rows):
-            out[r, :row[k].size] = row[k] * 1e3
-        return out
-
-    cols = {f"diameter_mm_{j + 1}": v for j, v in enumerate(table(0).T)}
+        if hasattr(models, "diameters"):  # one Ensemble: arrays (members, beads)
+            d, e, v = models.diameters, models.offsets, models.striker_velocity
+        else:  # members of different layouts: NaN past each one's last bead
+            width = max(m.chain.n_beads for m in models)
+            d, e = np.full((len(models), width), np.nan), np.full((len(models), width), np.nan)
+            for r, m in enumerate(models):
+                d[r, :m.chain.n_beads], e[r, :m.chain.n_beads] = m.chain.diameters, m.chain.offsets
+            v = np.array([m.striker.velocity for m in models])
+        if diam is None or d.shape[1] > diam.shape[1]:  # (re)allocate to the widest member so far
+            diam = np.full((members.size, d.shape[1]), np.nan) if diam is None else widen(diam, d.shape[1])
+            offs = np.full((members.size, d.shape[1]), np.nan) if offs is None else widen(offs, d.shape[1])
+            vel = np.full(members.size, np.nan) if vel is None else vel
+        rows = order[np.searchsorted(members, np.asarray(chunk), sorter=order)]  # the chunk's table rows
+        diam[rows, :d.shape[1]], offs[rows, :d.shape[1]], vel[rows] = d * 1e3, e * 1e3, v
+    cols = {f"diameter_mm_{j + 1}": diam[:, j] for j in range(diam.shape[1])}
     if _any(tol.offset_mm):
-        cols |= {f"offset_mm_{j + 1}": v for j, v in enumerate(table(1).T)}
+        cols |= {f"offset_mm_{j + 1}": offs[:, j] for j in range(offs.shape[1])}
     if tol.has_velocity:
-        cols["striker_velocity"] = np.array([row[2] for row in rows])
+        cols["striker_velocity"] = vel
     return cols
 
 
@@ -415,6 +419,7 @@ class _Plan:
     device: str
     steps_per_radian: float | None
     estimate: Any = None
+    table_bytes: int = 0  # the metrics table per member [bytes] (_table_bytes)
 
 
 def _where(client, n_threads: int | None) -> tuple[int, str]:
@@ -486,14 +491,23 @@ def _plan(cfg: SweepConfig, device: str, cores: int = 1, advice: str | None = No
             # Members share one time axis (the batched engine): the slowest member's duration.
             duration = max(duration, max(auto_duration(m) for m in models))
     est = _sweep_estimate(cfg, largest[1], largest[2], duration, probes, base_probes if cfg.sweep.traces else None)
-    _check_sweep_resources(cfg, est, cores, advice)
+    table_bytes = _table_bytes(cfg, largest[0])
+    _check_sweep_resources(cfg, est, cores, advice, table_bytes)
     return _Plan(duration=duration, probes=probes, trace_probes=base_probes, device=device,
-                 steps_per_radian=run_cfg.run.steps_per_radian, estimate=est)
+                 steps_per_radian=run_cfg.run.steps_per_radian, estimate=est, table_bytes=table_bytes)
 
 
 #: Memory of metrics.csv's table while it is collected and written, per member [bytes]: its numeric
 #: columns and the Python strings of its text columns (447 measured for 1e6 members of an ensemble).
 TABLE_BYTES_PER_MEMBER = 450
+
+
+def _table_bytes(cfg: SweepConfig, n_beads: int) -> int:
+    """Bytes per member of the metrics table: :data:`TABLE_BYTES_PER_MEMBER` and, in an ensemble,
+    the drawn tolerances' columns (a float per bead for the diameters and the offsets, one for
+    the speed: :func:`_drawn_columns`)."""
+    tol = cfg.sweep.tolerances
+    return TABLE_BYTES_PER_MEMBER + (0 if tol is None else 8 * (2 * n_beads + 1))
 
 
 def _sweep_estimate(cfg: SweepConfig, model, dt, duration: float, probes, trace_probes):
@@ -520,7 +534,8 @@ def _usable_cores() -> int:
         return max(os.cpu_count() or 1, 1)
 
 
-def _check_sweep_resources(cfg: SweepConfig, est, cores: int = 1, advice: str | None = None) -> None:
+def _check_sweep_resources(cfg: SweepConfig, est, cores: int = 1, advice: str | None = None,
+                           table_bytes: int = TABLE_BYTES_PER_MEMBER) -> None:
     """Refuse a chunk that cannot fit in memory (naming sweep.chunk_size); warn on a long sweep,
     its projected time shared by the ``cores`` the chunks run on (:func:`_where`), ending with
     ``advice`` (what would be faster and is not in use)."""
@@ -530,7 +545,7 @@ def _check_sweep_resources(cfg: SweepConfig, est, cores: int = 1, advice: str | 
 
     check_resources(_replace(est, seconds=0.0), memory_field="sweep.chunk_size")
     # the metrics table of every member, collected at the end (450 MB for a million members)
-    check_resources(_replace(est, seconds=0.0, memory_bytes=TABLE_BYTES_PER_MEMBER * cfg.n_members),
+    check_resources(_replace(est, seconds=0.0, memory_bytes=table_bytes * cfg.n_members),
                     memory_field="sweep.n")
     total = _replace(est, members=cfg.n_members, memory_bytes=0,
                      seconds=est.seconds / est.members * cfg.n_members / cores)
@@ -554,8 +569,9 @@ def estimate_sweep(cfg: SweepConfig):
     """
     from dataclasses import replace as _replace
 
-    est = _plan(cfg, "auto").estimate
-    return _replace(est, memory_bytes=max(est.memory_bytes, TABLE_BYTES_PER_MEMBER * cfg.n_members))
+    plan = _plan(cfg, "auto")
+    est = plan.estimate
+    return _replace(est, memory_bytes=max(est.memory_bytes, plan.table_bytes * cfg.n_members))
 
 
 def _tasks(cfg: SweepConfig, plan: _Plan, todo: list[int]) -> Iterator[_ChunkTask]:
