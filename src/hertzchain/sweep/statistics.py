@@ -131,7 +131,8 @@ def summarize(df, metrics: list[str] | None = None) -> dict[str, Any]:
             raise ConfigError("--signal", f"unknown metric {m!r}; this table has {', '.join(available)}")
     out: dict[str, Any] = {"n_members": int(len(df))}
     if "fit_error" in df:
-        out["fit_failures"] = int((df["fit_error"].fillna("").astype(str) != "").sum())
+        errors = df["fit_error"]  # read back, an empty cell is NaN (and an all-empty column float)
+        out["fit_failures"] = int((errors.notna() & (errors.astype(str) != "")).sum())
     if "elastic_limit_exceeded" in df:
         out["elastic_limit_exceeded"] = past_elastic_limit(df)
     stats = {}
