@@ -186,3 +186,30 @@ def test_metrics_table_has_a_sidecar_with_units_and_the_sweep(ensemble):
     assert side["columns"]["F_m"]["units"] == "N" and side["columns"]["striker_velocity"]["units"] == "m/s"
     assert side["definition"]["sweep"]["tolerances"]["seed"] == TOL["seed"]
     assert side["n_members"] == len(result.metrics)
+
+
+def test_design_projection_on_a_cluster_does_not_advise_the_cluster(monkeypatch):
+    """A design search sent to a Dask cluster of 4 worker threads: its projected time is shared by
+    them, and the long-run warning does not advise '--scheduler' (the cluster it runs on)."""
+    import hertzchain.checks as checks
+    import hertzchain.parallel as parallel
+    from hertzchain.design import parse_design
+    from hertzchain.design.search import preflight
+    from hertzchain.errors import LongRunWarning
+
+    monkeypatch.setattr(checks, "NS_PER_BEAD_STEP", {"elastic": 1e-3, "general": 1e-3})
+    monkeypatch.setattr(parallel, "_is_dask", lambda client: True)
+    monkeypatch.setattr(parallel, "_dask_threads", lambda client: 4)
+    design = {"base": {"chain": {"uniform": {"n": 4, "diameter_mm": 26.0}, "taper": {"n": 4, "q": 0.05}},
+                       "striker": {"diameter_mm": 8.0, "velocity": 0.2},
+                       "run": {"duration": 1.5e-3, "sample_interval": 1e-6}},
+              "design": {"objective": "peak_wall_force", "budget": 60, "seed": 3,
+                         "variables": {"chain.taper.n": [2, 12], "chain.taper.q": [0.0, 0.15]}}}
+    with pytest.warns(LongRunWarning) as caught:
+        on_cluster = preflight(parse_design(design), client=object()).seconds
+    text = " ".join(str(w.message) for w in caught)
+    assert "cluster's 4 worker threads" in text and "--scheduler" not in text
+    monkeypatch.setattr("numba.config.NUMBA_NUM_THREADS", 1)
+    with pytest.warns(LongRunWarning, match="--scheduler"):
+        alone = preflight(parse_design(design)).seconds
+    assert alone == pytest.approx(4 * on_cluster, rel=1e-12)

@@ -435,13 +435,20 @@ def preflight(problem: DesignProblem, client=None, chunk_size: int | None = None
     one = estimate_resources(model.system(), cfg.run.duration, probes, dt=cfg.run.dt,
                              steps_per_radian=fidelity.steps_per_radian or cfg.run.steps_per_radian)
     mem = estimate_memory(model.chain.n_beads, model.wall.present, cfg.run.duration, probes, members)
-    threads = numba.config.NUMBA_NUM_THREADS if client is None else 1
-    est = _replace(mem, steps=one.steps, seconds=one.seconds * sec.budget / max(1, min(threads, members)))
+    if client is None:
+        parallel = max(1, min(numba.config.NUMBA_NUM_THREADS, members))
+        advice = "lower design.budget, or spread the generations over a Dask cluster (--scheduler)"
+    else:  # the chunks of a generation share the cluster's worker threads: no advice to use it
+        from ..parallel import _dask_threads, _is_dask
+
+        parallel = _dask_threads(client) if _is_dask(client) else max(int(getattr(client, "_max_workers", 1) or 1), 1)
+        advice = f"that is on the cluster's {parallel} worker threads; lower design.budget or add workers"
+    est = _replace(mem, steps=one.steps, seconds=one.seconds * sec.budget / parallel)
     field = "design.population" if client is None else "design.chunk_size"
     check_resources(est, memory_field=field,
                     memory_hint=f"lower {field} ({members:,} engine runs a generation at most), raise "
                                 "run.sample_interval of [base] or shorten its run.duration",
-                    time_hint="lower design.budget, or spread the generations over a Dask cluster (--scheduler)")
+                    time_hint=advice)
     return est
 
 
