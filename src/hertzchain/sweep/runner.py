@@ -437,19 +437,15 @@ def _where(client, n_threads: int | None) -> tuple[int, str]:
     (int, str)
         Cores, and the advice ending the long-run warning.
     """
-    from ..parallel import _dask_threads, _is_dask
+    from ..parallel import _is_dask, worker_threads
 
     if client is None:
         cores = n_threads or _usable_cores()
         return cores, ((f"that is on {cores} cores; " if cores > 1 else "") + "fewer members (sweep.n), a shorter "
                        "run.duration or a Dask cluster (--scheduler) would be faster")
-    if _is_dask(client):
-        cores = _dask_threads(client)
-        return cores, (f"that is on the Dask cluster's {cores} worker threads; fewer members (sweep.n), a shorter "
-                       "run.duration or more workers would be faster")
-    cores = max(int(getattr(client, "_max_workers", 1) or 1), 1)
-    return cores, (f"that is on the executor's {cores} workers; fewer members (sweep.n), a shorter run.duration or "
-                   "more workers would be faster")
+    cores = worker_threads(client)
+    where = f"the Dask cluster's {cores} worker threads" if _is_dask(client) else f"the executor's {cores} workers"
+    return cores, f"that is on {where}; fewer members (sweep.n), a shorter run.duration or more workers would be faster"
 
 
 def _plan(cfg: SweepConfig, device: str, cores: int = 1, advice: str | None = None) -> _Plan:
