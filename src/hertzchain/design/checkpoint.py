@@ -6,8 +6,11 @@ document (``meta``, UTF-8 bytes) and plain numeric arrays. The document carries 
 (:data:`SCHEMA`), the SHA-256 of the design problem (a checkpoint resumes only the same design),
 every evaluated candidate (the history rows, and the evaluations by candidate key) and the
 optimiser's state: CMA-ES's mean, step size sigma, covariance matrix C, iteration and evaluation
-counters and the state of its random stream, or NSGA-II's generation and population, and NumPy's
-global random state (``cma`` seeds it, ``pymoo`` draws from it).
+counters and the state of its random stream, or NSGA-II's generation, population and the state of
+its random generator. Only what defines the search is kept: NumPy's global random state is not
+(``cma`` seeds it but draws its samples from the search's own stream, ``pymoo`` draws from its own
+generator, and anything else in the process may draw from it: a rerun in a new process would
+never match it).
 
 Resuming does not rebuild the optimiser from its saved attributes (``cma``'s object holds dozens
 of private ones, and some of its options are strings that ``cma`` evaluates): the search runs
@@ -83,11 +86,13 @@ def _evaluation_data(ev: Evaluation) -> dict:
 
 
 def fingerprint(optimiser: Any) -> tuple[dict, dict[str, np.ndarray]]:
-    """The optimiser's state as data: (JSON scalars, arrays), with NumPy's global random state.
+    """The optimiser's state as data: (JSON scalars, arrays), its own random streams included.
 
     CMA-ES: mean, sigma, covariance matrix C, evolution paths, iteration and evaluation
     counters, the state of its normal sampler's generator; NSGA-II: generation, population
-    (variables X, objectives F).
+    (variables X, objectives F), the state of its generator. Never NumPy's global random state,
+    which the search does not draw from and other code in the process may (see the module
+    docstring).
 
     Parameters
     ----------
@@ -101,10 +106,6 @@ def fingerprint(optimiser: Any) -> tuple[dict, dict[str, np.ndarray]]:
     """
     scalars: dict[str, Any] = {}
     arrays: dict[str, np.ndarray] = {}
-    glob = np.random.get_state(legacy=False)
-    arrays["numpy_random_key"] = np.asarray(glob["state"]["key"], np.uint32)
-    scalars["numpy_random"] = {"pos": int(glob["state"]["pos"]), "has_gauss": int(glob["has_gauss"]),
-                               "gauss": float(glob["gauss"])}
     if optimiser is None:
         scalars["optimiser"] = None
     elif hasattr(optimiser, "countiter"):  # cma
@@ -118,7 +119,9 @@ def fingerprint(optimiser: Any) -> tuple[dict, dict[str, np.ndarray]]:
         arrays["cma_ps"] = np.asarray(optimiser.adapt_sigma.ps, float)
     else:  # pymoo
         scalars["optimiser"] = "nsga-ii"
-        scalars["nsga"] = {"n_gen": None if optimiser.n_gen is None else int(optimiser.n_gen)}
+        rng = getattr(optimiser, "random_state", None)
+        scalars["nsga"] = {"n_gen": None if optimiser.n_gen is None else int(optimiser.n_gen),
+                           "random": None if rng is None else rng.bit_generator.state}
         pop = getattr(optimiser, "pop", None)
         if pop is not None:
             arrays["nsga_X"] = np.asarray(pop.get("X"), float)
