@@ -166,7 +166,8 @@ def test_resumed_search_replays_to_the_saved_state_and_ends_as_uninterrupted(tmp
     out = _plant(tmp_path, good)
     saved = _read(out / _CHECKPOINT, parse_design(_design()))
     assert saved.scalars["optimiser"] == "cma-es" and saved.generation >= 1
-    assert {"cma_mean", "cma_C", "cma_pc", "cma_ps", "numpy_random_key"} <= set(saved.arrays)
+    assert {"cma_mean", "cma_C", "cma_pc", "cma_ps"} <= set(saved.arrays)
+    assert "numpy_random_key" not in saved.arrays  # global state: not what defines the search
     with warnings.catch_warnings():
         warnings.simplefilter("error", CheckpointWarning)
         res = run_design(parse_design(_design()), out)
@@ -220,3 +221,86 @@ def test_nsga2_resumes_by_replay_to_its_saved_population(tmp_path):
         return [{k: v for k, v in r.items() if k != "elapsed_s"} for r in rows]
 
     assert timeless(res.pareto) == timeless(ref.pareto)
+
+
+#: Loaded at the start of a ``hertzchain design`` subprocess (``sitecustomize``): every engine call
+#: appends the module that made it and its engine runs to the file HC_TEST_ENGINE_LOG, then waits
+#: HC_TEST_ENGINE_DELAY seconds, so that a kill lands between generations, not after the end.
+_HOOK = '''
+import os, sys, time
+if os.environ.get("HC_TEST_ENGINE_LOG"):
+    from hertzchain.design import objectives as _objectives
+    _evaluate = _objectives.Evaluator.evaluate
+
+    def _counted(self, keys, configs):
+        evs = _evaluate(self, keys, configs)
+        with open(os.environ["HC_TEST_ENGINE_LOG"], "a") as log:
+            caller = os.path.basename(sys._getframe(1).f_code.co_filename)
+            log.write(f"{caller} {sum(ev.engine_runs for ev in evs)}\\n")
+        time.sleep(float(os.environ.get("HC_TEST_ENGINE_DELAY", "0")))
+        return evs
+
+    _objectives.Evaluator.evaluate = _counted
+'''
+
+
+def _design_process(tmp_path, design_file, out, log: str, delay: float = 0.0):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import hertzchain
+
+    hook = tmp_path / "hook"
+    hook.mkdir(exist_ok=True)
+    (hook / "sitecustomize.py").write_text(_HOOK)
+    src = str(Path(hertzchain.__file__).parents[1])
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(hook), src, os.environ.get("PYTHONPATH", "")]),
+           "HC_TEST_ENGINE_LOG": str(tmp_path / log), "HC_TEST_ENGINE_DELAY": str(delay)}
+    return subprocess.Popen([sys.executable, "-m", "hertzchain.cli", "design", str(design_file), "--out", str(out),
+                             "--no-html"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _engine_runs(path) -> int:
+    """The engine runs of the search logged by _HOOK (the report's comparison runs left out)."""
+    rows = [line.split() for line in path.read_text().splitlines()] if path.exists() else []
+    return sum(int(n) for caller, n in rows if caller != "report.py")
+
+
+def test_a_killed_design_process_resumes_and_a_finished_one_replays_without_engine_runs(tmp_path, reference):
+    """A real ``hertzchain design`` process, killed (SIGKILL) once its checkpoint is on disk, then
+    rerun twice into the same --out: the first rerun continues the search (no warning, only the
+    engine runs the killed one had not done, the uninterrupted search's result); the second replays
+    the finished search with no engine run at all."""
+    import signal
+    import time
+
+    import tomli_w
+
+    ref, _ = reference
+    design_file = tmp_path / "d.toml"
+    design_file.write_text(tomli_w.dumps(_design()))
+    out = tmp_path / "out"
+    proc = _design_process(tmp_path, design_file, out, "killed.log", delay=0.25)
+    deadline = time.monotonic() + 120
+    while not (out / _CHECKPOINT).exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=30)
+    assert proc.returncode == -signal.SIGKILL  # killed, not finished
+    saved = _read(out / _CHECKPOINT, parse_design(_design()))
+    assert saved.phase != "done" and 1 <= saved.generation and 0 < saved.n_evaluations < ref.n_evaluations
+    assert _engine_runs(tmp_path / "killed.log") >= saved.n_evaluations
+
+    for log, runs in (("resumed.log", ref.n_evaluations - saved.n_evaluations), ("replayed.log", 0)):
+        proc = _design_process(tmp_path, design_file, out, log)
+        stdout, stderr = proc.communicate(timeout=300)
+        assert proc.returncode == 0, stderr
+        assert "warning" not in stderr.lower() and "afresh" not in stderr, stderr
+        assert "resumed" in " ".join(stdout.split())
+        assert _engine_runs(tmp_path / log) == runs, log
+        info = json.loads((out / "design.json").read_text())
+        assert info["best"]["variables"] == ref.best["variables"] and info["best"]["objective"] == ref.best["objective"]
+        assert info["n_evaluations"] == ref.n_evaluations
+    assert not list(out.glob("checkpoint.npz.unreadable-*"))
