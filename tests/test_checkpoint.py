@@ -304,3 +304,100 @@ def test_a_killed_design_process_resumes_and_a_finished_one_replays_without_engi
         assert info["best"]["variables"] == ref.best["variables"] and info["best"]["objective"] == ref.best["objective"]
         assert info["n_evaluations"] == ref.n_evaluations
     assert not list(out.glob("checkpoint.npz.unreadable-*"))
+
+
+def _npz(members: dict[str, bytes]) -> bytes:
+    """A zip archive of the raw ``members`` (stored, as np.savez writes them)."""
+    import zipfile
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+    return buf.getvalue()
+
+
+def _npy_declaring(shape, data: bytes) -> bytes:
+    """A .npy member whose header declares ``shape`` float64 values, followed by ``data``."""
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": shape})
+    return buf.getvalue() + data
+
+
+def _members(good: bytes) -> dict[str, bytes]:
+    import zipfile
+
+    with zipfile.ZipFile(io.BytesIO(good)) as z:
+        return {name: z.read(name) for name in z.namelist()}
+
+
+@pytest.mark.parametrize("damage, why", [
+    ("huge-shape", r"member 'cma_mean\.npy'.* declares shape \(1000000000000,\)"),
+    ("non-array", r"member 'notes\.txt' is not a \.npy array"),
+    ("object-array", r"member 'cma_C\.npy'.* holds object values"),
+    ("short-array", r"member 'cma_mean\.npy'.* declares shape \(4,\)"),
+])
+def test_a_checkpoint_member_is_checked_before_it_is_allocated(tmp_path, reference, damage, why):
+    """A member declaring 10**12 values (8 TB) in a few bytes, a member that is no .npy array, a
+    pickled object array or a header that promises more than the member holds: set aside with a
+    warning naming the member (not an internal error, not an allocation, not a blamed run.duration)."""
+    _, good = reference
+    members = _members(good)
+    if damage == "huge-shape":
+        members["cma_mean.npy"] = _npy_declaring((10**12,), b"\0" * 16)
+    elif damage == "non-array":
+        members["notes.txt"] = b"hello"
+    elif damage == "object-array":
+        buf = io.BytesIO()
+        np.lib.format.write_array_header_1_0(buf, {"descr": "|O", "fortran_order": False, "shape": (1,)})
+        members["cma_C.npy"] = buf.getvalue() + pickle.dumps([1])
+    else:
+        members["cma_mean.npy"] = _npy_declaring((4,), b"\0" * 16)
+    data = _npz(members)
+    out = _plant(tmp_path, data)
+    with pytest.warns(CheckpointWarning, match="checkpoint.npz: is damaged or not a design checkpoint") as rec:
+        assert _load(out, parse_design(_design()), force=False) is None
+    assert any(__import__("re").search(why, str(w.message)) for w in rec), [str(w.message) for w in rec]
+    assert [p.read_bytes() for p in out.glob("checkpoint.npz.unreadable-*")] == [data]
+
+
+def test_a_checkpoint_that_links_out_of_its_folder_is_set_aside(tmp_path, reference):
+    """checkpoint.npz, a symbolic link to a (valid) checkpoint outside the folder: not followed;
+    the link is set aside with a warning, its target left alone."""
+    _, good = reference
+    outside = tmp_path / "elsewhere.npz"
+    outside.write_bytes(good)
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / _CHECKPOINT).symlink_to(outside)
+    with pytest.warns(CheckpointWarning, match=r"symbolic link to .*elsewhere\.npz, outside"):
+        assert _load(out, parse_design(_design()), force=False) is None
+    assert outside.read_bytes() == good
+    assert [p.is_symlink() for p in out.glob("checkpoint.npz.unreadable-*")] == [True]
+
+
+def test_a_fifo_named_checkpoint_is_set_aside_within_seconds(tmp_path):
+    """A FIFO (named pipe) named checkpoint.npz: a reader that opened it would wait for a writer
+    forever; it is refused at once (a subprocess, so that a hang fails the test by its timeout)."""
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    out = tmp_path / "d"
+    out.mkdir()
+    os.mkfifo(out / _CHECKPOINT)
+    script = textwrap.dedent(f"""
+        import warnings
+        from hertzchain.design import parse_design
+        from hertzchain.design.checkpoint import _load
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            print(_load(__import__("pathlib").Path({str(out)!r}), parse_design({_design()!r}), False))
+        print("|".join(str(w.message) for w in rec))
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("None") and "a FIFO (named pipe), not a regular file" in proc.stdout
+    kept = list(out.glob("checkpoint.npz.unreadable-*"))
+    assert len(kept) == 1 and __import__("stat").S_ISFIFO(os.lstat(kept[0]).st_mode)

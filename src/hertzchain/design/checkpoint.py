@@ -24,7 +24,8 @@ aside, and the search starts afresh. So a resumed search ends with the result of
 one.
 
 An unreadable or damaged checkpoint (truncated, not an archive, a pickle, a field of the wrong
-type) and a ``checkpoint.pkl`` of an older hertzchain (a pickle: never read) are named in a
+type, a member that is not a ``.npy`` array or declares more data than it holds, a FIFO, a device
+or a link out of the folder: :mod:`hertzchain.received`) and a ``checkpoint.pkl`` of an older hertzchain (a pickle: never read) are named in a
 :class:`~hertzchain.errors.CheckpointWarning`, renamed to ``<name>.unreadable-<time>`` (kept, not
 deleted) and the search restarts.
 """
@@ -35,6 +36,7 @@ import io
 import itertools
 import json
 import math
+import os
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -249,13 +251,14 @@ def _rows(raw: Any, dim: int) -> list[dict]:
 
 def _read(path: Path, problem) -> Saved:
     """The checkpoint at ``path`` checked field by field (:class:`_Damaged` otherwise)."""
-    import zipfile
+    from ..received import load_npz
 
+    # A received folder's file: a regular one only (a FIFO would hang the read), every member a
+    # .npy array of numbers whose header is checked before it is allocated (hertzchain.received).
     try:
-        with np.load(path, allow_pickle=False) as npz:
-            files = {name: npz[name] for name in npz.files}
-    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, NotImplementedError, RuntimeError) as exc:
-        raise _Damaged(f"not a NumPy .npz archive of plain arrays ({type(exc).__name__}: {exc})") from None
+        files = load_npz(path, path.parent)
+    except ValueError as exc:
+        raise _Damaged(f"not a NumPy .npz archive of plain arrays ({exc})") from None
     raw_meta = files.pop("meta", None)
     _need(raw_meta is not None and raw_meta.dtype == np.uint8 and raw_meta.ndim == 1, "no 'meta' document")
     try:
@@ -326,7 +329,7 @@ def _load(out: Path, problem, force: bool) -> Saved | None:
         set_aside(legacy, "a checkpoint of an older hertzchain, a Python pickle, which can run code when read; "
                   "hertzchain never reads one")
     path = out / _CHECKPOINT
-    if not path.exists():
+    if not os.path.lexists(path):  # lexists: a dangling link is set aside like any unusable file
         return None
     try:
         saved = _read(path, problem)
