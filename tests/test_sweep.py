@@ -374,3 +374,68 @@ def test_a_ctrl_c_swallowed_by_a_weakref_callback_still_stops_the_sweep(tmp_path
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler is put back
     again = run_sweep(grid_sweep(), tmp_path)  # and the sweep resumes where it stopped
     assert again.skipped == [0] and again.computed == [1, 2, 3]
+
+
+def test_a_forced_sweep_killed_midway_keeps_the_old_results(tmp_path):
+    """--force onto another sweep's folder, killed after its first chunk: the old sweep's results
+    are whole (set aside, not deleted); the new sweep, forced again, resumes its finished chunk and,
+    once complete, leaves no copy of the replaced results; forcing the old sweep back instead
+    restores them without computing a chunk."""
+    old_cfg = grid_sweep(parameters={"striker.velocity": [0.2]})
+    old = run_sweep(old_cfg, tmp_path)
+    old_table = (tmp_path / "metrics.csv").read_bytes()
+    calls = []
+
+    def killer(done, total):
+        calls.append(done)
+        if len(calls) == 2:  # after the first chunk is on disk
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(grid_sweep(), tmp_path, force=True, progress=killer)
+    kept = list(tmp_path.glob(".replaced-*"))
+    assert len(kept) == 1 and (kept[0] / "metrics.csv").read_bytes() == old_table
+    assert json.loads((kept[0] / "sweep.json").read_text())["hash"] == parse_sweep(old_cfg).hash
+    assert len(list((kept[0] / "chunks").glob("chunk_*.nc"))) == 1
+    new = run_sweep(grid_sweep(), tmp_path, force=True)
+    assert new.skipped == [0] and new.computed == [1, 2, 3]
+    assert not list(tmp_path.glob(".replaced-*"))
+    # Killed again midway of a forced run of the old sweep: forcing it back takes its results.
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(old_cfg, tmp_path, force=True, progress=lambda d, t: (_ for _ in ()).throw(KeyboardInterrupt))
+    assert len(list(tmp_path.glob(".replaced-*"))) == 1
+    back = run_sweep(grid_sweep(), tmp_path, force=True)
+    assert back.computed == [] and back.skipped == [0, 1, 2, 3]
+    pd.testing.assert_frame_equal(back.metrics, new.metrics, check_exact=True)
+    assert not list(tmp_path.glob(".replaced-*"))
+
+
+def test_a_fifo_or_an_outside_link_among_the_chunks_is_never_read(tmp_path):
+    """A received sweep folder whose chunk is a FIFO (reading it would wait forever) or a symbolic
+    link out of the folder: the resumed sweep reads neither (a subprocess, so that a hang fails by
+    its timeout); the chunk is to be computed again, and replacing what is not a regular file is
+    refused, naming it (exit 2 in the CLI)."""
+    import subprocess
+    import textwrap
+
+    small = grid_sweep(parameters={"striker.velocity": [0.2]})
+    run_sweep(small, tmp_path)
+    chunk = tmp_path / "chunks" / "chunk_00000.nc"
+    outside = tmp_path.parent / f"{tmp_path.name}-outside.nc"
+    os.replace(chunk, outside)
+    for kind in ("fifo", "link"):
+        if os.path.lexists(chunk):
+            os.remove(chunk)
+        os.mkfifo(chunk) if kind == "fifo" else chunk.symlink_to(outside)
+        script = textwrap.dedent(f"""
+            from hertzchain.errors import ConfigError
+            from hertzchain.sweep import run_sweep
+            try:
+                run_sweep({small!r}, {str(tmp_path)!r})
+            except ConfigError as exc:
+                print(exc)
+        """)
+        proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, proc.stderr
+        what = "a FIFO (named pipe)" if kind == "fifo" else "a symbolic link"
+        assert f"chunk_00000.nc: exists and is {what}" in proc.stdout, proc.stdout
