@@ -229,3 +229,29 @@ def test_run_refuses_an_out_name_that_is_not_a_result_format(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("error: --out:") and "*.nc" in err and "*.mat" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("where, reason", [
+    ("missing/result.nc", "its folder does not exist"),
+    ("a-file/result.nc", "a part of its folder path is not a folder"),
+    ("read-only/result.nc", "permission denied"),
+])
+def test_run_refuses_an_out_it_cannot_write_before_simulating(tmp_path, capsys, monkeypatch, where, reason):
+    """--out in a missing folder, under a file, or in a folder it may not write: refused before
+    the simulation (which ran to its end first, before), naming the file and why; exit 2."""
+    import os
+
+    import hertzchain.config as config
+
+    if where.startswith("read-only"):
+        if os.geteuid() == 0:
+            pytest.skip("the administrator may write into a read-only folder")
+        (tmp_path / "read-only").mkdir(mode=0o500)
+    (tmp_path / "a-file").write_text("x")
+    ran = []
+    monkeypatch.setattr(config, "simulate_config", lambda *a, **k: ran.append(1))
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    out = tmp_path / where
+    assert main(["run", str(examples / "contract.toml"), "--out", str(out), "-q"]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert err.startswith(f"error: {out}: cannot be written: {reason}") and ran == []
