@@ -240,3 +240,33 @@ def test_picoscope_out_of_range_sample_is_refused_with_its_line(tmp_path):
     (tmp_path / "p.csv").write_text("\n".join(text) + "\n")
     with pytest.raises(ConfigError, match="line 51: the signal is inf .*out of range"):
         read_trace(tmp_path / "p.csv", "Channel A", sensitivity=100.0)
+
+
+def test_a_huge_lecroy_file_costs_its_declared_record_not_its_size(tmp_path):
+    """A .trc whose WAVEDESC declares a 20,000-sample record, in a 3 GB file (sparse: no disk
+    used): the descriptor is read first and only the declared record is copied (read whole before,
+    3.2 GB of memory); a subprocess's peak memory stays ~100 MB above the interpreter's."""
+    import subprocess
+    import sys
+    import textwrap
+
+    from lab_files import write_trc
+
+    t = np.arange(20_000) * 1e-8
+    volts = 0.5 * np.exp(-(((t - 1e-4) / 2e-5) ** 2))
+    path = write_trc(tmp_path / "big.trc", t, volts)
+    with open(path, "r+b") as f:
+        f.truncate(3 * 2**30)
+    script = textwrap.dedent(f"""
+        import resource
+        import numpy as np
+        from hertzchain.lab import read_trace
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        trace = read_trace({str(path)!r}, sensitivity=2.0, check=False)
+        after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        print(trace.size, (after - before) / 1024)
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    n, grown_mib = proc.stdout.split()
+    assert int(n) == t.size and float(grown_mib) < 200.0, proc.stdout
