@@ -232,13 +232,14 @@ def test_run_refuses_an_out_name_that_is_not_a_result_format(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("where, reason", [
-    ("missing/result.nc", "its folder does not exist"),
     ("a-file/result.nc", "a part of its folder path is not a folder"),
+    ("a-file/sub/result.nc", "a part of its folder path is not a folder"),
     ("read-only/result.nc", "permission denied"),
+    ("read-only/new/result.nc", "permission denied"),
 ])
 def test_run_refuses_an_out_it_cannot_write_before_simulating(tmp_path, capsys, monkeypatch, where, reason):
-    """--out in a missing folder, under a file, or in a folder it may not write: refused before
-    the simulation (which ran to its end first, before), naming the file and why; exit 2."""
+    """--out under a file, or in a folder it may not write (or create): refused before the
+    simulation (which ran to its end first, before), naming the file and why; exit 2."""
     import os
 
     import hertzchain.config as config

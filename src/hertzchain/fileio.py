@@ -84,16 +84,17 @@ def check_target(path: str | os.PathLike) -> None:
 
 def check_writable(path: str | os.PathLike) -> None:
     """Refuse, before any work, a file that cannot be written: not a regular file (see
-    :func:`check_target`), or a folder that is missing, not a folder, read-only or not ours.
+    :func:`check_target`), or a folder that is not a folder, read-only or not ours.
 
     The folder is tried for real (a temporary file made and removed at once, as the final write
     will make one): permission bits alone do not tell (an administrator, a read-only mount, an
-    ACL).
+    ACL). A folder still to be created (``hertzchain run`` creates the result's folder) is tried
+    at its deepest existing ancestor, and nothing is created.
 
     Parameters
     ----------
     path : str or os.PathLike
-        The file about to be written (its folder must exist).
+        The file about to be written.
 
     Raises
     ------
@@ -102,9 +103,12 @@ def check_writable(path: str | os.PathLike) -> None:
     """
     path = Path(path)
     check_target(path)
+    folder = path.parent
+    while not os.path.lexists(folder) and folder != folder.parent:
+        folder = folder.parent
     try:
         fd, probe = tempfile.mkstemp(prefix=f".{path.name}.{_host()}-{os.getpid()}.", suffix=".tmp",
-                                     dir=path.parent)
+                                     dir=folder)
     except OSError as exc:
         raise ConfigError(str(path), f"cannot be written: {_reason(exc)}") from None
     os.close(fd)

@@ -51,8 +51,9 @@ def check_address(address: str) -> str:
     """The scheduler address ``address`` as ``tcp://HOST:PORT``, or a ConfigError naming ``--scheduler``.
 
     hertzchain speaks plain TCP to a Dask scheduler (``tcp://HOST:PORT`` or ``HOST:PORT``, as
-    ``dask scheduler`` prints it): TLS needs certificates and UCX a network stack that no option
-    here configures, so those (and any other scheme) are refused at once, not tried.
+    ``dask scheduler`` prints it; ``inproc://`` names a scheduler in this very process, a
+    ``LocalCluster(processes=False)``): TLS needs certificates and UCX a network stack that no
+    option here configures, so those (and any other scheme) are refused at once, not tried.
 
     Parameters
     ----------
@@ -62,12 +63,14 @@ def check_address(address: str) -> str:
     Returns
     -------
     str
-        The address with its scheme.
+        The address with its scheme (``tcp://`` or ``inproc://``).
     """
     text = address.strip()
     scheme, sep, rest = text.partition("://")
     if not sep:
         scheme, rest = "tcp", text
+    if scheme == "inproc" and rest:
+        return text
     if scheme.lower() != "tcp":
         why = {"tls": "TLS needs certificates, which --scheduler does not take",
                "ucx": "UCX needs a network stack that --scheduler does not configure"}.get(scheme.lower(),
