@@ -439,3 +439,32 @@ def test_a_fifo_or_an_outside_link_among_the_chunks_is_never_read(tmp_path):
         assert proc.returncode == 0, proc.stderr
         what = "a FIFO (named pipe)" if kind == "fifo" else "a symbolic link"
         assert f"chunk_00000.nc: exists and is {what}" in proc.stdout, proc.stdout
+
+
+@pytest.mark.parametrize("damage", ["wrong-shape", "huge-declared", "text-metric"])
+def test_a_chunk_with_a_valid_checksum_but_foreign_content_is_computed_again(tmp_path, damage):
+    """A received chunk whose checksum was made to match (so it passes the SHA-256 check) but whose
+    per-member variables are not the chunk's (F_m of another length, a member list declaring 10**12
+    members, a metric of text): its declarations are checked before anything is read, and the chunk
+    is computed again; the table is the uninterrupted sweep's."""
+    import hashlib
+
+    import h5py
+
+    small = grid_sweep(parameters={"striker.velocity": [0.2, 0.3]})
+    first = run_sweep(small, tmp_path)
+    chunk = tmp_path / "chunks" / "chunk_00000.nc"
+    with h5py.File(chunk, "r+") as f:
+        if damage == "wrong-shape":
+            del f["F_m"]
+            f["F_m"] = np.ones(5)
+        elif damage == "huge-declared":
+            del f["member"]
+            f.create_dataset("member", shape=(10**12,), dtype="i8", chunks=(1024,))
+        else:
+            del f["T"]
+            f["T"] = np.array([b"abc", b"def"])
+    (tmp_path / "chunks" / "chunk_00000.nc.sha256").write_text(hashlib.sha256(chunk.read_bytes()).hexdigest() + "\n")
+    again = run_sweep(small, tmp_path)
+    assert again.computed == [0]
+    pd.testing.assert_frame_equal(again.metrics, first.metrics, check_exact=True)

@@ -124,10 +124,32 @@ def _file_holds(path: Path, sweep_hash: str, members) -> bool:
         # h5py directly (a NetCDF-4 file is an HDF5 file): ~10x faster than h5netcdf, ~100x than
         # xarray.open_dataset, which decodes every variable; a million members are 2000 chunks.
         with h5py.File(path, "r") as f:
-            return (_text(f.attrs.get("sweep_hash")) == sweep_hash
-                    and np.array_equal(f["member"][...], np.asarray(members)))
-    except (OSError, ValueError, KeyError, TypeError):  # unreadable or foreign: recompute it
+            if _text(f.attrs.get("sweep_hash")) != sweep_hash or not _table_shapes_ok(f, len(members)):
+                return False
+            return np.array_equal(f["member"][...], np.asarray(members))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):  # unreadable or foreign: recompute it
         return False
+
+
+def _table_shapes_ok(f, n: int) -> bool:
+    """The per-member variables of a chunk (what the metrics table reads) are ``n`` values each,
+    of numbers (``fit_error``: text): checked from the file's declarations before anything is
+    read, so a variable declaring 10**12 members is never allocated, and a damaged or foreign
+    chunk is computed again rather than breaking the table."""
+    import h5py
+
+    names = ["member", *TABLE_COLUMNS, *_BODY_COLUMNS, *(var for var, *_ in PLASTIC_METRICS.values())]
+    for name in names:
+        if name not in f:
+            if name == "member":
+                return False
+            continue
+        d = f[name]
+        if not isinstance(d, h5py.Dataset) or d.shape != (n,):
+            return False
+        if d.dtype.kind not in ("OSU" if name == "fit_error" else "fiub"):
+            return False
+    return True
 
 
 def _text(x: Any) -> Any:
