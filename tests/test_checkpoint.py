@@ -270,9 +270,9 @@ def _engine_runs(path) -> int:
 
 def test_a_killed_design_process_resumes_and_a_finished_one_replays_without_engine_runs(tmp_path, reference):
     """A real ``hertzchain design`` process, killed (SIGKILL) once its checkpoint is on disk, then
-    rerun twice into the same --out: the first rerun continues the search (no warning, only the
-    engine runs the killed one had not done, the uninterrupted search's result); the second replays
-    the finished search with no engine run at all."""
+    rerun into the same --out by a new process: it continues the search (no warning, only the
+    engine runs the killed one had not done, the uninterrupted search's result); rerun again, the
+    finished search replays with no engine run at all."""
     import signal
     import time
 
@@ -293,16 +293,33 @@ def test_a_killed_design_process_resumes_and_a_finished_one_replays_without_engi
     assert saved.phase != "done" and 1 <= saved.generation and 0 < saved.n_evaluations < ref.n_evaluations
     assert _engine_runs(tmp_path / "killed.log") >= saved.n_evaluations
 
-    for log, runs in (("resumed.log", ref.n_evaluations - saved.n_evaluations), ("replayed.log", 0)):
-        proc = _design_process(tmp_path, design_file, out, log)
-        stdout, stderr = proc.communicate(timeout=300)
-        assert proc.returncode == 0, stderr
-        assert "warning" not in stderr.lower() and "afresh" not in stderr, stderr
-        assert "resumed" in " ".join(stdout.split())
-        assert _engine_runs(tmp_path / log) == runs, log
-        info = json.loads((out / "design.json").read_text())
-        assert info["best"]["variables"] == ref.best["variables"] and info["best"]["objective"] == ref.best["objective"]
-        assert info["n_evaluations"] == ref.n_evaluations
+    # The rerun, a new process: it replays what the killed one saved and computes only the rest.
+    proc = _design_process(tmp_path, design_file, out, "resumed.log")
+    stdout, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 0, stderr
+    assert "warning" not in stderr.lower() and "afresh" not in stderr, stderr
+    assert "resumed" in " ".join(stdout.split())
+    assert _engine_runs(tmp_path / "resumed.log") == ref.n_evaluations - saved.n_evaluations
+    info = json.loads((out / "design.json").read_text())
+    assert info["best"]["variables"] == ref.best["variables"] and info["best"]["objective"] == ref.best["objective"]
+    assert info["n_evaluations"] == ref.n_evaluations
+    # Once more (here, to count the engine runs): the finished search replays with none.
+    from hertzchain.design import search
+
+    runs = []
+    real = search.Evaluator.evaluate
+
+    def counted(self, keys, configs):
+        evs = real(self, keys, configs)
+        runs.append(sum(ev.engine_runs for ev in evs))
+        return evs
+
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("error", CheckpointWarning)
+        mp.setattr(search.Evaluator, "evaluate", counted)
+        res = run_design(parse_design(_design()), out)
+    assert res.resumed and sum(runs) == 0
+    _same_search(res, ref)
     assert not list(out.glob("checkpoint.npz.unreadable-*"))
 
 

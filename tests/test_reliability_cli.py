@@ -258,36 +258,46 @@ def test_run_refuses_an_out_it_cannot_write_before_simulating(tmp_path, capsys, 
     assert err.startswith(f"error: {out}: cannot be written: {reason}") and ran == []
 
 
-@pytest.mark.parametrize("plant, message", [
-    ("fifo-summary", "summary.json: is a FIFO (named pipe), not a regular file"),
-    ("fifo-trace", "chain1_truncated_16.nc: is a FIFO (named pipe), not a regular file"),
-    ("link-trace", "chain1_truncated_16.nc: is a symbolic link to"),
-])
-def test_reproduce_from_data_reads_only_regular_files_of_its_folder(tmp_path, plant, message):
-    """--from-data on a received folder: a FIFO named summary.json or like a trace (reading it would
-    wait forever: a subprocess, so that a hang fails by its timeout), or a trace linking out of
-    data/: refused at once, naming the file; exit 2."""
+def test_reproduce_from_data_reads_only_regular_files_of_its_folder(tmp_path, capsys):
+    """--from-data on a received folder: a trace linking out of data/, a FIFO named summary.json or
+    like a trace (reading one would wait forever: run in a subprocess, so that a hang fails by its
+    timeout): refused at once, naming the file; exit 2."""
     import os
     import subprocess
     import sys
+    import textwrap
 
     from hertzchain.paper.protocol import Settings
 
-    data = tmp_path / "data"
-    data.mkdir()
-    summary = tmp_path / "summary.json"
-    if plant == "fifo-summary":
-        os.mkfifo(summary)
-    else:
-        summary.write_text(json.dumps({"settings": Settings().describe()}))
-    trace = data / "chain1_truncated_16.nc"
-    if plant == "fifo-trace":
-        os.mkfifo(trace)
-    elif plant == "link-trace":
-        outside = tmp_path.parent / f"{tmp_path.name}-outside.nc"
-        outside.write_bytes(b"\x89HDF\r\n\x1a\n")
-        trace.symlink_to(outside)
-    proc = subprocess.run([sys.executable, "-m", "hertzchain.cli", "reproduce", "--out", str(tmp_path), "--from-data"],
-                          capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 2, proc.stderr
-    assert message in " ".join(proc.stderr.split()) and "Traceback" not in proc.stderr
+    def folder(name: str, plant: str):
+        out = tmp_path / name
+        data = out / "data"
+        data.mkdir(parents=True)
+        summary, trace = out / "summary.json", data / "chain1_truncated_16.nc"
+        if plant == "fifo-summary":
+            os.mkfifo(summary)
+        else:
+            summary.write_text(json.dumps({"settings": Settings().describe()}))
+        if plant == "fifo-trace":
+            os.mkfifo(trace)
+        elif plant == "link-trace":
+            outside = tmp_path / "outside.nc"
+            outside.write_bytes(b"\x89HDF\r\n\x1a\n")
+            trace.symlink_to(outside)
+        return out
+
+    linked = folder("link", "link-trace")
+    err = " ".join(run_error(capsys, ["reproduce", "--out", str(linked), "--from-data"]).split())
+    assert "chain1_truncated_16.nc: is a symbolic link to" in err and "outside" in err
+    fifos = [folder("fifo-summary", "fifo-summary"), folder("fifo-trace", "fifo-trace")]
+    script = textwrap.dedent(f"""
+        from hertzchain.cli.main import main
+        for out in {[str(f) for f in fifos]!r}:
+            print(main(["reproduce", "--out", out, "--from-data"]))
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert proc.stdout.split() == ["2", "2"], proc.stderr
+    err = " ".join(proc.stderr.split())
+    assert "summary.json: is a FIFO (named pipe), not a regular file" in err
+    assert "chain1_truncated_16.nc: is a FIFO (named pipe), not a regular file" in err
+    assert "Traceback" not in err

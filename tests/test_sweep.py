@@ -382,6 +382,7 @@ def test_a_forced_sweep_killed_midway_keeps_the_old_results(tmp_path):
     once complete, leaves no copy of the replaced results; forcing the old sweep back instead
     restores them without computing a chunk."""
     old_cfg = grid_sweep(parameters={"striker.velocity": [0.2]})
+    new_cfg = grid_sweep(parameters={"striker.velocity": [0.2, 0.3]}, chunk_size=1)
     old = run_sweep(old_cfg, tmp_path)
     old_table = (tmp_path / "metrics.csv").read_bytes()
     calls = []
@@ -392,53 +393,60 @@ def test_a_forced_sweep_killed_midway_keeps_the_old_results(tmp_path):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run_sweep(grid_sweep(), tmp_path, force=True, progress=killer)
+        run_sweep(new_cfg, tmp_path, force=True, progress=killer)
     kept = list(tmp_path.glob(".replaced-*"))
     assert len(kept) == 1 and (kept[0] / "metrics.csv").read_bytes() == old_table
     assert json.loads((kept[0] / "sweep.json").read_text())["hash"] == parse_sweep(old_cfg).hash
     assert len(list((kept[0] / "chunks").glob("chunk_*.nc"))) == 1
-    new = run_sweep(grid_sweep(), tmp_path, force=True)
-    assert new.skipped == [0] and new.computed == [1, 2, 3]
+    new = run_sweep(new_cfg, tmp_path, force=True)
+    assert new.skipped == [0] and new.computed == [1]
     assert not list(tmp_path.glob(".replaced-*"))
-    # Killed again midway of a forced run of the old sweep: forcing it back takes its results.
+    # Killed again at the start of a forced run of the old sweep: forcing the new one back takes
+    # its results back; forcing the old one completes it from its set-aside chunks.
     with pytest.raises(KeyboardInterrupt):
         run_sweep(old_cfg, tmp_path, force=True, progress=lambda d, t: (_ for _ in ()).throw(KeyboardInterrupt))
     assert len(list(tmp_path.glob(".replaced-*"))) == 1
-    back = run_sweep(grid_sweep(), tmp_path, force=True)
-    assert back.computed == [] and back.skipped == [0, 1, 2, 3]
+    back = run_sweep(new_cfg, tmp_path, force=True)
+    assert back.computed == [] and back.skipped == [0, 1]
     pd.testing.assert_frame_equal(back.metrics, new.metrics, check_exact=True)
     assert not list(tmp_path.glob(".replaced-*"))
+    assert old.computed == [0]
 
 
 def test_a_fifo_or_an_outside_link_among_the_chunks_is_never_read(tmp_path):
-    """A received sweep folder whose chunk is a FIFO (reading it would wait forever) or a symbolic
-    link out of the folder: the resumed sweep reads neither (a subprocess, so that a hang fails by
-    its timeout); the chunk is to be computed again, and replacing what is not a regular file is
-    refused, naming it (exit 2 in the CLI)."""
+    """A received sweep folder whose chunk is a FIFO (reading it would wait forever: checked in a
+    subprocess, so that a hang fails by its timeout) or a symbolic link out of the folder: the
+    resumed sweep reads neither; the chunk is to be computed again, and replacing what is not a
+    regular file is refused, naming it (exit 2 in the CLI)."""
+    import shutil
     import subprocess
     import textwrap
 
+    from hertzchain.errors import ConfigError
+
     small = grid_sweep(parameters={"striker.velocity": [0.2]})
-    run_sweep(small, tmp_path)
-    chunk = tmp_path / "chunks" / "chunk_00000.nc"
-    outside = tmp_path.parent / f"{tmp_path.name}-outside.nc"
-    os.replace(chunk, outside)
-    for kind in ("fifo", "link"):
-        if os.path.lexists(chunk):
-            os.remove(chunk)
-        os.mkfifo(chunk) if kind == "fifo" else chunk.symlink_to(outside)
-        script = textwrap.dedent(f"""
-            from hertzchain.errors import ConfigError
-            from hertzchain.sweep import run_sweep
-            try:
-                run_sweep({small!r}, {str(tmp_path)!r})
-            except ConfigError as exc:
-                print(exc)
-        """)
-        proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
-        assert proc.returncode == 0, proc.stderr
-        what = "a FIFO (named pipe)" if kind == "fifo" else "a symbolic link"
-        assert f"chunk_00000.nc: exists and is {what}" in proc.stdout, proc.stdout
+    run_sweep(small, tmp_path / "a")
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    fifo = tmp_path / "a" / "chunks" / "chunk_00000.nc"
+    fifo.unlink()
+    os.mkfifo(fifo)
+    script = textwrap.dedent(f"""
+        from pathlib import Path
+        from hertzchain.sweep import parse_sweep
+        from hertzchain.sweep.storage import _chunk_is_done
+        cfg = parse_sweep({small!r})
+        print(_chunk_is_done(Path({str(fifo)!r}), cfg.hash, cfg.chunks()[0]))
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and proc.stdout.strip() == "False", proc.stderr
+    with pytest.raises(ConfigError, match=r"chunk_00000\.nc: exists and is a FIFO \(named pipe\)"):
+        run_sweep(small, tmp_path / "a")
+    link = tmp_path / "b" / "chunks" / "chunk_00000.nc"
+    outside = tmp_path / "outside.nc"
+    os.replace(link, outside)
+    link.symlink_to(outside)  # the genuine chunk, with its genuine checksum beside the link
+    with pytest.raises(ConfigError, match=r"chunk_00000\.nc: exists and is a symbolic link"):
+        run_sweep(small, tmp_path / "b")
 
 
 @pytest.mark.parametrize("damage", ["wrong-shape", "huge-declared", "text-metric"])
