@@ -144,7 +144,7 @@ def bounded(value: Any, field: str, kind: str, *, unit: str = "", whole: bool = 
 
 
 def run_options(*, dt: Any = None, rtol: Any = None, steps_per_radian: Any = None, threads: Any = None,
-                threads_field: str = "run.threads") -> tuple:
+                threads_field: str = "run.threads", threads_max: int | None = None) -> tuple:
     """The run keywords of the Python API checked as the config's ``[run]`` fields (None: absent).
 
     Parameters
@@ -159,6 +159,8 @@ def run_options(*, dt: Any = None, rtol: Any = None, steps_per_radian: Any = Non
         Threads of one run (``run.threads``) or of a batch (``n_threads``).
     threads_field : str
         How the caller names ``threads`` (for the message).
+    threads_max : int or None
+        The most threads allowed (None: ``run.threads``'s bound).
 
     Returns
     -------
@@ -172,5 +174,9 @@ def run_options(*, dt: Any = None, rtol: Any = None, steps_per_radian: Any = Non
     rtol = None if rtol is None else bounded(rtol, "run.rtol", "rtol")
     if steps_per_radian is not None:
         steps_per_radian = bounded(steps_per_radian, "run.steps_per_radian", "steps_per_radian")
-    threads = None if threads is None else bounded(threads, threads_field, "threads", whole=True)
+    if threads is not None:
+        threads = bounded(threads, threads_field, "threads", whole=True) if threads_max is None else \
+            count(threads, threads_field)
+        if threads_max is not None and threads > threads_max:
+            raise ConfigError(threads_field, f"must be <= {threads_max}, got {threads!r}")
     return dt, rtol, steps_per_radian, threads

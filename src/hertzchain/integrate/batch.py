@@ -277,8 +277,9 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     _cuda.check_device(device)
     duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")
     # The config's bounds at the API's door (hertzchain.strict): dt=nan, n_threads=10**6 refused.
+    # n_threads: the bound of a sweep's sweep.n_threads (sweep/schema.py), whose chunks run here.
     dt, _, steps_per_radian, n_threads = run_options(dt=dt, steps_per_radian=steps_per_radian, threads=n_threads,
-                                                     threads_field="n_threads")
+                                                     threads_field="n_threads", threads_max=4096)
     if device == "cuda" and not isinstance(models, Ensemble):
         _cuda.refuse_elastoplastic([LAW_CODES.get(getattr(getattr(m, "law", None), "name", None), -1)
                                     for m in models])
