@@ -28,7 +28,8 @@ from typing import Any, Callable, Iterable, Iterator
 
 from .errors import ConfigError, HertzchainError
 
-__all__ = ["connect", "check_address", "results_as_completed", "results_in_order", "ClusterError", "IN_FLIGHT_PER_THREAD"]
+__all__ = ["connect", "check_address", "results_as_completed", "results_in_order", "ClusterError",
+           "IN_FLIGHT_PER_THREAD"]
 
 #: Tasks kept submitted per worker thread: enough to keep every worker busy while results travel
 #: back, few enough that the scheduler and the client hold only a handful of tasks.

@@ -25,9 +25,9 @@ one.
 
 An unreadable or damaged checkpoint (truncated, not an archive, a pickle, a field of the wrong
 type, a member that is not a ``.npy`` array or declares more data than it holds, a FIFO, a device
-or a link out of the folder: :mod:`hertzchain.received`) and a ``checkpoint.pkl`` of an older hertzchain (a pickle: never read) are named in a
-:class:`~hertzchain.errors.CheckpointWarning`, renamed to ``<name>.unreadable-<time>`` (kept, not
-deleted) and the search restarts.
+or a link out of the folder: :mod:`hertzchain.received`) and a ``checkpoint.pkl`` of an older
+hertzchain (a pickle: never read) are named in a :class:`~hertzchain.errors.CheckpointWarning`,
+renamed to ``<name>.unreadable-<time>`` (kept, not deleted) and the search restarts.
 """
 
 from __future__ import annotations
