@@ -37,7 +37,7 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     cfg = load_config(config, overrides)
     check_not_input(out, config)
     # Before any work: a FIFO, a link or a device as --out, or a folder that cannot be written
-    # (missing, read-only, not ours), refused now rather than after the whole simulation.
+    # (under a file, read-only, not ours), refused now rather than after the whole simulation.
     check_writable(out)
     model = build_model(cfg)
     probes = build_probes(cfg)
