@@ -301,3 +301,19 @@ def test_reproduce_from_data_reads_only_regular_files_of_its_folder(tmp_path, ca
     assert "summary.json: is a FIFO (named pipe), not a regular file" in err
     assert "chain1_truncated_16.nc: is a FIFO (named pipe), not a regular file" in err
     assert "Traceback" not in err
+
+
+def test_a_received_trace_declaring_a_huge_variable_is_refused_before_it_is_allocated(tmp_path):
+    """A trace of a reproduction's data/ whose wall_force declares 10**13 samples (an HDF5 file of
+    a few kB, the data never written): refused naming the file and the variable, nothing allocated."""
+    import h5py
+
+    from hertzchain.paper.reproduce import load_trace
+
+    path = tmp_path / "trace.nc"
+    with h5py.File(path, "w") as f:
+        f.create_dataset("wall_force", shape=(10**13,), dtype="f8", chunks=(4096,))
+    # (--from-data's reader wraps it in a ConfigError naming the file: "is damaged or not a
+    # hertzchain result (ValueError: ...)")
+    with pytest.raises(ValueError, match=r"'wall_force' declares shape \(10000000000000,\)"):
+        load_trace(path)

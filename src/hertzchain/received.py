@@ -118,18 +118,6 @@ def read_received(path: str | os.PathLike, folder: str | os.PathLike | None = No
         return fh.read(max_bytes + 1)[:max_bytes]
 
 
-def _available_memory() -> int | None:
-    """Bytes of memory available now (Linux ``MemAvailable``), None where unknown."""
-    try:
-        with open("/proc/meminfo", "rb") as f:
-            for line in f:
-                if line.startswith(b"MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return None
-
-
 def load_npz(path: str | os.PathLike, folder: str | os.PathLike | None = None) -> dict[str, np.ndarray]:
     """The arrays of a NumPy ``.npz`` archive, each checked before it is allocated.
 
@@ -149,11 +137,13 @@ def load_npz(path: str | os.PathLike, folder: str | os.PathLike | None = None) -
         ``.npy`` array, an object (pickle) array, a header whose shape and type declare other
         than the bytes the member holds, or more data than half the memory available.
     """
+    from .checks import available_memory
+
     where = str(path)
     out: dict[str, np.ndarray] = {}
     with open_received(path, folder) as fh:
         size = os.fstat(fh.fileno()).st_size
-        memory = _available_memory()
+        memory = available_memory()
         if memory is not None and size > memory // 2:
             raise ConfigError(where, f"holds {size} bytes, more than half the memory available ({memory})")
         try:

@@ -215,9 +215,16 @@ def load_trace(path: str | Path, names=_TRACE_VARIABLES):
     import h5py
     import xarray as xr
 
+    from ..checks import available_memory
+
+    memory = available_memory()
     with h5py.File(path, "r") as f:
         def read(name):
             d = f[name]
+            # A received trace: what a variable declares is checked before it is allocated.
+            if memory is not None and d.size * d.dtype.itemsize > memory // 2:
+                raise ValueError(f"variable {name!r} declares shape {d.shape} of {d.dtype}, more than half the "
+                                 f"memory available")
             if d.attrs.get("CLASS") == b"DIMENSION_SCALE":
                 dims = (name,)
             else:
