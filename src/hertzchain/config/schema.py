@@ -251,23 +251,25 @@ class ContactConfig(_Section):
                     spec.param(name).check(value)
                 except ConfigError as exc:
                     raise ValueError(str(exc)) from None
-            if self.law == "power" and self.exponent == 1.0 and self.stiffness is None:
-                raise ValueError("exponent = 1 (a linear spring) needs an explicit stiffness (N/m)")
+            try:  # the law's own checks across parameters (e.g. the power law's n = 1 needs a stiffness)
+                spec.make(self.law_parameters())
+            except ConfigError as exc:
+                raise ValueError(str(exc)) from None
             return self
         if self.exponent is not None or self.stiffness is not None or self.restitution is not None or self.parameters:
             raise ValueError(f"law {self.law!r} takes no exponent, stiffness, restitution or parameters "
                              "(those of law = 'power', 'hunt_crossley' or a registered law)")
-        if self.law == "elastic" and (self.A is not None or self.gamma is not None or
+        if not spec.dissipative and (self.A is not None or self.gamma is not None or
                                       (self.eps is not None and self.eps != 1.0)):
             raise ValueError("the elastic law takes no A, gamma or eps < 1; set law = 'viscoelastic' or 'dashpot'")
-        if self.law != "elastoplastic" and self.limiting_pressure_factor is not None:
+        if not spec.plastic and self.limiting_pressure_factor is not None:
             raise ValueError("limiting_pressure_factor belongs to law = 'elastoplastic'")
-        if self.law == "elastoplastic":
+        if spec.plastic:
             if self.gamma is not None or self.eps is not None:
                 raise ValueError("law 'elastoplastic' takes an optional A (s, the viscous term on top of Thornton's "
                                  "plastic contact), not gamma or eps")
             return self
-        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma", "dashpot_scaled": "gamma"}.get(self.law)
+        own = spec.calibrated
         if own is not None:
             other = "gamma" if own == "A" else "A"
             if getattr(self, other) is not None:

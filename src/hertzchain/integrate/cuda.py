@@ -75,17 +75,22 @@ LANES_MAX_SLOTS = 64
 
 def refuse_elastoplastic(laws) -> None:
     """ConfigError naming ``contact.law`` when one of ``laws`` (kernel law codes) is the
-    elastic-plastic one: its per-contact state (largest overlap, unloading curve) is not carried
-    by the GPU kernels yet.
+    elastic-plastic one (its per-contact state, largest overlap and unloading curve, is not carried
+    by the GPU kernels yet) or a law the CPU engines generate from its declaration.
 
     Parameters
     ----------
     laws : array_like of int
         Law codes (``hertzchain.contact.LAW_CODES``) of the members.
     """
+    from .generated import is_generated
     from .kernels import LAW_ELASTOPLASTIC
 
-    if np.any(np.asarray(laws) == LAW_ELASTOPLASTIC):
+    codes = np.asarray(laws)
+    if any(is_generated(c) for c in codes.ravel()):
+        raise ConfigError("contact.law", "the laws declared in hertzchain.laws (power, hunt_crossley, users' laws) run "
+                          "on the CPU engines only for now; use device = 'cpu'")
+    if np.any(codes == LAW_ELASTOPLASTIC):
         raise ConfigError("contact.law", "the elastoplastic law runs on the CPU only (its per-contact state is not "
                           "carried by the GPU kernels); use device = 'cpu' (or 'auto', which picks the CPU for it)")
 

@@ -144,6 +144,8 @@ def _build(force, update, stored, partials, inverse):
             law, general, wall_slot, interval, stride_, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f,
             out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, ext, ext_on, body_slot, out_b):
         n = a.shape[0]
+        if dmax.shape[0] < n:  # the law's state lives in dmax: the caller must give one slot per contact
+            raise ValueError("generated law: the state array (dmax) is shorter than the contacts")
         nout = rec.shape[0]
         block = interval / n_sub
         adaptive = stride_ == 0

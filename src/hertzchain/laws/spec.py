@@ -182,3 +182,20 @@ def law_of_code(code: int) -> LawSpec:
 def spec_of(law: Any) -> LawSpec:
     """The spec of a law object (anything with a registered ``name``) or of a law name."""
     return get_law(law if isinstance(law, str) else getattr(law, "name", repr(law)))
+
+
+def is_conservative(name) -> bool:
+    """True when ``name`` is a registered law without dissipation (False for anything else, e.g.
+    a name read from a file that this session does not know)."""
+    from . import builtin  # noqa: F401
+
+    spec = _REGISTRY.get(name) if isinstance(name, str) else None
+    return spec is not None and not spec.dissipative
+
+
+def is_plastic(name) -> bool:
+    """True when ``name`` is a registered law that models yield (False for anything else)."""
+    from . import builtin  # noqa: F401
+
+    spec = _REGISTRY.get(name) if isinstance(name, str) else None
+    return spec is not None and spec.plastic
