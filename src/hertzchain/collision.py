@@ -18,7 +18,7 @@ import numpy as np
 from .contact import hertz_constant, yield_force
 from .errors import ConfigError
 from .materials import Material, get_material
-from .laws import get_law, spec_of
+from .laws import get_law, law_names, spec_of
 from .plasticity import thornton_loading_overlap
 
 __all__ = ["restitution", "contact_law"]
@@ -49,7 +49,11 @@ def contact_law(law):
         (field ``law``) an unknown name, or a law that needs a parameter given by name.
     """
     if isinstance(law, str):
-        spec = get_law(law)
+        try:
+            spec = get_law(law)
+        except ConfigError:
+            raise ConfigError("law", f"unknown contact law {law!r}; registered: {', '.join(law_names())} "
+                              "(or a law object)") from None
         if any(p.default is None and not p.optional for p in spec.params):
             raise ConfigError("law", f"the {law!r} law needs its parameters ({', '.join(spec.param_names)}): give a "
                               "law object, e.g. hertzchain.Viscoelastic(A=4.5e-6) or hertzchain.HuntCrossley(0.9)")

@@ -156,8 +156,6 @@ def _with_code(spec: LawSpec, code: int) -> LawSpec:
 
 def get_law(name: str) -> LawSpec:
     """The registered law called ``name``; a :class:`ConfigError` naming ``contact.law`` listing the known ones."""
-    from . import builtin  # noqa: F401  (registers the built-in laws)
-
     spec = _REGISTRY.get(name)
     if spec is None:
         raise ConfigError("contact.law", f"unknown law {name!r}; registered laws: {', '.join(law_names())} "
@@ -167,15 +165,11 @@ def get_law(name: str) -> LawSpec:
 
 def law_names() -> tuple[str, ...]:
     """Names of every registered law, built-in ones first."""
-    from . import builtin  # noqa: F401
-
     return tuple(_REGISTRY)
 
 
 def law_of_code(code: int) -> LawSpec:
     """The law an engine code stands for (the first name registered with it)."""
-    from . import builtin  # noqa: F401
-
     return _BY_CODE[int(code)]
 
 
@@ -187,15 +181,11 @@ def spec_of(law: Any) -> LawSpec:
 def is_conservative(name) -> bool:
     """True when ``name`` is a registered law without dissipation (False for anything else, e.g.
     a name read from a file that this session does not know)."""
-    from . import builtin  # noqa: F401
-
     spec = _REGISTRY.get(name) if isinstance(name, str) else None
     return spec is not None and not spec.dissipative
 
 
 def is_plastic(name) -> bool:
     """True when ``name`` is a registered law that models yield (False for anything else)."""
-    from . import builtin  # noqa: F401
-
     spec = _REGISTRY.get(name) if isinstance(name, str) else None
     return spec is not None and spec.plastic
