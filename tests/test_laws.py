@@ -174,3 +174,19 @@ def test_cli_loads_a_law_file_only_when_named(tmp_path):
     ran = subprocess.run(cmd + ["--laws", str(USER_LAW)], capture_output=True, text=True, env=env)
     assert ran.returncode == 0, ran.stderr
     assert (tmp_path / "o.nc").exists()
+
+
+def test_sweep_members_equal_their_single_runs(tmp_path):
+    """A sweep over a generated law's own parameter: each member's metrics are its single run's."""
+    sweep = {"base": {"chain": {"uniform": {"n": 6, "diameter_mm": 10.0}},
+                      "striker": {"diameter_mm": 8.0, "velocity": 0.2},
+                      "contact": {"law": "power", "exponent": 2.0, "stiffness": 1e13},
+                      "run": {"duration": 3e-4, "sample_interval": 1e-7}},
+             "sweep": {"mode": "grid", "chunk_size": 2, "parameters": {"contact.exponent": [1.8, 2.2]}}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        metrics = hc.run_sweep(sweep, tmp_path / "s").metrics
+        for n, peak in zip(metrics["contact.exponent"], metrics["peak_wall_force"]):
+            model = hc.Model(hc.Chain.uniform(6, 10e-3), hc.Striker(8e-3, 0.2), law=hc.PowerLaw(n, 1e13))
+            single = hc.simulate(model, 3e-4, hc.Probes(sample_interval=1e-7)).attrs["peak_wall_force"]
+            assert single > 1.0 and peak == pytest.approx(single, rel=1e-12)

@@ -28,7 +28,12 @@ _NO_STATE = np.zeros(0)
 
 
 def _check_law(system: System) -> None:
-    """Refuse the elastic-plastic law (ConfigError naming ``run.integrator``)."""
+    """Refuse the elastic-plastic law and the laws run by the generated engines (ConfigError naming ``run.integrator``)."""
+    from .generated import is_generated
+
+    if is_generated(system.law):
+        raise ConfigError("run.integrator", "the scipy integrators solve the built-in laws; a law declared in "
+                          "hertzchain.laws (power, hunt_crossley, a user's) runs with integrator 'verlet'")
     if system.law == kernels.LAW_ELASTOPLASTIC:
         raise ConfigError("run.integrator", "the elastoplastic contact law keeps a history per contact (its largest "
                           "overlap), which the scipy integrators cannot carry between their trial steps; use "

@@ -37,7 +37,7 @@ def check_rkn(system: System) -> None:
         The model's arrays.
     """
     if system.general:
-        what = ("a dissipative contact law" if system.law != 0 else "beads offset from the axis" if system.misaligned
+        what = ("a contact law other than the elastic one" if system.law != 0 else "beads offset from the axis" if system.misaligned
                 else "a protected body or mass-in-mass beads")
         raise ConfigError("run.integrator", f"'rkn4' integrates aligned elastic chains; this model has {what}: "
                           "use integrator 'verlet' (the default) or 'dop853'")
