@@ -1,8 +1,8 @@
 """The power law F = k delta^n (cones, o-rings, non-Hertz contacts), written as a user writes a law.
 
-``exponent`` n > 1 (n = 1, a linear spring, only with an explicit ``stiffness``); ``stiffness`` k
-[N/m^n]; without it k is each pair's Hertz constant kappa (paper eq. 1), so that n = 3/2 is the
-elastic law (evaluated with the same arithmetic, k delta sqrt(delta): the runs agree to rounding).
+``exponent`` n > 1 (n = 1, a linear spring, only with ``stiffness``); ``stiffness`` k [N/m^n];
+without it k is each pair's Hertz constant (paper eq. 1), and n = 3/2 is the elastic law, with its
+arithmetic (k delta sqrt(delta), also pow's fast path): the runs agree to rounding.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..errors import ConfigError
 from .spec import LawSpec, Param, register_law
 
 
@@ -34,7 +35,7 @@ def energy(d, k, n):
 
 @njit(cache=True)
 def overlap_at_energy(e, k, n):
-    """The overlap [m] that stores the energy e [J]: ((n+1) e / k)^(1/(n+1))."""
+    """The overlap [m] storing the energy e [J]: ((n+1) e / k)^(1/(n+1))."""
     return (2.5 * e / k) ** 0.4 if n == 1.5 else ((n + 1.0) * e / k) ** (1.0 / (n + 1.0))
 
 
@@ -43,24 +44,14 @@ def partials(d, rate, k, n, s):
     """(dF/d delta, dF/d rate, dF/dk, dF/dn)."""
     if d <= 0.0:
         return (k if n == 1.0 else 0.0), 0.0, 0.0, 0.0
-    if n == 1.5:
-        dn = d * np.sqrt(d)
-        return 1.5 * k * np.sqrt(d), 0.0, dn, k * dn * np.log(d)
-    dn = d**n
-    return n * k * dn / d, 0.0, dn, k * dn * np.log(d)
+    dn = d * np.sqrt(d) if n == 1.5 else d**n
+    return (1.5 * k * np.sqrt(d) if n == 1.5 else n * k * dn / d), 0.0, dn, k * dn * np.log(d)
 
 
 @dataclass(frozen=True)
 class PowerLaw:
-    """F = k delta^n for delta > 0, else 0.
-
-    Parameters
-    ----------
-    exponent : float
-        n [-], > 1 (1 only with ``stiffness``).
-    stiffness : float, optional
-        k [N/m^n]; None: each pair's Hertz constant (paper eq. 1).
-    """
+    """F = k delta^n for delta > 0, else 0: ``exponent`` n [-] > 1 (1 only with ``stiffness``),
+    ``stiffness`` k [N/m^n] (None: each pair's Hertz constant, paper eq. 1)."""
 
     exponent: float
     stiffness: float | None = None
@@ -70,8 +61,6 @@ class PowerLaw:
         for p in SPEC.params:
             object.__setattr__(self, p.name, p.check(getattr(self, p.name)))
         if self.exponent == 1.0 and self.stiffness is None:
-            from ..errors import ConfigError
-
             raise ConfigError("contact.exponent", "n = 1 (a linear spring) needs an explicit contact.stiffness (N/m)")
 
     @property
@@ -79,14 +68,13 @@ class PowerLaw:
         return self.exponent
 
     def contact_stiffness(self, kappa):
-        """k of every contact: the given stiffness, or Hertz's kappa_j; 0 where there is no contact."""
+        """k of every contact: the stiffness given, or Hertz's kappa_j; 0 where there is no contact."""
         return kappa if self.stiffness is None else np.where(kappa > 0, self.stiffness, 0.0)
 
 
 SPEC = register_law(LawSpec(
     name="power", title="power law F = k delta^n", force=force, state=state, energy=energy, partials=partials,
-    overlap_at_energy=overlap_at_energy,
+    overlap_at_energy=overlap_at_energy, exponent=None, code=4, make=lambda p, chain=None: PowerLaw(**p),
     params=(Param("exponent", "-", "n, the power of the overlap", 1.0, 10.0),
             Param("stiffness", "N/m^n", "k (default: the pair's Hertz constant)", 0.0, 1e30, open_low=True,
-                  optional=True)),
-    make=lambda params, chain=None: PowerLaw(params["exponent"], params["stiffness"]), exponent=None, code=4))
+                  optional=True))))
