@@ -25,7 +25,7 @@ from hertzchain.integrate import differentiate as D
 MAT = {"mysteel": {"density": 7800.0, "young": 2.0e11, "poisson": 0.3, "yield_stress": 2e9}}
 BASE = {"materials": MAT,
         "chain": {"diameters_mm": [20.0, 19.0, 18.0, 17.0, 16.0, 15.0, 14.0, 13.0], "material": "mysteel"},
-        "striker": {"velocity": 0.3, "diameter_mm": 8.0},
+        "striker": {"velocity": 0.3, "diameter_mm": 8.0, "material": "mysteel"},  # one material throughout
         "run": {"duration": 6e-4, "sample_interval": 1e-7, "dt": 2e-8}}  # the wall peak at ~4e-4 s
 LAWS = {"elastic": {}, "viscoelastic": {"law": "viscoelastic", "A": 1e-6},
         "dashpot": {"law": "dashpot", "gamma": 20.0}}

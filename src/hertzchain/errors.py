@@ -40,6 +40,11 @@ class PulseClipped(PulseNotFound):
     """The pulse of a record is clipped (a saturated sensor or scope): its fit would be wrong."""
 
 
+class TooManySteps(ConfigError):
+    """A run would take an absurd number of time steps (:func:`hertzchain.checks.check_step_count`);
+    ``field`` names the input that sets its step."""
+
+
 class ElasticLimitWarning(UserWarning):
     """Contact forces passed the elastic limit (yield) estimated as in the paper, Sec. II."""
 

@@ -136,6 +136,8 @@ def _chain(c: ChainConfig, elements: dict | None = None):
     else:
         d = np.array(c.diameters_mm) * 1e-3
     if c.taper is not None:
+        if d.size == 0:
+            raise ConfigError("chain.taper", "a taper continues the beads before it; chain.uniform.n = 0 has none")
         if d.size + c.taper.n > n_max:
             raise ConfigError("chain.taper.n", f"makes a chain of {d.size + c.taper.n} beads; "
                               f"at most {n_max} are allowed")
@@ -210,19 +212,27 @@ def build_model(cfg: RunConfig, chain=None):
         _register_materials(cfg)
         _check_material_names(cfg)
     s = cfg.striker
-    striker = Striker(s.diameter_mm * 1e-3, s.velocity, s.material or chain.materials[0], mass=s.mass, shape=s.shape,
+    striker = Striker(s.diameter_mm * 1e-3, s.velocity, s.material, mass=s.mass, shape=s.shape,
                       radius_of_curvature=None if s.radius_of_curvature_mm is None else s.radius_of_curvature_mm * 1e-3)
     w = cfg.wall
-    wall = Wall(w.type, w.material, w.mass, w.stiffness, w.damping, w.shape,
-                None if w.radius_of_curvature_mm is None else w.radius_of_curvature_mm * 1e-3)
+    # the wall's default material is the chain's (its first bead's); with no beads, chain.material
+    wall = Wall(w.type, w.material or (None if chain.n_beads else cfg.chain.material), w.mass, w.stiffness, w.damping,
+                w.shape, None if w.radius_of_curvature_mm is None else w.radius_of_curvature_mm * 1e-3)
     k = cfg.contact
+    # the beads a calibration (eps) and a size-scaled law refer to: the chain's first; with zero beads
+    # (chain.uniform.n = 0, the striker onto the wall) the uniform block's diameter, as in its chain
+    ref = chain
+    if not chain.n_beads:
+        from ..chain import Chain
+
+        ref = Chain.uniform(1, cfg.chain.uniform.diameter_mm * 1e-3, cfg.chain.material)
     spec = get_law(k.law)
     if k.eps is not None and spec.calibrated:
         from ..dissipation import calibrate_law
 
-        law: Any = calibrate_law(k.law, k.eps, chain=chain, striker=striker)
+        law: Any = calibrate_law(k.law, k.eps, chain=ref, striker=striker)
     else:  # the law's own constructor from its declared parameters (hertzchain.laws)
-        law = spec.make(k.law_parameters(), chain)
+        law = spec.make(k.law_parameters(), ref)
     with _as_written("chain.offsets", _offsets_key(cfg)):
         return Model(chain, striker, wall, law, precompression=cfg.chain.precompression, gravity=chain_gravity(cfg.chain))
 

@@ -309,6 +309,9 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
         raise ConfigError("mode", f"must be 'auto', 'adjoint' or 'tangent', got {mode!r}")
     cfg = _config(config)
     model, system, duration = _prepare(cfg)
+    if not model.chain.n_beads:  # the derivative set-up is per bead; one contact has a closed form
+        raise ConfigError("chain.uniform.n", "sensitivities need at least one bead; with none, the striker's impact "
+                          "on the wall is the two-body Hertz impact of hertzchain.theory.two_body_impact")
     check_objective(objective, system)
     paths = expand_paths(cfg, variables)
     sd = setup_derivatives(cfg, system, paths)
