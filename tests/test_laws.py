@@ -100,6 +100,7 @@ def test_partials_match_central_differences(name, p, s):
                                             if x[i] else 1e-9)
 
 
+@pytest.mark.slow  # compiles the batch loops of generated laws (~15 s each)
 def test_batch_members_equal_their_single_runs():
     """simulate_batch runs each generated law's own loop: every member is its single run."""
     laws = [hc.PowerLaw(2.0, 2e9), hc.HuntCrossley(0.8), hc.Elastic()]
@@ -160,6 +161,7 @@ def test_user_law_from_python_and_by_name_in_a_config():
         hc.parse_config({**cfg, "contact": {"law": "tsuji", "parameters": {"eta": -1.0}}})
 
 
+@pytest.mark.slow  # a fresh process compiles the user's law again (~18 s)
 def test_cli_loads_a_law_file_only_when_named(tmp_path):
     toml = tmp_path / "c.toml"
     toml.write_text('[chain]\nuniform = {n = 4, diameter_mm = 10}\n[striker]\ndiameter_mm = 8\nvelocity = 0.2\n'
@@ -176,6 +178,7 @@ def test_cli_loads_a_law_file_only_when_named(tmp_path):
     assert (tmp_path / "o.nc").exists()
 
 
+@pytest.mark.slow  # compiles the batch loops of generated laws (~15 s each)
 def test_sweep_members_equal_their_single_runs(tmp_path):
     """A sweep over a generated law's own parameter: each member's metrics are its single run's."""
     sweep = {"base": {"chain": {"uniform": {"n": 6, "diameter_mm": 10.0}},
