@@ -133,8 +133,9 @@ def test_engines_without_the_generated_laws_refuse_naming_the_field():
     model = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), law=hc.PowerLaw(2.0, 1e9))
     with pytest.raises(ConfigError, match="run.threads"):
         hc.simulate(model, 1e-4, threads=2)
-    with pytest.raises(ConfigError, match="contact.law"):
-        hc.simulate_batch([model, model], duration=1e-4, device="cuda")
+    elastic = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2))
+    with pytest.raises(ConfigError, match="contact.law"):  # the GPU runs one generated law per batch
+        hc.simulate_batch([model, elastic], duration=1e-4, device="cuda")
     with pytest.raises(ConfigError, match="striker.shape"):
         hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2, shape="flat"), law=hc.PowerLaw(2.0, 1e9)).system()
 
@@ -193,3 +194,21 @@ def test_sweep_members_equal_their_single_runs(tmp_path):
             model = hc.Model(hc.Chain.uniform(6, 10e-3), hc.Striker(8e-3, 0.2), law=hc.PowerLaw(n, 1e13))
             single = hc.simulate(model, 3e-4, hc.Probes(sample_interval=1e-7)).attrs["peak_wall_force"]
             assert single > 1.0 and peak == pytest.approx(single, rel=1e-12)
+
+
+@pytest.mark.slow  # a fresh process under the simulator compiles both laws (~20 s)
+def test_cuda_kernel_from_the_law_matches_the_cpu_engine_in_the_simulator():
+    """The CUDA kernel compiled from the laws' own Python source (cuda_generated.py), run by Numba's
+    CUDA simulator, gives the CPU engine's forces (the simulator does the CPU's arithmetic, no FMA:
+    bit for bit) and energies to rounding."""
+    import json
+
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1",
+           "PYTHONPATH": os.pathsep.join([str(Path(hc.__file__).parents[1]), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, str(Path(__file__).with_name("cuda_laws.py"))], capture_output=True,
+                          text=True, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    for law, res in result.items():
+        assert res["peak_force"] > 1.0, law
+        assert res["force"] == 0.0 and res["energy"] < 1e-12, (law, res)
