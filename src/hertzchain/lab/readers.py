@@ -74,6 +74,40 @@ def _unit_factor(unit: str, where: str) -> tuple[float, str]:
     return factor, kind
 
 
+def _read_file(path: Path, suffix: str) -> _Table:
+    """A scope file's table, its header looked at before its bulk is read.
+
+    The file is opened as a received one (:func:`hertzchain.received.open_received`: a regular
+    file, so a FIFO cannot hang the command) and its first bytes say the format. A LeCroy
+    ``.trc`` is then memory-mapped: :func:`~hertzchain.lab.formats.read_trc` checks the
+    descriptor and copies only the data array the descriptor declares, so a 3 GB file of which
+    the record is a few MB costs a few MB (it was read whole, 3.2 GB). Tektronix ``.isf`` and
+    delimited text are parsed whole (their length is their content).
+    """
+    import mmap
+
+    from ..received import open_received
+
+    where = str(path)
+    with open_received(path) as fh:
+        size = os.fstat(fh.fileno()).st_size
+        head = fh.read(64)
+        if not size or (size <= 64 and not head.strip()):
+            raise ConfigError(where, "is empty")
+        if suffix != ".isf" and not head.startswith(b":WFMP") and (suffix == ".trc" or b"WAVEDESC" in head):
+            with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as raw:
+                return read_trc(path, raw)
+        try:
+            raw = head + fh.read()
+        except OSError as exc:
+            raise ConfigError(where, f"cannot read the file: {exc.strerror or exc}") from None
+    if not raw.strip():
+        raise ConfigError(where, "is empty")
+    if raw.startswith(b":WFMP") or suffix == ".isf":
+        return read_isf(path, raw)
+    return _read_text(path, raw)
+
+
 # ------------------------------------------------------------------------------------------
 # delimited text
 # ------------------------------------------------------------------------------------------
@@ -408,7 +442,7 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
 
     path = Path(path)
     where = str(path)
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise ConfigError(where, "no such file")
     if sensitivity is not None and sensor is not None:
         raise ConfigError("--sensitivity", "give either --sensitivity or --sensor, not both")
@@ -426,18 +460,7 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
         table = _read_result(path, column)
         column = 1
     else:
-        try:
-            raw = path.read_bytes()
-        except OSError as exc:
-            raise ConfigError(where, f"cannot read the file: {exc.strerror or exc}") from None
-        if not raw.strip():
-            raise ConfigError(where, "is empty")
-        if raw.startswith(b":WFMP") or suffix == ".isf":
-            table = read_isf(path, raw)
-        elif suffix == ".trc" or b"WAVEDESC" in raw[:64]:
-            table = read_trc(path, raw)
-        else:
-            table = _read_text(path, raw)
+        table = _read_file(path, suffix)
     if time_column is not None:
         ti = _pick_column(table, time_column, -1, where)
     else:

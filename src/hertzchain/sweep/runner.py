@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import ConfigError, SimulationDiverged
 from .schema import SweepConfig, chunk_members, load_sweep, parse_sweep
 from .storage import (_CHUNK_NAME, _METRIC_UNITS, METRIC_COLUMNS, PLASTIC_METRICS, RUN_METRICS, _chunk_is_done,
-                      _folder_lock, _metrics_table, _prepare_out_dir, _traces_path, _write_chunk)
+                      _drop_replaced, _folder_lock, _metrics_table, _prepare_out_dir, _traces_path, _write_chunk)
 
 # ------------------------------------------------------------------------------ computing chunks
 @dataclass
@@ -490,4 +490,5 @@ def _run_chunks(cfg: SweepConfig, plan: _Plan, out: Path, chunks_dir: Path, clie
     if importlib.util.find_spec("pyarrow") is not None:
         with atomic_path(out / "metrics.parquet") as tmp:
             df.to_parquet(tmp, index=False)
+    _drop_replaced(out)  # complete: the results of a sweep this one replaced (--force) can go
     return SweepResult(metrics=df, out_dir=out, computed=sorted(computed), skipped=skipped)
