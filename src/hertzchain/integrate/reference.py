@@ -27,26 +27,12 @@ __all__ = ["run_reference", "make_rhs"]
 _NO_STATE = np.zeros(0)
 
 
-<<<<<<< HEAD
-def _check_law(system: System) -> None:
-    """Refuse the elastic-plastic law and the laws run by the generated engines (ConfigError naming ``run.integrator``)."""
-    from .generated import is_generated
-
-    if is_generated(system.law):
-        raise ConfigError("run.integrator", "the scipy integrators solve the built-in laws; a law declared in "
-                          "hertzchain.laws (power, hunt_crossley, a user's) runs with integrator 'verlet'")
-    if system.law == kernels.LAW_ELASTOPLASTIC:
-        raise ConfigError("run.integrator", "the elastoplastic contact law keeps a history per contact (its largest "
-                          "overlap), which the scipy integrators cannot carry between their trial steps; use "
-                          "integrator = 'verlet'")
-=======
 def _check_law(system: System, method: str = "DOP853") -> None:
     """Refuse the elastic-plastic law (ConfigError naming ``run.integrator``, suggesting only the
     integrators that take the model: :mod:`hertzchain.integrate.refusals`)."""
     from .refusals import refuse
 
     refuse(method.lower(), system)
->>>>>>> main
 
 
 def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:

@@ -5,7 +5,9 @@ elastic-plastic law run on the hand-written engines (``generated=False``; codes 
 kernels' ``LAW_*``); the power law and Hunt-Crossley are written the way a user writes a law
 (:mod:`hertzchain.laws.power`, :mod:`hertzchain.laws.hunt_crossley`) and run on the generated
 engines. Bounds: those of the config schema (``config.schema.BOUNDS``: A in [0, 1] s, gamma in
-[0, 1e9] N s/m).
+[0, 1e9] N s/m). Their classes live in :mod:`hertzchain.contact` and :mod:`hertzchain.plasticity`,
+which attach each law's constructor (:func:`~hertzchain.laws.spec.attach_maker`): this package
+imports none of the modules above it.
 """
 
 from __future__ import annotations
@@ -68,29 +70,9 @@ def _dashpot_partials(d, rate, k, p, s):
     return 1.5 * k * np.sqrt(d), p, d * np.sqrt(d), rate
 
 
-def _make(name):
-    """The law object of a built-in law from its checked parameters (chain: the reference pair of a scaled law)."""
-    def make(params, chain=None):
-        from .. import contact
-        from ..plasticity import Elastoplastic
-
-        if name == "elastic":
-            return contact.Elastic()
-        if name == "viscoelastic":
-            return contact.Viscoelastic(params["A"])
-        if name == "dashpot":
-            return contact.Dashpot(params["gamma"])
-        if name == "viscoelastic_scaled":
-            return contact.ScaledViscoelastic(params["A"], float(chain.diameters[0]), chain.materials[0])
-        if name == "dashpot_scaled":
-            return contact.ScaledDashpot(params["gamma"], float(chain.diameters[0]), chain.materials[0])
-        return Elastoplastic(params["A"] or 0.0, limiting_pressure_factor=params["limiting_pressure_factor"] or 1.5)
-    return make
-
-
 def _builtin(name, title, code, params=(), force=_hertz, partials=_hertz_partials, **kw):
     return register_law(LawSpec(name=name, title=title, params=params, force=force, state=_keep,
-                                energy=_hertz_energy, partials=partials, make=_make(name), generated=False,
+                                energy=_hertz_energy, partials=partials, generated=False,
                                 code=code, **kw))
 
 

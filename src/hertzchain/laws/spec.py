@@ -189,3 +189,14 @@ def is_plastic(name) -> bool:
     """True when ``name`` is a registered law that models yield (False for anything else)."""
     spec = _REGISTRY.get(name) if isinstance(name, str) else None
     return spec is not None and spec.plastic
+
+
+def attach_maker(name: str, make: Callable[..., Any]) -> None:
+    """Give the registered law ``name`` its constructor ``make(params, chain=None)`` (for laws whose
+    classes live outside this package: the built-in ones in ``contact`` and ``plasticity``)."""
+    from dataclasses import replace as _replace
+
+    spec = _replace(_REGISTRY[name], make=make)
+    _REGISTRY[name] = spec
+    if _BY_CODE.get(spec.code) is not None and _BY_CODE[spec.code].name == name:
+        _BY_CODE[spec.code] = spec
