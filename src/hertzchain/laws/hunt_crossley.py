@@ -63,7 +63,13 @@ def partials(d, rate, k, chi, vin):
 
 @dataclass(frozen=True)
 class HuntCrossley:
-    """Hunt-Crossley contact with the restitution ``restitution`` (e in (0, 1]) of a two-body impact."""
+    """Hunt-Crossley contact whose damping gives a two-body impact the restitution e.
+
+    Parameters
+    ----------
+    restitution : float
+        e [-], in (0, 1] (1: no damping).
+    """
 
     restitution: float
     name = "hunt_crossley"

@@ -1,11 +1,6 @@
 """The power law F = k delta^n (cones, o-rings, non-Hertz contacts), written as a user writes a law.
-
-``exponent`` n > 1 (n = 1, a linear spring, only with ``stiffness``); ``stiffness`` k [N/m^n];
-without it k is each pair's Hertz constant (paper eq. 1), and n = 3/2 is the elastic law, with its
-arithmetic (k delta sqrt(delta), also pow's fast path): the runs agree to rounding.
-"""
-
-from __future__ import annotations
+Without a stiffness, k is the pair's Hertz constant (paper eq. 1) and n = 3/2 is the elastic law,
+with its arithmetic (k delta sqrt(delta)): the runs agree to rounding."""
 
 from dataclasses import dataclass
 
@@ -22,9 +17,7 @@ def force(d, rate, k, n, s):
     return k * d * np.sqrt(d) if n == 1.5 else k * d**n
 
 
-@njit(cache=True)
-def state(d, rate, k, n, s):
-    return s  # no per-contact state
+state = njit(cache=True)(lambda d, rate, k, n, s: s)  # no per-contact state
 
 
 @njit(cache=True)
@@ -50,8 +43,15 @@ def partials(d, rate, k, n, s):
 
 @dataclass(frozen=True)
 class PowerLaw:
-    """F = k delta^n for delta > 0, else 0: ``exponent`` n [-] > 1 (1 only with ``stiffness``),
-    ``stiffness`` k [N/m^n] (None: each pair's Hertz constant, paper eq. 1)."""
+    """F = k delta^n for delta > 0, else 0 (never attractive).
+
+    Parameters
+    ----------
+    exponent : float
+        n [-], > 1 (1, a linear spring, only with ``stiffness``).
+    stiffness : float, optional
+        k [N/m^n]; None: each pair's Hertz constant (paper eq. 1).
+    """
 
     exponent: float
     stiffness: float | None = None

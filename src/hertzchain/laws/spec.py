@@ -41,8 +41,22 @@ FIRST_USER_CODE = 16
 class Param:
     """One parameter of a law as the config and the Python API take it.
 
-    ``low``/``high`` are inclusive bounds unless ``open_low``/``open_high``; ``default`` None
-    means required (or, with ``optional``, that the law has a documented fallback).
+    Parameters
+    ----------
+    name : str
+        Its config key (``[contact] name = ...``) and attribute of the law object.
+    unit : str
+        Its unit ("s", "N s/m", "-").
+    description : str
+        What it is, in a few words (the docs table).
+    low, high : float
+        Bounds, inclusive unless ``open_low``/``open_high``.
+    open_low, open_high : bool
+        Exclusive bounds.
+    default : float or None
+        The value when not given; None: required unless ``optional``.
+    optional : bool
+        May be left out (the law has a documented fallback, e.g. the power law's stiffness).
     """
 
     name: str
@@ -78,10 +92,35 @@ class Param:
 class LawSpec:
     """A contact law declared once (see the module docstring).
 
-    ``make(params, chain)`` builds the law object from the checked parameters (a dict name ->
-    float or None) and, for size-scaled laws, the chain; ``dissipative``/``plastic`` are what the
-    rest of the package asks of a law instead of comparing names; ``calibrated`` names the
-    parameter a target ``eps`` calibrates (None: the law cannot be calibrated).
+    Parameters
+    ----------
+    name : str
+        Its config name (``[contact] law``) and the ``name`` attribute of its law objects.
+    title : str
+        Its form in words (the docs table).
+    params : tuple of Param
+        Its parameters.
+    state_size : int
+        Floats of per-contact state (0 or 1 for a generated law).
+    force, state, energy, partials : numba dispatcher
+        The scalar functions of one contact (module docstring).
+    overlap_at_energy : numba dispatcher, optional
+        The inverse of ``energy`` (else bisected).
+    make : callable
+        ``make(params, chain=None)``: the law object from its checked parameters (a dict name ->
+        float or None) and, for size-scaled laws, the chain.
+    dissipative, plastic : bool
+        What the package asks of a law instead of comparing names.
+    calibrated : str or None
+        The parameter a target ``eps`` calibrates (None: not calibrated).
+    generated : bool
+        Run by the engines generated from the functions (False: the built-in hand-written ones).
+    code : int
+        Engine code (-1: assigned by :func:`register_law`).
+    exponent : float or None
+        The force's power of the overlap at zero rate when it is a fixed number (Hertz: 1.5).
+    extra : dict
+        Anything else (``scaled``: a size-scaled built-in law).
     """
 
     name: str
@@ -122,9 +161,19 @@ _BY_CODE: dict[int, LawSpec] = {}
 def register_law(spec: LawSpec, *, replace: bool = False) -> LawSpec:
     """Register ``spec`` under its name and return it with its code.
 
-    A generated law (the usual case for a user's law) needs ``force``, ``state``, ``energy`` and
-    ``partials`` compiled with ``numba.njit``; it gets the next free code. Registering a name
-    twice is refused unless ``replace`` (re-running a user's law file in one session).
+    Parameters
+    ----------
+    spec : LawSpec
+        The declaration. A generated law (the usual case for a user's law) needs ``force``,
+        ``state``, ``energy`` and ``partials`` compiled with ``numba.njit``; it gets the next free
+        code.
+    replace : bool
+        Replace a law of that name (re-running a user's law file in one session); else refused.
+
+    Returns
+    -------
+    LawSpec
+        The registered declaration, with its engine code.
     """
     if not isinstance(spec, LawSpec):
         raise TypeError(f"register_law takes a LawSpec, got {type(spec).__name__}")
@@ -155,7 +204,19 @@ def _with_code(spec: LawSpec, code: int) -> LawSpec:
 
 
 def get_law(name: str) -> LawSpec:
-    """The registered law called ``name``; a :class:`ConfigError` naming ``contact.law`` listing the known ones."""
+    """The registered law called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A law's config name.
+
+    Returns
+    -------
+    LawSpec
+        Its declaration; a :class:`ConfigError` naming ``contact.law`` (listing the registered
+        laws) when there is none.
+    """
     spec = _REGISTRY.get(name)
     if spec is None:
         raise ConfigError("contact.law", f"unknown law {name!r}; registered laws: {', '.join(law_names())} "
