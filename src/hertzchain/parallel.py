@@ -155,6 +155,14 @@ def _dask_threads(client) -> int:
         return 1
 
 
+def worker_threads(client) -> int:
+    """Threads that run tasks sent to ``client``: a Dask cluster's worker threads, an executor's
+    workers (1 when it does not say), for projections of the time a run will take there."""
+    if _is_dask(client):
+        return _dask_threads(client)
+    return max(int(getattr(client, "_max_workers", 1) or 1), 1)
+
+
 def results_as_completed(client, fn: Callable[[Any], Any], tasks: Iterable) -> Iterator:
     """Yield ``fn(task)`` for every task, each as soon as it is available (in no set order).
 

@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import ConfigError
 from .storage import COLUMN_UNITS
 
-__all__ = ["read_metrics", "metric_columns", "summarize", "display_unit", "QUANTILES"]
+__all__ = ["read_metrics", "metric_columns", "summarize", "display_unit", "past_elastic_limit", "QUANTILES"]
 
 #: Quantiles reported for every metric (5 %, median, 95 %: the central 90 % of the members).
 QUANTILES = (0.05, 0.5, 0.95)
@@ -147,6 +147,31 @@ def metric_columns(df) -> list[str]:
     return [c for c in cols[start:] if c not in _SKIP and df[c].dtype.kind in "fiu"]
 
 
+def past_elastic_limit(df) -> int:
+    """Members whose contacts passed the elastic limit under a law that does not model yield.
+
+    A member of the elastoplastic law (its ``plastic_work`` column has a value) passes the limit
+    by design: its contacts yield, and the law models it, so it is not counted (the docs promise
+    no warning for it).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A metrics table.
+
+    Returns
+    -------
+    int
+        The count (0 when the table has no ``elastic_limit_exceeded`` column).
+    """
+    if "elastic_limit_exceeded" not in df:
+        return 0
+    over = np.array(df["elastic_limit_exceeded"].astype(bool), dtype=bool)
+    if "plastic_work" in df:
+        over &= ~np.isfinite(df["plastic_work"].to_numpy(dtype=float))
+    return int(over.sum())
+
+
 def summarize(df, metrics: list[str] | None = None) -> dict[str, Any]:
     """Per metric: members with a value, mean, standard deviation, extremes and quantiles (SI units).
 
@@ -161,7 +186,8 @@ def summarize(df, metrics: list[str] | None = None) -> dict[str, Any]:
     -------
     dict
         ``n_members``, ``fit_failures`` (members without a fitted wall pulse),
-        ``elastic_limit_exceeded`` (members past the elastic limit) and ``metrics``:
+        ``elastic_limit_exceeded`` (members past the elastic limit under a law that does not
+        model yield, :func:`past_elastic_limit`) and ``metrics``:
         ``{name: {units, n, mean, std, min, max, quantiles: {"0.05": ..., "0.5": ..., "0.95": ...}}}``
         (NaN-free members only; ``std`` with n - 1, NaN for fewer than two).
 
@@ -177,9 +203,10 @@ def summarize(df, metrics: list[str] | None = None) -> dict[str, Any]:
             raise ConfigError("--signal", f"unknown metric {m!r}; this table has {', '.join(available)}")
     out: dict[str, Any] = {"n_members": int(len(df))}
     if "fit_error" in df:
-        out["fit_failures"] = int((df["fit_error"].fillna("").astype(str) != "").sum())
+        errors = df["fit_error"]  # read back, an empty cell is NaN (and an all-empty column float)
+        out["fit_failures"] = int((errors.notna() & (errors.astype(str) != "")).sum())
     if "elastic_limit_exceeded" in df:
-        out["elastic_limit_exceeded"] = int(df["elastic_limit_exceeded"].astype(bool).sum())
+        out["elastic_limit_exceeded"] = past_elastic_limit(df)
     stats = {}
     for m in metrics:
         x = df[m].to_numpy(dtype=float)

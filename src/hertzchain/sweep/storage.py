@@ -229,7 +229,7 @@ def _prepare_out_dir(cfg: SweepConfig, out: Path, force: bool) -> Path:
 #: The results of another sweep replaced by ``--force``, kept until the new sweep is complete.
 _REPLACED = ".replaced-{}"
 #: What a sweep leaves in its folder (the folder lock stays).
-_RESULTS = ("chunks", "sweep.json", "metrics.csv", "metrics.parquet")
+_RESULTS = ("chunks", "sweep.json", "metrics.csv", "metrics.csv.json", "metrics.parquet")
 
 
 def _set_aside(out: Path, old_hash: str | None) -> None:
