@@ -201,6 +201,8 @@ def test_lammps_runs_the_export_to_hertzchains_wall_force(tmp_path):
     assert np.max(np.abs(f - ours)) < step_error
 
 
+# Short runs: whether the pulse reached the wall is beside the point of a refusal.
+@pytest.mark.filterwarnings("ignore::hertzchain.errors.DurationWarning")
 def test_refusals_name_what_is_missing(result, tmp_path, capsys):
     """A result without positions, a --frames for another format and a model LAMMPS' data file
     cannot hold are refused naming why (exit status 2), and nothing is written."""
@@ -217,4 +219,9 @@ def test_refusals_name_what_is_missing(result, tmp_path, capsys):
     ds = hc.simulate(body, 2e-4, hc.Probes(sample_interval=1e-6))
     with pytest.raises(hc.ConfigError, match="protected body"):
         hc.export(ds, tmp_path / "b.data")
+    from hertzchain.laws import PowerLaw
+
+    cone = hc.Model(hc.Chain.uniform(3, 26e-3), hc.Striker(8e-3, 0.2), law=PowerLaw(exponent=2.0))
+    with pytest.raises(hc.ConfigError, match="Hertz"):  # hertz/material cannot carry F = k delta^2
+        hc.export(hc.simulate(cone, "auto", hc.Probes(sample_interval=1e-6)), tmp_path / "c.data")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plain.nc"]

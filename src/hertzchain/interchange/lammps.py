@@ -103,6 +103,22 @@ def _resolver(run: xr.Dataset):
     return resolve
 
 
+def _hertz_law(model: dict):
+    """The run's contact law from the registry (hertzchain.laws); refused unless its elastic force
+    is Hertz's (overlap^(3/2)), the one ``hertz/material`` applies."""
+    from ..laws import get_law
+
+    name = (model.get("contact") or {}).get("law")
+    try:
+        spec = get_law(name if isinstance(name, str) else "")
+    except ConfigError:
+        spec = None
+    if spec is None or spec.exponent != 1.5:
+        raise ConfigError("--out", f"LAMMPS' hertz/material applies Hertz's force (overlap^(3/2)); this run's contact "
+                          f"law {name!r} is not a Hertz law hertzchain knows here")
+    return spec
+
+
 def _materials(run: xr.Dataset, model: dict, n: int) -> tuple[list[Material], Material | None]:
     """The materials of the striker and beads 1..N, and the flat wall's (None: no wall)."""
     resolve = _resolver(run)
@@ -203,14 +219,14 @@ def write_lammps(run: xr.Dataset, path: Path) -> list[Path]:
     data += [f"{i + 1} {_num(v0 if i == 0 else 0.0)} 0.0 0.0 0.0 0.0 0.0" for i in range(n + 1)]
 
     every = max(1, round(float(run.attrs.get("sample_interval", dt)) / dt))
-    law = (model.get("contact") or {}).get("law", "elastic")
+    spec = _hertz_law(model)
     gran = "tangential linear_nohistory 0.0 0.0"
     script = [f"# LAMMPS input written by hertzchain {__version__}: {title}.",
               f"# Run it beside {path.name}: lmp -in {input_name(path).name}",
               "# Atom 1 is the striker, atoms 2..N+1 beads 1..N, on the x axis, touching at impact;",
               "# Hertz contacts F = (4/3) E* sqrt(R*) delta^(3/2) (hertzchain's paper eq. 1), velocity Verlet.",
-              *([f"# hertzchain ran contact law {law!r}: its dissipation has no LAMMPS counterpart here, the "
-                 "contacts below are elastic."] if law != "elastic" else []),
+              *([f"# hertzchain ran contact law {spec.name!r}: its dissipation has no LAMMPS counterpart here, "
+                 "the contacts below are elastic."] if spec.dissipative or spec.plastic else []),
               "units           si", "dimension       3", "boundary        f f f", "atom_style      sphere",
               "atom_modify     map array", "comm_modify     vel yes", f"read_data       {path.name}", "",
               "pair_style      granular"]
