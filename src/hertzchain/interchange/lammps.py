@@ -19,8 +19,9 @@ The model is hertzchain's (docs/conventions.rst), in LAMMPS' GRANULAR package:
 
 Contacts are elastic: a dissipative law of the run (a dashpot, Kuwabara-Kono, Thornton's
 plasticity) has no one-to-one LAMMPS model and is left out, which the script's header says.
-Protected bodies, gravity, precompression, elements other than spheres and strikers with a
-flat face are refused (naming them).
+Protected bodies, gravity, precompression, elements other than spheres, strikers with a flat
+face and laws whose force is not Hertz's (the registry's ``exponent`` other than 3/2) are refused
+(naming them).
 """
 
 from __future__ import annotations
