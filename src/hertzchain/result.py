@@ -150,6 +150,10 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "title": "hertzchain simulation",
         "hertzchain_version": __version__,
         "integrator": raw.integrator,
+        # what ran (simulate() passes its choice, hertzchain.engine_choice; a batch runs the Verlet on one
+        # thread per member)
+        "integrator_used": raw.integrator,
+        "threads_used": 1,
         "dt": raw.dt,
         "dt_max": raw.dt_max if raw.integrator in STEPPERS else 0.0,
         "time_step": ("adaptive" if raw.adaptive else "fixed") if raw.integrator in STEPPERS else "solve_ivp",

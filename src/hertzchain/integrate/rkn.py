@@ -16,6 +16,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..engine_choice import rkn_refusal
 from ..errors import ConfigError, SimulationDiverged
 from ..model import System
 from . import rkn_kernels as rk
@@ -36,11 +37,10 @@ def check_rkn(system: System) -> None:
     system : hertzchain.model.System
         The model's arrays.
     """
-    if system.general:
-        what = ("a dissipative contact law" if system.law != 0 else "beads offset from the axis" if system.misaligned
-                else "a protected body or mass-in-mass beads")
+    what = rkn_refusal(system)
+    if what is not None:
         raise ConfigError("run.integrator", f"'rkn4' integrates aligned elastic chains; this model has {what}: "
-                          "use integrator 'verlet' (the default) or 'dop853'")
+                          "use integrator 'auto' (the default), 'verlet' or 'dop853'")
 
 
 def run_rkn(system: System, duration: float, sample_interval: float, dt: float | None = None,
