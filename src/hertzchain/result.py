@@ -289,10 +289,14 @@ def fields_dataset(f: RunFields) -> xr.Dataset:
                for name, (dims, values, attrs) in f.data.items()}
         indexes = {}
         for name, (dim, values, attrs) in f.coords.items():
-            # the run's own arrays: indexed without a copy
-            index = PandasIndex(pd.Index(np.asarray(values), copy=False), dim)
+            # the run's own arrays: indexed without a copy, named (so that xarray does not copy the
+            # index to name it) and of a known dtype (no cast, no inference: fastpath)
+            values = np.asarray(values)
+            index = PandasIndex(pd.Index(values, copy=False, name=dim), dim, values.dtype, fastpath=True)
             indexes[name] = index
-            out.update(index.create_variables({name: xr.Variable(dim, values, attrs)}))
+            variables = index.create_variables()
+            variables[name].attrs.update(attrs)
+            out.update(variables)
         sizes: dict[str, int] = {}
         for var in out.values():
             sizes.update((d, n) for d, n in zip(var.dims, var.shape) if d not in sizes)
