@@ -100,7 +100,8 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
     n = chain.n_beads
     system = system if system is not None else model.system()
     nc = system.n_contacts
-    wanted = raw.contacts if probes.contacts is None else np.array(sorted(set(probes.contacts)), dtype=np.int64)
+    wanted = (raw.contacts if not isinstance(probes.contacts, tuple)  # None (all) or "auto": what was recorded
+              else np.array(sorted(set(probes.contacts)), dtype=np.int64))
     if np.array_equal(wanted, raw.contacts):
         forces = raw.contact_force  # every recorded contact is wanted: no copy (it can be 100s of MB)
     else:

@@ -264,7 +264,7 @@ def build_probes(cfg: RunConfig):
 
     p = cfg.probes
     return Probes(sample_interval=cfg.run.sample_interval, sensors=tuple(p.sensors),
-                  contacts=None if p.contacts == "all" else tuple(p.contacts), velocities=p.velocities,
+                  contacts=None if p.contacts == "all" else p.contacts if p.contacts == "auto" else tuple(p.contacts), velocities=p.velocities,
                   positions=p.positions)
 
 

@@ -253,7 +253,9 @@ class RunSection(_Section):
 
 class ProbesConfig(_Section):
     sensors: list[_BeadNumber] = []
-    contacts: Literal["all"] | list[Annotated[int, Field(ge=0, le=BOUNDS["beads"][1])]] = "all"
+    contacts: Literal["auto", "all"] | list[Annotated[int, Field(ge=0, le=BOUNDS["beads"][1])]] = Field(
+        default="auto", description="'auto': every contact up to 256, else the wall's, the sensors' and 33 spread "
+                                    "along the chain; 'all'; or contact numbers")
     velocities: bool = False
     positions: bool = False
 
