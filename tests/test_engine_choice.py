@@ -82,7 +82,9 @@ def test_auto_threads_only_for_long_elastic_chains_with_free_cores():
 
 def test_config_defaults_are_auto_and_checked():
     cfg = parse_config({"chain": {"diameters_mm": [20.0] * 3}})
-    assert cfg.run.integrator == "auto" and cfg.run.threads == "auto" and cfg.run.steps_per_radian is None
+    assert cfg.run.integrator == "auto" and cfg.run.threads == "auto" and cfg.run.verlet_steps_per_radian is None
+    spr = parse_config({"chain": {"diameters_mm": [20.0] * 3}, "run": {"steps_per_radian": 400.0}}).run
+    assert spr.verlet_steps_per_radian == 400.0  # set, even to the default: the Verlet's accuracy asked for
     assert parse_config({"chain": {"diameters_mm": [20.0] * 3}, "run": {"threads": 2}}).run.threads == 2
     for bad in (0, 2.5, "many", True):
         with pytest.raises(ConfigError) as exc:

@@ -52,7 +52,7 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
     system = model.system()
     if cfg.track is None:  # refuses an integrator or thread count the model does not run, before any compilation
         integrator = choose_engine(system, cfg.run.integrator, cfg.run.threads,
-                                   steps_per_radian=cfg.run.steps_per_radian, dt=cfg.run.dt).integrator
+                                   steps_per_radian=cfg.run.verlet_steps_per_radian, dt=cfg.run.dt).integrator
     else:
         integrator = "verlet" if cfg.run.integrator == "auto" else cfg.run.integrator
     est = estimate_resources(system, duration, probes, dt=cfg.run.dt, integrator=integrator,

@@ -347,7 +347,7 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
 
         return simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                         rtol=cfg.run.rtol, progress=progress, config=config,
-                        steps_per_radian=cfg.run.steps_per_radian, threads=cfg.run.threads)
+                        steps_per_radian=cfg.run.verlet_steps_per_radian, threads=cfg.run.threads)
     if cfg.run.threads not in (1, "auto"):
         raise ConfigError("run.threads", "the lateral (2D) path of [track] runs on one thread: leave it out")
     if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:

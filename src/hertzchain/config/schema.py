@@ -217,10 +217,15 @@ class RunSection(_Section):
         "rtol", default=None,
         description="relative tolerance of 'dop853'/'rk45' (default 1e-10) or of the step control of 'rkn4' "
                     "(default 1e-6); unused by 'verlet'")
-    steps_per_radian: float | None = _bounded(
-        "steps_per_radian", default=None,
-        description="adaptive Verlet step: omega dt <= 1 / steps_per_radian (400 when absent); peak error ~ "
-                    "(1/steps_per_radian)^2; setting it makes integrator 'auto' pick 'verlet'")
+    steps_per_radian: float = _bounded(
+        "steps_per_radian", default=400.0,
+        description="adaptive Verlet step: omega dt <= 1 / steps_per_radian; peak error ~ (1/steps_per_radian)^2; "
+                    "setting it makes integrator 'auto' pick 'verlet'")
+
+    @property
+    def verlet_steps_per_radian(self) -> float | None:
+        """``steps_per_radian`` where the config sets it, else None (integrator 'auto' may pick 'rkn4')."""
+        return self.steps_per_radian if "steps_per_radian" in self.model_fields_set else None
     threads: int | Literal["auto"] = Field(
         default="auto", description="'auto' (several only for a long aligned elastic chain on the Verlet with "
                                     "cores free; hertzchain.engine_choice), or threads sharing one long aligned "
