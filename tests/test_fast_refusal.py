@@ -1,5 +1,5 @@
 """A bad config is refused before anything compiles: config validation, the engine choice and the
-pre-flight import no Numba kernel (issue 37: ``--set striker.velocity=-1`` was refused only after
+pre-flight import no Numba kernel, nor xarray (issue 37: ``--set striker.velocity=-1`` was refused only after
 11-25 s of compilation). Checked by what a fresh process imported, not by a wall-clock bound
 (which is flaky on shared machines)."""
 
@@ -21,7 +21,7 @@ try:
     rc = main(sys.argv[1:])
 except SystemExit as exc:
     rc = exc.code
-print(json.dumps({"rc": rc, "numba": "numba" in sys.modules,
+print(json.dumps({"rc": rc, "numba": "numba" in sys.modules, "xarray": "xarray" in sys.modules,
                   "integrate": sorted(m for m in sys.modules if m.startswith("hertzchain.integrate"))}))
 """
 
@@ -39,4 +39,5 @@ def test_bad_config_is_refused_before_any_kernel_is_imported(tmp_path, override,
     assert seen["rc"] == 2
     assert field in proc.stderr and "Traceback" not in proc.stderr
     assert not seen["numba"] and seen["integrate"] == []
+    assert not seen["xarray"]  # ~0.5 s of imports, needed only once the config is valid
     assert not out.exists()

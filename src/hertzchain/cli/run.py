@@ -27,8 +27,6 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
     from ..errors import ConfigError, DurationWarning, ElasticLimitWarning, LongRunWarning
     from ..exporting import EXPORT_FORMATS, check_format, export
     from ..fileio import check_not_input, check_target
-    from ..result import save
-    from ..simulation import auto_duration
 
     if out.suffix.lower() not in (".nc", ".nc4", ".h5", *EXPORT_FORMATS):
         # A .png name (or a typo) is a mistake to catch before the run.
@@ -39,6 +37,9 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
     cfg = load_config(config, overrides)
     check_not_input(out, config)
     check_target(out)  # refuse a FIFO, a link or a device as --out before any work
+    # xarray (~0.5 s to import) only once the config is valid: a bad one is refused at once
+    from ..result import save
+    from ..simulation import auto_duration
     model = build_model(cfg)
     probes = build_probes(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run
