@@ -93,12 +93,12 @@ def test_config_defaults_are_auto_and_checked():
 
 
 def test_result_records_the_choice():
-    ds = hc.simulate(ELASTIC, 2e-4, hc.Probes(sample_interval=1e-6))
+    ds = hc.simulate(ELASTIC, 4e-4, hc.Probes(sample_interval=1e-6))
     assert (ds.attrs["integrator_used"], ds.attrs["threads_used"]) == ("rkn4", 1)
     assert ds.attrs["integrator"] == "rkn4" and "aligned elastic" in ds.attrs["engine_choice"]
-    ds = hc.simulate(MODEL_KINDS["dashpot"][0], 2e-4, hc.Probes(sample_interval=1e-6))
+    ds = hc.simulate(MODEL_KINDS["dashpot"][0], 4e-4, hc.Probes(sample_interval=1e-6))
     assert (ds.attrs["integrator_used"], ds.attrs["threads_used"]) == ("verlet", 1)
-    ds = hc.simulate(ELASTIC, 2e-4, hc.Probes(sample_interval=1e-6), integrator="verlet")
+    ds = hc.simulate(ELASTIC, 4e-4, hc.Probes(sample_interval=1e-6), integrator="verlet")
     assert ds.attrs["integrator_used"] == "verlet" and "asked for" in ds.attrs["engine_choice"]
 
 
