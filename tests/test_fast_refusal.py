@@ -38,6 +38,7 @@ def test_bad_config_is_refused_before_any_kernel_is_imported(tmp_path, override,
     seen = json.loads(proc.stdout.strip().splitlines()[-1])
     assert seen["rc"] == 2
     assert field in proc.stderr and "Traceback" not in proc.stderr
-    assert not seen["numba"] and seen["integrate"] == []
+    # at most the integrate package and its refusal checks (plain Python), no compiled module
+    assert not seen["numba"] and set(seen["integrate"]) <= {"hertzchain.integrate", "hertzchain.integrate.refusals"}
     assert not seen["xarray"]  # ~0.5 s of imports, needed only once the config is valid
     assert not out.exists()

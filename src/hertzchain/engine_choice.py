@@ -25,12 +25,14 @@ import os
 from dataclasses import dataclass
 
 from .errors import ConfigError
+from .integrate.refusals import INTEGRATORS as NAMED  # the refusals' checks: no compiled kernel imported
+from .integrate.refusals import refuse
 
 __all__ = ["EngineChoice", "choose_engine", "free_cores", "rkn_refusal", "INTEGRATORS",
            "AUTO_THREADS_MIN_BEADS", "BEADS_PER_THREAD"]
 
-#: Values of ``run.integrator``.
-INTEGRATORS = ("auto", "verlet", "rkn4", "dop853", "rk45")
+#: Values of ``run.integrator``: "auto" and the integrators it picks from.
+INTEGRATORS = ("auto", *NAMED)
 #: ``threads = "auto"`` splits no chain shorter than this (benchmarks/long_chain.py: a barrier per
 #: step, ~0.1-1 us, against ~0.7 us of work per 1e3 beads).
 AUTO_THREADS_MIN_BEADS = 10_000
@@ -142,10 +144,9 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
                           f"got {integrator!r}")
     if not (threads == "auto" or (isinstance(threads, int) and not isinstance(threads, bool) and threads >= 1)):
         raise ConfigError("run.threads", f"must be 'auto' or a whole number of threads >= 1, got {threads!r}")
+    if integrator != "auto":
+        refuse(integrator, system)  # suggesting only the integrators that take the model
     refusal = rkn_refusal(system)
-    if integrator == "rkn4" and refusal is not None:
-        raise ConfigError("run.integrator", f"'rkn4' integrates aligned elastic chains; this model has {refusal}: "
-                          "use integrator 'auto' (the default), 'verlet' or 'dop853'")
     if integrator == "auto":
         if refusal is not None:
             integrator, why = "verlet", f"verlet: {refusal}"

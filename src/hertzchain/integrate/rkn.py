@@ -16,7 +16,6 @@ from typing import Callable
 
 import numpy as np
 
-from ..engine_choice import rkn_refusal
 from ..errors import ConfigError, SimulationDiverged
 from ..model import System
 from . import rkn_kernels as rk
@@ -37,10 +36,9 @@ def check_rkn(system: System) -> None:
     system : hertzchain.model.System
         The model's arrays.
     """
-    what = rkn_refusal(system)
-    if what is not None:
-        raise ConfigError("run.integrator", f"'rkn4' integrates aligned elastic chains; this model has {what}: "
-                          "use integrator 'auto' (the default), 'verlet' or 'dop853'")
+    from .refusals import refuse
+
+    refuse("rkn4", system)  # suggesting only integrators that take the model
 
 
 def run_rkn(system: System, duration: float, sample_interval: float, dt: float | None = None,
