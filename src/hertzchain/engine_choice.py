@@ -25,8 +25,8 @@ import os
 from dataclasses import dataclass
 
 from .errors import ConfigError
-from .integrate.refusals import INTEGRATORS as NAMED  # the refusals' checks: no compiled kernel imported
-from .integrate.refusals import refuse
+# the refusals' checks: plain Python, no compiled kernel imported
+from .integrate.refusals import INTEGRATORS as NAMED, refuse
 
 __all__ = ["EngineChoice", "choose_engine", "free_cores", "rkn_refusal", "INTEGRATORS",
            "AUTO_THREADS_MIN_BEADS", "BEADS_PER_THREAD"]
@@ -162,8 +162,9 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
         why = f"{integrator}: asked for"
     if threads == "auto":
         if cores is None or load is None:
-            c, l = free_cores()
-            cores, load = cores or c, l if load is None else load
+            machine_cores, machine_load = free_cores()
+            cores = machine_cores if cores is None else cores
+            load = machine_load if load is None else load
         threads, twhy = _auto_threads(system, integrator, cores, load)
     else:
         if threads > 1 and integrator != "verlet":

@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-
 from typing import TYPE_CHECKING
 
 import numpy as np
