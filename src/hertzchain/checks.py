@@ -57,9 +57,6 @@ BYTES_PER_VALUE, BYTES_PER_VALUE_UNWRITTEN = 12, 8
 #: Resident memory of a process that has run the engine once [bytes]: the interpreter, NumPy,
 #: SciPy, xarray, Numba and its kernels (~295 MiB measured, Linux x86-64, Python 3.11, the CLI's).
 RUNTIME_BYTES = 300 * 2**20
-#: A job recording at most this much [bytes] is not checked against the available memory (reading
-#: /proc/meminfo was ~0.1 ms of simulate()'s Python overhead for records of a few kB).
-SMALL_JOB_BYTES = 16 * 2**20
 
 
 def available_memory() -> int | None:
@@ -253,8 +250,7 @@ def check_resources(est: ResourceEstimate, *, memory_field: str = "run.duration"
         What to change to make it fit; default: shorten run.duration, raise run.sample_interval
         or record fewer contacts (probes.contacts).
     """
-    if available is None and est.memory_bytes > SMALL_JOB_BYTES:  # a small job fits: no need to ask
-        available = available_memory()
+    available = available_memory() if available is None else available
     if available is not None and est.memory_bytes > MEMORY_SHARE * available:
         raise ConfigError(memory_field, f"the run would record {est.samples:,} samples x {est.signals:,} signals"
                           + (f" x {est.members:,} members" if est.members > 1 else "")
