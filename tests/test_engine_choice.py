@@ -50,7 +50,7 @@ def test_explicit_values_are_kept_and_checked():
     dissipative = MODEL_KINDS["dashpot"][0].system()
     with pytest.raises(ConfigError) as exc:
         choose_engine(dissipative, "rkn4")
-    assert exc.value.field == "run.integrator" and "dissipative" in exc.value.message
+    assert exc.value.field == "run.integrator" and "aligned elastic chains" in exc.value.message
     with pytest.raises(ConfigError, match="run.threads"):
         choose_engine(dissipative, "verlet", 2)
     with pytest.raises(ConfigError, match="run.integrator"):
@@ -136,7 +136,7 @@ def test_cli_verbose_names_the_engine(tmp_path, capsys):
     assert "engine: rkn4: aligned elastic chain; 1 thread(s)" in " ".join(capsys.readouterr().out.split())
     assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--set", "contact.law=dashpot",
                  "--set", "contact.gamma=10.0", "--verbose"]) == 0
-    assert "engine: verlet: a dissipative contact law" in " ".join(capsys.readouterr().out.split())
+    assert "engine: verlet: 'rkn4' integrates aligned elastic chains" in " ".join(capsys.readouterr().out.split())
     assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--set", "contact.law=dashpot",
                  "--set", "contact.gamma=10.0", "--set", "run.integrator=rkn4"]) == 2
     assert "run.integrator" in capsys.readouterr().err

@@ -15,15 +15,14 @@ import math
 
 import numpy as np
 
-from .contact import LAW_CODES, Elastic, hertz_constant, yield_force
+from .contact import hertz_constant, yield_force
 from .errors import ConfigError
 from .materials import Material, get_material
-from .plasticity import Elastoplastic, thornton_loading_overlap
+from .laws import get_law, law_names, spec_of
+from .plasticity import thornton_loading_overlap
 
 __all__ = ["restitution", "contact_law"]
 
-#: Config names of the laws :func:`restitution` builds itself (the others need a parameter).
-_NAMED = {"elastic": Elastic, "elastoplastic": Elastoplastic}
 #: Johnson's contact time of a Hertz collision in units of delta_m / v (Contact Mechanics, 11.3).
 _HERTZ_CONTACT_TIME = 2.943
 #: Doublings of the simulated time allowed for the bodies to part.
@@ -37,7 +36,7 @@ def contact_law(law):
     ----------
     law : object or str
         A law (:class:`~hertzchain.Elastic`, :class:`~hertzchain.Elastoplastic`, ...) or the
-        config name of a law without parameters: ``"elastic"`` or ``"elastoplastic"``.
+        name of a registered law whose parameters all have defaults (``"elastic"``, ``"elastoplastic"``).
 
     Returns
     -------
@@ -50,14 +49,19 @@ def contact_law(law):
         (field ``law``) an unknown name, or a law that needs a parameter given by name.
     """
     if isinstance(law, str):
-        if law in _NAMED:
-            return _NAMED[law]()
-        if law in LAW_CODES:
-            raise ConfigError("law", f"the {law!r} law needs its parameter: give a law object, e.g. "
-                              "hertzchain.Viscoelastic(A=4.5e-6) or hertzchain.Dashpot(gamma=20.0)")
-        raise ConfigError("law", f"unknown contact law {law!r}; allowed names: {', '.join(_NAMED)} (or a law object)")
-    if getattr(law, "name", None) not in LAW_CODES:
-        raise ConfigError("law", f"must be a contact law or one of {', '.join(_NAMED)}, got {type(law).__name__}")
+        try:
+            spec = get_law(law)
+        except ConfigError:
+            raise ConfigError("law", f"unknown contact law {law!r}; registered: {', '.join(law_names())} "
+                              "(or a law object)") from None
+        if any(p.default is None and not p.optional for p in spec.params):
+            raise ConfigError("law", f"the {law!r} law needs its parameters ({', '.join(spec.param_names)}): give a "
+                              "law object, e.g. hertzchain.Viscoelastic(A=4.5e-6) or hertzchain.HuntCrossley(0.9)")
+        return spec.make({p: None for p in spec.param_names})
+    try:
+        spec_of(law)
+    except ConfigError:
+        raise ConfigError("law", f"must be a registered contact law or its name, got {type(law).__name__}") from None
     return law
 
 
@@ -88,6 +92,8 @@ def _two_body_system(velocity: float, law, diameter_a: float, mat_a: Material, d
     n = mass.size - 1  # contact slots: N + 1
     kap = np.zeros(n)
     kap[0] = kappa
+    if hasattr(law, "contact_stiffness"):  # a law's own k (the power law's stiffness)
+        kap = law.contact_stiffness(kap)
     fy = np.full(n, np.inf)
     fy[0] = f_y
     if hasattr(law, "contact_damping"):
@@ -102,9 +108,31 @@ def _two_body_system(velocity: float, law, diameter_a: float, mat_a: Material, d
     rsum[0] = ra + (0.0 if rb is None else rb)
     system = System(mass=mass, inv_mass=inv_mass, kappa=kap, damping=damping, d0=zeros, de=zeros.copy(),
                     dx0=rsum.copy(), rsum=rsum, fext=np.zeros(mass.size), u0=np.zeros(mass.size), v0=v0,
-                    law=LAW_CODES[law.name], misaligned=False, has_wall=diameter_b is None, yield_force=fy,
+                    law=spec_of(law).code, misaligned=False, has_wall=diameter_b is None, yield_force=fy,
                     yield_pressure_ratio=getattr(law, "pressure_ratio", 1.0))
     return system, mu
+
+
+#: Time steps the collision may take, all tries together (~10 s of the compiled Verlet, which
+#: measured 34 s for a dashpot of 1e5 N s/m on an 8 mm sphere: 8e8 steps at worst).
+_MAX_STEPS = 1e8
+
+
+def _check_steps(system, duration: float, law, mu: float) -> None:
+    """Refuse, before the run, a collision whose adaptive step makes it take more than
+    :data:`_MAX_STEPS` steps over all tries (a dashpot so strong that its damping time mu/gamma
+    is a tiny fraction of the contact time: the step resolves it), naming ``law``."""
+    from .integrate.verlet import step_plan
+
+    dt = step_plan(system, duration / 8, None, None).dt
+    steps = duration / dt * (2**_MAX_TRIES - 1)  # every try doubles the time: the worst case
+    if steps > _MAX_STEPS:
+        damping = float(system.damping[0])
+        raise ConfigError("law", f"{type(law).__name__} makes this collision take up to {steps:.3g} time steps of "
+                          f"{dt:.3g} s (more than {_MAX_STEPS:.0e}): its damping time mu/gamma = "
+                          f"{mu / damping if damping > 0 else math.inf:.3g} s is a tiny fraction of the contact time "
+                          f"({duration / 2:.3g} s), an overdamped contact whose restitution is ~0; give a weaker "
+                          "damping")
 
 
 def restitution(velocity: float, law, diameter_a: float, material_a: str | Material,
@@ -124,7 +152,8 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     law : object or str
         Contact law object (:class:`~hertzchain.Elastic`, :class:`~hertzchain.Elastoplastic`,
         :class:`~hertzchain.Viscoelastic`, :class:`~hertzchain.ScaledViscoelastic`,
-        :class:`~hertzchain.Dashpot`) or the config name ``"elastic"`` or ``"elastoplastic"``.
+        :class:`~hertzchain.Dashpot`, :class:`~hertzchain.PowerLaw`, :class:`~hertzchain.HuntCrossley`,
+        a registered user law) or the name ``"elastic"`` or ``"elastoplastic"``.
     diameter_a : float
         Diameter of sphere a [m].
     material_a : str or Material
@@ -159,13 +188,14 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     mat_b = mat_a if material_b is None else get_material(material_b)
     law = contact_law(law)
     system, mu = _two_body_system(v, law, da, mat_a, db, mat_b)
-    kappa = float(system.kappa[0])
+    kappa = float(hertz_constant(da / 2, None if db is None else db / 2, mat_a, mat_b))
     # First guess of the time the bodies stay together: Hertz's t_c = 2.943 delta_m / v, or the
     # half period of the unloading stiffness at the deepest overlap Thornton's loading reaches.
     energy = 0.5 * mu * v * v
     dm = (2.5 * energy / kappa) ** 0.4
     dmax = thornton_loading_overlap(energy, kappa, float(system.yield_overlap()[0]))
     duration = 2.0 * max(_HERTZ_CONTACT_TIME * dm / v, math.pi * math.sqrt(mu / (1.5 * kappa * math.sqrt(dmax))))
+    _check_steps(system, duration, law, mu)
     for _ in range(_MAX_TRIES):
         raw = run_verlet(system, duration, duration / 8, record_velocities=True, record_positions=True)
         u, vel = raw.displacement[-1], raw.velocity[-1]

@@ -26,9 +26,9 @@ from dataclasses import dataclass
 
 from .errors import ConfigError
 # the refusals' checks: plain Python, no compiled kernel imported
-from .integrate.refusals import INTEGRATORS as NAMED, refuse
+from .integrate.refusals import INTEGRATORS as NAMED, refuse, why_not
 
-__all__ = ["EngineChoice", "choose_engine", "free_cores", "rkn_refusal", "INTEGRATORS",
+__all__ = ["EngineChoice", "choose_engine", "free_cores", "INTEGRATORS",
            "AUTO_THREADS_MIN_BEADS", "BEADS_PER_THREAD"]
 
 #: Values of ``run.integrator``: "auto" and the integrators it picks from.
@@ -57,20 +57,6 @@ class EngineChoice:
     integrator: str
     threads: int
     reason: str
-
-
-def rkn_refusal(system) -> str | None:
-    """What keeps ``"rkn4"`` from integrating ``system`` (a phrase), or None when it integrates it.
-
-    Parameters
-    ----------
-    system : hertzchain.model.System
-        The model's arrays.
-    """
-    if not system.general:
-        return None
-    return ("a dissipative contact law" if system.law != 0 else "beads offset from the axis" if system.misaligned
-            else "a protected body or mass-in-mass beads")
 
 
 def free_cores() -> tuple[int, float]:
@@ -146,8 +132,8 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
         raise ConfigError("run.threads", f"must be 'auto' or a whole number of threads >= 1, got {threads!r}")
     if integrator != "auto":
         refuse(integrator, system)  # suggesting only the integrators that take the model
-    refusal = rkn_refusal(system)
     if integrator == "auto":
+        refusal = why_not("rkn4", system)
         if refusal is not None:
             integrator, why = "verlet", f"verlet: {refusal}"
         elif steps_per_radian is not None:

@@ -13,8 +13,9 @@ from .checks import check_after_run, check_before_run
 from .engine_choice import choose_engine
 from .errors import ConfigError, DurationWarning, ElasticLimitWarning
 from .model import Model
+from .laws import is_plastic
 from .probes import Probes, default_probes
-from .strict import real
+from .strict import real, run_options
 
 __all__ = ["simulate", "warn_elastic_limit", "warn_members_elastic_limit", "auto_duration", "elastic_limit_message"]
 
@@ -169,8 +170,11 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         duration, mode = auto_duration(model), "auto"
     duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")
     probes = probes or default_probes(duration)
-    if dt is not None:
-        dt = real(dt, "run.dt", low=0.0, open_low=True, unit="s")
+    # The config's bounds at the API's door (hertzchain.strict): steps_per_radian=0, rtol=0, dt=nan
+    # or threads=10**6 are refused, naming the field, as in a config file ("auto": engine_choice).
+    dt, rtol, steps_per_radian, counted = run_options(dt=dt, rtol=rtol, steps_per_radian=steps_per_radian,
+                                                      threads=None if threads == "auto" else threads)
+    threads = "auto" if counted is None else counted
     if probes.sample_interval > duration:
         raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     system = model.system()
@@ -296,7 +300,7 @@ def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> 
     stacklevel : int
         Passed on to :func:`warnings.warn`.
     """
-    if not ds.attrs.get("elastic_limit_exceeded", 1) or _law_name(ds) == "elastoplastic":
+    if not ds.attrs.get("elastic_limit_exceeded", 1) or is_plastic(_law_name(ds)):
         return  # the elastoplastic law models the yield: nothing to warn about
     msg = elastic_limit_message(ds, where)
     if msg:

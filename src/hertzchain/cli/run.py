@@ -6,10 +6,11 @@ from pathlib import Path
 
 import click
 
-from .common import echo_warning, progress_bar, set_option
+from .common import echo_warning, progress_bar, set_option, laws_option
 
 
 @click.command("run")
+@laws_option
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Result file: NetCDF (result.nc, everything), or result.csv / result.mat / result.parquet "
@@ -26,7 +27,7 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
     from ..config import apply_instruments, build_instruments, build_model, build_probes, load_config, simulate_config
     from ..errors import ConfigError, DurationWarning, ElasticLimitWarning, LongRunWarning
     from ..exporting import EXPORT_FORMATS, check_format, export
-    from ..fileio import check_not_input, check_target
+    from ..fileio import check_not_input, check_writable
 
     if out.suffix.lower() not in (".nc", ".nc4", ".h5", *EXPORT_FORMATS):
         # A .png name (or a typo) is a mistake to catch before the run.
@@ -36,7 +37,9 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
         check_format(out)  # parquet without pyarrow is said before the run
     cfg = load_config(config, overrides)
     check_not_input(out, config)
-    check_target(out)  # refuse a FIFO, a link or a device as --out before any work
+    # Before any work: a FIFO, a link or a device as --out, or a folder that cannot be written
+    # (under a file, read-only, not ours), refused now rather than after the whole simulation.
+    check_writable(out)
     # xarray (~0.5 s to import) only once the config is valid: a bad one is refused at once
     from ..result import save
     from ..simulation import auto_duration

@@ -20,6 +20,7 @@ from .claims import build_claims
 from .inputs import SUB_TAGS, check_laws, check_settings, expected_traces
 from .protocol import ChainStudy, Settings
 from .values import PAPER
+from ..laws import is_conservative, spec_of
 
 __all__ = ["reproduce", "redraw", "load_data", "draw", "count_runs", "count_steps", "build_summary",
            "elastic_limit_summary", "FIGURE_NAMES", "SUMMARY_UNITS"]
@@ -130,12 +131,7 @@ def _chain_summary(study: ChainStudy) -> dict:
 
 
 def _law_desc(law) -> dict:
-    out = {"law": law.name}
-    if law.name in ("viscoelastic", "viscoelastic_scaled"):
-        out["A"] = law.A
-    elif law.name in ("dashpot", "dashpot_scaled"):
-        out["gamma"] = law.gamma
-    return out
+    return {"law": law.name, **{p: getattr(law, p) for p in spec_of(law).param_names}}
 
 
 def build_summary(studies: dict[str, ChainStudy], ratio: dict, speed: dict, settings: Settings,
@@ -215,9 +211,16 @@ def load_trace(path: str | Path, names=_TRACE_VARIABLES):
     import h5py
     import xarray as xr
 
+    from ..checks import available_memory
+
+    memory = available_memory()
     with h5py.File(path, "r") as f:
         def read(name):
             d = f[name]
+            # A received trace: what a variable declares is checked before it is allocated.
+            if memory is not None and d.size * d.dtype.itemsize > memory // 2:
+                raise ValueError(f"variable {name!r} declares shape {d.shape} of {d.dtype}, more than half the "
+                                 f"memory available")
             if d.attrs.get("CLASS") == b"DIMENSION_SCALE":
                 dims = (name,)
             else:
@@ -282,9 +285,13 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
     ratio_file = data / "uniform16_elastic_wall_chain_ratio.nc"
     # A truncated or foreign file is named before anything is read (and before the Fig. 3
     # traces, read first, set a drawing process going); a missing one when its turn comes.
+    # Regular files of data/ only (hertzchain.received): a FIFO would hang the read, a link out of
+    # the folder would read another file.
+    from ..received import open_received
+
     for p in [*chains["chain1"], *chains["chain2"], *mis_files, *sub_files.values(), *([ratio_file] if with_ratio else [])]:
-        if p.is_file():
-            with open(p, "rb") as f:
+        if os.path.lexists(p):
+            with open_received(p, data) as f:
                 if f.read(len(_HDF5_SIGNATURE)) != _HDF5_SIGNATURE:
                     raise ConfigError(str(p), "is damaged or not a hertzchain result (not a NetCDF-4/HDF5 file)")
     for name, files in chains.items():
@@ -456,15 +463,17 @@ def _redraw(out: Path, tick: Callable[[str], None], early: list) -> dict:
     from ..errors import ConfigError
     from .report import write_report
 
-    try:
-        summary = json.loads((out / "summary.json").read_bytes().decode("utf-8"))
+    from ..received import read_received
+
+    try:  # a regular file of the folder only (hertzchain.received)
+        summary = json.loads(read_received(out / "summary.json", out).decode("utf-8"))
     except (OSError, ValueError) as exc:
         raise ConfigError(str(out / "summary.json"), f"cannot read it ({exc})") from None
     where = str(out / "summary.json")
     raw_settings = check_settings(summary, where)  # every field of the right type, or the key named
     known = {k: v for k, v in raw_settings.items() if k in Settings.__dataclass_fields__}
     settings = Settings(**known, eps=raw_settings.get("eps_target") or PAPER["eps"],
-                        elastic=raw_settings["law"] == "elastic")
+                        elastic=is_conservative(raw_settings["law"]))
     laws = (summary.get("fidelity") or {}).get("laws") if isinstance(summary.get("fidelity"), dict) else None
     if laws is not None and check_laws(laws):
         raise ConfigError(where, f"is damaged: {check_laws(laws)}; rerun 'hertzchain reproduce' without --from-data")
