@@ -20,6 +20,8 @@ MODEL_KINDS = {  # model kind -> the integrator "auto" picks
     "aligned elastic": (ELASTIC, "rkn4"),
     "elastic, free end": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, hc.Wall("none")), "rkn4"),
     "precompressed elastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, precompression=1.0), "rkn4"),
+    "elastic under gravity": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, gravity=9.81), "rkn4"),
+    "power law": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.PowerLaw(2.0, 2e9)), "verlet"),
     "dashpot": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Dashpot(gamma=20.0)), "verlet"),
     "viscoelastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Viscoelastic(A=4e-6)), "verlet"),
     "offset beads": (hc.Model(hc.Chain.uniform(6, 20e-3).with_offsets({3: 1e-4}), STRIKER), "verlet"),
