@@ -57,7 +57,7 @@ def assert_step_bounds(ds, model, duration, sample_interval):
 def test_default_run_is_adaptive_and_takes_far_fewer_steps(contract_model):
     duration = 2.5e-3
     interval = hc.Probes().sample_interval
-    ada = quiet_simulate(contract_model, duration)
+    ada = quiet_simulate(contract_model, duration, integrator="verlet")
     assert ada.attrs["time_step"] == "adaptive"
     assert ada.attrs["dt"] < ada.attrs["dt_max"]
     assert_step_bounds(ada, contract_model, duration, interval)
@@ -141,7 +141,7 @@ ACCURACY_CASES = {
 def test_adaptive_step_agrees_with_dop853(case):
     model, duration, probes = ACCURACY_CASES[case]
     interval = (probes or hc.Probes()).sample_interval
-    ds = hc.simulate(model, duration, probes)
+    ds = hc.simulate(model, duration, probes, integrator="verlet")
     ref = hc.simulate(model, duration, probes, integrator="dop853", rtol=REF_RTOL)
     assert ds.attrs["time_step"] == "adaptive"
     assert_step_bounds(ds, model, duration, interval)
@@ -162,7 +162,7 @@ def test_free_end_agrees_with_dop853():
     inside the record, and the whole signals."""
     model = hc.Model(hc.paper_chain("chain2"), hc.Striker(8e-3, 0.3), hc.Wall("none"))
     duration = 2.5e-3
-    ds = hc.simulate(model, duration)
+    ds = hc.simulate(model, duration, integrator="verlet")
     ref = hc.simulate(model, duration, integrator="dop853", rtol=REF_RTOL)
     assert ds.attrs["time_step"] == "adaptive"
     last = ds.contact_force.isel(contact=-1).values
@@ -181,7 +181,7 @@ def test_momentum_conserved_without_wall_with_several_blocks_per_sample():
     model = hc.Model(chain, hc.Striker(8e-3, 0.3), hc.Wall("none"))
     probes = hc.Probes(sample_interval=1e-5, velocities=True)
     assert step_plan(model.system(), probes.sample_interval, None).n_sub > 1
-    ds = hc.simulate(model, 2.5e-3, probes)
+    ds = hc.simulate(model, 2.5e-3, probes, integrator="verlet")
     assert ds.attrs["time_step"] == "adaptive" and ds.attrs["dt"] < ds.attrs["dt_max"]
     p = ds.velocity.values @ model.system().mass[: chain.n_beads + 1]
     assert np.abs(p / p[0] - 1).max() < 1e-12
@@ -202,7 +202,7 @@ CONTRACT_DIAMETERS_MM = [26.0] * 16 + [24.0, 23.0, 22.0]  # tests/conftest.py
 ])
 def test_energy_error_below_1e6_at_adaptive_step(name, chain, velocity, duration):
     model = hc.Model(chain, hc.Striker(8e-3, velocity))
-    ds = quiet_simulate(model, duration)
+    ds = quiet_simulate(model, duration, integrator="verlet")
     assert ds.attrs["time_step"] == "adaptive" and ds.attrs["dt"] < ds.attrs["dt_max"]
     assert ds.attrs["peak_wall_force"] > 1.0 and ds.attrs["peak_wall_time"] < 0.9 * duration
     assert energy_error(ds) < 1e-6  # measured 2.6e-7 on all three
@@ -224,7 +224,7 @@ def test_dissipative_laws_at_adaptive_step_agree_with_dop853(gentle_contract_mod
     2.1e-7, 0.006 / 0.05 ns, 1.2e-6 / 1.7e-6, 2.5e-7 / 3.6e-7."""
     model = hc.Model(gentle_contract_model.chain, gentle_contract_model.striker, law=law)
     duration = 2.5e-3
-    ds = hc.simulate(model, duration)
+    ds = hc.simulate(model, duration, integrator="verlet")
     ref = hc.simulate(model, duration, integrator="dop853", rtol=REF_RTOL)
     assert ds.attrs["time_step"] == "adaptive" and ds.attrs["dt"] < ds.attrs["dt_max"]
     fv, fr = ds.attrs["peak_wall_force"], ref.attrs["peak_wall_force"]
@@ -325,7 +325,7 @@ def batch_members():
 @pytest.fixture(scope="module")
 def batch_case():
     models, probes, dts = batch_members()
-    singles = [quiet_simulate(m, BATCH_DURATION, p, dt=d) for m, p, d in zip(models, probes, dts)]
+    singles = [quiet_simulate(m, BATCH_DURATION, p, dt=d, integrator="verlet") for m, p, d in zip(models, probes, dts)]
     return models, probes, dts, singles
 
 

@@ -53,7 +53,7 @@ def grouped_models() -> list[Model]:
 def singles(models, probes):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
-        return [simulate(m, DURATION, probes) for m in models]
+        return [simulate(m, DURATION, probes, integrator="verlet") for m in models]
 
 
 @pytest.fixture(scope="module")
@@ -135,7 +135,7 @@ def test_user_steps_per_member_in_a_mixed_batch(grouped):
         many = simulate_many(models, DURATION, probes, dt=dts)
         for model, dt, other in zip(models, dts, many):
             if dt is not None:
-                assert_same_run(simulate(model, DURATION, probes, dt=dt), other)
+                assert_same_run(simulate(model, DURATION, probes, dt=dt, integrator="verlet"), other)
         with pytest.raises(ConfigError, match="member 4: time step"):
             simulate_many(models, DURATION, probes, dt=[None] * 4 + [1e-3] + [None] * (len(models) - 5))
 

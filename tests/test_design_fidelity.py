@@ -51,7 +51,7 @@ def test_peak_error_shrinks_as_the_square_of_the_step():
     assert 1.7 < order < 2.3  # measured 1.88
     assert np.all(np.diff(err) < 0)
     # The default is the calibrated 400 (bit for bit), and the config's field reaches the engine.
-    default = hc.simulate(model, 2e-3, probes).attrs["peak_wall_force"]
+    default = hc.simulate(model, 2e-3, probes, integrator="verlet").attrs["peak_wall_force"]
     assert default == hc.simulate(model, 2e-3, probes, steps_per_radian=400).attrs["peak_wall_force"]
     cfg = {"chain": {"uniform": {"n": 4, "diameter_mm": 26.0}, "taper": {"n": 4, "q": 0.12}}, "striker": STRIKER,
            "probes": {"contacts": []}, "run": {**RUN, "steps_per_radian": 20.0}}

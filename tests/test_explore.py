@@ -252,7 +252,9 @@ def test_explore_is_a_displayable_app_in_jupyter():
     app.apply(law="elastic", striker_velocity=0.3)
     # the function stays the package's attribute once the explorer's modules are imported
     import hertzchain.explorer.app  # noqa: F401
-    assert math.isclose(hc.explore().view.force.max(), 8.511304981414646, rel_tol=1e-12)
+    # chain 1's sampled peak wall force, within the default engine's documented accuracy (1e-6: the
+    # auto integrator picks rkn4 here, 8.5113021 N; the Verlet drew 8.5113050 N)
+    assert math.isclose(hc.explore().view.force.max(), 8.511304981414646, rel_tol=1e-6)
 
 
 def test_explore_command_without_panel_names_the_extra(monkeypatch, capsys):

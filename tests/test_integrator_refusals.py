@@ -41,13 +41,13 @@ def test_a_refusal_suggests_exactly_the_integrators_that_run(name):
         with pytest.raises(hc.ConfigError, match="run.integrator") as refused:
             _run(model, integrator)
         suggested = re.findall(r"'(\w+)'", str(refused.value).split("use integrator")[1])
-        assert suggested == [i for i in accepted if i != integrator]
-        for other in suggested:  # every suggestion runs the model
+        assert suggested == ["auto"] + [i for i in accepted if i != integrator]  # 'auto': the default
+        for other in suggested:  # every suggestion runs the model ('auto' included)
             assert _run(model, other).sizes["time"] == 51
 
 
 def test_elastoplastic_rkn4_refusal_suggests_verlet_only():
     with pytest.raises(hc.ConfigError) as refused:
         _run(MODELS["elastoplastic"], "rkn4")
-    assert str(refused.value).endswith("use integrator 'verlet' (the default)")
+    assert str(refused.value).endswith("use integrator 'auto' (the default) or 'verlet'")
     assert accepted_integrators(MODELS["viscoelastic"].system()) == ["verlet", "dop853", "rk45"]

@@ -227,7 +227,7 @@ def test_divergence_message_names_run_dt_only_when_it_was_given(monkeypatch):
     monkeypatch.setattr(kernels, "verlet_run", lambda *args: 1)  # the kernel reports a non-finite state
     model = hc.Model(hc.Chain.uniform(3, 26e-3), hc.Striker(8e-3, 0.2))
     with pytest.raises(SimulationDiverged) as auto:
-        hc.simulate(model, 1e-4)
+        hc.simulate(model, 1e-4, integrator="verlet")  # the Verlet kernel patched above
     assert "automatic step" in str(auto.value) and "run.dt" not in str(auto.value)
     with pytest.raises(SimulationDiverged, match=r"with run\.dt = 1e-08 s; use a smaller run\.dt"):
         hc.simulate(model, 1e-4, dt=1e-8)

@@ -617,7 +617,7 @@ def _warn_pulse_not_reached(ds, fmax: np.ndarray, nc: int, stacklevel: int) -> N
     if loaded[nc - 1]:
         return
     reached = int(np.flatnonzero(loaded).max()) if loaded.any() else 0
-    duration = float(ds.attrs.get("duration", ds.time.values[-1]))
+    duration = float(ds.attrs["duration"] if "duration" in ds.attrs else ds["time"].values[-1])
     estimate = ""
     if reached > 0:
         # the front moved `reached` contacts in `duration`: the wall is about (nc - 1) / reached as far

@@ -23,11 +23,14 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from .errors import ConfigError
+
+if TYPE_CHECKING:  # annotations only: `hertzchain run` checks --out's format before xarray is needed
+    import xarray as xr
 
 __all__ = ["EXPORT_FORMATS", "check_format", "export", "signal_table", "csv_header", "read_csv_header"]
 

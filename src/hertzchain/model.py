@@ -286,8 +286,21 @@ class System:
             dy = np.where(ok, (self.yield_force / np.where(ok, kap, 1.0)) ** (2.0 / 3.0), np.inf)
         return dy if self.yield_pressure_ratio == 1.0 else dy * self.yield_pressure_ratio**2
 
+    def _memo(self, key: str, compute):
+        """``compute()`` once per System (a System's arrays are not changed after it is built: the
+        engines pack copies): a run asks for :meth:`max_overlap` and :meth:`max_frequency` from
+        the step plan, the pre-flight and the checks after it (4 and 3 times per simulate())."""
+        memo = self.__dict__.get("_memo_values")
+        if memo is None:
+            memo = {}
+            object.__setattr__(self, "_memo_values", memo)  # not a field: eq, repr and replace() ignore it
+        if key not in memo:
+            memo[key] = compute()
+        return memo[key]
+
     def max_overlap(self) -> np.ndarray:
-        """Upper bound of every contact's overlap [m] over the whole run, (N+1,).
+        """Upper bound of every contact's overlap [m] over the whole run, (N+1,) (a new array each
+        call; computed once per System).
 
         All the energy available (striker kinetic energy + precompression energy) put into one
         contact: (2/5) kappa delta^(5/2) <= E, plus the static overlap d0. Contacts with kappa = 0
@@ -295,6 +308,9 @@ class System:
         curve (softer than Hertz past the yield overlap, so deeper), and the precompression
         energy counted is the work along it.
         """
+        return self._memo("max_overlap", self._max_overlap).copy()
+
+    def _max_overlap(self) -> np.ndarray:
         energy = 0.5 * self.mass[0] * self.v0[0] ** 2
         kap = self.kappa
         spec = law_of_code(self.law)
@@ -346,6 +362,9 @@ class System:
         protected body's mount is one more (linear) contact, and a mass-in-mass bead's internal
         spring k_in adds to its row (2 k_in / m) and gives its internal mass the row 2 k_in / m_in.
         """
+        return self._memo("max_frequency", self._max_frequency)
+
+    def _max_frequency(self) -> float:
         omega2, beta, inner = self.frequency_rows()
         w = float(np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta))
         return max(w, float(np.max(inner))) if inner.size else w
@@ -515,7 +534,15 @@ class Model:
         return self.striker.plain and not self.wall.is_body and self.chain.plain and self.gravity == 0
 
     def system(self) -> System:
-        """Flatten the model into SI arrays (see :class:`System`)."""
+        """Flatten the model into SI arrays (see :class:`System`); built once per Model (a Model is
+        immutable; the System's arrays are not changed by the engines, which pack copies)."""
+        cached = self.__dict__.get("_system")
+        if cached is None:
+            cached = self._build_system()
+            object.__setattr__(self, "_system", cached)  # not a field: eq, repr and replace() ignore it
+        return cached
+
+    def _build_system(self) -> System:
         n = self.chain.n_beads
         mass = np.empty(n + 2)
         mass[0] = self.striker.mass

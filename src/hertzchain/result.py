@@ -100,7 +100,8 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
     n = chain.n_beads
     system = system if system is not None else model.system()
     nc = system.n_contacts
-    wanted = raw.contacts if probes.contacts is None else np.array(sorted(set(probes.contacts)), dtype=np.int64)
+    wanted = (raw.contacts if not isinstance(probes.contacts, tuple)  # None (all) or "auto": what was recorded
+              else np.array(sorted(set(probes.contacts)), dtype=np.int64))
     if np.array_equal(wanted, raw.contacts):
         forces = raw.contact_force  # every recorded contact is wanted: no copy (it can be 100s of MB)
     else:
@@ -150,6 +151,10 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "title": "hertzchain simulation",
         "hertzchain_version": __version__,
         "integrator": raw.integrator,
+        # what ran (simulate() passes its choice, hertzchain.engine_choice; a batch runs the Verlet on one
+        # thread per member)
+        "integrator_used": raw.integrator,
+        "threads_used": 1,
         "dt": raw.dt,
         "dt_max": raw.dt_max if raw.integrator in STEPPERS else 0.0,
         "time_step": ("adaptive" if raw.adaptive else "fixed") if raw.integrator in STEPPERS else "solve_ivp",
@@ -285,10 +290,14 @@ def fields_dataset(f: RunFields) -> xr.Dataset:
                for name, (dims, values, attrs) in f.data.items()}
         indexes = {}
         for name, (dim, values, attrs) in f.coords.items():
-            # the run's own arrays: indexed without a copy
-            index = PandasIndex(pd.Index(np.asarray(values), copy=False), dim)
+            # the run's own arrays: indexed without a copy, named (so that xarray does not copy the
+            # index to name it) and of a known dtype (no cast, no inference: fastpath)
+            values = np.asarray(values)
+            index = PandasIndex(pd.Index(values, copy=False, name=dim), dim, values.dtype, fastpath=True)
             indexes[name] = index
-            out.update(index.create_variables({name: xr.Variable(dim, values, attrs)}))
+            variables = index.create_variables()
+            variables[name].attrs.update(attrs)
+            out.update(variables)
         sizes: dict[str, int] = {}
         for var in out.values():
             sizes.update((d, n) for d, n in zip(var.dims, var.shape) if d not in sizes)

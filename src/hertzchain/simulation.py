@@ -10,10 +10,11 @@ import numpy as np
 import xarray as xr
 
 from .checks import check_after_run, check_before_run
+from .engine_choice import choose_engine
 from .errors import ConfigError, DurationWarning, ElasticLimitWarning
 from .model import Model
-from .probes import Probes
 from .laws import is_plastic
+from .probes import Probes, default_probes
 from .strict import real, run_options
 
 __all__ = ["simulate", "warn_elastic_limit", "warn_members_elastic_limit", "auto_duration", "elastic_limit_message"]
@@ -69,7 +70,13 @@ def auto_duration(model: Model) -> float:
         duration = AUTO_MARGIN * 2.0 * two_body_impact(mu, float(model.system().kappa[0]), v0)["contact_time"]
     else:
         vm = v0 * np.minimum(model.striker.mass, m) / (WAVE_MASS_BEADS * m)
-        speed = np.array([solitary_wave_speed_from_velocity(mat, v) for mat, v in zip(chain.materials, vm)])
+        # eq. 5 per material, vectorised over its beads (a loop over 1e6 beads took seconds)
+        materials = chain.materials
+        ids = np.fromiter(map(id, materials), dtype=np.int64, count=len(materials))
+        speed = np.empty(vm.size)
+        for key in np.unique(ids):
+            mask = ids == key
+            speed[mask] = solitary_wave_speed_from_velocity(materials[int(np.argmax(mask))], vm[mask])
         arrival = float(np.sum(chain.diameters / speed))
         tau = float(pulse_duration(chain.diameters[-1], speed[-1]))
         duration = AUTO_MARGIN * (arrival + AUTO_TAIL_DURATIONS * tau)
@@ -84,9 +91,10 @@ def auto_duration(model: Model) -> float:
 
 
 def simulate(model: Model, duration: float | str = "auto", probes: Probes | None = None, *,
-             integrator: Literal["verlet", "rkn4", "dop853", "rk45"] = "verlet", dt: float | None = None,
+             integrator: Literal["auto", "verlet", "rkn4", "dop853", "rk45"] = "auto", dt: float | None = None,
              rtol: float | None = None, progress: Callable[[int, int], None] | None = None,
-             config: dict | None = None, steps_per_radian: float | None = None, threads: int = 1) -> xr.Dataset:
+             config: dict | None = None, steps_per_radian: float | None = None,
+             threads: int | Literal["auto"] = "auto") -> xr.Dataset:
     """Simulate ``model`` for ``duration`` [s] and return the result Dataset.
 
     Parameters
@@ -97,9 +105,14 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         Simulated time [s] after impact, or ``"auto"`` (:func:`auto_duration`; the result's
         attribute ``duration`` holds the value, and ``duration_mode = "auto"`` says how it came).
     probes
-        What to record (default: every contact force and the energies every 100 ns).
+        What to record (default :func:`hertzchain.probes.default_probes`: the energies and the
+        contact forces of ``Probes.contacts = "auto"``, every contact of a chain of up to 256,
+        else the wall's and 33 spread along it, every 100 ns or at most 1e5 samples; pass
+        ``Probes(contacts=None)`` for every contact).
     integrator
-        ``"verlet"`` (compiled velocity Verlet, adaptive step; default), ``"rkn4"`` (compiled
+        ``"auto"`` (default: the fastest of the two below that integrates the model,
+        :mod:`hertzchain.engine_choice`; the result's attribute ``integrator_used`` says which),
+        ``"verlet"`` (compiled velocity Verlet, adaptive step), ``"rkn4"`` (compiled
         fourth-order symplectic Runge-Kutta-Nystrom with a contact-aware step and probes
         interpolated between steps, for aligned elastic chains: the same accuracy in a fraction of
         the time, see :mod:`hertzchain.integrate.rkn`) or the scipy reference ``"dop853"``
@@ -122,7 +135,9 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         within ~1e-6; the error scales as (1 / steps_per_radian)^2); unused with ``dt`` or the
         scipy integrators.
     threads
-        Threads sharing the chain (``"verlet"``, aligned elastic chains; worth it from ~1e4 beads):
+        ``"auto"`` (default: several only for a long aligned elastic chain on the Verlet with cores
+        free, :mod:`hertzchain.engine_choice`; the attribute ``threads_used`` says how many), or
+        threads sharing the chain (``"verlet"``, aligned elastic chains; worth it from ~1e4 beads):
         forces, velocities and the peak are bit for bit those of one thread, the energies agree to
         rounding (:mod:`hertzchain.integrate.threaded`).
 
@@ -148,32 +163,26 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         Overlaps beyond Hertz theory; a record that ends before the pulse reaches the wall; a run
         projected to take more than a few minutes.
     """
-    from .integrate.verlet import run_verlet
     from .result import build_dataset
 
-    probes = probes or Probes()
     mode = "given"
     if isinstance(duration, str) and duration == "auto":
         duration, mode = auto_duration(model), "auto"
     duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")
+    probes = probes or default_probes(duration)
     # The config's bounds at the API's door (hertzchain.strict): steps_per_radian=0, rtol=0, dt=nan
-    # or threads=10**6 are refused, naming the field, as in a config file.
-    dt, rtol, steps_per_radian, threads = run_options(dt=dt, rtol=rtol, steps_per_radian=steps_per_radian,
-                                                      threads=threads)
+    # or threads=10**6 are refused, naming the field, as in a config file ("auto": engine_choice).
+    dt, rtol, steps_per_radian, counted = run_options(dt=dt, rtol=rtol, steps_per_radian=steps_per_radian,
+                                                      threads=None if threads == "auto" else threads)
+    threads = "auto" if counted is None else counted
     if probes.sample_interval > duration:
         raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     system = model.system()
     probes.validate(model.chain.n_beads, model.wall.present)
-    if integrator not in ("verlet", "rkn4", "dop853", "rk45"):
-        raise ConfigError("run.integrator", f"must be 'verlet', 'rkn4', 'dop853' or 'rk45', got {integrator!r}")
-    if integrator == "rkn4":
-        from .integrate.rkn import check_rkn
-
-        check_rkn(system)
+    choice = choose_engine(system, integrator, threads, steps_per_radian=steps_per_radian, dt=dt)
+    integrator, threads = choice.integrator, choice.threads
     check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # before any allocation
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
-    if threads > 1 and integrator != "verlet":
-        raise ConfigError("run.threads", f"several threads run the integrator 'verlet', not {integrator!r}")
     if threads > 1:
         from .integrate.threaded import run_verlet_threaded
 
@@ -181,6 +190,8 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
                                   record_velocities=probes.velocities, contacts=rec, progress=progress,
                                   record_positions=probes.positions, steps_per_radian=steps_per_radian)
     elif integrator == "verlet":
+        from .integrate.verlet import run_verlet
+
         raw = run_verlet(system, duration, probes.sample_interval, dt=dt, record_velocities=probes.velocities,
                          contacts=rec, progress=progress, record_positions=probes.positions,
                          steps_per_radian=steps_per_radian)
@@ -196,8 +207,10 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
 
         raw = run_reference(system, duration, probes.sample_interval, method=integrator.upper(), rtol=rtol,
                             record_velocities=probes.velocities, record_positions=probes.positions)
-    ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system,
-                       extra_attrs={"duration_mode": "auto"} if mode == "auto" else None)
+    extra = {"integrator_used": integrator, "threads_used": threads, "engine_choice": choice.reason}
+    if mode == "auto":
+        extra["duration_mode"] = "auto"
+    ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system, extra_attrs=extra)
     check_after_run(ds, model, system, dt=dt, integrator=integrator, rtol=rtol, stacklevel=3)
     warn_elastic_limit(ds, stacklevel=3)
     if mode == "auto" and "wall_force" in ds and ds.attrs["peak_wall_time"] > 0.8 * duration:

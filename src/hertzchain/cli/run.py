@@ -17,7 +17,9 @@ from .common import echo_warning, progress_bar, set_option, laws_option
                    "(as hertzchain export writes them).")
 @set_option
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar or summary.")
-def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> None:
+@click.option("--verbose", "-v", is_flag=True, help="Also say which integrator and how many threads ran, and why "
+                                                    "(run.integrator / run.threads 'auto').")
+def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbose: bool) -> None:
     """Simulate the chain described by CONFIG (TOML) and save the result (NetCDF, or CSV / MATLAB /
     parquet by the suffix of --out, as hertzchain export writes them)."""
     import warnings
@@ -26,8 +28,6 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     from ..errors import ConfigError, DurationWarning, ElasticLimitWarning, LongRunWarning
     from ..exporting import check_format, export
     from ..fileio import check_not_input, check_writable
-    from ..result import save
-    from ..simulation import auto_duration
 
     # Tables only: the exchange formats (.h5md, .pvd, .data) need recorded positions or the NetCDF
     # result's model, and go through `hertzchain export`.
@@ -44,6 +44,9 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     # Before any work: a FIFO, a link or a device as --out, or a folder that cannot be written
     # (under a file, read-only, not ours), refused now rather than after the whole simulation.
     check_writable(out)
+    # xarray (~0.5 s to import) only once the config is valid: a bad one is refused at once
+    from ..result import save
+    from ..simulation import auto_duration
     model = build_model(cfg)
     probes = build_probes(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run
@@ -51,8 +54,16 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     # past a few minutes shown now (LongRunWarning), naming what to change (run.dt, run.duration).
     from ..checks import check_resources, estimate_resources, run_time_hint
 
+    from ..engine_choice import choose_engine
+
     duration = auto_duration(model) if cfg.run.duration == "auto" else cfg.run.duration
-    est = estimate_resources(model.system(), duration, probes, dt=cfg.run.dt, integrator=cfg.run.integrator,
+    system = model.system()
+    if cfg.track is None:  # refuses an integrator or thread count the model does not run, before any compilation
+        integrator = choose_engine(system, cfg.run.integrator, cfg.run.threads,
+                                   steps_per_radian=cfg.run.verlet_steps_per_radian, dt=cfg.run.dt).integrator
+    else:
+        integrator = "verlet" if cfg.run.integrator == "auto" else cfg.run.integrator
+    est = estimate_resources(system, duration, probes, dt=cfg.run.dt, integrator=integrator,
                              steps_per_radian=cfg.run.steps_per_radian)
     check_resources(est, time_hint=run_time_hint(cfg.run.dt))
     # A progress bar only when the run is long enough to be worth one (> ~1e8 bead-steps).
@@ -70,6 +81,8 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
         export(ds, out)
     else:
         save(ds, out)
+    if verbose and "engine_choice" in ds.attrs:
+        click.echo(f"engine: {ds.attrs['engine_choice']}")
     if not quiet:
         if ds.attrs.get("time_step") == "adaptive":
             step = f"adaptive dt {ds.attrs['dt']:.3g}-{ds.attrs['dt_max']:.3g} s, {ds.attrs['n_steps']} steps"

@@ -254,7 +254,7 @@ def build_probes(cfg: RunConfig):
 
     p = cfg.probes
     return Probes(sample_interval=cfg.run.sample_interval, sensors=tuple(p.sensors),
-                  contacts=None if p.contacts == "all" else tuple(p.contacts), velocities=p.velocities,
+                  contacts=None if p.contacts == "all" else p.contacts if p.contacts == "auto" else tuple(p.contacts), velocities=p.velocities,
                   positions=p.positions)
 
 
@@ -337,8 +337,8 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
 
         return simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                         rtol=cfg.run.rtol, progress=progress, config=config,
-                        steps_per_radian=cfg.run.steps_per_radian, threads=cfg.run.threads)
-    if cfg.run.threads != 1:
+                        steps_per_radian=cfg.run.verlet_steps_per_radian, threads=cfg.run.threads)
+    if cfg.run.threads not in (1, "auto"):
         raise ConfigError("run.threads", "the lateral (2D) path of [track] runs on one thread: leave it out")
     if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:
         raise ConfigError("run.steps_per_radian", "is a setting of the 1D engine's adaptive step; the lateral "
@@ -350,7 +350,8 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
     track = build_track(cfg)
     with _as_written("track.groove_radius", "track.groove_radius_mm"):
         ds = simulate_lateral(model, track, auto_duration(model) if auto else cfg.run.duration, probes,
-                              integrator=cfg.run.integrator, dt=cfg.run.dt,
+                              integrator="verlet" if cfg.run.integrator == "auto" else cfg.run.integrator,
+                              dt=cfg.run.dt,
                               rtol=SCIPY_RTOL if cfg.run.rtol is None else cfg.run.rtol, config=config)
     if auto:
         ds.attrs["duration_mode"] = "auto"

@@ -259,16 +259,37 @@ class RunSection(_Section):
                                     "(hertzchain.simulation.auto_duration)")
     sample_interval: float = _bounded("sample_interval", default=1e-7, description="s")
     dt: float | None = _bounded("dt", default=None, description="s; automatic when absent")
-    integrator: Literal["verlet", "rkn4", "dop853", "rk45"] = "verlet"
+    integrator: Literal["auto", "verlet", "rkn4", "dop853", "rk45"] = Field(
+        default="auto", description="'auto': 'rkn4' where it integrates the model, else 'verlet' "
+                                    "(hertzchain.engine_choice); or one of them by name")
     rtol: float | None = _bounded(
         "rtol", default=None,
         description="relative tolerance of 'dop853'/'rk45' (default 1e-10) or of the step control of 'rkn4' "
                     "(default 1e-6); unused by 'verlet'")
     steps_per_radian: float = _bounded(
         "steps_per_radian", default=400.0,
-        description="adaptive Verlet step: omega dt <= 1 / steps_per_radian; peak error ~ (1/steps_per_radian)^2")
-    threads: int = _bounded("threads", default=1,
-                            description="threads sharing one long aligned elastic chain (Verlet; pays from ~1e4 beads)")
+        description="adaptive Verlet step: omega dt <= 1 / steps_per_radian; peak error ~ (1/steps_per_radian)^2; "
+                    "setting it makes integrator 'auto' pick 'verlet'")
+
+    @property
+    def verlet_steps_per_radian(self) -> float | None:
+        """``steps_per_radian`` where the config sets it, else None (integrator 'auto' may pick 'rkn4')."""
+        return self.steps_per_radian if "steps_per_radian" in self.model_fields_set else None
+    threads: int | Literal["auto"] = Field(
+        default="auto", description="'auto' (several only for a long aligned elastic chain on the Verlet with "
+                                    "cores free; hertzchain.engine_choice), or threads sharing one long aligned "
+                                    "elastic chain (Verlet; pays from ~1e4 beads)")
+
+    @field_validator("threads", mode="before")
+    @classmethod
+    def _auto_or_count(cls, v: Any) -> Any:
+        # Checked here in full, so that an error names run.threads (not a branch of the union).
+        if v == "auto":
+            return v
+        lo, hi = BOUNDS["threads"]
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ValueError(f"must be 'auto' or a whole number of threads from {lo} to {hi}")
+        return v
 
     @field_validator("duration", mode="before")
     @classmethod
@@ -286,7 +307,9 @@ class RunSection(_Section):
 
 class ProbesConfig(_Section):
     sensors: list[_BeadNumber] = []
-    contacts: Literal["all"] | list[Annotated[int, Field(ge=0, le=BOUNDS["beads"][1])]] = "all"
+    contacts: Literal["auto", "all"] | list[Annotated[int, Field(ge=0, le=BOUNDS["beads"][1])]] = Field(
+        default="auto", description="'auto': every contact up to 256, else the wall's, the sensors' and 33 spread "
+                                    "along the chain; 'all'; or contact numbers")
     velocities: bool = False
     positions: bool = False
 

@@ -213,8 +213,8 @@ def parse_design(data: dict) -> DesignProblem:
         build_model(base_cfg)
     except ConfigError as exc:
         raise ConfigError(f"base.{exc.field}", exc.message) from None
-    if base_cfg.run.integrator != "verlet":
-        raise ConfigError("base.run.integrator", "designs run on the batched Verlet engine; use 'verlet'")
+    if base_cfg.run.integrator not in ("verlet", "auto"):
+        raise ConfigError("base.run.integrator", "designs run on the batched Verlet engine; use 'auto' (the default) or 'verlet'")
     if base_cfg.wall.type == "none":
         raise ConfigError("base.wall.type", "a design is judged at the wall: use type = 'flat' or 'body'")
     if base_cfg.wall.material is None:
@@ -222,6 +222,11 @@ def parse_design(data: dict) -> DesignProblem:
         # base (a candidate whose first bead changes material would otherwise change its wall).
         base = copy.deepcopy(base)
         base.setdefault("wall", {})["material"] = build_model(base_cfg).wall_material.name
+    if base_cfg.run.integrator == "auto":
+        # Candidates are judged by the batched Verlet engine: their configs name it, so that a
+        # candidate's config run alone (best.toml) gives the objective the design reports.
+        base = copy.deepcopy(base)
+        base.setdefault("run", {})["integrator"] = "verlet"
 
     objectives = [sec.objective] if isinstance(sec.objective, str) else list(sec.objective)
     if not objectives:

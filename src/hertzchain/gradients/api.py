@@ -165,9 +165,9 @@ def _prepare(cfg):
     if cfg.track is not None:
         raise ConfigError("track", "gradients follow the 1D engine; a run with [track] (beads leaving the axis) "
                           "has no sensitivity: leave [track] out")
-    if cfg.run.integrator != "verlet":
+    if cfg.run.integrator not in ("verlet", "auto"):
         raise ConfigError("run.integrator", f"gradients differentiate the Verlet engine's steps; got "
-                          f"'{cfg.run.integrator}': use 'verlet'")
+                          f"'{cfg.run.integrator}': use 'auto' (the default) or 'verlet'")
     model = build_model(cfg)
     _refuse_unknown_models(cfg, model)
     system = model.system()

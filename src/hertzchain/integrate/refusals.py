@@ -20,7 +20,7 @@ from ..errors import ConfigError
 
 __all__ = ["INTEGRATORS", "why_not", "accepted_integrators", "refuse"]
 
-#: The integrators of ``run.integrator``, the default first.
+#: The integrators ``run.integrator`` names (besides ``"auto"``, the default, which picks one of them).
 INTEGRATORS = ("verlet", "rkn4", "dop853", "rk45")
 
 
@@ -89,6 +89,6 @@ def refuse(integrator: str, system) -> None:
     reason = why_not(integrator, system)
     if reason is None:
         return
-    others = [f"'{name}'" + (" (the default)" if name == "verlet" else "")
-              for name in accepted_integrators(system) if name != integrator]
+    # 'auto' (the default, hertzchain.engine_choice) picks one of those that take the model
+    others = ["'auto' (the default)"] + [f"'{name}'" for name in accepted_integrators(system) if name != integrator]
     raise ConfigError("run.integrator", f"{reason}: use integrator {' or '.join(others)}")

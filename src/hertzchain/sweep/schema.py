@@ -285,8 +285,8 @@ def parse_sweep(data: dict) -> SweepConfig:
         base_cfg = parse_config(base)
     except ConfigError as exc:
         raise ConfigError(f"base.{exc.field}", exc.message) from None
-    if base_cfg.run.integrator != "verlet":
-        raise ConfigError("base.run.integrator", "sweeps run on the batched Verlet engine; use 'verlet'")
+    if base_cfg.run.integrator not in ("verlet", "auto"):
+        raise ConfigError("base.run.integrator", "sweeps run on the batched Verlet engine; use 'auto' (the default) or 'verlet'")
 
     if sw.mode == "grid" and sw.n is not None:
         raise ConfigError("sweep.n", "is for mode = 'random'; a grid has one member per combination of values")

@@ -1,0 +1,162 @@
+"""``integrator = "auto"`` and ``threads = "auto"``: which engine runs a model on this machine.
+
+The rules (documented in the user guide's "Running" page, tested per model kind in
+tests/test_engine_choice.py):
+
+* integrator: the fourth-order ``"rkn4"`` (:mod:`hertzchain.integrate.rkn`) when it integrates the
+  model, i.e. an aligned elastic chain without a protected body, mass-in-mass beads or a
+  dissipative law (``System.general`` is False): its default step control keeps the peak wall
+  force within ~1e-8 of DOP853, better than the Verlet's ~1e-6, at a fraction of the steps.
+  Otherwise, or when the call sets the Verlet's own accuracy (``steps_per_radian``), a fixed
+  step ``dt`` or several threads, the compiled velocity ``"verlet"`` (peak wall force within ~1e-6).
+* threads: more than one only where the threaded engine runs the model (the Verlet on an aligned
+  elastic chain), the chain is long enough for a per-step barrier to pay
+  (:data:`AUTO_THREADS_MIN_BEADS` beads, :data:`BEADS_PER_THREAD` per thread) and cores are free:
+  the cores this process may run on (``os.sched_getaffinity``) less the one-minute load average
+  beyond this process's own (a barrier that waits for a scheduler slice makes a shared core
+  slower than one thread: 0.6x measured at 1e4-1e5 beads). Anything else: one thread.
+
+Nothing here imports a compiled kernel: the choice is made, and refused, before any compilation.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+from .errors import ConfigError
+# the refusals' checks: plain Python, no compiled kernel imported
+from .integrate.refusals import INTEGRATORS as NAMED, refuse, why_not
+
+__all__ = ["EngineChoice", "choose_engine", "free_cores", "INTEGRATORS",
+           "AUTO_THREADS_MIN_BEADS", "BEADS_PER_THREAD"]
+
+#: Values of ``run.integrator``: "auto" and the integrators it picks from.
+INTEGRATORS = ("auto", *NAMED)
+#: ``threads = "auto"`` splits no chain shorter than this (benchmarks/long_chain.py: a barrier per
+#: step, ~0.1-1 us, against ~0.7 us of work per 1e3 beads).
+AUTO_THREADS_MIN_BEADS = 10_000
+#: ... and gives every thread at least this many beads.
+BEADS_PER_THREAD = 5_000
+
+
+@dataclass(frozen=True)
+class EngineChoice:
+    """The engine a run uses.
+
+    Attributes
+    ----------
+    integrator : str
+        ``"verlet"``, ``"rkn4"``, ``"dop853"`` or ``"rk45"``.
+    threads : int
+        Threads sharing the chain.
+    reason : str
+        Why, in a few words (``hertzchain run --verbose`` prints it).
+    """
+
+    integrator: str
+    threads: int
+    reason: str
+
+
+def free_cores() -> tuple[int, float]:
+    """Cores this process may run on and the one-minute load average (0 where unknown).
+
+    Returns
+    -------
+    (int, float)
+        ``len(os.sched_getaffinity(0))`` (``os.cpu_count()`` where not available) and
+        ``os.getloadavg()[0]``.
+    """
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    try:
+        load = float(os.getloadavg()[0])
+    except (AttributeError, OSError):
+        load = 0.0
+    return max(1, cores), load
+
+
+def _auto_threads(system, integrator: str, cores: int, load: float) -> tuple[int, str]:
+    """``threads = "auto"`` (module docstring): the count and why."""
+    n = system.n_beads
+    if integrator != "verlet":
+        return 1, "the threaded engine runs the Verlet"
+    if system.general:
+        return 1, "the threaded engine runs aligned elastic chains"
+    if n < AUTO_THREADS_MIN_BEADS:
+        return 1, f"{n} beads < {AUTO_THREADS_MIN_BEADS}"
+    # the load counts this process once it runs: what is beyond one is other work on the cores
+    free = int(cores - max(0.0, load - 1.0))
+    threads = max(1, min(cores, free, n // BEADS_PER_THREAD))
+    if threads == 1:
+        return 1, f"cores shared ({cores} cores, load {load:.2f})"
+    return threads, f"{n} beads, {free} of {cores} cores free (load {load:.2f})"
+
+
+def choose_engine(system, integrator: str = "auto", threads: int | str = "auto", *,
+                  steps_per_radian: float | None = None, dt: float | None = None, cores: int | None = None,
+                  load: float | None = None) -> EngineChoice:
+    """Resolve ``integrator`` and ``threads`` (either may be ``"auto"``) for ``system``.
+
+    Explicit values are kept (and checked: an integrator that does not run the model is refused
+    here, naming ``run.integrator`` or ``run.threads``, before anything compiles).
+
+    Parameters
+    ----------
+    system : hertzchain.model.System
+        The model's arrays.
+    integrator : str
+        ``"auto"`` or one of :data:`INTEGRATORS`.
+    threads : int or "auto"
+        Threads sharing the chain.
+    steps_per_radian : float or None
+        The Verlet's accuracy when the call sets it (then ``"auto"`` picks the Verlet).
+    dt : float or None
+        A fixed step [s] when the call sets one (then ``"auto"`` picks the Verlet, whose stability
+        bound the step was chosen against).
+    cores, load : optional
+        The machine's free cores and load average (default: :func:`free_cores`; given in tests).
+
+    Returns
+    -------
+    EngineChoice
+        The integrator, the threads and why.
+    """
+    if integrator not in INTEGRATORS:
+        raise ConfigError("run.integrator", f"must be one of {', '.join(repr(i) for i in INTEGRATORS)}, "
+                          f"got {integrator!r}")
+    if not (threads == "auto" or (isinstance(threads, int) and not isinstance(threads, bool) and threads >= 1)):
+        raise ConfigError("run.threads", f"must be 'auto' or a whole number of threads >= 1, got {threads!r}")
+    if integrator != "auto":
+        refuse(integrator, system)  # suggesting only the integrators that take the model
+    if integrator == "auto":
+        refusal = why_not("rkn4", system)
+        if refusal is not None:
+            integrator, why = "verlet", f"verlet: {refusal}"
+        elif steps_per_radian is not None:
+            integrator, why = "verlet", "verlet: its steps_per_radian is set"
+        elif dt is not None:
+            integrator, why = "verlet", "verlet: a fixed dt is set"
+        elif threads != "auto" and threads > 1:
+            integrator, why = "verlet", "verlet: several threads asked for"
+        else:
+            integrator, why = "rkn4", "rkn4: aligned elastic chain"
+    else:
+        why = f"{integrator}: asked for"
+    if threads == "auto":
+        if cores is None or load is None:
+            machine_cores, machine_load = free_cores()
+            cores = machine_cores if cores is None else cores
+            load = machine_load if load is None else load
+        threads, twhy = _auto_threads(system, integrator, cores, load)
+    else:
+        if threads > 1 and integrator != "verlet":
+            raise ConfigError("run.threads", f"several threads run the integrator 'verlet', not {integrator!r}")
+        if threads > 1 and system.general:
+            raise ConfigError("run.threads", "several threads run aligned elastic chains (no dissipation, no offsets, "
+                              "no protected body or mass-in-mass beads); use run.threads = 1 or 'auto' for this model")
+        twhy = "asked for"
+    return EngineChoice(integrator=integrator, threads=int(threads), reason=f"{why}; {threads} thread(s): {twhy}")
