@@ -12,7 +12,8 @@ The model is hertzchain's (docs/conventions.rst), in LAMMPS' GRANULAR package:
   given E = 2 E* and nu = 0 with 1/E* = (1 - nu_i^2)/E_i + (1 - nu_j^2)/E_j, Hertz's mixture;
 - the wall as ``fix wall/gran`` on the plane past bead N, the same model (E = 2 E* and nu = 0 of
   bead N's material against the wall's when they differ; R* = R_N for a sphere on a flat);
-- ``fix nve/sphere`` (velocity Verlet, as hertzchain's engine) at the run's time step, and
+- ``fix nve/sphere`` (velocity Verlet, as hertzchain's engine) at the run's time step (its
+  smallest, for an adaptive run), and
   ``fix setforce NULL 0 0`` holding the beads on their lines (hertzchain's chain is 1D);
 - the wall force, written every sample interval to ``wall_force.NAME.txt`` (time [s], force [N])
   through ``compute reduce`` of the wall's per-atom contact forces.
