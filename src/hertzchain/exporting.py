@@ -13,6 +13,9 @@ parquet (pandas, R, Julia), SI units throughout.
   ``contact_force`` as a time x contact matrix, ``contact``, ``diameter``...), a struct ``units``
   (``units.wall_force = 'N'``) and a struct ``attrs`` with the run's attributes (the config and
   the model as JSON text).
+- H5MD, VTK (ParaView) and LAMMPS: the formats of particle codes, written by
+  :mod:`hertzchain.interchange` (``*.h5md``, ``*.pvd`` with its ``.vtp`` frames, ``*.data`` with
+  its input script ``in.NAME``).
 """
 
 from __future__ import annotations
@@ -33,7 +36,11 @@ __all__ = ["EXPORT_FORMATS", "check_format", "export", "signal_table", "csv_head
 
 #: File suffixes :func:`export` writes, and what they are.
 EXPORT_FORMATS = {".csv": "CSV, units in the header", ".mat": "MATLAB v5, scipy.io.savemat",
-                  ".parquet": "pandas + pyarrow, the [export] extra"}
+                  ".parquet": "pandas + pyarrow, the [export] extra",
+                  ".h5md": "H5MD 1.1 trajectories", ".pvd": "ParaView time series, .vtp frames beside it",
+                  ".data": "LAMMPS data file, input script in.NAME beside it"}
+#: The formats of particle codes, written by hertzchain.interchange.
+_INTERCHANGE = (".h5md", ".pvd", ".data")
 #: Signals first in a table, in this order (the rest follow as stored).
 _ORDER = ("wall_force", "sensor_force", "contact_force", "kinetic_energy", "potential_energy", "dissipated_energy",
           "velocity", "displacement")
@@ -50,7 +57,7 @@ def check_format(path: str | Path) -> str:
     Returns
     -------
     str
-        ``".csv"``, ``".mat"`` or ``".parquet"``; a ConfigError naming ``--out`` for another
+        ``".csv"``, ``".mat"``, ``".parquet"``, ``".h5md"``, ``".pvd"`` or ``".data"``; a ConfigError naming ``--out`` for another
         suffix, or for parquet without pyarrow (naming the ``[export]`` extra).
     """
     path = Path(path)
@@ -222,8 +229,8 @@ def read_csv_header(path: str | Path) -> dict:
     return out
 
 
-def export(ds: xr.Dataset, path: str | Path) -> Path:
-    """Write a result as CSV, MATLAB or parquet, by the file's suffix (SI units).
+def export(ds: xr.Dataset, path: str | Path, *, frames: int | None = None) -> Path:
+    """Write a result as CSV, MATLAB, parquet, H5MD, VTK or LAMMPS input, by the file's suffix (SI units).
 
     Parameters
     ----------
@@ -233,8 +240,13 @@ def export(ds: xr.Dataset, path: str | Path) -> Path:
         ``*.csv`` (signals on the time axis, units in the header, the run's metadata in ``#``
         lines above it: :func:`csv_header`), ``*.mat`` (every variable,
         a ``units`` struct and an ``attrs`` struct; ``time`` [s] and ``wall_force`` [N] among
-        them) or ``*.parquet`` (the CSV's table; needs pyarrow, the ``[export]`` extra).
+        them) or ``*.parquet`` (the CSV's table; needs pyarrow, the ``[export]`` extra); for
+        particle codes ``*.h5md`` (H5MD 1.1: positions, velocities, forces of every body over
+        time), ``*.pvd`` (ParaView: ``NAME_000000.vtp``... beside it) or ``*.data`` (LAMMPS data
+        file, input script ``in.NAME`` beside it), see :mod:`hertzchain.interchange`.
         Written atomically; its folder is created.
+    frames : int, optional
+        ``*.pvd`` only: the number of frames, evenly spread over the samples (default 200).
 
     Returns
     -------
@@ -247,6 +259,11 @@ def export(ds: xr.Dataset, path: str | Path) -> Path:
     suffix = check_format(path)
     run = _one_run(ds)
     path.parent.mkdir(parents=True, exist_ok=True)
+    if suffix in _INTERCHANGE:
+        from .interchange import write
+
+        write(run, path, suffix, frames)
+        return path
     with atomic_path(path) as tmp:
         if suffix == ".csv":
             with open(tmp, "w", encoding="utf-8", newline="") as f:

@@ -119,7 +119,10 @@ def connect(address: str, timeout: float | str = CONNECT_TIMEOUT_S, worker_wait:
         (field ``--scheduler``) for an unsupported address, when no scheduler answers at
         ``address``, or when no worker joins it in time.
     """
-    url = check_address(address)
+    url = check_address(address)  # a bad address is said first, whatever is installed
+    from .extras import require
+
+    require("cluster", "--scheduler", ("distributed",))
     try:
         from distributed import Client
 
@@ -143,7 +146,7 @@ def connect(address: str, timeout: float | str = CONNECT_TIMEOUT_S, worker_wait:
 def _is_dask(client) -> bool:
     try:
         import distributed
-    except ImportError:  # pragma: no cover - a dependency, but keep the generic paths usable
+    except ImportError:  # the [cluster] extra is not installed: no client can be a Dask one
         return False
     return isinstance(client, distributed.Client)
 

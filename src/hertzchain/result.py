@@ -356,8 +356,10 @@ def netcdf_bytes(ds: xr.Dataset, encoding: dict) -> memoryview:
         The file's content (a view of the in-memory file: no copy of a file that may be as large
         as the records).
     """
-    import dask
-
+    try:
+        import dask
+    except ImportError:  # without Dask (the [cluster] extra) xarray takes no scheduler's lock
+        return memoryview(ds.to_netcdf(None, engine=ENGINE, encoding=encoding))
     with dask.config.set(scheduler="synchronous"):
         return memoryview(ds.to_netcdf(None, engine=ENGINE, encoding=encoding))
 

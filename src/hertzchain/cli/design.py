@@ -39,7 +39,10 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
 
     from ..design import load_design, run_design, write_report
 
+    from ..extras import require
+
     problem = load_design(design_file, overrides)
+    require("design", "design", ("cma", "tomli_w"))  # before the search's imports: the extra, named
     _import_search()
     freeze_imports()
     require_device(device)  # fail now, naming the option, rather than in the first generation

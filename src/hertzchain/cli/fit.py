@@ -86,6 +86,9 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
     from ..lab.readers import read_trace
     from ..lab.report import prepare_folder, write_fit_outputs
 
+    from ..extras import require
+
+    require("lab", "fit", ("tomli_w",))  # fit.toml is written at the end: the extra is checked first
     if max_evaluations < 1:
         raise ConfigError("--max-evaluations", f"must be at least 1, got {max_evaluations}")
     data = read_toml(config)

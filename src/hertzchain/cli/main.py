@@ -13,11 +13,13 @@ import sys
 
 import click
 
+from .. import __version__
 from .analyze import analyze
 from .animate import animate
 from .common import user_warnings
 from .compare import compare
 from .design import design
+from .example import example
 from .explore import explore
 from .export import export
 from .fit import fit
@@ -31,7 +33,7 @@ from .sweep import sweep
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(package_name="hertzchain")
+@click.version_option(version=__version__, prog_name="hertzchain")
 def cli() -> None:
     """Impulse propagation in chains of Hertzian beads (tapered granular shock absorbers)."""
 
@@ -50,6 +52,7 @@ cli.add_command(design)
 cli.add_command(sensitivity)
 cli.add_command(explore)
 cli.add_command(export)
+cli.add_command(example)
 
 
 class Terminated(KeyboardInterrupt):

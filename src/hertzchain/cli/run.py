@@ -26,14 +26,18 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
 
     from ..config import apply_instruments, build_instruments, build_model, build_probes, load_config, simulate_config
     from ..errors import ConfigError, DurationWarning, ElasticLimitWarning, LongRunWarning
-    from ..exporting import EXPORT_FORMATS, check_format, export
+    from ..exporting import check_format, export
     from ..fileio import check_not_input, check_writable
 
-    if out.suffix.lower() not in (".nc", ".nc4", ".h5", *EXPORT_FORMATS):
+    # Tables only: the exchange formats (.h5md, .pvd, .data) need recorded positions or the NetCDF
+    # result's model, and go through `hertzchain export`.
+    tables = (".csv", ".mat", ".parquet")
+    if out.suffix.lower() not in (".nc", ".nc4", ".h5", *tables):
         # A .png name (or a typo) is a mistake to catch before the run.
         raise ConfigError("--out", f"name the result *.nc (NetCDF, everything), *.csv, *.mat or *.parquet "
-                          f"(as hertzchain export writes them); got {out.name!r}")
-    if out.suffix.lower() in EXPORT_FORMATS:
+                          f"(as hertzchain export writes them; H5MD, VTK and LAMMPS files: run to *.nc, then "
+                          f"hertzchain export); got {out.name!r}")
+    if out.suffix.lower() in tables:
         check_format(out)  # parquet without pyarrow is said before the run
     cfg = load_config(config, overrides)
     check_not_input(out, config)
@@ -73,7 +77,7 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
         if not issubclass(w.category, LongRunWarning):  # the pre-flight showed it before the run
             echo_warning(w.message)
     ds = apply_instruments(ds, cfg)
-    if out.suffix.lower() in EXPORT_FORMATS:
+    if out.suffix.lower() in tables:
         export(ds, out)
     else:
         save(ds, out)

@@ -218,12 +218,8 @@ def _new_optimiser(problem: DesignProblem, restart: int = 0, x0: np.ndarray | No
         opts = {"bounds": [0.0, 1.0], "seed": sec.seed + 1, "popsize": pop, "randn": randn,
                 "verbose": -9, "verb_log": 0, "verb_disp": 0, "minstd": minstd, "tolfun": 1e-9, "tolx": 1e-6}
         return cma.CMAEvolutionStrategy(start, 0.2 if x0 is not None else 0.3, opts)
-    try:
-        from pymoo.algorithms.moo.nsga2 import NSGA2
-        from pymoo.core.problem import Problem
-    except ImportError:
-        raise ConfigError("design.objective", "several objectives (a Pareto front) need pymoo: install the "
-                          "'design' extra (pip install -e \".[design]\") or give one objective") from None
+    from pymoo.algorithms.moo.nsga2 import NSGA2  # the [design] extra, checked by run_design
+    from pymoo.core.problem import Problem
 
     algo = NSGA2(pop_size=_population(problem))
     algo.setup(Problem(n_var=dim, n_obj=len(problem.objectives), xl=0.0, xu=1.0), seed=sec.seed, verbose=False)
@@ -486,8 +482,12 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         A bad setting, or one the pre-flight (:func:`preflight`) refuses: a generation beyond the
         budget or the memory.
     """
+    from ..extras import require
     from ..sweep.storage import _folder_lock
 
+    # CMA-ES, the best.toml writer and (a Pareto front) pymoo: the [design] extra, said before any work.
+    several = len(problem.objectives) > 1
+    require("design", "design.objective" if several else "design", ("cma", "tomli_w") + ("pymoo",) * several)
     preflight(problem, client)  # before any candidate or folder: the budget, the memory, the time
     out = Path(out_dir)
     try:

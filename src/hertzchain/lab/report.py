@@ -204,6 +204,9 @@ def toml_text(data: dict, header: str = "") -> str:
     str
         TOML text that :func:`hertzchain.load_config` reads back to the same mapping.
     """
+    from ..extras import require
+
+    require("lab", "fit.toml", ("tomli_w",))
     import tomli_w
 
     lines = "".join(f"# {ln}\n" if ln else "#\n" for ln in header.splitlines())
