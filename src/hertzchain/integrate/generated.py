@@ -34,12 +34,14 @@ _CACHE: dict = {}
 def law_kernels(code: int):
     """(forces, run, energy) compiled for the law of engine code ``code``; built on first use."""
     from ..laws import law_of_code
+    from ..laws.spec import compiled
 
     spec = law_of_code(code)
     key = (code, id(spec.force), id(spec.state), id(spec.energy), id(spec.partials))
     if key not in _CACHE:
-        inverse = spec.overlap_at_energy or _bisect(spec.energy)
-        _CACHE[key] = _build(spec.force, spec.state, spec.energy, spec.partials, inverse)
+        force, state, stored, partials = (compiled(f) for f in (spec.force, spec.state, spec.energy, spec.partials))
+        inverse = compiled(spec.overlap_at_energy) if spec.overlap_at_energy is not None else _bisect(stored)
+        _CACHE[key] = _build(force, state, stored, partials, inverse)
     return _CACHE[key]
 
 

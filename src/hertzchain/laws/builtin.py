@@ -13,9 +13,8 @@ imports none of the modules above it.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from .spec import LawSpec, Param, register_law
+from .spec import LawSpec, Param, jit, register_law
 
 _A = Param("A", "s", "Kuwabara-Kono time constant", 0.0, 1.0)
 _GAMMA = Param("gamma", "N s/m", "dashpot coefficient", 0.0, 1e9)
@@ -24,48 +23,48 @@ _P_Y = Param("limiting_pressure_factor", "-", "Thornton's limiting pressure over
              open_low=True, default=1.5)
 
 
-@njit(cache=True)
+@jit
 def _hertz(d, rate, k, p, s):
     """Hertz, paper eq. 1: k d^(3/2)."""
     return k * d * np.sqrt(d)
 
 
-@njit(cache=True)
+@jit
 def _kuwabara_kono(d, rate, k, p, s):
     """k (d^(3/2) + A d^(1/2) rate), p = A [s]."""
     sd = np.sqrt(d)
     return k * (d * sd + p * sd * rate)
 
 
-@njit(cache=True)
+@jit
 def _dashpot(d, rate, k, p, s):
     """k d^(3/2) + gamma rate, p = gamma [N s/m]."""
     return k * d * np.sqrt(d) + p * rate
 
 
-@njit(cache=True)
+@jit
 def _keep(d, rate, k, p, s):
     return s
 
 
-@njit(cache=True)
+@jit
 def _hertz_energy(d, k, p):
     return 0.4 * k * d * d * np.sqrt(d)
 
 
-@njit(cache=True)
+@jit
 def _hertz_partials(d, rate, k, p, s):
     return 1.5 * k * np.sqrt(d), 0.0, d * np.sqrt(d), 0.0
 
 
-@njit(cache=True)
+@jit
 def _kk_partials(d, rate, k, p, s):
     sd = np.sqrt(d)
     ddd = 1.5 * k * sd + (0.5 * k * p * rate / sd if d > 0.0 else 0.0)
     return ddd, k * p * sd, d * sd + p * sd * rate, k * sd * rate
 
 
-@njit(cache=True)
+@jit
 def _dashpot_partials(d, rate, k, p, s):
     return 1.5 * k * np.sqrt(d), p, d * np.sqrt(d), rate
 

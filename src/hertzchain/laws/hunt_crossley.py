@@ -17,9 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from .spec import LawSpec, Param, register_law
+from .spec import LawSpec, Param, jit, register_law
 
 
 def damping_factor(e: float) -> float:
@@ -27,14 +26,14 @@ def damping_factor(e: float) -> float:
     return 8.0 * (1.0 - e) / (5.0 * e)
 
 
-@njit(cache=True)
+@jit
 def force(d, rate, k, chi, vin):
     """k d^(3/2) (1 + chi rate / v_in) [N]; the elastic part alone before the state is set."""
     fel = k * d * np.sqrt(d)
     return fel + fel * chi * rate / vin if vin > 0.0 else fel
 
 
-@njit(cache=True)
+@jit
 def state(d, rate, k, chi, vin):
     """v_in: the largest closing speed since the contact closed; 0 while open."""
     if d < 0.0:
@@ -42,17 +41,17 @@ def state(d, rate, k, chi, vin):
     return rate if rate > vin else vin
 
 
-@njit(cache=True)
+@jit
 def energy(d, k, chi):
     return 0.4 * k * d * d * np.sqrt(d)
 
 
-@njit(cache=True)
+@jit
 def overlap_at_energy(e, k, chi):
     return (2.5 * e / k) ** 0.4
 
 
-@njit(cache=True)
+@jit
 def partials(d, rate, k, chi, vin):
     """(dF/d delta, dF/d rate, dF/dk, dF/d chi) at fixed v_in."""
     sd = np.sqrt(d)

@@ -5,34 +5,33 @@ with its arithmetic (k delta sqrt(delta)): the runs agree to rounding."""
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ..errors import ConfigError
-from .spec import LawSpec, Param, register_law
+from .spec import LawSpec, Param, jit, register_law
 
 
-@njit(cache=True)
+@jit
 def force(d, rate, k, n, s):
     """F = k d^n [N] at overlap d >= 0 [m]."""
     return k * d * np.sqrt(d) if n == 1.5 else k * d**n
 
 
-state = njit(cache=True)(lambda d, rate, k, n, s: s)  # no per-contact state
+state = jit(lambda d, rate, k, n, s: s)  # no per-contact state
 
 
-@njit(cache=True)
+@jit
 def energy(d, k, n):
     """Stored energy k d^(n+1) / (n+1) [J]."""
     return 0.4 * k * d * d * np.sqrt(d) if n == 1.5 else k * d ** (n + 1.0) / (n + 1.0)
 
 
-@njit(cache=True)
+@jit
 def overlap_at_energy(e, k, n):
     """The overlap [m] storing the energy e [J]: ((n+1) e / k)^(1/(n+1))."""
     return (2.5 * e / k) ** 0.4 if n == 1.5 else ((n + 1.0) * e / k) ** (1.0 / (n + 1.0))
 
 
-@njit(cache=True)
+@jit
 def partials(d, rate, k, n, s):
     """(dF/d delta, dF/d rate, dF/dk, dF/dn)."""
     if d <= 0.0:

@@ -88,6 +88,43 @@ class Param:
         return x
 
 
+class LazyJit:
+    """A law function compiled with ``numba.njit(cache=True)`` on its first use.
+
+    Declaring a law must not load Numba: the registry is read while a config is validated and by
+    the closed forms of :mod:`hertzchain.theory`, which refuse or draw before anything compiles.
+    Calling it from Python compiles it; engines take :attr:`dispatcher` (or ``py_func`` for CUDA).
+    """
+
+    def __init__(self, fn: Callable) -> None:
+        self.py_func = fn
+        self._dispatcher: Any = None
+        self.__name__ = getattr(fn, "__name__", "law_function")
+        self.__doc__ = fn.__doc__
+
+    @property
+    def dispatcher(self) -> Any:
+        """The Numba dispatcher (compiled on first call, cached on disk)."""
+        if self._dispatcher is None:
+            from numba import njit
+
+            self._dispatcher = njit(cache=True)(self.py_func)
+        return self._dispatcher
+
+    def __call__(self, *args):
+        return self.dispatcher(*args)
+
+
+def jit(fn: Callable) -> LazyJit:
+    """Decorator of a law's scalar functions: ``numba.njit(cache=True)``, deferred to first use."""
+    return LazyJit(fn)
+
+
+def compiled(fn: Any) -> Any:
+    """The Numba dispatcher of a law function declared with :func:`jit` or with ``numba.njit``."""
+    return fn.dispatcher if isinstance(fn, LazyJit) else fn
+
+
 @dataclass(frozen=True)
 class LawSpec:
     """A contact law declared once (see the module docstring).
@@ -165,7 +202,8 @@ def register_law(spec: LawSpec, *, replace: bool = False) -> LawSpec:
     ----------
     spec : LawSpec
         The declaration. A generated law (the usual case for a user's law) needs ``force``,
-        ``state``, ``energy`` and ``partials`` compiled with ``numba.njit``; it gets the next free
+        ``state``, ``energy`` and ``partials`` compiled with ``numba.njit`` (or declared with
+        :func:`jit`, which compiles on first use); it gets the next free
         code.
     replace : bool
         Replace a law of that name (re-running a user's law file in one session); else refused.
