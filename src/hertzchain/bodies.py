@@ -10,10 +10,14 @@ these models change:
 - the Hertz constant and elastic limit of every contact whose faces are not two spheres or a
   sphere on a flat: a flat or curved striker face, cylinders, a spherical body face
   (:func:`hertzchain.elements.contact_constants`, Johnson's elliptical Hertz contact);
+- a drive without a striker (``Model.drive``, :mod:`hertzchain.crystal.drive`): no striker
+  body (mass 0, at rest); no contact 0 for a force drive, the massless driver's contact for a
+  displacement drive (the driver then applies the precompression);
 - the static state: every body of mass m feels m g along the chain (``gravity``), bead 1 is
-  pushed by the precompression F0, and contact j carries what bodies 0..j weigh and are pushed
-  with, S_j = sum_{i <= j} f_i, at the overlap (S_j / kappa_j)^(2/3) (paper eq. 1 inverted); the
-  body's mount carries everything, k d = S_{N+1}.
+  pushed by the precompression F0, the beads of ``Model.loads`` by their static forces, and contact
+  j carries what bodies 0..j weigh and are pushed with, S_j = sum_{i <= j} f_i, at the overlap
+  (S_j / kappa_j)^(2/3) (paper eq. 1 inverted; :mod:`hertzchain.crystal.statics`); the body's
+  mount carries everything, k d = S_{N+1}.
 
 Nothing here is used by the models of the paper (``Model.plain``), whose arrays stay those of the
 array set-up of ensembles bit for bit.
@@ -132,32 +136,40 @@ def extend(model, parts: dict) -> dict:
     for j in _special_contacts(model):
         kappa[j], fy[j] = contact_constants(faces[j], faces[j + 1], _contact_field(model, j))
 
+    drive = model.drive
+    driver = drive is not None and not drive.striker and drive.quantity == "displacement"
+    if drive is not None and not drive.striker:
+        # no striker: a force drive has no contact 0; a displacement drive's massless driver (an
+        # immovable body whose position the drive prescribes) takes the striker's place
+        mass[0], inv_mass[0] = 0.0, 0.0
+        parts["v0"][0] = 0.0
+        if not driver:
+            kappa[0], fy[0] = 0.0, np.inf
     law = model.law
     parts["damping"] = np.where(kappa > 0, float(law.parameter), 0.0)
     if hasattr(law, "contact_damping"):  # size-scaled law: the pair's reduced mass, the body's included
         parts["damping"] = law.contact_damping(1.0 / (inv_mass[: n + 1] + inv_mass[1:]), kappa)
 
-    # The static state: weights (gravity along the chain) and the precompression push on bead 1;
-    # contact j holds bodies 0..j (the striker rests on bead 1).
+    # The static state (hertzchain.crystal.statics): weights (gravity along the chain), the
+    # precompression push on bead 1 and the loads on chosen beads; contact j holds bodies 0..j
+    # (the striker rests on bead 1).
+    from .crystal.statics import held_forces, static_overlaps
+
     g = model.gravity
     fext = np.zeros(n + 2)
     if g > 0:
-        fext[0] = model.striker.mass * g
+        fext[0] = mass[0] * g  # the striker (0 for a massless driver)
         fext[1:n + 1] = total * g
         if wall.is_body:
             fext[n + 1] = wall.mass * g
     fext[1] += model.precompression
-    held = np.cumsum(fext)
-    d0 = np.zeros(n + 1)
-    loaded = (held[: n + 1] > 0) & (kappa > 0)
-    d0[loaded] = (held[: n + 1][loaded] / kappa[loaded]) ** (2.0 / 3.0)
-    if law.name == "elastoplastic":
-        # loaded past F_Y: along Thornton's loading line F_y + (3/2) kappa delta_y^(1/2) (delta - delta_y)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            dy = (fy / np.where(kappa > 0, kappa, 1.0)) ** (2.0 / 3.0)
-            over = loaded & (held[: n + 1] > fy)
-            plastic = dy + (held[: n + 1] - fy) / (1.5 * kappa * np.sqrt(dy))
-        d0 = np.where(over, plastic, d0)
+    for bead, force in model.loads:
+        fext[bead] += force
+    if driver:  # the driver is massless: it applies the precompression through contact 0
+        fext[0], fext[1] = model.precompression, fext[1] - model.precompression
+    held = held_forces(fext, kappa, n)
+    # loaded past F_Y (elastic-plastic): along Thornton's loading line F_y + (3/2) kappa delta_y^(1/2) (delta - delta_y)
+    d0 = static_overlaps(held[: n + 1], kappa, fy if law.name == "elastoplastic" else None)
     mount_d0 = 0.0
     if wall.is_body and held[n + 1] > 0:
         if wall.stiffness == 0:  # Model refuses this before; kept as a guard for direct callers

@@ -402,6 +402,13 @@ class Model:
         column standing on the wall, bead 1 on top; g sin(tilt) on a track inclined by ``tilt``).
         Every body feels its weight m g; the run starts from the static equilibrium, the striker
         resting on bead 1 (see the conventions page). 0 (default): a horizontal chain.
+    loads
+        Static forces on chosen beads, ``((bead, force), ...)``: bead number 1..N and force [N]
+        along the chain, > 0 towards the wall. The run starts from the static equilibrium
+        (:func:`hertzchain.equilibrium`). Empty (default): none.
+    drive
+        A :class:`hertzchain.Drive` on bead 1 (a harmonic force or a prescribed displacement,
+        see the granular-crystals guide); None (default): the striker's impact only.
     """
 
     chain: Chain
@@ -410,8 +417,12 @@ class Model:
     law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot | Elastoplastic = field(default_factory=Elastic)
     precompression: float = 0.0
     gravity: float = 0.0
+    loads: tuple = ()
+    drive: object = None
 
     def __post_init__(self) -> None:
+        self._check_loads()
+        self._check_drive()
         object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
@@ -438,6 +449,35 @@ class Model:
         if (g > 0 or self.precompression > 0) and self.wall.is_body and self.wall.stiffness == 0:
             raise ConfigError("wall.stiffness", "a free body (stiffness 0) cannot hold the chain's static load "
                               "(chain.gravity, chain.precompression): give its mount a stiffness in N/m")
+
+    def _check_drive(self) -> None:
+        """A drive is a :class:`hertzchain.Drive` (checked by its own constructor)."""
+        if self.drive is not None and getattr(self.drive, "quantity", None) not in ("force", "displacement"):
+            raise ConfigError("drive", f"must be a hertzchain.Drive, got {self.drive!r}")
+
+    def _check_loads(self) -> None:
+        """Validate ``loads`` (bead numbers 1..N, finite forces in N) and store them as a tuple of pairs."""
+        n = self.chain.n_beads
+        loads = []
+        for item in self.loads:
+            if not (isinstance(item, (tuple, list)) and len(item) == 2):
+                raise ConfigError("load", f"each load is a pair (bead number, force in N), got {item!r}")
+            bead, force = item
+            if isinstance(bead, bool) or not isinstance(bead, numbers.Integral) or not 1 <= bead <= n:
+                raise ConfigError("load.beads", f"must be bead numbers from 1 to {n}, got {bead!r}")
+            force = real(force, "load.forces", unit="N")
+            if not math.isfinite(force):
+                raise ConfigError("load.forces", f"must be finite forces in N, got {force!r}")
+            loads.append((int(bead), force))
+        object.__setattr__(self, "loads", tuple(loads))
+        if loads and not self.wall.present:
+            raise ConfigError("load", "static loads need a wall (or a body) to push against; wall.type = 'none' "
+                              "has no static equilibrium under them")
+        if loads and not self.chain.is_aligned:
+            raise ConfigError("load", "static loads together with bead offsets are not supported")
+        if loads and self.wall.is_body and self.wall.stiffness == 0:
+            raise ConfigError("wall.stiffness", "a free body (stiffness 0) cannot hold the static loads: give its "
+                              "mount a stiffness in N/m")
 
     def __repr__(self) -> str:
         pre = f", precompression {self.precompression:.4g} N" if self.precompression else ""
@@ -483,7 +523,8 @@ class Model:
     def plain(self) -> bool:
         """True for the paper's kind of model (sphere striker, spheres, a flat wall or a free end, no
         gravity): its arrays are computed by the array set-up of ensembles too."""
-        return self.striker.plain and not self.wall.is_body and self.chain.plain and self.gravity == 0
+        return (self.striker.plain and not self.wall.is_body and self.chain.plain and self.gravity == 0
+                and not self.loads and self.drive is None)
 
     def system(self) -> System:
         """Flatten the model into SI arrays (see :class:`System`)."""
@@ -589,4 +630,8 @@ class Model:
         }
         if self.gravity:
             out["gravity"] = self.gravity
+        if self.loads:
+            out["load"] = {"beads": [b for b, _ in self.loads], "forces": [f for _, f in self.loads]}
+        if self.drive is not None:
+            out["drive"] = self.drive.describe()
         return out

@@ -55,6 +55,8 @@ def auto_duration(model: Model) -> float:
     """
     from .theory import pulse_duration, solitary_wave_speed_from_velocity
 
+    if model.drive is not None:  # a driven chain: the ramp and the drive's cycles (Drive.auto_duration)
+        return model.drive.auto_duration
     chain = model.chain
     m = chain.masses
     v0 = model.striker.velocity
@@ -159,6 +161,14 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         from .integrate.rkn import check_rkn
 
         check_rkn(system)
+    if model.drive is not None:  # a driven chain: its own compiled loop (hertzchain.crystal.driven)
+        from .crystal.driven import simulate_driven
+
+        ds = simulate_driven(model, system, duration, probes, integrator=integrator, dt=dt, threads=threads,
+                             progress=progress, config=config, steps_per_radian=steps_per_radian,
+                             extra_attrs={"duration_mode": "auto"} if mode == "auto" else None)
+        warn_elastic_limit(ds, stacklevel=3)
+        return ds
     check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # before any allocation
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     if not (isinstance(threads, int) and threads >= 1):
