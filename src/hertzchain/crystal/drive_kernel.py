@@ -102,7 +102,7 @@ def driven_run(u, v, a, wa, vp, g, mass, inv_mass, kappa, damping, d0, de, dx0, 
 
     State (u, v, a, wa, ext, the elastic-plastic state) is carried between calls; ``acc`` holds
     (dissipated energy [J], last dissipated power [W], drive work [J], last drive power [W],
-    time [s], work of contact N on a protected body [J] and its last power [W]). With a protected
+    steps taken, work of contact N on a protected body [J] and its last power [W]). With a protected
     body (``body_slot`` >= 0) ``out_b`` receives its displacement, velocity, acceleration and that
     work, as the engine's body record. ``out_e`` columns: kinetic, potential energy, dissipated, drive work [J], drive
     force on bead 1 [N], drive displacement [m] (force drive: bead 1's displacement). Returns 1
@@ -119,8 +119,8 @@ def driven_run(u, v, a, wa, vp, g, mass, inv_mass, kappa, damping, d0, de, dx0, 
                 for i in range(n):
                     ext[i, EXT_WV] += half * wa[i]
                     ext[i, EXT_W] += dt * ext[i, EXT_WV]
-            t = acc[4] + dt
-            acc[4] = t
+            acc[4] += 1.0
+            t = acc[4] * dt  # from the step count: a sum of steps would drift the drive's phase
             x, xd = drive_value(t, p)
             for i in range(n):
                 vp[i] = v[i] + half * a[i]
@@ -148,7 +148,7 @@ def driven_run(u, v, a, wa, vp, g, mass, inv_mass, kappa, damping, d0, de, dx0, 
                 acc[6] = pb
         if not np.isfinite(u[1]) or not np.isfinite(v[1]):
             return 1
-        x, xd = drive_value(acc[4], p)
+        x, xd = drive_value(acc[4] * dt, p)
         _record(k, u, v, a, g, mass, kappa, d0, de, dx0, rsum, fext, ext, extended, rec, out_f, out_e, fmax, acc,
                 g[1] if displacement else x, x if displacement else u[1], body_slot, out_b)
     return 0

@@ -32,8 +32,8 @@ DRIVE_FORCE_FACTOR = 10.0
 MIN_STEPS_PER_PERIOD = 50
 #: Samples per period of the highest drive frequency, at least (a lock-in over whole periods).
 MIN_SAMPLES_PER_PERIOD = 8
-#: Steps a driven run may take (~10 min of a short chain on one core).
-MAX_DRIVE_STEPS = 2_000_000_000
+#: Steps a driven run may take (a few minutes of a short chain on one core).
+MAX_DRIVE_STEPS = 1_000_000_000
 #: Bytes the records of a driven run may take.
 MAX_RECORD_BYTES = 4 * 2**30
 
