@@ -178,21 +178,22 @@ def test_curved_striker_face_and_given_mass():
 
 # ------------------------------------------------------------------ gravity
 def test_vertical_column_is_at_rest():
-    """A column of 10 beads standing on the wall under gravity, touched by a striker at 1e-7 m/s:
+    """A column of 10 beads standing on the wall under gravity, touched by a striker at 1e-6 m/s (the
+    config's smallest speed, as the docs' example):
     no bead moves faster than the striker (a column released with its beads barely touching
     falls onto the wall at ~1e-2 m/s), and every contact starts at the overlap of the weight above
     it, delta_j = (W_j / kappa_j)^(2/3), W_j = (m_s + m_1 + ... + m_j) g (the striker rests on
     bead 1)."""
     g = 9.81
     chain = hc.Chain.uniform(10, 26e-3).append_taper(4, 0.1)
-    model = hc.Model(chain, hc.Striker(8e-3, 1e-7), hc.Wall("flat"), gravity=g)
+    model = hc.Model(chain, hc.Striker(8e-3, 1e-6), hc.Wall("flat"), gravity=g)
     s = model.system()
     weights = g * np.cumsum(np.concatenate([[model.striker.mass], chain.masses]))
     assert np.allclose(s.d0, (weights / s.kappa) ** (2 / 3), rtol=1e-12)
     assert np.allclose(s.static_forces(), weights, rtol=1e-12)
     ds = hc.simulate(model, 2e-3, hc.Probes(velocities=True))
     assert np.allclose(ds.contact_force.values[0], weights, rtol=1e-9)
-    assert np.max(np.abs(ds.velocity.values[:, 1:])) < 1e-7
+    assert np.max(np.abs(ds.velocity.values[:, 1:])) < 1e-6
     # the same column without its static state: released barely touching, it falls
     import dataclasses
 

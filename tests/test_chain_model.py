@@ -65,7 +65,7 @@ def test_substitution_truncation_offsets():
     assert off.offsets[21] == 1e-3 and not off.is_aligned
 
 
-@pytest.mark.parametrize("bad", [[26e-3, -1e-3], [26e-3, float("nan")], []])
+@pytest.mark.parametrize("bad", [[26e-3, -1e-3], [26e-3, float("nan")], [[26e-3]]])  # [] is the zero-bead chain
 def test_bad_diameters_rejected(bad):
     with pytest.raises(hc.ConfigError, match="chain.diameters"):
         hc.Chain.from_diameters(bad)

@@ -73,7 +73,7 @@ BAD_INPUTS = [
     (lambda d: d["chain"].update(material="unobtainium"), "chain.material", "unknown material"),
     (lambda d: d["run"].update(duration=-2.5e-3), "run.duration", "greater than 0"),
     (lambda d: d["run"].update(dt=1e-5, sample_interval=1e-5), "run.dt", "too large"),
-    (lambda d: d["striker"].update(velocity=0.0), "striker.velocity", "greater than or equal to 0.000001"),
+    (lambda d: d["striker"].update(velocity=0.0), "striker.velocity", "at least 1e-06"),
     (lambda d: d["wall"].update(type="sponge"), "wall.type", "flat"),
     (lambda d: d["probes"].update(sensors=[40]), "probes.sensors[0]", "does not exist"),
 ]

@@ -185,7 +185,10 @@ def test_best_taper_of_the_paper_length_beats_its_base_and_a_uniform_chain(tmp_p
     assert res.best["feasible"] and res.best["metrics"]["length_mm"] <= length_chain1 + 1e-9
     info = write_report(res, figures=False)
     cmp = info["comparison"]
-    assert set(cmp) == {"best", "base", "uniform", "improvement_percent"}
+    assert set(cmp) == {"best", "base", "uniform", "no_chain", "improvement_percent"}
+    # no chain (the striker onto the wall, issue 36): the two-body Hertz impact, far above any chain's
+    assert cmp["no_chain"]["n_beads"] == 0 and cmp["no_chain"]["peak_wall_force"] > cmp["uniform"]["peak_wall_force"]
+    assert info["comparison"]["improvement_percent"]["no_chain"]["peak_wall_force"] > 80.0
     assert cmp["uniform"]["n_beads"] == cmp["best"]["n_beads"] and cmp["base"]["n_beads"] == 30
     assert cmp["best"]["peak_wall_force"] < cmp["base"]["peak_wall_force"] < cmp["uniform"]["peak_wall_force"]
     imp = info["comparison"]["improvement_percent"]

@@ -237,15 +237,16 @@ def test_state_is_carried_across_chunks():
         assert np.array_equal(getattr(one, key), getattr(many, key)), key
 
 
-def test_without_yield_stress_it_is_hertz_bit_for_bit():
-    glass = hc.get_material("glass")  # no yield stress: never yields
+def test_without_yield_stress_it_is_refused_naming_the_material():
+    # issue 38: it ran silently elastic (plastic work 0, yield_force NaN)
+    glass = hc.get_material("glass")  # no yield stress
     chain = hc.Chain.uniform(12, 20e-3, glass)
-    elastic = hc.simulate(hc.Model(chain, hc.Striker(8e-3, 1.0, glass)), 6e-4)
-    plastic = hc.simulate(hc.Model(chain, hc.Striker(8e-3, 1.0, glass), law=hc.Elastoplastic()), 6e-4)
-    for key in ("contact_force", "wall_force", "kinetic_energy"):
-        assert np.array_equal(elastic[key].values, plastic[key].values), key
-    assert np.allclose(elastic.potential_energy, plastic.potential_energy, rtol=1e-13, atol=0)
-    assert plastic.attrs["plastic_work"] == 0.0 and elastic.attrs["peak_wall_force"] == plastic.attrs["peak_wall_force"]
+    with pytest.raises(ConfigError) as err:
+        hc.Model(chain, hc.Striker(8e-3, 1.0, glass), law=hc.Elastoplastic())
+    assert err.value.field == "materials.glass.yield_stress"
+    with pytest.raises(ConfigError) as err:  # a steel chain with a glass striker: the striker's contact too
+        hc.Model(hc.Chain.uniform(3, 20e-3), hc.Striker(8e-3, 1.0, glass), law=hc.Elastoplastic())
+    assert err.value.field == "materials.glass.yield_stress"
 
 
 def test_precompression_past_yield_starts_on_the_loading_line():

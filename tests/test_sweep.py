@@ -251,7 +251,7 @@ BAD = [
     ({"parameters": {"striker.velocity": []}}, 'sweep.parameters["striker.velocity"]'),
     ({"parameters": {"run.duration": [1e-4]}}, 'sweep.parameters["run.duration"]'),
     ({"parameters": {"striker.velocity": [0.1, -0.2]}}, 'sweep.parameters["striker.velocity"]'),
-    ({"parameters": {"chain.uniform.n": [3, 0]}}, 'sweep.parameters["chain.uniform.n"]'),
+    ({"parameters": {"chain.uniform.n": [3, -1]}}, 'sweep.parameters["chain.uniform.n"]'),  # 0: no chain, valid
     ({"parameters": {"chain.taper.q": [0.05]}}, "base.chain.taper.n"),
     ({"parameters": {"chain.diameters_mm[2]": [9.0]}}, 'sweep.parameters["chain.diameters_mm[2]"]'),
     ({"parameters": {}}, "sweep.parameters"),

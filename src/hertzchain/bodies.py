@@ -94,7 +94,7 @@ def _special_contacts(model) -> list[int]:
 
 def _contact_field(model, j: int) -> str:
     n = model.chain.n_beads
-    if j == 0 and model.chain.elements[0].shape == "sphere":
+    if j == 0 and (n == 0 or model.chain.elements[0].shape == "sphere"):  # n = 0: the striker meets the wall
         return "striker.shape"
     if j == n and model.chain.elements[-1].shape == "sphere":
         return "wall.shape"

@@ -29,8 +29,8 @@ TABLE_I_MM: dict[str, tuple[float, ...]] = {
 
 
 def _check_diameters(diameters: np.ndarray, field_name: str) -> None:
-    if diameters.ndim != 1 or diameters.size == 0:
-        raise ConfigError(field_name, "must be a non-empty list of diameters")
+    if diameters.ndim != 1:
+        raise ConfigError(field_name, "must be a list of diameters")
     bad = np.flatnonzero(~np.isfinite(diameters) | (diameters <= 0))
     if bad.size:
         i = int(bad[0])
@@ -68,7 +68,9 @@ class Chain:
         # Numbers only (a string or a bool is refused, as in a config file), copied as floats.
         d = np.array(raw, dtype=float) if isinstance(raw, np.ndarray) and raw.dtype.kind in "iuf" else \
             real_array(raw, "chain.diameters")
-        if d.ndim != 1 or d.size == 0 or not (d.min() > 0 and d.max() < math.inf):  # NaN fails both
+        # Zero beads is a chain too: the striker hits the wall (or body) directly, the reference
+        # that says what a chain buys (contact 0 is then striker-wall).
+        if d.ndim != 1 or (d.size and not (d.min() > 0 and d.max() < math.inf)):  # NaN fails both
             _check_diameters(d, "chain.diameters")
         d.setflags(write=False)
         object.__setattr__(self, "diameters", d)
@@ -130,7 +132,7 @@ class Chain:
     @classmethod
     def uniform(cls, n: int, diameter: float, material: str | Material = "AISI52100") -> "Chain":
         """``n`` identical beads of diameter ``diameter`` [m] (``n`` an int: 2.7 beads is refused)."""
-        n = count(n, "chain.n")
+        n = count(n, "chain.n", low=0)  # 0: no chain, the striker hits the wall
         return cls.from_diameters([real(diameter, "chain.diameter", unit="m")] * n, material)
 
     def append_taper(self, n: int, q: float, material: str | Material | None = None) -> "Chain":
@@ -225,6 +227,8 @@ class Chain:
             return np.array([el.total_mass(float(dia), mat)
                              for el, dia, mat in zip(self.elements, self.diameters, self.materials)])
         mats = self.materials
+        if not mats:  # no beads
+            return np.zeros(0)
         # One material (the usual chain): its density as a scalar, the same numbers without a
         # per-bead array (a design search takes the mass of thousands of candidate chains).
         rho = mats[0].density if all(m is mats[0] for m in mats) else self.densities
@@ -238,6 +242,8 @@ class Chain:
         # One line: the diameters grouped in runs and the materials counted (not 30 full Materials).
         from .display import counts_text, diameters_text
 
+        if not self.n_beads:
+            return "Chain(no beads: the striker hits the wall)"
         text = f"Chain({diameters_text(self.diameters)}; {counts_text(m.name for m in self.materials)}"
         if not self.is_aligned:
             text += f"; offsets up to {np.abs(self.offsets).max() * 1e3:.3g} mm"

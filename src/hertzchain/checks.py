@@ -22,12 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bounds import TooManySteps, check_step_count
 from .errors import ConfigError, HertzRangeWarning, LongRunWarning, PulseNotReachedWarning, SimulationDiverged
 
 __all__ = ["ResourceEstimate", "estimate_resources", "check_resources", "check_before_run", "check_after_run",
            "preflight_batch", "duration_text", "run_time_hint",
            "check_energy_balance", "energy_gain", "estimate_memory", "energy_tolerance", "energy_cause", "available_memory",
-           "process_baseline", "HERTZ_MAX_OVERLAP",
+           "process_baseline", "HERTZ_MAX_OVERLAP", "check_step_count",
            "LONG_RUN_S"]
 
 #: Largest overlap delta / R_min (R_min the smaller radius of the pair) taken as inside the range of
@@ -165,6 +166,7 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
         # Python-level right-hand-side calls
         steps = duration * system.max_frequency() / SCIPY_RADIANS_PER_STEP
         seconds = steps * (SCIPY_S_PER_STEP + (n + 1) * NS_PER_BEAD_STEP["general"]) * members
+    check_step_count(system, steps, duration, dt, integrator)
     return ResourceEstimate(samples=samples, signals=signals, members=members, memory_bytes=int(memory),
                             steps=steps, seconds=seconds, process_bytes=process_baseline())
 
@@ -215,18 +217,8 @@ def _gib(x: float) -> str:
 
 
 def duration_text(seconds: float) -> str:
-    """``about 21 h``, ``about 5 min``, ``about 40 s``: a projected time in words.
-
-    Parameters
-    ----------
-    seconds : float
-        The time [s].
-
-    Returns
-    -------
-    str
-        The time rounded in the largest unit that fits.
-    """
+    """``about 21 h``, ``about 5 min``, ``about 40 s``: a projected time ``seconds`` [s] in words,
+    rounded in the largest unit that fits."""
     for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
         if seconds >= 2 * size:
             break
@@ -360,7 +352,9 @@ def preflight_batch(models, duration: float, probes, dt=None, *, n_threads: int 
         one = replace(mem, steps=0.0, seconds=0.0)
         if not on_gpu:
             one = estimate_resources(member.system(), duration, p, dt=step, steps_per_radian=steps_per_radian)
-    except ConfigError:  # a bad step: the set-up reports it, naming the member
+    except ConfigError as exc:  # a bad step: the set-up reports it, naming the member
+        if isinstance(exc, TooManySteps):
+            raise
         one = replace(mem, steps=0.0, seconds=0.0)
     est = replace(mem, steps=one.steps, seconds=one.seconds * n / max(1, min(threads, n)))
     check_resources(est, memory_field="probes.contacts",
@@ -394,7 +388,9 @@ def _smaller_radius(model) -> np.ndarray:
     """:func:`smaller_radii` of one model (a flat striker face: bead 1's radius; a curved one: the
     smaller of its radius of curvature and bead 1's)."""
     face = model.striker.face_radius
-    size = 2.0 * (face if face is not None else float(model.chain.diameters[0]))
+    if face is None:  # no beads: a flat striker meets the body's curved face
+        face = model.chain.radii[0] if model.chain.n_beads else (model.wall.face_radius or model.striker.diameter / 2)
+    size = 2.0 * face
     return smaller_radii(np.array([size]), model.chain.diameters[None, :])[0]
 
 

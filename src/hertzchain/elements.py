@@ -44,6 +44,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+from .bounds import BOUNDS, check_bound
 from .errors import ConfigError
 from .materials import Material
 
@@ -99,14 +100,14 @@ class Element:
             raise ConfigError(f"{where}.length_mm", f"must be a positive length, got {self.length!r} m")
         if not math.isfinite(self.axis_angle):
             raise ConfigError(f"{where}.axis_deg", f"must be a finite angle, got {self.axis_angle!r}")
-        if self.mass is not None and not (math.isfinite(self.mass) and self.mass > 0):
-            raise ConfigError(f"{where}.mass", f"must be a positive mass in kg, got {self.mass!r}")
+        check_bound(self.mass, "mass", f"{where}.mass", "kg", allow_none=True)
         f = self.resonator_fraction
         if not (math.isfinite(f) and 0.0 <= f < 1.0):
             raise ConfigError(f"{where}.resonator.mass_fraction", f"must lie in [0, 1), got {f!r}")
         nu = self.resonator_frequency
-        if f > 0 and not (math.isfinite(nu) and nu > 0):
-            raise ConfigError(f"{where}.resonator.frequency", f"must be a positive frequency in Hz, got {nu!r}")
+        if f > 0 and not (math.isfinite(nu) and 0 < nu <= BOUNDS["frequency"][1]):
+            raise ConfigError(f"{where}.resonator.frequency", f"must be a positive frequency up to "
+                              f"{BOUNDS['frequency'][1]:g} Hz, got {nu!r}")
 
     @property
     def plain(self) -> bool:

@@ -36,8 +36,19 @@ class PulseNotFound(HertzchainError, ValueError):
     """A signal holds no pulse that the analysis can fit."""
 
 
+class ObjectiveUndefined(ConfigError, PulseNotFound):
+    """A result asked for (a sensitivity's objective) is identically zero or undefined over the run
+    (the pulse never reaches the wall, a window outside the run); ``field`` names what to change.
+    A PulseNotFound too: a search that ranks such a candidate as infeasible catches both."""
+
+
 class PulseClipped(PulseNotFound):
     """The pulse of a record is clipped (a saturated sensor or scope): its fit would be wrong."""
+
+
+class TooManySteps(ConfigError):
+    """A run would take an absurd number of time steps (:func:`hertzchain.checks.check_step_count`);
+    ``field`` names the input that sets its step."""
 
 
 class ElasticLimitWarning(UserWarning):

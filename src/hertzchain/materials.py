@@ -20,9 +20,9 @@ Sources of the catalogue
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
+from .bounds import check_bound
 from .errors import ConfigError
 
 __all__ = ["Material", "CATALOGUE", "get_material", "register_material"]
@@ -62,14 +62,12 @@ class Material:
                 f"nu {self.poisson:.3g}{sy})")
 
     def __post_init__(self) -> None:
-        for key in ("density", "young"):
-            value = getattr(self, key)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"material {self.name!r}.{key}", f"must be a positive finite number, got {value!r}")
+        # the config's bounds (hertzchain.bounds): masses, stiffnesses and yield overlaps stay representable
+        check_bound(self.density, "density", f"materials.{self.name}.density", "kg/m^3")
+        check_bound(self.young, "young", f"materials.{self.name}.young", "Pa")
         if not (-1.0 < self.poisson < 0.5):
             raise ConfigError(f"material {self.name!r}.poisson", f"must lie in (-1, 0.5), got {self.poisson!r}")
-        if self.yield_stress is not None and not (math.isfinite(self.yield_stress) and self.yield_stress > 0):
-            raise ConfigError(f"material {self.name!r}.yield_stress", f"must be positive or absent, got {self.yield_stress!r}")
+        check_bound(self.yield_stress, "yield_stress", f"materials.{self.name}.yield_stress", "Pa", allow_none=True)
 
     @property
     def theta(self) -> float:

@@ -17,6 +17,7 @@ from typing import Literal
 
 import numpy as np
 
+from .bounds import check_bound
 from .chain import Chain
 from .contact import LAW_CODES, Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
 from .plasticity import Elastoplastic
@@ -76,8 +77,7 @@ class Striker:
             raise ConfigError("striker.diameter_mm", f"must be a positive number, got {diameter * 1e3!r} mm")
         if not (math.isfinite(velocity) and velocity > 0):
             raise ConfigError("striker.velocity", f"must be a positive speed in m/s (towards the chain), got {velocity!r}")
-        if mass is not None:
-            _positive(mass, "striker.mass", "a positive mass in kg")
+        mass = check_bound(mass, "mass", "striker.mass", "kg", allow_none=True)
         if shape not in ("sphere", "flat"):
             raise ConfigError("striker.shape", f"must be 'sphere' or 'flat', got {shape!r}")
         if radius_of_curvature is not None:
@@ -172,12 +172,8 @@ class Wall:
             return
         if self.mass is None:
             raise ConfigError("wall.mass", "a protected body (wall.type = 'body') needs its mass in kg")
-        _positive(self.mass, "wall.mass", "a positive mass in kg")
-        for name in ("stiffness", "damping"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not (isinstance(value, numbers.Real) and math.isfinite(value) and value >= 0):
-                raise ConfigError(f"wall.{name}", f"must be a finite number >= 0 ({'N/m' if name == 'stiffness' else 'N s/m'}), "
-                                  f"got {value!r}")
+        for name, unit in (("mass", "kg"), ("stiffness", "N/m"), ("damping", "N s/m")):
+            object.__setattr__(self, name, check_bound(getattr(self, name), name, f"wall.{name}", unit))
         if self.shape not in ("flat", "sphere"):
             raise ConfigError("wall.shape", f"must be 'flat' or 'sphere', got {self.shape!r}")
         if self.shape == "sphere":
@@ -338,30 +334,32 @@ class System:
         protected body's mount is one more (linear) contact, and a mass-in-mass bead's internal
         spring k_in adds to its row (2 k_in / m) and gives its internal mass the row 2 k_in / m_in.
         """
+        omega2, beta, inner = self.frequency_rows()
+        w = float(np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta))
+        return max(w, float(np.max(inner))) if inner.size else w
+
+    def frequency_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The Gershgorin rows of :meth:`max_frequency`, per moving body: the undamped bound omega_i^2
+        [rad^2/s^2], the damping rate beta_i [1/s] (body i's bound is sqrt(omega_i^2 + beta_i^2 / 4) +
+        beta_i / 2), and the internal masses' sqrt(2 k_in / m_in) [rad/s] per body (0 where none; an
+        empty array without mass-in-mass beads). What sets the time step can be read from them
+        (:func:`hertzchain.checks.check_step_count`).
+        """
         dmax = self.max_overlap()
         k = 1.5 * self.kappa * np.sqrt(dmax)
         c = self.damping_coefficients(dmax)
-        if self.extended:
-            return self._max_frequency_extended(k, c)
-        nb = self.n_beads + 1
-        omega2 = 2.0 * (np.concatenate([[0.0], k[: nb - 1]]) + k[:nb]) * self.inv_mass[:nb]
-        beta = 2.0 * (np.concatenate([[0.0], c[: nb - 1]]) + c[:nb]) * self.inv_mass[:nb]
-        return float(np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta))
-
-    def _max_frequency_extended(self, k: np.ndarray, c: np.ndarray) -> float:
-        """:meth:`max_frequency` with the mount (contact N + 1) and the internal springs."""
         nb = self.n_moving
-        k = np.append(k, self.mount_k)  # contacts 0..N + 1
-        c = np.append(c, self.mount_c)
+        if self.extended:  # the mount is contact N + 1, the internal springs add to their body's row
+            k = np.append(k, self.mount_k)
+            c = np.append(c, self.mount_c)
         kin = np.zeros(nb) if self.res_k is None else self.res_k[:nb]
         omega2 = 2.0 * (np.concatenate([[0.0], k[: nb - 1]]) + k[:nb] + kin) * self.inv_mass[:nb]
         beta = 2.0 * (np.concatenate([[0.0], c[: nb - 1]]) + c[:nb]) * self.inv_mass[:nb]
-        w = float(np.max(np.sqrt(omega2 + 0.25 * beta**2) + 0.5 * beta))
+        inner = np.zeros(0)
         if self.res_k is not None:
-            inner = self.res_m > 0
-            if inner.any():
-                w = max(w, float(np.max(np.sqrt(2.0 * self.res_k[inner] / self.res_m[inner]))))
-        return w
+            with np.errstate(divide="ignore", invalid="ignore"):
+                inner = np.where(self.res_m[:nb] > 0, np.sqrt(2.0 * self.res_k[:nb] / self.res_m[:nb]), 0.0)
+        return omega2, beta, inner
 
 
 def _material_columns(materials: list[Material]) -> tuple[np.ndarray, np.ndarray]:
@@ -426,6 +424,11 @@ class Model:
         object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
+        if self.chain.n_beads == 0 and not self.wall.present:
+            raise ConfigError("chain.uniform.n", "a chain of zero beads needs a wall or a body for the striker to hit "
+                              "(wall.type = 'none' leaves it flying)")
+        if self.chain.n_beads == 0 and self.precompression > 0:
+            raise ConfigError("chain.precompression", "a chain of zero beads has nothing to precompress")
         if self.precompression > 0 and not self.wall.present:
             raise ConfigError("chain.precompression", "a static precompression needs a wall to push against")
         if self.precompression > 0 and not self.chain.is_aligned:
@@ -433,19 +436,28 @@ class Model:
         # The striker's contact obeys the same head-on rule as the chain's (Chain checks beads n, n+1):
         # the striker flies along the axis, so bead 1's offset e_1 must stay below (R_s + R_1) / 2;
         # past R_s + R_1 it would miss the chain and the run would report 0 N.
-        e1, reach = abs(float(self.chain.offsets[0])), 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])
-        if e1 >= reach:
+        e1 = abs(float(self.chain.offsets[0])) if self.chain.n_beads else 0.0
+        if e1 and e1 >= (reach := 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])):
             raise ConfigError("chain.offsets", f"bead 1 is offset by {e1:.3g} m from the striker's line of flight, "
                               f"more than half the sum of their radii ({reach:.3g} m); the striker would not "
                               "hit it head-on (or would miss the chain)")
-        g = self.gravity
-        if isinstance(g, bool) or not (isinstance(g, numbers.Real) and math.isfinite(g) and g >= 0):
-            raise ConfigError("chain.gravity", f"must be an acceleration >= 0 in m/s^2 (towards the wall), got {g!r}")
+        g = check_bound(self.gravity, "gravity", "chain.gravity", "m/s^2 (towards the wall)")
+        object.__setattr__(self, "gravity", g)
         if g > 0 and not self.wall.present:
             raise ConfigError("chain.gravity", "a chain under gravity needs a wall (or a body) to stand on; "
                               "wall.type = 'none' would let it fall")
         if g > 0 and not self.chain.is_aligned:
             raise ConfigError("chain.gravity", "gravity together with bead offsets is not supported")
+        if hasattr(self.law, "limiting_pressure_factor"):
+            # a law with a limiting pressure (Thornton's) needs it at every contact; a material without
+            # a yield stress would silently stay elastic (plastic work 0, yield_force NaN)
+            used = [self.striker.material, *self.chain.materials] + ([self.wall_material] if self.wall.present else [])
+            bare = next((m for m in used if m.yield_stress is None), None)
+            if bare is not None:
+                raise ConfigError(f"materials.{bare.name}.yield_stress",
+                                  f"material {bare.name!r} has no yield stress, which law {self.law.name!r} needs at "
+                                  "every contact (its limiting pressure p_y = factor x sigma_Y): give it one in Pa "
+                                  "under [materials.NAME], or use an elastic or viscoelastic law")
         if (g > 0 or self.precompression > 0) and self.wall.is_body and self.wall.stiffness == 0:
             raise ConfigError("wall.stiffness", "a free body (stiffness 0) cannot hold the chain's static load "
                               "(chain.gravity, chain.precompression): give its mount a stiffness in N/m")
@@ -501,9 +513,12 @@ class Model:
     @property
     def wall_material(self) -> Material | None:
         """Material of the wall's cap or the body's face: ``wall.material``, else the chain's first
-        bead material (the base material: changing the beads near the wall does not change it)."""
+        bead material (the base material: changing the beads near the wall does not change it);
+        with zero beads, the striker's (a config passes ``chain.material``)."""
         if not self.wall.present:
             return None
+        if self.wall.material is None and not self.chain.n_beads:  # no beads: the striker's (a config: the chain's)
+            return self.striker.material
         return self.wall.material or self.chain.materials[0]
 
     @property

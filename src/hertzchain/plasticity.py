@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .bounds import check_bound
 from .contact import ScaledViscoelastic
 from .errors import ConfigError
 from .materials import Material, get_material
@@ -290,9 +291,8 @@ class Elastoplastic:
             raise ConfigError("contact.A", f"must be a finite number >= 0 (s), got {self.A!r}")
         if self.diameter is not None and not (math.isfinite(self.diameter) and self.diameter > 0):
             raise ConfigError("contact.diameter", f"must be a positive reference diameter (m), got {self.diameter!r}")
-        f = self.limiting_pressure_factor
-        if not (isinstance(f, (int, float)) and math.isfinite(f) and f > 0):
-            raise ConfigError("contact.limiting_pressure_factor", f"must be a positive number (p_y / sigma_Y), got {f!r}")
+        check_bound(self.limiting_pressure_factor, "limiting_pressure_factor", "contact.limiting_pressure_factor",
+                    "(p_y / sigma_Y)")
         object.__setattr__(self, "material", get_material(self.material))
 
     @property

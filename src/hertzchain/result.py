@@ -167,6 +167,11 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "conventions": CONVENTIONS,
     }
+    if model.gravity > 0 and model.wall.present:
+        # the wall contact holds bodies 0..N at rest (System.static_forces()[N], from the model: a
+        # batch member's arrays hold no external forces)
+        static = model.precompression + model.gravity * (model.striker.mass + float(np.sum(model.chain.masses)))
+        attrs.update(dynamic_peak(raw.peak_wall_force, static))
     if raw.body is not None:
         attrs.update(body_peaks(arrays["body_force"][1], arrays["body_acceleration"][1], arrays["body_energy"][1]))
     if raw.plastic_work is not None:
@@ -218,6 +223,27 @@ def body_peaks(force: np.ndarray, acceleration: np.ndarray, energy: np.ndarray) 
     """
     return {"peak_body_force": float(np.max(np.abs(force))), "peak_body_acceleration": float(np.max(np.abs(acceleration))),
             "peak_body_energy": float(np.max(energy))}
+
+
+def dynamic_peak(peak: float, static: float) -> dict[str, float]:
+    """Attributes of a run under gravity: ``static_wall_force`` [N], the weight the wall carries at
+    rest (the static equilibrium the run starts from), and ``peak_wall_force_dynamic`` [N], the
+    peak wall force minus it: what the impact adds (-> 0 as the striker's speed -> 0, while
+    ``peak_wall_force`` -> the weight).
+
+    Parameters
+    ----------
+    peak : float
+        The run's ``peak_wall_force`` [N].
+    static : float
+        The wall contact's static force [N] (``System.static_forces()[N]``).
+
+    Returns
+    -------
+    dict
+        The two attributes.
+    """
+    return {"static_wall_force": static, "peak_wall_force_dynamic": peak - static}
 
 
 def build_dataset(raw: RawRun, model: Model, probes: Probes, *, duration: float, config: dict | None = None,

@@ -60,12 +60,20 @@ def auto_duration(model: Model) -> float:
     chain = model.chain
     m = chain.masses
     v0 = model.striker.velocity
-    vm = v0 * np.minimum(model.striker.mass, m) / (WAVE_MASS_BEADS * m)
-    speed = np.array([solitary_wave_speed_from_velocity(mat, v) for mat, v in zip(chain.materials, vm)])
-    arrival = float(np.sum(chain.diameters / speed))
-    tau = float(pulse_duration(chain.diameters[-1], speed[-1]))
-    duration = AUTO_MARGIN * (arrival + AUTO_TAIL_DURATIONS * tau)
     wall = model.wall
+    if chain.n_beads == 0:
+        # no chain: one two-body Hertz collision of the striker with the wall or body, which lasts
+        # 2.943 delta_m / v0 (delta_m = (5 mu v0^2 / (4 kappa))^(2/5)); twice that, with the margin
+        from .theory import two_body_impact
+
+        mu = 1.0 / (1.0 / model.striker.mass + (1.0 / wall.mass if wall.is_body else 0.0))
+        duration = AUTO_MARGIN * 2.0 * two_body_impact(mu, float(model.system().kappa[0]), v0)["contact_time"]
+    else:
+        vm = v0 * np.minimum(model.striker.mass, m) / (WAVE_MASS_BEADS * m)
+        speed = np.array([solitary_wave_speed_from_velocity(mat, v) for mat, v in zip(chain.materials, vm)])
+        arrival = float(np.sum(chain.diameters / speed))
+        tau = float(pulse_duration(chain.diameters[-1], speed[-1]))
+        duration = AUTO_MARGIN * (arrival + AUTO_TAIL_DURATIONS * tau)
     if wall.kind == "body" and wall.stiffness > 0:
         # the body swings on its mount: the force it passes to the ground peaks up to half a
         # period after the pulse has pushed it (a 1 kg body on 1e6 N/m behind chain 1: at
@@ -253,7 +261,8 @@ def elastic_limit_message(ds: xr.Dataset, where: str = "") -> str | None:
         return None
     worst = int(np.argmax(ratio))
     if worst == 0:
-        name = "striker-bead 1"
+        sizes = getattr(ds, "sizes", None)  # a batch's member view has none (it has beads)
+        name = "striker-wall" if sizes is not None and sizes.get("bead", 1) == 0 else "striker-bead 1"
     else:  # the bead count, to name the wall's contact (reading the model text only then: ~40 us)
         try:
             n = len(json.loads(ds.attrs["model"])["chain"]["diameters_mm"])

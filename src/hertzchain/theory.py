@@ -27,6 +27,8 @@ from .errors import ConfigError
 from .materials import Material, get_material
 
 __all__ = [
+    "HERTZ_CONTACT_TIME",
+    "two_body_impact",
     "PAPER_CHAINS",
     "PAPER_N0",
     "PAPER_RESTITUTION",
@@ -308,6 +310,37 @@ def pulse_duration(diameter: float | np.ndarray, speed: float | np.ndarray) -> f
     """
     tau = np.asarray(diameter, dtype=float) / 2.0 * math.sqrt(10.0) / np.asarray(speed, dtype=float)
     return float(tau) if tau.ndim == 0 else tau
+
+
+#: Hertz's two-body contact time in units of delta_m / v: 2 int_0^1 dx / sqrt(1 - x^(5/2))
+#: = 2 sqrt(pi) Gamma(2/5) / (5/2 Gamma(9/10)) = 2.9432 (Landau & Lifshitz, Theory of Elasticity, Sec. 9).
+HERTZ_CONTACT_TIME = 2.0 * math.sqrt(math.pi) * math.gamma(0.4) / (2.5 * math.gamma(0.9))
+
+
+def two_body_impact(mu: float, kappa: float, velocity: float) -> dict[str, float]:
+    """Closed-form elastic impact of two bodies through one Hertz contact F = kappa delta^(3/2)
+    (paper eq. 1; a sphere on a flat or on another sphere, the flat immovable or of finite mass).
+
+    Energy balance mu v^2 / 2 = (2/5) kappa delta_m^(5/2) gives the largest overlap
+    delta_m = (5 mu v^2 / (4 kappa))^(2/5), the peak force kappa delta_m^(3/2) and the contact
+    time HERTZ_CONTACT_TIME delta_m / v (2.943 delta_m / v).
+
+    Parameters
+    ----------
+    mu : float
+        Reduced mass [kg] (the striker's mass against an immovable wall).
+    kappa : float
+        Hertz constant of the contact [N/m^1.5].
+    velocity : float
+        Relative impact speed [m/s].
+
+    Returns
+    -------
+    dict
+        ``max_overlap`` [m], ``peak_force`` [N], ``contact_time`` [s].
+    """
+    dm = (1.25 * mu * velocity**2 / kappa) ** 0.4
+    return {"max_overlap": dm, "peak_force": kappa * dm**1.5, "contact_time": HERTZ_CONTACT_TIME * dm / velocity}
 
 
 # --------------------------------------------------------------------------------------------

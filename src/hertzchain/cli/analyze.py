@@ -54,6 +54,9 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
         rows = []
         for name in chosen:
             frame = signal_frame(ds, name)
+            if name == "wall_force" and "static_wall_force" in ds.attrs:
+                # under gravity the pulse stands on the weights: fit what the impact adds (the dynamic part)
+                frame = frame - float(ds.attrs["static_wall_force"])
             if tail_end is not None:
                 frame = frame.sel(time=slice(None, tail_end))
             rows += analyze_signals(frame, signals=(name,))
@@ -90,6 +93,11 @@ def analyze(source: Path, signals: tuple[str, ...], column: str | None, sensitiv
                           f"{r['duration'] * 1e6:.4g} ± {r['duration_err'] * 1e6:.1g}",
                           f"{r['front_momentum'] * 1e3:.4g}", f"{r['tail_momentum'] * 1e3:.4g}")
         table.print()
+        if source.suffix.lower() in _NETCDF and "peak_wall_force_dynamic" in ds.attrs:
+            # under gravity the wall force stands on the weight: the impact's own part beside the total
+            click.echo(f"peak wall force {ds.attrs['peak_wall_force']:.4g} N = {ds.attrs['static_wall_force']:.4g} N "
+                       f"static (the weights) + {ds.attrs['peak_wall_force_dynamic']:.4g} N dynamic; the wall_force "
+                       "fit is of the dynamic part")
         if json_path is not None:
             click.echo(f"wrote {json_path}")
     if failed:

@@ -79,7 +79,9 @@ def design(design_file: Path, out: Path, scheduler: str | None, force: bool, no_
     msg = (f"best {info['objective_label']}: {shown} ({info['n_evaluations']} engine runs, "
            f"{info['evaluations_per_s']:.0f}/s{', resumed' if result.resumed else ''}); "
            f"lower than the base configuration by {_improvement(info, 'base')}, than a uniform chain of {n_uniform} "
-           f"beads by {_improvement(info, 'uniform')}; wrote {out}/")
+           f"beads by {_improvement(info, 'uniform')}"
+           + (f", than no chain by {_improvement(info, 'no_chain')}" if "no_chain" in info["comparison"] else "")
+           + f"; wrote {out}/")
     if not best["feasible"]:
         msg += "; warning: no candidate met every constraint (best is the least infeasible)"
     click.echo(msg)

@@ -74,6 +74,9 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
         msg = f"wrote {out} ({span}, {ds.sizes['time']} samples, {ds.sizes['contact']} contacts, {step})"
         if "wall_force" in ds:
             msg += f"; peak wall force {ds.attrs['peak_wall_force']:.4g} N at {ds.attrs['peak_wall_time'] * 1e3:.4g} ms"
+            if "peak_wall_force_dynamic" in ds.attrs:  # under gravity: what the impact adds to the weight
+                msg += (f" ({ds.attrs['peak_wall_force_dynamic']:.4g} N dynamic over the "
+                        f"{ds.attrs['static_wall_force']:.4g} N static)")
         if "peak_body_force" in ds.attrs:
             msg += f"; the protected body passes at most {ds.attrs['peak_body_force']:.4g} N to the ground"
         if "plastic_work" in ds.attrs:  # the elastoplastic law

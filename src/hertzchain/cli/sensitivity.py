@@ -8,6 +8,9 @@ import click
 
 from .common import parse_window, set_option
 
+#: The API's argument names (what its errors name) -> this command's options.
+_OPTIONS = {"variables": "--wrt", "objective": "--objective", "window": "--window"}
+
 
 @click.command("sensitivity")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
@@ -18,7 +21,8 @@ from .common import parse_window, set_option
 @click.option("--objective", default="peak_wall_force", show_default=True,
               help="Result to differentiate: peak_wall_force, peak_wall_time, time_of_flight, pulse_duration, "
                    "front_momentum_at_wall, energy_at_wall, peak_contact_force, peak_contact_force[j], "
-                   "max_force_over_yield.")
+                   "max_force_over_yield; a protected body's peak_body_force, peak_body_acceleration, "
+                   "energy_to_body; the elastic-plastic law's plastic_work, residual_overlap_max.")
 @click.option("--mode", type=click.Choice(["auto", "adjoint", "tangent"]), default="auto", show_default=True,
               help="Reverse (adjoint) or forward (tangent) differentiation; both give the same numbers; auto: the tangent "
                    "for one field, the adjoint for more (the cheaper of the two).")
@@ -45,8 +49,16 @@ def sensitivity(config: Path, variables: tuple[str, ...], objective: str, mode: 
 
     if plot_path is not None:
         image_format(plot_path, "--plot")  # a bad suffix fails before the run
+    from ..errors import ConfigError
+
     cfg = load_config(config, overrides)
-    sens = compute(cfg, list(variables), objective, mode=mode, window=parse_window(window))
+    try:
+        sens = compute(cfg, list(variables), objective, mode=mode, window=parse_window(window))
+    except ConfigError as exc:  # the API's argument names, as this command's options
+        option = _OPTIONS.get(exc.field)
+        if option is None:
+            raise
+        raise type(exc)(option, exc.message) from None
     data = sens.as_dict()
     if json_path == "-":
         click.echo(json_text(data))

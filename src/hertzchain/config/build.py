@@ -136,6 +136,8 @@ def _chain(c: ChainConfig, elements: dict | None = None):
     else:
         d = np.array(c.diameters_mm) * 1e-3
     if c.taper is not None:
+        if d.size == 0:
+            raise ConfigError("chain.taper", "a taper continues the beads before it; chain.uniform.n = 0 has none")
         if d.size + c.taper.n > n_max:
             raise ConfigError("chain.taper.n", f"makes a chain of {d.size + c.taper.n} beads; "
                               f"at most {n_max} are allowed")
@@ -211,12 +213,20 @@ def build_model(cfg: RunConfig, chain=None):
         _register_materials(cfg)
         _check_material_names(cfg)
     s = cfg.striker
-    striker = Striker(s.diameter_mm * 1e-3, s.velocity, s.material or chain.materials[0], mass=s.mass, shape=s.shape,
+    striker = Striker(s.diameter_mm * 1e-3, s.velocity, s.material, mass=s.mass, shape=s.shape,
                       radius_of_curvature=None if s.radius_of_curvature_mm is None else s.radius_of_curvature_mm * 1e-3)
     w = cfg.wall
-    wall = Wall(w.type, w.material, w.mass, w.stiffness, w.damping, w.shape,
-                None if w.radius_of_curvature_mm is None else w.radius_of_curvature_mm * 1e-3)
+    # the wall's default material is the chain's (its first bead's); with no beads, chain.material
+    wall = Wall(w.type, w.material or (None if chain.n_beads else cfg.chain.material), w.mass, w.stiffness, w.damping,
+                w.shape, None if w.radius_of_curvature_mm is None else w.radius_of_curvature_mm * 1e-3)
     k = cfg.contact
+    # the beads a calibration (eps) and a size-scaled law refer to: the chain's first; with zero beads
+    # (chain.uniform.n = 0, the striker onto the wall) the uniform block's diameter, as in its chain
+    ref = chain
+    if not chain.n_beads:
+        from ..chain import Chain
+
+        ref = Chain.uniform(1, cfg.chain.uniform.diameter_mm * 1e-3, cfg.chain.material)
     if k.law == "elastic":
         law: Any = Elastic()
     elif k.law == "elastoplastic":
@@ -224,13 +234,13 @@ def build_model(cfg: RunConfig, chain=None):
     elif k.eps is not None:
         from ..dissipation import calibrate_law
 
-        law = calibrate_law(k.law, k.eps, chain=chain, striker=striker)
+        law = calibrate_law(k.law, k.eps, chain=ref, striker=striker)
     elif k.law == "viscoelastic":
         law = Viscoelastic(k.A)
     elif k.law == "viscoelastic_scaled":
-        law = ScaledViscoelastic(k.A, float(chain.diameters[0]), chain.materials[0])
+        law = ScaledViscoelastic(k.A, float(ref.diameters[0]), ref.materials[0])
     elif k.law == "dashpot_scaled":
-        law = ScaledDashpot(k.gamma, float(chain.diameters[0]), chain.materials[0])
+        law = ScaledDashpot(k.gamma, float(ref.diameters[0]), ref.materials[0])
     else:
         law = Dashpot(k.gamma)
     loads = () if cfg.load is None else tuple(zip(cfg.load.beads, cfg.load.forces))

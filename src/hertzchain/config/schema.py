@@ -12,6 +12,8 @@ from typing import Annotated, Any, Literal, NoReturn
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+# BOUNDS live beside the Python API (hertzchain.bounds), which applies them too; re-exported here
+from ..bounds import BOUNDS
 from ..errors import ConfigError
 
 
@@ -25,39 +27,6 @@ class _Section(BaseModel):
         # validation, which was a third of parse_config's time (a design search parses
         # thousands); the sections are frozen, so a shallow copy is as good.
         return self.__copy__()
-
-
-#: Physical bounds of the config's numbers (inclusive unless said otherwise), generous enough for
-#: any granular-chain experiment and tight enough that nothing reaches the engine as 0, inf or an
-#: overflowing product (1e300 m/s, 1e-300 mm, 1e30 beads).
-BOUNDS = {
-    "diameter_mm": (1e-3, 1e4),       # 1 um .. 10 m
-    "beads": (1, 10_000_000),         # bead counts and numbers (memory is checked separately)
-    # m/s: far beyond yield at the top; below 1 um/s the impact's overlaps (~1e-11 m in steel) are
-    # below anything a Hertz contact of real surfaces means, and the engine counts overlaps below
-    # 1e-30 m as none (a striker at 1e-300 m/s moved nothing)
-    "velocity": (1e-6, 1e3),
-    "density": (1.0, 1e5),            # kg/m^3
-    "young": (1e3, 1e13),             # Pa
-    "yield_stress": (1e3, 1e12),      # Pa
-    "precompression": (0.0, 1e9),     # N (and the Hertz-range check on the static overlap)
-    "offset_mm": (-1e4, 1e4),
-    "A": (0.0, 1.0),                  # s (the paper's eps = 0.985 needs A ~ 4.5e-6 s)
-    "gamma": (0.0, 1e9),              # N s/m
-    "duration": (0.0, 100.0),         # s, > 0 (memory and run time are checked separately)
-    "sample_interval": (1e-12, 1.0),  # s
-    "dt": (1e-15, 1.0),               # s
-    "rtol": (1e-14, 0.1),
-    # adaptive Verlet accuracy, omega dt <= 1 / steps_per_radian: below ~10 the peak force is off
-    # by more than ~3e-4 (error ~ (1 / steps_per_radian)^2) and Verlet nears its stability limit
-    "steps_per_radian": (10.0, 1e5),
-    "threads": (1, 1024),             # threads sharing one chain (aligned elastic chains)
-    "mass": (0.0, 1e6),               # kg, > 0: a striker, a bead or a protected body
-    "stiffness": (0.0, 1e15),         # N/m, the protected body's mount (0: a free body)
-    "damping": (0.0, 1e12),           # N s/m
-    "gravity": (0.0, 1e4),            # m/s^2 along the chain (a centrifuge reaches 1e4)
-    "frequency": (0.0, 1e9),          # Hz, > 0: a mass-in-mass bead's internal resonance
-}
 
 
 def _bounded(kind: str, *, open_low: bool = False, **kw: Any) -> Any:
@@ -80,7 +49,8 @@ class MaterialConfig(_Section):
 
 
 class UniformBlock(_Section):
-    n: _BeadNumber
+    # 0: no chain, the striker hits the wall or the protected body (the reference of a protector)
+    n: int = Field(ge=0, le=BOUNDS["beads"][1], description="number of beads (0: the striker hits the wall directly)")
     diameter_mm: _Diameter
 
 
@@ -113,7 +83,7 @@ class ElementConfig(_Section):
         default="crossed", description="cylinder axis across the chain (side contacts) or along it (flat ends)")
     length_mm: _Diameter | None = Field(default=None, description="cylinder length; absent: its diameter")
     axis_deg: float = Field(default=0.0, ge=-360, le=360, description="crossed cylinder's axis about the chain axis")
-    mass: float | None = _bounded("mass", open_low=True, default=None, description="kg, a given bead mass")
+    mass: float | None = _bounded("mass", default=None, description="kg, a given bead mass")
     resonator: ResonatorConfig | None = None
 
 
@@ -170,8 +140,11 @@ class ChainConfig(_Section):
 class StrikerConfig(_Section):
     diameter_mm: _Diameter = 8.0
     velocity: float = _bounded("velocity", default=0.5, description="m/s towards the chain")
-    material: str | None = None
-    mass: float | None = _bounded("mass", open_low=True, default=None,
+    # one rule in config and API (hc.Striker): the paper's steel ball unless given, whatever the
+    # chain is made of (a config's striker used to take the chain's first material)
+    material: str = Field(default="AISI52100", description="the striker's material (default: AISI 52100, as "
+                                                            "hc.Striker's, whatever the chain's)")
+    mass: float | None = _bounded("mass", default=None,
                                   description="kg; absent: the sphere's rho pi phi^3 / 6")
     shape: Literal["sphere", "flat"] = Field(default="sphere", description="its face: 'flat' meets bead 1 in a "
                                                                            "sphere-flat contact")
@@ -184,7 +157,7 @@ class WallConfig(_Section):
 
     type: Literal["flat", "none", "body"] = "flat"
     material: str | None = None
-    mass: float | None = _bounded("mass", open_low=True, default=None, description="kg, the protected body's")
+    mass: float | None = _bounded("mass", default=None, description="kg, the protected body's")
     stiffness: float = _bounded("stiffness", default=0.0, description="N/m, its mount to the ground (0: free)")
     damping: float = _bounded("damping", default=0.0, description="N s/m, the mount's dashpot")
     shape: Literal["flat", "sphere"] = Field(default="flat", description="the body's face")
@@ -202,9 +175,10 @@ class ContactConfig(_Section):
     eps: float | None = Field(default=None, ge=0.5, le=1, description="per-bead factor of the paper")
     A: float | None = _bounded("A", default=None, description="Kuwabara-Kono time constant, s "
                                   "(viscoelastic_scaled: between two beads like the chain's first)")
-    limiting_pressure_factor: float | None = Field(
-        default=None, gt=0, le=10, description="elastoplastic: Thornton's limiting pressure p_y over the yield "
-                                                "stress (default 1.5: yield starts at the paper's F_Y)")
+    limiting_pressure_factor: float | None = _bounded(
+        "limiting_pressure_factor", default=None,
+        description="elastoplastic: Thornton's limiting pressure p_y over the yield stress (default 1.5: yield "
+                    "starts at the paper's F_Y)")
     gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m "
                                    "(dashpot_scaled: between two beads like the chain's first)")
 
@@ -410,6 +384,10 @@ def _raise_config_error(exc: ValidationError, prefix: tuple[str, ...] = ()) -> N
     if err["type"] == "missing":
         raise ConfigError(name, "is required") from None
     msg = err["msg"].removeprefix("Value error, ").replace("Input should be", "must be")
+    bound = {"greater_than_equal": ("ge", "at least"), "greater_than": ("gt", "greater than"),
+             "less_than_equal": ("le", "at most"), "less_than": ("lt", "less than")}.get(err["type"])
+    if bound is not None and isinstance(err.get("ctx", {}).get(bound[0]), (int, float)):
+        msg = f"must be {bound[1]} {err['ctx'][bound[0]]:g}"  # 1e-15, not 0.000000000000001
     value = err.get("input")
     if not isinstance(value, (dict, list)):
         msg += f" (got {value!r})"

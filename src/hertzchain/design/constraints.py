@@ -14,6 +14,7 @@ feasible set.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -66,7 +67,8 @@ def has_geometric_constraints(c: Constraints) -> bool:
 def geometry(chain) -> dict[str, float]:
     """Smallest diameter [mm], length [mm], mass [kg] and bead count of a :class:`~hertzchain.Chain`."""
     d = chain.diameters
-    return {"min_diameter_mm": float(d.min() * 1e3), "length_mm": float(d.sum() * 1e3),
+    # no beads (the striker onto the wall, a reference): no bead is below any minimum diameter
+    return {"min_diameter_mm": float(d.min() * 1e3) if d.size else math.inf, "length_mm": float(d.sum() * 1e3),
             "mass_kg": float(chain.masses.sum()), "n_beads": d.size}
 
 

@@ -4,7 +4,9 @@ The best design is compared like for like: with the problem's own base configura
 as it stands, what the design starts from) and with a uniform chain of as many beads as the best
 design, of the base chain's first diameter and material, all three run with the same striker,
 wall, contact law and run settings (duration included) and scored as the search scored
-candidates (robust scenarios included, summarised the same way); the improvement is
+candidates (robust scenarios included, summarised the same way), and with no chain at all
+(``no_chain``: the striker straight onto the wall or body, ``chain.uniform.n = 0``; left out where
+that would be a flat face on a flat face); the improvement is
 (reference - best) / reference in percent (positive: the design transmits less).
 """
 
@@ -38,7 +40,7 @@ def _toml_ready(x: Any) -> Any:
 
 
 #: The references of the comparison, after the best design.
-REFERENCES = ("base", "uniform")
+REFERENCES = ("base", "uniform", "no_chain")
 
 
 def _reference_configs(base: dict, best_cfg: dict) -> dict[str, dict]:
@@ -50,7 +52,18 @@ def _reference_configs(base: dict, best_cfg: dict) -> dict[str, dict]:
     common = {k: v for k, v in best_cfg.items() if k != "chain"}
     uniform = {"uniform": {"n": n_best, "diameter_mm": float(f"{base_chain.diameters[0] * 1e3:.12g}")},
                "material": base_chain.materials[0].name}
-    return {"best": best_cfg, "base": base, "uniform": {**common, "chain": uniform}}
+    refs = {"best": best_cfg, "base": base, "uniform": {**common, "chain": uniform}}
+    # no chain at all: the striker straight onto the wall or body (what the chain buys), where that
+    # is a Hertz contact (a flat striker on a flat body face is not: then left out)
+    from ..config import build_model
+    from ..errors import ConfigError
+
+    none = {**common, "chain": {**uniform, "uniform": {**uniform["uniform"], "n": 0}}}
+    try:
+        build_model(parse_config(none))
+    except ConfigError:
+        return refs
+    return {**refs, "no_chain": none}
 
 
 def objective_label(problem) -> str:
@@ -136,7 +149,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     out["improvement_percent"] = {
         ref: {n: (100.0 * (out[ref][n] - out["best"][n]) / out[ref][n]
                   if out[ref][n] and out["best"][n] is not None else None) for n in prob.objectives}
-        for ref in REFERENCES}
+        for ref in REFERENCES if ref in out}
     return out, ds
 
 
@@ -235,7 +248,7 @@ def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]
         figs.append(("Pareto front", _png(fig)))
         plt.close(fig)
 
-    labels = ["best", *REFERENCES]
+    labels = ["best", *(r for r in REFERENCES if r in comparison)]
     diam = ds["diameter"].values * 1e3
     length = max(float(np.nansum(d)) for d in diam)
     fig, ax = plt.subplots(figsize=(9, 3.2))
@@ -248,7 +261,7 @@ def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]
             x += phi
         ax.text(-8, y, label, ha="right", va="center", fontsize=9)
     ax.set_xlim(-60, length + 10)
-    ax.set_ylim(-100, 20)
+    ax.set_ylim(-40 * len(labels) + 20, 20)
     ax.set_aspect("equal")
     ax.set_xlabel("position along the chain [mm] (impact end at 0, wall at the right end of each chain)")
     ax.set_yticks([])
@@ -275,7 +288,7 @@ def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
     cmp = info["comparison"]
     names = result.problem.objectives
     rows = ""
-    for ref in ("best", *REFERENCES):
+    for ref in ("best", *(r for r in REFERENCES if r in cmp)):
         cells = "".join(f"<td>{_num(cmp[ref][n], '.5g')}</td>" for n in names)
         imp = "" if ref == "best" else "; ".join(_num(cmp["improvement_percent"][ref][n], "+.2f", " %") for n in names)
         ok = "yes" if cmp[ref]["feasible"] else "no"

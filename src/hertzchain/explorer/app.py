@@ -89,7 +89,7 @@ class Explorer(pn.viewable.Viewer):
         w = pn.widgets
         self.widgets = {
             "chain": w.Select(label="chain", options=CHAIN_KINDS, value=s.chain),
-            "uniform_n": w.IntSlider(label="uniform block: beads", start=1, end=60, value=s.uniform_n),
+            "uniform_n": w.IntSlider(label="uniform block: beads (0: no chain)", start=0, end=60, value=s.uniform_n),
             "uniform_diameter_mm": w.FloatInput(label="uniform block: diameter [mm]", value=s.uniform_diameter_mm,
                                                 start=1.0, end=100.0, step=0.5),
             "taper_n": w.IntSlider(label="taper: beads n", start=0, end=40, value=s.taper_n),

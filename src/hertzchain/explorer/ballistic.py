@@ -214,6 +214,10 @@ def theory_rows(result, eps: float, fit, chain) -> list[TheoryRow]:
     from ..theory import ballistic_ratios, predict_chain, tapering_factor
 
     phi = result.diameter.values
+    if not phi.size:  # no chain: the striker hits the wall, one two-body Hertz impact (no ballistic theory)
+        peak = float(result.attrs.get("peak_wall_force", np.nan))
+        return [TheoryRow("chain", "def.", "none: the striker hits the wall or body (two-body Hertz impact)",
+                          f"peak wall force {peak:.4g} N")]
     n0 = uniform_count(phi)
     rows = []
     if n0 < phi.size:

@@ -10,7 +10,8 @@ sampled signal (a fit's Jacobian). The results it knows: :data:`OBJECTIVES`.
 
 from __future__ import annotations
 
-from .api import Sensitivity, TraceSensitivity, sensitivity, trace_sensitivity, variable_unit
+from .api import Sensitivity, TraceSensitivity, memory_estimate, sensitivity, trace_sensitivity, variable_unit
 from .objectives import OBJECTIVES
 
-__all__ = ["sensitivity", "Sensitivity", "trace_sensitivity", "TraceSensitivity", "OBJECTIVES", "variable_unit"]
+__all__ = ["sensitivity", "Sensitivity", "trace_sensitivity", "TraceSensitivity", "OBJECTIVES", "variable_unit",
+           "memory_estimate"]

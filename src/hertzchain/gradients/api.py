@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["Sensitivity", "TraceSensitivity", "sensitivity", "trace_sensitivity", "variable_unit"]
+__all__ = ["Sensitivity", "TraceSensitivity", "sensitivity", "trace_sensitivity", "variable_unit", "memory_estimate"]
 
 #: With at most this many variables ``mode="auto"`` uses the tangent model (where it covers the
 #: law), else the adjoint. On chain 1 (benchmarks/gradient.py) the whole call costs ~2.8-3.3 runs
@@ -157,8 +157,9 @@ def _config(config):
 def _prepare(cfg):
     """Model, System and run settings of a config, refusing what the derivative engines do not cover."""
     from ..checks import check_before_run
-    from ..config import build_model, build_probes
+    from ..config import build_model
     from ..integrate import differentiate as D
+    from ..probes import Probes
     from ..simulation import auto_duration
 
     if cfg.track is not None:
@@ -172,24 +173,17 @@ def _prepare(cfg):
     system = model.system()
     D.check_law(system)
     duration = auto_duration(model) if cfg.run.duration == "auto" else float(cfg.run.duration)
-    probes = build_probes(cfg)
+    # what the taped run records: the wall's force (the config's probes are not written), so the
+    # run's own memory check is not that of recording every contact
+    probes = Probes(sample_interval=cfg.run.sample_interval, contacts=(system.n_beads,) if system.has_wall else ())
     check_before_run(model, system, duration, probes, dt=cfg.run.dt, integrator="verlet")
     return model, system, duration
 
 
 def _refuse_unknown_models(cfg, model) -> None:
-    """Refuse, naming the field, what the derivative engines do not cover yet: a non-spherical or
-    curved striker face, a protected body's curved face, gravity, elements (cylinders,
-    mass-in-mass beads)."""
-    s = cfg.striker
-    if s.shape != "sphere" or s.radius_of_curvature_mm is not None:
-        field = "striker.shape" if s.shape != "sphere" else "striker.radius_of_curvature_mm"
-        raise ConfigError(field, "gradients cover a spherical striker (its size sets its contact); a flat or "
-                          "curved face is not differentiated yet")
-    w = cfg.wall
-    if w.type == "body" and (w.shape != "flat" or w.radius_of_curvature_mm is not None):
-        raise ConfigError("wall.shape", "gradients cover a protected body with a flat face; a curved face is not "
-                          "differentiated yet")
+    """Refuse, naming the field, what the derivative engines do not cover yet: gravity, elements
+    (cylinders, mass-in-mass beads). (Striker faces, flat or curved, and a protected body's flat
+    or spherical face are differentiated: :mod:`~hertzchain.gradients.setup`.)"""
     if getattr(model, "gravity", 0.0):
         raise ConfigError("chain.gravity" if cfg.chain.gravity is not None else "chain.tilt_deg",
                           "gradients do not differentiate gravity's static state yet")
@@ -200,14 +194,17 @@ def _refuse_unknown_models(cfg, model) -> None:
 
 def _parameter_gradient(sd, engine: dict[str, np.ndarray], direct: dict[str, np.ndarray]) -> dict[str, float]:
     """Chain rule: dJ/dx = sum over System arrays of (dJ/d array) . (d array / dx)."""
-    out = {}
-    for path, darr in sd.derivatives.items():
-        total = 0.0
-        for name, g in list(engine.items()) + list(direct.items()):
-            d = darr.get(name)
-            if d is not None:
-                total += float(np.dot(g[:d.size], d[:g.size]))
-        out[path] = total
+    grads = dict(engine)
+    for name, g in direct.items():  # an objective's own partials on an array the engines also give
+        grads[name] = g if name not in grads else _add(grads[name], g)
+    return {path: sd.dot(path, grads) for path in sd.derivatives}
+
+
+def _add(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a + b over the longer of the two (the shorter covers the first entries)."""
+    out = np.zeros(max(a.size, b.size))
+    out[:a.size] += a
+    out[:b.size] += b
     return out
 
 
@@ -301,7 +298,14 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     switch, the result has a kink or a jump, and the gradient is that of the branch the run is on.
     """
     from ..integrate import differentiate as D
-    from .objectives import check_objective, objective_unit, read_objective, soft_peak
+    from .memory import check_memory, estimate_memory
+    from .objectives import (
+        check_objective,
+        contacts_needed,
+        objective_unit,
+        read_objective,
+        soft_peak,
+    )
     from .setup import expand_paths, setup_derivatives
 
     t0 = _time.perf_counter()
@@ -309,29 +313,32 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
         raise ConfigError("mode", f"must be 'auto', 'adjoint' or 'tangent', got {mode!r}")
     cfg = _config(config)
     model, system, duration = _prepare(cfg)
+    if not model.chain.n_beads:  # the derivative set-up is per bead; one contact has a closed form
+        raise ConfigError("chain.uniform.n", "sensitivities need at least one bead; with none, the striker's impact "
+                          "on the wall is the two-body Hertz impact of hertzchain.theory.two_body_impact")
     check_objective(objective, system)
     paths = expand_paths(cfg, variables)
+    use_tangent = mode == "tangent" or (mode == "auto" and len(paths) <= TANGENT_MAX_VARIABLES
+                                        and system.law in D.TANGENT_LAWS)
+    check_memory(estimate_memory(cfg, system, duration, paths, use_tangent, objective))
     sd = setup_derivatives(cfg, system, paths)
     tape = D.record(system, duration, cfg.run.sample_interval, dt=cfg.run.dt,
-                    steps_per_radian=cfg.run.steps_per_radian)
+                    steps_per_radian=cfg.run.steps_per_radian, contacts=contacts_needed(objective, system))
     reading = read_objective(objective, tape, window)
     value = reading.value
     if smoothing is not None:
         if objective != "peak_wall_force" or not smoothing > 0:
             raise ConfigError("smoothing", "is a width > 0 [N] of the soft maximum of peak_wall_force")
         reading = soft_peak(tape, float(smoothing))
-    seeds = D.Seeds.build([(tape.sample_step(k), j, w) for k, j, w in reading.samples] + list(reading.steps))
-    use_tangent = mode == "tangent" or (mode == "auto" and len(paths) <= TANGENT_MAX_VARIABLES
-                                        and system.law in D.TANGENT_LAWS)
+    seeds = D.Seeds.build([(tape.sample_step(k), j, w) for k, j, w in reading.samples] + list(reading.steps),
+                          reading.arrays)
     if use_tangent:
-        dirs = {name: np.array([sd.derivatives[p][name] for p in paths]) for name in D.PARAMETERS}
+        dirs = {name: np.array([sd.dense(p, name) for p in paths]) for name in D.PARAMETERS}
         _, _, _, dj = D.tangents(system, dirs, duration, cfg.run.sample_interval, dt=cfg.run.dt,
                                  steps_per_radian=cfg.run.steps_per_radian, seeds=seeds)
-        direct = {p: sum(float(np.dot(g, sd.derivatives[p][name])) for name, g in reading.direct.items())
-                  for p in paths}
-        grad = {p: float(dj[i]) + direct[p] for i, p in enumerate(paths)}
+        grad = {p: float(dj[i]) + sd.dot(p, reading.direct) for i, p in enumerate(paths)}
     else:
-        grad = _parameter_gradient(sd, D.gradient(tape, seeds), reading.direct)
+        grad = _parameter_gradient(sd, D.gradient(tape, seeds, reading.final_dres), reading.direct)
     records = {"time": tape.time, "max_contact_force": tape.max_force,
                "yield_force": system.yield_force[:system.n_contacts]}
     if system.has_wall:
@@ -344,6 +351,37 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
                        mode="tangent" if use_tangent else "adjoint", n_steps=tape.n_steps,
                        elapsed_s=_time.perf_counter() - t0, notes=notes, records=records,
                        smooth_value=float(reading.value) if smoothing is not None else None)
+
+
+def memory_estimate(config, variables: str | Sequence[str], *, mode: Literal["auto", "adjoint", "tangent"] = "auto"
+                    ) -> int:
+    """The memory [bytes] :func:`sensitivity` will take for these variables, before anything runs
+    (:mod:`hertzchain.gradients.memory`: linear in the beads, the variables and the samples).
+
+    Parameters
+    ----------
+    config : str, pathlib.Path, dict or RunConfig
+        The run config.
+    variables : str or sequence of str
+        As for :func:`sensitivity`.
+    mode : {"auto", "adjoint", "tangent"}
+        As for :func:`sensitivity`.
+
+    Returns
+    -------
+    int
+        The estimate [bytes] beyond the model and the imported package.
+    """
+    from ..integrate import differentiate as D
+    from .memory import estimate_memory
+    from .setup import expand_paths
+
+    cfg = _config(config)
+    _, system, duration = _prepare(cfg)
+    paths = expand_paths(cfg, variables)
+    tangent = mode == "tangent" or (mode == "auto" and len(paths) <= TANGENT_MAX_VARIABLES
+                                    and system.law in D.TANGENT_LAWS)
+    return estimate_memory(cfg, system, duration, paths, tangent).total
 
 
 @dataclass
@@ -389,6 +427,7 @@ def trace_sensitivity(config, variables: str | Sequence[str], signal: str = "wal
         Times, the signal and its Jacobian.
     """
     from ..integrate import differentiate as D
+    from .memory import check_memory, estimate_memory
     from .setup import expand_paths, setup_derivatives
 
     cfg = _config(config)
@@ -396,6 +435,7 @@ def trace_sensitivity(config, variables: str | Sequence[str], signal: str = "wal
     if duration is not None:
         dur = float(duration)
     paths = expand_paths(cfg, variables)
+    check_memory(estimate_memory(cfg, system, dur, paths, tangent=True))
     sd = setup_derivatives(cfg, system, paths)
     if signal == "wall":
         if not system.has_wall:
@@ -407,7 +447,7 @@ def trace_sensitivity(config, variables: str | Sequence[str], signal: str = "wal
             raise ConfigError("signal", f"must be 'wall' or 'sensor:n' with n a bead (1..{system.n_beads}), "
                               f"got {signal!r}")
         contacts = [int(bead) - 1, int(bead)]
-    dirs = {name: np.array([sd.derivatives[p][name] for p in paths]) for name in D.PARAMETERS}
+    dirs = {name: np.array([sd.dense(p, name) for p in paths]) for name in D.PARAMETERS}
     rec, f, ft, _ = D.tangents(system, dirs, dur, cfg.run.sample_interval, dt=cfg.run.dt,
                                steps_per_radian=cfg.run.steps_per_radian, contacts=contacts)
     if len(contacts) == 1:

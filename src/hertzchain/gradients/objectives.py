@@ -8,7 +8,11 @@ Objectives (SI units; the names of the design objectives mean the same numbers a
   holds the step of the maximum fixed: the envelope theorem makes it the derivative of the true
   maximum as the step goes to zero, and where two separate maxima are equal the objective has a
   kink (one-sided derivatives: the gradient is that of the maximum the run found);
-- ``peak_wall_time`` [s]: the time of that vertex;
+- ``peak_wall_time`` [s]: the time of that vertex; where the wall contact yields (Thornton's law
+  without a viscous part), the time the wall overlap stops growing, the vertex of the parabola
+  through the overlap at three steps (the force's curvature jumps there; the overlap is smooth,
+  so the time and its derivative agree with central differences; it differs from the run's
+  ``peak_wall_time`` attribute by a fraction of a step);
 - ``time_of_flight`` [s], ``pulse_duration`` [s], ``front_momentum_at_wall`` [N s]: T, tau and Q_F of
   the wall pulse's cos^6 fit (paper Sec. III, :func:`hertzchain.analysis.fit_pulse`), differentiated
   through the fit's optimality conditions (implicit function theorem). The fit reads the samples
@@ -32,11 +36,14 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigError, PulseNotFound
+from ..errors import ConfigError, ObjectiveUndefined, PulseNotFound
+from ..integrate import kernels
+from . import state
+from .reading import STEP, Reading, rising, span, vertex
+from .state import BODY
 
 __all__ = ["OBJECTIVES", "Reading", "read_objective", "objective_unit", "contacts_needed", "soft_peak"]
 
@@ -50,33 +57,16 @@ OBJECTIVES: dict[str, tuple[str, str]] = {
     "energy_at_wall": ("J", "largest elastic energy in the bead N - wall contact"),
     "peak_contact_force": ("N", "largest sampled force of any contact (peak_contact_force[j]: of contact j)"),
     "max_force_over_yield": ("1", "largest contact force over its elastic limit F_Y"),
+    "peak_body_force": ("N", "peak force the protected body's mount passes to the ground, |k x + c v|"),
+    "peak_body_acceleration": ("m s-2", "peak acceleration of the protected body"),
+    "energy_to_body": ("J", "most energy delivered to the protected body"),
+    "plastic_work": ("J", "plastic work done in all contacts by the end of the run (elastoplastic law)"),
+    "residual_overlap_max": ("m", "largest permanent overlap of any contact at the end (elastoplastic law)"),
 }
+
 _NEEDS_WALL = {"peak_wall_force", "peak_wall_time", "time_of_flight", "pulse_duration", "front_momentum_at_wall",
                "energy_at_wall"}
 _CONTACT = re.compile(r"peak_contact_force\[(\d+)\]")
-_STEP = 1e-30
-
-
-@dataclass
-class Reading:
-    """An objective's value and partials.
-
-    Attributes
-    ----------
-    value : float
-        The objective [its unit].
-    samples : list of (int, int, float)
-        (sample, contact, dJ/dF) partials on recorded forces.
-    steps : list of (int, int, float)
-        (step, contact, dJ/dF) partials on the forces of single steps.
-    direct : dict
-        ``{System array name: dJ/d array}`` where the objective reads a System array itself.
-    """
-
-    value: float
-    samples: list = field(default_factory=list)
-    steps: list = field(default_factory=list)
-    direct: dict = field(default_factory=dict)
 
 
 def objective_unit(name: str) -> str:
@@ -115,6 +105,12 @@ def check_objective(name: str, system) -> None:
                           "peak_contact_force[j]")
     if name in _NEEDS_WALL and not system.has_wall:
         raise ConfigError("objective", f"{name} reads the wall force, but wall.type = 'none'")
+    if name in ("plastic_work", "residual_overlap_max") and system.law != kernels.LAW_ELASTOPLASTIC:
+        raise ConfigError("objective", f"{name} is the elastic-plastic law's: it needs contact.law = "
+                          "'elastoplastic' (the other laws do no plastic work)")
+    if name in BODY and not system.body:
+        raise ConfigError("objective", f"{name} is a protected body's: it needs [wall] type = 'body' (with its mass, "
+                          "stiffness and damping)")
 
 
 def contacts_needed(name: str, system) -> list[int]:
@@ -130,9 +126,9 @@ def contacts_needed(name: str, system) -> list[int]:
     Returns
     -------
     list of int
-        Contact numbers.
+        Contact numbers: the wall's; with a protected body its mount's too (contact N + 1).
     """
-    return [system.n_beads] if system.has_wall else []
+    return [system.n_beads] + ([system.n_beads + 1] if system.body else []) if system.has_wall else []
 
 
 def read_objective(name: str, tape, window: tuple[float, float] | None = None) -> Reading:
@@ -157,8 +153,23 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
     m = _CONTACT.fullmatch(name)
     if m:
         j = int(m.group(1))
+        if not tape.max_force[j] > 0.0:
+            raise ObjectiveUndefined("run.duration", f"contact {j} never closes within the run "
+                                     f"({span(tape)}): {name} is 0 N and so is every derivative; lengthen "
+                                     "run.duration (or leave it 'auto') or choose another contact")
+        if tape.max_force_sample[j] == tape.time.size - 1:
+            raise rising(tape, name)
         return Reading(float(tape.max_force[j]), samples=[(int(tape.max_force_sample[j]), j, 1.0)])
+    if name == "energy_to_body":
+        return state.energy_to_body(tape)
+    if name == "plastic_work":
+        return state.plastic_work(tape)
+    if name == "residual_overlap_max":
+        return state.residual_overlap_max(tape)
+    if name in BODY:
+        return state.body_peak(tape, name)
     if name in ("peak_wall_force", "peak_wall_time"):
+        _check_wall_peak(tape, name)
         return _peak(tape, wall, name == "peak_wall_time")
     if name == "peak_contact_force":
         j = int(np.argmax(tape.max_force))
@@ -178,17 +189,50 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
     if name == "energy_at_wall":
         t = tape.time
         mask = np.ones(t.size, bool) if window is None else (t >= window[0]) & (t <= window[1])
+        if not mask.any():
+            raise ObjectiveUndefined("window", f"[{window[0] * 1e3:g}, {window[1] * 1e3:g}] ms holds no sample of the "
+                                     f"run ({span(tape)}): energy_at_wall is undefined there; choose a window "
+                                     "inside the run, or lengthen run.duration")
         fw = np.where(mask, np.maximum(f, 0.0), 0.0)
         k = int(np.argmax(fw))
+        if not fw[k] > 0.0:
+            where = "within the window" if window is not None else "during the run"
+            raise ObjectiveUndefined("window" if window is not None else "run.duration",
+                                     f"the wall force is 0 {where} ({span(tape, window)}): energy_at_wall is 0 J "
+                                     "and so is every derivative; move the window to the wall pulse or lengthen "
+                                     "run.duration (or leave it 'auto')")
+        if k == t.size - 1:
+            raise rising(tape, name)
         fpk, kap = fw[k], sy.kappa[wall]
         direct = np.zeros(sy.kappa.size)
         direct[wall] = -(2.0 / 3.0) * 0.4 * fpk ** (5.0 / 3.0) * kap ** (-5.0 / 3.0)
         seed = (2.0 / 3.0) * fpk ** (2.0 / 3.0) / kap ** (2.0 / 3.0) if fpk > 0 else 0.0
         return Reading(float(0.4 * fpk ** (5.0 / 3.0) / kap ** (2.0 / 3.0)), samples=[(k, wall, seed)],
                        direct={"kappa": direct})
-    value, weights = pulse_partials(tape.time, f, name)
+    if not np.any(f > 0.0):
+        raise ObjectiveUndefined("run.duration", f"the pulse does not reach the wall within the run ({span(tape)}): "
+                                 f"{name} is undefined; lengthen run.duration (or leave it 'auto')")
+    try:
+        value, weights = pulse_partials(tape.time, f, name)
+    except PulseNotFound as exc:
+        raise ObjectiveUndefined("run.duration", f"{name} is undefined: the wall record of the run ({span(tape)}) "
+                                 f"holds no whole pulse to fit ({exc}); lengthen run.duration (or leave it "
+                                 "'auto')") from None
     return Reading(value, samples=[(int(k), wall, float(w)) for k, w in zip(np.flatnonzero(weights),
                                                                            weights[weights != 0])])
+
+
+def _check_wall_peak(tape, name: str) -> None:
+    """Refuse a wall peak that is no peak: a wall force that never rises above its value at t = 0
+    (zero without a static load: the pulse does not reach the wall), or one still rising when the
+    run ends (the pulse arriving: the maximum is the last step's force, its time the run's end)."""
+    if tape.peak_step < 0:  # the tracker's step of the maximum: -1 until the force rises above t = 0's
+        raise ObjectiveUndefined("run.duration", f"the pulse does not reach the wall within the run ({span(tape)}): "
+                                 f"the wall force never rises above its value at t = 0 ({tape.peak[0]:.4g} N), so "
+                                 f"{name} is that of the start and every derivative is 0; lengthen run.duration "
+                                 "(or leave it 'auto')")
+    if tape.peak_step >= tape.n_steps - 1:
+        raise rising(tape, name)
 
 
 def soft_peak(tape, width: float) -> Reading:
@@ -223,19 +267,13 @@ def soft_peak(tape, width: float) -> Reading:
     return Reading(top + width * math.log(z), samples=[(int(k), wall, float(w[k])) for k in keep])
 
 
-def _vertex(fb, fpk, fa, h0, h1, t_pk):
-    """Vertex (value, time) of the parabola through three steps (``verlet.refine_peak``), complex-safe."""
-    s01 = (fpk - fb) / h0
-    s12 = (fa - fpk) / h1
-    c = (s12 - s01) / (h0 + h1)
-    b = s12 - c * h1
-    return fpk - 0.25 * b * b / c, t_pk - 0.5 * b / c
-
-
 def _peak(tape, wall: int, want_time: bool) -> Reading:
-    """The refined wall peak (or its time) and its partials on the three steps around the maximum."""
+    """The refined wall peak (or its time) and its partials on the three steps around the maximum;
+    the time of a wall contact that yielded is that of its overlap's peak (:func:`~hertzchain.gradients.state.overlap_peak_time`)."""
     from ..integrate.verlet import refine_peak
 
+    if want_time and state.yielded_wall(tape, wall):
+        return state.overlap_peak_time(tape, wall)
     pk = tape.peak
     k = tape.peak_step
     fpk, t_pk, fb, fa, h0, h1 = pk[0], pk[1], pk[2], pk[3], pk[6], pk[7]
@@ -247,9 +285,9 @@ def _peak(tape, wall: int, want_time: bool) -> Reading:
     w = []
     for i in range(3):
         e = [0j, 0j, 0j]
-        e[i] = 1j * _STEP
-        v, t = _vertex(fb + e[0], fpk + e[1], fa + e[2], h0, h1, t_pk)
-        w.append(((t if want_time else v).imag) / _STEP)
+        e[i] = 1j * STEP
+        v, t = vertex(fb + e[0], fpk + e[1], fa + e[2], h0, h1, t_pk)
+        w.append(((t if want_time else v).imag) / STEP)
     return Reading(float(time if want_time else value),
                    steps=[(k - 1, wall, w[0]), (k, wall, w[1]), (k + 1, wall, w[2])])
 
@@ -308,8 +346,8 @@ def pulse_partials(time: np.ndarray, force: np.ndarray, name: str) -> tuple[floa
     H = J.T @ J
     for k in range(3):
         e = np.zeros(3, complex)
-        e[k] = 1j * _STEP
-        d2 = _cos6_jacobian(s[W], p + e).imag / _STEP  # d (grad m_i) / d p_k
+        e[k] = 1j * STEP
+        d2 = _cos6_jacobian(s[W], p + e).imag / STEP  # d (grad m_i) / d p_k
         H[:, k] -= d2.T @ r
     # The window (b + w0 c, b + w1 c] follows the fit: as its ends move, samples enter and leave it,
     # and the values jump once per sample. Differentiated with the ends moving continuously (the

@@ -15,11 +15,12 @@ Fields (units: the config's own, so ``diameters_mm`` is per mm):
   ``chain.substitutions[i].diameter_mm``, ``chain.offsets_mm[i]``, ``chain.offsets_fraction[i]``,
   ``chain.precompression``;
 - ``striker.diameter_mm``, ``striker.velocity``, and ``striker.mass`` [kg] (the striker's mass at
-  fixed size: not a config field yet);
+  fixed size: not a config field yet); a flat face (``striker.shape = "flat"``, 1/R' = 0) or a
+  curved one (``striker.radius_of_curvature_mm``, a field of its own);
 - ``contact.A``, ``contact.gamma`` (constant or size-scaled laws); the elastic-plastic law's
   ``contact.A`` and ``contact.limiting_pressure_factor`` (its yield overlaps scale as its square);
 - a protected body (``[wall] type = "body"``): ``wall.mass`` [kg], ``wall.stiffness`` [N/m] and
-  ``wall.damping`` [N s/m] of its mount;
+  ``wall.damping`` [N s/m] of its mount, and a spherical face's ``wall.radius_of_curvature_mm``;
 - ``materials.NAME.density``, ``.young``, ``.poisson``, ``.yield_stress`` for a material of the
   config's ``[materials]`` or of the catalogue (``materials.AISI52100.young``): every body made
   of it, the wall cap included.
@@ -49,19 +50,32 @@ STEP = 1e-30
 
 _MATERIAL_FIELDS = ("density", "young", "poisson", "yield_stress")
 _SCALAR_FIELDS = ("chain.uniform.diameter_mm", "chain.taper.q", "chain.precompression", "striker.diameter_mm",
-                  "striker.velocity", "striker.mass", "contact.A", "contact.gamma", "contact.limiting_pressure_factor",
-                  "wall.mass", "wall.stiffness", "wall.damping")
+                  "striker.velocity", "striker.mass", "striker.radius_of_curvature_mm", "contact.A", "contact.gamma",
+                  "contact.limiting_pressure_factor",
+                  "wall.mass", "wall.stiffness", "wall.damping", "wall.radius_of_curvature_mm")
 _LISTS = ("chain.diameters_mm", "chain.offsets_mm", "chain.offsets_fraction")
+#: What a variable may look like (the refusal of a malformed path says it).
+_PATH_GRAMMAR = ("dotted names with whole-number indices, as in the config and --set: chain.diameters_mm[3], "
+                 "chain.diameters_mm[16:30] (a range), chain.diameters_mm (every bead), striker.velocity, "
+                 "materials.AISI52100.young")
 
 
 class _Reader:
     """Every config number goes through :meth:`__call__` (a scalar) or :meth:`items` (a list): the
-    value comes back with one row per variable, and the complex step added in the row of the
-    variable that is this field. Remembers which fields the config has."""
+    value comes back with one row per row of the plan, and the complex step added in the row(s) of
+    the variable that is this field. Remembers which fields the config has.
 
-    def __init__(self, paths: list[str]):
-        self.index = {p: i for i, p in enumerate(paths)}
-        self.rows = max(len(paths), 1)
+    ``rows`` maps each variable path to its row; several list items may share a row (their
+    derivatives are told apart afterwards, :func:`setup_derivatives`)."""
+
+    def __init__(self, rows: dict[str, int]):
+        self.index = rows
+        self.rows = max(max(rows.values(), default=-1) + 1, 1)
+        self.item_rows: dict[str, list[tuple[int, int]]] = {}  # list prefix: (item, row)
+        for path, i in rows.items():
+            head, _, rest = path.partition("[")
+            if rest.endswith("]") and rest[:-1].isdigit():
+                self.item_rows.setdefault(head, []).append((int(rest[:-1]), i))
         self.seen: set[str] = set()
         self.lists: dict[str, int] = {}
 
@@ -79,11 +93,9 @@ class _Reader:
         vals = np.asarray(values, dtype=complex)
         self.lists[prefix] = vals.size
         out = np.tile(vals, (self.rows, 1))
-        for path, i in self.index.items():
-            if path.startswith(prefix + "["):
-                k = int(path[len(prefix) + 1:-1])
-                if k < vals.size:
-                    out[i, k] += 1j * STEP
+        pairs = np.array([(k, i) for k, i in self.item_rows.get(prefix, ()) if k < vals.size], dtype=np.int64)
+        if pairs.size:
+            out[pairs[:, 1], pairs[:, 0]] += 1j * STEP
         return out
 
     def known(self, path: str) -> bool:
@@ -169,12 +181,20 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
         mass[:, :1] = read("striker.mass", mass[0, 0].real) + 1j * mass[:, :1].imag
     r = phi / 2.0
     inv_r = 1.0 / r[:, :-1] + 1.0 / r[:, 1:]
+    if s.shape == "flat":  # a flat face meets bead 1 sphere-on-flat: 1/R' = 0 (paper eq. 1)
+        inv_r[:, :1] = 1.0 / r[:, 1:2]
+    elif s.radius_of_curvature_mm is not None:  # a curved face of its own radius
+        face = read("striker.radius_of_curvature_mm", s.radius_of_curvature_mm) * 1e-3
+        inv_r[:, :1] = 1.0 / face + 1.0 / r[:, 1:2]
     t_sum = theta[:, :-1] + theta[:, 1:]
     s_min = _weaker(sigma[:, :-1], sigma[:, 1:])
     if cfg.wall.type != "none":
         wall = _material(cfg.wall.material or mats[-1]).name
         wt, _, ws = props[wall] if wall in props else _theta(_material(wall), read)
-        inv_r = np.concatenate([inv_r, 1.0 / r[:, -1:]], axis=1)
+        face = 0.0  # a flat (the wall's cap, a body's flat face), or a body's spherical face
+        if cfg.wall.type == "body" and cfg.wall.shape == "sphere":
+            face = 1.0 / (read("wall.radius_of_curvature_mm", cfg.wall.radius_of_curvature_mm) * 1e-3)
+        inv_r = np.concatenate([inv_r, 1.0 / r[:, -1:] + face], axis=1)
         t_sum = np.concatenate([t_sum, theta[:, -1:] + wt], axis=1)
         s_min = np.concatenate([s_min, _weaker(sigma[:, -1:], ws)], axis=1)
     m = inv_r.shape[1]
@@ -285,7 +305,7 @@ def expand_paths(cfg, variables) -> list[str]:
     """
     import re
 
-    from ..config import build_chain
+    from ..config import build_chain, parse_path
 
     if isinstance(variables, str):
         variables = [variables]
@@ -297,12 +317,20 @@ def expand_paths(cfg, variables) -> list[str]:
         if not isinstance(raw, str):
             raise ConfigError("variables", f"each variable is a dotted path (a string), got {raw!r}")
         path = raw.strip()
-        m = re.fullmatch(r"(chain\.\w+)(?:\[(\d+):(\d+)\])?", path)
+        m = re.fullmatch(r"(chain\.\w+)\[(\d+):(\d+)\]", path)  # a range of a list field
         if m and m.group(1) in _LISTS:
-            lo, hi = (int(m.group(2)), int(m.group(3))) if m.group(2) else (0, n_beads)
+            lo, hi = int(m.group(2)), int(m.group(3))
             if not 0 <= lo < hi <= n_beads:
                 raise ConfigError(raw, f"range [{lo}:{hi}] must lie inside the chain's beads [0:{n_beads}]")
             out += [f"{m.group(1)}[{i}]" for i in range(lo, hi)]
+            continue
+        try:  # the grammar of the config's own paths (--set, sweeps, design variables)
+            tokens = parse_path(path)
+        except ValueError:
+            raise ConfigError("variables", f"{raw!r} is not a config path: {_PATH_GRAMMAR}") from None
+        path = "".join(f"[{t}]" if isinstance(t, int) else ("." if i else "") + t for i, t in enumerate(tokens))
+        if path in _LISTS:  # a list field without an index: every bead
+            out += [f"{path}[{i}]" for i in range(n_beads)]
             continue
         m = re.fullmatch(r"materials\.([^.]+)\.(\w+)", path)
         if m:
@@ -319,28 +347,126 @@ def expand_paths(cfg, variables) -> list[str]:
 
 @dataclass
 class SetupDerivatives:
-    """The System arrays of a config and their derivatives by each variable.
+    """The System arrays of a config and their derivatives by each variable, stored sparse.
 
     Attributes
     ----------
     values : dict
         ``{array name: real array}`` (:data:`ARRAYS`), as ``Model.system()`` gives them.
     derivatives : dict
-        ``{variable path: {array name: d array / d variable}}``, per the variable's config unit.
+        ``{variable path: {array name: (indices, values)}}``: the nonzero entries of
+        d array / d variable, per the variable's config unit. A bead's diameter moves a few
+        entries (its mass, its two contacts): the memory is linear in beads and variables.
     """
 
     values: dict[str, np.ndarray]
-    derivatives: dict[str, dict[str, np.ndarray]]
+    derivatives: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]]
+
+    def dense(self, path: str, name: str) -> np.ndarray:
+        """d array ``name`` / d variable ``path`` as a full array, shaped like the System's.
+
+        Parameters
+        ----------
+        path, name : str
+            A variable and an array name of :data:`ARRAYS`.
+
+        Returns
+        -------
+        numpy.ndarray
+            The derivative (zeros where the variable does not move the array).
+        """
+        out = np.zeros(self.values[name].size)
+        idx, val = self.derivatives[path].get(name, _EMPTY)
+        out[idx] = val
+        return out
+
+    def dot(self, path: str, grads: dict[str, np.ndarray]) -> float:
+        """Chain rule for one variable: sum over arrays of (dJ/d array) . (d array / d ``path``).
+
+        Parameters
+        ----------
+        path : str
+            The variable.
+        grads : dict
+            ``{array name: dJ/d array}`` (an array shorter than the System's covers its first entries).
+
+        Returns
+        -------
+        float
+            dJ/d variable.
+        """
+        total = 0.0
+        for name, g in grads.items():
+            idx, val = self.derivatives[path].get(name, _EMPTY)
+            keep = idx < g.size
+            total += float(np.dot(g[idx[keep]], val[keep]))
+        return total
+
+    @property
+    def nbytes(self) -> int:
+        """Memory of the stored derivatives [bytes]."""
+        return sum(i.nbytes + v.nbytes for d in self.derivatives.values() for i, v in d.values())
+
+
+_EMPTY = (np.zeros(0, dtype=np.int64), np.zeros(0))
 
 
 def _supported(path: str) -> str:
     return ("gradients know the continuous fields " + ", ".join(_SCALAR_FIELDS) + ", chain.diameters_mm[i], "
             "chain.offsets_mm[i], chain.offsets_fraction[i], chain.substitutions[i].diameter_mm and "
             "materials.NAME.{density,young,poisson,yield_stress}")
+#: List items that share a row of the complex step are COLOURS apart: a bead's diameter or offset
+#: moves the entries of its own bead, body and two contacts only (indices i .. i + 1 for item i),
+#: so an entry e of a shared row belongs to the one item of its colour within e - 2 .. e + 2
+#: (Curtis, Powell & Reid, J. Inst. Math. Appl. 13 (1974) 117: a sparse Jacobian's columns
+#: compressed by colouring). The rows: one per scalar variable, COLOURS per list, and one per
+#: item whose influence is not local (:func:`_own_rows`).
+COLOURS = 5
+
+
+def _own_rows(cfg) -> set[str]:
+    """List items that move entries far from their own bead, and so get a row of their own: bead
+    1's diameter (the reference pair of the size-scaled laws sets every contact's damping) and,
+    for a listed chain extended by a taper, the last listed bead (every tapered bead scales with it)."""
+    own = {"chain.diameters_mm[0]"}
+    c = cfg.chain
+    if c.taper is not None and c.diameters_mm is not None:
+        own.add(f"chain.diameters_mm[{len(c.diameters_mm) - 1}]")
+    return own
+
+
+def _plan(cfg, paths: list[str]) -> tuple[dict[str, int], dict[int, np.ndarray]]:
+    """Rows of the complex step: {path: row}, and for every shared row the items it holds (a
+    boolean mask over item numbers); a row of its own is absent from the second."""
+    own = _own_rows(cfg)
+    rows: dict[str, int] = {}
+    # number rows: scalars and own items first, then one row per (list, colour)
+    n = 0
+    groups: dict[tuple[str, int], list[tuple[str, int]]] = {}
+    for path in paths:
+        head, _, rest = path.partition("[")
+        if head in _LISTS and rest.endswith("]") and rest[:-1].isdigit() and path not in own:
+            k = int(rest[:-1])
+            groups.setdefault((head, k % COLOURS), []).append((path, k))
+        else:
+            rows[path] = n
+            n += 1
+    masks: dict[int, np.ndarray] = {}
+    for members in groups.values():
+        mask = np.zeros(max(k for _, k in members) + 1, dtype=bool)
+        for path, k in members:
+            rows[path] = n
+            mask[k] = True
+        masks[n] = mask
+        n += 1
+    return rows, masks
 
 
 def setup_derivatives(cfg, system, paths: list[str]) -> SetupDerivatives:
     """Derivatives of the System arrays of ``cfg`` by every config field of ``paths`` (complex step).
+
+    Memory and time are linear in the beads and the variables: a list's items share a few rows
+    of the complex step (:data:`COLOURS`), and every derivative is stored by its nonzero entries.
 
     Parameters
     ----------
@@ -362,18 +488,51 @@ def setup_derivatives(cfg, system, paths: list[str]) -> SetupDerivatives:
         A path that is no continuous field of this config (naming it and the fields known), or a
         set-up this module cannot reproduce.
     """
-    read = _Reader(paths)
+    rows, masks = _plan(cfg, paths)
+    read = _Reader(rows)
     arrays = _arrays(cfg, read)
     values = {k: v[0].real.copy() for k, v in arrays.items()}
     _check_against(values, system)
-    out = {}
-    for i, path in enumerate(paths):
+    for path in paths:
         if not read.known(path):
             kind = "an integer (a discrete choice: no derivative)" if path.endswith((".n", "truncate", ".bead")) else \
                 "not a continuous parameter of this config's model"
             raise ConfigError(path, f"is {kind}; {_supported(path)}")
-        out[path] = {k: np.where(np.isfinite(v[i].real), v[i].imag / STEP, 0.0) for k, v in arrays.items()}
+    out: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {p: {} for p in paths}
+    by_row: dict[int, list[str]] = {}
+    for path, i in rows.items():
+        by_row.setdefault(i, []).append(path)
+    for name, arr in arrays.items():
+        finite = np.isfinite(arr.real)
+        d = np.where(finite, arr.imag, 0.0) / STEP
+        for i, members in by_row.items():
+            nz = np.flatnonzero(d[i])
+            if i not in masks:
+                if nz.size:
+                    out[members[0]][name] = (nz, d[i, nz])
+                continue
+            _split(out, members, masks[i], nz, d[i, nz], name)
     return SetupDerivatives(values, out)
+
+
+def _split(out: dict, members: list[str], mask: np.ndarray, nz: np.ndarray, val: np.ndarray, name: str) -> None:
+    """Entries of a shared row to their items: entry e belongs to the item of the row's colour in
+    e - 2 .. e + 2 (:data:`COLOURS`)."""
+    head = members[0].partition("[")[0]
+    colour = int(members[0].partition("[")[2][:-1]) % COLOURS
+    owner = nz - 2 + (colour - (nz - 2)) % COLOURS
+    ok = (owner >= 0) & (owner < mask.size)
+    ok[ok] = mask[owner[ok]]
+    if not np.all(ok):  # an influence that is not local: a set-up this module does not know
+        raise ConfigError("config", f"gradients cannot tell apart the items of {head} in System.{name} (an item "
+                          "moves entries far from its bead); the config uses a set-up the sensitivity engine does "
+                          "not differentiate yet")
+    order = np.argsort(owner, kind="stable")
+    owner, nz, val = owner[order], nz[order], val[order]
+    cuts = np.flatnonzero(np.diff(owner)) + 1
+    for o, idx, v in zip(np.split(owner, cuts), np.split(nz, cuts), np.split(val, cuts)):
+        if o.size:
+            out[f"{head}[{int(o[0])}]"][name] = (idx, v)
 
 
 def _check_against(values: dict[str, np.ndarray], system) -> None:

@@ -33,23 +33,37 @@ from .kernels import DELTA_MIN, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 from .partials import contact_partials, elastoplastic_adjoint
 from .tape import _fused, replay_group
 
+#: Seeds on the state rather than on a force: a seed's contact number STATE_U + i (STATE_V + i)
+#: is the position (velocity) of slot i after the step (``differentiate.Seeds``).
+STATE_U = 1 << 30
+STATE_V = 2 << 30
+
 
 @njit(cache=True, nogil=True, inline="always")
-def _take_seeds(s, p, fb, seed_step, seed_contact, seed_w):
-    """Add the seeds of step ``s`` (those just below pointer ``p``) into ``fb``; returns the new pointer."""
+def _take_seeds(s, p, fb, ub, vb, seed_step, seed_contact, seed_w):
+    """Add the seeds of step ``s`` (those just below pointer ``p``) into ``fb`` (a force's) or into
+    the adjoints ``ub``, ``vb`` of the state after the step (a position's or a velocity's);
+    returns the new pointer."""
     q = p
     while q > 0 and seed_step[q - 1] == s:
         q -= 1
-        fb[seed_contact[q]] += seed_w[q]
+        c = seed_contact[q]
+        if c >= STATE_V:
+            vb[c - STATE_V] += seed_w[q]
+        elif c >= STATE_U:
+            ub[c - STATE_U] += seed_w[q]
+        else:
+            fb[c] += seed_w[q]
     return q
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _clear_seeds(p, q, fb, seed_contact):
-    """Zero the entries of ``fb`` that the seeds q..p-1 wrote."""
+    """Zero the entries of ``fb`` that the force seeds q..p-1 wrote."""
     while p > q:
         p -= 1
-        fb[seed_contact[p]] = 0.0
+        if seed_contact[p] < STATE_U:
+            fb[seed_contact[p]] = 0.0
 
 
 @njit(cache=True, nogil=True)
@@ -77,7 +91,7 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
     for sl in range(nsteps - 1, -1, -1):
         h = hstore[sl]
         hh = 0.5 * h
-        q = _take_seeds(step0 + sl, p, fb, seed_step, seed_contact, seed_w)
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
         for j in range(m):
             f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
                                                                    vpstore[sl, j + 1], kappa[j], damping[j], d0[j],
@@ -132,7 +146,7 @@ def _steps_dissipative(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, f
     for sl in range(nsteps - 1, -1, -1):
         h = hstore[sl]
         hh = 0.5 * h
-        q = _take_seeds(step0 + sl, p, fb, seed_step, seed_contact, seed_w)
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
         for j in range(m):
             d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
             dd = d if d > DELTA_MIN else 0.0
@@ -194,7 +208,7 @@ def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, f
     for sl in range(nsteps - 1, -1, -1):
         h = hstore[sl]
         hh = 0.5 * h
-        q = _take_seeds(step0 + sl, p, fb, seed_step, seed_contact, seed_w)
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
         for j in range(m):
             fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
             d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
@@ -252,7 +266,7 @@ def _steps_static(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mas
     for sl in range(nsteps - 1, -1, -1):
         h = hstore[sl]
         hh = 0.5 * h
-        q = _take_seeds(step0 + sl, p, fb, seed_step, seed_contact, seed_w)
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
         for j in range(m):
             d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
             d = d if d > DELTA_MIN else 0.0
@@ -288,7 +302,7 @@ def _steps_plain(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mass
     for sl in range(nsteps - 1, -1, -1):
         h = hstore[sl]
         hh = 0.5 * h
-        q = _take_seeds(step0 + sl, p, fb, seed_step, seed_contact, seed_w)
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
         for j in range(m):
             d = ustore[sl, j] - ustore[sl, j + 1]
             d = d if d > DELTA_MIN else 0.0
@@ -318,10 +332,7 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
     ``sb`` holds the adjoints of the state they leave, and the stiffness's flows into kappa's."""
     n = ab.shape[0]
     fb = np.zeros(n)
-    p = ptr
-    while p > 0 and seed_step[p - 1] == -1:
-        p -= 1
-        fb[seed_contact[p]] += seed_w[p]
+    p = _take_seeds(-1, ptr, fb, ub, vb, seed_step, seed_contact, seed_w)
     fs = np.zeros(n + 1)
     wb = np.zeros(n + 1)
     rb = np.zeros(n + 1)
@@ -375,13 +386,15 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
 
 @njit(cache=True, nogil=True)
 def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
-                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield):
+                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb):
     """The whole reverse sweep: every group replayed and differentiated, last group first, then
     the initial state. On entry ``ub, vb, ab`` hold the seeds on the final state (usually zero);
     on exit the adjoints of (u_0, v_0, a_0), and ``grad`` the parameter gradients (rows as in
     :func:`_steps_general`; row 10: the yield overlaps of the elastic-plastic law). ``max_rows``:
     most steps in one group. With the elastic-plastic law the checkpoints hold its state too
-    (rows 3-5), and the adjoints of its state (``sb``) cross from group to group."""
+    (rows 3-5), and the adjoints of its state (``sb``, (2, P): residual overlap and unloading
+    stiffness; on entry those of the final state, for a result that reads it, as the plastic work)
+    cross from group to group."""
     n = ab.shape[0]
     u = np.zeros(n + 1)
     v = np.zeros(n + 1)
@@ -395,7 +408,6 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     vpstore = np.zeros((max_rows if general else 1, n))
     hstore = np.zeros(max_rows)
     pstore = np.zeros((3, max_rows if plastic else 1, n if plastic else 1))
-    sb = np.zeros((2, n))
     fb = np.zeros(n)
     fs = np.zeros(n + 1)
     wb = np.zeros(n + 1)

@@ -47,6 +47,11 @@ _BODY_ATTRS = {
     "peak_body_acceleration": ("m s-2", "largest acceleration of the protected body"),
     "peak_body_energy": ("J", "most energy delivered to the protected body"),
 }
+#: Per-member attributes of runs under gravity (NaN for members without it): result.dynamic_peak.
+_GRAVITY_ATTRS = {
+    "static_wall_force": ("N", "force the wall carries at rest (the weights)"),
+    "peak_wall_force_dynamic": ("N", "peak wall force minus the static force"),
+}
 
 
 @dataclass
@@ -167,6 +172,8 @@ def _stack(parts: Sequence[_Part], time, n_time: int, member, ready: dict[str, n
     member_attrs = dict(_MEMBER_ATTRS)
     if any("peak_body_force" in p.attrs for p in parts):
         member_attrs.update(_BODY_ATTRS)
+    if any("peak_wall_force_dynamic" in p.attrs for p in parts):
+        member_attrs.update(_GRAVITY_ATTRS)
     for key, (units, long_name) in member_attrs.items():
         vals = np.array([p.attrs.get(key, np.nan) for p in parts], dtype=float)
         if key.startswith("peak_wall"):

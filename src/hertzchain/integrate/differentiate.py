@@ -27,11 +27,13 @@ from ..model import System
 from . import adjoint as _adjoint
 from . import kernels
 from . import tangent as _tangent
-from .layout import Packed, pack
-from .tape import tape_forward
+from .adjoint import STATE_U, STATE_V
+from .layout import PAD, Packed, pack
+from .tape import replay_group, tape_forward
 from .verlet import StepPlan, initialise, refine_peak, step_plan
 
-__all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHECKPOINT_BYTES"]
+__all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHECKPOINT_BYTES", "state_seed", "replay", "state_after", "replay_groups",
+           "STATE_U", "STATE_V", "engine_bytes"]
 
 #: System arrays the engines differentiate, in the order of the kernels' gradient rows (v0 last):
 #: then a protected body's mount, its spring ``mount_k`` [N/m], dashpot ``mount_c`` [N s/m] and
@@ -45,6 +47,9 @@ _ROWS = 11  # gradient rows of the kernels: the eight per-slot arrays, the linea
 CHECKPOINT_BYTES = 256 * 2**20
 #: Most memory [bytes] the steps of one replayed group may take.
 GROUP_BYTES = 64 * 2**20
+#: Most memory [bytes] the reverse sweep's stored steps of one group may take (checked before the
+#: run by :mod:`hertzchain.gradients.memory` with :func:`engine_bytes`).
+GROUP_LIMIT = 4 * GROUP_BYTES
 #: Steps between two checkpoints (at most, at the smallest step the run can take): the replayed
 #: states of a group then stay in the caches, and the checkpoints are few (writing one per block,
 #: a few steps, made the taped run twice as slow as the engine's: memory traffic).
@@ -54,31 +59,41 @@ GROUP_STEPS = 256
 @dataclass(frozen=True)
 class Seeds:
     """Partials dJ/dF^(s)_j of a scalar result J: ``weight[i]`` on the force of contact
-    ``contact[i]`` at step ``step[i]`` (-1: t = 0), sorted by step."""
+    ``contact[i]`` at step ``step[i]`` (-1: t = 0), sorted by step. A contact number
+    :data:`STATE_U` + i (:data:`STATE_V` + i) seeds the position (velocity) of slot i after the
+    step instead (:func:`state_seed`): a result that reads the state, as a body's speed."""
 
     step: np.ndarray
     contact: np.ndarray
     weight: np.ndarray
 
     @staticmethod
-    def build(items: list[tuple[int, int, float]]) -> "Seeds":
+    def build(items: list[tuple[int, int, float]], arrays=None) -> "Seeds":
         """Seeds from (step, contact, weight) triples (any order; zero weights dropped).
 
         Parameters
         ----------
         items : list of (int, int, float)
             Step (-1 for t = 0), contact number and weight [result unit per N].
+        arrays : (array, array, array), optional
+            More seeds as three arrays (steps, contacts, weights).
 
         Returns
         -------
         Seeds
             Sorted by step.
         """
-        items = sorted((int(s), int(c), float(w)) for s, c, w in items if w != 0.0)
-        if not items:
-            return Seeds(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
-        s, c, w = zip(*items)
-        return Seeds(np.array(s, np.int64), np.array(c, np.int64), np.array(w, float))
+        items = [(int(s), int(c), float(w)) for s, c, w in items if w != 0.0]
+        step = np.array([i[0] for i in items], np.int64)
+        contact = np.array([i[1] for i in items], np.int64)
+        weight = np.array([i[2] for i in items], float)
+        if arrays is not None:  # many seeds (one per step of a run) come as arrays
+            keep = np.asarray(arrays[2]) != 0.0
+            step = np.concatenate([step, np.asarray(arrays[0], np.int64)[keep]])
+            contact = np.concatenate([contact, np.asarray(arrays[1], np.int64)[keep]])
+            weight = np.concatenate([weight, np.asarray(arrays[2], float)[keep]])
+        order = np.lexsort((contact, step))
+        return Seeds(step[order], contact[order], weight[order])
 
 
 @dataclass
@@ -183,6 +198,60 @@ def check_law(system: System, tangent: bool = False) -> None:
                           "'elastic', 'viscoelastic', 'viscoelastic_scaled', 'dashpot' and 'elastoplastic'")
 
 
+def _checkpoints(system: System, plan: StepPlan, n_samples: int, sample_interval: float,
+                 n_slots: int) -> tuple[int, int, int, int]:
+    """(blocks, rows per checkpoint, blocks per checkpoint, most steps of a block) of a taped run."""
+    n_blocks = (n_samples - 1) * plan.n_sub
+    rows = 6 if system.law == kernels.LAW_ELASTOPLASTIC else 3  # u, v, a (and dmax, dres, kres)
+    per_ckpt = rows * n_slots * 8
+    ns_max = plan.stride if plan.stride > 0 else math.ceil(sample_interval / plan.n_sub / plan.dt - 1e-9)
+    group = max(1, GROUP_STEPS // max(ns_max, 1), math.ceil(n_blocks * per_ckpt / CHECKPOINT_BYTES))
+    return n_blocks, rows, group, ns_max
+
+
+def engine_bytes(system: System, duration: float, sample_interval: float, dt: float | None = None,
+                 steps_per_radian: float | None = None, recorded: int = 1, directions: int = 0) -> dict[str, int]:
+    """Memory [bytes] the derivative engines will take for a run, before anything is allocated.
+
+    Parameters
+    ----------
+    system : System
+        The model's arrays.
+    duration, sample_interval : float
+        Run length and sample spacing [s].
+    dt, steps_per_radian : float, optional
+        As for :func:`record`.
+    recorded : int
+        Contacts recorded at every sample.
+    directions : int
+        Tangent directions (0: the adjoint: a taped run and one reverse sweep).
+
+    Returns
+    -------
+    dict
+        ``{"tape": ..., "sweep": ..., "group": ...}`` (the adjoint: checkpoints, step log, records;
+        the reverse sweep; of it, the steps of one replayed group, which :func:`gradient` bounds by
+        4 GROUP_BYTES; and the most steps the run can take, a count) or ``{"tape": ..., "tangent": ...}``
+        (the taped run, the D tangents and their records); every part linear in the bodies, the
+        samples and the directions.
+    """
+    plan = step_plan(system, sample_interval, dt, steps_per_radian)
+    n_samples = _samples(duration, sample_interval)
+    p = -(-(system.n_moving + 1) // PAD) * PAD  # the padded slots (layout.pack): moving bodies, ghost
+    records = n_samples * (recorded + 4) * 8  # forces, times, step ends, scratch
+    state = 24 * p * 8  # the packed System, the state, forces, trackers
+    per_dir = (_ROWS + 1 + 7) * (p + 1) * 8 + n_samples * recorded * 8  # th, v0t, the tangents, their records
+    n_blocks, rows, group, ns_max = _checkpoints(system, plan, n_samples, sample_interval, p)
+    tape = records + state + max(1, -(-n_blocks // group)) * rows * p * 8 + max(n_blocks, 1) * 8
+    if directions:  # sensitivity() tapes the run, then runs the tangents (trace_sensitivity only the latter)
+        return {"tape": tape, "tangent": records + state + directions * per_dir, "steps": max(n_blocks, 1) * ns_max}
+    per_step = 5 if system.law == kernels.LAW_ELASTOPLASTIC else 2 if system.general else 1
+    group_rows = group * ns_max + 1
+    sweep = group_rows * (p + 1) * 8 * (per_step + 1) + (_ROWS + 16) * p * 8
+    return {"tape": tape, "sweep": sweep, "group": group_rows * (p + 1) * 8 * per_step,
+            "steps": max(n_blocks, 1) * ns_max}
+
+
 def record(system: System, duration: float, sample_interval: float, dt: float | None = None,
            steps_per_radian: float | None = None, contacts=None) -> Tape:
     """Run ``system`` as :func:`hertzchain.integrate.verlet.run_verlet` does, keeping the tape.
@@ -224,11 +293,7 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     scratch = np.empty(n_samples)
     initialise(system, w, u, v, g, a, rec, out_f, scratch, scratch, scratch, np.empty((1, 1)), False, fmax, peak, acc,
                np.empty(n_samples), w.ext, np.empty((1, 4)))
-    n_blocks = (n_samples - 1) * plan.n_sub
-    rows = 6 if system.law == kernels.LAW_ELASTOPLASTIC else 3  # u, v, a (and dmax, dres, kres)
-    per_ckpt = rows * w.n_slots * 8
-    ns_max = plan.stride if plan.stride > 0 else math.ceil(sample_interval / plan.n_sub / plan.dt - 1e-9)
-    group = max(1, GROUP_STEPS // max(ns_max, 1), math.ceil(n_blocks * per_ckpt / CHECKPOINT_BYTES))
+    n_blocks, rows, group, _ = _checkpoints(system, plan, n_samples, sample_interval, w.n_slots)
     ckpt = np.empty((max(1, -(-n_blocks // group)), rows, w.n_slots))
     ns_log = np.zeros(max(n_blocks, 1), dtype=np.int64)
     step_end = np.zeros(n_samples, dtype=np.int64)
@@ -247,11 +312,139 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
                 ckpt=ckpt, group=group, u0=u0, v0=v0)
 
 
+def state_seed(slot: int, velocity: bool = False) -> int:
+    """The contact number of a seed on the position (or velocity) of ``slot`` (body) after a step.
+
+    Parameters
+    ----------
+    slot : int
+        The body (0: striker, N + 1: a protected body).
+    velocity : bool
+        The velocity instead of the position.
+
+    Returns
+    -------
+    int
+        The number to give :meth:`Seeds.build`.
+    """
+    return (STATE_V if velocity else STATE_U) + int(slot)
+
+
 def _check_seeds(tape: Tape, seeds: Seeds) -> None:
     if seeds.step.size and (seeds.step[0] < -1 or seeds.step[-1] >= tape.n_steps):
         raise ValueError(f"seeds address steps {seeds.step[0]}..{seeds.step[-1]}; the run has 0..{tape.n_steps - 1}")
-    if seeds.contact.size and (seeds.contact.min() < 0 or seeds.contact.max() >= tape.system.n_contacts):
-        raise ValueError("seeds address a contact the system does not have")
+    n = tape.packed.n_slots
+    c = seeds.contact % STATE_U  # the slot of a state seed, the contact of a force's
+    if c.size and (seeds.contact.min() < 0 or seeds.contact.max() >= STATE_V + n or c.max() >= n):
+        raise ValueError("seeds address a contact or body the system does not have")
+
+
+def state_after(tape: Tape, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The state (positions [m], velocities [m/s], accelerations [m/s^2] of every slot) at sample
+    ``k``, as the engine had it (run again from the last checkpoint before it).
+
+    Parameters
+    ----------
+    tape : Tape
+        From :func:`record`.
+    k : int
+        Sample number (> 0).
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        u, v, a.
+    """
+    end = k * tape.plan.n_sub  # blocks up to sample k
+    g0 = (end - 1) // tape.group
+    u, v, a = _replay(tape, g0 * tape.group, end, None)
+    return u, v, a
+
+
+def _replay(tape: Tape, b0: int, b1: int, stores) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Blocks b0 .. b1 - 1 run again from the checkpoint of b0 (a multiple of the group), storing the
+    steps into ``stores`` (``tape.replay_group``; None: into scratch of one step); the state after."""
+    w, sy = tape.packed, tape.system
+    n = w.n_slots
+    if stores is None:
+        steps = int(tape.ns_log[b0:b1].max()) * (b1 - b0) if b1 > b0 else 1
+        plastic = sy.law == kernels.LAW_ELASTOPLASTIC
+        stores = (np.zeros((steps, n)), np.zeros((steps if sy.general else 1, n)), np.zeros(steps),
+                  np.zeros((3, steps if plastic else 1, n if plastic else 1)))
+    block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub
+    u, v, a, g = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n), np.zeros(n + 1)
+    dmax, dres, kres = np.zeros(n), np.zeros(n), w.kappa.copy()
+    replay_group(tape.ckpt[b0 // tape.group], u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
+                 w.fext, sy.law, sy.general, w.wall_slot, tape.ns_log, b0, b1, block, stores, w.dyield, dmax, dres,
+                 kres, w.ext, w.ext.shape[0] > 0)
+    return u, v, a
+
+
+def replay_groups(tape: Tape, last_step: int):
+    """The run again from its start, group of checkpoints by group, up to the group holding step
+    ``last_step``: yields (global number of the group's first step, positions after each step
+    (steps, slots) [m], the velocities the forces of each step see (steps, slots) [m/s], each
+    step's length [s]); memory of one group at a time.
+
+    Parameters
+    ----------
+    tape : Tape
+        From :func:`record` (a general model: dissipation, offsets, a protected body, plasticity,
+        whose replays store the velocities).
+    last_step : int
+        The last step needed.
+
+    Yields
+    ------
+    tuple
+        As above.
+    """
+    sy = tape.system
+    n = tape.packed.n_slots
+    n_blocks = (tape.time.size - 1) * tape.plan.n_sub
+    plastic = sy.law == kernels.LAW_ELASTOPLASTIC
+    first = 0
+    for b0 in range(0, n_blocks, tape.group):
+        b1 = min(b0 + tape.group, n_blocks)
+        steps = int(tape.ns_log[b0:b1].sum())
+        stores = (np.zeros((steps, n)), np.zeros((steps, n)), np.zeros(steps),
+                  np.zeros((3, steps if plastic else 1, n if plastic else 1)))
+        _replay(tape, b0, b1, stores)
+        yield first, stores[0], stores[1], stores[2]
+        first += steps
+        if first > last_step:
+            return
+
+
+def replay(tape: Tape, first_group: int, last_group: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """The positions after every step of groups ``first_group`` .. ``last_group`` (of checkpoints),
+    run again from the first's checkpoint with the taped step counts.
+
+    Parameters
+    ----------
+    tape : Tape
+        From :func:`record`.
+    first_group, last_group : int
+        Groups (inclusive), clipped to the run's.
+
+    Returns
+    -------
+    (int, numpy.ndarray, numpy.ndarray)
+        The global number of the first step, the positions after each step (steps, slots) [m]
+        and each step's length [s].
+    """
+    sy = tape.system
+    n = tape.packed.n_slots
+    n_blocks = (tape.time.size - 1) * tape.plan.n_sub
+    g0 = max(0, first_group)
+    b0, b1 = g0 * tape.group, min((last_group + 1) * tape.group, n_blocks)
+    first = int(tape.ns_log[:b0].sum())
+    steps = int(tape.ns_log[b0:b1].sum())
+    plastic = sy.law == kernels.LAW_ELASTOPLASTIC
+    stores = (np.zeros((steps, n)), np.zeros((steps if sy.general else 1, n)), np.zeros(steps),
+              np.zeros((3, steps if plastic else 1, n if plastic else 1)))
+    _replay(tape, b0, b1, stores)
+    return first, stores[0], stores[2]
 
 
 def _unpack(system: System, grad: np.ndarray, v0bar: np.ndarray) -> dict[str, np.ndarray]:
@@ -283,7 +476,7 @@ def _unpack(system: System, grad: np.ndarray, v0bar: np.ndarray) -> dict[str, np
     return out
 
 
-def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
+def gradient(tape: Tape, seeds: Seeds, final_dres: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """dJ/d(System arrays) of the scalar result J whose partials are ``seeds`` (one reverse sweep).
 
     Parameters
@@ -292,6 +485,9 @@ def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
         From :func:`record`.
     seeds : Seeds
         dJ/dF of the forces J reads.
+    final_dres : numpy.ndarray, optional
+        dJ/d(residual overlap of every contact at the end of the run) [per m], for a result that
+        reads the elastic-plastic law's final state (the plastic work).
 
     Returns
     -------
@@ -310,18 +506,22 @@ def gradient(tape: Tape, seeds: Seeds) -> dict[str, np.ndarray]:
     group_steps = np.add.reduceat(tape.ns_log, np.arange(0, max(n_blocks, 1), tape.group)) if n_blocks else np.ones(1)
     max_rows = int(max(1, group_steps.max()))
     per_step = 5 if sy.law == kernels.LAW_ELASTOPLASTIC else 2 if sy.general else 1  # arrays of P stored per step
-    if max_rows * (n + 1) * 8 * per_step > GROUP_BYTES * 4:
+    if max_rows * (n + 1) * 8 * per_step > GROUP_LIMIT:
         raise ConfigError("run.dt", f"a group of {max_rows} steps between two checkpoints needs more memory than the "
                           "reverse sweep allows; use a larger run.dt or a shorter run.duration")
     block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub if tape.time.size > 1 else 0.0
+    sb = np.zeros((2, n))  # adjoints of the elastic-plastic state (residual overlap, stiffness) at the end
+    if final_dres is not None:
+        sb[0, :final_dres.size] = final_dres
     if n_blocks:
         _adjoint.reverse_sweep(tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab,
                                w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general,
-                               w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield)
+                               w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield,
+                               sb)
     else:
         _adjoint._adjoint_initial(tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
                                   w.rsum, w.fext, sy.law, sy.general, seeds.step, seeds.contact, seeds.weight,
-                                  seeds.step.size, grad, w.ext, w.dyield, np.zeros((2, n)))
+                                  seeds.step.size, grad, w.ext, w.dyield, sb)
     return _unpack(sy, grad, vb)
 
 

@@ -457,9 +457,10 @@ def layout_key(model: Model) -> tuple[int, bool, str] | None:
         ``(N, has_wall, law name)``; None for what the array set-up does not compute: the
         size-scaled viscoelastic law (its damping depends on each contact's masses) and the models
         beyond the paper's (``Model.plain`` is False: a given striker mass or face, cylinders,
-        mass-in-mass beads, a protected body, gravity), which are set up member by member.
+        mass-in-mass beads, a protected body, gravity) and a chain of zero beads, which are set up
+        member by member.
     """
-    if model.law.name not in _LAW_FIELD or not model.plain:
+    if model.law.name not in _LAW_FIELD or not model.plain or not model.chain.n_beads:
         return None
     return model.chain.n_beads, model.wall.present, model.law.name
 

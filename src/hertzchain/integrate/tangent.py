@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from . import kernels
+from .adjoint import STATE_U, STATE_V
 from .extension import EXT_CLIN, EXT_KLIN
 from .partials import contact_partials
 from .tape import _open_block
@@ -207,6 +208,25 @@ def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fe
         vt[o + i] += hh * at[o + i]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _seeded(step, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj):
+    """dj[dd] += seed_w x the tangent the seeds of ``step`` read: a force's, or the position's or
+    velocity's after the step (contact numbers from ``adjoint.STATE_U`` / ``STATE_V`` on); returns
+    the pointer past them."""
+    while p < seed_step.shape[0] and seed_step[p] == step:
+        c = seed_contact[p]
+        for dd in range(nd):
+            o = dd * (n + 1)
+            if c >= STATE_V:
+                dj[dd] += seed_w[p] * vt[o + c - STATE_V]
+            elif c >= STATE_U:
+                dj[dd] += seed_w[p] * ut[o + c - STATE_U]
+            else:
+                dj[dd] += seed_w[p] * ft[o + c + 1]
+        p += 1
+    return p
+
+
 def _tangent_loop(general: bool, aligned: bool):
     """The tangent run, compiled on its own for the aligned elastic steps, the aligned dissipative
     ones and the general ones (one function holding them all made LLVM's code for the elastic
@@ -254,7 +274,6 @@ def _tangent_loop(general: bool, aligned: bool):
             for i in range(n):
                 thf[dd * (n + 1) + i] = th[6, dd, i]
                 thm[dd * (n + 1) + i] = th[7, dd, i]
-        ns_seed = seed_step.shape[0]
         p = 0
         # t = 0: a_0 from F(u_0, v_0) (the aligned elastic law reads no velocity)
         for j in range(n - 1):
@@ -285,10 +304,7 @@ def _tangent_loop(general: bool, aligned: bool):
                 at[o + i] = inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i]) + thm[o + i] * (g[i] - g[i + 1] + fext[i])
             for r in range(rec.shape[0]):
                 out_ft[dd, 0, r] = ft[o + rec[r] + 1]
-        while p < ns_seed and seed_step[p] == -1:
-            for dd in range(nd):
-                dj[dd] += seed_w[p] * ft[dd * (n + 1) + seed_contact[p] + 1]
-            p += 1
+        p = _seeded(-1, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)
         step = 0
         for k in range(1, n_samples):
             for b in range(n_sub):
@@ -316,10 +332,7 @@ def _tangent_loop(general: bool, aligned: bool):
                         _parameter_forces(gp, gw, gk, th, pf, general, aligned)
                     for dd in range(nd):
                         _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fext, dt)
-                    while p < ns_seed and seed_step[p] == step + s:
-                        for dd in range(nd):
-                            dj[dd] += seed_w[p] * ft[dd * (n + 1) + seed_contact[p] + 1]
-                        p += 1
+                    p = _seeded(step + s, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)
                 step += ns
             for r in range(rec.shape[0]):
                 out_f[k, r] = g[rec[r] + 1]

@@ -15,7 +15,8 @@
 - a signal of a hertzchain result (``.nc``), the instrument model's ``measured_*`` included.
 
 The separator and the decimal mark are worked out here; the numbers are then parsed by
-:func:`pandas.read_csv` and the units (``ms``, ``us``, ``mV``, ``kN`` ...) by :mod:`pint`.
+:func:`pandas.read_csv` and the units (``ms``, ``us``, ``mV``, ``kN`` ...) by the strict grammar of
+:mod:`hertzchain.lab.units`.
 Volts become newtons through the sensor's sensitivity [mV/N] (the paper's sensors are
 presets, :data:`SENSOR_PRESETS`). A record whose time axis cannot hold a force pulse of a bead
 chain (sample spacing or record length off by about 1e3, the mark of a wrong time unit) is
@@ -24,7 +25,6 @@ refused with a message that says which unit would fit.
 
 from __future__ import annotations
 
-import functools
 import io
 import math
 import os
@@ -36,6 +36,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..instrument import PCB_200B02_MV_PER_N, PCB_208A11_MV_PER_N
 from .formats import _Table, read_isf, read_trc
+from .units import KINDS as UNIT_KINDS, UnitError, parse_unit
 
 __all__ = ["read_trace", "SENSOR_PRESETS", "PLAUSIBLE_SAMPLE_INTERVAL", "PLAUSIBLE_RECORD_LENGTH"]
 
@@ -55,32 +56,22 @@ _NETCDF = (".nc", ".nc4", ".netcdf", ".cdf", ".h5")
 _INF = {"∞": math.inf, "+∞": math.inf, "-∞": -math.inf, "inf": math.inf, "-inf": -math.inf}
 
 
-@functools.lru_cache(maxsize=1)
-def _ureg():
-    import pint
-
-    return pint.UnitRegistry()
-
-
 def _unit_factor(unit: str, where: str) -> tuple[float, str]:
-    """SI factor of ``unit`` and its kind: ``"time"`` (to s), ``"force"`` (to N), ``"voltage"`` (to V)."""
-    import pint
-
+    """SI factor of ``unit`` and its kind: ``"time"`` (to s), ``"force"`` (to N), ``"voltage"`` (to V),
+    by the strict grammar of :mod:`hertzchain.lab.units` (never evaluated: the string is data)."""
     text = unit.strip().strip("()[]").strip()
-    text = {"sec": "s", "secs": "s", "S": "s", "Volts": "V", "Volt": "V", "u": "", "": ""}.get(text, text)
+    text = {"u": "", "": ""}.get(text, text)  # PicoScope's "(u)": no unit
     if not text:
         raise ConfigError(where, f"empty unit {unit!r}")
-    ureg = _ureg()
     try:
-        q = ureg.Quantity(1.0, text.replace("μ", "u").replace("µ", "u"))
-    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError, TypeError,
-            AttributeError, AssertionError):
-        raise ConfigError(where, f"unknown unit {unit!r}; use a time unit (s, ms, us, ns), a force "
-                          "unit (N, mN, kN) or a voltage (V, mV)") from None
-    for kind, si in (("time", "s"), ("force", "N"), ("voltage", "V")):
-        if q.check(ureg(si).dimensionality):
-            return float(q.to(si).magnitude), kind
-    raise ConfigError(where, f"unit {unit!r} is neither a time, a force nor a voltage")
+        factor, dims = parse_unit(text)
+    except UnitError as exc:
+        raise ConfigError(where, f"unknown unit {unit!r}, not one a scope writes ({exc}); use a time unit (s, ms, us, "
+                          "ns), a force unit (N, mN, kN) or a voltage (V, mV)") from None
+    kind = UNIT_KINDS.get(dims)
+    if kind is None:
+        raise ConfigError(where, f"unit {unit!r} is neither a time, a force nor a voltage")
+    return factor, kind
 
 
 # ------------------------------------------------------------------------------------------

@@ -44,8 +44,10 @@ PLASTIC_METRICS = {"plastic_work": ("plastic_work_total", "J", "plastic work don
                    "residual_overlap_max": ("residual_overlap_max", "m", "largest residual (permanent) overlap")}
 #: A protected body's peaks (wall.type = "body"), per member, with their units.
 _BODY_COLUMNS = {"peak_body_force": "N", "peak_body_acceleration": "m/s^2", "peak_body_energy": "J"}
+#: Runs under gravity: the peak wall force minus the static (weight) force, per member.
+_GRAVITY_COLUMNS = {"peak_wall_force_dynamic": "N"}
 #: Units of every column metrics.csv may have (the optional ones after fit_error when present).
-COLUMN_UNITS = {**TABLE_COLUMNS, **_BODY_COLUMNS, **{c: u for c, (_, u, _) in PLASTIC_METRICS.items()}}
+COLUMN_UNITS = {**TABLE_COLUMNS, **_BODY_COLUMNS, **_GRAVITY_COLUMNS, **{c: u for c, (_, u, _) in PLASTIC_METRICS.items()}}
 _CHUNK_NAME = "chunk_{:05d}.nc"
 #: The full records of the members named by ``sweep.traces`` (store = "metrics"), one file per chunk.
 _TRACES_NAME = "traces_{:05d}.nc"
@@ -211,7 +213,7 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
     cols = list(TABLE_COLUMNS)
     # columns only some sweeps have (NaN for the members without them, left out where no member
     # has them): a protected body's peaks (wall.type = "body"), the elastoplastic metrics
-    optional = {c: c for c in _BODY_COLUMNS} | {c: var for c, (var, *_) in PLASTIC_METRICS.items()}
+    optional = {c: c for c in (*_BODY_COLUMNS, *_GRAVITY_COLUMNS)} | {c: var for c, (var, *_) in PLASTIC_METRICS.items()}
     parts: dict[str, list] = {"member": [], "chunk": [], **{c: [] for c in [*cols, *optional]}}
     for index in range(len(cfg.chunks())):
         with h5py.File(chunks_dir / _CHUNK_NAME.format(index), "r") as f:  # h5py: see _file_holds

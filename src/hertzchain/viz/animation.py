@@ -101,6 +101,9 @@ def chain_frames(ds: xr.Dataset, n_frames: int = 100, *, window: Sequence[float]
             or run.sizes.get("contact", 0) != run.sizes.get("contact_all", -1)):
         raise ConfigError("RESULT", "an animation needs every contact force: run with [probes] contacts = \"all\" "
                           "(the default)")
+    if run.sizes.get("bead", 0) == 0:
+        raise ConfigError("RESULT", "an animation draws the chain, and this run has none (chain.uniform.n = 0, the "
+                          "striker onto the wall): plot its wall force instead (hertzchain plot)")
     t = run.time.values
     sel = np.flatnonzero(time_window(window, t))
     index = sel[np.round(np.linspace(0, sel.size - 1, min(n_frames, sel.size))).astype(int)]

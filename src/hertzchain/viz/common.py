@@ -159,6 +159,8 @@ def bead_centres(ds: xr.Dataset) -> np.ndarray:
     sqrt((R_n + R_{n+1})^2 - (e_{n+1} - e_n)^2) (equal to R_n + R_{n+1} for aligned beads).
     """
     phi = ds.diameter.values
+    if not phi.size:  # no beads
+        return np.zeros(0)
     e = ds.offset.values if "offset" in ds else np.zeros_like(phi)
     dx = np.sqrt(np.maximum((0.5 * (phi[:-1] + phi[1:])) ** 2 - np.diff(e) ** 2, 0.0))
     return 0.5 * phi[0] + np.concatenate([[0.0], np.cumsum(dx)])
@@ -172,6 +174,8 @@ def contact_positions(ds: xr.Dataset) -> np.ndarray:
     beads 1..j for an aligned chain); contact N (bead N-wall) is the wall.
     """
     phi = ds.diameter.values
+    if not phi.size:  # no beads: contact 0 is the striker on the wall, at 0
+        return np.zeros(min(1, ds.sizes.get("contact_all", 1)))
     c = bead_centres(ds)
     between = c[:-1] + np.diff(c) * phi[:-1] / (phi[:-1] + phi[1:])
     x = np.concatenate([[0.0], between, [c[-1] + 0.5 * phi[-1]]])
