@@ -71,3 +71,16 @@ def test_the_engine_starts_at_rest_in_the_equilibrium():
     # a 1 um/s striker changes the forces by < 1e-4 N; the static forces are ~2-3 N
     assert np.max(np.abs(f[:, 1:] - eq.forces[1:])) < 1e-3
     assert np.max(np.abs(f[0, :] - eq.forces)) < 1e-12 * eq.forces.max()
+
+
+def test_driven_chains_static_state():
+    """Without a striker, a force drive has no contact 0; a displacement drive's massless driver
+    presses bead 1 with the precompression (contact 0 carries F0, like the others)."""
+    chain = hc.Chain.uniform(3, 10e-3)
+    eq = hc.equilibrium(hc.Model(chain, precompression=4.0, gravity=9.81, drive=hc.Drive(amplitude=0.1)))
+    assert eq.forces[0] == 0.0
+    np.testing.assert_allclose(eq.forces[1:], 4.0 + 9.81 * np.cumsum(chain.masses), rtol=1e-14)
+    shaker = hc.Model(chain, precompression=4.0, drive=hc.Drive(quantity="displacement", amplitude=1e-8))
+    eq = hc.equilibrium(shaker)
+    np.testing.assert_allclose(eq.forces, 4.0, rtol=1e-15)
+    assert eq.residual < 1e-12 * 4.0
