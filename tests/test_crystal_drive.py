@@ -112,13 +112,12 @@ def test_dimer_driven_in_its_gap_transmits_above_a_threshold():
     f = 1.15 * low
     assert f < high
     settings = SpectrumSettings(settle_cycles=100, measure_cycles=20)
-    out = {}
-    for amplitude in (0.01, 2.0, 8.0, 10.0, 12.0):
-        model = hc.Model(chain, law=hc.Dashpot(5.0), precompression=1.0,
-                         drive=hc.Drive(amplitude=amplitude, frequency=f, ramp_cycles=20))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", hc.ElasticLimitWarning)
-            out[amplitude] = transmission_run(model, f, settings)[0]
+    model = hc.Model(chain, law=hc.Dashpot(5.0), precompression=1.0,
+                     drive=hc.Drive(amplitude=1.0, frequency=f, ramp_cycles=20))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", hc.ElasticLimitWarning)
+        sweep = hc.transmission_against_amplitude(model, f, [0.01, 2.0, 8.0, 10.0, 12.0], settings)
+    out = dict(zip(sweep.amplitude.values.tolist(), sweep.transmission.values))
     linear = hc.linear_transmission(model, [f])[0]
     assert linear < 1e-3
     assert out[0.01] == pytest.approx(linear, rel=1e-2)

@@ -53,7 +53,8 @@ _EXPORTS = {
     # granular crystals: statics, modes, band structure, drives, transmission
     "equilibrium": "crystal.statics", "Equilibrium": "crystal.statics", "modes": "crystal.modes",
     "Modes": "crystal.modes", "dispersion": "crystal.dispersion", "Drive": "crystal.drive",
-    "transmission_spectrum": "crystal.spectrum", "linear_transmission": "crystal.modes",
+    "transmission_spectrum": "crystal.spectrum",
+    "transmission_against_amplitude": "crystal.spectrum", "linear_transmission": "crystal.modes",
     # pictures of results and sweeps
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
     "animate": "viz.animation", "plot_metrics": "viz.metrics", "plot_ensemble": "viz.ensemble",

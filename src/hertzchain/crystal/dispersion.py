@@ -10,7 +10,7 @@ Internal masses of mass-in-mass beads are degrees of freedom of their own (a spr
 shell). Branches are sorted by frequency at each q; a gap lies between the highest frequency of a
 branch and the lowest of the next one, when the second is above the first.
 
-Closed forms (the tests): a monatomic chain has f = (1/pi) sqrt(K/m) |sin(q/2)|, cut-off
+Closed forms (the tests): a monatomic chain has f = (1/pi) sqrt(K/m) abs(sin(q/2)), cut-off
 2 sqrt(K/m) (angular); a diatomic chain (masses m_h > m_l, the same contact both ways) has its
 gap between sqrt(2K/m_h) and sqrt(2K/m_l) (angular, at q = pi).
 """

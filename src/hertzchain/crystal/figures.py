@@ -41,7 +41,7 @@ def plot_dispersion(ds):
 
 
 def plot_transmission(ds, gaps=None):
-    """Transmission |F_out| / |F_in| against frequency (log scale), band gaps shaded when given."""
+    """Transmission abs(F_out) / abs(F_in) against frequency (log scale), band gaps shaded when given."""
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.5, 4), constrained_layout=True)

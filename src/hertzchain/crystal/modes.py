@@ -172,7 +172,7 @@ def linear_transmission(model, frequencies, quantity: str | None = None) -> np.n
     Returns
     -------
     numpy.ndarray
-        |F_out| / |F_in| at each frequency: the last contact's (the wall's, else contact N - 1)
+        abs(F_out) / abs(F_in) at each frequency: the last contact's (the wall's, else contact N - 1)
         force amplitude over the drive's force amplitude on bead 1.
     """
     lin = linear_matrices(model)

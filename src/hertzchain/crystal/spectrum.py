@@ -6,7 +6,7 @@ over which the output force and the drive's force are projected onto the drive f
 (:func:`lock_in`: a least-squares fit of c + a cos(2 pi f t) + b sin(2 pi f t) over whole periods,
 which is the Fourier coefficient at f, free of the mean and of the harmonics). The transmission is
 
-    T(f) = |F_out(f)| / |F_in(f)|,
+    T(f) = abs(F_out(f)) / abs(F_in(f)),
 
 F_out the last contact's force (the wall's; contact N - 1 with a free end), F_in the drive's
 force on bead 1 (its amplitude A for a force drive, contact 0's force for a displacement drive):
@@ -32,14 +32,14 @@ import xarray as xr
 from ..errors import ConfigError
 
 __all__ = ["lock_in", "steady_transmission", "transmission_run", "transmission_spectrum", "SpectrumSettings",
-           "read_rows"]
+           "read_rows", "transmission_against_amplitude"]
 
 CSV_HEADER = "frequency_Hz,transmission,output_amplitude_N,input_amplitude_N"
 
 
 def lock_in(time: np.ndarray, signal: np.ndarray, frequency: float, cycles: float) -> complex:
     """Complex amplitude [units of ``signal``] at ``frequency`` [Hz] over the last whole ``cycles``
-    periods of the record: a + i b of the least-squares fit c + a cos(w t) + b sin(w t) (|.| is the
+    periods of the record: a + i b of the least-squares fit c + a cos(w t) + b sin(w t) (its modulus is the
     amplitude)."""
     n = int(math.floor(cycles + 1e-9))
     if n < 1:
@@ -57,7 +57,7 @@ def lock_in(time: np.ndarray, signal: np.ndarray, frequency: float, cycles: floa
 
 
 def steady_transmission(ds: xr.Dataset, frequency: float, measure_cycles: float) -> tuple[float, float, float]:
-    """(T, |F_out| [N], |F_in| [N]) of a driven run ``ds`` over its last ``measure_cycles`` periods."""
+    """(T, abs(F_out) [N], abs(F_in) [N]) of a driven run ``ds`` over its last ``measure_cycles`` periods."""
     t = ds.time.values
     out = ds.wall_force.values if "wall_force" in ds else ds.contact_force.isel(contact=-1).values
     f_out = abs(lock_in(t, out, frequency, measure_cycles))
@@ -96,7 +96,7 @@ def _frequency_model(model, frequency: float, amplitude: float | None = None):
 def transmission_run(model, frequency: float, settings: SpectrumSettings = SpectrumSettings(),
                      amplitude: float | None = None) -> tuple[float, float, float]:
     """Drive ``model`` at ``frequency`` [Hz] (and ``amplitude``, N or m, when given) to its steady
-    state; returns (T, |F_out| [N], |F_in| [N])."""
+    state; returns (T, abs(F_out) [N], abs(F_in) [N])."""
     from ..probes import Probes
     from ..simulation import simulate
 
@@ -216,6 +216,50 @@ def transmission_spectrum(model, frequencies, out: str | Path | None = None,
     ds.attrs.update(title="hertzchain transmission spectrum", model=json.dumps(model.describe()),
                     settings=json.dumps(dataclasses.asdict(settings)))
     return ds
+
+
+def transmission_against_amplitude(model, frequency: float, amplitudes,
+                                   settings: SpectrumSettings = SpectrumSettings(),
+                                   progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
+    """Steady-state transmission at one ``frequency`` [Hz] against the drive's amplitude (the
+    nonlinear regime: a gap that stops a small drive transmits above a threshold amplitude).
+
+    Parameters
+    ----------
+    model : hertzchain.Model
+        The chain with a harmonic ``drive`` (its amplitude is replaced by each of ``amplitudes``).
+    frequency : float
+        Drive frequency [Hz].
+    amplitudes : array_like
+        Drive amplitudes [N] (force) or [m] (displacement), > 0.
+    settings : SpectrumSettings
+        Cycles, samples and step.
+    progress : callable, optional
+        ``progress(done, total)`` after each amplitude.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``transmission`` [-], ``output_amplitude`` and ``input_amplitude`` [N] over ``amplitude``.
+    """
+    amps = np.asarray(amplitudes, dtype=float)
+    if amps.ndim != 1 or amps.size == 0 or not np.all(np.isfinite(amps) & (amps > 0)):
+        raise ConfigError("drive.amplitude", "the amplitudes must be positive finite numbers (N or m)")
+    if model.drive is None:
+        raise ConfigError("drive", "a transmission needs a [drive] (type = 'harmonic')")
+    preflight(model, np.array([float(frequency)]), settings)
+    rows = []
+    for k, a in enumerate(amps):
+        rows.append(transmission_run(model, float(frequency), settings, amplitude=float(a)))
+        if progress is not None:
+            progress(k + 1, amps.size)
+    data = np.array(rows)
+    unit = "N" if model.drive.quantity == "force" else "m"
+    return xr.Dataset({"transmission": ("amplitude", data[:, 0], {"units": "1", "long_name": "force transmission"}),
+                       "output_amplitude": ("amplitude", data[:, 1], {"units": "N"}),
+                       "input_amplitude": ("amplitude", data[:, 2], {"units": "N"})},
+                      coords={"amplitude": ("amplitude", amps, {"units": unit, "long_name": "drive amplitude"})},
+                      attrs={"frequency": float(frequency)})
 
 
 def preflight(model, freqs: np.ndarray, settings: SpectrumSettings) -> float:
