@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from ..checks import check_before_run
 from ..errors import ConfigError, SimulationDiverged
 from ..integrate.layout import pack
 from ..integrate.verlet import RawRun, check_time_step
@@ -129,6 +130,8 @@ def simulate_driven(model, system, duration: float, probes, *, integrator: str =
     n_samples = int(math.floor(duration / interval + 1e-9)) + 1
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     _preflight(drive, duration, interval, step, rec.size, n_samples, dt is not None)
+    # the engine's own checks: the static overlaps within Hertz's range, memory and run time
+    check_before_run(model, system, duration, probes, dt=step, integrator="verlet")
 
     w = pack(system)
     u, v = w.u, w.v
