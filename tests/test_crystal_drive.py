@@ -123,3 +123,25 @@ def test_dimer_driven_in_its_gap_transmits_above_a_threshold():
     assert out[0.01] == pytest.approx(linear, rel=1e-2)
     assert out[2.0] == pytest.approx(linear, rel=5e-2)
     assert min(out[8.0], out[10.0], out[12.0]) > 5 * linear
+
+
+def test_history_drive_from_a_csv(tmp_path):
+    """A force history (rise and hold) is interpolated linearly between its rows, held after them;
+    the energy balance holds; a bad file is refused naming drive.file."""
+    path = tmp_path / "push.csv"
+    path.write_text("time_s,value\n0,0\n2e-4,0.3\n5e-4,0.1\n1e-3,0.2\n")
+    drive = hc.Drive("history", file=str(path))
+    model = hc.Model(CHAIN, law=hc.Dashpot(10.0), precompression=2.0, drive=drive)
+    ds = hc.simulate(model, 1.5e-3, hc.Probes(1e-6), steps_per_radian=400)
+    t = ds.time.values
+    np.testing.assert_allclose(ds.drive_force.values, np.interp(t, [0, 2e-4, 5e-4, 1e-3], [0, 0.3, 0.1, 0.2]),
+                               rtol=0, atol=1e-12)
+    energy = (ds.kinetic_energy + ds.potential_energy).values
+    balance = ds.drive_work.values - (energy - energy[0]) - ds.dissipated_energy.values
+    assert np.max(np.abs(balance)) < 1e-6 * np.max(np.abs(ds.drive_work.values))
+    assert hc.Drive("history", file=str(path)).auto_duration == 1e-3
+    for text in ("time_s,value\n0,0\n1e-4,1\n1e-4,2\n", "time_s,value\n0,1\n1e-4,1\n", "t,v\n0,0\n1,1\n",
+                 "time_s,value\n0,0\n1e-4,x\n"):
+        path.write_text(text)
+        with pytest.raises(hc.ConfigError, match="drive.file"):
+            hc.Drive("history", file=str(path))

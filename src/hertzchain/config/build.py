@@ -248,7 +248,7 @@ def build_model(cfg: RunConfig, chain=None):
     if cfg.drive is not None:
         from ..crystal.drive import Drive
 
-        drive = Drive(**cfg.drive.model_dump())
+        drive = Drive(**{k: v for k, v in cfg.drive.model_dump().items() if v is not None})
     with _as_written("chain.offsets", _offsets_key(cfg)):
         return Model(chain, striker, wall, law, precompression=cfg.chain.precompression, gravity=chain_gravity(cfg.chain),
                      loads=loads, drive=drive)

@@ -31,8 +31,15 @@ __all__ = ["drive_value", "driven_run"]
 
 
 @njit(cache=True, nogil=True)
-def drive_value(t, p):
-    """(s(t), s'(t)) of the drive with scalars ``p`` = (A, f0, rate, T_sweep, T_ramp) (drive.py)."""
+def drive_value(t, p, tt, vv):
+    """(s(t), s'(t)) of the drive with scalars ``p`` = (A, f0, rate, T_sweep, T_ramp, history) and,
+    for a history (p[5] = 1), its rows (``tt`` [s], ``vv``) interpolated linearly (drive.py)."""
+    if p[5] > 0.0:
+        if t >= tt[-1]:
+            return vv[-1], 0.0
+        i = np.searchsorted(tt, t, side="right") - 1
+        slope = (vv[i + 1] - vv[i]) / (tt[i + 1] - tt[i])
+        return vv[i] + slope * (t - tt[i]), slope
     amp, f0, rate, tsw, tr = p[0], p[1], p[2], p[3], p[4]
     if t <= tsw:
         phase = 2.0 * np.pi * (f0 * t + 0.5 * rate * t * t)
@@ -96,7 +103,7 @@ def _record(k, u, v, a, g, mass, kappa, d0, de, dx0, rsum, fext, ext, extended, 
 
 @njit(cache=True, nogil=True)
 def driven_run(u, v, a, wa, vp, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres,
-               law, ext, extended, p, displacement, dt, stride, k_start, k_stop, rec, out_f, out_e, fmax, acc,
+               law, ext, extended, p, tt, vv, displacement, dt, stride, k_start, k_stop, rec, out_f, out_e, fmax, acc,
                body_slot, out_b):
     """Samples ``k_start``..``k_stop - 1`` of a driven run, ``stride`` steps of ``dt`` [s] apart.
 
@@ -121,7 +128,7 @@ def driven_run(u, v, a, wa, vp, g, mass, inv_mass, kappa, damping, d0, de, dx0, 
                     ext[i, EXT_W] += dt * ext[i, EXT_WV]
             acc[4] += 1.0
             t = acc[4] * dt  # from the step count: a sum of steps would drift the drive's phase
-            x, xd = drive_value(t, p)
+            x, xd = drive_value(t, p, tt, vv)
             for i in range(n):
                 vp[i] = v[i] + half * a[i]
             if displacement:
@@ -148,7 +155,7 @@ def driven_run(u, v, a, wa, vp, g, mass, inv_mass, kappa, damping, d0, de, dx0, 
                 acc[6] = pb
         if not np.isfinite(u[1]) or not np.isfinite(v[1]):
             return 1
-        x, xd = drive_value(acc[4] * dt, p)
+        x, xd = drive_value(acc[4] * dt, p, tt, vv)
         _record(k, u, v, a, g, mass, kappa, d0, de, dx0, rsum, fext, ext, extended, rec, out_f, out_e, fmax, acc,
                 g[1] if displacement else x, x if displacement else u[1], body_slot, out_b)
     return 0

@@ -18,7 +18,7 @@ from ..checks import check_before_run
 from ..errors import ConfigError, SimulationDiverged
 from ..integrate.layout import pack
 from ..integrate.verlet import RawRun, check_time_step
-from .drive import drive_parameters
+from .drive import drive_parameters, drive_table
 from .drive_kernel import driven_run
 
 __all__ = ["simulate_driven", "drive_step", "DEFAULT_STEPS_PER_RADIAN", "MIN_SAMPLES_PER_PERIOD",
@@ -42,9 +42,10 @@ MAX_RECORD_BYTES = 4 * 2**30
 def drive_force_amplitude(system, drive) -> float:
     """Force amplitude [N] the drive applies to bead 1: A (force), or the Hertz force of contact 0
     compressed by A beyond its static overlap (displacement), kappa_0 (delta_0 + A)^(3/2)."""
+    amplitude = float(np.max(np.abs(drive.table[1]))) if drive.type == "history" else drive.amplitude
     if drive.quantity == "force":
-        return drive.amplitude
-    return float(system.kappa[0] * (system.d0[0] + drive.amplitude) ** 1.5)
+        return amplitude
+    return float(system.kappa[0] * (system.d0[0] + amplitude) ** 1.5)
 
 
 def drive_step(system, drive, steps_per_radian: float | None = None) -> float:
@@ -83,7 +84,7 @@ def _preflight(drive, duration: float, sample_interval: float, dt: float, n_rec:
         raise ConfigError("drive.frequency", f"{f:.4g} Hz is beyond what run.dt = {dt:.3g} s resolves (at least "
                           f"{MIN_STEPS_PER_PERIOD} steps per period): lower it below {1.0 / (MIN_STEPS_PER_PERIOD * dt):.4g} "
                           "Hz or shorten run.dt (or leave run.dt out for the automatic step)")
-    if 1.0 / (f * sample_interval) < MIN_SAMPLES_PER_PERIOD:
+    if drive.type != "history" and 1.0 / (f * sample_interval) < MIN_SAMPLES_PER_PERIOD:
         raise ConfigError("run.sample_interval", f"{sample_interval:.3g} s does not resolve the drive's {f:.4g} Hz "
                           f"(at least {MIN_SAMPLES_PER_PERIOD} samples per period): make it at most "
                           f"{1.0 / (MIN_SAMPLES_PER_PERIOD * f):.3g} s (or lower drive.frequency)")
@@ -144,6 +145,7 @@ def simulate_driven(model, system, duration: float, probes, *, integrator: str =
     fmax = np.full(system.n_contacts, -np.inf)
     acc = np.zeros(7)
     params = drive_parameters(drive)
+    tt, vv = drive_table(drive)
     displacement = drive.quantity == "displacement"
     body_slot = w.body_slot
     # t = 0: the static state (the drive starts at s(0) = 0 with the ramp)
@@ -163,7 +165,7 @@ def simulate_driven(model, system, duration: float, probes, *, integrator: str =
         k_stop = min(n_samples, k + chunk)
         status = driven_run(u, v, a, wa, vp, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
                             w.fext, w.dyield, w.dmax, w.dres, w.kres, system.law, w.ext, system.extended, params,
-                            displacement, step, stride, k, k_stop, rec, out_f, out_e, fmax, acc, body_slot, out_b)
+                            tt, vv, displacement, step, stride, k, k_stop, rec, out_f, out_e, fmax, acc, body_slot, out_b)
         if status != 0:
             raise SimulationDiverged(f"the driven integration diverged (non-finite state) before t = "
                                      f"{k_stop * interval:.4g} s with the step {step:.3g} s; lower drive.amplitude "
