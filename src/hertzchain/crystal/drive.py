@@ -76,6 +76,9 @@ class Drive:
     file : str, optional
         A history's CSV file (``type = "history"``): columns ``time_s`` and ``value`` (N or m),
         times increasing from 0, first value 0 (the run starts from the static state).
+    table : tuple of numpy.ndarray, optional
+        The history's rows (times [s], values [N or m]), read from ``file`` by the constructor;
+        not given by the caller.
     """
 
     type: Literal["harmonic", "chirp"] = "harmonic"
