@@ -89,6 +89,36 @@ def test_report_blocks_hold_the_table():
     assert len(table[2]) == len(s["claims"]) and table[1][-1] == "verdict"
 
 
+def test_only_the_papers_claims_are_counted_and_the_projects_own_are_apart():
+    """The striker's bounce is the project's own check (the paper says nothing of it): labelled as
+    such, in its own table, and never in the count of the paper's claims reproduced."""
+    from hertzchain.paper.claims import claims_count
+
+    s = _summary("dashpot_scaled")
+    laws = s["fidelity"]["laws"]
+    laws["dashpot_scaled"] = _law(f_ratio=0.55)
+    for law in laws.values():
+        law["striker_restitution"], law["chain1"]["eps_measured"] = 0.96, 0.985
+    claims = build_claims(s)
+    own = [c for c in claims if c["origin"] == "project"]
+    assert [c["claim"] for c in own] == ["The steel striker bounces off the first bead like a steel ball",
+                                         "One dissipation gives both the chain's eps and a steel-like striker bounce"]
+    assert all(c["verdict"] == "reproduced" and "project's own check" in c["source"] for c in own)
+    paper = [c for c in claims if c["origin"] == "paper"]
+    count = claims_count(claims)
+    assert count["paper"] == len(paper) == len(claims) - 2 and count["project"] == 2
+    assert count["reproduced"] == sum(c["verdict"] == "reproduced" for c in paper)  # the two passing checks left out
+    assert count["reproduced"] + count["partly"] + count["not reproduced"] == count["paper"]
+    s["claims"] = claims
+    blocks = report_blocks(s, {})
+    tables = [b for b in blocks if b[0] == "table"]
+    assert tables[0][1][0] == "claim (paper)" and len(tables[0][2]) == count["paper"]
+    assert tables[1][1][0] == "check (project's own)" and len(tables[1][2]) == 2
+    said = next(b[1] for b in blocks if b[0] == "p" and b[1].startswith("Of the paper's"))
+    assert said == (f"Of the paper's {count['paper']} claims, this run's own variant reproduces {count['reproduced']}, "
+                    f"partly {count['partly']}, and not {count['not reproduced']}.")
+
+
 def test_striker_bounce_and_one_dissipation_for_both_scales():
     """The striker's restitution is judged against steel balls (>= 0.95); the combined row only
     counts it for a variant whose chain measures the paper's eps back."""
@@ -126,3 +156,36 @@ def test_report_states_the_dissipation_model_and_the_strikers_bounce():
     text = _dissipation_sentence(s, {"law": "dashpot_scaled", "eps_target": 0.985, "striker_velocity": 0.2})
     assert "dashpot following each contact pair" in text and "0.958 at 0.2 m/s" in text and "0.985" in text
     assert "none" in _dissipation_sentence(s, {"law": "elastic"})
+
+
+def test_comparison_counts_only_the_papers_measurements():
+    """q, sigma_q (Table I's diameters, an input), eps (the calibration target), Q^th (eq. 8), F_Y and
+    delta_Y (Sec. II's formula) match by construction: listed apart, never counted as agreements.
+    Counted: Q1, Q2 against the paper's error bars, the wall/chain ratios (within 5 %) and the
+    elastic-limit statement."""
+    from hertzchain.paper.notes import agreement_count, comparison_rows
+    from hertzchain.paper.report import _blocks
+    from hertzchain.paper.values import PAPER
+
+    summary = {c: {k: PAPER[c][k] for k in ("q", "q_std", "Q_theory")} for c in ("chain1", "chain2")}
+    summary["chain1"].update(Q_fit=1.018, Q_fit_err=0.001)   # inside 1.025 +- 0.016
+    summary["chain2"].update(Q_fit=1.20, Q_fit_err=0.002)    # outside 1.049 +- 0.044
+    summary.update(eps=0.9842, eps_err=1e-4, wall_to_chain_force_ratio=1.94, wall_to_chain_duration_ratio=1.25,
+                   yield_force=474.0, yield_overlap=11.2e-6, max_force_over_yield=0.34)
+    desc = {"eps_target": 0.985, "law": "dashpot_scaled"}
+    rows = comparison_rows(summary, desc)
+    kinds = {r.quantity.split(" (")[0]: r.kind for r in rows}
+    assert [q for q, k in kinds.items() if k == "measured"] == [
+        "chain 1: Q1", "chain 2: Q2", "wall/chain peak-force ratio F_m^wall / F_m^chain",
+        "wall/chain duration ratio tau_wall / tau_chain", "largest contact force / its yield force"]
+    assert {q for q, k in kinds.items() if k == "derived"} == {
+        "chain 1: Q1^th", "chain 2: Q2^th", "yield force F_Y of two 26 mm beads", "yield overlap delta_Y of two 26 mm beads"}
+    assert sum(k == "input" for k in kinds.values()) == 5  # q and sigma_q of both chains, eps measured back
+    # Q1 inside, Q2 outside, force ratio within 5 %, duration ratio off by 15 %, elastic: 3 of 5
+    assert agreement_count(rows) == (3, 5)
+    assert not any("agrees" in r.verdict for r in rows if r.kind != "measured")  # inputs "match", never "agree"
+    blocks = _blocks(summary, {}, desc)
+    i = blocks.index(("h2", "Simulated against the paper's measurements"))
+    assert blocks[i + 1][1].startswith("3 of the 5 measurements and statements of the paper compared here agree")
+    assert len(blocks[i + 2][2]) == 5 and len(blocks[i + 5][2]) == 9  # counted table, then inputs + derived apart
+    assert {row[1] for row in blocks[i + 5][2]} == {"input", "derived"}

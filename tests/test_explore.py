@@ -222,6 +222,8 @@ def test_bad_values_are_refused_naming_the_config_field():
         compute_view(ExplorerSettings(chain="diameters", diameters_mm="26, x"))
     with pytest.raises(ConfigError, match="striker.velocity"):
         compute_view(ExplorerSettings(striker_velocity=-1.0))
+    with pytest.raises(ConfigError, match="striker.velocity: the box is empty: type a number in m/s"):
+        compute_view(ExplorerSettings(striker_velocity=None))  # an emptied number box
 
 
 def test_explore_is_a_displayable_app_in_jupyter():

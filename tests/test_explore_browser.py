@@ -2,7 +2,8 @@
 subprocess, Debian's headless Chromium (Selenium) types into a control as a user would, and the
 plotted wall peak must become the one :func:`hertzchain.simulate` gives for the new settings;
 with a protected body chosen and its mass and mount typed in, the plotted body force is the one
-:func:`hertzchain.simulate` gives for that model.
+:func:`hertzchain.simulate` gives for that model; a typed per-bead profile is plotted as simulate
+gives it, and a refused value is named on the page while the plot stays.
 
 Needs ``/usr/bin/chromium`` and ``/usr/bin/chromedriver`` (``.ci/run`` installs them): skipped
 elsewhere with the reason, never skipped under CI.
@@ -17,8 +18,8 @@ from urllib.parse import urlparse
 import numpy as np
 import pytest
 
-from browser import (BODY, JS_HOSTS, JS_INPUT, JS_MAX, JS_TEXT, browser_missing, chromium, free_port, set_input,
-                     show_body, start_explorer, stop, wait_for)
+from browser import (BODY, JS_HOSTS, JS_INPUT, JS_MAX, JS_TEXT, browser_missing, choose, chromium, free_port,
+                     set_input, show_body, start_explorer, stop, wait_for)
 
 _missing = browser_missing()
 if _missing and os.environ.get("CI"):
@@ -84,6 +85,44 @@ def test_protected_body_plots_the_body_force_simulate_gives(page):
     assert float(quoted[:-2]) == pytest.approx(ds.attrs["peak_body_force"], rel=1e-3)
     # the force on the body's face (wall_force) is drawn beside it, and it is simulate's too
     assert wait_for(page, JS_MAX, "wall_source", "force") == pytest.approx(float(ds.wall_force.max()), rel=1e-12)
+
+
+def test_per_bead_profile_replots_and_a_refused_value_is_named_and_not_plotted(page):
+    """Type a per-bead profile: the plot becomes simulate's for that chain (the box used to fail on
+    the server, outside Bokeh's document lock, and leave the page stale). Then a diameter of 0 and a
+    velocity of -1: each is named in red above the plots and the plot stays; a box still holding a
+    refused value keeps the view from changing until it is corrected."""
+    velocity = float(wait_for(page, JS_INPUT, "striker velocity [m/s]").get_attribute("value"))
+    choose(page, "wall", "flat wall (the paper's sensor cap)")
+    choose(page, "chain", "per-bead diameters")
+    wait_for(page, JS_TEXT, "hc-readout", until=lambda v: v and v.startswith("13 beads") and "body" not in v)
+    profile = "26, 26, 26, 26, 26, 26, 24, 22, 20, 18"
+    set_input(page, "per-bead diameters [mm]", profile)
+    wait_for(page, JS_TEXT, "hc-readout", until=lambda v: v and v.startswith("10 beads"))
+    plotted = wait_for(page, JS_MAX, "wall_source", "force")
+    expected = _simulated_peak(chain="diameters", diameters_mm=profile, striker_velocity=velocity)
+    assert plotted == pytest.approx(expected, rel=1e-12)
+    assert plotted != pytest.approx(_simulated_peak(striker_velocity=velocity), rel=1e-3)  # not chain 1's
+
+    def refused(label, text, field):
+        set_input(page, label, text)
+        message = wait_for(page, JS_TEXT, "hc-message", until=lambda v: v and field in v)
+        assert message.startswith("Not applied") and "last valid settings" in message
+        assert page.execute_script(JS_MAX, "wall_source", "force") == plotted  # not re-plotted
+        assert page.execute_script(JS_TEXT, "hc-readout").startswith("10 beads")
+        return message
+
+    assert "bead 2" in refused("per-bead diameters [mm]", "26, 0, 24", "chain.diameters_mm")
+    set_input(page, "per-bead diameters [mm]", profile)  # corrected: the same profile, plotted again
+    wait_for(page, JS_TEXT, "hc-message", until=lambda v: not v)
+    assert "-1" in refused("striker velocity [m/s]", "-1", "striker.velocity")
+    # another box changed while the velocity box holds -1: still refused, still the same plot
+    refused("per-bead diameters [mm]", "26, 26, 26, 26, 26, 26, 26, 24, 22, 20", "striker.velocity")
+    set_input(page, "striker velocity [m/s]", "0.3")
+    wait_for(page, JS_TEXT, "hc-message", until=lambda v: not v)
+    new = wait_for(page, JS_MAX, "wall_source", "force", until=lambda v: v is not None and v != plotted)
+    assert new == pytest.approx(_simulated_peak(chain="diameters", diameters_mm="26, 26, 26, 26, 26, 26, 26, 24, 22, 20",
+                                                striker_velocity=0.3), rel=1e-12)
 
 
 def test_page_loads_nothing_from_another_host_and_logs_no_error(page):

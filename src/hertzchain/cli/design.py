@@ -99,7 +99,10 @@ def _import_search() -> None:
 
 def _improvement(info: dict, ref: str) -> str:
     imp = info["comparison"]["improvement_percent"][ref]
+    breaks = info["comparison"][ref]["breaks"]
+    # a reference that breaks the design's constraints is no alternative the search could have chosen
+    said = f" (which breaks the constraints: {'; '.join(breaks)})" if breaks else ""
     if all(v is None for v in imp.values()):
-        return "n/a (its pulse does not reach the wall within the run)"
+        return "n/a" + (said or " (its pulse does not reach the wall within the run)")
     # (reference - best) / reference: positive when the design transmits less than the reference.
-    return ", ".join("n/a" if v is None else f"{v:.1f} %" for v in imp.values())
+    return ", ".join("n/a" if v is None else f"{v:.1f} %" for v in imp.values()) + said

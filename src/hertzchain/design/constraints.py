@@ -20,7 +20,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 __all__ = ["Constraints", "has_geometric_constraints", "geometry", "geometric_violation", "geometric_margin",
-           "run_violation"]
+           "run_violation", "broken_geometry", "broken_run"]
 
 
 class Constraints(BaseModel):
@@ -111,6 +111,33 @@ def broken_geometry(c: Constraints, geo: dict[str, Any]) -> list[str]:
                                     ("max_beads", "n_beads", c.max_beads, True)):
         if _excess(geo[key], limit, upper) > 0:
             out.append(f"design.constraints.{name} = {limit:g} (it has {geo[key]:.4g})")
+    return out
+
+
+def broken_run(c: Constraints, metrics: dict[str, Any]) -> list[str]:
+    """The run constraints a run breaks, each as ``design.constraints.KEY = limit (value)``.
+
+    Parameters
+    ----------
+    c : Constraints
+        The design's constraints.
+    metrics : dict
+        A candidate's metrics: ``force_over_yield``, ``pulse_at_wall`` and with the elastoplastic
+        law ``plastic_work_worst`` [J] and ``residual_overlap_max_worst`` [m] (worst over the scenarios).
+
+    Returns
+    -------
+    list of str
+        One entry per broken constraint.
+    """
+    out = []
+    for name, key, limit in (("max_force_over_yield", "force_over_yield", c.max_force_over_yield),
+                             ("max_plastic_work", "plastic_work_worst", c.max_plastic_work),
+                             ("max_residual_overlap", "residual_overlap_max_worst", c.max_residual_overlap)):
+        if _excess(metrics.get(key, 0.0), limit, upper=True) > 0:
+            out.append(f"design.constraints.{name} = {limit:g} (it has {metrics[key]:.4g})")
+    if c.pulse_at_wall and not metrics["pulse_at_wall"]:
+        out.append("design.constraints.pulse_at_wall (its pulse does not reach the wall within the run)")
     return out
 
 

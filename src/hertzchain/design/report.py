@@ -25,7 +25,7 @@ import numpy as np
 from .objectives import OBJECTIVES
 from .search import DesignResult
 
-__all__ = ["write_report", "compare_with_references", "objective_label", "REFERENCES"]
+__all__ = ["write_report", "compare_with_references", "objective_label", "objective_signal", "headline_sentence", "REFERENCES"]
 
 
 def _toml_ready(x: Any) -> Any:
@@ -105,9 +105,11 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     -------
     (dict, xarray.Dataset)
         ``{"best" | "base" | "uniform": {name: value [SI] (None when the pulse does not reach
-        the wall within the run), "n_beads", "length_mm", "feasible"}, "improvement_percent":
-        {"base" | "uniform": {name: (reference - best) / reference [%]}}}`` and the nominal
-        batch result (wall forces of the three, members in that order).
+        the wall within the run), "n_beads", "length_mm", "feasible", "breaks"}, "improvement_percent":
+        {"base" | "uniform": {name: (reference - best) / reference [%]}}}`` (``breaks``: the
+        design's constraints that chain breaks, in words, empty when it meets them all; a reference
+        that breaks them is no alternative the search could have chosen) and the nominal batch
+        result (the records of the three, members in that order).
     """
     import warnings
 
@@ -115,7 +117,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     from ..errors import ElasticLimitWarning, PulseNotReachedWarning
     from ..integrate.batch import simulate_batch
     from ..probes import Probes
-    from .constraints import Constraints, geometric_violation, run_violation
+    from .constraints import Constraints, broken_geometry, broken_run, geometric_violation, run_violation
     from .objectives import Evaluator
 
     prob = result.problem
@@ -128,7 +130,9 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
     evs = scorer.evaluate(list(cfgs), list(cfgs.values()))
     runs = [parse_config(c) for c in cfgs.values()]
     models = [build_model(r) for r in runs]
-    probes = Probes(sample_interval=build_probes(runs[0]).sample_interval, contacts=())
+    # every contact's force where an objective reads the largest of them (design.html plots it)
+    contacts = None if {"peak_contact_force", "max_force_over_yield"} & set(prob.objectives) else ()
+    probes = Probes(sample_interval=build_probes(runs[0]).sample_interval, contacts=contacts)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
         # a reference whose pulse misses the wall within the run gets no value (pulse_at_wall below)
@@ -144,8 +148,11 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
                    if f"{k}_worst" in ev.metrics}
         feasible = (ev.feasible and geometric_violation(sec.constraints, ev.metrics) == 0
                     and run_violation(sec.constraints, ev.metrics["force_over_yield"], True, **plastic) == 0)
+        breaks = broken_geometry(sec.constraints, ev.metrics) + broken_run(sec.constraints, ev.metrics)
+        if not feasible and not breaks:  # no objective value to score, or its energy balance failed
+            breaks = ["its run gives no valid objective value"]
         out[name].update(n_beads=ev.metrics["n_beads"], length_mm=ev.metrics["length_mm"], pulse_at_wall=ok,
-                         feasible=bool(feasible))
+                         feasible=bool(feasible), breaks=breaks)
     out["improvement_percent"] = {
         ref: {n: (100.0 * (out[ref][n] - out["best"][n]) / out[ref][n]
                   if out[ref][n] and out["best"][n] is not None else None) for n in prob.objectives}
@@ -228,7 +235,8 @@ def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]
     for ref, style in (("base", "C3--"), ("uniform", "C2:")):
         if comparison[ref][obj] is not None:
             ax.axhline(comparison[ref][obj], color=style[:2], ls=style[2:],
-                       label=f"{ref} ({comparison[ref][obj]:.4g} {unit})")
+                       label=f"{ref} ({comparison[ref][obj]:.4g} {unit})"
+                       + (", breaks the constraints" if comparison[ref]["breaks"] else ""))
     ax.set_xlabel("engine runs")
     ax.set_ylabel(f"{obj} [{unit}]")
     ax.legend(fontsize=8)
@@ -268,20 +276,119 @@ def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]
     figs.append(("Chains to scale", _png(fig)))
     plt.close(fig)
 
-    fig, ax = plt.subplots(figsize=(7, 3.6))
-    t = ds["time"].values * 1e3
-    for i, label in enumerate(labels):
-        ax.plot(t, ds["wall_force"].values[i], lw=1.4 if label == "best" else 1.0, label=label)
-    ax.set_xlabel("time [ms]")
-    ax.set_ylabel("wall force [N]")
-    ax.legend(fontsize=8)
-    figs.append(("Wall pulses", _png(fig)))
-    plt.close(fig)
+    # What each objective reads (the body's force for peak_body_force, not the face's), then the
+    # wall force too when no objective reads it: the pulse the chain delivers to what it ends on.
+    drawn = []
+    for name in names:
+        signal = objective_signal(name, ds)
+        if signal[0] not in [d[0] for d in drawn]:
+            note = " (Q_F integrates its front, to T + tau of the cos^6 fit)" if name == "front_momentum_at_wall" else ""
+            drawn.append((*signal, f"{name}: the {signal[0].split(' [')[0]}{note}"))
+    if not any(d[0] == "force on the wall [N]" for d in drawn):
+        drawn.append((*objective_signal("peak_wall_force", ds), "The force on the wall (or the body's face), for reference"))
+    for ylabel, xlabel, x, y, title in drawn:
+        fig, ax = plt.subplots(figsize=(7, 3.6))
+        marker = "o-" if xlabel.startswith("contact") else "-"
+        for i, label in enumerate(labels):
+            bad = "" if label == "best" or not comparison[label]["breaks"] else " (breaks the constraints)"
+            ax.plot(x, y[i], marker, ms=3, lw=1.4 if label == "best" else 1.0, label=label + bad)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes: clear of the curves
+        figs.append((title, _png(fig)))
+        plt.close(fig)
     return figs
+
+
+def objective_signal(name: str, ds) -> tuple[str, str, np.ndarray, np.ndarray]:
+    """The record an objective is read from, for each chain of the comparison (design.html plots it).
+
+    Parameters
+    ----------
+    name : str
+        An objective of :data:`~hertzchain.design.objectives.OBJECTIVES`.
+    ds : xarray.Dataset
+        The nominal batch of :func:`compare_with_references` (members: best, base, uniform).
+
+    Returns
+    -------
+    (str, str, numpy.ndarray, numpy.ndarray)
+        What is drawn (its label with unit), the x axis label, x [ms, or contact numbers for
+        ``residual_overlap_max``] and y (member, x) in the label's unit, SI: the objective is the
+        largest y of a member (its last for ``plastic_work``; the cos^6 fit's front integral of
+        the wall force for ``front_momentum_at_wall``).
+    """
+    t = ds["time"].values * 1e3
+    n_beads = ds["n_beads"].values.astype(int)
+    if name in ("peak_body_force", "peak_body_acceleration"):
+        var = {"peak_body_force": ("body_force", "N"), "peak_body_acceleration": ("body_acceleration", "m s-2")}[name]
+        return f"|{var[0]}| of the protected body [{var[1]}]", "time [ms]", t, np.abs(ds[var[0]].values)
+    if name == "energy_to_body":
+        return "energy delivered to the protected body [J]", "time [ms]", t, ds["body_energy"].values
+    if name == "energy_at_wall":  # (2/5) F^(5/3) / kappa^(2/3) in the bead N - wall contact (paper eq. 1)
+        kappa = ds["kappa"].values[np.arange(n_beads.size), n_beads]
+        f = np.maximum(ds["wall_force"].values, 0.0)
+        return ("elastic energy in the bead N - wall contact [J]", "time [ms]", t,
+                0.4 * f ** (5.0 / 3.0) / kappa[:, None] ** (2.0 / 3.0))
+    if name in ("peak_contact_force", "max_force_over_yield"):
+        force = ds["contact_force"].values  # (member, time, contact): every contact recorded
+        if name == "peak_contact_force":
+            return "largest force of any contact [N]", "time [ms]", t, np.nanmax(force, axis=2)
+        fy = ds["yield_force"].sel(contact_all=ds["contact"].values).values  # (member, contact)
+        return ("largest F / F_Y of any contact [1]", "time [ms]", t, np.nanmax(force / fy[:, None, :], axis=2))
+    # without the elastoplastic law no work is plastic and no contact keeps a dent (member_metrics: 0)
+    if name == "plastic_work":
+        work = ds["plastic_work"].values if "plastic_work" in ds else np.zeros((n_beads.size, t.size))
+        return "plastic work done in all contacts [J]", "time [ms]", t, np.nan_to_num(work)
+    if name == "residual_overlap_max":
+        x = ds["contact_all"].values
+        dent = ds["residual_overlap"].values if "residual_overlap" in ds else np.zeros((n_beads.size, x.size))
+        return "permanent overlap of each contact [m]", "contact (0 = striker - bead 1)", x, np.nan_to_num(dent)
+    return "force on the wall [N]", "time [ms]", t, ds["wall_force"].values
 
 
 def _num(v: float | None, fmt: str, suffix: str = "") -> str:
     return "pulse not at the wall within the run" if v is None else f"{v:{fmt}}{suffix}"
+
+
+def headline_sentence(info: dict) -> str:
+    """The design's headline: the best objective and how much lower it is than each reference,
+    a reference that breaks the design's constraints said to (it is no alternative the search could
+    have chosen).
+
+    Parameters
+    ----------
+    info : dict
+        :func:`write_report`'s content of design.json.
+
+    Returns
+    -------
+    str
+        E.g. ``"Best peak_body_force: 41.2 N; 12.3 % lower than the base configuration, 30.1 % lower
+        than a uniform chain of 8 beads (which breaks the constraints: design.constraints.max_length_mm
+        = 150 (it has 208))."``
+    """
+    cmp, units = info["comparison"], info["units"]
+    value = info["best"]["objective"]
+    shown = (f"{value:.6g} {units[info['objectives'][0]]}" if not isinstance(value, dict)
+             else ", ".join(f"{k} {v:.6g} {units[k]}" for k, v in value.items()))
+    parts = []
+    refs = (("base", "the base configuration"), ("uniform", f"a uniform chain of {cmp['uniform']['n_beads']} beads"),
+            ("no_chain", "no chain (the striker straight onto the wall or body)"))
+    for ref, words in refs:
+        if ref not in cmp:  # no_chain is left out where it is no Hertz contact
+            continue
+        imp = cmp["improvement_percent"][ref]
+        if all(v is None for v in imp.values()):
+            text = f"no comparison with {words} (its pulse does not reach the wall within the run)"
+        else:
+            text = ", ".join("n/a" if v is None else f"{abs(v):.1f} % {'lower' if v >= 0 else 'higher'}"
+                             for v in imp.values()) + f" than {words}"
+        if cmp[ref]["breaks"]:
+            text += f" (which breaks the constraints: {'; '.join(cmp[ref]['breaks'])})"
+        parts.append(text)
+    infeasible = "" if info["best"]["feasible"] else " No candidate met every constraint: this best is the least infeasible."
+    return f"Best {info['objective_label']}: {shown}; {'; '.join(parts)}.{infeasible}"
 
 
 def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
@@ -291,7 +398,9 @@ def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
     for ref in ("best", *(r for r in REFERENCES if r in cmp)):
         cells = "".join(f"<td>{_num(cmp[ref][n], '.5g')}</td>" for n in names)
         imp = "" if ref == "best" else "; ".join(_num(cmp["improvement_percent"][ref][n], "+.2f", " %") for n in names)
-        ok = "yes" if cmp[ref]["feasible"] else "no"
+        if ref != "best" and cmp[ref]["breaks"]:
+            imp += " (against a chain that breaks the constraints)"
+        ok = "yes" if cmp[ref]["feasible"] else f"<b>no</b>: breaks {html.escape('; '.join(cmp[ref]['breaks']))}"
         rows += (f"<tr><td>{ref}</td><td>{cmp[ref]['n_beads']}</td><td>{cmp[ref]['length_mm']:.1f}</td><td>{ok}</td>"
                  f"{cells}<td>{imp}</td></tr>")
     heads = "".join(f"<th>{n} [{OBJECTIVES[n][0]}]</th>" for n in names)
@@ -301,9 +410,10 @@ def _html(result: DesignResult, info: dict, figs: list[tuple[str, str]]) -> str:
     robust = "" if info["robust"] is None else (f", every chain scored over the same robust scenarios "
                                                 f"({html.escape(info['objective_label'])})")
     feasible = "" if info["best"]["feasible"] else "<p><b>No candidate met every constraint; this is the least infeasible.</b></p>"
+    headline = f"<p id='headline'>{html.escape(headline_sentence(info))}</p>"
     return f"""<!DOCTYPE html><html><head><meta charset="utf-8"><title>hertzchain design</title>
 <style>body{{font-family:sans-serif;max-width:60em;margin:auto}} td,th{{padding:2px 8px;border-bottom:1px solid #ddd}}</style>
-</head><body><h1>hertzchain design: {html.escape(info['objective_label'])}</h1>{feasible}
+</head><body><h1>hertzchain design: {html.escape(info['objective_label'])}</h1>{feasible}{headline}
 <p>{info['n_evaluations']} engine runs in {info['generations']} engine calls, {info['elapsed_s']:.1f} s
 ({info['evaluations_per_s']:.0f} runs/s), seed {info['seed']}. Improvement = (reference - best) / reference{robust}.
 {html.escape(_measured_sentence(info['measured_against']))}</p>

@@ -9,13 +9,13 @@ by the app itself: the page needs no network.
 from __future__ import annotations
 
 import html
+from functools import partial
 
 import numpy as np
 import panel as pn
 from bokeh.models import ColorBar, ColumnDataSource, LinearColorMapper, Range1d
 from bokeh.plotting import figure
 
-from ..config.schema import BOUNDS
 from ..errors import HertzchainError
 from .ballistic import RATIOS_NOTE
 from .compute import ExplorerView, compute_view
@@ -91,7 +91,7 @@ class Explorer(pn.viewable.Viewer):
             "chain": w.Select(label="chain", options=CHAIN_KINDS, value=s.chain),
             "uniform_n": w.IntSlider(label="uniform block: beads (0: no chain)", start=0, end=60, value=s.uniform_n),
             "uniform_diameter_mm": w.FloatInput(label="uniform block: diameter [mm]", value=s.uniform_diameter_mm,
-                                                start=1.0, end=100.0, step=0.5),
+                                                step=0.5),
             "taper_n": w.IntSlider(label="taper: beads n", start=0, end=40, value=s.taper_n),
             "taper_q": w.FloatSlider(label="taper: q", start=0.0, end=0.15, step=0.001, value=s.taper_q,
                                      format="0.000"),
@@ -100,29 +100,28 @@ class Explorer(pn.viewable.Viewer):
             "bead_materials": w.TextInput(label="per-bead materials (empty: all the same)", value=s.bead_materials,
                                           placeholder="e.g. AISI52100 x 28, brass x 2"),
             "gravity": w.FloatInput(label="gravity along the chain [m/s^2] (9.81: a column on the wall)",
-                                    value=s.gravity, start=0.0, end=BOUNDS["gravity"][1], step=0.5),
+                                    value=s.gravity, step=0.5),
             "striker_diameter_mm": w.FloatInput(label="striker diameter [mm]", value=s.striker_diameter_mm,
-                                                start=0.5, end=100.0, step=0.5),
-            "striker_velocity": w.FloatInput(label="striker velocity [m/s]", value=s.striker_velocity,
-                                             start=0.001, end=10.0, step=0.05),
+                                                step=0.5),
+            "striker_velocity": w.FloatInput(label="striker velocity [m/s]", value=s.striker_velocity, step=0.05),
             "striker_material": w.Select(label="striker material", options=mats, value=s.striker_material),
             "striker_mass": w.FloatInput(label="striker mass [kg] (empty: the sphere's)", value=s.striker_mass,
-                                         start=0.0, end=BOUNDS["mass"][1], step=0.01,
-                                         placeholder="the sphere's rho pi phi^3 / 6"),
+                                         step=0.01, placeholder="the sphere's rho pi phi^3 / 6"),
             "striker_shape": w.Select(label="striker face", options=STRIKER_SHAPES, value=s.striker_shape),
             "wall": w.Select(label="wall", options=WALLS, value=s.wall),
             "wall_material": w.Select(label="wall material (the cap, or the body's face)", options=mats,
                                       value=s.wall_material),
-            "body_mass": w.FloatInput(label="protected body: mass [kg]", value=s.body_mass, start=0.0,
-                                      end=BOUNDS["mass"][1], step=0.1),
+            "body_mass": w.FloatInput(label="protected body: mass [kg]", value=s.body_mass, step=0.1),
             "body_stiffness": w.FloatInput(label="protected body: mount stiffness [N/m]", value=s.body_stiffness,
-                                           start=0.0, end=BOUNDS["stiffness"][1], step=1e5),
+                                           step=1e5),
             "body_damping": w.FloatInput(label="protected body: mount damping [N s/m]", value=s.body_damping,
-                                         start=0.0, end=BOUNDS["damping"][1], step=10.0),
+                                         step=10.0),
             "law": w.Select(label="contact law", options=LAWS, value=s.law),
             "eps": w.FloatSlider(label="per-bead factor eps (Sec. III)", start=0.9, end=1.0, step=0.001, value=s.eps,
                                  format="0.000"),
         }
+        # The number boxes carry no bounds: Bokeh's box would clamp a typed -1 to its bound, or keep it
+        # without telling the server; the config schema judges every value and the page names a refusal.
         for key, widget in self.widgets.items():
             # Sliders recompute when released (value_throttled), the rest on every committed change.
             prop = "value_throttled" if isinstance(widget, (w.IntSlider, w.FloatSlider)) else "value"
@@ -130,7 +129,8 @@ class Explorer(pn.viewable.Viewer):
         self.save = w.FileDownload(callback=self._toml_file, filename="explorer.toml", color="primary",
                                    label="save as config (TOML)")
         self.readout = pn.pane.HTML("", sizing_mode="stretch_width")
-        self.message = pn.pane.HTML("", sizing_mode="stretch_width")
+        self.message = pn.pane.HTML("", sizing_mode="stretch_width")  # a refused value, above the plots
+        self._held: dict = {}  # boxes holding a refused value (see _from_boxes)
         self.theory = pn.pane.HTML("", sizing_mode="stretch_width")
         self._build_plots()
         self._update(compute_view(self.settings))
@@ -146,10 +146,9 @@ class Explorer(pn.viewable.Viewer):
             pn.pane.HTML("<b>Wall</b>"), *(self.widgets[k] for k in ("wall", "wall_material", "body_mass",
                                                                     "body_stiffness", "body_damping")),
             pn.pane.HTML("<b>Contact law</b>"), self.widgets["law"], self.widgets["eps"],
-            self.save, self.message, width=330)
-        pictures = pn.Column(self.readout, pn.pane.Bokeh(self.wall_fig), pn.Row(pn.pane.Bokeh(self.map_fig),
-                                                                               pn.pane.Bokeh(self.energy_fig)),
-                             self.theory)
+            self.save, width=330)
+        pictures = pn.Column(self.message, self.readout, pn.pane.Bokeh(self.wall_fig),
+                             pn.Row(pn.pane.Bokeh(self.map_fig), pn.pane.Bokeh(self.energy_fig)), self.theory)
         self.layout = pn.Row(controls, pictures)
 
     def __panel__(self):
@@ -242,7 +241,19 @@ class Explorer(pn.viewable.Viewer):
         self.widgets["eps"].visible = self.settings.law in EPS_LAWS
 
     def _changed(self, key: str, value) -> None:
-        self.apply(**{key: value})
+        # Served, Panel may hand a box's change over outside Bokeh's document lock: a TextInput's
+        # "enter-pressed" event coroutine runs the pending value change itself, unlocked, and writing
+        # the plots' ColumnDataSources there raises "_pending_writes should be non-None" (the per-bead
+        # diameters box failed so every time). pn.state.execute(schedule=True) runs the update on the
+        # document's next tick, under its lock; without a server session (Jupyter) it runs at once.
+        pn.state.execute(partial(self._from_boxes, key, value), schedule=True)
+
+    def _from_boxes(self, key: str, value) -> None:
+        """Apply a control's new value together with every box that still holds a refused one, so
+        that the plots never show settings other than those in the boxes."""
+        self._held[key] = value
+        if self.apply(**self._held) is not None:
+            self._held = {}
 
     def apply(self, **changes) -> ExplorerView | None:
         """Change settings and recompute the view (what a control does).
@@ -261,7 +272,8 @@ class Explorer(pn.viewable.Viewer):
         try:
             view = compute_view(new)
         except (HertzchainError, TypeError, ValueError) as exc:  # a value refused, or an emptied field
-            self.message.object = f"<p style='color:#a00'>{html.escape(str(exc))}</p>"
+            self.message.object = (f"<p id='hc-message' style='color:#a00;font-weight:bold'>Not applied: "
+                                   f"{html.escape(str(exc))}. The plots still show the last valid settings.</p>")
             return None
         self.settings = new
         self.message.object = ""

@@ -47,6 +47,13 @@ def _diameters(text: str) -> list[float]:
     return values
 
 
+def _number(value, field: str, unit: str) -> float:
+    """A number box's value as a float; an emptied box (None) refused naming its config field."""
+    if value is None:
+        raise ConfigError(field, f"the box is empty: type a number in {unit}")
+    return float(value)
+
+
 def _materials(text: str) -> list[str]:
     """'AISI52100 x 28, brass x 2' (or names one by one, commas or spaces) -> one name per bead."""
     out: list[str] = []
@@ -162,7 +169,8 @@ class ExplorerSettings:
         if self.chain in ("chain1", "chain2"):
             chain: dict = {"preset": self.chain}
         elif self.chain == "uniform":
-            chain = {"uniform": {"n": int(self.uniform_n), "diameter_mm": float(self.uniform_diameter_mm)}}
+            chain = {"uniform": {"n": int(self.uniform_n),
+                                 "diameter_mm": _number(self.uniform_diameter_mm, "chain.uniform.diameter_mm", "mm")}}
             if self.taper_n > 0:
                 chain["taper"] = {"n": int(self.taper_n), "q": float(self.taper_q)}
         elif self.chain == "diameters":
@@ -174,7 +182,8 @@ class ExplorerSettings:
             chain["materials"] = _materials(self.bead_materials)
         if self.gravity:  # absent (or an emptied box) is a horizontal chain (0), which also runs without a wall
             chain["gravity"] = float(self.gravity)
-        striker: dict = {"diameter_mm": float(self.striker_diameter_mm), "velocity": float(self.striker_velocity),
+        striker: dict = {"diameter_mm": _number(self.striker_diameter_mm, "striker.diameter_mm", "mm"),
+                         "velocity": _number(self.striker_velocity, "striker.velocity", "m/s"),
                          "material": self.striker_material, "shape": self.striker_shape}
         if self.striker_mass is not None:
             striker["mass"] = float(self.striker_mass)
@@ -184,9 +193,7 @@ class ExplorerSettings:
         if self.wall == "body":
             for key, value, unit in (("mass", self.body_mass, "kg"), ("stiffness", self.body_stiffness, "N/m"),
                                      ("damping", self.body_damping, "N s/m")):
-                if value is None:  # an emptied box
-                    raise ConfigError(f"wall.{key}", f"give the protected body's {key} in {unit}")
-                wall[key] = float(value)
+                wall[key] = _number(value, f"wall.{key}", unit)
         contact: dict = {"law": self.law}
         if self.law in EPS_LAWS:
             contact["eps"] = float(self.eps)

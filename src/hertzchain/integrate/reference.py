@@ -14,7 +14,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
-from ..errors import ConfigError, SimulationDiverged
+from ..errors import SimulationDiverged
 from ..model import System
 from . import kernels
 from .layout import pack
@@ -27,12 +27,12 @@ __all__ = ["run_reference", "make_rhs"]
 _NO_STATE = np.zeros(0)
 
 
-def _check_law(system: System) -> None:
-    """Refuse the elastic-plastic law (ConfigError naming ``run.integrator``)."""
-    if system.law == kernels.LAW_ELASTOPLASTIC:
-        raise ConfigError("run.integrator", "the elastoplastic contact law keeps a history per contact (its largest "
-                          "overlap), which the scipy integrators cannot carry between their trial steps; use "
-                          "integrator = 'verlet'")
+def _check_law(system: System, method: str = "DOP853") -> None:
+    """Refuse the elastic-plastic law (ConfigError naming ``run.integrator``, suggesting only the
+    integrators that take the model: :mod:`hertzchain.integrate.refusals`)."""
+    from .refusals import refuse
+
+    refuse(method.lower(), system)
 
 
 def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
@@ -137,7 +137,7 @@ def run_reference(system: System, duration: float, sample_interval: float, metho
     The peak wall force is refined on the dense output. The elastic-plastic law is refused
     (ConfigError naming ``run.integrator``).
     """
-    _check_law(system)
+    _check_law(system, method)
     if system.extended:
         return _run_reference_extended(system, duration, sample_interval, method, rtol, atol_scale,
                                        record_velocities, record_positions)

@@ -36,11 +36,9 @@ def check_rkn(system: System) -> None:
     system : hertzchain.model.System
         The model's arrays.
     """
-    if system.general:
-        what = ("a dissipative contact law" if system.law != 0 else "beads offset from the axis" if system.misaligned
-                else "a protected body or mass-in-mass beads")
-        raise ConfigError("run.integrator", f"'rkn4' integrates aligned elastic chains; this model has {what}: "
-                          "use integrator 'verlet' (the default) or 'dop853'")
+    from .refusals import refuse
+
+    refuse("rkn4", system)  # suggesting only integrators that take the model
 
 
 def run_rkn(system: System, duration: float, sample_interval: float, dt: float | None = None,

@@ -29,7 +29,10 @@ def fig_laws(numbers: dict, eps: float = PAPER["eps"]) -> Figure:
     Top: peak wall force of the chain truncated after bead n over that of the uniform part
     (n = 16), for the elastic, constant-A and size-scaled laws (markers), with eq. 7 for the
     chain's q and eps = 1 (dotted), q and ``eps`` (solid) and q = 0, ``eps`` (dashed, dissipation
-    alone). Bottom: the same for the duration tau with eq. 8 (tau_n = (phi_n/2) sqrt(10) / v_n).
+    alone). Bottom: the same for the duration tau with eq. 8 (tau_n = (phi_n/2) sqrt(10) / v_n,
+    with the chain's real diameters phi_n in every curve: the dashed one is the wave speed of
+    q = 0 with those diameters, not a uniform chain, and says so in the legend). One legend below
+    the panels, clear of the data.
 
     Parameters
     ----------
@@ -44,6 +47,8 @@ def fig_laws(numbers: dict, eps: float = PAPER["eps"]) -> Figure:
         2 x 2 panels (force, duration; chain 1, chain 2).
     """
     import matplotlib
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import MaxNLocator
 
     from ..viz.style import STYLE, paper_figure
 
@@ -63,16 +68,23 @@ def fig_laws(numbers: dict, eps: float = PAPER["eps"]) -> Figure:
                 axes[0, col].plot(beads, F / F[0], marker, color=colour, mfc="none", label=label)
                 axes[1, col].plot(beads, tau / tau[0], marker, color=colour, mfc="none", label=label)
             k = beads - n0
-            for e, qq, ls, lab in ((1.0, q, ":", "q, eps = 1"), (eps, q, "-", f"q, eps = {eps:g}"),
-                                   (eps, 0.0, "--", f"q = 0, eps = {eps:g}")):
+            for e, qq, ls in ((1.0, q, ":"), (eps, q, "-"), (eps, 0.0, "--")):
                 r = theory.ballistic_ratios(qq, e)
-                axes[0, col].plot(beads, r.force ** k, color="k", ls=ls, lw=0.8, label=f"eq. 7, {lab}")
-                axes[1, col].plot(beads, phi / phi[0] / r.speed ** k, color="k", ls=ls, lw=0.8,
-                                  label=f"eq. 8, {lab}")
+                axes[0, col].plot(beads, r.force ** k, color="k", ls=ls, lw=0.8)
+                # tau_n = (phi_n / 2) sqrt(10) / v_n with the real phi_n, v_n from eq. 8 with this q
+                axes[1, col].plot(beads, phi / phi[0] / r.speed ** k, color="k", ls=ls, lw=0.8)
             axes[0, col].set_title(f"chain {chain[-1]} (q = {100 * q:.2f} %)")
             axes[0, col].set_ylabel(f"$F_m(n) / F_m({n0})$")
             axes[1, col].set_ylabel(f"$\\tau(n) / \\tau({n0})$")
             axes[1, col].set_xlabel("bead n (chain truncated after n)")
-        axes[0, 0].legend(loc="lower left", fontsize=6)
-        axes[1, 0].legend(loc="lower left", fontsize=6)
+            axes[1, col].xaxis.set_major_locator(MaxNLocator(integer=True))
+        handles = [Line2D([], [], ls="none", marker=LAW_STYLE.get(law, ("x", "k", law))[0], mfc="none",
+                          color=LAW_STYLE.get(law, ("x", "k", law))[1], label=LAW_STYLE.get(law, ("x", "k", law))[2])
+                   for law in numbers]
+        handles += [Line2D([], [], color="k", ls=ls, lw=0.8, label=lab) for ls, lab in (
+            (":", "eqs. 7-8 with the chain's q, eps = 1"), ("-", f"eqs. 7-8 with the chain's q, eps = {eps:g}"),
+            ("--", f"eq. 7 with q = 0, eps = {eps:g} (dissipation alone); eq. 8: the speeds of q = 0 "
+                   "with the real diameters"))]
+        # below the panels (constrained layout makes room): inside, it covered data markers
+        fig.legend(handles=handles, loc="outside lower center", ncol=2, fontsize=6, frameon=False)
     return fig

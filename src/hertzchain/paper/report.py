@@ -3,8 +3,10 @@
 :func:`write_report` turns the summary of a reproduction (the dict that
 :mod:`hertzchain.paper.reproduce` writes to ``summary.json``) and the figure files into
 
-- a table of simulated against published values with their relative difference and a verdict
-  (error bars where the paper gives them: q, Q_fit; tolerances elsewhere);
+- a table of simulated against the paper's measurements and statements with their relative
+  difference and a verdict (error bars where the paper gives them: Q_fit; tolerances elsewhere),
+  with the count of agreements, and apart from it the inputs (q, eps) and derived constants
+  (Q^th, F_Y, delta_Y), which match by construction and are not counted;
 - two sentences per figure: what it shows, and whether it agrees with the paper, written from
   the numbers (e.g. "Q_fit = 1.021 +- 0.001 lies inside the paper's error bar 1.025 +- 0.016");
 - the two-speed check (the normalised results do not depend on the striker speed);
@@ -36,10 +38,12 @@ from pathlib import Path
 from typing import Any
 
 from . import claims
-from .notes import CHAINS, Row, _diameters_m, _f, _pct, comparison_rows, figure_notes, speed_sentence
+from .notes import (CHAINS, Row, _diameters_m, _f, _pct, agreement_count, comparison_rows, figure_notes,
+                    speed_sentence)
 from .render import _to_html, _to_markdown
 
-__all__ = ["Row", "comparison_rows", "figure_notes", "speed_sentence", "write_report", "FIGURE_TITLES"]
+__all__ = ["Row", "agreement_count", "comparison_rows", "figure_notes", "speed_sentence", "write_report",
+           "FIGURE_TITLES"]
 
 #: Title of each figure in the report (the paper's numbering).
 FIGURE_TITLES = {
@@ -134,6 +138,15 @@ def _dissipation_sentence(summary: dict, settings_desc: dict | None) -> str:
             "observation).")
 
 
+def _agreement_sentence(rows: list[Row]) -> str:
+    """How many of the paper's measurements and statements the run agrees with (inputs not counted)."""
+    agree, judged = agreement_count(rows)
+    n_other = sum(r.kind != "measured" for r in rows)
+    return (f"{agree} of the {judged} measurements and statements of the paper compared here agree with the "
+            f"simulation. The {n_other} inputs and derived constants below are listed apart and not counted; "
+            "the claims the paper states in words follow further down.")
+
+
 def _blocks(summary: dict, figures: dict, settings_desc: dict | None) -> list[tuple]:
     rows = comparison_rows(summary, settings_desc)
     notes = figure_notes(summary, settings_desc)
@@ -145,9 +158,18 @@ def _blocks(summary: dict, figures: dict, settings_desc: dict | None) -> list[tu
               "chains truncated after bead 16, 17, ..., N; embedded sensors in the uniform part; cos^6 fit of "
               "the loading part)."),
         ("p", _dissipation_sentence(summary, settings_desc)),
-        ("h2", "Simulated against published values"),
+        ("h2", "Simulated against the paper's measurements"),
+        ("p", _agreement_sentence(rows)),
         ("table", ["quantity", "simulated", "paper", "relative difference", "verdict"],
-         [[r.quantity, r.simulated, r.paper, _pct(r.rel), r.verdict] for r in rows]),
+         [[r.quantity, r.simulated, r.paper, _pct(r.rel), r.verdict] for r in rows if r.kind == "measured"]),
+        ("h3", "Inputs and derived constants (set-up checks, not agreements)"),
+        ("p", "The run takes the inputs from the paper (Table I's diameters, hence q; the eps its dissipation is "
+              "calibrated to, measured back here) and the derived constants are the paper's formulas evaluated on "
+              "them (eq. 8 for Q^th; Sec. II's yield estimate for F_Y and delta_Y): that they match shows the set-up "
+              "is the paper's; it does not test the paper, and they are not counted above."),
+        ("table", ["quantity", "what it is", "simulated", "paper", "relative difference", "check"],
+         [[r.quantity, "input" if r.kind == "input" else "derived", r.simulated, r.paper, _pct(r.rel), r.verdict]
+          for r in rows if r.kind != "measured"]),
         ("p", speed_sentence(summary)),
         ("h2", "Figures"),
     ]

@@ -1,0 +1,90 @@
+"""Which integrator takes which model: one check per integrator, used both to refuse a model and
+to suggest the integrators that would run it, so that a refusal never suggests one that refuses
+in turn (an ``rkn4`` refusal on an elastic-plastic model once suggested ``dop853``).
+
+Each check returns why the integrator does not integrate the model (None: it does):
+
+- ``verlet``: every model;
+- ``rkn4`` (:mod:`hertzchain.integrate.rkn`): aligned elastic chains only (paper eq. 1, with or
+  without precompression), no protected body nor mass-in-mass beads;
+- ``dop853``, ``rk45`` (:mod:`hertzchain.integrate.reference`, ``scipy.integrate.solve_ivp``):
+  every law but the elastic-plastic one, whose per-contact history (the largest overlap) a
+  right-hand side evaluated at trial points cannot carry.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from ..errors import ConfigError
+
+__all__ = ["INTEGRATORS", "why_not", "accepted_integrators", "refuse"]
+
+#: The integrators of ``run.integrator``, the default first.
+INTEGRATORS = ("verlet", "rkn4", "dop853", "rk45")
+
+
+def _rkn4(system) -> str | None:
+    if not system.general:
+        return None
+    what = ("a dissipative contact law" if system.law != 0 else "beads offset from the axis" if system.misaligned
+            else "a protected body or mass-in-mass beads")
+    return f"'rkn4' integrates aligned elastic chains; this model has {what}"
+
+
+def _scipy(name: str) -> Callable:
+    def check(system) -> str | None:
+        from .kernels import LAW_ELASTOPLASTIC
+
+        if system.law == LAW_ELASTOPLASTIC:
+            return (f"'{name}' cannot run the elastoplastic contact law: it keeps a history per contact (its largest "
+                    "overlap), which the scipy integrators cannot carry between their trial steps")
+        return None
+
+    return check
+
+
+_CHECKS: dict[str, Callable] = {"verlet": lambda system: None, "rkn4": _rkn4, "dop853": _scipy("dop853"),
+                                "rk45": _scipy("rk45")}
+
+
+def why_not(integrator: str, system) -> str | None:
+    """Why ``integrator`` does not integrate ``system`` (None: it does).
+
+    Parameters
+    ----------
+    integrator : str
+        One of :data:`INTEGRATORS`.
+    system : hertzchain.model.System
+        The model's arrays.
+
+    Returns
+    -------
+    str or None
+        The reason, in words.
+    """
+    return _CHECKS[integrator](system)
+
+
+def accepted_integrators(system) -> list[str]:
+    """The integrators that integrate ``system``, in :data:`INTEGRATORS` order (``verlet`` always)."""
+    return [name for name in INTEGRATORS if why_not(name, system) is None]
+
+
+def refuse(integrator: str, system) -> None:
+    """Raise a ConfigError naming ``run.integrator`` when ``integrator`` does not integrate ``system``,
+    suggesting only the integrators that do.
+
+    Parameters
+    ----------
+    integrator : str
+        One of :data:`INTEGRATORS`.
+    system : hertzchain.model.System
+        The model's arrays.
+    """
+    reason = why_not(integrator, system)
+    if reason is None:
+        return
+    others = [f"'{name}'" + (" (the default)" if name == "verlet" else "")
+              for name in accepted_integrators(system) if name != integrator]
+    raise ConfigError("run.integrator", f"{reason}: use integrator {' or '.join(others)}")
