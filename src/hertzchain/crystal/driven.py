@@ -19,7 +19,7 @@ from ..errors import ConfigError, SimulationDiverged
 from ..integrate.layout import pack
 from ..integrate.verlet import RawRun, check_time_step
 from .drive import drive_parameters, drive_table
-from .drive_kernel import driven_run
+from .drive_kernel import _accelerations, _forces, _record, driven_run
 
 __all__ = ["simulate_driven", "drive_step", "DEFAULT_STEPS_PER_RADIAN", "MIN_SAMPLES_PER_PERIOD",
            "MAX_DRIVE_STEPS"]
@@ -150,8 +150,6 @@ def simulate_driven(model, system, duration: float, probes, *, integrator: str =
     body_slot = w.body_slot
     # t = 0: the static state (the drive starts at s(0) = 0 with the ramp)
     vp[:] = v
-    from .drive_kernel import _accelerations, _forces, _record
-
     acc[1] = _forces(u, vp, g, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, system.law, w.dyield, w.dmax, w.dres,
                      w.kres, w.ext, system.extended)
     _accelerations(u, g, w.fext, w.inv_mass, w.ext, system.extended, a, wa)
