@@ -25,6 +25,8 @@ def test_drive_force_is_the_defined_signal():
     tt = np.array([2.5e-4, 1e-3, 1.5e-3])
     phase = 2 * np.pi * np.array([1000 * 2.5e-4 + 1e6 * 2.5e-4**2, 1000e-3 + 1e6 * 1e-6, 2.0 + 3000 * 0.5e-3])
     np.testing.assert_allclose(chirp.signal(tt), np.sin(phase), atol=1e-12)
+    ds = hc.simulate(hc.Model(CHAIN, precompression=5.0, drive=chirp), 2e-3, hc.Probes(1e-6))
+    np.testing.assert_allclose(ds.drive_force.values, chirp.signal(ds.time.values), rtol=0, atol=1e-11)
 
 
 @pytest.mark.parametrize("quantity, amplitude, law, extra", [
