@@ -17,6 +17,7 @@ import numpy as np
 from ..checks import check_before_run
 from ..errors import ConfigError, SimulationDiverged
 from ..integrate.layout import pack
+from ..integrate.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 from ..integrate.verlet import RawRun, check_time_step
 from .drive import drive_parameters, drive_table
 from .drive_kernel import _accelerations, _forces, _record, driven_run
@@ -114,9 +115,9 @@ def simulate_driven(model, system, duration: float, probes, *, integrator: str =
     drive = model.drive
     if integrator != "verlet":
         raise ConfigError("run.integrator", f"a driven chain runs on 'verlet' (a fixed step), not {integrator!r}")
-    if model.law.name == "elastoplastic":
-        raise ConfigError("contact.law", "a driven chain takes the elastic, viscoelastic or dashpot laws; "
-                          "'elastoplastic' is not supported under a drive")
+    if system.law not in (LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT):  # the laws forces_general computes
+        raise ConfigError("contact.law", f"a driven chain takes the elastic, viscoelastic or dashpot laws (and "
+                          f"their size-scaled forms); {model.law.name!r} is not supported under a drive")
     if threads != 1:
         raise ConfigError("run.threads", "a driven chain runs on one thread: leave run.threads out")
     if probes.velocities or probes.positions:
