@@ -26,7 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..integrate.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 from .statics import equilibrium
+
+#: The law codes whose elastic part is Hertz's kappa delta^(3/2) (what the linearisation assumes).
+HERTZ_LAWS = (LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT, LAW_ELASTOPLASTIC)
 
 __all__ = ["Modes", "modes", "linear_matrices", "linear_transmission", "LinearChain"]
 
@@ -53,6 +57,9 @@ def linear_matrices(model) -> LinearChain:
     """Assemble M, K and C of ``model`` linearised about its equilibrium (module docstring)."""
     eq = equilibrium(model)
     system = model.system()
+    if system.law not in HERTZ_LAWS:
+        raise ConfigError("contact.law", f"the linearisation K = (3/2) kappa^(2/3) F^(1/3) is that of Hertz contacts "
+                          f"(the elastic, viscoelastic, dashpot and elastoplastic laws); {model.law.name!r} is not one")
     n = system.n_beads
     d0 = eq.overlaps
     loaded = (eq.forces > 0) & (system.kappa > 0)
