@@ -52,6 +52,11 @@ _EXPORTS = {
     "FitResult": "lab",
     "tapering_factor": "theory", "ballistic_ratios": "theory", "solitary_wave_speed": "theory",
     "yield_limit": "theory", "predict_chain": "theory", "nesterenko_force": "theory",
+    # granular crystals: statics, modes, band structure, drives, transmission
+    "equilibrium": "crystal.statics", "Equilibrium": "crystal.statics", "modes": "crystal.modes",
+    "Modes": "crystal.modes", "dispersion": "crystal.dispersion", "Drive": "crystal.drive",
+    "transmission_spectrum": "crystal.spectrum",
+    "transmission_against_amplitude": "crystal.spectrum", "linear_transmission": "crystal.modes",
     # pictures of results and sweeps
     "plot_signals": "viz.signals", "plot_spacetime": "viz.spacetime", "plot_energy": "viz.energy",
     "animate": "viz.animation", "plot_metrics": "viz.metrics", "plot_ensemble": "viz.ensemble",

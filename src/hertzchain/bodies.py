@@ -10,10 +10,14 @@ these models change:
 - the Hertz constant and elastic limit of every contact whose faces are not two spheres or a
   sphere on a flat: a flat or curved striker face, cylinders, a spherical body face
   (:func:`hertzchain.elements.contact_constants`, Johnson's elliptical Hertz contact);
+- a drive without a striker (``Model.drive``, :mod:`hertzchain.crystal.drive`): no striker
+  body (mass 0, at rest); no contact 0 for a force drive, the massless driver's contact for a
+  displacement drive (the driver then applies the precompression);
 - the static state: every body of mass m feels m g along the chain (``gravity``), bead 1 is
-  pushed by the precompression F0, and contact j carries what bodies 0..j weigh and are pushed
-  with, S_j = sum_{i <= j} f_i, at the overlap (S_j / kappa_j)^(2/3) (paper eq. 1 inverted); the
-  body's mount carries everything, k d = S_{N+1}.
+  pushed by the precompression F0, the beads of ``Model.loads`` by their static forces, and contact
+  j carries what bodies 0..j weigh and are pushed with, S_j = sum_{i <= j} f_i, at the overlap
+  (S_j / kappa_j)^(2/3) (paper eq. 1 inverted; :mod:`hertzchain.crystal.statics`); the body's
+  mount carries everything, k d = S_{N+1}.
 
 Nothing here is used by the models of the paper (``Model.plain``), whose arrays stay those of the
 array set-up of ensembles bit for bit.
@@ -21,11 +25,15 @@ array set-up of ensembles bit for bit.
 
 from __future__ import annotations
 
+import math
+import numbers
+
 import numpy as np
 
 from .elements import Face, contact_constants, face_of
 from .errors import ConfigError
 from .laws import spec_of
+from .strict import real
 
 __all__ = ["extend", "STANDARD_GRAVITY", "mount_half_period", "MAX_BODY_DURATION"]
 
@@ -133,32 +141,40 @@ def extend(model, parts: dict) -> dict:
     for j in _special_contacts(model):
         kappa[j], fy[j] = contact_constants(faces[j], faces[j + 1], _contact_field(model, j))
 
+    drive = model.drive
+    driver = drive is not None and not drive.striker and drive.quantity == "displacement"
+    if drive is not None and not drive.striker:
+        # no striker: a force drive has no contact 0; a displacement drive's massless driver (an
+        # immovable body whose position the drive prescribes) takes the striker's place
+        mass[0], inv_mass[0] = 0.0, 0.0
+        parts["v0"][0] = 0.0
+        if not driver:
+            kappa[0], fy[0] = 0.0, np.inf
     law = model.law
     parts["damping"] = np.where(kappa > 0, float(law.parameter), 0.0)
     if hasattr(law, "contact_damping"):  # size-scaled law: the pair's reduced mass, the body's included
         parts["damping"] = law.contact_damping(1.0 / (inv_mass[: n + 1] + inv_mass[1:]), kappa)
 
-    # The static state: weights (gravity along the chain) and the precompression push on bead 1;
-    # contact j holds bodies 0..j (the striker rests on bead 1).
+    # The static state (hertzchain.crystal.statics): weights (gravity along the chain), the
+    # precompression push on bead 1 and the loads on chosen beads; contact j holds bodies 0..j
+    # (the striker rests on bead 1).
+    from .crystal.statics import held_forces, static_overlaps
+
     g = model.gravity
     fext = np.zeros(n + 2)
     if g > 0:
-        fext[0] = model.striker.mass * g
+        fext[0] = mass[0] * g  # the striker (0 for a massless driver)
         fext[1:n + 1] = total * g
         if wall.is_body:
             fext[n + 1] = wall.mass * g
     fext[1] += model.precompression
-    held = np.cumsum(fext)
-    d0 = np.zeros(n + 1)
-    loaded = (held[: n + 1] > 0) & (kappa > 0)
-    d0[loaded] = (held[: n + 1][loaded] / kappa[loaded]) ** (2.0 / 3.0)
-    if spec_of(law).plastic:
-        # loaded past F_Y: along Thornton's loading line F_y + (3/2) kappa delta_y^(1/2) (delta - delta_y)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            dy = (fy / np.where(kappa > 0, kappa, 1.0)) ** (2.0 / 3.0)
-            over = loaded & (held[: n + 1] > fy)
-            plastic = dy + (held[: n + 1] - fy) / (1.5 * kappa * np.sqrt(dy))
-        d0 = np.where(over, plastic, d0)
+    for bead, force in model.loads:
+        fext[bead] += force
+    if driver:  # the driver is massless: it applies the precompression through contact 0
+        fext[0], fext[1] = model.precompression, fext[1] - model.precompression
+    held = held_forces(fext, kappa, n)
+    # loaded past F_Y (elastic-plastic): along Thornton's loading line F_y + (3/2) kappa delta_y^(1/2) (delta - delta_y)
+    d0 = static_overlaps(held[: n + 1], kappa, fy if spec_of(law).plastic else None)
     mount_d0 = 0.0
     if wall.is_body and held[n + 1] > 0:
         if wall.stiffness == 0:  # Model refuses this before; kept as a guard for direct callers
@@ -168,3 +184,29 @@ def extend(model, parts: dict) -> dict:
                  mount_k=float(wall.stiffness), mount_c=float(wall.damping), mount_d0=mount_d0, res_m=res_m,
                  res_k=res_k)
     return parts
+
+
+def checked_loads(items, chain, wall) -> tuple:
+    """Static loads ``[load]`` as a tuple of (bead number 1..N, finite force in N) pairs, checked
+    against the chain and the wall (ConfigError naming ``load``, ``load.beads`` or ``load.forces``)."""
+    n = chain.n_beads
+    loads = []
+    for item in items:
+        if not (isinstance(item, (tuple, list)) and len(item) == 2):
+            raise ConfigError("load", f"each load is a pair (bead number, force in N), got {item!r}")
+        bead, force = item
+        if isinstance(bead, bool) or not isinstance(bead, numbers.Integral) or not 1 <= bead <= n:
+            raise ConfigError("load.beads", f"must be bead numbers from 1 to {n}, got {bead!r}")
+        force = real(force, "load.forces", unit="N")
+        if not math.isfinite(force):
+            raise ConfigError("load.forces", f"must be finite forces in N, got {force!r}")
+        loads.append((int(bead), force))
+    if loads and not wall.present:
+        raise ConfigError("load", "static loads need a wall (or a body) to push against; wall.type = 'none' "
+                          "has no static equilibrium under them")
+    if loads and not chain.is_aligned:
+        raise ConfigError("load", "static loads together with bead offsets are not supported")
+    if loads and wall.is_body and wall.stiffness == 0:
+        raise ConfigError("wall.stiffness", "a free body (stiffness 0) cannot hold the static loads: give its "
+                          "mount a stiffness in N/m")
+    return tuple(loads)

@@ -23,6 +23,7 @@ from .contact import Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoe
 from .plasticity import Elastoplastic
 from .errors import ConfigError
 from .laws import law_of_code, spec_of
+from .laws.solve import overlap_at_energy, static_overlap
 from .materials import Material, get_material
 from .strict import real
 
@@ -315,7 +316,7 @@ class System:
         kap = self.kappa
         spec = law_of_code(self.law)
         if spec.generated:  # the law's own energy: delta with energy(delta) = E
-            inv = spec.overlap_at_energy or (lambda e, k, p: _energy_root(spec.energy, e, k, p))
+            inv = spec.overlap_at_energy or (lambda e, k, p: overlap_at_energy(spec.energy, e, k, p))
             energy += float(np.sum([spec.energy(d, k, p) for d, k, p in zip(self.d0, kap, self.damping) if k > 0]))
             return np.array([inv(energy, k, p) if k > 0 else 0.0 for k, p in zip(kap, self.damping)]) + self.d0
         if spec.plastic:
@@ -431,6 +432,13 @@ class Model:
         column standing on the wall, bead 1 on top; g sin(tilt) on a track inclined by ``tilt``).
         Every body feels its weight m g; the run starts from the static equilibrium, the striker
         resting on bead 1 (see the conventions page). 0 (default): a horizontal chain.
+    loads
+        Static forces on chosen beads, ``((bead, force), ...)``: bead number 1..N and force [N]
+        along the chain, > 0 towards the wall. The run starts from the static equilibrium
+        (:func:`hertzchain.equilibrium`). Empty (default): none.
+    drive
+        A :class:`hertzchain.Drive` on bead 1 (a harmonic force or a prescribed displacement,
+        see the granular-crystals guide); None (default): the striker's impact only.
     """
 
     chain: Chain
@@ -440,9 +448,13 @@ class Model:
     law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot | Elastoplastic = field(default_factory=Elastic)
     precompression: float = 0.0
     gravity: float = 0.0
+    loads: tuple = ()
+    drive: object = None
 
     def __post_init__(self) -> None:
         spec_of(self.law)  # a registered law (ConfigError naming contact.law otherwise)
+        self._check_loads()
+        self._check_drive()
         object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
@@ -483,6 +495,17 @@ class Model:
         if (g > 0 or self.precompression > 0) and self.wall.is_body and self.wall.stiffness == 0:
             raise ConfigError("wall.stiffness", "a free body (stiffness 0) cannot hold the chain's static load "
                               "(chain.gravity, chain.precompression): give its mount a stiffness in N/m")
+
+    def _check_drive(self) -> None:
+        """A drive is a :class:`hertzchain.Drive` (checked by its own constructor)."""
+        if self.drive is not None and getattr(self.drive, "quantity", None) not in ("force", "displacement"):
+            raise ConfigError("drive", f"must be a hertzchain.Drive, got {self.drive!r}")
+
+    def _check_loads(self) -> None:
+        """Validate ``loads`` (:func:`hertzchain.bodies.checked_loads`) and store them as a tuple of pairs."""
+        from .bodies import checked_loads
+
+        object.__setattr__(self, "loads", checked_loads(self.loads, self.chain, self.wall))
 
     def __repr__(self) -> str:
         pre = f", precompression {self.precompression:.4g} N" if self.precompression else ""
@@ -531,7 +554,8 @@ class Model:
     def plain(self) -> bool:
         """True for the paper's kind of model (sphere striker, spheres, a flat wall or a free end, no
         gravity): its arrays are computed by the array set-up of ensembles too."""
-        return self.striker.plain and not self.wall.is_body and self.chain.plain and self.gravity == 0
+        return (self.striker.plain and not self.wall.is_body and self.chain.plain and self.gravity == 0
+                and not self.loads and self.drive is None)
 
     def system(self) -> System:
         """Flatten the model into SI arrays (see :class:`System`); built once per Model (a Model is
@@ -589,7 +613,7 @@ class Model:
             d0[1:] = (self.precompression / kappa[1:]) ** (2.0 / 3.0)
             fext[1] = self.precompression
             if spec.generated:  # the overlap at which the law's static force is F0
-                d0[1:] = [_static_overlap(spec, self.precompression, k, p) for k, p in zip(kappa[1:], damping[1:])]
+                d0[1:] = [static_overlap(spec, self.precompression, k, p) for k, p in zip(kappa[1:], damping[1:])]
             if spec.plastic:
                 # statically loaded along Thornton's loading curve: past F_y the line F_y + slope (d - dy)
                 f_y = fy[1:] * self.law.pressure_ratio**3
@@ -642,28 +666,11 @@ class Model:
         }
         if self.gravity:
             out["gravity"] = self.gravity
+        if self.loads:
+            out["load"] = {"beads": [b for b, _ in self.loads], "forces": [f for _, f in self.loads]}
+        if self.drive is not None:
+            out["drive"] = self.drive.describe()
         return out
-
-
-def _energy_root(energy, e: float, k: float, p: float) -> float:
-    """The overlap [m] at which a law's stored ``energy(d, k, p)`` is ``e`` [J] (increasing in d)."""
-    from scipy.optimize import brentq
-
-    hi = 1e-9
-    while energy(hi, k, p) < e and hi < 1.0:
-        hi *= 2.0
-    return float(brentq(lambda d: energy(d, k, p) - e, 0.0, hi, xtol=1e-300, rtol=4 * np.finfo(float).eps))
-
-
-def _static_overlap(spec, force: float, k: float, p: float) -> float:
-    """The overlap [m] at which a generated law's force at rest (rate 0, no state) is ``force`` [N]."""
-    from scipy.optimize import brentq
-
-    hi = 1e-9
-    while spec.force(hi, 0.0, k, p, 0.0) < force and hi < 1.0:
-        hi *= 2.0
-    return float(brentq(lambda d: spec.force(d, 0.0, k, p, 0.0) - force, 0.0, hi, xtol=1e-300,
-                        rtol=4 * np.finfo(float).eps))
 
 
 def _not_plain_field(model: "Model") -> str:

@@ -57,6 +57,8 @@ def auto_duration(model: Model) -> float:
     """
     from .theory import pulse_duration, solitary_wave_speed_from_velocity
 
+    if model.drive is not None:  # a driven chain: the ramp and the drive's cycles (Drive.auto_duration)
+        return model.drive.auto_duration
     chain = model.chain
     m = chain.masses
     v0 = model.striker.velocity
@@ -179,6 +181,15 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     system = model.system()
     probes.validate(model.chain.n_beads, model.wall.present)
+    if model.drive is not None:  # a driven chain: its own compiled Verlet loop (hertzchain.crystal.driven)
+        from .crystal.driven import simulate_driven
+
+        ds = simulate_driven(model, system, duration, probes, integrator="verlet" if integrator == "auto" else integrator,
+                             dt=dt, threads=1 if threads == "auto" else threads, progress=progress, config=config,
+                             steps_per_radian=steps_per_radian,
+                             extra_attrs={"duration_mode": "auto"} if mode == "auto" else None)
+        warn_elastic_limit(ds, stacklevel=3)
+        return ds
     choice = choose_engine(system, integrator, threads, steps_per_radian=steps_per_radian, dt=dt)
     integrator, threads = choice.integrator, choice.threads
     check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # before any allocation

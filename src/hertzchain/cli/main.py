@@ -19,15 +19,18 @@ from .animate import animate
 from .common import user_warnings
 from .compare import compare
 from .design import design
+from .dispersion import dispersion
 from .example import example
 from .explore import explore
 from .export import export
 from .fit import fit
 from .materials import materials
+from .modes import modes
 from .plot import plot
 from .reproduce import reproduce
 from .run import run
 from .sensitivity import sensitivity
+from .spectrum import spectrum
 from .summary import summary
 from .sweep import sweep
 
@@ -53,6 +56,9 @@ cli.add_command(sensitivity)
 cli.add_command(explore)
 cli.add_command(export)
 cli.add_command(example)
+cli.add_command(modes)
+cli.add_command(dispersion)
+cli.add_command(spectrum)
 
 
 class Terminated(KeyboardInterrupt):

@@ -233,8 +233,15 @@ def build_model(cfg: RunConfig, chain=None):
         law: Any = calibrate_law(k.law, k.eps, chain=ref, striker=striker)
     else:  # the law's own constructor from its declared parameters (hertzchain.laws)
         law = spec.make(k.law_parameters(), ref)
+    loads = () if cfg.load is None else tuple(zip(cfg.load.beads, cfg.load.forces))
+    drive = None
+    if cfg.drive is not None:
+        from ..crystal.drive import Drive
+
+        drive = Drive(**{k: v for k, v in cfg.drive.model_dump().items() if v is not None})
     with _as_written("chain.offsets", _offsets_key(cfg)):
-        return Model(chain, striker, wall, law, precompression=cfg.chain.precompression, gravity=chain_gravity(cfg.chain))
+        return Model(chain, striker, wall, law, precompression=cfg.chain.precompression, gravity=chain_gravity(cfg.chain),
+                     loads=loads, drive=drive)
 
 
 def chain_gravity(c: ChainConfig) -> float:
@@ -338,6 +345,8 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
         return simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                         rtol=cfg.run.rtol, progress=progress, config=config,
                         steps_per_radian=cfg.run.verlet_steps_per_radian, threads=cfg.run.threads)
+    if cfg.drive is not None:
+        raise ConfigError("drive", "a driven chain runs on the 1D engine; [track] (the lateral path) takes no drive")
     if cfg.run.threads not in (1, "auto"):
         raise ConfigError("run.threads", "the lateral (2D) path of [track] runs on one thread: leave it out")
     if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:

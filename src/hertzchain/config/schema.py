@@ -353,6 +353,48 @@ class TrackConfig(_Section):
     gravity: float = Field(default=9.81, ge=0, le=1e3, description="m/s^2")
 
 
+class LoadConfig(_Section):
+    """``[load]``: static forces on chosen beads (the run starts from the static equilibrium)."""
+
+    beads: list[_BeadNumber] = Field(description="bead numbers 1..N")
+    forces: list[Annotated[float, Field(ge=-BOUNDS["precompression"][1], le=BOUNDS["precompression"][1])]] = Field(
+        description="N along the chain, > 0 towards the wall; one per bead")
+
+    @model_validator(mode="after")
+    def _pairs(self) -> "LoadConfig":
+        if len(self.beads) != len(self.forces):
+            raise ValueError(f"beads ({len(self.beads)}) and forces ({len(self.forces)}) must have the same length")
+        return self
+
+
+class DriveConfig(_Section):
+    """``[drive]``: a harmonic or chirped force on bead 1, or the position of a massless driver
+    touching bead 1 (:class:`hertzchain.Drive`)."""
+
+    type: Literal["harmonic", "chirp", "history"] = "harmonic"
+    quantity: Literal["force", "displacement"] = "force"
+    amplitude: float | None = Field(default=None, gt=0, le=1e9, description="N (force) or m (displacement); "
+                                                                            "harmonic and chirp")
+    frequency: float | None = _bounded("frequency", open_low=True, default=None,
+                                       description="Hz (a chirp's start); harmonic and chirp")
+    ramp_cycles: float = Field(default=5.0, ge=0, le=1e6, description="cycles of the sin^2 ramp-up")
+    frequency_end: float | None = _bounded("frequency", open_low=True, default=None, description="Hz, a chirp's end")
+    sweep_time: float | None = Field(default=None, gt=0, le=BOUNDS["duration"][1], description="s, a chirp's sweep")
+    striker: bool = Field(default=False, description="keep the striker (force drive only)")
+    file: str | None = Field(default=None, description="a history's CSV (time_s,value), relative to the "
+                                                       "working folder")
+
+    @model_validator(mode="after")
+    def _needs(self) -> "DriveConfig":
+        if self.type != "history":
+            missing = [k for k in ("amplitude", "frequency") if getattr(self, k) is None]
+            if missing:
+                raise ValueError(f"a {self.type} drive needs {' and '.join(missing)}")
+        elif self.amplitude is not None or self.frequency is not None:
+            raise ValueError("a history drive takes its values from its file: leave amplitude and frequency out")
+        return self
+
+
 class RunConfig(_Section):
     """The whole run file."""
 
@@ -366,6 +408,8 @@ class RunConfig(_Section):
     probes: ProbesConfig = ProbesConfig()
     instrument: InstrumentConfig = InstrumentConfig()
     track: TrackConfig | None = None
+    load: LoadConfig | None = None
+    drive: DriveConfig | None = None
 
 
 def _field_name(loc: tuple[Any, ...]) -> str:

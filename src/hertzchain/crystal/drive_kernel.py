@@ -1,0 +1,161 @@
+"""The compiled loop of a driven chain: velocity Verlet on a fixed step with the drive of
+:mod:`hertzchain.crystal.drive` computed inside the loop from five scalars (no Python call per step).
+
+It reuses the engine's force functions (``kernels.forces_general``, and the extension's linear
+springs and internal masses, ``extension.forces_linear`` / ``accelerations_extended``), so a driven
+run integrates the same contact laws as an impact; only the stepping is its own: kick-drift-kick
+with the velocity-dependent forces taken at the predicted velocities v + (dt/2) a (as the engine's
+general path does), plus
+
+- a force drive: s(t) added to bead 1's acceleration;
+- a displacement drive: body 0 (massless, 1/m = 0) placed at u_0 = s(t) with velocity s'(t)
+  before the forces of each step.
+
+The power the drive delivers, s(t) v_1 (force) or (F_0 - f_0) s'(t) (displacement: the contact
+force on the driver beyond the static force f_0 it holds, whose work is the -f_0 u_0 term of the
+potential energy), is integrated with the trapezoidal rule, as is the dissipated power: the energy
+balance W_drive = Delta(E_kin + E_pot) + E_dissipated holds to the Verlet step's O(dt^2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..integrate.energies import kinetic_energy, potential_energy
+from ..integrate.extension import (EXT_W, EXT_WV, accelerations_extended, energies_extended,
+                                   forces_linear)
+from ..integrate.kernels import forces_general
+
+__all__ = ["drive_value", "driven_run"]
+
+
+@njit(cache=True, nogil=True)
+def drive_value(t, p, tt, vv):
+    """(s(t), s'(t)) of the drive with scalars ``p`` = (A, f0, rate, T_sweep, T_ramp, history) and,
+    for a history (p[5] = 1), its rows (``tt`` [s], ``vv``) interpolated linearly (drive.py)."""
+    if p[5] > 0.0:
+        if t >= tt[-1]:
+            return vv[-1], 0.0
+        i = np.searchsorted(tt, t, side="right") - 1
+        slope = (vv[i + 1] - vv[i]) / (tt[i + 1] - tt[i])
+        return vv[i] + slope * (t - tt[i]), slope
+    amp, f0, rate, tsw, tr = p[0], p[1], p[2], p[3], p[4]
+    if t <= tsw:
+        phase = 2.0 * np.pi * (f0 * t + 0.5 * rate * t * t)
+        freq = f0 + rate * t
+    else:
+        phase = 2.0 * np.pi * (f0 * tsw + 0.5 * rate * tsw * tsw + (f0 + rate * tsw) * (t - tsw))
+        freq = f0 + rate * tsw
+    sn, cs = np.sin(phase), np.cos(phase)
+    if t < tr:
+        x = 0.5 * np.pi * t / tr
+        r = np.sin(x) ** 2
+        dr = np.sin(2.0 * x) * 0.5 * np.pi / tr
+    else:
+        r, dr = 1.0, 0.0
+    return amp * r * sn, amp * (dr * sn + r * cs * 2.0 * np.pi * freq)
+
+
+@njit(cache=True, nogil=True)
+def _forces(u, vp, g, kappa, damping, d0, de, dx0, rsum, law, dyield, dmax, dres, kres, ext, extended):
+    p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
+    if extended:
+        p += forces_linear(u, vp, d0, ext, g)
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _accelerations(u, g, fext, inv_mass, ext, extended, a, wa):
+    if extended:
+        accelerations_extended(u, g, fext, inv_mass, ext, a, wa)
+    else:
+        for i in range(a.shape[0]):
+            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+
+
+@njit(cache=True, nogil=True)
+def _record(k, u, v, a, g, mass, kappa, d0, de, dx0, rsum, fext, ext, extended, rec, out_f, out_e, fmax, acc,
+            drive_f, drive_x, body_slot, out_b):
+    for c in range(rec.shape[0]):
+        out_f[k, c] = g[rec[c] + 1]
+    for j in range(fmax.shape[0]):
+        if g[j + 1] > fmax[j]:
+            fmax[j] = g[j + 1]
+    ke = kinetic_energy(v, mass)
+    pe = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
+    if extended:
+        ke_in, pe_lin = energies_extended(u, d0, ext)
+        ke += ke_in
+        pe += pe_lin
+    out_e[k, 0] = ke
+    out_e[k, 1] = pe
+    out_e[k, 2] = acc[0]  # dissipated [J]
+    out_e[k, 3] = acc[2]  # work of the drive [J]
+    out_e[k, 4] = drive_f
+    out_e[k, 5] = drive_x
+    if body_slot >= 0:
+        out_b[k, 0] = u[body_slot]
+        out_b[k, 1] = v[body_slot]
+        out_b[k, 2] = a[body_slot]
+        out_b[k, 3] = acc[5]
+
+
+@njit(cache=True, nogil=True)
+def driven_run(u, v, a, wa, vp, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres,
+               law, ext, extended, p, tt, vv, displacement, dt, stride, k_start, k_stop, rec, out_f, out_e, fmax, acc,
+               body_slot, out_b):
+    """Samples ``k_start``..``k_stop - 1`` of a driven run, ``stride`` steps of ``dt`` [s] apart.
+
+    State (u, v, a, wa, ext, the elastic-plastic state) is carried between calls; ``acc`` holds
+    (dissipated energy [J], last dissipated power [W], drive work [J], last drive power [W],
+    steps taken, work of contact N on a protected body [J] and its last power [W]). With a protected
+    body (``body_slot`` >= 0) ``out_b`` receives its displacement, velocity, acceleration and that
+    work, as the engine's body record. ``out_e`` columns: kinetic, potential energy, dissipated, drive work [J], drive
+    force on bead 1 [N], drive displacement [m] (force drive: bead 1's displacement). Returns 1
+    when the state became non-finite, else 0.
+    """
+    half = 0.5 * dt
+    n = a.shape[0]
+    for k in range(k_start, k_stop):
+        for s in range(stride):
+            for i in range(n):
+                v[i] += half * a[i]
+                u[i] += dt * v[i]
+            if extended:
+                for i in range(n):
+                    ext[i, EXT_WV] += half * wa[i]
+                    ext[i, EXT_W] += dt * ext[i, EXT_WV]
+            acc[4] += 1.0
+            t = acc[4] * dt  # from the step count: a sum of steps would drift the drive's phase
+            x, xd = drive_value(t, p, tt, vv)
+            for i in range(n):
+                vp[i] = v[i] + half * a[i]
+            if displacement:
+                u[0] = x
+                v[0] = xd
+                vp[0] = xd
+            pd = _forces(u, vp, g, kappa, damping, d0, de, dx0, rsum, law, dyield, dmax, dres, kres, ext, extended)
+            acc[0] += half * (acc[1] + pd)
+            acc[1] = pd
+            _accelerations(u, g, fext, inv_mass, ext, extended, a, wa)
+            if not displacement:
+                a[1] += x * inv_mass[1]
+            for i in range(n):
+                v[i] += half * a[i]
+            if extended:
+                for i in range(n):
+                    ext[i, EXT_WV] += half * wa[i]
+            pw = (g[1] - fext[0]) * xd if displacement else x * v[1]
+            acc[2] += half * (acc[3] + pw)
+            acc[3] = pw
+            if body_slot >= 0:
+                pb = g[body_slot] * v[body_slot]  # contact N pushing body N + 1
+                acc[5] += half * (acc[6] + pb)
+                acc[6] = pb
+        if not np.isfinite(u[1]) or not np.isfinite(v[1]):
+            return 1
+        x, xd = drive_value(acc[4] * dt, p, tt, vv)
+        _record(k, u, v, a, g, mass, kappa, d0, de, dx0, rsum, fext, ext, extended, rec, out_f, out_e, fmax, acc,
+                g[1] if displacement else x, x if displacement else u[1], body_slot, out_b)
+    return 0
