@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from functools import wraps
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
 import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -37,8 +37,8 @@ STYLE: dict[str, Any] = {
 C1, C2, C3, CK = "#1f77b4", "#d62728", "#2ca02c", "0.2"
 
 
-def agg_figure(width: float, height: float, *, layout: str | None = "constrained",
-               dpi: float | None = None) -> Figure:
+def agg_figure(width: float, height: float, *,
+               layout: Literal["constrained", "compressed", "tight"] | None = "constrained", dpi: float | None = None) -> Figure:
     """A figure of ``width`` x ``height`` inches on its own Agg canvas (no pyplot state).
 
     Parameters
@@ -62,8 +62,12 @@ def agg_figure(width: float, height: float, *, layout: str | None = "constrained
 
 def paper_figure(width: float, height: float) -> Figure:
     """An :func:`agg_figure` with the paper's tight padding between panels."""
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
     fig = agg_figure(width, height)
-    fig.get_layout_engine().set(w_pad=0.03, h_pad=0.03, wspace=0.04, hspace=0.04)
+    engine = fig.get_layout_engine()
+    assert isinstance(engine, ConstrainedLayoutEngine)  # agg_figure's default layout
+    engine.set(w_pad=0.03, h_pad=0.03, wspace=0.04, hspace=0.04)
     return fig
 
 
