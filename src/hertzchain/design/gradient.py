@@ -219,7 +219,8 @@ def evaluate_with_gradient(problem: DesignProblem, evaluator: Evaluator, x: np.n
     if spr is not None:
         cfg["run"] = {**cfg.get("run", {}), "steps_per_radian": spr}
     name = problem.objectives[0]
-    window = None if problem.section.window is None else tuple(problem.section.window)
+    w = problem.section.window
+    window = None if w is None else (float(w[0]), float(w[1]))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
         warnings.simplefilter("ignore", PulseNotReachedWarning)
@@ -281,7 +282,7 @@ def local_search(problem: DesignProblem, x0: np.ndarray, max_evaluations: int,
     z0 = coords.z_of(coords.sort(x0))
     # the soft maximum's width, fixed from the start's peak (the function minimised must not change)
     smoothing = SOFT_WIDTH * start_value if problem.objectives[0] == "peak_wall_force" and start_value > 0 else None
-    best = [None, math.inf]
+    best: list = [None, math.inf]  # the best point (unit cube) and its true objective
     count = [0]
     worst = [0.0]
     last_gain = [0, math.inf]  # evaluation and value of the last improvement by STALL_GAIN
