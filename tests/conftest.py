@@ -40,3 +40,20 @@ def assert_same_run(single, other) -> None:
         assert np.array_equal(single[name].values, other[name].values), name
     assert {k: v for k, v in single.attrs.items() if k != "created_utc"} == \
         {k: v for k, v in other.attrs.items() if k != "created_utc"}
+
+
+def assert_sums_agree(a, b, total: float, n_terms: int) -> None:
+    """Two code paths' sums of the same ``n_terms`` per-body terms (an energy [J]) agree to rounding.
+
+    Forces, positions and velocities of two paths that run the same arithmetic are equal bit for
+    bit; a *sum* over bodies is not: Numba/LLVM vectorise a reduction for the host CPU (SSE, AVX2,
+    AVX-512, NEON lanes), so its order of additions, hence its last bits, depend on the code path
+    and the machine. Summing n non-negative terms in any order is exact to (n - 1) u times their
+    total (u = 2^-53): two orders differ by at most 2 (n - 1) u ``total``. The bound asserted is
+    2 n u ``total`` (``total``: the energy the sum is part of, e.g. the striker's initial kinetic
+    energy), a few ulp of the total energy for the chains of the tests.
+    """
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    bound = 2.0 * n_terms * np.finfo(float).eps * total
+    worst = float(np.max(np.abs(a - b))) if a.size else 0.0
+    assert a.shape == b.shape and worst <= bound, f"sums differ by {worst:.3g} J > {bound:.3g} J"

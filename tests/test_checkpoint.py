@@ -166,7 +166,8 @@ def test_resumed_search_replays_to_the_saved_state_and_ends_as_uninterrupted(tmp
     out = _plant(tmp_path, good)
     saved = _read(out / _CHECKPOINT, parse_design(_design()))
     assert saved.scalars["optimiser"] == "cma-es" and saved.generation >= 1
-    assert {"cma_mean", "cma_C", "cma_pc", "cma_ps", "numpy_random_key"} <= set(saved.arrays)
+    assert {"cma_mean", "cma_C", "cma_pc", "cma_ps"} <= set(saved.arrays)
+    assert "numpy_random_key" not in saved.arrays  # global state: not what defines the search
     with warnings.catch_warnings():
         warnings.simplefilter("error", CheckpointWarning)
         res = run_design(parse_design(_design()), out)
@@ -220,3 +221,200 @@ def test_nsga2_resumes_by_replay_to_its_saved_population(tmp_path):
         return [{k: v for k, v in r.items() if k != "elapsed_s"} for r in rows]
 
     assert timeless(res.pareto) == timeless(ref.pareto)
+
+
+#: Loaded at the start of a ``hertzchain design`` subprocess (``sitecustomize``): every engine call
+#: appends the module that made it and its engine runs to the file HC_TEST_ENGINE_LOG, then waits
+#: HC_TEST_ENGINE_DELAY seconds, so that a kill lands between generations, not after the end.
+_HOOK = '''
+import os, sys, time
+if os.environ.get("HC_TEST_ENGINE_LOG"):
+    from hertzchain.design import objectives as _objectives
+    _evaluate = _objectives.Evaluator.evaluate
+
+    def _counted(self, keys, configs):
+        evs = _evaluate(self, keys, configs)
+        with open(os.environ["HC_TEST_ENGINE_LOG"], "a") as log:
+            caller = os.path.basename(sys._getframe(1).f_code.co_filename)
+            log.write(f"{caller} {sum(ev.engine_runs for ev in evs)}\\n")
+        time.sleep(float(os.environ.get("HC_TEST_ENGINE_DELAY", "0")))
+        return evs
+
+    _objectives.Evaluator.evaluate = _counted
+'''
+
+
+def _design_process(tmp_path, design_file, out, log: str, delay: float = 0.0):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import hertzchain
+
+    hook = tmp_path / "hook"
+    hook.mkdir(exist_ok=True)
+    (hook / "sitecustomize.py").write_text(_HOOK)
+    src = str(Path(hertzchain.__file__).parents[1])
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(hook), src, os.environ.get("PYTHONPATH", "")]),
+           "HC_TEST_ENGINE_LOG": str(tmp_path / log), "HC_TEST_ENGINE_DELAY": str(delay)}
+    return subprocess.Popen([sys.executable, "-m", "hertzchain.cli", "design", str(design_file), "--out", str(out),
+                             "--no-html"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _engine_runs(path) -> int:
+    """The engine runs of the search logged by _HOOK (the report's comparison runs left out)."""
+    rows = [line.split() for line in path.read_text().splitlines()] if path.exists() else []
+    return sum(int(n) for caller, n in rows if caller != "report.py")
+
+
+def test_a_killed_design_process_resumes_and_a_finished_one_replays_without_engine_runs(tmp_path, reference):
+    """A real ``hertzchain design`` process, killed (SIGKILL) once its checkpoint is on disk, then
+    rerun into the same --out by a new process: it continues the search (no warning, only the
+    engine runs the killed one had not done, the uninterrupted search's result); rerun again, the
+    finished search replays with no engine run at all."""
+    import signal
+    import time
+
+    import tomli_w
+
+    ref, _ = reference
+    design_file = tmp_path / "d.toml"
+    design_file.write_text(tomli_w.dumps(_design()))
+    out = tmp_path / "out"
+    proc = _design_process(tmp_path, design_file, out, "killed.log", delay=0.25)
+    deadline = time.monotonic() + 120
+    while not (out / _CHECKPOINT).exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=30)
+    assert proc.returncode == -signal.SIGKILL  # killed, not finished
+    saved = _read(out / _CHECKPOINT, parse_design(_design()))
+    assert saved.phase != "done" and 1 <= saved.generation and 0 < saved.n_evaluations < ref.n_evaluations
+    assert _engine_runs(tmp_path / "killed.log") >= saved.n_evaluations
+
+    # The rerun, a new process: it replays what the killed one saved and computes only the rest.
+    proc = _design_process(tmp_path, design_file, out, "resumed.log")
+    stdout, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 0, stderr
+    assert "warning" not in stderr.lower() and "afresh" not in stderr, stderr
+    assert "resumed" in " ".join(stdout.split())
+    assert _engine_runs(tmp_path / "resumed.log") == ref.n_evaluations - saved.n_evaluations
+    info = json.loads((out / "design.json").read_text())
+    assert info["best"]["variables"] == ref.best["variables"] and info["best"]["objective"] == ref.best["objective"]
+    assert info["n_evaluations"] == ref.n_evaluations
+    # Once more (here, to count the engine runs): the finished search replays with none.
+    from hertzchain.design import search
+
+    runs = []
+    real = search.Evaluator.evaluate
+
+    def counted(self, keys, configs):
+        evs = real(self, keys, configs)
+        runs.append(sum(ev.engine_runs for ev in evs))
+        return evs
+
+    with pytest.MonkeyPatch.context() as mp, warnings.catch_warnings():
+        warnings.simplefilter("error", CheckpointWarning)
+        mp.setattr(search.Evaluator, "evaluate", counted)
+        res = run_design(parse_design(_design()), out)
+    assert res.resumed and sum(runs) == 0
+    _same_search(res, ref)
+    assert not list(out.glob("checkpoint.npz.unreadable-*"))
+
+
+def _npz(members: dict[str, bytes]) -> bytes:
+    """A zip archive of the raw ``members`` (stored, as np.savez writes them)."""
+    import zipfile
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+    return buf.getvalue()
+
+
+def _npy_declaring(shape, data: bytes) -> bytes:
+    """A .npy member whose header declares ``shape`` float64 values, followed by ``data``."""
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": shape})
+    return buf.getvalue() + data
+
+
+def _members(good: bytes) -> dict[str, bytes]:
+    import zipfile
+
+    with zipfile.ZipFile(io.BytesIO(good)) as z:
+        return {name: z.read(name) for name in z.namelist()}
+
+
+@pytest.mark.parametrize("damage, why", [
+    ("huge-shape", r"member 'cma_mean\.npy'.* declares shape \(1000000000000,\)"),
+    ("non-array", r"member 'notes\.txt' is not a \.npy array"),
+    ("object-array", r"member 'cma_C\.npy'.* holds object values"),
+    ("short-array", r"member 'cma_mean\.npy'.* declares shape \(4,\)"),
+])
+def test_a_checkpoint_member_is_checked_before_it_is_allocated(tmp_path, reference, damage, why):
+    """A member declaring 10**12 values (8 TB) in a few bytes, a member that is no .npy array, a
+    pickled object array or a header that promises more than the member holds: set aside with a
+    warning naming the member (not an internal error, not an allocation, not a blamed run.duration)."""
+    _, good = reference
+    members = _members(good)
+    if damage == "huge-shape":
+        members["cma_mean.npy"] = _npy_declaring((10**12,), b"\0" * 16)
+    elif damage == "non-array":
+        members["notes.txt"] = b"hello"
+    elif damage == "object-array":
+        buf = io.BytesIO()
+        np.lib.format.write_array_header_1_0(buf, {"descr": "|O", "fortran_order": False, "shape": (1,)})
+        members["cma_C.npy"] = buf.getvalue() + pickle.dumps([1])
+    else:
+        members["cma_mean.npy"] = _npy_declaring((4,), b"\0" * 16)
+    data = _npz(members)
+    out = _plant(tmp_path, data)
+    with pytest.warns(CheckpointWarning, match="checkpoint.npz: is damaged or not a design checkpoint") as rec:
+        assert _load(out, parse_design(_design()), force=False) is None
+    assert any(__import__("re").search(why, str(w.message)) for w in rec), [str(w.message) for w in rec]
+    assert [p.read_bytes() for p in out.glob("checkpoint.npz.unreadable-*")] == [data]
+
+
+def test_a_checkpoint_that_links_out_of_its_folder_is_set_aside(tmp_path, reference):
+    """checkpoint.npz, a symbolic link to a (valid) checkpoint outside the folder: not followed;
+    the link is set aside with a warning, its target left alone."""
+    _, good = reference
+    outside = tmp_path / "elsewhere.npz"
+    outside.write_bytes(good)
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / _CHECKPOINT).symlink_to(outside)
+    with pytest.warns(CheckpointWarning, match=r"symbolic link to .*elsewhere\.npz, outside"):
+        assert _load(out, parse_design(_design()), force=False) is None
+    assert outside.read_bytes() == good
+    assert [p.is_symlink() for p in out.glob("checkpoint.npz.unreadable-*")] == [True]
+
+
+def test_a_fifo_named_checkpoint_is_set_aside_within_seconds(tmp_path):
+    """A FIFO (named pipe) named checkpoint.npz: a reader that opened it would wait for a writer
+    forever; it is refused at once (a subprocess, so that a hang fails the test by its timeout)."""
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    out = tmp_path / "d"
+    out.mkdir()
+    os.mkfifo(out / _CHECKPOINT)
+    script = textwrap.dedent(f"""
+        import warnings
+        from hertzchain.design import parse_design
+        from hertzchain.design.checkpoint import _load
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            print(_load(__import__("pathlib").Path({str(out)!r}), parse_design({_design()!r}), False))
+        print("|".join(str(w.message) for w in rec))
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("None") and "a FIFO (named pipe), not a regular file" in proc.stdout
+    kept = list(out.glob("checkpoint.npz.unreadable-*"))
+    assert len(kept) == 1 and __import__("stat").S_ISFIFO(os.lstat(kept[0]).st_mode)

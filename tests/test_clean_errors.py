@@ -3,6 +3,8 @@ named), a warning before the work, or a correct result."""
 
 from __future__ import annotations
 
+import math
+
 import json
 import time
 import warnings
@@ -216,6 +218,32 @@ def test_api_refuses_what_a_config_refuses(make, field):
     with pytest.raises(ConfigError) as e:
         make()
     assert e.value.field == field
+
+
+_TWO = [hc.Model(hc.Chain.uniform(3, 2e-2))] * 2
+
+
+@pytest.mark.parametrize("make, field, why", [
+    (lambda: hc.simulate(_TWO[0], 1e-4, steps_per_radian=0), "run.steps_per_radian", ">= 10"),   # crashed
+    (lambda: hc.simulate(_TWO[0], 1e-4, steps_per_radian=1e9), "run.steps_per_radian", "<= 100000"),
+    (lambda: hc.simulate(_TWO[0], 1e-4, integrator="rkn4", rtol=0), "run.rtol", ">= 1e-14"),    # ran for minutes
+    (lambda: hc.simulate(_TWO[0], 1e-4, integrator="dop853", rtol=0.5), "run.rtol", "<= 0.1"),
+    (lambda: hc.simulate(_TWO[0], 1e-4, dt=math.nan), "run.dt", "finite"),
+    (lambda: hc.simulate(_TWO[0], 1e-4, threads=10**6), "run.threads", "<= 1024"),
+    (lambda: hc.simulate(_TWO[0], 1e-4, threads=2.0), "run.threads", "whole number"),
+    (lambda: hc.simulate_batch(_TWO, 1e-4, dt=math.nan), "run.dt", "finite"),                  # was accepted
+    (lambda: hc.simulate_batch(_TWO, 1e-4, dt=[1e-8, -1.0]), "run.dt[1]", ">= 1e-15"),
+    (lambda: hc.simulate_batch(_TWO, 1e-4, n_threads=10**6), "n_threads", "<= 4096"),          # was accepted
+    (lambda: hc.simulate_batch(_TWO, 1e-4, steps_per_radian=0), "run.steps_per_radian", ">= 10"),
+    (lambda: hc.restitution(0.2, hc.Dashpot(1e9), 8e-3, "AISI52100", 26e-3), "law", "overdamped"),  # minutes
+])
+def test_api_run_keywords_are_held_to_the_config_bounds(make, field, why):
+    """The keywords of simulate / simulate_batch / restitution are checked at the door as the same
+    fields of a config are (the schema's BOUNDS), before any work; a collision whose damping would
+    make it take ~1e13 steps is refused naming the law."""
+    with pytest.raises(ConfigError) as e:
+        make()
+    assert e.value.field == field and why in e.value.message, e.value.message
 
 
 def test_api_takes_numpy_scalars_as_numbers():

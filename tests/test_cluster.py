@@ -257,3 +257,61 @@ def test_no_scheduler_at_the_address_is_a_clean_error():
     with pytest.raises(ConfigError) as e:
         connect(f"tcp://127.0.0.1:{_free_port()}", timeout="1s")
     assert e.value.field == "--scheduler" and "dask scheduler" in e.value.message
+
+
+@pytest.mark.parametrize("address, why", [
+    ("tls://127.0.0.1:1", "tls:// is not supported (TLS needs certificates"),
+    ("ucx://127.0.0.1:1", "ucx:// is not supported (UCX needs"),
+    ("ws://127.0.0.1:1", "ws:// is not supported (an unknown scheme)"),
+    ("127.0.0.1:99999", "a port from 1 to 65535"),
+    ("tcp://127.0.0.1", "is not a scheduler address"),
+])
+def test_an_unsupported_scheduler_address_is_refused_at_once(tmp_path, capsys, address, why):
+    """TLS, UCX and other schemes (an internal TypeError, or a 40 s stall, before), a port out of
+    range, no port: refused before anything is tried, naming --scheduler (exit 2 in the CLI)."""
+    from hertzchain.errors import ConfigError
+    from hertzchain.parallel import connect
+
+    start = time.monotonic()
+    with pytest.raises(ConfigError) as e:
+        connect(address)
+    assert e.value.field == "--scheduler" and why in e.value.message
+    assert time.monotonic() - start < 2.0  # nothing was tried: no connection timeout
+    assert main(["sweep", str(ROOT / "examples" / "sweep_taper.toml"), "--out", str(tmp_path / "o"),
+                 "--scheduler", address]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert "--scheduler" in err and why in err and "internal error" not in err
+
+
+def test_no_scheduler_answering_is_an_error_within_the_connection_timeout():
+    """Nothing listens at the address: the error comes after the short connection timeout
+    (CONNECT_TIMEOUT_S, 10 s), not after Dask's 20-40 s."""
+    from hertzchain.errors import ConfigError
+    from hertzchain.parallel import CONNECT_TIMEOUT_S, connect
+
+    start = time.monotonic()
+    with pytest.raises(ConfigError, match="cannot connect to the Dask scheduler"):
+        connect(f"tcp://127.0.0.1:{_free_port()}", timeout=1.0)
+    assert time.monotonic() - start < 1.0 + 5.0 and CONNECT_TIMEOUT_S <= 10.0
+
+
+def test_a_cluster_without_workers_is_waited_for_a_bounded_time_then_refused(tmp_path):
+    """A scheduler with no worker (started as the guide says, without its workers): the wait is
+    announced, bounded, and ends in a clean error naming --scheduler (it waited forever before)."""
+    from hertzchain.errors import ConfigError
+    from hertzchain.parallel import connect
+
+    if not (BIN / "dask").exists():
+        pytest.skip(f"no dask executable beside {sys.executable}")
+    lonely = Cluster(tmp_path)
+    try:
+        lonely.run_page([line for line in page_commands() if " scheduler" in line][:1], _free_port())
+        said: list[str] = []
+        start = time.monotonic()
+        with pytest.raises(ConfigError) as e:
+            connect(lonely.address, worker_wait=1.0, notify=said.append)
+        assert time.monotonic() - start < 10.0
+        assert e.value.field == "--scheduler" and "no worker joined" in e.value.message
+        assert len(said) == 1 and "has no worker; waiting up to 1 s" in said[0]
+    finally:
+        lonely.stop()

@@ -80,8 +80,10 @@ def test_summary_prints_units_and_writes_the_statistics_as_json(table, tmp_path,
     folder, df = table
     assert main(["summary", str(folder), "--json", str(tmp_path / "s.json")]) == 0
     out = capsys.readouterr().out
-    assert "unit" in out and "median" in out and "95 %" in out and "2 without a fitted wall pulse" in out
-    assert "1 past the elastic limit" in out
+    # The caption is wrapped at the terminal's width (COLUMNS): its words are checked, not its lines.
+    flat = " ".join(out.split())
+    assert "unit" in out and "median" in out and "95 %" in out and "2 without a fitted wall pulse" in flat
+    assert "1 past the elastic limit" in flat
     row = next(line for line in out.splitlines() if line.strip().startswith("T "))
     assert " ms " in row  # T in milliseconds
     s = json.loads((tmp_path / "s.json").read_text())
@@ -108,3 +110,35 @@ def test_user_errors_name_the_option_or_file(table, tmp_path, capsys, args, fiel
     argv = [a.format(folder=folder, tmp=tmp_path) for a in args]
     assert main(argv) == 2
     assert field in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("damage, line, why", [
+    ("cell", 13, "column F_m holds 'abc', not a number"),
+    ("ragged-last", N + 1, "fields, the header has 16"),
+    ("long-line", 6, "17 fields, the header has 16"),
+    ("flag", 4, "column elastic_limit_exceeded holds 'maybe', not true or false"),
+])
+def test_a_damaged_metrics_table_is_refused_naming_the_line(table, tmp_path, capsys, damage, line, why):
+    """A cell 'abc' among F_m's numbers (which pandas would read as a text column, so that the
+    metric vanished from the summary without a word), a ragged last line (half a member counted as
+    one), a line with one field too many, a flag that is not true or false: exit 2, the file, the
+    line and the column named; nothing summarised."""
+    folder, _ = table
+    rows = (folder / "metrics.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    cells = [r.split(",") for r in rows[1:]]
+    if damage == "cell":
+        cells[line - 2][header.index("F_m")] = "abc"
+    elif damage == "ragged-last":
+        cells[-1] = cells[-1][:5]
+    elif damage == "long-line":
+        cells[line - 2].append("1.0")
+    else:
+        cells[line - 2][header.index("elastic_limit_exceeded")] = "maybe"
+    damaged = tmp_path / "damaged"
+    damaged.mkdir()
+    (damaged / "metrics.csv").write_text("\n".join([rows[0], *(",".join(c) for c in cells)]) + "\n")
+    assert main(["summary", str(damaged)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"metrics.csv: is damaged: line {line}: " in err and why in err, err
+    assert "Traceback" not in err and not (damaged / "summary.json").exists()

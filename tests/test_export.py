@@ -39,7 +39,7 @@ def test_mat_file_holds_time_and_wall_force_in_si_with_units(result, tmp_path):
 def test_csv_has_units_in_the_header_and_the_same_numbers(result, tmp_path):
     path, ds = result
     out = hc.export(ds, tmp_path / "r.csv")
-    table = pd.read_csv(out)
+    table = pd.read_csv(out, comment="#")  # the run's metadata is in # lines above the table
     assert list(table.columns[:3]) == ["time [s]", "wall_force [N]", "sensor_force[3] [N]"]
     assert "contact_force[0] [N]" in table and "velocity[0] [m s-1]" in table and "kinetic_energy [J]" in table
     np.testing.assert_allclose(table["wall_force [N]"], ds.wall_force.values, rtol=1e-9, atol=1e-15)
@@ -66,7 +66,7 @@ def test_run_writes_mat_and_csv_directly(tmp_path):
     assert main(["run", str(cfg), "--out", str(tmp_path / "r.csv"), "-q"]) == 0
     ds = hc.load(tmp_path / "r.nc")
     np.testing.assert_array_equal(sio.loadmat(tmp_path / "r.mat", squeeze_me=True)["wall_force"], ds.wall_force.values)
-    assert pd.read_csv(tmp_path / "r.csv")["wall_force [N]"].max() == pytest.approx(float(ds.wall_force.max()), rel=1e-9)
+    assert pd.read_csv(tmp_path / "r.csv", comment="#")["wall_force [N]"].max() == pytest.approx(float(ds.wall_force.max()), rel=1e-9)
 
 
 def test_refusals_name_the_option(result, tmp_path, capsys):

@@ -185,3 +185,32 @@ def test_analyze_cli_measured_signal(tmp_path, capsys):
     assert measured["duration"] == pytest.approx(ideal["duration"], rel=1e-2)
     trig = ds.measured_wall_force.attrs["trigger_time"]
     assert measured["time_of_flight"] + trig == pytest.approx(ideal["time_of_flight"], abs=4e-7)
+
+
+@pytest.mark.parametrize("reader", ["read_trace", "analyze_signals"])
+def test_a_fifo_given_as_a_record_is_refused_at_once(tmp_path, reader):
+    """A FIFO (named pipe) given as a scope record or a CSV of signals: opening it for reading
+    would wait for a writer forever; it is refused at once, naming it (run in a thread joined with
+    a timeout, so that a hang fails the test instead of stopping the suite)."""
+    import os
+    import threading
+
+    from hertzchain.analysis import analyze_signals
+
+    fifo = tmp_path / "record.csv"
+    os.mkfifo(fifo)
+    call = {"read_trace": lambda: read_trace(fifo), "analyze_signals": lambda: analyze_signals(fifo)}[reader]
+    caught: list[BaseException] = []
+
+    def target():
+        try:
+            call()
+        except BaseException as exc:  # noqa: BLE001 - handed to the test below
+            caught.append(exc)
+
+    worker = threading.Thread(target=target, daemon=True)
+    worker.start()
+    worker.join(timeout=30)
+    assert not worker.is_alive(), "reading the FIFO hangs"
+    assert len(caught) == 1 and isinstance(caught[0], ConfigError)
+    assert "a FIFO (named pipe), not a regular file" in caught[0].message and str(fifo) in str(caught[0])

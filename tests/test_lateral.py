@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
+from conftest import assert_sums_agree
 from hertzchain.chain import Chain, paper_chain
 from hertzchain.model import Model, Striker, Wall
 from hertzchain.track import Track, lateral_arrays, simulate_lateral
@@ -70,8 +71,11 @@ def test_zero_offset_repeats_the_1d_engine_bit_for_bit(law):
     assert np.array_equal(one.sensor_force.values, two.sensor_force.values)
     assert one.attrs["n_steps"] == two.attrs["n_steps"]
     assert one.attrs["peak_wall_force"] == two.attrs["peak_wall_force"]
-    assert np.array_equal(one.dissipated_energy.values, two.dissipated_energy.values)
-    assert np.array_equal(one.kinetic_energy.values, two.kinetic_energy.values)
+    # Energies are sums over the beads (and, dissipated, over the steps) that each engine's kernel
+    # vectorises for the host CPU: equal to a few ulp of the total energy (conftest.assert_sums_agree).
+    total = float(one.kinetic_energy[0])
+    assert_sums_agree(one.kinetic_energy.values, two.kinetic_energy.values, total, model.chain.n_beads + 1)
+    assert_sums_agree(one.dissipated_energy.values, two.dissipated_energy.values, total, one.attrs["n_steps"] * model.chain.n_beads)
     # the 1D potential energy is summed in a vectorised order: equal to rounding
     np.testing.assert_allclose(one.potential_energy.values, two.potential_energy.values, rtol=1e-13, atol=1e-20)
     assert not np.any(two.lateral_displacement.values) and not np.any(two.friction_loss.values)

@@ -229,3 +229,91 @@ def test_run_refuses_an_out_name_that_is_not_a_result_format(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("error: --out:") and "*.nc" in err and "*.mat" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("where, reason", [
+    ("a-file/result.nc", "a part of its folder path is not a folder"),
+    ("a-file/sub/result.nc", "a part of its folder path is not a folder"),
+    ("read-only/result.nc", "permission denied"),
+    ("read-only/new/result.nc", "permission denied"),
+])
+def test_run_refuses_an_out_it_cannot_write_before_simulating(tmp_path, capsys, monkeypatch, where, reason):
+    """--out under a file, or in a folder it may not write (or create): refused before the
+    simulation (which ran to its end first, before), naming the file and why; exit 2."""
+    import os
+
+    import hertzchain.config as config
+
+    if where.startswith("read-only"):
+        if os.geteuid() == 0:
+            pytest.skip("the administrator may write into a read-only folder")
+        (tmp_path / "read-only").mkdir(mode=0o500)
+    (tmp_path / "a-file").write_text("x")
+    ran = []
+    monkeypatch.setattr(config, "simulate_config", lambda *a, **k: ran.append(1))
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    out = tmp_path / where
+    assert main(["run", str(examples / "contract.toml"), "--out", str(out), "-q"]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert err.startswith(f"error: {out}: cannot be written: {reason}") and ran == []
+
+
+def test_reproduce_from_data_reads_only_regular_files_of_its_folder(tmp_path, capsys):
+    """--from-data on a received folder: a trace linking out of data/, a FIFO named summary.json or
+    like a trace (reading one would wait forever: run in a subprocess, so that a hang fails by its
+    timeout): refused at once, naming the file; exit 2."""
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    from hertzchain.paper.protocol import Settings
+
+    def folder(name: str, plant: str):
+        out = tmp_path / name
+        data = out / "data"
+        data.mkdir(parents=True)
+        summary, trace = out / "summary.json", data / "chain1_truncated_16.nc"
+        if plant == "fifo-summary":
+            os.mkfifo(summary)
+        else:
+            summary.write_text(json.dumps({"settings": Settings().describe()}))
+        if plant == "fifo-trace":
+            os.mkfifo(trace)
+        elif plant == "link-trace":
+            outside = tmp_path / "outside.nc"
+            outside.write_bytes(b"\x89HDF\r\n\x1a\n")
+            trace.symlink_to(outside)
+        return out
+
+    linked = folder("link", "link-trace")
+    err = " ".join(run_error(capsys, ["reproduce", "--out", str(linked), "--from-data"]).split())
+    assert "chain1_truncated_16.nc: is a symbolic link to" in err and "outside" in err
+    fifos = [folder("fifo-summary", "fifo-summary"), folder("fifo-trace", "fifo-trace")]
+    script = textwrap.dedent(f"""
+        from hertzchain.cli.main import main
+        for out in {[str(f) for f in fifos]!r}:
+            print(main(["reproduce", "--out", out, "--from-data"]))
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert proc.stdout.split() == ["2", "2"], proc.stderr
+    err = " ".join(proc.stderr.split())
+    assert "summary.json: is a FIFO (named pipe), not a regular file" in err
+    assert "chain1_truncated_16.nc: is a FIFO (named pipe), not a regular file" in err
+    assert "Traceback" not in err
+
+
+def test_a_received_trace_declaring_a_huge_variable_is_refused_before_it_is_allocated(tmp_path):
+    """A trace of a reproduction's data/ whose wall_force declares 10**13 samples (an HDF5 file of
+    a few kB, the data never written): refused naming the file and the variable, nothing allocated."""
+    import h5py
+
+    from hertzchain.paper.reproduce import load_trace
+
+    path = tmp_path / "trace.nc"
+    with h5py.File(path, "w") as f:
+        f.create_dataset("wall_force", shape=(10**13,), dtype="f8", chunks=(4096,))
+    # (--from-data's reader wraps it in a ConfigError naming the file: "is damaged or not a
+    # hertzchain result (ValueError: ...)")
+    with pytest.raises(ValueError, match=r"'wall_force' declares shape \(10000000000000,\)"):
+        load_trace(path)

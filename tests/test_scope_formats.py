@@ -240,3 +240,26 @@ def test_picoscope_out_of_range_sample_is_refused_with_its_line(tmp_path):
     (tmp_path / "p.csv").write_text("\n".join(text) + "\n")
     with pytest.raises(ConfigError, match="line 51: the signal is inf .*out of range"):
         read_trace(tmp_path / "p.csv", "Channel A", sensitivity=100.0)
+
+
+def test_a_huge_lecroy_file_costs_its_declared_record_not_its_size(tmp_path):
+    """A .trc whose WAVEDESC declares a 20,000-sample record, in a 3 GB file (sparse: no disk
+    used): the descriptor is read first and only the declared record is copied (read whole before,
+    3.2 GB of memory): the reading allocates less than 50 MB (tracemalloc; ~2 MB measured)."""
+    import tracemalloc
+
+    from lab_files import write_trc
+
+    t = np.arange(20_000) * 1e-8
+    volts = 0.5 * np.exp(-(((t - 1e-4) / 2e-5) ** 2))
+    path = write_trc(tmp_path / "big.trc", t, volts)
+    read_trace(path, sensitivity=2.0, check=False)  # imports and caches, before the measurement
+    with open(path, "r+b") as f:
+        f.truncate(3 * 2**30)
+    tracemalloc.start()
+    try:
+        trace = read_trace(path, sensitivity=2.0, check=False)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert trace.size == t.size and peak < 50e6, peak

@@ -374,3 +374,105 @@ def test_a_ctrl_c_swallowed_by_a_weakref_callback_still_stops_the_sweep(tmp_path
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler is put back
     again = run_sweep(grid_sweep(), tmp_path)  # and the sweep resumes where it stopped
     assert again.skipped == [0] and again.computed == [1, 2, 3]
+
+
+def test_a_forced_sweep_killed_midway_keeps_the_old_results(tmp_path):
+    """--force onto another sweep's folder, killed after its first chunk: the old sweep's results
+    are whole (set aside, not deleted); the new sweep, forced again, resumes its finished chunk and,
+    once complete, leaves no copy of the replaced results; forcing the old sweep back instead
+    restores them without computing a chunk."""
+    old_cfg = grid_sweep(parameters={"striker.velocity": [0.2]})
+    new_cfg = grid_sweep(parameters={"striker.velocity": [0.2, 0.3]}, chunk_size=1)
+    old = run_sweep(old_cfg, tmp_path)
+    old_table = (tmp_path / "metrics.csv").read_bytes()
+    calls = []
+
+    def killer(done, total):
+        calls.append(done)
+        if len(calls) == 2:  # after the first chunk is on disk
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(new_cfg, tmp_path, force=True, progress=killer)
+    kept = list(tmp_path.glob(".replaced-*"))
+    assert len(kept) == 1 and (kept[0] / "metrics.csv").read_bytes() == old_table
+    assert json.loads((kept[0] / "sweep.json").read_text())["hash"] == parse_sweep(old_cfg).hash
+    assert len(list((kept[0] / "chunks").glob("chunk_*.nc"))) == 1
+    new = run_sweep(new_cfg, tmp_path, force=True)
+    assert new.skipped == [0] and new.computed == [1]
+    assert not list(tmp_path.glob(".replaced-*"))
+    # Killed again at the start of a forced run of the old sweep: forcing the new one back takes
+    # its results back; forcing the old one completes it from its set-aside chunks.
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(old_cfg, tmp_path, force=True, progress=lambda d, t: (_ for _ in ()).throw(KeyboardInterrupt))
+    assert len(list(tmp_path.glob(".replaced-*"))) == 1
+    back = run_sweep(new_cfg, tmp_path, force=True)
+    assert back.computed == [] and back.skipped == [0, 1]
+    pd.testing.assert_frame_equal(back.metrics, new.metrics, check_exact=True)
+    assert not list(tmp_path.glob(".replaced-*"))
+    assert old.computed == [0]
+
+
+def test_a_fifo_or_an_outside_link_among_the_chunks_is_never_read(tmp_path):
+    """A received sweep folder whose chunk is a FIFO (reading it would wait forever: checked in a
+    subprocess, so that a hang fails by its timeout) or a symbolic link out of the folder: the
+    resumed sweep reads neither; the chunk is to be computed again, and replacing what is not a
+    regular file is refused, naming it (exit 2 in the CLI)."""
+    import shutil
+    import subprocess
+    import textwrap
+
+    from hertzchain.errors import ConfigError
+
+    small = grid_sweep(parameters={"striker.velocity": [0.2]})
+    run_sweep(small, tmp_path / "a")
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    fifo = tmp_path / "a" / "chunks" / "chunk_00000.nc"
+    fifo.unlink()
+    os.mkfifo(fifo)
+    script = textwrap.dedent(f"""
+        from pathlib import Path
+        from hertzchain.sweep import parse_sweep
+        from hertzchain.sweep.storage import _chunk_is_done
+        cfg = parse_sweep({small!r})
+        print(_chunk_is_done(Path({str(fifo)!r}), cfg.hash, cfg.chunks()[0]))
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and proc.stdout.strip() == "False", proc.stderr
+    with pytest.raises(ConfigError, match=r"chunk_00000\.nc: exists and is a FIFO \(named pipe\)"):
+        run_sweep(small, tmp_path / "a")
+    link = tmp_path / "b" / "chunks" / "chunk_00000.nc"
+    outside = tmp_path / "outside.nc"
+    os.replace(link, outside)
+    link.symlink_to(outside)  # the genuine chunk, with its genuine checksum beside the link
+    with pytest.raises(ConfigError, match=r"chunk_00000\.nc: exists and is a symbolic link"):
+        run_sweep(small, tmp_path / "b")
+
+
+@pytest.mark.parametrize("damage", ["wrong-shape", "huge-declared", "text-metric"])
+def test_a_chunk_with_a_valid_checksum_but_foreign_content_is_computed_again(tmp_path, damage):
+    """A received chunk whose checksum was made to match (so it passes the SHA-256 check) but whose
+    per-member variables are not the chunk's (F_m of another length, a member list declaring 10**12
+    members, a metric of text): its declarations are checked before anything is read, and the chunk
+    is computed again; the table is the uninterrupted sweep's."""
+    import hashlib
+
+    import h5py
+
+    small = grid_sweep(parameters={"striker.velocity": [0.2, 0.3]})
+    first = run_sweep(small, tmp_path)
+    chunk = tmp_path / "chunks" / "chunk_00000.nc"
+    with h5py.File(chunk, "r+") as f:
+        if damage == "wrong-shape":
+            del f["F_m"]
+            f["F_m"] = np.ones(5)
+        elif damage == "huge-declared":
+            del f["member"]
+            f.create_dataset("member", shape=(10**12,), dtype="i8", chunks=(1024,))
+        else:
+            del f["T"]
+            f["T"] = np.array([b"abc", b"def"])
+    (tmp_path / "chunks" / "chunk_00000.nc.sha256").write_text(hashlib.sha256(chunk.read_bytes()).hexdigest() + "\n")
+    again = run_sweep(small, tmp_path)
+    assert again.computed == [0]
+    pd.testing.assert_frame_equal(again.metrics, first.metrics, check_exact=True)

@@ -229,6 +229,6 @@ def test_a_long_sweep_is_projected_on_the_cores_that_run_it(monkeypatch, tmp_pat
     assert not any("cores" in str(w.message) for w in caught)
     assert projected[-1] == pytest.approx(3 * on_three, rel=1e-12)
     # run_sweep shares the time by sweep.n_threads when it runs locally
-    monkeypatch.setattr(runner, "_plan", lambda cfg, device, cores=1: (_ for _ in ()).throw(AssertionError(cores)))
+    monkeypatch.setattr(runner, "_plan", lambda cfg, device, cores=1, advice=None: (_ for _ in ()).throw(AssertionError(cores)))
     with pytest.raises(AssertionError, match="^3$"):
         run_sweep(cfg, tmp_path / "local", progress=None)

@@ -22,7 +22,7 @@ import hertzchain as hc
 ds = hc.simulate(hc.Model(hc.Chain.uniform(10, 26e-3).append_taper(8, 0.06), hc.Striker(8e-3, 0.2)), "auto",
                  hc.Probes(sample_interval=1e-6, sensors=(5,)))
 with tempfile.TemporaryDirectory() as tmp:
-    table = pd.read_csv(hc.export(ds, Path(tmp) / "result.csv"))
+    table = pd.read_csv(hc.export(ds, Path(tmp) / "result.csv"), comment="#")  # metadata in "#" lines
     mat = scipy.io.loadmat(hc.export(ds, Path(tmp) / "result.mat"), squeeze_me=True)
 print(list(table.columns[:4]), "...", f"{table.shape[1]} columns")
 print("MATLAB variables:", sorted(k for k in mat if not k.startswith("__")))

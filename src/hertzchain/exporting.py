@@ -5,7 +5,10 @@ parquet (pandas, R, Julia), SI units throughout.
   simulation's time axis (wall force, sensor forces, contact forces, energies, velocities,
   displacements), one column per contact, sensor or body; the CSV header names each column with
   its unit (``wall_force [N]``, ``contact_force[3] [N]``), parquet keeps the units in its schema
-  metadata.
+  metadata. Above the CSV's table, ``#`` lines carry what has no time axis: the run's attributes
+  (the config and the model as JSON) and every per-contact, per-bead or per-sensor variable (dents,
+  kappa, F_Y, diameters...), one line each as JSON (:func:`csv_header`); ``pandas.read_csv(path,
+  comment="#")`` reads the table, :func:`read_csv_header` the lines.
 - MATLAB: one variable per result variable and coordinate (``time``, ``wall_force``,
   ``contact_force`` as a time x contact matrix, ``contact``, ``diameter``...), a struct ``units``
   (``units.wall_force = 'N'``) and a struct ``attrs`` with the run's attributes (the config and
@@ -23,7 +26,7 @@ import xarray as xr
 
 from .errors import ConfigError
 
-__all__ = ["EXPORT_FORMATS", "check_format", "export", "signal_table"]
+__all__ = ["EXPORT_FORMATS", "check_format", "export", "signal_table", "csv_header", "read_csv_header"]
 
 #: File suffixes :func:`export` writes, and what they are.
 EXPORT_FORMATS = {".csv": "CSV, units in the header", ".mat": "MATLAB v5, scipy.io.savemat",
@@ -138,6 +141,84 @@ def _write_mat(run: xr.Dataset, path: Path) -> None:
         savemat(fh, variables, do_compression=True, oned_as="column")
 
 
+def _jsonable(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def csv_header(ds: xr.Dataset) -> str:
+    """The ``#`` lines above a CSV export: the run's attributes and its variables without a time axis.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        One run.
+
+    Returns
+    -------
+    str
+        Lines ``# attr NAME = JSON`` (each run attribute: the config, the model, the engine...)
+        and ``# var NAME [UNIT] (DIM) = JSON`` (each variable or coordinate without a time axis,
+        one value per contact, bead or sensor, e.g. ``dent``, ``kappa``, ``yield_force``), each
+        value as one line of JSON (text with its newlines escaped).
+    """
+    run = _one_run(ds)
+    lines = ["# hertzchain result as CSV: one row per sample, SI units in the column names; read the table "
+             "with pandas.read_csv(path, comment='#'), these lines with hertzchain.exporting.read_csv_header"]
+    for key, value in run.attrs.items():
+        lines.append(f"# attr {key} = {json.dumps(_jsonable(value), default=str)}")
+    for name in [*run.coords, *run.data_vars]:
+        var = run[name]
+        if "time" in var.dims or var.ndim > 1:
+            continue
+        dims = f" ({var.dims[0]})" if var.ndim else ""
+        values = var.values.astype(str) if var.dtype.kind not in "biufcm" else var.values
+        lines.append(f"# var {name} [{var.attrs.get('units', '')}]{dims} = {json.dumps(_jsonable(values), default=str)}")
+    return "\n".join(line.replace("\r", " ") for line in lines) + "\n"
+
+
+def read_csv_header(path: str | Path) -> dict:
+    """The metadata of a CSV export (:func:`csv_header`), as read back.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A CSV written by :func:`export`.
+
+    Returns
+    -------
+    dict
+        ``{"attrs": {name: value}, "variables": {name: {"units", "dim", "values"}}}``.
+
+    Raises
+    ------
+    ConfigError
+        A header line that is not ``# attr`` / ``# var`` NAME ... = JSON.
+    """
+    out: dict = {"attrs": {}, "variables": {}}
+    pattern = re.compile(r"# (attr|var) ([^\s\[=]+)(?: \[([^\]]*)\])?(?: \((\w+)\))? = (.*)")
+    with open(path, encoding="utf-8") as f:
+        for no, line in enumerate(f, 1):
+            if not line.startswith("#"):
+                break
+            if no == 1:
+                continue
+            m = pattern.fullmatch(line.rstrip("\n"))
+            try:
+                value = json.loads(m.group(5)) if m else None
+            except ValueError:
+                m = None
+            if m is None:
+                raise ConfigError(str(path), f"line {no}: not a '# attr NAME = JSON' or '# var NAME [UNIT] (DIM) = JSON' "
+                                  f"header line: {line[:60]!r}")
+            if m.group(1) == "attr":
+                out["attrs"][m.group(2)] = value
+            else:
+                out["variables"][m.group(2)] = {"units": m.group(3) or "", "dim": m.group(4), "values": value}
+    return out
+
+
 def export(ds: xr.Dataset, path: str | Path) -> Path:
     """Write a result as CSV, MATLAB or parquet, by the file's suffix (SI units).
 
@@ -146,7 +227,8 @@ def export(ds: xr.Dataset, path: str | Path) -> Path:
     ds : xarray.Dataset
         One run (:func:`hertzchain.simulate`, :func:`hertzchain.load`).
     path : str or pathlib.Path
-        ``*.csv`` (signals on the time axis, units in the header), ``*.mat`` (every variable,
+        ``*.csv`` (signals on the time axis, units in the header, the run's metadata in ``#``
+        lines above it: :func:`csv_header`), ``*.mat`` (every variable,
         a ``units`` struct and an ``attrs`` struct; ``time`` [s] and ``wall_force`` [N] among
         them) or ``*.parquet`` (the CSV's table; needs pyarrow, the ``[export]`` extra).
         Written atomically; its folder is created.
@@ -164,7 +246,9 @@ def export(ds: xr.Dataset, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         if suffix == ".csv":
-            signal_table(run).to_csv(tmp, index=False, float_format="%.10g")
+            with open(tmp, "w", encoding="utf-8", newline="") as f:
+                f.write(csv_header(run))
+                signal_table(run).to_csv(f, index=False, float_format="%.10g", lineterminator="\n")
         elif suffix == ".parquet":
             table = signal_table(run)
             table.attrs = {"units": "in the column names, SI", "conventions": str(run.attrs.get("conventions", ""))}

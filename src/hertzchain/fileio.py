@@ -35,8 +35,8 @@ from typing import Any, Iterator
 
 from .errors import ConfigError
 
-__all__ = ["atomic_path", "write_text", "write_bytes", "check_target", "check_not_input", "json_text",
-           "remove_stale_temporaries"]
+__all__ = ["atomic_path", "write_text", "write_bytes", "check_target", "check_writable", "check_not_input",
+           "json_text", "remove_stale_temporaries"]
 
 _REASONS = {
     errno.ENOSPC: "no space left on the device",
@@ -80,6 +80,39 @@ def check_target(path: str | os.PathLike) -> None:
     if not stat.S_ISREG(st.st_mode):
         raise ConfigError(str(path), f"exists and is {_kind(st.st_mode)}; hertzchain only replaces regular files, "
                           "so it was left alone: choose another output name")
+
+
+def check_writable(path: str | os.PathLike) -> None:
+    """Refuse, before any work, a file that cannot be written: not a regular file (see
+    :func:`check_target`), or a folder that is not a folder, read-only or not ours.
+
+    The folder is tried for real (a temporary file made and removed at once, as the final write
+    will make one): permission bits alone do not tell (an administrator, a read-only mount, an
+    ACL). A folder still to be created (``hertzchain run`` creates the result's folder) is tried
+    at its deepest existing ancestor, and nothing is created.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file about to be written.
+
+    Raises
+    ------
+    ConfigError
+        Naming the path and the reason.
+    """
+    path = Path(path)
+    check_target(path)
+    folder = path.parent
+    while not os.path.lexists(folder) and folder != folder.parent:
+        folder = folder.parent
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.{_host()}-{os.getpid()}.", suffix=".tmp",
+                                     dir=folder)
+    except OSError as exc:
+        raise ConfigError(str(path), f"cannot be written: {_reason(exc)}") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def check_not_input(out: str | os.PathLike, *inputs: str | os.PathLike, option: str = "--out") -> None:

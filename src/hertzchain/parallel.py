@@ -28,7 +28,8 @@ from typing import Any, Callable, Iterable, Iterator
 
 from .errors import ConfigError, HertzchainError
 
-__all__ = ["connect", "results_as_completed", "results_in_order", "ClusterError", "IN_FLIGHT_PER_THREAD"]
+__all__ = ["connect", "check_address", "results_as_completed", "results_in_order", "ClusterError",
+           "IN_FLIGHT_PER_THREAD"]
 
 #: Tasks kept submitted per worker thread: enough to keep every worker busy while results travel
 #: back, few enough that the scheduler and the client hold only a handful of tasks.
@@ -41,18 +42,71 @@ class ClusterError(HertzchainError):
     """The Dask cluster lost a task for good (its workers died every time it ran)."""
 
 
-def connect(address: str, timeout: str = "20s"):
-    """A Dask ``distributed.Client`` connected to the scheduler at ``address``.
+#: Seconds to reach a scheduler: a scheduler on a network answers in well under a second.
+CONNECT_TIMEOUT_S = 10.0
+#: Seconds to wait for a first worker of a cluster that has none (it may be starting).
+WORKER_WAIT_S = 30.0
+
+
+def check_address(address: str) -> str:
+    """The scheduler address ``address`` as ``tcp://HOST:PORT``, or a ConfigError naming ``--scheduler``.
+
+    hertzchain speaks plain TCP to a Dask scheduler (``tcp://HOST:PORT`` or ``HOST:PORT``, as
+    ``dask scheduler`` prints it; ``inproc://`` names a scheduler in this very process, a
+    ``LocalCluster(processes=False)``): TLS needs certificates and UCX a network stack that no
+    option here configures, so those (and any other scheme) are refused at once, not tried.
+
+    Parameters
+    ----------
+    address : str
+        What the user gave to ``--scheduler``.
+
+    Returns
+    -------
+    str
+        The address with its scheme (``tcp://`` or ``inproc://``).
+    """
+    text = address.strip()
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    if scheme == "inproc" and rest:
+        return text
+    if scheme.lower() != "tcp":
+        why = {"tls": "TLS needs certificates, which --scheduler does not take",
+               "ucx": "UCX needs a network stack that --scheduler does not configure"}.get(scheme.lower(),
+                                                                                             "an unknown scheme")
+        raise ConfigError("--scheduler", f"{address!r}: {scheme}:// is not supported ({why}); give the scheduler's "
+                          "plain TCP address, tcp://HOST:PORT, as 'dask scheduler' prints it")
+    host, colon, port = rest.rpartition(":")
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    if not colon or not host or not port.isdigit() or not 1 <= int(port) <= 65535 or any(c in host for c in "/ @"):
+        raise ConfigError("--scheduler", f"{address!r} is not a scheduler address; give tcp://HOST:PORT (a host "
+                          "name or IP address, and a port from 1 to 65535), as 'dask scheduler' prints it")
+    return f"tcp://{rest}"
+
+
+def connect(address: str, timeout: float | str = CONNECT_TIMEOUT_S, worker_wait: float = WORKER_WAIT_S,
+            notify: Callable[[str], None] | None = None):
+    """A Dask ``distributed.Client`` connected to the scheduler at ``address``, with a worker.
 
     The client is not made Dask's default scheduler: nothing else in this process (xarray writing
-    a file, a ``.compute()``) is sent to the cluster by accident.
+    a file, a ``.compute()``) is sent to the cluster by accident. An address of another scheme
+    than TCP is refused before anything is tried (:func:`check_address`); a scheduler that does
+    not answer within ``timeout`` seconds is an error; a cluster without a worker is waited for
+    ``worker_wait`` seconds (saying so through ``notify``), then an error: a task sent there
+    would wait forever.
 
     Parameters
     ----------
     address : str
         The scheduler's address, e.g. ``tcp://10.0.0.5:8786`` (``dask scheduler`` prints it).
-    timeout : str
-        How long to try to connect (a Dask time string).
+    timeout : float or str
+        Seconds to try to connect (or a Dask time string, ``"5s"``).
+    worker_wait : float
+        Seconds to wait for a first worker when the cluster has none.
+    notify : callable or None
+        Called with a one-line message when the wait for a worker begins (the CLI prints it).
 
     Returns
     -------
@@ -62,15 +116,28 @@ def connect(address: str, timeout: str = "20s"):
     Raises
     ------
     ConfigError
-        (field ``--scheduler``) when no scheduler answers at ``address``.
+        (field ``--scheduler``) for an unsupported address, when no scheduler answers at
+        ``address``, or when no worker joins it in time.
     """
+    url = check_address(address)
     try:
         from distributed import Client
 
-        return Client(address, timeout=timeout, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
+        client = Client(url, timeout=timeout if isinstance(timeout, str) else f"{timeout}s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
         raise ConfigError("--scheduler", f"cannot connect to the Dask scheduler at {address!r}: {exc}; start one "
                           "with 'dask scheduler' and give the address it prints") from None
+    try:
+        if not client.scheduler_info().get("workers"):
+            if notify is not None:
+                notify(f"the Dask scheduler at {address} has no worker; waiting up to {worker_wait:g} s for one "
+                       f"(start workers with 'dask worker {url}')")
+            client.wait_for_workers(1, timeout=worker_wait)
+    except (OSError, TimeoutError) as exc:
+        client.close()
+        raise ConfigError("--scheduler", f"no worker joined the Dask cluster at {address!r} within {worker_wait:g} s "
+                          f"({type(exc).__name__}); start workers with 'dask worker {url}' and run again") from None
+    return client
 
 
 def _is_dask(client) -> bool:
@@ -86,6 +153,14 @@ def _dask_threads(client) -> int:
         return max(1, sum(client.nthreads().values()))
     except Exception:  # noqa: BLE001 - a scheduler that does not answer now: the first results will tell
         return 1
+
+
+def worker_threads(client) -> int:
+    """Threads that run tasks sent to ``client``: a Dask cluster's worker threads, an executor's
+    workers (1 when it does not say), for projections of the time a run will take there."""
+    if _is_dask(client):
+        return _dask_threads(client)
+    return max(int(getattr(client, "_max_workers", 1) or 1), 1)
 
 
 def results_as_completed(client, fn: Callable[[Any], Any], tasks: Iterable) -> Iterator:

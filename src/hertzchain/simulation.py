@@ -13,7 +13,7 @@ from .checks import check_after_run, check_before_run
 from .errors import ConfigError, DurationWarning, ElasticLimitWarning
 from .model import Model
 from .probes import Probes
-from .strict import real
+from .strict import real, run_options
 
 __all__ = ["simulate", "warn_elastic_limit", "warn_members_elastic_limit", "auto_duration", "elastic_limit_message"]
 
@@ -155,8 +155,10 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
     if isinstance(duration, str) and duration == "auto":
         duration, mode = auto_duration(model), "auto"
     duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")
-    if dt is not None:
-        dt = real(dt, "run.dt", low=0.0, open_low=True, unit="s")
+    # The config's bounds at the API's door (hertzchain.strict): steps_per_radian=0, rtol=0, dt=nan
+    # or threads=10**6 are refused, naming the field, as in a config file.
+    dt, rtol, steps_per_radian, threads = run_options(dt=dt, rtol=rtol, steps_per_radian=steps_per_radian,
+                                                      threads=threads)
     if probes.sample_interval > duration:
         raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     system = model.system()
@@ -169,8 +171,6 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         check_rkn(system)
     check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # before any allocation
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
-    if not (isinstance(threads, int) and threads >= 1):
-        raise ConfigError("run.threads", f"must be a whole number of threads >= 1, got {threads!r}")
     if threads > 1 and integrator != "verlet":
         raise ConfigError("run.threads", f"several threads run the integrator 'verlet', not {integrator!r}")
     if threads > 1:

@@ -103,10 +103,15 @@ def _is_number(text: str) -> bool:
 
 def _read_csv(path, time_column=None, force_column=None) -> tuple[np.ndarray, np.ndarray, str]:
     """Read (time [s], force [N], force column name) from a CSV file."""
+    from ..received import open_received
+
     path = Path(path)
     where = str(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        with open_received(path) as fh:  # a regular file only: a FIFO would hang the read
+            text = fh.read().decode("utf-8-sig")
+    except ConfigError as exc:
+        raise ConfigError(where, f"cannot read the file: {exc.message}") from None
     except OSError as exc:
         raise ConfigError(where, f"cannot read the file: {exc.strerror or exc}") from exc
     except UnicodeDecodeError as exc:

@@ -77,7 +77,7 @@ def dask_client(scheduler: str | None):
         return None
     from ..parallel import connect
 
-    return connect(scheduler)
+    return connect(scheduler, notify=lambda message: click.echo(f"note: {message}", err=True))
 
 
 # ---------------------------------------------------------------------------------------------

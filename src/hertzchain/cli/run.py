@@ -24,7 +24,7 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
     from ..config import apply_instruments, build_instruments, build_model, build_probes, load_config, simulate_config
     from ..errors import ConfigError, DurationWarning, ElasticLimitWarning, LongRunWarning
     from ..exporting import EXPORT_FORMATS, check_format, export
-    from ..fileio import check_not_input, check_target
+    from ..fileio import check_not_input, check_writable
     from ..result import save
     from ..simulation import auto_duration
 
@@ -36,7 +36,9 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool) -> Non
         check_format(out)  # parquet without pyarrow is said before the run
     cfg = load_config(config, overrides)
     check_not_input(out, config)
-    check_target(out)  # refuse a FIFO, a link or a device as --out before any work
+    # Before any work: a FIFO, a link or a device as --out, or a folder that cannot be written
+    # (under a file, read-only, not ours), refused now rather than after the whole simulation.
+    check_writable(out)
     model = build_model(cfg)
     probes = build_probes(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run

@@ -6,8 +6,11 @@ document (``meta``, UTF-8 bytes) and plain numeric arrays. The document carries 
 (:data:`SCHEMA`), the SHA-256 of the design problem (a checkpoint resumes only the same design),
 every evaluated candidate (the history rows, and the evaluations by candidate key) and the
 optimiser's state: CMA-ES's mean, step size sigma, covariance matrix C, iteration and evaluation
-counters and the state of its random stream, or NSGA-II's generation and population, and NumPy's
-global random state (``cma`` seeds it, ``pymoo`` draws from it).
+counters and the state of its random stream, or NSGA-II's generation, population and the state of
+its random generator. Only what defines the search is kept: NumPy's global random state is not
+(``cma`` seeds it but draws its samples from the search's own stream, ``pymoo`` draws from its own
+generator, and anything else in the process may draw from it: a rerun in a new process would
+never match it).
 
 Resuming does not rebuild the optimiser from its saved attributes (``cma``'s object holds dozens
 of private ones, and some of its options are strings that ``cma`` evaluates): the search runs
@@ -21,9 +24,10 @@ aside, and the search starts afresh. So a resumed search ends with the result of
 one.
 
 An unreadable or damaged checkpoint (truncated, not an archive, a pickle, a field of the wrong
-type) and a ``checkpoint.pkl`` of an older hertzchain (a pickle: never read) are named in a
-:class:`~hertzchain.errors.CheckpointWarning`, renamed to ``<name>.unreadable-<time>`` (kept, not
-deleted) and the search restarts.
+type, a member that is not a ``.npy`` array or declares more data than it holds, a FIFO, a device
+or a link out of the folder: :mod:`hertzchain.received`) and a ``checkpoint.pkl`` of an older
+hertzchain (a pickle: never read) are named in a :class:`~hertzchain.errors.CheckpointWarning`,
+renamed to ``<name>.unreadable-<time>`` (kept, not deleted) and the search restarts.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ import io
 import itertools
 import json
 import math
+import os
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -83,11 +88,13 @@ def _evaluation_data(ev: Evaluation) -> dict:
 
 
 def fingerprint(optimiser: Any) -> tuple[dict, dict[str, np.ndarray]]:
-    """The optimiser's state as data: (JSON scalars, arrays), with NumPy's global random state.
+    """The optimiser's state as data: (JSON scalars, arrays), its own random streams included.
 
     CMA-ES: mean, sigma, covariance matrix C, evolution paths, iteration and evaluation
     counters, the state of its normal sampler's generator; NSGA-II: generation, population
-    (variables X, objectives F).
+    (variables X, objectives F), the state of its generator. Never NumPy's global random state,
+    which the search does not draw from and other code in the process may (see the module
+    docstring).
 
     Parameters
     ----------
@@ -101,10 +108,6 @@ def fingerprint(optimiser: Any) -> tuple[dict, dict[str, np.ndarray]]:
     """
     scalars: dict[str, Any] = {}
     arrays: dict[str, np.ndarray] = {}
-    glob = np.random.get_state(legacy=False)
-    arrays["numpy_random_key"] = np.asarray(glob["state"]["key"], np.uint32)
-    scalars["numpy_random"] = {"pos": int(glob["state"]["pos"]), "has_gauss": int(glob["has_gauss"]),
-                               "gauss": float(glob["gauss"])}
     if optimiser is None:
         scalars["optimiser"] = None
     elif hasattr(optimiser, "countiter"):  # cma
@@ -118,7 +121,9 @@ def fingerprint(optimiser: Any) -> tuple[dict, dict[str, np.ndarray]]:
         arrays["cma_ps"] = np.asarray(optimiser.adapt_sigma.ps, float)
     else:  # pymoo
         scalars["optimiser"] = "nsga-ii"
-        scalars["nsga"] = {"n_gen": None if optimiser.n_gen is None else int(optimiser.n_gen)}
+        rng = getattr(optimiser, "random_state", None)
+        scalars["nsga"] = {"n_gen": None if optimiser.n_gen is None else int(optimiser.n_gen),
+                           "random": None if rng is None else rng.bit_generator.state}
         pop = getattr(optimiser, "pop", None)
         if pop is not None:
             arrays["nsga_X"] = np.asarray(pop.get("X"), float)
@@ -246,13 +251,14 @@ def _rows(raw: Any, dim: int) -> list[dict]:
 
 def _read(path: Path, problem) -> Saved:
     """The checkpoint at ``path`` checked field by field (:class:`_Damaged` otherwise)."""
-    import zipfile
+    from ..received import load_npz
 
+    # A received folder's file: a regular one only (a FIFO would hang the read), every member a
+    # .npy array of numbers whose header is checked before it is allocated (hertzchain.received).
     try:
-        with np.load(path, allow_pickle=False) as npz:
-            files = {name: npz[name] for name in npz.files}
-    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, NotImplementedError, RuntimeError) as exc:
-        raise _Damaged(f"not a NumPy .npz archive of plain arrays ({type(exc).__name__}: {exc})") from None
+        files = load_npz(path, path.parent)
+    except ValueError as exc:
+        raise _Damaged(f"not a NumPy .npz archive of plain arrays ({exc})") from None
     raw_meta = files.pop("meta", None)
     _need(raw_meta is not None and raw_meta.dtype == np.uint8 and raw_meta.ndim == 1, "no 'meta' document")
     try:
@@ -323,7 +329,7 @@ def _load(out: Path, problem, force: bool) -> Saved | None:
         set_aside(legacy, "a checkpoint of an older hertzchain, a Python pickle, which can run code when read; "
                   "hertzchain never reads one")
     path = out / _CHECKPOINT
-    if not path.exists():
+    if not os.path.lexists(path):  # lexists: a dangling link is set aside like any unusable file
         return None
     try:
         saved = _read(path, problem)

@@ -54,6 +54,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import ConfigError, HertzchainError
+from ..parallel import worker_threads
 from .boundary import _BOUNDARY_SLACK, _margin, _repair_initial, _repair_point, _repairs, _to_boundary
 from .checkpoint import DesignMismatch, Replay, ReplayDiverged, _load, _save, set_aside
 from .gradient import gradient_step, gradient_support, initial_points
@@ -426,22 +427,21 @@ def preflight(problem: DesignProblem, client=None, chunk_size: int | None = None
         raise ConfigError("design.population", f"a generation of {first:,} candidates x {per} scenario(s) costs "
                           f"{first * per:,} engine runs, more than the {sec.budget - reserve:,} of design.budget = "
                           f"{sec.budget:,} left for the search: lower design.population or raise design.budget")
-    cfg = parse_config(problem.base)
-    model = build_model(cfg)
+    model = build_model(cfg := parse_config(problem.base))
     members = min(max(_population(problem), first) * per, sec.budget)  # later generations: checked as they come
-    if client is not None:
-        members = min(members, chunk_size or sec.chunk_size)
+    members = members if client is None else min(members, chunk_size or sec.chunk_size)
     probes = Probes(sample_interval=cfg.run.sample_interval, contacts=())
     one = estimate_resources(model.system(), cfg.run.duration, probes, dt=cfg.run.dt,
                              steps_per_radian=fidelity.steps_per_radian or cfg.run.steps_per_radian)
     mem = estimate_memory(model.chain.n_beads, model.wall.present, cfg.run.duration, probes, members)
-    threads = numba.config.NUMBA_NUM_THREADS if client is None else 1
-    est = _replace(mem, steps=one.steps, seconds=one.seconds * sec.budget / max(1, min(threads, members)))
+    parallel = max(1, min(numba.config.NUMBA_NUM_THREADS, members)) if client is None else worker_threads(client)
+    est = _replace(mem, steps=one.steps, seconds=one.seconds * sec.budget / parallel)
     field = "design.population" if client is None else "design.chunk_size"
     check_resources(est, memory_field=field,
                     memory_hint=f"lower {field} ({members:,} engine runs a generation at most), raise "
                                 "run.sample_interval of [base] or shorten its run.duration",
-                    time_hint="lower design.budget, or spread the generations over a Dask cluster (--scheduler)")
+                    time_hint="lower design.budget, or spread the generations over a Dask cluster (--scheduler)"
+                    if client is None else f"that is on the cluster's {parallel} worker threads; lower design.budget")
     return est
 
 

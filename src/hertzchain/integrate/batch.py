@@ -52,7 +52,7 @@ from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
 from ..simulation import warn_members_elastic_limit
-from ..strict import real
+from ..strict import real, run_options
 from .batch_engine import _engine
 from .batch_pack import MemberSystem, _ensemble_dts, _pack_ensemble, _setup_groups, _setup_members
 from .batch_results import _ensemble_dataset, _member_runs, _stack_members, stack_results
@@ -276,6 +276,10 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
 
     _cuda.check_device(device)
     duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")
+    # The config's bounds at the API's door (hertzchain.strict): dt=nan, n_threads=10**6 refused.
+    # n_threads: the bound of a sweep's sweep.n_threads (sweep/schema.py), whose chunks run here.
+    dt, _, steps_per_radian, n_threads = run_options(dt=dt, steps_per_radian=steps_per_radian, threads=n_threads,
+                                                     threads_field="n_threads", threads_max=4096)
     if device == "cuda" and not isinstance(models, Ensemble):
         _cuda.refuse_elastoplastic([LAW_CODES.get(getattr(getattr(m, "law", None), "name", None), -1)
                                     for m in models])

@@ -39,6 +39,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .fit_checks import check_records, fit_doubts, parameter_unit
+from .quantised import expected, refit_noise, robust_covariance
 
 __all__ = ["Trace", "FitResult", "fit_traces", "MEASUREMENT_PARAMETERS"]
 
@@ -298,6 +299,11 @@ class _Problem:
         # Before any run: a record of noise alone, or a clipped one, cannot calibrate anything.
         check_records([self._label(k) for k in range(K)], self.t, self.y, self.sigma,
                       [tr.data.attrs.get("valid_max") for tr in self.traces])
+        # Integer samples: the code grid [N] (step, one level) and, once fitted, the noise under
+        # the codes; the model is then the quantiser's expected value (lab.quantised).
+        self.quanta = [(tr.data.attrs["quantum"], tr.data.attrs["quantum_origin"]) if "quantum" in tr.data.attrs
+                       else None for tr in self.traces]
+        self.code_noise: list[float | None] = [None] * K
         # A trace whose time offset is not free reads the simulation on its own clock.
         self.tau_fixed = np.zeros(K)
         self.n_evaluations = 0
@@ -395,6 +401,8 @@ class _Problem:
         for k, (ts, f) in enumerate(sims):
             fk = np.interp(self.t[k] + taus[k], ts, f)
             mk = gains[k] * fk + bases[k]
+            if self.code_noise[k] is not None:
+                mk = expected(mk, *self.quanta[k], self.code_noise[k])[0]
             res.append((self.y[k] - mk) / self.sigma[k])
             parts.append((ts, f, fk, mk))
         out = (np.concatenate(res), parts)
@@ -428,6 +436,8 @@ class _Problem:
                 J[rows, self.tau_idx[k]] = -gains[k] * dfdt / self.sigma[k]
             if self.base_idx[k] is not None:
                 J[rows, self.base_idx[k]] = -1.0 / self.sigma[k]
+            if self.code_noise[k] is not None:  # chain rule through the quantiser's expected value
+                J[rows] *= expected(gains[k] * fk + bases[k], *self.quanta[k], self.code_noise[k])[1][:, None]
         return J
 
     # ---- start -----------------------------------------------------------------------------
@@ -574,6 +584,10 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
         raise ConfigError("--bootstrap", f"must be 0 (none) or a number of refits >= 2, got {bootstrap!r}")
     data = read_toml(config) if isinstance(config, (str, Path)) else dict(config)
     data = apply_overrides(data, overrides)
+    if any("quantum" in tr.data.attrs for tr in traces):
+        # The level before the pulse of a quantised record is known to a fraction of a code only
+        # (its mean carries the rounding's bias): it is fitted, with its error bar.
+        free = list(free) + ["baseline"]
     prob = _Problem(data, traces, free, rel_step, n_threads)
     if jacobian not in ("exact", "finite differences"):
         raise ConfigError("jacobian", f"must be 'exact' or 'finite differences', got {jacobian!r}")
@@ -614,6 +628,8 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
         return r
 
     sol = _solve(fun, prob.jacobian, x0, scale, lower, upper, max_evaluations)
+    sol, noise_columns = refit_noise(prob, sol, lambda x1: _solve(fun, prob.jacobian, x1, scale, lower, upper,
+                                                                   max_evaluations))
     x = sol.x
     J = prob.jacobian(x)
     _identifiability(prob.names, J * scale, "at the optimum")
@@ -630,12 +646,15 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
         s2k = float(rk @ rk) / max(rk.size * (n - p) / n, 1)
         Jw[edges[k]:edges[k + 1]] /= math.sqrt(s2k)
     _, s, vt = np.linalg.svd(Jw, full_matrices=False)
-    cov = (vt.T / s**2) @ vt
+    cov = robust_covariance(prob, J, res, (vt.T / s**2) @ vt)
+    for column, sd in noise_columns(x):  # the fitted noise under the codes: its error moves the others
+        shift = -np.linalg.lstsq(J, column, rcond=None)[0]
+        cov = cov + np.outer(shift, shift) * sd**2
     err = np.sqrt(np.diag(cov))
     corr = cov / np.outer(err, err)
     _, gains, taus, _, _ = prob.split(x)
     doubts = fit_doubts(sol, s2, [prob._label(k) for k in range(len(prob.traces))], prob.t, prob.sigma, taus, gains,
-                        parts)
+                        parts, prob.y)
     samples = np.empty((0, p))
     if bootstrap:
         from .bootstrap import bootstrap as run_bootstrap

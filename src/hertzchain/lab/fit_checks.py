@@ -10,7 +10,10 @@ Refused (:func:`check_records`, a :class:`~hertzchain.errors.ConfigError` naming
   the cut top.
 
 Flagged (:func:`fit_doubts`, the result's ``warnings``): a fit that did not converge; residuals
-far above the noise (a local minimum, or physics the model lacks); a model pulse that leaves
+above the noise (s^2 > S2_DOUBT: a local minimum, physics the model lacks, or a record the
+model misreads); residuals with structure (their sums over blocks of the record too uneven for
+independent noise, :func:`structure_p` below STRUCTURE_P; a model off by a smooth amount over stretches of the
+record, such as a baseline off by a fraction of a code, which s^2 of ~1.2 hardly shows); a model pulse that leaves
 the record window (the record holds only part of what the parameters are fitted to); a fitted
 pulse whose height is not SNR_MIN times the noise.
 """
@@ -24,12 +27,18 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["SNR_MIN", "MAX_RESIDUAL_VARIANCE", "EDGE_FRACTION", "check_records", "fit_doubts", "parameter_unit"]
+__all__ = ["SNR_MIN", "MAX_RESIDUAL_VARIANCE", "S2_DOUBT", "STRUCTURE_P", "EDGE_FRACTION", "check_records", "fit_doubts",
+           "parameter_unit", "structure_p"]
 
 #: Least height of a record's pulse over its noise (fit_pulse's snr_min: analyze's criterion).
 SNR_MIN = 8.0
 #: Residual variance (in units of the estimated noise variance) above which a fit is flagged.
 MAX_RESIDUAL_VARIANCE = 10.0
+#: Residual variance above which the residuals are said to exceed the noise: the noise is estimated
+#: from the record itself to a few per cent, so a correct model gives 1 +- ~0.1.
+S2_DOUBT = 1.3
+#: p-value of the residuals' block sums (:func:`structure_p`) below which they have structure.
+STRUCTURE_P = 1e-6
 #: A model pulse "leaves the record" when it is above this fraction of its height at an end of the
 #: record, or before the record starts.
 EDGE_FRACTION = 0.5
@@ -96,8 +105,44 @@ def check_records(labels: Sequence[str], times: Sequence[np.ndarray], records: S
                               "meaningless calibration. Check the file, the column and the sensitivity")
 
 
+def structure_p(residual: np.ndarray, block: int = 64) -> float:
+    """Chance that independent residuals of mean 0 sum as unevenly over blocks as these do.
+
+    The record is cut into blocks of ``block`` samples (fewer when that leaves under 8 blocks);
+    block b gives z_b = sum r_i / sqrt(sum r_i^2), which is ~N(0, 1) for independent residuals of
+    mean 0 whatever their variances (so it holds for the residuals of a quantised record, whose
+    variance and sign balance change with the signal's place between two codes, where a runs
+    test of signs takes that for structure), and sum z_b^2 follows chi^2(blocks). A model off by
+    a smooth amount over stretches of the record (a baseline off by a fraction of a code, a
+    drift, a pulse of the wrong shape) makes the blocks' sums grow as their length.
+
+    Parameters
+    ----------
+    residual : numpy.ndarray
+        A trace's residuals, in time order.
+    block : int
+        Samples per block (at most).
+
+    Returns
+    -------
+    float
+        The p-value (1 for a record too short to test or all zero).
+    """
+    from scipy.stats import chi2
+
+    r = np.asarray(residual, float)
+    block = int(min(block, r.size // 8))
+    if block < 4:
+        return 1.0
+    b = r[: r.size // block * block].reshape(-1, block)
+    norm = np.sqrt(np.sum(b**2, axis=1))
+    keep = norm > 0
+    z = np.sum(b[keep], axis=1) / norm[keep]
+    return float(chi2.sf(np.sum(z**2), z.size)) if z.size else 1.0
+
+
 def fit_doubts(sol, s2: float, labels: Sequence[str], times: Sequence[np.ndarray], noise: np.ndarray,
-               taus: np.ndarray, gains: np.ndarray, parts: list) -> list[str]:
+               taus: np.ndarray, gains: np.ndarray, parts: list, records: Sequence[np.ndarray] = ()) -> list[str]:
     """What makes a finished fit doubtful, one sentence each.
 
     Parameters
@@ -117,6 +162,8 @@ def fit_doubts(sol, s2: float, labels: Sequence[str], times: Sequence[np.ndarray
     parts : list
         Per trace: (simulated times [s], simulated force [N], the force at the record's times,
         the model on the record [N]).
+    records : sequence of numpy.ndarray
+        Each trace's samples [N] (for the structure of its residuals; none: not checked).
 
     Returns
     -------
@@ -134,6 +181,16 @@ def fit_doubts(sol, s2: float, labels: Sequence[str], times: Sequence[np.ndarray
         doubts.append(f"the residuals are {math.sqrt(s2):.3g} times the noise: the model does not describe "
                       "the records (a local minimum from a poor start, or physics the model lacks); look at "
                       "fit.png before trusting the values")
+    elif s2 > S2_DOUBT:
+        doubts.append(f"the residual variance is {s2:.3g} times the noise's (s^2; ~1 when the model describes the "
+                      "records): the model or the record is off (a wrong baseline, a quantised record, a "
+                      "signal the model lacks); the error bars are not to be trusted")
+    for label, y, (_, _, _, mk) in zip(labels, records, parts):
+        p = structure_p(np.asarray(y) - mk)
+        if p < STRUCTURE_P:
+            doubts.append(f"{label}: the residuals have structure (their sums over stretches of the record are too "
+                          f"uneven for noise: p = {p:.2g}): the model is off by a smooth amount (a baseline, a "
+                          "drift, a pulse shape); look at fit.png, free baseline, before trusting the values")
     for label, t, sigma, tau, g, (ts, f, fk, _) in zip(labels, times, noise, taus, gains, parts):
         inside = g * fk
         height = float(np.max(inside)) if inside.size else 0.0

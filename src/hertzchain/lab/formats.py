@@ -53,6 +53,7 @@ class _Table:
     meta: dict = field(default_factory=dict)
     fmt: str = "text"
     valid_max: float | None = None       # largest value the scope records, in the signal's unit
+    quantum: tuple[float, float] | None = None  # (code step, one level's value) of integer samples, signal's unit
 
 
 # ------------------------------------------------------------------------------------------
@@ -184,13 +185,14 @@ def read_isf(path: Path, raw: bytes) -> _Table:
     with np.errstate(over="ignore", invalid="ignore"):  # beyond float range: refused by read_trace's checks
         t = xzero + xincr * (np.arange(n) - pt_off)
         y = (codes - yoff) * ymult + yzero
-    valid_max = None
+    valid_max = quantum = None
     if kind in "iu":
         info = np.iinfo(dtype)
         valid_max = float(((info.max if ymult > 0 else info.min) - yoff) * ymult + yzero)
+        quantum = (abs(float(ymult)), float(yzero - yoff * ymult))
     source = hdr.get("WFID", "CH1").split(",")[0].strip() or "CH1"
     return _Table(["TIME", source], np.column_stack([t, y]), [hdr.get("XUNIT") or None, hdr.get("YUNIT") or None],
-                  np.zeros(n, int), hdr, "tektronix-isf", valid_max)
+                  np.zeros(n, int), hdr, "tektronix-isf", valid_max, quantum)
 
 
 def _isf_block(rest: bytes, nbytes_expected: int, n: int, width: int, where: str) -> bytes:
@@ -343,4 +345,5 @@ def read_trc(path: Path, raw: bytes) -> _Table:
     label = f"C{source + 1}" if source in (0, 1, 2, 3) else "signal"
     instrument = desc[76:92].split(b"\x00")[0].decode("ascii", "replace").strip()
     return _Table(["TIME", label], np.column_stack([t, y]), [unit(244), unit(196)], np.zeros(t.size, int),
-                  {"instrument": instrument, "record_type": _TRC_RECORDS[record]}, "lecroy-trc", valid_max)
+                  {"instrument": instrument, "record_type": _TRC_RECORDS[record]}, "lecroy-trc", valid_max,
+                  (abs(float(gain)), -float(offset)))

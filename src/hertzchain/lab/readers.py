@@ -74,6 +74,40 @@ def _unit_factor(unit: str, where: str) -> tuple[float, str]:
     return factor, kind
 
 
+def _read_file(path: Path, suffix: str) -> _Table:
+    """A scope file's table, its header looked at before its bulk is read.
+
+    The file is opened as a received one (:func:`hertzchain.received.open_received`: a regular
+    file, so a FIFO cannot hang the command) and its first bytes say the format. A LeCroy
+    ``.trc`` is then memory-mapped: :func:`~hertzchain.lab.formats.read_trc` checks the
+    descriptor and copies only the data array the descriptor declares, so a 3 GB file of which
+    the record is a few MB costs a few MB (it was read whole, 3.2 GB). Tektronix ``.isf`` and
+    delimited text are parsed whole (their length is their content).
+    """
+    import mmap
+
+    from ..received import open_received
+
+    where = str(path)
+    with open_received(path) as fh:
+        size = os.fstat(fh.fileno()).st_size
+        head = fh.read(64)
+        if not size or (size <= 64 and not head.strip()):
+            raise ConfigError(where, "is empty")
+        if suffix != ".isf" and not head.startswith(b":WFMP") and (suffix == ".trc" or b"WAVEDESC" in head):
+            with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as raw:
+                return read_trc(path, raw)
+        try:
+            raw = head + fh.read()
+        except OSError as exc:
+            raise ConfigError(where, f"cannot read the file: {exc.strerror or exc}") from None
+    if not raw.strip():
+        raise ConfigError(where, "is empty")
+    if raw.startswith(b":WFMP") or suffix == ".isf":
+        return read_isf(path, raw)
+    return _read_text(path, raw)
+
+
 # ------------------------------------------------------------------------------------------
 # delimited text
 # ------------------------------------------------------------------------------------------
@@ -323,31 +357,36 @@ def _time_index(table: _Table) -> int:
     return 0
 
 
-def _baseline(t: np.ndarray, y: np.ndarray) -> float:
-    """Median of the record before the pulse rises (the chain is at rest before the impact).
+def _baseline(t: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Mean of the record before the pulse rises (the chain is at rest before the impact), and
+    its standard error [N].
 
     The pulse starts where the signal first leaves the first samples' level by 5 % of its
     largest excursion; the earlier 80 % of those samples are the candidates. They give the
-    level only if they are flat: the medians of their two halves may differ by no more than
-    three standard errors of the noise (robust estimate from second differences). A record that
-    starts on the pulse's slow front, or with fewer than ten candidates, keeps its values
-    (nothing is removed: a fit can free ``baseline`` instead).
-    """
-    from ..analysis.pulse import estimate_noise
+    level only if they are flat: the means of their two halves may differ by no more than
+    three standard errors. A record that starts on the pulse's slow front, or with fewer than
+    ten candidates, keeps its values (nothing is removed: a fit can free ``baseline``).
 
+    The mean, not the median: the median of quantised samples (an 8-bit scope whose noise is
+    below one code) snaps to a whole code, a bias of up to half a code that no error bar holds
+    (issue 36: 2.2 N on a 20 mV/code record, a striker speed 10 sigma off). The mean of such
+    samples is still off by the quantiser's dither bias (up to ~0.1 code at a noise of a
+    quarter code), which :func:`hertzchain.lab.fit_traces` removes by fitting the baseline of
+    a quantised record with the quantiser's expected value (:mod:`hertzchain.lab.quantised`).
+    """
     head = np.median(y[: max(5, y.size // 50)])
     dev = np.abs(y - head)
     rise = np.flatnonzero(dev > 0.05 * dev.max())
     n = int(0.8 * (rise[0] if rise.size else y.size))
     if n < 10:
-        return 0.0
+        return 0.0, 0.0
     pre = y[:n]
-    sigma = estimate_noise(pre)
-    # Standard error of a median of n/2 gaussian samples: 1.2533 sigma / sqrt(n/2); two of them.
-    drift = abs(float(np.median(pre[n // 2:]) - np.median(pre[: n // 2])))
-    if drift > 3.0 * 1.2533 * sigma * math.sqrt(2.0 / (n / 2)) + 1e-12 * float(np.ptp(y)):
-        return 0.0
-    return float(np.median(pre))
+    spread = float(np.std(pre, ddof=1))
+    # Standard error of a mean of n/2 samples: spread / sqrt(n/2); of the difference of two.
+    drift = abs(float(np.mean(pre[n // 2:]) - np.mean(pre[: n // 2])))
+    if drift > 3.0 * spread * math.sqrt(2.0 / (n // 2)) + 1e-12 * float(np.ptp(y)):
+        return 0.0, 0.0
+    return float(np.mean(pre)), spread / math.sqrt(n)
 
 
 def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sensitivity: float | None = None,
@@ -379,7 +418,7 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
     time_column : str or int, optional
         The time column, by name or index (default: the one named time/t, else the first).
     baseline : bool
-        Subtract the level before the pulse [N]: the median of the pre-pulse samples when they
+        Subtract the level before the pulse [N]: the mean of the pre-pulse samples when they
         are flat (a record starting on the pulse's front keeps its values).
     check : bool
         Refuse a time axis that cannot hold a pulse of a bead chain (sample spacing outside
@@ -392,9 +431,11 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
         The force [N] along ``time`` [s] (attribute ``units``), named after the column; attrs
         ``source``, ``format`` (``text``, ``tektronix-csv``, ``tektronix-isf``, ``lecroy-trc``,
         ``hertzchain``), ``column``, ``raw_unit``, ``time_unit``, ``sensitivity_mV_per_N``
-        (NaN when none was applied), ``baseline`` [N] (the level removed) and, for the integer
-        samples of ``.isf`` and ``.trc`` files, ``valid_max`` [N]: the value of the format's
-        largest code, the scope's full scale (a pulse that reaches it is clipped).
+        (NaN when none was applied), ``baseline`` [N] (the level removed), ``baseline_stderr``
+        [N] (its standard error) and, for the integer samples of ``.isf`` and ``.trc`` files,
+        ``valid_max`` [N]: the value of the format's largest code, the scope's full scale (a
+        pulse that reaches it is clipped), ``quantum`` [N] (one code step) and
+        ``quantum_origin`` [N] (the value of one code: the levels are origin + i quantum).
 
     Raises
     ------
@@ -408,7 +449,7 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
 
     path = Path(path)
     where = str(path)
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise ConfigError(where, "no such file")
     if sensitivity is not None and sensor is not None:
         raise ConfigError("--sensitivity", "give either --sensitivity or --sensor, not both")
@@ -426,18 +467,7 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
         table = _read_result(path, column)
         column = 1
     else:
-        try:
-            raw = path.read_bytes()
-        except OSError as exc:
-            raise ConfigError(where, f"cannot read the file: {exc.strerror or exc}") from None
-        if not raw.strip():
-            raise ConfigError(where, "is empty")
-        if raw.startswith(b":WFMP") or suffix == ".isf":
-            table = read_isf(path, raw)
-        elif suffix == ".trc" or b"WAVEDESC" in raw[:64]:
-            table = read_trc(path, raw)
-        else:
-            table = _read_text(path, raw)
+        table = _read_file(path, suffix)
     if time_column is not None:
         ti = _pick_column(table, time_column, -1, where)
     else:
@@ -509,15 +539,20 @@ def read_trace(path: str | os.PathLike, column: str | int | None = None, *, sens
             raise ConfigError(where, f"read in {t_unit}, the samples are {dt:.3g} s apart over {span:.3g} s; a "
                               f"force pulse in a bead chain needs a spacing in [{lo_dt:g}, {hi_dt:g}] s and a "
                               f"record of [{lo_span:g}, {hi_span:g}] s{hint}")
-    level = _baseline(t, y) if baseline else 0.0
+    level, level_err = _baseline(t, y) if baseline else (0.0, 0.0)
     name = table.columns[ci]
     attrs = {"units": "N", "long_name": f"force ({name})", "source": str(path), "format": table.fmt,
              "column": name, "raw_unit": y_unit, "time_unit": t_unit,
              "sensitivity_mV_per_N": float("nan") if sensitivity is None or y_kind != "voltage" else float(sensitivity),
-             "baseline": level}
+             "baseline": level, "baseline_stderr": level_err}
     if table.valid_max is not None and ci == 1:
         # The scope's full scale in the record's units (CF convention valid_max): a pulse reaching
         # it is clipped (hertzchain.analysis.saturation).
         attrs["valid_max"] = table.valid_max * y_factor - level
+    if table.quantum is not None and ci == 1:
+        # The code grid of integer samples [N]: its step and one level's value after the
+        # baseline's removal (a fit models the quantiser's expected value on it).
+        attrs["quantum"] = table.quantum[0] * abs(y_factor)
+        attrs["quantum_origin"] = table.quantum[1] * y_factor - level
     return xr.DataArray(y - level, dims="time", name=name,
                         coords={"time": ("time", t, {"units": "s", "long_name": "time"})}, attrs=attrs)

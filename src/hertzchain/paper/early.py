@@ -47,10 +47,11 @@ def start_laws_figure(out_dir: str | Path) -> Callable[..., dict[str, Path]] | N
         reports or skips it), one usable core, or no ``fork`` on this platform (the caller
         draws the figure itself).
     """
+    from ..received import read_received
     from .inputs import check_laws
 
-    try:
-        summary = json.loads((Path(out_dir) / "summary.json").read_bytes().decode("utf-8"))
+    try:  # a regular file of the folder only (hertzchain.received: a FIFO would hang the read)
+        summary = json.loads(read_received(Path(out_dir) / "summary.json", out_dir).decode("utf-8"))
         laws = summary["fidelity"]["laws"]
         eps = summary["settings"].get("eps_target") or PAPER["eps"]
     except (OSError, ValueError, KeyError, TypeError, AttributeError):

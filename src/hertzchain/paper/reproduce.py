@@ -215,9 +215,16 @@ def load_trace(path: str | Path, names=_TRACE_VARIABLES):
     import h5py
     import xarray as xr
 
+    from ..checks import available_memory
+
+    memory = available_memory()
     with h5py.File(path, "r") as f:
         def read(name):
             d = f[name]
+            # A received trace: what a variable declares is checked before it is allocated.
+            if memory is not None and d.size * d.dtype.itemsize > memory // 2:
+                raise ValueError(f"variable {name!r} declares shape {d.shape} of {d.dtype}, more than half the "
+                                 f"memory available")
             if d.attrs.get("CLASS") == b"DIMENSION_SCALE":
                 dims = (name,)
             else:
@@ -282,9 +289,13 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
     ratio_file = data / "uniform16_elastic_wall_chain_ratio.nc"
     # A truncated or foreign file is named before anything is read (and before the Fig. 3
     # traces, read first, set a drawing process going); a missing one when its turn comes.
+    # Regular files of data/ only (hertzchain.received): a FIFO would hang the read, a link out of
+    # the folder would read another file.
+    from ..received import open_received
+
     for p in [*chains["chain1"], *chains["chain2"], *mis_files, *sub_files.values(), *([ratio_file] if with_ratio else [])]:
-        if p.is_file():
-            with open(p, "rb") as f:
+        if os.path.lexists(p):
+            with open_received(p, data) as f:
                 if f.read(len(_HDF5_SIGNATURE)) != _HDF5_SIGNATURE:
                     raise ConfigError(str(p), "is damaged or not a hertzchain result (not a NetCDF-4/HDF5 file)")
     for name, files in chains.items():
@@ -456,8 +467,10 @@ def _redraw(out: Path, tick: Callable[[str], None], early: list) -> dict:
     from ..errors import ConfigError
     from .report import write_report
 
-    try:
-        summary = json.loads((out / "summary.json").read_bytes().decode("utf-8"))
+    from ..received import read_received
+
+    try:  # a regular file of the folder only (hertzchain.received)
+        summary = json.loads(read_received(out / "summary.json", out).decode("utf-8"))
     except (OSError, ValueError) as exc:
         raise ConfigError(str(out / "summary.json"), f"cannot read it ({exc})") from None
     where = str(out / "summary.json")

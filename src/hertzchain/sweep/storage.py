@@ -1,8 +1,12 @@
 """The output folder of a sweep: chunk files with their SHA-256, the folder lock, ``sweep.json``
 and ``metrics.csv`` (the layout is described in :mod:`hertzchain.sweep`).
 
-Every file is written through :mod:`hertzchain.fileio` (never a half file under a final name);
+Every file is written through :mod:`hertzchain.fileio` (never a half file under a final name)
+and read back as a received file (:mod:`hertzchain.received`: regular files of the folder only);
 a chunk counts as finished only when its checksum, its sweep hash and its members match.
+``--force`` onto another sweep's folder moves that sweep's results into ``.replaced-<hash>/``
+and removes them only once the new sweep is complete: a run killed midway leaves them whole (and
+rerunning the old sweep with ``--force`` takes them back without computing anything).
 """
 
 from __future__ import annotations
@@ -83,11 +87,17 @@ def _checksum_path(path: Path) -> Path:
 
 
 def _checksum_ok(path: Path) -> bool:
-    """True when ``path`` has the SHA-256 recorded beside it (a damaged or unrecorded chunk: False)."""
+    """True when ``path`` has the SHA-256 recorded beside it (a damaged or unrecorded chunk: False).
+
+    Both are read as received files (:mod:`hertzchain.received`): regular files of the chunk
+    folder only, so a FIFO named like a chunk is recomputed (and its replacement refused by
+    :mod:`hertzchain.fileio`, which names it) instead of hanging the sweep."""
+    from ..received import open_received, read_received
+
     try:
-        recorded = _checksum_path(path).read_text(encoding="ascii").strip()
+        recorded = read_received(_checksum_path(path), path.parent, max_bytes=1024).decode("ascii").strip()
         digest = hashlib.sha256()
-        with open(path, "rb") as fh:
+        with open_received(path, path.parent) as fh:
             for block in iter(lambda: fh.read(1 << 20), b""):
                 digest.update(block)
     except (OSError, ValueError):
@@ -110,16 +120,38 @@ def _traces_path(chunk: Path) -> Path:
 def _file_holds(path: Path, sweep_hash: str, members) -> bool:
     import h5py
 
-    if not path.exists() or not _checksum_ok(path):
+    if not os.path.lexists(path) or not _checksum_ok(path):
         return False
     try:
         # h5py directly (a NetCDF-4 file is an HDF5 file): ~10x faster than h5netcdf, ~100x than
         # xarray.open_dataset, which decodes every variable; a million members are 2000 chunks.
         with h5py.File(path, "r") as f:
-            return (_text(f.attrs.get("sweep_hash")) == sweep_hash
-                    and np.array_equal(f["member"][...], np.asarray(members)))
-    except (OSError, ValueError, KeyError, TypeError):  # unreadable or foreign: recompute it
+            if _text(f.attrs.get("sweep_hash")) != sweep_hash or not _table_shapes_ok(f, len(members)):
+                return False
+            return np.array_equal(f["member"][...], np.asarray(members))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):  # unreadable or foreign: recompute it
         return False
+
+
+def _table_shapes_ok(f, n: int) -> bool:
+    """The per-member variables of a chunk (what the metrics table reads) are ``n`` values each,
+    of numbers (``fit_error``: text): checked from the file's declarations before anything is
+    read, so a variable declaring 10**12 members is never allocated, and a damaged or foreign
+    chunk is computed again rather than breaking the table."""
+    import h5py
+
+    names = ["member", *TABLE_COLUMNS, *_BODY_COLUMNS, *(var for var, *_ in PLASTIC_METRICS.values())]
+    for name in names:
+        if name not in f:
+            if name == "member":
+                return False
+            continue
+        d = f[name]
+        if not isinstance(d, h5py.Dataset) or d.shape != (n,):
+            return False
+        if d.dtype.kind not in ("OSU" if name == "fit_error" else "fiub"):
+            return False
+    return True
 
 
 def _text(x: Any) -> Any:
@@ -172,17 +204,18 @@ def _prepare_out_dir(cfg: SweepConfig, out: Path, force: bool) -> Path:
 
     chunks = out / "chunks"
     meta = out / "sweep.json"
-    if meta.exists():
+    if os.path.lexists(meta):
         old = _recorded_hash(meta)
         if old != cfg.hash:
             if not force:
                 raise SweepMismatch(f"{out} holds the results of a different sweep (hash {str(old)[:12]}, this one "
                                     f"{cfg.hash[:12]}); choose another output folder or use --force to replace them")
-            for p in [*chunks.glob("chunk_*.nc"), *chunks.glob("chunk_*.nc.sha256"), *chunks.glob("traces_*.nc"),
-                      *chunks.glob("traces_*.nc.sha256"), out / "metrics.csv", out / "metrics.parquet"]:
-                p.unlink(missing_ok=True)
+            # --force: the other sweep's results are kept until this one is complete (a kill midway
+            # leaves them whole), then removed (:func:`_drop_replaced`).
+            _set_aside(out, old)
     elif chunks.exists() and any(chunks.glob("chunk_*.nc")) and not force:
         raise SweepMismatch(f"{chunks} holds chunk files but no sweep.json; use --force to replace them")
+    _restore(out, cfg.hash)  # this sweep's own results, set aside by a --force run killed midway
     chunks.mkdir(parents=True, exist_ok=True)
     # Temporary files left by a killed run (never a finished file); safe to remove under the lock.
     for p in [*chunks.glob(".chunk_*.tmp"), *chunks.glob(".traces_*.tmp"), *out.glob(".metrics.*.tmp"),
@@ -193,10 +226,51 @@ def _prepare_out_dir(cfg: SweepConfig, out: Path, force: bool) -> Path:
     return chunks
 
 
+#: The results of another sweep replaced by ``--force``, kept until the new sweep is complete.
+_REPLACED = ".replaced-{}"
+#: What a sweep leaves in its folder (the folder lock stays).
+_RESULTS = ("chunks", "sweep.json", "metrics.csv", "metrics.csv.json", "metrics.parquet")
+
+
+def _set_aside(out: Path, old_hash: str | None) -> None:
+    """Move the results of the sweep ``old_hash`` into ``out/.replaced-<hash>/`` (renames: instant)."""
+    import shutil
+
+    keep = out / _REPLACED.format(str(old_hash)[:16] if isinstance(old_hash, str) else "unknown")
+    if keep.exists():  # an older copy of the same sweep's results: the ones in the folder are newer
+        shutil.rmtree(keep)
+    keep.mkdir()
+    for name in _RESULTS:
+        if os.path.lexists(out / name):
+            os.replace(out / name, keep / name)
+
+
+def _restore(out: Path, sweep_hash: str) -> None:
+    """Move this sweep's results set aside by an interrupted ``--force`` run back into ``out``."""
+    keep = out / _REPLACED.format(sweep_hash[:16])
+    if not keep.is_dir() or os.path.lexists(out / "sweep.json"):
+        return
+    for name in _RESULTS:
+        if os.path.lexists(keep / name):
+            os.replace(keep / name, out / name)
+    keep.rmdir()
+
+
+def _drop_replaced(out: Path) -> None:
+    """Remove the results of the sweeps this one replaced (called once it is complete)."""
+    import shutil
+
+    for keep in out.glob(_REPLACED.format("*")):
+        if keep.is_dir() and not keep.is_symlink():
+            shutil.rmtree(keep, ignore_errors=True)
+
+
 def _recorded_hash(meta: Path) -> str | None:
-    """The hash recorded in ``sweep.json`` (None when unreadable)."""
+    """The hash recorded in ``sweep.json`` (None when unreadable, or not a regular file)."""
+    from ..received import read_received
+
     try:
-        return json.loads(meta.read_bytes().decode("utf-8")).get("hash")
+        return json.loads(read_received(meta, meta.parent).decode("utf-8")).get("hash")
     except (OSError, ValueError, AttributeError):
         return None
 

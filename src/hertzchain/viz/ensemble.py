@@ -20,7 +20,11 @@ import numpy as np
 __all__ = ["plot_ensemble", "histogram_figure", "corner_figure", "DEFAULT_CORNER"]
 
 #: Metrics of the corner plot when none are named: the wall pulse of the paper (Sec. III).
-DEFAULT_CORNER = ("F_m", "T", "tau", "Q_F", "Q_T")
+DEFAULT_CORNER = ("peak_wall_force", "T", "tau", "Q_F", "Q_T")
+#: The histograms' default metric: the wall force's peak refined between the engine's steps,
+#: free of the sampling comb that the cos^6 fit's F_m shows on coarse samples (issue 36); F_m
+#: when a table has no such column.
+DEFAULT_HISTOGRAM = "peak_wall_force"
 
 
 def _values(df, metric: str) -> np.ndarray:
@@ -174,7 +178,8 @@ def plot_ensemble(path: str | Path, out: str | Path, metrics=None, kind: str = "
     out : str or pathlib.Path
         Image file (PNG, PDF or SVG), written atomically.
     metrics : sequence of str or None
-        Metric columns (default: ``F_m`` for histograms, :data:`DEFAULT_CORNER` for a corner plot).
+        Metric columns (default: :data:`DEFAULT_HISTOGRAM`, ``peak_wall_force``, for histograms,
+        ``F_m`` when the table lacks it; :data:`DEFAULT_CORNER` for a corner plot).
     kind : str
         ``"histogram"`` or ``"corner"``.
     bins : int or None
@@ -198,12 +203,14 @@ def plot_ensemble(path: str | Path, out: str | Path, metrics=None, kind: str = "
     out = Path(out)
     fmt = image_format(out)
     df = read_metrics(path)
+    default = DEFAULT_HISTOGRAM if DEFAULT_HISTOGRAM in df and np.isfinite(df[DEFAULT_HISTOGRAM].to_numpy(float)).any() \
+        else "F_m"
     if kind == "histogram":
-        metrics = list(metrics or ["F_m"])
+        metrics = list(metrics or [default])
         summarize(df, metrics)  # unknown metrics are refused here, naming them
         fig = histogram_figure(df, metrics, bins)
     elif kind == "corner":
-        metrics = list(metrics or DEFAULT_CORNER)
+        metrics = list(metrics or [default if m == DEFAULT_HISTOGRAM else m for m in DEFAULT_CORNER])
         summarize(df, metrics)
         fig = corner_figure(df, metrics, bins)
     else:

@@ -58,15 +58,12 @@ def metrics_figure(path: str | Path, metric: str = "F_m", x: str | None = None, 
         per axis.
     """
     import numpy as np
-    import pandas as pd
 
     from ..errors import ConfigError
+    from ..sweep.statistics import read_metrics
 
     path = Path(path)
-    try:
-        df = pd.read_csv(path)
-    except (OSError, ValueError) as exc:
-        raise ConfigError(str(path), f"cannot read the metrics table: {exc}") from None
+    df = read_metrics(path)  # checked row by row: a damaged line is named, never plotted
     params = swept_parameters(df)
     if not params:
         raise ConfigError(str(path), "is not a sweep's metrics.csv (needs the columns member, chunk, "
