@@ -186,7 +186,7 @@ class Chain:
             els = els[:bead - 1] + (element,) + els[bead:]
         return Chain(d, tuple(mats), self.offsets, els)
 
-    def with_offsets(self, offsets: Sequence[float] | dict[int, float]) -> "Chain":
+    def with_offsets(self, offsets: ArrayLike | dict[int, float]) -> "Chain":
         """Same beads with perpendicular offsets [m]: a full list, or {bead: offset} (1-based)."""
         if isinstance(offsets, dict):
             e = self.offsets.copy()
