@@ -190,6 +190,7 @@ def setup(app) -> None:
     app.connect("builder-inited", _generate_api_pages)
     app.connect("builder-inited", _generate_config_reference)
     app.connect("builder-inited", _generate_result_reference)
+    app.connect("builder-inited", _generate_law_reference)
     app.connect("builder-inited", _generate_benchmarks_page)
     app.connect("builder-inited", _generate_test_catalogue)
 
@@ -309,6 +310,23 @@ def _generate_config_reference(app) -> None:
         lines.append(f"   * - {row[0]}")
         lines.extend(f"     - {cell}" for cell in row[1:])
     _write_if_changed(HERE / "guide" / "config_keys.inc", "\n".join(lines) + "\n")
+
+
+def _generate_law_reference(app) -> None:
+    """The table of registered contact laws and their parameters, from their declarations (hertzchain.laws)."""
+    from hertzchain.laws import get_law, law_names
+
+    lines = [".. list-table::", "   :header-rows: 1", "   :widths: 18 36 46", "",
+             "   * - ``law``", "     - form", "     - parameters (unit, bounds, default)"]
+    for name in law_names():
+        spec = get_law(name)
+        params = []
+        for p in spec.params:
+            lo, hi = ("(" if p.open_low else "[") + f"{p.low:g}", f"{p.high:g}" + (")" if p.open_high else "]")
+            dflt = f", default {p.default:g}" if p.default is not None else (", optional" if p.optional else "")
+            params.append(f"``{p.name}`` ({p.unit}, {lo}, {hi}{dflt}): {p.description}")
+        lines += [f"   * - ``{name}``", f"     - {spec.title}", f"     - {'; '.join(params) or 'none'}"]
+    _write_if_changed(HERE / "guide" / "laws_table.inc", "\n".join(lines) + "\n")
 
 
 def _generate_result_reference(app) -> None:

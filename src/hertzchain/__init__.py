@@ -22,6 +22,8 @@ _EXPORTS = {
     "register_material": "materials",
     "Elastic": "contact", "Viscoelastic": "contact", "ScaledViscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
     "ScaledDashpot": "contact", "Elastoplastic": "plasticity",
+    "PowerLaw": "laws.power", "HuntCrossley": "laws.hunt_crossley", "register_law": "laws", "LawSpec": "laws",
+    "Param": "laws", "get_law": "laws",
     "yield_force": "contact",
     "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain", "Element": "elements",
     "Striker": "model", "Wall": "model", "Model": "model",

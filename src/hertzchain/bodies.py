@@ -25,6 +25,7 @@ import numpy as np
 
 from .elements import Face, contact_constants, face_of
 from .errors import ConfigError
+from .laws import spec_of
 
 __all__ = ["extend", "STANDARD_GRAVITY", "mount_half_period", "MAX_BODY_DURATION"]
 
@@ -151,7 +152,7 @@ def extend(model, parts: dict) -> dict:
     d0 = np.zeros(n + 1)
     loaded = (held[: n + 1] > 0) & (kappa > 0)
     d0[loaded] = (held[: n + 1][loaded] / kappa[loaded]) ** (2.0 / 3.0)
-    if law.name == "elastoplastic":
+    if spec_of(law).plastic:
         # loaded past F_Y: along Thornton's loading line F_y + (3/2) kappa delta_y^(1/2) (delta - delta_y)
         with np.errstate(invalid="ignore", divide="ignore"):
             dy = (fy / np.where(kappa > 0, kappa, 1.0)) ** (2.0 / 3.0)

@@ -24,6 +24,7 @@ import numpy as np
 
 from .bounds import TooManySteps, check_step_count
 from .errors import ConfigError, HertzRangeWarning, LongRunWarning, PulseNotReachedWarning, SimulationDiverged
+from .laws import spec_of
 
 __all__ = ["ResourceEstimate", "estimate_resources", "check_resources", "check_before_run", "check_after_run",
            "preflight_batch", "duration_text", "run_time_hint",
@@ -547,10 +548,9 @@ def energy_cause(model, dt: float | None, integrator: str = "verlet") -> str:
         return "the solver tolerance run.rtol is too loose; lower it"
     if dt is not None:
         return f"the time step run.dt = {dt:g} s is too large for this model; lower it or leave it out"
-    law = model.law.name
-    if law in ("dashpot", "dashpot_scaled", "viscoelastic", "viscoelastic_scaled") or (
-            law == "elastoplastic" and model.law.parameter > 0):
-        key = "contact.gamma" if law.startswith("dashpot") else "contact.A"
+    spec = spec_of(model.law)
+    if spec.calibrated or (spec.plastic and model.law.parameter > 0):
+        key = f"contact.{spec.calibrated or 'A'}"
         return (f"the automatic step could not follow the damping of {key} = {model.law.parameter:g}; "
                 "lower it or give a smaller run.dt")
     return "the automatic step could not follow the model; give a smaller run.dt and report the case"

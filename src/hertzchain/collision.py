@@ -15,15 +15,14 @@ import math
 
 import numpy as np
 
-from .contact import LAW_CODES, Elastic, hertz_constant, yield_force
+from .contact import hertz_constant, yield_force
 from .errors import ConfigError
 from .materials import Material, get_material
-from .plasticity import Elastoplastic, thornton_loading_overlap
+from .laws import get_law, law_names, spec_of
+from .plasticity import thornton_loading_overlap
 
 __all__ = ["restitution", "contact_law"]
 
-#: Config names of the laws :func:`restitution` builds itself (the others need a parameter).
-_NAMED = {"elastic": Elastic, "elastoplastic": Elastoplastic}
 #: Johnson's contact time of a Hertz collision in units of delta_m / v (Contact Mechanics, 11.3).
 _HERTZ_CONTACT_TIME = 2.943
 #: Doublings of the simulated time allowed for the bodies to part.
@@ -37,7 +36,7 @@ def contact_law(law):
     ----------
     law : object or str
         A law (:class:`~hertzchain.Elastic`, :class:`~hertzchain.Elastoplastic`, ...) or the
-        config name of a law without parameters: ``"elastic"`` or ``"elastoplastic"``.
+        name of a registered law whose parameters all have defaults (``"elastic"``, ``"elastoplastic"``).
 
     Returns
     -------
@@ -50,14 +49,19 @@ def contact_law(law):
         (field ``law``) an unknown name, or a law that needs a parameter given by name.
     """
     if isinstance(law, str):
-        if law in _NAMED:
-            return _NAMED[law]()
-        if law in LAW_CODES:
-            raise ConfigError("law", f"the {law!r} law needs its parameter: give a law object, e.g. "
-                              "hertzchain.Viscoelastic(A=4.5e-6) or hertzchain.Dashpot(gamma=20.0)")
-        raise ConfigError("law", f"unknown contact law {law!r}; allowed names: {', '.join(_NAMED)} (or a law object)")
-    if getattr(law, "name", None) not in LAW_CODES:
-        raise ConfigError("law", f"must be a contact law or one of {', '.join(_NAMED)}, got {type(law).__name__}")
+        try:
+            spec = get_law(law)
+        except ConfigError:
+            raise ConfigError("law", f"unknown contact law {law!r}; registered: {', '.join(law_names())} "
+                              "(or a law object)") from None
+        if any(p.default is None and not p.optional for p in spec.params):
+            raise ConfigError("law", f"the {law!r} law needs its parameters ({', '.join(spec.param_names)}): give a "
+                              "law object, e.g. hertzchain.Viscoelastic(A=4.5e-6) or hertzchain.HuntCrossley(0.9)")
+        return spec.make({p: None for p in spec.param_names})
+    try:
+        spec_of(law)
+    except ConfigError:
+        raise ConfigError("law", f"must be a registered contact law or its name, got {type(law).__name__}") from None
     return law
 
 
@@ -88,6 +92,8 @@ def _two_body_system(velocity: float, law, diameter_a: float, mat_a: Material, d
     n = mass.size - 1  # contact slots: N + 1
     kap = np.zeros(n)
     kap[0] = kappa
+    if hasattr(law, "contact_stiffness"):  # a law's own k (the power law's stiffness)
+        kap = law.contact_stiffness(kap)
     fy = np.full(n, np.inf)
     fy[0] = f_y
     if hasattr(law, "contact_damping"):
@@ -102,7 +108,7 @@ def _two_body_system(velocity: float, law, diameter_a: float, mat_a: Material, d
     rsum[0] = ra + (0.0 if rb is None else rb)
     system = System(mass=mass, inv_mass=inv_mass, kappa=kap, damping=damping, d0=zeros, de=zeros.copy(),
                     dx0=rsum.copy(), rsum=rsum, fext=np.zeros(mass.size), u0=np.zeros(mass.size), v0=v0,
-                    law=LAW_CODES[law.name], misaligned=False, has_wall=diameter_b is None, yield_force=fy,
+                    law=spec_of(law).code, misaligned=False, has_wall=diameter_b is None, yield_force=fy,
                     yield_pressure_ratio=getattr(law, "pressure_ratio", 1.0))
     return system, mu
 
@@ -146,7 +152,8 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     law : object or str
         Contact law object (:class:`~hertzchain.Elastic`, :class:`~hertzchain.Elastoplastic`,
         :class:`~hertzchain.Viscoelastic`, :class:`~hertzchain.ScaledViscoelastic`,
-        :class:`~hertzchain.Dashpot`) or the config name ``"elastic"`` or ``"elastoplastic"``.
+        :class:`~hertzchain.Dashpot`, :class:`~hertzchain.PowerLaw`, :class:`~hertzchain.HuntCrossley`,
+        a registered user law) or the name ``"elastic"`` or ``"elastoplastic"``.
     diameter_a : float
         Diameter of sphere a [m].
     material_a : str or Material
@@ -181,7 +188,7 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     mat_b = mat_a if material_b is None else get_material(material_b)
     law = contact_law(law)
     system, mu = _two_body_system(v, law, da, mat_a, db, mat_b)
-    kappa = float(system.kappa[0])
+    kappa = float(hertz_constant(da / 2, None if db is None else db / 2, mat_a, mat_b))
     # First guess of the time the bodies stay together: Hertz's t_c = 2.943 delta_m / v, or the
     # half period of the unloading stiffness at the deepest overlap Thornton's loading reaches.
     energy = 0.5 * mu * v * v

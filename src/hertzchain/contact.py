@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 from .errors import ConfigError
+from .laws.spec import attach_maker
 from .materials import Material, get_material
 from .strict import real
 
@@ -344,3 +345,17 @@ class ScaledDashpot:
 
 #: The laws of this module (the elastic-plastic one is :class:`hertzchain.plasticity.Elastoplastic`).
 ContactLaw = Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot
+
+
+def _attach_makers() -> None:
+    """The registry's constructors of this module's laws (hertzchain.laws declares their parameters)."""
+    attach_maker("elastic", lambda params, chain=None: Elastic())
+    attach_maker("viscoelastic", lambda params, chain=None: Viscoelastic(params["A"]))
+    attach_maker("dashpot", lambda params, chain=None: Dashpot(params["gamma"]))
+    attach_maker("viscoelastic_scaled", lambda params, chain=None: ScaledViscoelastic(
+        params["A"], float(chain.diameters[0]), chain.materials[0]))
+    attach_maker("dashpot_scaled", lambda params, chain=None: ScaledDashpot(
+        params["gamma"], float(chain.diameters[0]), chain.materials[0]))
+
+
+_attach_makers()

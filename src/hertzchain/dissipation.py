@@ -53,6 +53,7 @@ from .errors import ConfigError
 from .integrate.verlet import run_verlet
 from .materials import Material, get_material
 from .model import Model, Striker, Wall
+from .laws import get_law
 
 __all__ = ["EpsMeasurement", "refine_peaks", "fit_geometric_decay", "measure_eps", "calibrate_law",
            "DEFAULT_BEADS", "DEFAULT_TRAILING_BEADS"]
@@ -261,13 +262,10 @@ CALIBRATED_LAWS = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "
 
 def _make_law(kind: str, parameter: float, diameter: float, material: Material):
     """The law ``kind`` with ``parameter``; a size-scaled law takes the calibration beads as reference."""
-    if kind == "viscoelastic":
-        return Viscoelastic(parameter)
-    if kind == "viscoelastic_scaled":
-        return ScaledViscoelastic(parameter, diameter, material)
-    if kind == "dashpot_scaled":
-        return ScaledDashpot(parameter, diameter, material)
-    return Dashpot(parameter)
+    spec = get_law(kind)
+    if spec.extra.get("scaled"):
+        return (ScaledViscoelastic if spec.calibrated == "A" else ScaledDashpot)(parameter, diameter, material)
+    return (Viscoelastic if spec.calibrated == "A" else Dashpot)(parameter)
 
 
 @functools.lru_cache(maxsize=256)

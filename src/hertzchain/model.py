@@ -19,9 +19,10 @@ import numpy as np
 
 from .bounds import check_bound
 from .chain import Chain
-from .contact import LAW_CODES, Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
+from .contact import Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
 from .plasticity import Elastoplastic
 from .errors import ConfigError
+from .laws import law_of_code, spec_of
 from .materials import Material, get_material
 from .strict import real
 
@@ -296,7 +297,12 @@ class System:
         """
         energy = 0.5 * self.mass[0] * self.v0[0] ** 2
         kap = self.kappa
-        if self.law == LAW_CODES["elastoplastic"]:
+        spec = law_of_code(self.law)
+        if spec.generated:  # the law's own energy: delta with energy(delta) = E
+            inv = spec.overlap_at_energy or (lambda e, k, p: _energy_root(spec.energy, e, k, p))
+            energy += float(np.sum([spec.energy(d, k, p) for d, k, p in zip(self.d0, kap, self.damping) if k > 0]))
+            return np.array([inv(energy, k, p) if k > 0 else 0.0 for k, p in zip(kap, self.damping)]) + self.d0
+        if spec.plastic:
             from .plasticity import thornton_loading_overlap, thornton_loading_work
 
             dy = self.yield_overlap()
@@ -312,9 +318,15 @@ class System:
         The dissipative force is c_j d(delta)/dt: c = gamma for the dashpot, c = kappa A delta^(1/2)
         for Kuwabara-Kono (zero for the elastic law and where kappa = 0).
         """
-        if self.law == LAW_CODES["dashpot"]:
+        spec = law_of_code(self.law)
+        if spec.generated:  # dF/d rate of the law at that overlap (at the state of first touch)
+            return np.array([abs(spec.partials(max(d, 0.0), 0.0, k, p, 1.0)[1]) if k > 0 else 0.0
+                             for d, k, p in zip(overlap, self.kappa, self.damping)])
+        if not spec.dissipative:
+            return np.zeros_like(self.kappa)
+        if spec.calibrated == "gamma":
             return np.where(self.kappa > 0, self.damping, 0.0)
-        if self.law in (LAW_CODES["viscoelastic"], LAW_CODES["elastoplastic"]):
+        if spec.calibrated == "A" or spec.plastic:
             # elastic-plastic: A kappa_p (delta - delta_p)^(1/2) <= A kappa delta^(1/2)
             return self.kappa * self.damping * np.sqrt(np.maximum(overlap, 0.0))
         return np.zeros_like(self.kappa)
@@ -405,11 +417,13 @@ class Model:
     chain: Chain
     striker: Striker = field(default_factory=Striker)
     wall: Wall = field(default_factory=Wall)
+    #: any registered law's object (hertzchain.laws): these, PowerLaw, HuntCrossley, a user's
     law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot | Elastoplastic = field(default_factory=Elastic)
     precompression: float = 0.0
     gravity: float = 0.0
 
     def __post_init__(self) -> None:
+        spec_of(self.law)  # a registered law (ConfigError naming contact.law otherwise)
         object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
@@ -534,6 +548,9 @@ class Model:
         # No damping where there is no contact (the free end's slot has kappa = 0): a dashpot there
         # would push the last bead against a wall that does not exist (F = gamma d(delta)/dt).
         damping = np.where(kappa > 0, float(self.law.parameter), 0.0)
+        spec = spec_of(self.law)
+        if hasattr(self.law, "contact_stiffness"):  # a law's own k (e.g. the power law's stiffness)
+            kappa = self.law.contact_stiffness(kappa)
         if hasattr(self.law, "contact_damping"):
             # Size-scaled law: A_j from the pair's reduced mass (the wall is immovable: mu = m_N).
             mu = 1.0 / (inv_mass[: n + 1] + inv_mass[1:])
@@ -544,7 +561,9 @@ class Model:
         if self.precompression > 0:
             d0[1:] = (self.precompression / kappa[1:]) ** (2.0 / 3.0)
             fext[1] = self.precompression
-            if self.law.name == "elastoplastic":
+            if spec.generated:  # the overlap at which the law's static force is F0
+                d0[1:] = [_static_overlap(spec, self.precompression, k, p) for k, p in zip(kappa[1:], damping[1:])]
+            if spec.plastic:
                 # statically loaded along Thornton's loading curve: past F_y the line F_y + slope (d - dy)
                 f_y = fy[1:] * self.law.pressure_ratio**3
                 with np.errstate(invalid="ignore"):
@@ -564,11 +583,14 @@ class Model:
         v0 = np.zeros(n + 2)
         v0[0] = self.striker.velocity
         parts = dict(mass=mass, inv_mass=inv_mass, kappa=kappa, damping=damping, d0=d0, de=de, dx0=dx0,
-                     rsum=rsum, fext=fext, u0=np.zeros(n + 2), v0=v0, law=LAW_CODES[self.law.name],
+                     rsum=rsum, fext=fext, u0=np.zeros(n + 2), v0=v0, law=spec.code,
                      misaligned=bool(np.any(de != 0.0)), has_wall=self.wall.present, yield_force=fy,
                      yield_pressure_ratio=getattr(self.law, "pressure_ratio", 1.0))
         if self.plain:
             return System(**parts)
+        if spec.generated:
+            raise ConfigError(_not_plain_field(self), f"contact.law = {spec.name!r} runs spherical strikers and beads, "
+                              "a flat wall or a free end, without gravity; this model has more")
         from .bodies import extend  # the striker's face, elements, the protected body, gravity
 
         return System(**extend(self, parts))
@@ -576,20 +598,9 @@ class Model:
     def describe(self) -> dict:
         """Plain-data description of the model (stored in result attributes)."""
         law = {"law": self.law.name}
-        if self.law.name == "viscoelastic":
-            law["A"] = self.law.A
-        elif self.law.name == "viscoelastic_scaled":
-            law.update(A=self.law.A, reference_diameter_mm=self.law.diameter * 1e3,
-                       reference_material=self.law.material.name)
-        elif self.law.name == "dashpot":
-            law["gamma"] = self.law.gamma
-        elif self.law.name == "dashpot_scaled":
-            law.update(gamma=self.law.gamma, reference_diameter_mm=self.law.diameter * 1e3,
-                       reference_material=self.law.material.name)
-        elif self.law.name == "elastoplastic":
-            law.update(A=self.law.A, limiting_pressure_factor=self.law.limiting_pressure_factor)
-            if self.law.diameter is not None:
-                law.update(reference_diameter_mm=self.law.diameter * 1e3, reference_material=self.law.material.name)
+        law.update({p: getattr(self.law, p) for p in spec_of(self.law).param_names})  # as declared in laws/
+        if getattr(self.law, "diameter", None) is not None:  # a size-scaled law's reference pair
+            law.update(reference_diameter_mm=self.law.diameter * 1e3, reference_material=self.law.material.name)
         wall = {"type": self.wall.kind, "material": None if self.wall_material is None else self.wall_material.name}
         if self.wall.is_body:
             wall.update(mass=self.wall.mass, stiffness=self.wall.stiffness, damping=self.wall.damping,
@@ -605,3 +616,35 @@ class Model:
         if self.gravity:
             out["gravity"] = self.gravity
         return out
+
+
+def _energy_root(energy, e: float, k: float, p: float) -> float:
+    """The overlap [m] at which a law's stored ``energy(d, k, p)`` is ``e`` [J] (increasing in d)."""
+    from scipy.optimize import brentq
+
+    hi = 1e-9
+    while energy(hi, k, p) < e and hi < 1.0:
+        hi *= 2.0
+    return float(brentq(lambda d: energy(d, k, p) - e, 0.0, hi, xtol=1e-300, rtol=4 * np.finfo(float).eps))
+
+
+def _static_overlap(spec, force: float, k: float, p: float) -> float:
+    """The overlap [m] at which a generated law's force at rest (rate 0, no state) is ``force`` [N]."""
+    from scipy.optimize import brentq
+
+    hi = 1e-9
+    while spec.force(hi, 0.0, k, p, 0.0) < force and hi < 1.0:
+        hi *= 2.0
+    return float(brentq(lambda d: spec.force(d, 0.0, k, p, 0.0) - force, 0.0, hi, xtol=1e-300,
+                        rtol=4 * np.finfo(float).eps))
+
+
+def _not_plain_field(model: "Model") -> str:
+    """The config field that makes ``model`` more than the plain kind (for a law that runs plain models only)."""
+    if not model.striker.plain:
+        return "striker.shape"
+    if model.wall.is_body:
+        return "wall.type"
+    if model.gravity:
+        return "chain.gravity"
+    return "chain.elements"

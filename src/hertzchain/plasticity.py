@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from .bounds import check_bound
 from .contact import ScaledViscoelastic
 from .errors import ConfigError
+from .laws.spec import attach_maker
 from .materials import Material, get_material
 
 __all__ = ["LIMITING_PRESSURE_FACTOR", "limiting_pressure", "thornton_loading_force", "thornton_loading_work",
@@ -326,3 +327,8 @@ class Elastoplastic:
         if self.diameter is None:
             return np.where(kappa > 0, float(self.A), 0.0)
         return ScaledViscoelastic(self.A, self.diameter, self.material).contact_damping(mu, kappa)
+
+
+# the registry's constructor of this law (hertzchain.laws declares its parameters)
+attach_maker("elastoplastic", lambda params, chain=None: Elastoplastic(
+    params["A"] or 0.0, limiting_pressure_factor=params["limiting_pressure_factor"] or 1.5))

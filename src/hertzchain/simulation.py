@@ -13,6 +13,7 @@ from .checks import check_after_run, check_before_run
 from .errors import ConfigError, DurationWarning, ElasticLimitWarning
 from .model import Model
 from .probes import Probes
+from .laws import is_plastic
 from .strict import real, run_options
 
 __all__ = ["simulate", "warn_elastic_limit", "warn_members_elastic_limit", "auto_duration", "elastic_limit_message"]
@@ -286,7 +287,7 @@ def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> 
     stacklevel : int
         Passed on to :func:`warnings.warn`.
     """
-    if not ds.attrs.get("elastic_limit_exceeded", 1) or _law_name(ds) == "elastoplastic":
+    if not ds.attrs.get("elastic_limit_exceeded", 1) or is_plastic(_law_name(ds)):
         return  # the elastoplastic law models the yield: nothing to warn about
     msg = elastic_limit_message(ds, where)
     if msg:

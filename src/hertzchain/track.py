@@ -25,6 +25,7 @@ from .probes import Probes
 from .checks import check_after_run, check_before_run
 from .result import build_dataset
 from .simulation import warn_elastic_limit
+from .laws import spec_of
 
 if TYPE_CHECKING:  # the compiled 2D path (Numba) loads only when a lateral run is made
     from .integrate.lateral import LateralArrays
@@ -180,7 +181,9 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
         raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
     if model.precompression > 0:
         raise ConfigError("chain.precompression", "is not supported with lateral freedom")
-    if model.law.name == "elastoplastic":
+    if spec_of(model.law).generated:
+        raise ConfigError("contact.law", f"law {model.law.name!r} runs on the axial engines only; run it without [track]")
+    if spec_of(model.law).plastic:
         raise ConfigError("contact.law", "the elastoplastic law is not supported with lateral freedom (its "
                           "per-contact history is carried by the axial engine only); run it without [track]")
     if not model.plain:

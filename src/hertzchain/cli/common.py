@@ -23,6 +23,20 @@ set_option = click.option(
     help="Override one config field, e.g. --set striker.velocity=0.3 (repeatable; TOML values).")
 
 
+def _load_laws(ctx, param, paths) -> None:
+    from ..laws import load_law_file
+
+    for path in paths:
+        load_law_file(path)
+
+
+#: ``--laws FILE``: the only way the command line runs a user's law file (a config never names code).
+laws_option = click.option(
+    "--laws", "law_files", multiple=True, metavar="FILE.py", expose_value=False, callback=_load_laws,
+    help="Python file that registers contact laws (hertzchain.register_law), so that configs can name them "
+         "as [contact] law (repeatable). Runs that file's code: only name files you trust.")
+
+
 def trace_options(func):
     """The options that say how to read a measured file (shared by analyze, compare and fit)."""
     for option in reversed((

@@ -10,10 +10,11 @@ from pathlib import Path
 
 import click
 
-from .common import dask_client, echo_warning, freeze_imports, require_device, set_option
+from .common import dask_client, echo_warning, freeze_imports, require_device, set_option, laws_option
 
 
 @click.command("design")
+@laws_option
 @click.argument("design_file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", "out", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Output folder: best.toml, design.json, history.csv, pareto.csv, design.html. Rerunning resumes.")

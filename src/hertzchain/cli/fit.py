@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from .common import UnitsTable, dask_client, echo_warning, progress_bar, set_option, trace_options
+from .common import UnitsTable, dask_client, echo_warning, progress_bar, set_option, trace_options, laws_option
 
 #: Per-trace keys of a MEASURED argument that say how to read the file (the rest are config paths).
 READ_KEYS = ("column", "sensitivity", "sensor", "time_unit")
@@ -45,6 +45,7 @@ def parse_measured(item: str) -> tuple[Path, str | None, list[str], dict]:
 
 
 @click.command("fit")
+@laws_option
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("measured", nargs=-1, required=True)
 @click.option("--free", "free", multiple=True, required=True, metavar="DOTTED.PATH",

@@ -6,10 +6,11 @@ from pathlib import Path
 
 import click
 
-from .common import echo_warning, progress_bar, set_option
+from .common import echo_warning, progress_bar, set_option, laws_option
 
 
 @click.command("run")
+@laws_option
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Result file: NetCDF (result.nc, everything), or result.csv / result.mat / result.parquet "

@@ -6,13 +6,14 @@ from pathlib import Path
 
 import click
 
-from .common import parse_window, set_option
+from .common import parse_window, set_option, laws_option
 
 #: The API's argument names (what its errors name) -> this command's options.
 _OPTIONS = {"variables": "--wrt", "objective": "--objective", "window": "--window"}
 
 
 @click.command("sensitivity")
+@laws_option
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--wrt", "variables", multiple=True, required=True, metavar="PATH",
               help="Config field to differentiate by (repeatable): chain.diameters_mm (every bead), "

@@ -10,10 +10,11 @@ from pathlib import Path
 
 import click
 
-from .common import dask_client, require_device, set_option
+from .common import dask_client, require_device, set_option, laws_option
 
 
 @click.command("sweep")
+@laws_option
 @click.argument("sweep_file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "-o", "out", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Output folder: chunks/*.nc, sweep.json and metrics.csv. Rerunning resumes.")

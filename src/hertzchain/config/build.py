@@ -203,9 +203,8 @@ def build_model(cfg: RunConfig, chain=None):
     Model
         Chain, striker, wall and contact law in SI units (diameters [m], speeds [m/s]).
     """
-    from ..contact import Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
+    from ..laws import get_law
     from ..model import Model, Striker, Wall
-    from ..plasticity import Elastoplastic
 
     if chain is None:
         chain = build_chain(cfg)
@@ -227,22 +226,13 @@ def build_model(cfg: RunConfig, chain=None):
         from ..chain import Chain
 
         ref = Chain.uniform(1, cfg.chain.uniform.diameter_mm * 1e-3, cfg.chain.material)
-    if k.law == "elastic":
-        law: Any = Elastic()
-    elif k.law == "elastoplastic":
-        law = Elastoplastic(k.A or 0.0, limiting_pressure_factor=k.limiting_pressure_factor or 1.5)
-    elif k.eps is not None:
+    spec = get_law(k.law)
+    if k.eps is not None and spec.calibrated:
         from ..dissipation import calibrate_law
 
-        law = calibrate_law(k.law, k.eps, chain=ref, striker=striker)
-    elif k.law == "viscoelastic":
-        law = Viscoelastic(k.A)
-    elif k.law == "viscoelastic_scaled":
-        law = ScaledViscoelastic(k.A, float(ref.diameters[0]), ref.materials[0])
-    elif k.law == "dashpot_scaled":
-        law = ScaledDashpot(k.gamma, float(ref.diameters[0]), ref.materials[0])
-    else:
-        law = Dashpot(k.gamma)
+        law: Any = calibrate_law(k.law, k.eps, chain=ref, striker=striker)
+    else:  # the law's own constructor from its declared parameters (hertzchain.laws)
+        law = spec.make(k.law_parameters(), ref)
     with _as_written("chain.offsets", _offsets_key(cfg)):
         return Model(chain, striker, wall, law, precompression=cfg.chain.precompression, gravity=chain_gravity(cfg.chain))
 

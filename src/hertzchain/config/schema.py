@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 # BOUNDS live beside the Python API (hertzchain.bounds), which applies them too; re-exported here
 from ..bounds import BOUNDS
 from ..errors import ConfigError
+from ..laws import get_law, law_names
 
 
 class _Section(BaseModel):
@@ -32,6 +33,14 @@ class _Section(BaseModel):
 def _bounded(kind: str, *, open_low: bool = False, **kw: Any) -> Any:
     lo, hi = BOUNDS[kind]
     return Field(gt=lo, le=hi, **kw) if open_low else Field(ge=lo, le=hi, **kw)
+
+
+def _law_field(law: str, name: str) -> Any:
+    """A config field for parameter ``name`` of the registered law ``law``: its unit and bounds."""
+    p = get_law(law).param(name)
+    lo = {"gt": p.low} if p.open_low else {"ge": p.low}
+    hi = {"lt": p.high} if p.open_high else {"le": p.high}
+    return Field(default=None, description=f"{law}: {p.description}, {p.unit}", **lo, **hi)
 
 
 _Diameter = Annotated[float, _bounded("diameter_mm")]
@@ -168,8 +177,7 @@ class ContactConfig(_Section):
     """``[contact]``: law and either its parameter (A [s] or gamma [N s/m]) or a target ``eps``;
     ``elastoplastic`` (Thornton) takes an optional viscous A (default 0)."""
 
-    law: Literal["elastic", "viscoelastic", "viscoelastic_scaled", "dashpot", "dashpot_scaled",
-                 "elastoplastic"] = "elastic"
+    law: str = Field(default="elastic", description="a registered law (hertzchain.laws): " + ", ".join(law_names()))
     # ge=MIN_EPS (hertzchain.dissipation): no law reaches a lower eps on its weak-damping branch, and
     # the calibration would otherwise search ever stronger damping (eps = 1e-300 ran for hours).
     eps: float | None = Field(default=None, ge=0.5, le=1, description="per-bead factor of the paper")
@@ -181,20 +189,61 @@ class ContactConfig(_Section):
                     "starts at the paper's F_Y)")
     gamma: float | None = _bounded("gamma", default=None, description="dashpot coefficient, N s/m "
                                    "(dashpot_scaled: between two beads like the chain's first)")
+    # the generated laws' parameters: bounds and units declared once in hertzchain.laws
+    exponent: float | None = _law_field("power", "exponent")
+    stiffness: float | None = _law_field("power", "stiffness")
+    restitution: float | None = _law_field("hunt_crossley", "restitution")
+    parameters: dict[str, float] | None = Field(default=None, description="a user law's parameters by name "
+                                                "(its own declaration bounds them)")
+
+    @field_validator("law")
+    @classmethod
+    def _registered(cls, law: str) -> str:
+        if law not in law_names():
+            raise ValueError(f"unknown law {law!r}; registered laws: {', '.join(law_names())} (a law of your own: "
+                             "hertzchain.register_law, or --laws FILE on the command line)")
+        return law
+
+    def law_parameters(self) -> dict:
+        """The law's parameters by name (None where not given), as its declaration lists them."""
+        spec = get_law(self.law)
+        given = dict(self.parameters or {})
+        return {p: given.get(p, getattr(self, p, None)) for p in spec.param_names}
 
     @model_validator(mode="after")
     def _parameter(self) -> "ContactConfig":
-        if self.law == "elastic" and (self.A is not None or self.gamma is not None or
+        spec = get_law(self.law)
+        if spec.generated:  # a law declared in hertzchain.laws: its own parameters only, bounded there
+            named = ("A", "gamma", "eps", "limiting_pressure_factor", "exponent", "stiffness", "restitution")
+            stray = [f for f in named if getattr(self, f) is not None and f not in spec.param_names]
+            stray += [f"parameters.{f}" for f in (self.parameters or {}) if f not in spec.param_names]
+            if stray:
+                raise ValueError(f"law {self.law!r} takes {', '.join(spec.param_names) or 'no parameters'}, "
+                                 f"not {', '.join(stray)}")
+            for name, value in self.law_parameters().items():
+                try:
+                    spec.param(name).check(value)
+                except ConfigError as exc:
+                    raise ValueError(str(exc)) from None
+            try:  # the law's own checks across parameters (e.g. the power law's n = 1 needs a stiffness)
+                spec.make(self.law_parameters())
+            except ConfigError as exc:
+                raise ValueError(str(exc)) from None
+            return self
+        if self.exponent is not None or self.stiffness is not None or self.restitution is not None or self.parameters:
+            raise ValueError(f"law {self.law!r} takes no exponent, stiffness, restitution or parameters "
+                             "(those of law = 'power', 'hunt_crossley' or a registered law)")
+        if not spec.dissipative and (self.A is not None or self.gamma is not None or
                                       (self.eps is not None and self.eps != 1.0)):
             raise ValueError("the elastic law takes no A, gamma or eps < 1; set law = 'viscoelastic' or 'dashpot'")
-        if self.law != "elastoplastic" and self.limiting_pressure_factor is not None:
+        if not spec.plastic and self.limiting_pressure_factor is not None:
             raise ValueError("limiting_pressure_factor belongs to law = 'elastoplastic'")
-        if self.law == "elastoplastic":
+        if spec.plastic:
             if self.gamma is not None or self.eps is not None:
                 raise ValueError("law 'elastoplastic' takes an optional A (s, the viscous term on top of Thornton's "
                                  "plastic contact), not gamma or eps")
             return self
-        own = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma", "dashpot_scaled": "gamma"}.get(self.law)
+        own = spec.calibrated
         if own is not None:
             other = "gamma" if own == "A" else "A"
             if getattr(self, other) is not None:

@@ -39,6 +39,7 @@ from .constraints import Constraints
 from .body import BODY_OBJECTIVES
 from .objectives import OBJECTIVES, PLASTIC_OBJECTIVES, SAMPLING_FREE, Fidelity, Robust
 from .space import Space, parse_shape, parse_variables
+from ..laws import get_law
 
 __all__ = ["DesignProblem", "parse_design", "load_design", "search_fidelity"]
 
@@ -236,7 +237,7 @@ def parse_design(data: dict) -> DesignProblem:
         raise ConfigError("design.objective", "lists an objective twice")
     plastic = [n for n in objectives if n in PLASTIC_OBJECTIVES] + [
         f"constraints.{k}" for k in ("max_plastic_work", "max_residual_overlap") if getattr(sec.constraints, k) is not None]
-    if plastic and base_cfg.contact.law != "elastoplastic":
+    if plastic and not get_law(base_cfg.contact.law).plastic:
         raise ConfigError("design.objective" if plastic[0] in PLASTIC_OBJECTIVES else f"design.{plastic[0]}",
                           f"{plastic[0]} needs contact yield: set [base.contact] law = 'elastoplastic' (the "
                           f"{base_cfg.contact.law} law does no plastic work)")

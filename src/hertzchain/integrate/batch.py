@@ -47,7 +47,6 @@ import xarray as xr
 
 from ..checks import (_smaller_radius, preflight_batch, smaller_radii, warn_members_hertz_range,
                       warn_members_pulse_not_reached)
-from ..contact import LAW_CODES
 from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
@@ -281,8 +280,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     dt, _, steps_per_radian, n_threads = run_options(dt=dt, steps_per_radian=steps_per_radian, threads=n_threads,
                                                      threads_field="n_threads", threads_max=4096)
     if device == "cuda" and not isinstance(models, Ensemble):
-        _cuda.refuse_elastoplastic([LAW_CODES.get(getattr(getattr(m, "law", None), "name", None), -1)
-                                    for m in models])
+        _cuda.refuse_elastoplastic([_law_code(m) for m in models])
     ens = None
     if isinstance(models, Ensemble):
         ens = models
@@ -391,3 +389,11 @@ def _simulate_models(models, duration, probes, dt, progress, n_threads, configs,
         smaller[i, :nc] = _smaller_radius(model)[:nc]
     warn_members_hertz_range(fmax, kappa, smaller, stacklevel=4)
     return _stack_members(runs, models, plist, cfgs, duration, sys_list, stacked)
+
+
+def _law_code(model) -> int:
+    """The engine code of a model's law (-1 for something that is not a model with a registered law)."""
+    from ..laws import get_law
+
+    name = getattr(getattr(model, "law", None), "name", None)
+    return get_law(name).code if isinstance(name, str) else -1

@@ -20,6 +20,7 @@ from numba import njit, prange
 from ..interrupts import check as check_interrupt
 from . import kernels
 from .batch_buffers import _Packed, check_members_finite
+from .generated import is_generated, law_kernels
 
 
 #: Work (padded slot-steps summed over members) per compiled call between two progress reports:
@@ -70,6 +71,45 @@ def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, dampin
                                        peak[m], acc[m], ext[ext_off[m]:ext_off[m + 1]], ext_on[m], body_slot[m], bb)
 
 
+_GENERATED: dict = {}
+
+
+def _generated_batch_kernel(code: int):
+    """:func:`_batch_kernel` with the stepping loop generated from law ``code`` (:mod:`.generated`)
+    in place of ``kernels.verlet_run``; compiled once per law and process."""
+    if code not in _GENERATED:
+        run = law_kernels(code)[1]
+
+        @njit(parallel=True)
+        def kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap,
+                   dyield, dmax, dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax,
+                   k_start, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_wp, out_v, v_off, v_rows,
+                   nbody, record_v, fmax, fmax_off, peak, acc, ext, ext_off, ext_on, body_slot, out_b, b_off, status):
+            nk = out_ke.shape[1]
+            for i in prange(order.shape[0]):
+                m = order[i]
+                if status[m] != 0:
+                    continue
+                s = off[m]
+                p = n_slots[m]
+                r0 = rec_off[m]
+                r1 = rec_off[m + 1]
+                f = out_f[f_off[m]:f_off[m + 1]].reshape((nk, r1 - r0))
+                vv = out_v[v_off[m]:v_off[m + 1]].reshape((v_rows[m], nbody[m]))
+                bb = out_b[b_off[m]:b_off[m + 1]].reshape(((b_off[m + 1] - b_off[m]) // 4, 4))
+                status[m] = run(u[s:s + p + 1], v[s:s + p + 1], a[s:s + p], g[s:s + p + 1], mass[s:s + p],
+                                               inv_mass[s:s + p], kappa[s:s + p], damping[s:s + p], d0[s:s + p],
+                                               de[s:s + p], dx0[s:s + p], rsum[s:s + p], fext[s:s + p], dcap[s:s + p],
+                                               dyield[s:s + p], dmax[s:s + p], dres[s:s + p], kres[s:s + p],
+                                               law[m], general[m], wall_slot[m], interval, stride[m], n_sub[m], n_eval[m],
+                                               c_steps[m], relax[m], k_start, k_stop, rec[r0:r1], f, out_ke[m], out_pe[m],
+                                               out_ed[m], out_wp[m], vv, record_v[m], fmax[fmax_off[m]:fmax_off[m + 1]],
+                                               peak[m], acc[m], ext[ext_off[m]:ext_off[m + 1]], ext_on[m], body_slot[m], bb)
+
+        _GENERATED[code] = kernel
+    return _GENERATED[code]
+
+
 # The workqueue threading layer (the one available without TBB/OpenMP) aborts the process when two
 # threads launch parallel kernels at once, e.g. two Dask worker threads in one process; one launch
 # already uses every core, so serialising launches costs nothing.
@@ -88,6 +128,10 @@ def _engine(pk: _Packed, progress, n_threads) -> None:
     # the most expensive members go first so that the threads finish together.
     cost = steps_per_sample * (pk.n_slots + 1) * np.where(pk.general, 2, 1) * np.where(pk.ext_on, 2, 1)
     order = np.argsort(-cost, kind="stable").astype(np.int64)
+    # one launch per engine: the hand-written loop for the built-in laws, each generated law's own
+    generated = np.array([is_generated(c) for c in pk.law[order]], dtype=bool)
+    groups = [(_batch_kernel, order[~generated])] if not generated.all() else []
+    groups += [(_generated_batch_kernel(int(c)), order[pk.law[order] == c]) for c in np.unique(pk.law[order[generated]])]
     samples_per_call = max(1, int(CHUNK_SLOT_STEPS * max(1, n_threads or numba.get_num_threads()) // cost.sum()))
     flat = pk.flat
     k = 1
@@ -101,14 +145,15 @@ def _engine(pk: _Packed, progress, n_threads) -> None:
                 # Chunk size 1: members are handed out one at a time (dynamic scheduling), since
                 # their costs differ; the default static split would wait for the slowest block.
                 with numba.parallel_chunksize(1):
-                    _batch_kernel(order, pk.off, pk.n_slots, flat["u"], flat["v"], flat["a"], flat["g"], flat["mass"],
-                                  flat["inv_mass"], flat["kappa"], flat["damping"], flat["d0"], flat["de"],
-                                  flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], flat["dyield"],
-                                  flat["dmax"], flat["dres"], flat["kres"], pk.law, pk.general,
-                                  pk.wall_slot, interval, pk.stride, pk.n_sub, pk.n_eval, pk.c_steps, pk.relax, k,
-                                  k_stop, pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed,
-                                  pk.out_wp, pk.out_v, pk.v_off, pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak,
-                                  pk.acc, pk.ext, pk.ext_off, pk.ext_on, pk.body_slot, pk.out_b, pk.b_off, status)
+                    for kernel, members in groups:
+                        kernel(members, pk.off, pk.n_slots, flat["u"], flat["v"], flat["a"], flat["g"], flat["mass"],
+                               flat["inv_mass"], flat["kappa"], flat["damping"], flat["d0"], flat["de"],
+                               flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], flat["dyield"],
+                               flat["dmax"], flat["dres"], flat["kres"], pk.law, pk.general,
+                               pk.wall_slot, interval, pk.stride, pk.n_sub, pk.n_eval, pk.c_steps, pk.relax, k,
+                               k_stop, pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed,
+                               pk.out_wp, pk.out_v, pk.v_off, pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak,
+                               pk.acc, pk.ext, pk.ext_off, pk.ext_on, pk.body_slot, pk.out_b, pk.b_off, status)
             finally:
                 numba.set_num_threads(previous)
         check_members_finite(status, k_stop * interval)

@@ -25,6 +25,7 @@ from ..errors import ConfigError
 from ..model import Model
 from ..probes import Probes
 from . import kernels, verlet
+from .generated import is_generated
 from .batch_buffers import (_NAMES, _STATE, _Packed, _member_body, _member_ext, _member_forces, _member_velocities,
                             _outputs, _slot_sizes)
 from .ensemble import Ensemble, layout_key
@@ -48,7 +49,8 @@ class _Member:
 def _pack_models(members: list[_Member], interval: float, n_samples: int) -> _Packed:
     """A batch of arbitrary models, member by member (see :func:`_pack_ensemble` for the fast path)."""
     packs = [pack(mb.system) for mb in members]
-    plastic = any(mb.system.law == kernels.LAW_ELASTOPLASTIC for mb in members)
+    # the per-contact state buffers (dmax ...): the elastic-plastic law's, and a generated law's state
+    plastic = any(mb.system.law == kernels.LAW_ELASTOPLASTIC or is_generated(mb.system.law) for mb in members)
     pk = _outputs(interval, n_samples, plastic=plastic, n_slots=np.array([w.n_slots for w in packs], dtype=np.int64),
                   nrec=np.array([mb.rec.size for mb in members], dtype=np.int64),
                   rec=np.concatenate([mb.rec for mb in members]).astype(np.int64),

@@ -40,7 +40,9 @@ from .batch_buffers import check_members_finite
 # the device choice, importable from here as before
 from .cuda_device import (AUTO_MIN_MEMBERS, DEVICES, _cuda, _simulated, check_device, gpu_usable,  # noqa: F401
                           require_gpu, use_gpu)
+from .cuda_generated import generated_kernel
 from .cuda_kernels import _kernels, _lanes, _register_kernel
+from .generated import is_generated
 
 __all__ = ["ENGINE", "AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable", "use_gpu", "run_packed"]
 
@@ -75,8 +77,8 @@ LANES_MAX_SLOTS = 64
 
 def refuse_elastoplastic(laws) -> None:
     """ConfigError naming ``contact.law`` when one of ``laws`` (kernel law codes) is the
-    elastic-plastic one: its per-contact state (largest overlap, unloading curve) is not carried
-    by the GPU kernels yet.
+    elastic-plastic one (its per-contact state, largest overlap and unloading curve, is not carried
+    by the GPU kernels yet) or a law the CPU engines generate from its declaration.
 
     Parameters
     ----------
@@ -85,7 +87,13 @@ def refuse_elastoplastic(laws) -> None:
     """
     from .kernels import LAW_ELASTOPLASTIC
 
-    if np.any(np.asarray(laws) == LAW_ELASTOPLASTIC):
+    codes = np.asarray(laws).ravel()
+    generated = [is_generated(c) for c in codes]
+    if any(generated) and (not all(generated) or np.unique(codes).size > 1):
+        raise ConfigError("contact.law", "the CUDA engine runs one law declared in hertzchain.laws (power, "
+                          "hunt_crossley, a user's) per batch, not mixed with other laws; split the batch or use "
+                          "device = 'cpu'")
+    if np.any(codes == LAW_ELASTOPLASTIC):
         raise ConfigError("contact.law", "the elastoplastic law runs on the CPU only (its per-contact state is not "
                           "carried by the GPU kernels); use device = 'cpu' (or 'auto', which picks the CPU for it)")
 
@@ -120,13 +128,15 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     cuda = _cuda()
     nmem = pk.n_members
     p = int(pk.n_slots[0])
+    generated = is_generated(int(pk.law[0]))  # a law run by the generated engines: its own kernel
     width = int(pk.off[1])
     # aligned elastic members of a short chain: the register kernel (positions and velocities on
     # the chip), else one warp per member for small batches, one thread per member for large ones
     stride0 = int(pk.stride[0])
     lanes = (USE_LANES_KERNEL and not np.any(pk.general) and stride0 > 0 and np.all(pk.stride == stride0)
              and np.all(pk.n_sub == 1) and p % cuda_lanes.lanes() == 0 and p <= LANES_MAX_SLOTS)
-    register = not lanes and USE_REGISTER_KERNEL and p <= REGISTER_MAX_SLOTS and not np.any(pk.general)
+    lanes = lanes and not generated
+    register = not lanes and not generated and USE_REGISTER_KERNEL and p <= REGISTER_MAX_SLOTS and not np.any(pk.general)
     warp = not (register or lanes) and nmem < WARP_PER_MEMBER_BELOW
     if lanes:
         pre = bool(np.any(pk.flat["d0"].reshape(nmem, width)[:, :p] != 0.0)
@@ -136,6 +146,9 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
         pre = bool(np.any(pk.flat["d0"].reshape(nmem, width)[:, :p] != 0.0)
                    or np.any(pk.flat["fext"].reshape(nmem, width)[:, :p] != 0.0))
         kernel, tpb = _register_kernel(p, pre)
+    elif generated:
+        warp = False
+        kernel = generated_kernel(int(pk.law[0]))
     else:
         kernel = _kernels()["warp" if warp else "thread"]
     width = int(pk.off[1])
@@ -165,6 +178,7 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     peak = cuda.to_device(np.ascontiguousarray(pk.peak[:, :8].T))
     acc = cuda.to_device(np.ascontiguousarray(pk.acc[:, :8].T))
     status = cuda.to_device(np.zeros(nmem, dtype=np.int64))
+    state = slots("dmax", p) if generated else None  # the generated law's per-contact state
 
     cost = float(np.sum(pk.interval / pk.plan_dt * (p + 1) * np.where(pk.general, 2, 1)))
     per_launch = max(1, min(ns - 1, int(LAUNCH_SLOT_STEPS // max(cost, 1.0)),
@@ -187,6 +201,10 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
                 d["u"], d["v"], d["a"], d["g"], d["kappa"], d["inv_mass"], d["d0"], d["fext"], d["mass"],
                 ints["wall_slot"], float(pk.interval), stride0, k, k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v,
                 flags["record_v"], fmax, peak, acc, status)
+        elif generated:
+            kernel[-(-nmem // THREADS_PER_BLOCK), THREADS_PER_BLOCK](
+                d["u"], d["v"], d["a"], d["g"], d["vp"], state, d["mass"], d["inv_mass"], d["kappa"], d["damping"],
+                d["d0"], d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["wall_slot"], *tail)
         elif register:
             kernel[-(-nmem // tpb), tpb](
                 d["u"], d["v"], d["a"], d["g"], d["mass"], d["inv_mass"], d["kappa"], d["damping"], d["d0"], d["de"],

@@ -28,6 +28,7 @@ from ..contact import Dashpot, Elastic, Viscoelastic
 from ..errors import ConfigError
 from ..materials import Material
 from ..model import Model, Striker, Wall
+from ..laws import spec_of
 
 __all__ = ["Ensemble", "same_layout", "layout_key"]
 
@@ -127,7 +128,7 @@ class Ensemble:
                   striker_velocity=_per_member(striker_velocity, m, "striker.velocity", base.striker.velocity),
                   law_parameter=_per_member(law_parameter, m, _LAW_FIELD[base.law.name], base.law.parameter),
                   precompression=_per_member(precompression, m, "chain.precompression", base.precompression))
-        if base.law.name == "elastic" and np.any(self.law_parameter != 0.0):
+        if not spec_of(base.law).dissipative and np.any(self.law_parameter != 0.0):
             raise ConfigError("contact.law", "the elastic law has no parameter: give law_parameter only for a "
                               "viscoelastic (A) or dashpot (gamma) base model")
         self._validate()

@@ -8,8 +8,8 @@ Each check returns why the integrator does not integrate the model (None: it doe
 - ``rkn4`` (:mod:`hertzchain.integrate.rkn`): aligned elastic chains only (paper eq. 1, with or
   without precompression), no protected body nor mass-in-mass beads;
 - ``dop853``, ``rk45`` (:mod:`hertzchain.integrate.reference`, ``scipy.integrate.solve_ivp``):
-  every law but the elastic-plastic one, whose per-contact history (the largest overlap) a
-  right-hand side evaluated at trial points cannot carry.
+  every built-in law but the elastic-plastic one, whose per-contact history (the largest overlap) a
+  right-hand side evaluated at trial points cannot carry; not the laws run by the generated engines.
 """
 
 from __future__ import annotations
@@ -27,15 +27,19 @@ INTEGRATORS = ("verlet", "rkn4", "dop853", "rk45")
 def _rkn4(system) -> str | None:
     if not system.general:
         return None
-    what = ("a dissipative contact law" if system.law != 0 else "beads offset from the axis" if system.misaligned
+    what = ("a contact law other than the elastic one" if system.law != 0 else "beads offset from the axis" if system.misaligned
             else "a protected body or mass-in-mass beads")
     return f"'rkn4' integrates aligned elastic chains; this model has {what}"
 
 
 def _scipy(name: str) -> Callable:
     def check(system) -> str | None:
+        from .generated import is_generated
         from .kernels import LAW_ELASTOPLASTIC
 
+        if is_generated(system.law):
+            return (f"'{name}' solves the built-in laws; a law declared in hertzchain.laws (power, hunt_crossley, a "
+                    "user's) runs with the engines generated from it")
         if system.law == LAW_ELASTOPLASTIC:
             return (f"'{name}' cannot run the elastoplastic contact law: it keeps a history per contact (its largest "
                     "overlap), which the scipy integrators cannot carry between their trial steps")

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..contact import LAW_CODES
+from ..laws import get_law
 
 if TYPE_CHECKING:
     from .ensemble import Ensemble
@@ -222,11 +223,11 @@ def systems(ens: Ensemble | Ragged, start: int = 0, stop: int | None = None) -> 
     k_left = np.zeros((m, n + 1))
     k_left[:, 1:] = k[:, :n]
     omega2 = 2.0 * (k_left + k[:, :n + 1]) * inv_mass[:, :n + 1]
-    if ens.law_name == "elastic":
+    if not get_law(ens.law_name).dissipative:
         # beta = 0: sqrt(omega2 + 0.0) + 0.0 is sqrt(omega2) (omega2 >= 0), the same numbers
         bound = np.sqrt(omega2)
     else:
-        if ens.law_name == "dashpot":
+        if get_law(ens.law_name).calibrated == "gamma":
             c = np.where(kappa > 0, damping, 0.0)
         else:
             c = kappa * damping * np.sqrt(np.maximum(dcap, 0.0))

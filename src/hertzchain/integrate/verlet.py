@@ -11,6 +11,7 @@ import numpy as np
 from ..errors import ConfigError, SimulationDiverged
 from ..model import System
 from . import kernels
+from .generated import is_generated, law_kernels, run_kernel
 from .layout import Packed, pack
 
 __all__ = ["auto_time_step", "check_time_step", "run_verlet", "RawRun", "StepPlan", "step_plan",
@@ -158,7 +159,9 @@ def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe
     (``w.ext`` when None) and, with a protected body, the body's record ``out_b``.
     """
     power0 = 0.0
-    if system.general:
+    if is_generated(system.law):  # a law run by the generated engines (hertzchain.laws)
+        power0 = law_kernels(system.law)[0](u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, g, w.dmax)
+    elif system.general:
         power0 = kernels.forces_general(u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, system.law, g,
                                         w.dyield, w.dmax, w.dres, w.kres)
     else:
@@ -174,6 +177,8 @@ def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe
     if system.law == kernels.LAW_ELASTOPLASTIC:
         out_pe[0] = kernels.potential_energy_plastic(u, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dres, w.kres)
         out_wp[0] = kernels.plastic_work(w.kappa, w.dyield, w.dmax, w.dres)
+    elif is_generated(system.law):
+        out_pe[0] = law_kernels(system.law)[2](u, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext)
     else:
         out_pe[0] = kernels.potential_energy(u, g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False)
     if system.extended:
@@ -253,9 +258,10 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     if progress is not None:
         progress(0, n_samples - 1)  # the checks passed and the work starts
     k = 1
+    stepper = run_kernel(system.law)  # kernels.verlet_run, or the loop generated from the law
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_chunk)
-        status = kernels.verlet_run(u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
+        status = stepper(u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
                                     w.rsum, w.fext, w.dcap, w.dyield, w.dmax, w.dres, w.kres, system.law,
                                     system.general, w.wall_slot, sample_interval, plan.stride, plan.n_sub,
                                     plan.n_eval, plan.c_steps, plan.relax, k, k_stop, rec, out_f, out_ke, out_pe,

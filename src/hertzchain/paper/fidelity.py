@@ -35,6 +35,7 @@ from ..track import Track, simulate_lateral
 from . import protocol
 from .law_figure import LAW_STYLE, fig_laws  # noqa: F401 - drawn apart, re-exported here
 from .values import PAPER
+from ..laws import is_conservative
 
 __all__ = ["LAW_VARIANTS", "TRACKS", "TAIL_WINDOW_S", "run_law_variants", "law_numbers",
            "run_lateral_misalignment", "misalignment_numbers", "tail_oscillation", "fig_laws", "fig3_lateral",
@@ -57,7 +58,7 @@ N0 = PAPER["n0"]
 
 
 def _variant_settings(settings: protocol.Settings, law: str) -> protocol.Settings:
-    if law == "elastic":
+    if is_conservative(law):
         return dataclasses.replace(settings, elastic=True)
     return dataclasses.replace(settings, elastic=False, law=law)
 

@@ -14,6 +14,7 @@ from typing import Any
 
 from .. import theory
 from .values import PAPER
+from ..laws import is_conservative
 
 CHAINS = ("chain1", "chain2")
 
@@ -181,7 +182,7 @@ def comparison_rows(summary: dict, settings_desc: dict | None = None) -> list[Ro
         rows.append(Row(f"chain {k}: Q{k}^th (eq. 8)", _f(sim.get("Q_theory")), _f(ref.get("Q_theory")), r,
                         _verdict_tol(r, 0.005, note, "matches"), "derived", _tol(r, 0.005)))
     r = _rel(summary.get("eps"), paper.get("eps"))
-    elastic = _num((settings_desc or {}).get("eps_target")) is None and (settings_desc or {}).get("law") == "elastic"
+    elastic = _num((settings_desc or {}).get("eps_target")) is None and is_conservative((settings_desc or {}).get("law"))
     rows.append(Row("eps measured back in the uniform part, (F_m^(n+1)/F_m^n)^(5/6)",
                     _pm(summary.get("eps"), summary.get("eps_err"), ".4f"), _f(paper.get("eps"), ".3f"), r,
                     "elastic run: eps = 1 expected" if elastic

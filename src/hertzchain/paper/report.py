@@ -41,6 +41,7 @@ from . import claims
 from .notes import (CHAINS, Row, _diameters_m, _f, _pct, agreement_count, comparison_rows, figure_notes,
                     speed_sentence)
 from .render import _to_html, _to_markdown
+from ..laws import is_conservative
 
 __all__ = ["Row", "agreement_count", "comparison_rows", "figure_notes", "speed_sentence", "write_report",
            "FIGURE_TITLES"]
@@ -128,7 +129,7 @@ def _dissipation_sentence(summary: dict, settings_desc: dict | None) -> str:
     desc = settings_desc or {}
     law = desc.get("law", "?")
     words = LAW_WORDS.get(law, law)
-    if law == "elastic":
+    if is_conservative(law):
         return f"Dissipation model: none, {words}."
     e = ((summary.get("fidelity") or {}).get("laws") or {}).get(law, {}).get("striker_restitution")
     bounce = (f" Under it the 8 mm striker bounces off a free first bead with a two-body restitution of {e:.3f} at "

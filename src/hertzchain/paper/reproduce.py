@@ -20,6 +20,7 @@ from .claims import build_claims
 from .inputs import SUB_TAGS, check_laws, check_settings, expected_traces
 from .protocol import ChainStudy, Settings
 from .values import PAPER
+from ..laws import is_conservative, spec_of
 
 __all__ = ["reproduce", "redraw", "load_data", "draw", "count_runs", "count_steps", "build_summary",
            "elastic_limit_summary", "FIGURE_NAMES", "SUMMARY_UNITS"]
@@ -130,12 +131,7 @@ def _chain_summary(study: ChainStudy) -> dict:
 
 
 def _law_desc(law) -> dict:
-    out = {"law": law.name}
-    if law.name in ("viscoelastic", "viscoelastic_scaled"):
-        out["A"] = law.A
-    elif law.name in ("dashpot", "dashpot_scaled"):
-        out["gamma"] = law.gamma
-    return out
+    return {"law": law.name, **{p: getattr(law, p) for p in spec_of(law).param_names}}
 
 
 def build_summary(studies: dict[str, ChainStudy], ratio: dict, speed: dict, settings: Settings,
@@ -477,7 +473,7 @@ def _redraw(out: Path, tick: Callable[[str], None], early: list) -> dict:
     raw_settings = check_settings(summary, where)  # every field of the right type, or the key named
     known = {k: v for k, v in raw_settings.items() if k in Settings.__dataclass_fields__}
     settings = Settings(**known, eps=raw_settings.get("eps_target") or PAPER["eps"],
-                        elastic=raw_settings["law"] == "elastic")
+                        elastic=is_conservative(raw_settings["law"]))
     laws = (summary.get("fidelity") or {}).get("laws") if isinstance(summary.get("fidelity"), dict) else None
     if laws is not None and check_laws(laws):
         raise ConfigError(where, f"is damaged: {check_laws(laws)}; rerun 'hertzchain reproduce' without --from-data")
