@@ -100,3 +100,19 @@ def test_batched_body_metrics_match_single_runs():
         assert out["energy_to_body"][i] == pytest.approx(single.attrs["peak_body_energy"], rel=1e-12)
     # a heavier body on the same mount is pushed to a smaller acceleration
     assert out["peak_body_acceleration"][1] < out["peak_body_acceleration"][0]
+
+
+def test_a_body_objective_is_searched_with_gradients(tmp_path):
+    """``peak_body_force`` over the mount's stiffness alone (a real variable the sensitivity engine
+    differentiates) takes the gradient phase; a softer mount passes less force to the ground, so
+    the search ends on the soft bound, and the reported value is the run of its best config."""
+    d = _design(variables={"wall.stiffness": [1e6, 1e8]}, budget=24, population=6, polish=True)
+    prob = parse_design(d)
+    from hertzchain.design.gradient import gradient_support
+
+    assert gradient_support(prob) is None
+    res = run_design(prob, tmp_path)
+    assert "gradient" in {r["phase"] for r in res.history}
+    assert res.best["variables"]["wall.stiffness"] == pytest.approx(1e6, rel=1e-3)
+    ds = hc.run_config(res.best["config"])
+    assert res.best["objective"] == pytest.approx(ds.attrs["peak_body_force"], rel=1e-9)

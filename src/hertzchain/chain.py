@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .elements import SPHERE, Element
 from .errors import ConfigError
@@ -122,8 +123,8 @@ class Chain:
 
     # ---------------------------------------------------------------- builders
     @classmethod
-    def from_diameters(cls, diameters: Sequence[float], material: str | Material | Sequence = "AISI52100",
-                       offsets: Sequence[float] | None = None) -> "Chain":
+    def from_diameters(cls, diameters: ArrayLike, material: str | Material | Sequence = "AISI52100",
+                       offsets: ArrayLike | None = None) -> "Chain":
         """Chain from explicit diameters [m] (one material for all beads, or one per bead)."""
         d = real_array(diameters, "chain.diameters")
         mats = material if isinstance(material, (str, Material)) else tuple(material)
@@ -185,7 +186,7 @@ class Chain:
             els = els[:bead - 1] + (element,) + els[bead:]
         return Chain(d, tuple(mats), self.offsets, els)
 
-    def with_offsets(self, offsets: Sequence[float] | dict[int, float]) -> "Chain":
+    def with_offsets(self, offsets: ArrayLike | dict[int, float]) -> "Chain":
         """Same beads with perpendicular offsets [m]: a full list, or {bead: offset} (1-based)."""
         if isinstance(offsets, dict):
             e = self.offsets.copy()

@@ -220,7 +220,7 @@ def _gib(x: float) -> str:
 def duration_text(seconds: float) -> str:
     """``about 21 h``, ``about 5 min``, ``about 40 s``: a projected time ``seconds`` [s] in words,
     rounded in the largest unit that fits."""
-    for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+    for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):  # noqa: B007 (read after the break)
         if seconds >= 2 * size:
             break
     else:

@@ -12,6 +12,7 @@ import html
 from typing import Iterable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["diameters_text", "counts_text", "html_table", "value_text"]
 
@@ -20,7 +21,7 @@ def _mm(x: float) -> str:
     return f"{x * 1e3:.4g}"
 
 
-def diameters_text(diameters: Sequence[float], most: int = 16) -> str:
+def diameters_text(diameters: ArrayLike, most: int = 16) -> str:
     """Bead diameters [m] as 'N beads: 26 mm x 16, 24, 23, ..., 11 mm', runs of equal beads grouped.
 
     Parameters

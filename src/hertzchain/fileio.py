@@ -191,7 +191,7 @@ def remove_stale_temporaries(path: str | os.PathLike) -> list[Path]:
     """
     path = Path(path)
     prefix, host = f".{path.name}.", _host()
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(os.scandir(path.parent if str(path.parent) else "."))
     except OSError:

@@ -134,7 +134,7 @@ def bounded(value: Any, field: str, kind: str, *, unit: str = "", whole: bool = 
     float or int
         The value.
     """
-    from .config.schema import BOUNDS
+    from .bounds import BOUNDS  # the schema's own table (config.schema re-exports it), below this module
 
     lo, hi = BOUNDS[kind]
     x = count(value, field, low=int(lo)) if whole else real(value, field, low=lo, unit=unit)

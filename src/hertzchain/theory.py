@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .contact import yield_force
 from .errors import ConfigError
@@ -76,7 +77,7 @@ def _positive(name: str, value: float) -> float:
 # --------------------------------------------------------------------------------------------
 # Geometry of the tapered chain
 # --------------------------------------------------------------------------------------------
-def tapering_factor(diameters: Sequence[float], n0: int = PAPER_N0) -> tuple[float, float]:
+def tapering_factor(diameters: ArrayLike, n0: int = PAPER_N0) -> tuple[float, float]:
     """Tapering factor q of a chain and its sample standard deviation (paper Sec. II).
 
     The paper defines q = 1 - <(phi_n / phi_0)^(1/(n - n0))>_{n > n0}: every bead of the tapered

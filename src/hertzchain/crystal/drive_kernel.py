@@ -118,7 +118,7 @@ def driven_run(u, v, a, wa, vp, g, mass, inv_mass, kappa, damping, d0, de, dx0, 
     half = 0.5 * dt
     n = a.shape[0]
     for k in range(k_start, k_stop):
-        for s in range(stride):
+        for _ in range(stride):
             for i in range(n):
                 v[i] += half * a[i]
                 u[i] += dt * v[i]

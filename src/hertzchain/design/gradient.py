@@ -39,9 +39,14 @@ __all__ = ["GRADIENT_RUNS", "gradient_support", "Coordinates", "local_search", "
 #: Engine runs one value-and-gradient evaluation is charged: the taped run, then the reverse sweep
 #: (a replay of the steps and their adjoint, about two runs more; benchmarks/gradient.py).
 GRADIENT_RUNS = 3
-#: Design objectives the gradient phase takes (their values are the sensitivity engine's).
+#: Design objectives the gradient phase takes (their values are the sensitivity engine's, the same
+#: numbers and sense as :mod:`hertzchain.design.objectives`, all minimised). ``plastic_work`` and
+#: ``residual_overlap_max`` are left to the population search: where no contact yields they are
+#: 0, the best a design can reach, but the sensitivity engine refuses them there (every derivative
+#: 0) and this phase would mark such a point infeasible.
 GRADIENT_OBJECTIVES = frozenset({"peak_wall_force", "peak_contact_force", "max_force_over_yield",
-                                 "front_momentum_at_wall", "energy_at_wall"})
+                                 "front_momentum_at_wall", "energy_at_wall",
+                                 "peak_body_force", "peak_body_acceleration", "energy_to_body"})
 #: A local search stops when an iteration improves the objective by less than this fraction.
 FTOL = 1e-7
 #: ... or when its best has not improved by STALL_GAIN (relative) in STALL_EVALUATIONS
@@ -214,7 +219,8 @@ def evaluate_with_gradient(problem: DesignProblem, evaluator: Evaluator, x: np.n
     if spr is not None:
         cfg["run"] = {**cfg.get("run", {}), "steps_per_radian": spr}
     name = problem.objectives[0]
-    window = None if problem.section.window is None else tuple(problem.section.window)
+    w = problem.section.window
+    window = None if w is None else (float(w[0]), float(w[1]))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ElasticLimitWarning)
         warnings.simplefilter("ignore", PulseNotReachedWarning)
@@ -276,7 +282,7 @@ def local_search(problem: DesignProblem, x0: np.ndarray, max_evaluations: int,
     z0 = coords.z_of(coords.sort(x0))
     # the soft maximum's width, fixed from the start's peak (the function minimised must not change)
     smoothing = SOFT_WIDTH * start_value if problem.objectives[0] == "peak_wall_force" and start_value > 0 else None
-    best = [None, math.inf]
+    best: list = [None, math.inf]  # the best point (unit cube) and its true objective
     count = [0]
     worst = [0.0]
     last_gain = [0, math.inf]  # evaluation and value of the last improvement by STALL_GAIN

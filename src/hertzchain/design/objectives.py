@@ -596,7 +596,7 @@ class Evaluator:
                 pending[key] = (i, cfg, geo, build_model(run_cfg, chain=cand.chain))
         if pending:
             models, counts = [], []  # each candidate's scenario runs are contiguous
-            for key, (i, cfg, geo, model) in pending.items():
+            for _i, cfg, _geo, model in pending.values():
                 ms = self._scenario_models(cfg, model)
                 models += ms
                 counts.append(len(ms))
@@ -623,7 +623,7 @@ class Evaluator:
             plastic = {k: np.maximum.reduceat(merged[k], starts).tolist()
                        for k in ("plastic_work", "residual_overlap_max") if k in merged}
             values = {n: merged[n].tolist() for n in self.objectives}
-            for j, (key, (i, cfg, geo, _)) in enumerate(pending.items()):
+            for j, (key, (i, _cfg, geo, _)) in enumerate(pending.items()):
                 s0, c = int(starts[j]), counts[j]
                 fy, pulse, energy = fys[j], pulses[j], energies[j]
                 objs = {n: (summarise(merged[n][s0:s0 + c], self.robust.statistic, self.robust.k) if self.robust

@@ -8,11 +8,17 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .ballistic import TheoryRow, theory_rows, uniform_count
 from .settings import EPS_LAWS, ExplorerSettings
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+    from ..analysis import PulseFit
 
 __all__ = ["MAP_ROWS", "TheoryRow", "ExplorerView", "compute_view", "uniform_count"]
 
@@ -60,11 +66,11 @@ class ExplorerView:
 
     settings: ExplorerSettings
     config: dict
-    result: object
+    result: xr.Dataset
     signal: str
     time: np.ndarray
     force: np.ndarray
-    fit: object | None
+    fit: PulseFit | None
     fit_time: np.ndarray
     fit_force: np.ndarray
     map_x: np.ndarray

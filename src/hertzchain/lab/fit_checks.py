@@ -185,7 +185,7 @@ def fit_doubts(sol, s2: float, labels: Sequence[str], times: Sequence[np.ndarray
         doubts.append(f"the residual variance is {s2:.3g} times the noise's (s^2; ~1 when the model describes the "
                       "records): the model or the record is off (a wrong baseline, a quantised record, a "
                       "signal the model lacks); the error bars are not to be trusted")
-    for label, y, sigma, (_, _, _, mk) in zip(labels, records, noise, parts):
+    for label, y, (_, _, _, mk) in zip(labels, records, parts):
         p = structure_p(np.asarray(y) - mk)
         if p < STRUCTURE_P:
             doubts.append(f"{label}: the residuals have structure (their sums over stretches of the record are too "

@@ -139,7 +139,7 @@ def read_isf(path: Path, raw: bytes) -> _Table:
     where = str(path)
     head = raw.lstrip()
     m = re.search(rb":CURV[A-Za-z]*", head)
-    if not head[:5].upper() in (b":WFMP", b":WFMO") or m is None:
+    if head[:5].upper() not in (b":WFMP", b":WFMO") or m is None:
         raise ConfigError(where, "is not a Tektronix .isf file (no ':WFMPRE:' header or ':CURVE' block)")
     hdr = _isf_header(head[:m.start()].decode("latin-1"))
     ascii_enc = _choice(hdr, "ENCDG", where, "BIN", {"BIN": "BIN", "BINARY": "BIN", "ASC": "ASC",

@@ -82,7 +82,7 @@ def _per_law(laws: dict, get: Callable[[dict], float | None]) -> dict:
     return out
 
 
-def _chain_claims(laws: dict, main: str) -> list[dict]:
+def _chain_claims(laws: dict, main: str) -> list[dict | None]:
     rows = []
     for chain in ("chain1", "chain2"):
         k = chain[-1]
@@ -162,7 +162,7 @@ STEEL_RESTITUTION = 0.95
 EPS_TOLERANCE = 0.003
 
 
-def _collision_claims(laws: dict, main: str) -> list[dict]:
+def _collision_claims(laws: dict, main: str) -> list[dict | None]:
     """The striker's own bounce, and whether one dissipation gives it together with the chain's eps."""
     def both(r: dict) -> float | None:
         e, eps = _num(r.get("striker_restitution")), _num(r["chain1"]["eps_measured"])
@@ -229,7 +229,7 @@ def explained_by(claims: list[dict]) -> dict[str, list[str]]:
     return out
 
 
-def _fig3_claims(mis: dict) -> list[dict]:
+def _fig3_claims(mis: dict) -> list[dict | None]:
     """Fig. 3a-b claims, with the variants rigid / lateral / lateral_friction."""
 
     def worst(var: str, key: str, pick=max, scale=1.0, absolute=False):

@@ -439,7 +439,7 @@ def fig4(study1, study2) -> Figure:
     beads = [r[1] for r in records]
     lo, hi = min(beads), max(beads)
     norm = matplotlib.colors.Normalize(lo, hi)
-    for lab, n, ci, x, y in records:
+    for _lab, n, ci, x, y in records:
         x, y = _peak_normalised(x, y)
         sel = (x > -2.5) & (x < 3.5)
         ls = {0: "-", 1: "--", -1: ":"}[ci]

@@ -52,7 +52,8 @@ def _tex_symbol(token: str) -> str:
     m = re.fullmatch(r"Q(\d)\^th", token)
     if m:
         return f"Q_{m.group(1)}^{{th}}"
-    head = re.match(r"[A-Za-z]+", token).group(0)
+    lead = re.match(r"[A-Za-z]+", token)
+    head = lead.group(0) if lead else ""  # a token without a letter in front: no symbol to translate
     out = _GREEK.get(head, head)
     for kind, part in re.findall(r"([_^])(\([^)]*\)|[A-Za-z0-9']+)", token[len(head):]):
         part = part.strip("()")

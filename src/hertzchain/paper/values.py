@@ -6,7 +6,10 @@ Job et al. 2005) and Sec. III (eps, Q_1, Q_2 and their theoretical values).
 
 from __future__ import annotations
 
-PAPER = {
+from typing import Any
+
+#: Per chain (and for the material and the protocol): named values, numbers, lists or text.
+PAPER: dict[str, Any] = {
     "chain1": {"q": 0.0560, "q_std": 0.0067, "Q_fit": 1.025, "Q_fit_err": 0.016, "Q_theory": 1.014,
                "n_beads": 30},
     "chain2": {"q": 0.0827, "q_std": 0.0031, "Q_fit": 1.049, "Q_fit_err": 0.044, "Q_theory": 1.022,

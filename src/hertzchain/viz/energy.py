@@ -75,8 +75,8 @@ def plot_energy(ds: xr.Dataset, out: str | Path | None = None, *, window: Sequen
     fig = agg_figure(6.5, 3.4)
     ax = fig.subplots()
     for lab, e in curves:
-        total = lab == "total"
-        ax.plot(t * 1e3, e * 1e3, lw=1.2 if total else 1.0, label=lab, **({"color": "k"} if total else {}))
+        is_total = lab == "total"
+        ax.plot(t * 1e3, e * 1e3, lw=1.2 if is_total else 1.0, label=lab, color="k" if is_total else None)
     total = curves[-1][1] * 1e3
     ax.set_xlim(t[0] * 1e3, t[-1] * 1e3)
     top = float(np.nanmax(total)) if np.isfinite(total).any() else 0.0

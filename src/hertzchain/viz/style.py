@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from functools import wraps
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable, Literal
 
 import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 __all__ = ["STYLE", "agg_figure", "paper_figure", "styled", "panel_tag", "save_figure"]
 
 #: Matplotlib style for the paper's column widths (8-pt fonts, thin lines).
-STYLE = {
+STYLE: dict[str, Any] = {
     "font.size": 8, "axes.labelsize": 8, "axes.titlesize": 8, "legend.fontsize": 7,
     "xtick.labelsize": 7, "ytick.labelsize": 7, "lines.linewidth": 1.0, "lines.markersize": 3.5,
     "axes.linewidth": 0.6, "xtick.major.width": 0.6, "ytick.major.width": 0.6,
@@ -37,8 +37,8 @@ STYLE = {
 C1, C2, C3, CK = "#1f77b4", "#d62728", "#2ca02c", "0.2"
 
 
-def agg_figure(width: float, height: float, *, layout: str | None = "constrained",
-               dpi: float | None = None) -> Figure:
+def agg_figure(width: float, height: float, *,
+               layout: Literal["constrained", "compressed", "tight"] | None = "constrained", dpi: float | None = None) -> Figure:
     """A figure of ``width`` x ``height`` inches on its own Agg canvas (no pyplot state).
 
     Parameters
@@ -62,8 +62,12 @@ def agg_figure(width: float, height: float, *, layout: str | None = "constrained
 
 def paper_figure(width: float, height: float) -> Figure:
     """An :func:`agg_figure` with the paper's tight padding between panels."""
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
     fig = agg_figure(width, height)
-    fig.get_layout_engine().set(w_pad=0.03, h_pad=0.03, wspace=0.04, hspace=0.04)
+    engine = fig.get_layout_engine()
+    assert isinstance(engine, ConstrainedLayoutEngine)  # agg_figure's default layout
+    engine.set(w_pad=0.03, h_pad=0.03, wspace=0.04, hspace=0.04)
     return fig
 
 
