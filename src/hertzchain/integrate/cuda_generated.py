@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 from .cuda_device import _cuda
+from .generated import bisection
 from .kernels import DELTA_MIN
 
 _CACHE: dict = {}
@@ -32,19 +33,7 @@ def generated_kernel(code: int):
     if spec.overlap_at_energy is not None:
         inverse = dev(spec.overlap_at_energy.py_func)
     else:
-        @dev
-        def inverse(e, k, p):  # generated._bisect on the device
-            hi = 1e-9
-            while stored(hi, k, p) < e and hi < 1.0:
-                hi *= 2.0
-            lo = 0.0
-            for _ in range(60):
-                mid = 0.5 * (lo + hi)
-                if stored(mid, k, p) < e:
-                    lo = mid
-                else:
-                    hi = mid
-            return hi
+        inverse = dev(bisection(stored))  # the CPU loop's bisection, compiled for the device
 
     @dev
     def overlap(u, d0, de, dx0, rsum, j, m):

@@ -45,9 +45,10 @@ def law_kernels(code: int):
     return _CACHE[key]
 
 
-def _bisect(stored):
-    """The overlap storing energy e by bisection of a law's ``energy`` (increasing in d)."""
-    @njit(nogil=True)
+def bisection(stored):
+    """The overlap storing energy e by bisection of a law's ``energy`` (increasing in d), as plain
+    Python closing over ``stored``: the caller compiles it for its target (CPU here, a CUDA device
+    function in :mod:`hertzchain.integrate.cuda_generated`)."""
     def inverse(e, k, p):
         hi = 1e-9
         while stored(hi, k, p) < e and hi < 1.0:
@@ -61,6 +62,11 @@ def _bisect(stored):
                 hi = mid
         return hi
     return inverse
+
+
+def _bisect(stored):
+    """:func:`bisection` compiled for the CPU."""
+    return njit(nogil=True)(bisection(stored))
 
 
 def _build(force, update, stored, partials, inverse):
