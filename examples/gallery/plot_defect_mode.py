@@ -2,18 +2,19 @@
 A localized defect mode
 =======================
 
-Twenty-one 10 mm steel (AISI 52100) beads pressed against the wall by F0 = 1 N are, linearised
-about their static equilibrium, a row of equal springs K = (3/2) kappa^(2/3) F0^(1/3) [N/m] (the
-Hertz contact's tangent stiffness at the static force; here K = 5.7e6 N/m). A uniform chain passes frequencies up
-to the monatomic cut-off f_c = 2 sqrt(K/m) / (2 pi) = 11.9 kHz (the top of its dispersion branch,
-omega = 2 sqrt(K/m) |sin(q/2)|, q the wavenumber in rad per bead). Replace the middle bead by a lighter 6 mm one: the defect's own
-vibration sits above f_c, where no wave can carry it away, so :func:`hertzchain.modes` finds one
-mode above the band edge whose shape decays exponentially on both sides of the defect (Theocharis
-et al., Phys. Rev. E 82, 056604, 2010). Left: every mode frequency of the uniform and the defect
-chain against f_c (from :func:`hertzchain.dispersion` of one bead); right: the defect mode's shape
-next to an in-band mode's. The defect mode (18.3 kHz, every bead's motion out of phase with its
-neighbours') carries all but a rounding of its kinetic energy on the five beads around the defect;
-the in-band mode spreads over the whole chain.
+Twenty-one 10 mm steel (AISI 52100) beads pressed against the wall by F0 = 1 N are, linearised about
+their static equilibrium, a row of equal springs K = (3/2) kappa^(2/3) F0^(1/3) [N/m] (the Hertz
+contact's tangent stiffness at the static force; here K = 5.7e6 N/m). A uniform chain passes
+frequencies up to the monatomic cut-off f_c = 2 sqrt(K/m) / (2 pi) = 11.9 kHz (the top of its
+dispersion branch, omega = 2 sqrt(K/m) abs(sin(q/2)), q the wavenumber in rad per bead). Replace the
+middle bead by a lighter 6 mm one: the defect's own vibration sits above f_c, where no wave can
+carry it away, so :func:`hertzchain.modes` finds one mode above the band edge whose shape decays
+exponentially on both sides of the defect (Theocharis et al., Phys. Rev. E 82, 056604, 2010). Left:
+every mode frequency of the uniform and the defect chain against f_c (from
+:func:`hertzchain.dispersion` of one bead); right: the defect mode's shape next to an in-band
+mode's. The defect mode (18.3 kHz, neighbouring beads moving in opposite directions) carries over 99.9 %
+of its kinetic energy on the five beads around the defect; the in-band mode spreads over
+the whole chain.
 """
 
 import matplotlib.pyplot as plt
