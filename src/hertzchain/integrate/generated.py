@@ -32,7 +32,9 @@ _CACHE: dict = {}
 
 
 def law_kernels(code: int):
-    """(forces, run, energy) compiled for the law of engine code ``code``; built on first use."""
+    """(forces, run, energy, stride, contact) compiled for the law of engine code ``code``; built on
+    first use (``stride`` the adaptive step's bound, ``contact`` one contact of ``forces``: the
+    threaded engine's force, :mod:`hertzchain.integrate.threaded_laws`)."""
     from ..laws import law_of_code
     from ..laws.spec import compiled
 
@@ -79,25 +81,35 @@ def _build(force, update, stored, partials, inverse):
         return u[j] - u[j + 1] + d0[j], 1.0
 
     @njit(nogil=True)
+    def contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, state):
+        """One contact of ``forces`` (bodies at ``ui``, ``uj`` [m] moving at ``vi``, ``vj`` [m/s]):
+        (axial force [N], dissipated power [W], new state). Shared with the threaded engine."""
+        if kappa == 0.0:  # no contact (free end, padding)
+            return 0.0, 0.0, state
+        if de != 0.0:
+            dx = dx0 - (ui - uj)
+            dist = np.sqrt(dx * dx + de * de)
+            d, c = rsum - dist, dx / dist
+        else:
+            d, c = ui - uj + d0, 1.0
+        rate = c * (vi - vj)
+        state = update(d, rate, kappa, damping, state)
+        if d < 0.0:
+            return 0.0, 0.0, state
+        if d <= DELTA_MIN:
+            d = 0.0
+        f = force(d, rate, kappa, damping, state)
+        fel = force(d, 0.0, kappa, damping, state)
+        f = f if f > 0.0 else 0.0
+        return c * f, (f - fel) * rate, state
+
+    @njit(nogil=True)
     def forces(u, v, kappa, damping, d0, de, dx0, rsum, g, state):
         power = 0.0
         for j in range(kappa.shape[0]):
-            if kappa[j] == 0.0:  # no contact (free end, padding)
-                g[j + 1] = 0.0
-                continue
-            d, c = overlap(u, d0, de, dx0, rsum, j)
-            rate = c * (v[j] - v[j + 1])
-            state[j] = update(d, rate, kappa[j], damping[j], state[j])
-            if d < 0.0:
-                g[j + 1] = 0.0
-                continue
-            if d <= DELTA_MIN:
-                d = 0.0
-            f = force(d, rate, kappa[j], damping[j], state[j])
-            fel = force(d, 0.0, kappa[j], damping[j], state[j])
-            f = f if f > 0.0 else 0.0
-            power += (f - fel) * rate
-            g[j + 1] = c * f
+            g[j + 1], p, state[j] = contact(u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j],
+                                            dx0[j], rsum[j], state[j])
+            power += p
         return power
 
     @njit(nogil=True)
@@ -207,7 +219,7 @@ def _build(force, update, stored, partials, inverse):
         acc[2] = step
         return 0
 
-    return forces, run, energy
+    return forces, run, energy, stride, contact
 
 
 def is_generated(code: int) -> bool:

@@ -34,6 +34,7 @@ from . import kernels
 from .barrier import barrier, new_barrier
 from .kernels import DELTA_MIN, LEAN_SLOTS
 from .layout import PAD, pack
+from .threaded_laws import law_thread_run
 from .verlet import RawRun, _dt_used, initialise, refine_peak, step_plan
 
 __all__ = ["run_verlet_threaded", "split", "MIN_SLOTS_PER_THREAD", "CHUNK_BEAD_STEPS"]
@@ -294,9 +295,10 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
         What ``run_verlet`` returns; the same numbers but for the energies' rounding (module
         docstring).
     """
-    if system.general:
-        raise ConfigError("run.threads", "several threads run aligned elastic chains (no dissipation, no offsets, "
-                          "no protected body or mass-in-mass beads); use run.threads = 1 for this model")
+    if system.extended:
+        what = "a protected body (wall.type = 'body')" if system.body else "mass-in-mass beads (chain.elements)"
+        raise ConfigError("run.threads", f"several threads run chains of beads with any contact law and offsets, "
+                          f"not {what}; use run.threads = 1 or 'auto' for this model")
     plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
     nc = system.n_contacts
@@ -312,34 +314,47 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
     out_ke = np.empty(n_samples)
     out_pe = np.empty(n_samples)
     out_ed = np.empty(n_samples)
+    plastic = system.law == kernels.LAW_ELASTOPLASTIC
+    out_wp = np.empty(n_samples if plastic else 1)
     out_v = np.empty((n_samples if record_velocities else 1, nb))
     out_u = np.empty((n_samples if record_positions else 1, nb))
     fmax = np.empty(nc)
     peak = np.empty(8)
     acc = np.zeros(8)
-    initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc)
+    initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc,
+               out_wp)
     out_u[0] = u[:nb]
     bounds = split(p, nthr)
     rbounds = np.searchsorted(rec, bounds).astype(np.int64)
-    lean = bool(p >= LEAN_SLOTS and not np.any(w.d0) and not np.any(w.fext))
-    pub = np.zeros((2, nthr, 2))
     part = np.zeros(nthr, dtype=np.int64)
-    energy = np.zeros((nthr, 2))
+    steps = (sample_interval, plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax)
+    if system.general:  # every other law, offsets: the thread function built from the law's contact
+        run = law_thread_run(system.law)
+        edacc = np.zeros((nthr, 2))
+        edacc[0, 1] = acc[1]  # the dissipated power at t = 0 (the trapezoid's first point), all of it on block 0
+        head = (np.zeros((2, nthr, 4)), part, np.zeros((nthr, 3)), edacc, u, v, a, g, w.mass, w.inv_mass, w.kappa,
+                w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap, w.dyield, w.dmax, w.dres, w.kres, w.wall_slot,
+                *steps)
+        tail = (rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_velocities, out_u, record_positions, fmax,
+                peak, acc, w.ext)
+    else:
+        run = _thread_run
+        lean = bool(p >= LEAN_SLOTS and not np.any(w.d0) and not np.any(w.fext))
+        head = (np.zeros((2, nthr, 2)), part, np.zeros((nthr, 2)), u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping,
+                w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap, w.wall_slot, lean, *steps)
+        tail = (rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, out_u, record_positions, fmax, peak, acc,
+                w.ext)
     per_call = max(1, round(CHUNK_BEAD_STEPS * plan.dt / (p * sample_interval)))
     if progress is not None:
         progress(0, n_samples - 1)
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + per_call)
-        bar = new_barrier()
-        args = (nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, w.mass, w.inv_mass, w.kappa,
-                w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap, w.wall_slot, lean, sample_interval, plan.stride,
-                plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, k, k_stop, rec, out_f, out_ke, out_pe, out_ed,
-                out_v, record_velocities, out_u, record_positions, fmax, peak, acc, w.ext)
-        workers = [threading.Thread(target=_thread_run, args=(t, *args), daemon=True) for t in range(1, nthr)]
+        args = (nthr, bounds, rbounds, new_barrier(), *head, k, k_stop, *tail)
+        workers = [threading.Thread(target=run, args=(t, *args), daemon=True) for t in range(1, nthr)]
         for th in workers:
             th.start()
-        status = _thread_run(0, *args)
+        status = run(0, *args)
         for th in workers:
             th.join()
         if status != 0:
@@ -356,4 +371,6 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
                   potential_energy=out_pe, dissipated_energy=out_ed, velocity=out_v if record_velocities else None,
                   max_force=fmax, peak_wall_force=fpk, peak_wall_time=t_pk, dt=dt_min, integrator="verlet",
                   n_steps=int(acc[2]), contacts=rec, dt_max=dt_max, adaptive=plan.adaptive,
-                  displacement=out_u if record_positions else None)
+                  displacement=out_u if record_positions else None, plastic_work=out_wp if plastic else None,
+                  residual_overlap=w.dres[:nc].copy() if plastic else None,
+                  max_overlap=w.dmax[:nc].copy() if plastic else None)
