@@ -80,7 +80,7 @@ def _build(force, update, stored, partials, inverse):
             return rsum[j] - dist, dx / dist
         return u[j] - u[j + 1] + d0[j], 1.0
 
-    @njit(nogil=True)
+    @njit(nogil=True, inline="always")
     def contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, state):
         """One contact of ``forces`` (bodies at ``ui``, ``uj`` [m] moving at ``vi``, ``vj`` [m/s]):
         (axial force [N], dissipated power [W], new state). Shared with the threaded engine."""

@@ -329,7 +329,7 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
     part = np.zeros(nthr, dtype=np.int64)
     steps = (sample_interval, plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax)
     if system.general:  # every other law, offsets: the thread function built from the law's contact
-        run = law_thread_run(system.law)
+        run = law_thread_run(system.law, not system.misaligned)
         edacc = np.zeros((nthr, 2))
         edacc[0, 1] = acc[1]  # the dissipated power at t = 0 (the trapezoid's first point), all of it on block 0
         head = (np.zeros((2, nthr, 4)), part, np.zeros((nthr, 3)), edacc, u, v, a, g, w.mass, w.inv_mass, w.kappa,

@@ -40,34 +40,48 @@ from numba import njit
 
 from . import kernels
 from .barrier import barrier
-from .primitives import _track_peak
+from .primitives import _track_peak, _viscous_force
 
 __all__ = ["law_thread_run"]
 
 _CACHE: dict = {}
 
 
-def law_thread_run(code: int):
-    """The thread function (:func:`_build`) for the law of engine code ``code``; compiled on first
-    use in a process (a closure over the law's functions: Numba keeps it in memory, not on disk)."""
+def law_thread_run(code: int, aligned: bool):
+    """The thread function (:func:`_build`) for the law of engine code ``code`` on an aligned chain
+    (``aligned``: no offsets, the misaligned geometry compiled out) or one with offsets; compiled on
+    first use in a process (a closure over the law's functions: Numba keeps it in memory, not on
+    disk)."""
     from .generated import is_generated, law_kernels
 
     if is_generated(code):
         _, _, energy, stride, contact = law_kernels(code)
-        key = ("generated", int(code), id(contact))
+        key = ("generated", int(code), bool(aligned), id(contact))
     else:
-        key = ("builtin", int(code))
+        key = ("builtin", int(code), bool(aligned))
     if key not in _CACHE:
-        _CACHE[key] = _generated(contact, stride, energy) if is_generated(code) else _builtin(int(code))
+        _CACHE[key] = (_generated(contact, stride, energy, aligned) if is_generated(code)
+                       else _builtin(int(code), aligned))
     return _CACHE[key]
 
 
-def _builtin(law: int):
+def _builtin(law: int, aligned: bool):
     """The thread function of a built-in law (engine code ``law``: ``kernels.LAW_*``)."""
     plastic = law == kernels.LAW_ELASTOPLASTIC
+    # aligned Kuwabara-Kono and dashpot chains: the one-thread loop's fused step
+    # (kernels.step_dissipative), whose contact is _viscous_force; its power sum may be
+    # reassociated (vectorised) as kernels.dissipative_block's
+    fused = aligned and law in (kernels.LAW_VISCOELASTIC, kernels.LAW_DASHPOT)
 
     @njit(nogil=True, inline="always")
     def contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, dyield, s0, s1, s2):
+        if fused:
+            rate = vi - vj
+            f, fel = _viscous_force(ui - uj + d0, rate, kappa, damping, law)
+            return f, (f - fel) * rate, s0, s1, s2
+        if aligned:  # the offset branch folded away (computed, even untaken, it cost ~4x)
+            return kernels.contact_general(ui, uj, vi, vj, kappa, damping, d0, 0.0, 0.0, 0.0, law, dyield, s0, s1,
+                                           s2)
         return kernels.contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyield, s0, s1, s2)
 
     @njit(nogil=True)
@@ -83,15 +97,18 @@ def _builtin(law: int):
             return ke, pe, kernels.plastic_work(kappa, dyield, dmax, dres)
         return ke, kernels.potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False), 0.0
 
-    return _build(contact, stride, energies, plastic, plastic)
+    return _build(contact, stride, energies, plastic, plastic, fused)
 
 
-def _generated(law_contact, law_stride, law_energy):
+def _generated(law_contact, law_stride, law_energy, aligned: bool):
     """The thread function of a law run by the generated engines (its state in the ``dmax`` slots)."""
 
     @njit(nogil=True, inline="always")
     def contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, dyield, s0, s1, s2):
-        f, p, s0 = law_contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, s0)
+        if aligned:  # the offset branch folded away
+            f, p, s0 = law_contact(ui, uj, vi, vj, kappa, damping, d0, 0.0, 0.0, 0.0, s0)
+        else:
+            f, p, s0 = law_contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, s0)
         return f, p, s0, s1, s2
 
     @njit(nogil=True)
@@ -102,7 +119,7 @@ def _generated(law_contact, law_stride, law_energy):
     def energies(u, v, g, mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres):
         return kernels.kinetic_energy(v, mass), law_energy(u, kappa, damping, d0, de, dx0, rsum, fext), 0.0
 
-    return _build(contact, stride, energies, True, False)
+    return _build(contact, stride, energies, True, False, False)
 
 
 @njit(nogil=True, inline="always")
@@ -132,11 +149,55 @@ def _move(u, v, a, g, i, f, fprev, fext, inv_mass, dt, half, last):
         u[i] += dt * v[i]
 
 
-def _build(contact, stride, energies, stateful, plastic):
+def _segment(contact, stateful, fused, last):
+    """One step over a block's bodies: ``last`` (a constant, so that the loop has no branch on it
+    and vectorises where the contact allows) the block's closing half kick, else kick and drift."""
+
+    @njit(nogil=True, fastmath={"reassoc"} if fused else False)
+    def segment(u, v, a, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres, kres, dt, half,
+                fprev, ur, vr):
+        """The step on a block's bodies, given as views from its first body (``u``, ``g`` one slot
+        longer): ``fprev`` the force of the contact on its left, ``ur``, ``vr`` the right
+        neighbour's position and predicted velocity. Returns the block's dissipated power [W].
+        Views from 0, so that the indices are known to be non-negative (from the block's first
+        slot, Numba wraps every access for negative indices)."""
+        n = inv_mass.shape[0]
+        vq = v[0] + half * a[0]
+        power = 0.0
+        for i in range(n - 1):
+            vq1 = v[i + 1] + half * a[i + 1]
+            f, p, x0, x1, x2 = contact(u[i], u[i + 1], vq, vq1, kappa[i], damping[i], d0[i], de[i], dx0[i], rsum[i],
+                                       dyield[i], dmax[i], dres[i], kres[i])
+            if stateful:
+                dmax[i] = x0
+                dres[i] = x1
+                kres[i] = x2
+            power += p
+            _move(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
+            fprev = f
+            vq = vq1
+        i = n - 1
+        f, p, x0, x1, x2 = contact(u[i], ur, vq, vr, kappa[i], damping[i], d0[i], de[i], dx0[i], rsum[i], dyield[i],
+                                   dmax[i], dres[i], kres[i])
+        if stateful:
+            dmax[i] = x0
+            dres[i] = x1
+            kres[i] = x2
+        _move(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
+        return power + p
+
+    return segment
+
+
+def _build(contact, stride, energies, stateful, plastic, fused):
     """The thread function over ``contact`` (one contact: (axial force, dissipated power, state)),
     ``stride`` (the adaptive step's bound over a range of contacts) and ``energies`` (a block's
     kinetic and potential energies and plastic work); ``stateful``: the contacts carry state;
-    ``plastic``: the plastic work is recorded (``out_wp``)."""
+    ``plastic``: the plastic work is recorded (``out_wp``); ``fused``: the block's power sum may be
+    reassociated (``kernels.dissipative_block``'s flag, for its contact only)."""
+
+    kick_drift = _segment(contact, stateful, fused, False)
+    half_kick = _segment(contact, stateful, fused, True)
 
     @njit(nogil=True)
     def thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, edacc, u, v, a, g, mass, inv_mass, kappa,
@@ -206,28 +267,14 @@ def _build(contact, stride, energies, stateful, plastic):
                     if left:
                         fprev, _, gs0, gs1, gs2 = contact(pub[par, tid - 1, 2], u[s], pub[par, tid - 1, 3], vq, kl, cl,
                                                           d0l, del_, dxl, rl, dyl, gs0, gs1, gs2)
-                    power = 0.0
-                    for i in range(s, e - 1):
-                        vq1 = v[i + 1] + half * a[i + 1]
-                        f, p, x0, x1, x2 = contact(u[i], u[i + 1], vq, vq1, kappa[i], damping[i], d0[i], de[i], dx0[i],
-                                                   rsum[i], dyield[i], dmax[i], dres[i], kres[i])
-                        if stateful:
-                            dmax[i] = x0
-                            dres[i] = x1
-                            kres[i] = x2
-                        power += p
-                        _move(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
-                        fprev = f
-                        vq = vq1
-                    i = e - 1
-                    f, p, x0, x1, x2 = contact(u[i], ur, vq, vr, kappa[i], damping[i], d0[i], de[i], dx0[i], rsum[i],
-                                               dyield[i], dmax[i], dres[i], kres[i])
-                    if stateful:
-                        dmax[i] = x0
-                        dres[i] = x1
-                        kres[i] = x2
-                    power += p
-                    _move(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
+                    if last:
+                        power = half_kick(u[s:e + 1], v[s:e], a[s:e], g[s:e + 1], kappa[s:e], damping[s:e], d0[s:e],
+                                          de[s:e], dx0[s:e], rsum[s:e], fext[s:e], inv_mass[s:e], dyield[s:e],
+                                          dmax[s:e], dres[s:e], kres[s:e], dt, half, fprev, ur, vr)
+                    else:
+                        power = kick_drift(u[s:e + 1], v[s:e], a[s:e], g[s:e + 1], kappa[s:e], damping[s:e], d0[s:e],
+                                           de[s:e], dx0[s:e], rsum[s:e], fext[s:e], inv_mass[s:e], dyield[s:e],
+                                           dmax[s:e], dres[s:e], kres[s:e], dt, half, fprev, ur, vr)
                     ed += half * (pprev + power)  # the block's trapezoidal integral of its dissipated power
                     pprev = power
                     if owns_wall:
