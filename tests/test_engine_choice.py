@@ -53,8 +53,10 @@ def test_explicit_values_are_kept_and_checked():
     with pytest.raises(ConfigError) as exc:
         choose_engine(dissipative, "rkn4")
     assert exc.value.field == "run.integrator" and "aligned elastic chains" in exc.value.message
-    with pytest.raises(ConfigError, match="run.threads"):
-        choose_engine(dissipative, "verlet", 2)
+    assert choose_engine(dissipative, "verlet", 2).threads == 2  # the threaded engine runs every law
+    with pytest.raises(ConfigError, match="run.threads") as exc:  # not a protected body
+        choose_engine(MODEL_KINDS["protected body"][0].system(), "verlet", 2)
+    assert "wall.type" in exc.value.message
     with pytest.raises(ConfigError, match="run.integrator"):
         choose_engine(s, "euler")
     for bad in (0, True, 2.0, "two"):
@@ -62,7 +64,7 @@ def test_explicit_values_are_kept_and_checked():
             choose_engine(s, "verlet", bad)
 
 
-def test_auto_threads_only_for_long_elastic_chains_with_free_cores():
+def test_auto_threads_only_for_long_chains_with_free_cores():
     long_chain = hc.Model(hc.Chain.uniform(4 * BEADS_PER_THREAD, 5e-3), STRIKER).system()
     short = hc.Model(hc.Chain.uniform(AUTO_THREADS_MIN_BEADS - 1, 5e-3), STRIKER).system()
     # the Verlet on a long aligned elastic chain: the free cores (the load beyond this process's own)
@@ -76,8 +78,17 @@ def test_auto_threads_only_for_long_elastic_chains_with_free_cores():
     # too short, not the Verlet, or a model the threaded engine does not run: one thread
     assert choose_engine(short, "verlet", cores=16, load=0.0).threads == 1
     assert choose_engine(long_chain, cores=16, load=0.0).threads == 1  # auto picks rkn4: one thread
-    diss = hc.Model(hc.Chain.uniform(4 * BEADS_PER_THREAD, 5e-3), STRIKER, law=hc.Dashpot(gamma=1.0)).system()
-    assert choose_engine(diss, cores=16, load=0.0).threads == 1
+    # every contact law and offsets: auto picks the Verlet, whose threaded engine runs them
+    chain = hc.Chain.uniform(4 * BEADS_PER_THREAD, 5e-3)
+    for law in (hc.Dashpot(gamma=1.0), hc.Viscoelastic(A=1e-6), hc.Elastoplastic(), hc.PowerLaw(1.7, 1e9),
+                hc.HuntCrossley(0.8)):
+        diss = hc.Model(chain, STRIKER, law=law).system()
+        assert choose_engine(diss, cores=16, load=0.0).threads == 4
+        assert choose_engine(diss, cores=2, load=2.2).threads == 1  # shared cores
+    offsets = hc.Model(chain.with_offsets({3: 1e-5}), STRIKER).system()
+    assert choose_engine(offsets, cores=2, load=0.0).threads == 2
+    body = hc.Model(chain, STRIKER, hc.Wall("body", mass=1.0, stiffness=1e6)).system()
+    assert choose_engine(body, cores=16, load=0.0).threads == 1
     # explicit threads kept
     assert choose_engine(short, "verlet", 3).threads == 3
 

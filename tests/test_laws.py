@@ -131,8 +131,6 @@ def test_config_takes_the_new_laws_and_names_bad_fields():
 
 def test_engines_without_the_generated_laws_refuse_naming_the_field():
     model = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), law=hc.PowerLaw(2.0, 1e9))
-    with pytest.raises(ConfigError, match="run.threads"):
-        hc.simulate(model, 1e-4, threads=2)
     elastic = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2))
     with pytest.raises(ConfigError, match="contact.law"):  # the GPU runs one generated law per batch
         hc.simulate_batch([model, elastic], duration=1e-4, device="cuda")

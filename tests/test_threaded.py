@@ -80,9 +80,12 @@ def test_simulate_threads_option():
 
 
 def test_refusals():
-    dissipative = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), law=hc.Dashpot(gamma=1.0))
+    body = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), hc.Wall("body", mass=1.0, stiffness=1e6))
+    with pytest.raises(hc.ConfigError, match="run.threads") as exc:  # the threaded engine runs no protected body
+        hc.simulate(body, 1e-4, threads=2)
+    assert "wall.type" in exc.value.message
     with pytest.raises(hc.ConfigError, match="run.threads"):
-        hc.simulate(dissipative, 1e-4, threads=2)
+        threaded.run_verlet_threaded(body.system(), 1e-4, 1e-6, 2)
     elastic = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2))
     with pytest.raises(hc.ConfigError, match="run.threads"):
         hc.simulate(elastic, 1e-4, integrator="rkn4", threads=2)

@@ -42,7 +42,7 @@ BOUNDS = {
     # adaptive Verlet accuracy, omega dt <= 1 / steps_per_radian: below ~10 the peak force is off
     # by more than ~3e-4 (error ~ (1 / steps_per_radian)^2) and Verlet nears its stability limit
     "steps_per_radian": (10.0, 1e5),
-    "threads": (1, 1024),             # threads sharing one chain (aligned elastic chains)
+    "threads": (1, 1024),             # threads sharing one chain
     # kg: a striker, a bead or a protected body; the low end is a 1 um steel bead (4e-15 kg), the
     # smallest the diameter's bound allows, so c / m and sqrt(k / m) stay finite (<= 1e27 1/s)
     "mass": (1e-15, 1e6),

@@ -9,8 +9,9 @@ tests/test_engine_choice.py):
   force within ~1e-8 of DOP853, better than the Verlet's ~1e-6, at a fraction of the steps.
   Otherwise, or when the call sets the Verlet's own accuracy (``steps_per_radian``), a fixed
   step ``dt`` or several threads, the compiled velocity ``"verlet"`` (peak wall force within ~1e-6).
-* threads: more than one only where the threaded engine runs the model (the Verlet on an aligned
-  elastic chain), the chain is long enough for a per-step barrier to pay
+* threads: more than one only where the threaded engine runs the model (the Verlet on a chain of
+  beads, every contact law, offsets too; not a protected body nor mass-in-mass beads,
+  :mod:`hertzchain.integrate.threaded`), the chain is long enough for a per-step barrier to pay
   (:data:`AUTO_THREADS_MIN_BEADS` beads, :data:`BEADS_PER_THREAD` per thread) and cores are free:
   the cores this process may run on (``os.sched_getaffinity``) less the one-minute load average
   beyond this process's own (a barrier that waits for a scheduler slice makes a shared core
@@ -84,8 +85,8 @@ def _auto_threads(system, integrator: str, cores: int, load: float) -> tuple[int
     n = system.n_beads
     if integrator != "verlet":
         return 1, "the threaded engine runs the Verlet"
-    if system.general:
-        return 1, "the threaded engine runs aligned elastic chains"
+    if system.extended:
+        return 1, "the threaded engine runs no protected body or mass-in-mass beads"
     if n < AUTO_THREADS_MIN_BEADS:
         return 1, f"{n} beads < {AUTO_THREADS_MIN_BEADS}"
     # the load counts this process once it runs: what is beyond one is other work on the cores
@@ -155,8 +156,9 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
     else:
         if threads > 1 and integrator != "verlet":
             raise ConfigError("run.threads", f"several threads run the integrator 'verlet', not {integrator!r}")
-        if threads > 1 and system.general:
-            raise ConfigError("run.threads", "several threads run aligned elastic chains (no dissipation, no offsets, "
-                              "no protected body or mass-in-mass beads); use run.threads = 1 or 'auto' for this model")
+        if threads > 1 and system.extended:
+            what = "a protected body (wall.type = 'body')" if system.body else "mass-in-mass beads (chain.elements)"
+            raise ConfigError("run.threads", f"several threads run chains of beads (every contact law, offsets too), "
+                              f"not {what}; use run.threads = 1 or 'auto' for this model")
         twhy = "asked for"
     return EngineChoice(integrator=integrator, threads=int(threads), reason=f"{why}; {threads} thread(s): {twhy}")

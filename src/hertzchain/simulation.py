@@ -137,11 +137,12 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         within ~1e-6; the error scales as (1 / steps_per_radian)^2); unused with ``dt`` or the
         scipy integrators.
     threads
-        ``"auto"`` (default: several only for a long aligned elastic chain on the Verlet with cores
-        free, :mod:`hertzchain.engine_choice`; the attribute ``threads_used`` says how many), or
-        threads sharing the chain (``"verlet"``, aligned elastic chains; worth it from ~1e4 beads):
-        forces, velocities and the peak are bit for bit those of one thread, the energies agree to
-        rounding (:mod:`hertzchain.integrate.threaded`).
+        ``"auto"`` (default: several only for a long chain on the Verlet with cores free,
+        :mod:`hertzchain.engine_choice`; the attribute ``threads_used`` says how many), or threads
+        sharing the chain (``"verlet"``, every contact law, offsets too, not a protected body or
+        mass-in-mass beads; worth it from ~1e4 beads): forces, velocities, per-contact state and the
+        peak are bit for bit those of one thread, the energies, dissipated energy and plastic work
+        agree to rounding (:mod:`hertzchain.integrate.threaded`).
 
     Returns
     -------

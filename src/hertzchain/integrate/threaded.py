@@ -1,6 +1,10 @@
 """One long chain on several cores: the compiled velocity Verlet split into blocks of bodies.
 
-``simulate(model, threads=T)`` for aligned elastic chains. Every thread owns a block of consecutive
+``simulate(model, threads=T)`` for chains of beads with any contact law, offsets included (a
+protected body and mass-in-mass beads are refused, naming ``run.threads``). Aligned elastic
+chains run the loops of this module; every other model the thread function that
+:mod:`hertzchain.integrate.threaded_laws` builds from the law's one-contact function, with the
+same blocks, publication and barrier. Aligned elastic chains: every thread owns a block of consecutive
 slots (a multiple of 8, so that no cache line is written by two threads) and runs
 :func:`kernels.verlet_run`'s elastic loop over it: the same per-body arithmetic in the same order
 (``kernels.step_elastic``, ``step_elastic_lean``, ``final_step_elastic``), so positions,
@@ -266,12 +270,13 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
                         dt: float | None = None, record_velocities: bool = False, contacts: np.ndarray | None = None,
                         progress: Callable[[int, int], None] | None = None, record_positions: bool = False,
                         steps_per_radian: float | None = None) -> RawRun:
-    """:func:`hertzchain.integrate.verlet.run_verlet` of an aligned elastic chain on ``threads`` threads.
+    """:func:`hertzchain.integrate.verlet.run_verlet` of a chain on ``threads`` threads.
 
     Parameters
     ----------
     system : hertzchain.model.System
-        An aligned elastic model.
+        A chain of beads: any contact law, offsets too (a protected body or mass-in-mass beads:
+        ConfigError naming ``run.threads``).
     duration : float
         Simulated time [s].
     sample_interval : float
@@ -292,8 +297,9 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
     Returns
     -------
     RawRun
-        What ``run_verlet`` returns; the same numbers but for the energies' rounding (module
-        docstring).
+        What ``run_verlet`` returns (the elastic-plastic law's plastic work, residual and largest
+        overlaps too); the same numbers but for the rounding of the energies, the dissipated energy
+        and the plastic work (module docstring, :mod:`hertzchain.integrate.threaded_laws`).
     """
     if system.extended:
         what = "a protected body (wall.type = 'body')" if system.body else "mass-in-mass beads (chain.elements)"
