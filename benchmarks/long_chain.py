@@ -3,6 +3,7 @@
 Usage::
 
     python benchmarks/long_chain.py [--json PATH] [--quick] [--threads T]
+    python benchmarks/long_chain.py --laws [--json PATH] [--threads T] [--beads N]
 
 Uniform chains of 26 mm AISI 52100 beads (1e4, 1e5 and, without ``--quick``, 1e6), the paper's
 striker at 0.5 m/s, flat wall, the automatic (adaptive) step, probes of the striker and wall
@@ -14,6 +15,12 @@ the ratio of the two in the same run. Every timed pair is checked bit for bit (f
 The load average is recorded before and after every measurement: the target (>= 1.7x on 2 cores
 at 1e5 beads) is meant for a quiet machine, and other work on the cores stalls the threads at
 every barrier (one per step).
+
+``--laws``: the same comparison for every built-in contact law (elastic, Kuwabara-Kono, dashpot,
+their size-scaled forms, Thornton's elastic-plastic law, the power law with n = 1.7,
+Hunt-Crossley) on one chain of ``--beads`` beads (default 1e5), the striker at 0.5 m/s (2 m/s
+for the elastic-plastic law, whose contacts then yield), saved to
+``results/long_chain_laws.json``. Each row checks the forces and steps bit for bit.
 """
 
 from __future__ import annotations
@@ -33,12 +40,30 @@ TARGET_SPEEDUP = 1.7
 SAMPLE = 1e-7
 
 
-def measure(n_beads: int, threads: int, repeat: int, min_time: float) -> dict:
-    """Bead-steps/s of one thread and of ``threads`` threads on a chain of ``n_beads`` beads."""
+def law_models(n_beads: int) -> dict:
+    """Every built-in law on a uniform chain of ``n_beads`` beads (the ``--laws`` rows)."""
+    import hertzchain as hc
+
+    base = uniform_model(n_beads)
+    laws = {"elastic": None, "viscoelastic": hc.Viscoelastic(A=2e-6), "dashpot": hc.Dashpot(gamma=20.0),
+            "viscoelastic_scaled": hc.ScaledViscoelastic(5e-6, 26e-3), "dashpot_scaled": hc.ScaledDashpot(25.0, 26e-3),
+            "elastoplastic": hc.Elastoplastic(), "power_n1.7": hc.PowerLaw(1.7, 2e11),
+            "hunt_crossley": hc.HuntCrossley(0.8)}
+    out = {}
+    for name, law in laws.items():
+        striker = hc.Striker(base.striker.diameter, 2.0) if name == "elastoplastic" else base.striker
+        out[name] = base if law is None else hc.Model(base.chain, striker, base.wall, law)
+    return out
+
+
+def measure(n_beads: int, threads: int, repeat: int, min_time: float, model=None) -> dict:
+    """Bead-steps/s of one thread and of ``threads`` threads on a chain of ``n_beads`` beads
+    (``model``: that chain with another law; default the elastic uniform chain)."""
     from hertzchain.integrate.threaded import run_verlet_threaded
     from hertzchain.integrate.verlet import run_verlet
 
-    system = uniform_model(n_beads).system()
+    system = (model or uniform_model(n_beads)).system()
+    run_verlet_threaded(system, 2 * SAMPLE, SAMPLE, threads, contacts=np.array([0, n_beads]))  # compile
     rec = np.array([0, n_beads])
     # calibrate the duration on one thread: >= min_time per run
     duration = 2e-6
@@ -74,8 +99,12 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--json", type=Path, default=RESULTS / "long_chain.json", help="where to save the results")
     ap.add_argument("--quick", action="store_true", help="1e4 and 1e5 beads, fewer repetitions")
     ap.add_argument("--threads", type=int, default=os.cpu_count(), help="threads of the split chain")
+    ap.add_argument("--laws", action="store_true", help="every built-in contact law on one chain (--beads)")
+    ap.add_argument("--beads", type=int, default=100_000, help="beads of the --laws chain")
     args = ap.parse_args(argv)
     quiet()
+    if args.laws:
+        return main_laws(args)
     repeat, min_time = (3, 0.2) if args.quick else (5, 0.3)
     sizes = (10_000, 100_000) if args.quick else (10_000, 100_000, 1_000_000)
     info = machine_info()
@@ -101,6 +130,37 @@ def main(argv: list[str] | None = None) -> dict:
           f"{'MET' if res['targets']['met'] else 'NOT MET'} (load at the end {res['load_average_at_end'][0]:.1f})")
     save_json(res, args.json)
     print(f"saved {args.json}")
+    return res
+
+
+def main_laws(args) -> dict:
+    """The ``--laws`` comparison (module docstring)."""
+    json_path = RESULTS / "long_chain_laws.json" if args.json == RESULTS / "long_chain.json" else args.json
+    info = machine_info()
+    print(f"one chain of {args.beads:,} beads, every law, 1 vs {args.threads} threads — {info['cpu_model']}, "
+          f"{info['usable_cores']} usable cores, load {info['load_average_at_start']}")
+    rows = []
+    for name, model in law_models(args.beads).items():
+        r = measure(args.beads, args.threads, 3, 0.3, model)
+        r["law"] = name
+        rows.append(r)
+        print(f"  {name}: {r['speedup']:.2f}x (load {r['load_average_1min'][-1]:.1f})", flush=True)
+    end_load = list(os.getloadavg())
+    res = {"benchmark": "long_chain_laws", "machine": info, "rows": rows, "load_average_at_end": end_load,
+           "clean": bool(max(max(r["load_average_1min"]) for r in rows) < 0.5),
+           "targets": {"speedup_on_2_idle_cores": TARGET_SPEEDUP,
+                       "met": bool(all(r["speedup"] >= TARGET_SPEEDUP for r in rows) and args.threads == 2)}}
+    print(table([(r["law"], r["steps"], f"{r['one_thread_bead_steps_per_s']:.3g}",
+                  f"{r['threads_bead_steps_per_s']:.3g}", f"{r['speedup']:.2f}",
+                  "yes" if r["bit_identical_forces_and_steps"] else "NO",
+                  " ".join(f"{x:.1f}" for x in r["load_average_1min"])) for r in rows],
+                ("law", "steps", "1 thread", f"{args.threads} threads", "speed-up", "bit-identical",
+                 "load (1 min) during")))
+    if not res["clean"]:
+        print("\nthe load average was >= 0.5 during the runs: other work shared the cores, the speed-ups are not a "
+              f"clean measurement of the threads (target: >= {TARGET_SPEEDUP}x on 2 idle cores)")
+    save_json(res, json_path)
+    print(f"saved {json_path}")
     return res
 
 

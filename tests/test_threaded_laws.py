@@ -31,7 +31,7 @@ LAWS = {
     "viscoelastic_scaled": hc.ScaledViscoelastic(5e-6, 26e-3),
     "dashpot_scaled": hc.ScaledDashpot(25.0, 26e-3),
     "elastoplastic": hc.Elastoplastic(A=1e-6),
-    "power": hc.PowerLaw(1.7, 5e10),
+    "power": hc.PowerLaw(1.7, 2e11),
     "hunt_crossley": hc.HuntCrossley(0.8),
 }
 #: Run by default: the one-thread fused viscous contact, a registry law with per-contact state
