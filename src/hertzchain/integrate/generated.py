@@ -4,6 +4,9 @@ For a law with ``generated=True`` (the power law, Hunt-Crossley, every user's la
 :func:`law_kernels` builds, once per law and process, compiled functions that close over the
 law's ``force``/``state``/``energy``/``partials`` (Numba inlines the jitted closures):
 
+- ``contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, state)``: one contact's axial
+  force, dissipated power and new state (``forces`` loops over it; the threaded engine,
+  :mod:`hertzchain.integrate.threaded_laws`, compiles it into its thread function);
 - ``forces(u, v, kappa, damping, d0, de, dx0, rsum, g, state)``: every contact's force, written
   as ``kernels.forces_general`` writes them (the same overlap geometry, misaligned pairs
   included, the same d == 0 convention), the law's state updated in place; returns the
@@ -12,7 +15,8 @@ law's ``force``/``state``/``energy``/``partials`` (Numba inlines the jitted clos
   kick-drift-kick steps, adaptive step controller and probes (the law's per-contact state lives
   in the ``dmax`` slots; ``kappa`` holds the law's stiffness k, ``damping`` its parameter p);
 - ``energy(u, kappa, damping, d0, de, dx0, rsum, fext)``: the stored energy minus the work of the
-  external forces [J].
+  external forces [J];
+- ``stride``: the adaptive step's bound (below).
 
 The step's accuracy bound uses the law's partials: tangent stiffness dF/d delta and damping
 dF/d rate at an upper estimate of each overlap, as ``kernels.required_stride`` does for Hertz.
