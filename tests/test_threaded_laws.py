@@ -128,3 +128,36 @@ def test_mass_in_mass_beads_are_refused_naming_the_field():
     with pytest.raises(hc.ConfigError, match="run.threads") as exc:
         threaded.run_verlet_threaded(model.system(), 1e-4, 1e-6, 2)
     assert "chain.elements" in exc.value.message
+
+
+@pytest.mark.parametrize("name", ["elastic", "hunt_crossley"])
+def test_a_run_that_changes_its_thread_count_is_the_one_thread_run(name, monkeypatch):
+    """The fallback to one thread on shared cores (``threaded._Pace``), forced to switch between 3
+    threads and 1 from chunk to chunk: forces and steps are still those of one thread bit for bit,
+    the blocks' dissipated energy carried across the switches."""
+    monkeypatch.setattr(threaded, "MIN_SLOTS_PER_THREAD", 8)
+    monkeypatch.setattr(threaded, "CHUNK_BEAD_STEPS", 2e4)  # a chunk a sample or so
+    counts = []
+
+    def alternate(self):
+        counts.append(3 if self.chunk % 3 else 1)
+        return counts[-1]
+
+    monkeypatch.setattr(threaded._Pace, "next", alternate)
+    _compare(_model(name, offsets=False))
+    assert {1, 3} <= set(counts) and len(counts) > 10
+
+
+def test_the_pace_keeps_the_threads_unless_they_were_descheduled():
+    pace = threaded._Pace(2)
+    assert pace.next() == 2
+    pace.record(2, 1e9, 1.0, 0.99)  # not descheduled: the threads stay
+    assert [pace.next() for _ in range(3)] == [2, 2, 2]
+    pace.record(2, 1e9, 1.0, 0.5)  # descheduled: one thread is timed
+    assert pace.next() == 1
+    pace.record(1, 2e9, 1.0, 1.0)  # one thread was faster: it runs ...
+    assert pace.next() == 1
+    for _ in range(threaded.PROBE_EVERY):
+        pace.record(1, 2e9, 1.0, 1.0)
+    assert pace.next() == 2  # ... and the threads are timed again later
+    assert threaded._Pace(1).next() == 1

@@ -21,12 +21,21 @@ whole chain (relative difference ~1e-15 x sqrt(N); tests/test_threaded.py bounds
 
 Cost: a barrier is ~0.1-1 us on an idle machine, a step of 1e5 beads ~70 us on one core, so the
 split pays from ~1e4 beads (benchmarks/long_chain.py measures the speed-up at 1e4-1e6 beads).
+
+Shared cores: a barrier spins a bounded number of times, then yields its core (:mod:`barrier`),
+but a descheduled thread still holds the others at the next barrier until its next time slice.
+The run watches for it (:class:`_Pace`): when the calling thread got less than CONTENDED of a
+chunk's wall time, the next chunk runs on one thread (the same thread function over one block:
+the same forces bit for bit), and the faster of the two keeps running, the slower timed again
+every PROBE_EVERY chunks. Only the block sums (energies, dissipated energy, plastic work) depend on
+which chunks ran on how many threads, at the rounding level stated above.
 """
 
 from __future__ import annotations
 
 import math
 import threading
+import time
 from typing import Callable
 
 import numpy as np
@@ -41,12 +50,17 @@ from .layout import PAD, pack
 from .threaded_laws import law_thread_run
 from .verlet import RawRun, _dt_used, initialise, refine_peak, step_plan
 
-__all__ = ["run_verlet_threaded", "split", "MIN_SLOTS_PER_THREAD", "CHUNK_BEAD_STEPS"]
+__all__ = ["run_verlet_threaded", "split", "MIN_SLOTS_PER_THREAD", "CHUNK_BEAD_STEPS", "CONTENDED", "PROBE_EVERY"]
 
 #: A thread gets at least this many slots (fewer threads for shorter chains).
 MIN_SLOTS_PER_THREAD = 512
 #: Work (slots x steps) per compiled call between two progress reports (~0.2 s on one core).
 CHUNK_BEAD_STEPS = 3e8
+#: Threads whose calling thread ran less than this fraction of a chunk's wall time were
+#: descheduled (cores shared with other work): one thread is timed on a chunk (``_Pace``).
+CONTENDED = 0.9
+#: ... at most once every this many chunks; a slower thread count is timed again as often.
+PROBE_EVERY = 16
 
 
 def split(n_slots: int, n_threads: int) -> np.ndarray:
@@ -266,6 +280,61 @@ def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, 
 kernels.flush_stale_cache(_thread_run)
 
 
+class _Layout:
+    """The blocks of ``n`` threads over ``p`` slots and their exchange arrays (see the thread
+    functions): boundaries, recorded contacts per block, published edges, required steps, energy
+    sums and (``general``) the blocks' dissipated energies."""
+
+    def __init__(self, p: int, n: int, rec: np.ndarray, general: bool) -> None:
+        self.bounds = split(p, n)
+        self.rbounds = np.searchsorted(rec, self.bounds).astype(np.int64)
+        self.pub = np.zeros((2, n, 4 if general else 2))
+        self.part = np.zeros(n, dtype=np.int64)
+        self.energy = np.zeros((n, 3 if general else 2))
+        self.edacc = np.zeros((n, 2))
+
+
+class _Pace:
+    """How many threads run the next compiled call (chunk): the threads asked for, unless one
+    thread was timed faster.
+
+    One thread is timed (one chunk) only when the threads' last chunk found them descheduled,
+    the calling thread's CPU time below CONTENDED of the wall time (its cores shared with other
+    work: a barrier then waits for the other thread's next time slice), at most once every
+    PROBE_EVERY chunks; while one thread is the faster, the threads are timed again every
+    PROBE_EVERY chunks (the other work may have ended). Forces and positions do not depend on it.
+    """
+
+    def __init__(self, threads: int) -> None:
+        self.threads = threads
+        self.rate: dict[int, float] = {}  # threads -> bead-steps per second in its last chunk
+        self.seen: dict[int, int] = {}    # threads -> the chunk that measured it
+        self.chunk = 0
+        self.contended = False
+
+    def next(self) -> int:
+        """Threads for the next chunk."""
+        many = self.threads
+        if many == 1 or many not in self.rate:
+            return many
+        best = many if self.rate[many] >= self.rate.get(1, 0.0) else 1
+        other = 1 if best == many else many
+        stale = other not in self.seen or self.chunk - self.seen[other] >= PROBE_EVERY
+        if best == many:
+            return 1 if stale and self.contended else many
+        return many if stale else 1
+
+    def record(self, threads: int, work: float, wall: float, cpu: float) -> None:
+        """A chunk of ``work`` bead-steps on ``threads`` threads took ``wall`` seconds, ``cpu`` of
+        the calling thread's CPU time."""
+        if wall > 0.0 and work > 0.0:
+            self.rate[threads] = work / wall
+            self.seen[threads] = self.chunk
+            if threads > 1:
+                self.contended = cpu < CONTENDED * wall
+        self.chunk += 1
+
+
 def run_verlet_threaded(system: System, duration: float, sample_interval: float, threads: int,
                         dt: float | None = None, record_velocities: bool = False, contacts: np.ndarray | None = None,
                         progress: Callable[[int, int], None] | None = None, record_positions: bool = False,
@@ -330,43 +399,57 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
     initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc,
                out_wp)
     out_u[0] = u[:nb]
-    bounds = split(p, nthr)
-    rbounds = np.searchsorted(rec, bounds).astype(np.int64)
-    part = np.zeros(nthr, dtype=np.int64)
     steps = (sample_interval, plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax)
-    if system.general:  # every other law, offsets: the thread function built from the law's contact
+    general = system.general
+    if general:  # every other law, offsets: the thread function built from the law's contact
         run = law_thread_run(system.law, not system.misaligned)
-        edacc = np.zeros((nthr, 2))
-        edacc[0, 1] = acc[1]  # the dissipated power at t = 0 (the trapezoid's first point), all of it on block 0
-        head = (np.zeros((2, nthr, 4)), part, np.zeros((nthr, 3)), edacc, u, v, a, g, w.mass, w.inv_mass, w.kappa,
-                w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap, w.dyield, w.dmax, w.dres, w.kres, w.wall_slot,
-                *steps)
+        arrays = (u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
+                  w.dyield, w.dmax, w.dres, w.kres, w.wall_slot, *steps)
         tail = (rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_velocities, out_u, record_positions, fmax,
                 peak, acc, w.ext)
     else:
         run = _thread_run
         lean = bool(p >= LEAN_SLOTS and not np.any(w.d0) and not np.any(w.fext))
-        head = (np.zeros((2, nthr, 2)), part, np.zeros((nthr, 2)), u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping,
-                w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap, w.wall_slot, lean, *steps)
+        arrays = (u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
+                  w.wall_slot, lean, *steps)
         tail = (rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, out_u, record_positions, fmax, peak, acc,
                 w.ext)
-    per_call = max(1, round(CHUNK_BEAD_STEPS * plan.dt / (p * sample_interval)))
-    if progress is not None:
-        progress(0, n_samples - 1)
-    k = 1
-    while k < n_samples:
-        k_stop = min(n_samples, k + per_call)
-        args = (nthr, bounds, rbounds, new_barrier(), *head, k, k_stop, *tail)
-        workers = [threading.Thread(target=run, args=(t, *args), daemon=True) for t in range(1, nthr)]
+    layouts = {n: _Layout(p, n, rec, general) for n in {nthr, 1}}
+    layouts[nthr].edacc[0, 1] = acc[1]  # the dissipated power at t = 0 (the trapezoid's first point), on block 0
+
+    def call(n: int, k0: int, k1: int) -> int:
+        lay = layouts[n]
+        head = (lay.pub, lay.part, lay.energy, lay.edacc) if general else (lay.pub, lay.part, lay.energy)
+        args = (n, lay.bounds, lay.rbounds, new_barrier(), *head, *arrays, k0, k1, *tail)
+        workers = [threading.Thread(target=run, args=(t, *args), daemon=True) for t in range(1, n)]
         for th in workers:
             th.start()
         status = run(0, *args)
         for th in workers:
             th.join()
+        return status
+
+    call(nthr, 1, 1)  # compiles (no sample), so that the first chunk's pace is the run's
+    pace = _Pace(nthr)
+    per_call = max(1, round(CHUNK_BEAD_STEPS * plan.dt / (p * sample_interval)))
+    if progress is not None:
+        progress(0, n_samples - 1)
+    k = 1
+    used = nthr
+    while k < n_samples:
+        k_stop = min(n_samples, k + per_call)
+        n = pace.next()
+        if n != used:  # the dissipated energy of the blocks, gathered on the new layout's first block
+            layouts[n].edacc[:] = 0.0
+            layouts[n].edacc[0] = layouts[used].edacc.sum(axis=0)
+            used = n
+        steps0, wall0, cpu0 = acc[2], time.perf_counter(), time.thread_time()
+        status = call(n, k, k_stop)
+        pace.record(n, (acc[2] - steps0) * p, time.perf_counter() - wall0, time.thread_time() - cpu0)
         if status != 0:
-            used = _dt_used(plan, acc, sample_interval)[0]
+            dt_low = _dt_used(plan, acc, sample_interval)[0]
             raise SimulationDiverged(f"the integration diverged (non-finite state) before t = "
-                                     f"{k_stop * sample_interval:.4g} s with the step down to {used:.3g} s; use a "
+                                     f"{k_stop * sample_interval:.4g} s with the step down to {dt_low:.3g} s; use a "
                                      "smaller run.dt (or leave it out for the automatic step)")
         k = k_stop
         if progress is not None:
