@@ -20,7 +20,10 @@ every barrier (one per step).
 their size-scaled forms, Thornton's elastic-plastic law, the power law with n = 1.7,
 Hunt-Crossley) on one chain of ``--beads`` beads (default 1e5), the striker at 0.5 m/s (2 m/s
 for the elastic-plastic law, whose contacts then yield), saved to
-``results/long_chain_laws.json``. Each row checks the forces and steps bit for bit.
+``results/long_chain_laws.json``. Each row checks the forces and steps bit for bit. Runs of
+>= 2 s (several compiled calls of ~0.2-0.4 s), so that the run's own fallback to one thread on
+shared cores (``threaded._Pace``) can act: each row records how many calls ran on how many
+threads.
 """
 
 from __future__ import annotations
@@ -139,10 +142,22 @@ def main_laws(args) -> dict:
     info = machine_info()
     print(f"one chain of {args.beads:,} beads, every law, 1 vs {args.threads} threads — {info['cpu_model']}, "
           f"{info['usable_cores']} usable cores, load {info['load_average_at_start']}")
+    from hertzchain.integrate import threaded
+
+    calls: list[int] = []
+    record = threaded._Pace.record
+
+    def spy(self, n, *rest):  # the thread count of every compiled call
+        calls.append(n)
+        record(self, n, *rest)
+
+    threaded._Pace.record = spy
     rows = []
     for name, model in law_models(args.beads).items():
-        r = measure(args.beads, args.threads, 3, 0.3, model)
+        calls.clear()
+        r = measure(args.beads, args.threads, 2, 2.0, model)
         r["law"] = name
+        r["calls_by_threads"] = {str(n): calls.count(n) for n in sorted(set(calls))}
         rows.append(r)
         print(f"  {name}: {r['speedup']:.2f}x (load {r['load_average_1min'][-1]:.1f})", flush=True)
     end_load = list(os.getloadavg())
@@ -153,9 +168,10 @@ def main_laws(args) -> dict:
     print(table([(r["law"], r["steps"], f"{r['one_thread_bead_steps_per_s']:.3g}",
                   f"{r['threads_bead_steps_per_s']:.3g}", f"{r['speedup']:.2f}",
                   "yes" if r["bit_identical_forces_and_steps"] else "NO",
-                  " ".join(f"{x:.1f}" for x in r["load_average_1min"])) for r in rows],
+                  " ".join(f"{x:.1f}" for x in r["load_average_1min"]),
+                  " ".join(f"{k}:{v}" for k, v in r["calls_by_threads"].items())) for r in rows],
                 ("law", "steps", "1 thread", f"{args.threads} threads", "speed-up", "bit-identical",
-                 "load (1 min) during")))
+                 "load (1 min) during", "calls on n threads")))
     if not res["clean"]:
         print("\nthe load average was >= 0.5 during the runs: other work shared the cores, the speed-ups are not a "
               f"clean measurement of the threads (target: >= {TARGET_SPEEDUP}x on 2 idle cores)")

@@ -24,8 +24,8 @@ split pays from ~1e4 beads (benchmarks/long_chain.py measures the speed-up at 1e
 
 Shared cores: a barrier spins a bounded number of times, then yields its core (:mod:`barrier`),
 but a descheduled thread still holds the others at the next barrier until its next time slice.
-The run watches for it (:class:`_Pace`): when the calling thread got less than CONTENDED of a
-chunk's wall time, the next chunk runs on one thread (the same thread function over one block:
+The run watches for it (:class:`_Pace`): when a thread got less than CONTENDED of a chunk's
+wall time as CPU time, the next chunk runs on one thread (the same thread function over one block:
 the same forces bit for bit), and the faster of the two keeps running, the slower timed again
 every PROBE_EVERY chunks. Only the block sums (energies, dissipated energy, plastic work) depend on
 which chunks ran on how many threads, at the rounding level stated above.
@@ -56,8 +56,8 @@ __all__ = ["run_verlet_threaded", "split", "MIN_SLOTS_PER_THREAD", "CHUNK_BEAD_S
 MIN_SLOTS_PER_THREAD = 512
 #: Work (slots x steps) per compiled call between two progress reports (~0.2 s on one core).
 CHUNK_BEAD_STEPS = 3e8
-#: Threads whose calling thread ran less than this fraction of a chunk's wall time were
-#: descheduled (cores shared with other work): one thread is timed on a chunk (``_Pace``).
+#: Threads one of which ran less than this fraction of a chunk's wall time were descheduled
+#: (cores shared with other work): one thread is timed on a chunk (``_Pace``).
 CONTENDED = 0.9
 #: ... at most once every this many chunks; a slower thread count is timed again as often.
 PROBE_EVERY = 16
@@ -299,8 +299,8 @@ class _Pace:
     thread was timed faster.
 
     One thread is timed (one chunk) only when the threads' last chunk found them descheduled,
-    the calling thread's CPU time below CONTENDED of the wall time (its cores shared with other
-    work: a barrier then waits for the other thread's next time slice), at most once every
+    the CPU time of one of them below CONTENDED of the wall time (its cores shared with other
+    work: a barrier then waits for that thread's next time slice), at most once every
     PROBE_EVERY chunks; while one thread is the faster, the threads are timed again every
     PROBE_EVERY chunks (the other work may have ended). Forces and positions do not depend on it.
     """
@@ -325,8 +325,8 @@ class _Pace:
         return many if stale else 1
 
     def record(self, threads: int, work: float, wall: float, cpu: float) -> None:
-        """A chunk of ``work`` bead-steps on ``threads`` threads took ``wall`` seconds, ``cpu`` of
-        the calling thread's CPU time."""
+        """A chunk of ``work`` bead-steps on ``threads`` threads took ``wall`` seconds, and the
+        thread that ran least got ``cpu`` seconds of CPU time."""
         if wall > 0.0 and work > 0.0:
             self.rate[threads] = work / wall
             self.seen[threads] = self.chunk
@@ -417,17 +417,26 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
     layouts = {n: _Layout(p, n, rec, general) for n in {nthr, 1}}
     layouts[nthr].edacc[0, 1] = acc[1]  # the dissipated power at t = 0 (the trapezoid's first point), on block 0
 
-    def call(n: int, k0: int, k1: int) -> int:
+    def call(n: int, k0: int, k1: int) -> tuple[int, float]:
+        """Samples k0..k1 on n threads: the status and the least CPU time [s] a thread got."""
         lay = layouts[n]
         head = (lay.pub, lay.part, lay.energy, lay.edacc) if general else (lay.pub, lay.part, lay.energy)
         args = (n, lay.bounds, lay.rbounds, new_barrier(), *head, *arrays, k0, k1, *tail)
-        workers = [threading.Thread(target=run, args=(t, *args), daemon=True) for t in range(1, n)]
+        cpu = np.zeros(n)
+        status = np.zeros(n, dtype=np.int64)
+
+        def one(t: int) -> None:
+            c0 = time.thread_time()
+            status[t] = run(t, *args)
+            cpu[t] = time.thread_time() - c0
+
+        workers = [threading.Thread(target=one, args=(t,), daemon=True) for t in range(1, n)]
         for th in workers:
             th.start()
-        status = run(0, *args)
+        one(0)
         for th in workers:
             th.join()
-        return status
+        return int(status[0]), float(cpu.min())
 
     call(nthr, 1, 1)  # compiles (no sample), so that the first chunk's pace is the run's
     pace = _Pace(nthr)
@@ -443,9 +452,9 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
             layouts[n].edacc[:] = 0.0
             layouts[n].edacc[0] = layouts[used].edacc.sum(axis=0)
             used = n
-        steps0, wall0, cpu0 = acc[2], time.perf_counter(), time.thread_time()
-        status = call(n, k, k_stop)
-        pace.record(n, (acc[2] - steps0) * p, time.perf_counter() - wall0, time.thread_time() - cpu0)
+        steps0, wall0 = acc[2], time.perf_counter()
+        status, cpu = call(n, k, k_stop)
+        pace.record(n, (acc[2] - steps0) * p, time.perf_counter() - wall0, cpu)
         if status != 0:
             dt_low = _dt_used(plan, acc, sample_interval)[0]
             raise SimulationDiverged(f"the integration diverged (non-finite state) before t = "
