@@ -66,7 +66,8 @@ def measure(n_beads: int, threads: int, repeat: int, min_time: float, model=None
     from hertzchain.integrate.verlet import run_verlet
 
     system = (model or uniform_model(n_beads)).system()
-    run_verlet_threaded(system, 2 * SAMPLE, SAMPLE, threads, contacts=np.array([0, n_beads]))  # compile
+    run_verlet(system, 2 * SAMPLE, SAMPLE, contacts=np.array([0, n_beads]))  # compile both (a registry law's
+    run_verlet_threaded(system, 2 * SAMPLE, SAMPLE, threads, contacts=np.array([0, n_beads]))  # loops: per process)
     rec = np.array([0, n_beads])
     # calibrate the duration on one thread: >= min_time per run
     duration = 2e-6
