@@ -23,7 +23,8 @@ for the elastic-plastic law, whose contacts then yield), saved to
 ``results/long_chain_laws.json``. Each row checks the forces and steps bit for bit. Runs of
 >= 2 s (several compiled calls of ~0.2-0.4 s), so that the run's own fallback to one thread on
 shared cores (``threaded._Pace``) can act: each row records how many calls ran on how many
-threads.
+threads, and the CPU time of the threaded loop on one block against the one-thread loop (the
+per-thread cost, little changed by other work on the cores).
 """
 
 from __future__ import annotations
@@ -90,11 +91,22 @@ def measure(n_beads: int, threads: int, repeat: int, min_time: float, model=None
     loads.append(os.getloadavg()[0])
     same = bool(np.array_equal(one.contact_force, many.contact_force) and one.n_steps == many.n_steps
                 and one.peak_wall_force == many.peak_wall_force)
+    # the threaded loop on one block against the one-thread loop, in CPU time (no barrier waits:
+    # what other work on the cores does not change much)
+    cpu_one, cpu_block = [], []
+    for _ in range(repeat):
+        t0 = time.thread_time()
+        run_verlet(system, duration, SAMPLE, contacts=rec)
+        cpu_one.append(time.thread_time() - t0)
+        t0 = time.thread_time()
+        run_verlet_threaded(system, duration, SAMPLE, 1, contacts=rec)
+        cpu_block.append(time.thread_time() - t0)
     work = n_beads * one.n_steps
     return {"n_beads": n_beads, "threads": threads, "duration_s": duration, "steps": one.n_steps,
             "one_thread_s": min(one_t), "threads_s": min(many_t), "one_thread_times_s": one_t, "threads_times_s": many_t,
             "one_thread_bead_steps_per_s": work / min(one_t), "threads_bead_steps_per_s": work / min(many_t),
             "speedup": min(one_t) / min(many_t), "bit_identical_forces_and_steps": same,
+            "one_block_over_one_thread_cpu": min(cpu_block) / min(cpu_one),
             "load_average_1min": loads}
 
 
@@ -168,11 +180,12 @@ def main_laws(args) -> dict:
                        "met": bool(all(r["speedup"] >= TARGET_SPEEDUP for r in rows) and args.threads == 2)}}
     print(table([(r["law"], r["steps"], f"{r['one_thread_bead_steps_per_s']:.3g}",
                   f"{r['threads_bead_steps_per_s']:.3g}", f"{r['speedup']:.2f}",
+                  f"{r['one_block_over_one_thread_cpu']:.2f}",
                   "yes" if r["bit_identical_forces_and_steps"] else "NO",
                   " ".join(f"{x:.1f}" for x in r["load_average_1min"]),
                   " ".join(f"{k}:{v}" for k, v in r["calls_by_threads"].items())) for r in rows],
-                ("law", "steps", "1 thread", f"{args.threads} threads", "speed-up", "bit-identical",
-                 "load (1 min) during", "calls on n threads")))
+                ("law", "steps", "1 thread", f"{args.threads} threads", "speed-up", "1 block / 1 thread CPU",
+                 "bit-identical", "load (1 min) during", "calls on n threads")))
     if not res["clean"]:
         print("\nthe load average was >= 0.5 during the runs: other work shared the cores, the speed-ups are not a "
               f"clean measurement of the threads (target: >= {TARGET_SPEEDUP}x on 2 idle cores)")
