@@ -175,49 +175,6 @@ def elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres):
     return f, fep, dmax, dres, kres
 
 
-@njit(cache=True, nogil=True, inline="always")
-def contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyield, dmax, dres, kres):
-    """One contact of :func:`forces_general` (bodies at ``ui``, ``uj`` [m] moving at ``vi``, ``vj``
-    [m/s], the contact's parameters and, for the elastic-plastic law, its state); returns
-    (axial force [N], dissipated power [W], dmax, dres, kres), the state unchanged for the other
-    laws. Shared with the threaded engine (:mod:`hertzchain.integrate.threaded_laws`), which
-    computes each contact as this does."""
-    if de != 0.0:
-        dx = dx0 - (ui - uj)
-        dist = np.sqrt(dx * dx + de * de)
-        d = rsum - dist
-        c = dx / dist
-    else:
-        d = ui - uj + d0
-        c = 1.0
-    # d == 0 is kept as a contact: at the impact instant (t = 0, striker just touching) the
-    # dashpot force is already gamma d(delta)/dt = gamma v0 (the law jumps at closure); taking
-    # 0 there instead made Verlet's first half kick miss an O(dt) impulse (first-order error).
-    # The elastic part and the Kuwabara-Kono term (~ delta^(1/2)) vanish at d == 0 anyway.
-    if d < 0.0:
-        return 0.0, 0.0, dmax, dres, kres
-    if d <= DELTA_MIN:
-        d = 0.0
-    if law == LAW_ELASTOPLASTIC:
-        if kappa == 0.0:  # no contact (free end, padding)
-            return 0.0, 0.0, dmax, dres, kres
-        rate = c * (vi - vj)
-        f, fep, dmax, dres, kres = elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres)
-        return c * f, (f - fep) * rate, dmax, dres, kres
-    sd = np.sqrt(d)
-    fel = kappa * d * sd
-    if law == LAW_ELASTIC:
-        return c * fel, 0.0, dmax, dres, kres
-    rate = c * (vi - vj)  # d(delta)/dt
-    if law == LAW_VISCOELASTIC:
-        f = fel + kappa * damping * sd * rate
-    else:
-        f = fel + damping * rate
-    f = max(f, 0.0)
-    # F_diss * d(delta)/dt >= 0: power lost to dissipation
-    return c * f, (f - fel) * rate, dmax, dres, kres
-
-
 @njit(cache=True, nogil=True)
 def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres):
     """Axial contact forces with dissipation and/or misalignment; returns the dissipated power [W].
@@ -227,22 +184,51 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax
     Kuwabara-Kono: F = kappa (delta^(3/2) + A delta^(1/2) ddelta/dt); dashpot:
     F = kappa delta^(3/2) + gamma ddelta/dt; both clipped at zero (never attractive).
     Elastic-plastic (Thornton): :func:`elastoplastic_force`, whose state (``dmax``, ``dres``,
-    ``kres``; unused by the other laws, which may pass empty arrays) is updated in place; the
-    dissipated power returned is the viscous part's only (the plastic work follows from the state,
-    :func:`plastic_work`). Each contact: :func:`contact_general`.
+    ``kres``; unused by the other laws) is updated in place; the dissipated power returned is the
+    viscous part's only (the plastic work follows from the state, :func:`plastic_work`).
     """
     power = 0.0
-    if law == LAW_ELASTOPLASTIC:
-        for j in range(kappa.shape[0]):
-            g[j + 1], p, dmax[j], dres[j], kres[j] = contact_general(u[j], u[j + 1], v[j], v[j + 1], kappa[j],
-                                                                     damping[j], d0[j], de[j], dx0[j], rsum[j], law,
-                                                                     dyield[j], dmax[j], dres[j], kres[j])
-            power += p
-        return power
     for j in range(kappa.shape[0]):
-        g[j + 1], p, _, _, _ = contact_general(u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j],
-                                               dx0[j], rsum[j], law, 0.0, 0.0, 0.0, 0.0)
-        power += p
+        if de[j] != 0.0:
+            dx = dx0[j] - (u[j] - u[j + 1])
+            dist = np.sqrt(dx * dx + de[j] * de[j])
+            d = rsum[j] - dist
+            c = dx / dist
+        else:
+            d = u[j] - u[j + 1] + d0[j]
+            c = 1.0
+        # d == 0 is kept as a contact: at the impact instant (t = 0, striker just touching) the
+        # dashpot force is already gamma d(delta)/dt = gamma v0 (the law jumps at closure); taking
+        # 0 there instead made Verlet's first half kick miss an O(dt) impulse (first-order error).
+        # The elastic part and the Kuwabara-Kono term (~ delta^(1/2)) vanish at d == 0 anyway.
+        if d < 0.0:
+            g[j + 1] = 0.0
+            continue
+        if d <= DELTA_MIN:
+            d = 0.0
+        if law == LAW_ELASTOPLASTIC:
+            if kappa[j] == 0.0:  # no contact (free end, padding)
+                g[j + 1] = 0.0
+                continue
+            rate = c * (v[j] - v[j + 1])
+            f, fep, dmax[j], dres[j], kres[j] = elastoplastic_force(d, rate, kappa[j], damping[j], dyield[j],
+                                                                    dmax[j], dres[j], kres[j])
+            power += (f - fep) * rate
+            g[j + 1] = c * f
+            continue
+        sd = np.sqrt(d)
+        fel = kappa[j] * d * sd
+        if law == LAW_ELASTIC:
+            g[j + 1] = c * fel
+            continue
+        rate = c * (v[j] - v[j + 1])  # d(delta)/dt
+        if law == LAW_VISCOELASTIC:
+            f = fel + kappa[j] * damping[j] * sd * rate
+        else:
+            f = fel + damping[j] * rate
+        f = max(f, 0.0)
+        power += (f - fel) * rate  # F_diss * d(delta)/dt >= 0: power lost to dissipation
+        g[j + 1] = c * f
     return power
 
 
