@@ -286,8 +286,9 @@ def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
     k_ref = 1.0 / (2.0 * theta * np.sqrt(4.0 / d1))
     mu_ref = 0.5 * rho * math.pi * d1**3 / 6.0
     safe = np.where(on, kappa, 1.0)
-    if spec.calibrated == "A":  # viscoelastic_scaled: A_j = A t_j / t_ref, t = (mu / kappa)^(2/5)
-        return np.where(on, a * collision_time_scale(mu, safe) / collision_time_scale(mu_ref, k_ref), 0.0)
+    if spec.calibrated == "A":  # A_j = A (t_j / t_ref)^p, t = (mu / kappa)^(2/5), p declared with the law
+        ratio = collision_time_scale(mu, safe) / collision_time_scale(mu_ref, k_ref)
+        return np.where(on, a * ratio ** spec.extra.get("size_exponent", 1.0), 0.0)
     # dashpot_scaled: gamma_j = gamma (kappa_j / kappa_ref)^(2/5) (mu_j / mu_ref)^(3/5)
     return np.where(on, a * (safe / k_ref) ** 0.4 * (mu / mu_ref) ** 0.6, 0.0)
 

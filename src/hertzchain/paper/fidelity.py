@@ -5,9 +5,13 @@ offset line. This module runs the same protocol under the variants that decide t
 unexplained observations and measures them:
 
 - **contact laws** (paper Figs. 5b-c, eqs. 6-8): elastic, Kuwabara-Kono with one constant A
-  (:class:`~hertzchain.contact.Viscoelastic`) and with A following each contact's collision time
+  (:class:`~hertzchain.contact.Viscoelastic`), with A following each contact's collision time
   (:class:`~hertzchain.contact.ScaledViscoelastic`, the same eps in every bead size, which is
-  what eq. 6 assumes), both calibrated to the paper's eps on the 26 mm beads;
+  what eq. 6 assumes) and with A following its square
+  (:class:`~hertzchain.contact.SizedViscoelastic`, a restitution falling with speed and a
+  steel-like striker bounce), and the dashpot following each contact pair
+  (:class:`~hertzchain.contact.ScaledDashpot`), each calibrated to the paper's eps on the 26 mm
+  beads;
 - **lateral freedom** (Fig. 3a-b): the misaligned beads of chain 2 free to move across the axis
   in a round groove (:class:`~hertzchain.track.Track`), without and with Coulomb friction.
 
@@ -37,12 +41,16 @@ from .law_figure import LAW_STYLE, fig_laws  # noqa: F401 - drawn apart, re-expo
 from .values import PAPER
 from ..laws import is_conservative
 
-__all__ = ["LAW_VARIANTS", "TRACKS", "TAIL_WINDOW_S", "run_law_variants", "law_numbers",
+__all__ = ["LAW_VARIANTS", "RESTITUTION_SPEEDS", "TRACKS", "TAIL_WINDOW_S", "run_law_variants", "law_numbers",
            "run_lateral_misalignment", "misalignment_numbers", "tail_oscillation", "fig_laws", "fig3_lateral",
            "count_variant_runs"]
 
 #: Contact-law variants of the chain studies (the run's own law is one of them or is added).
-LAW_VARIANTS = ("elastic", "viscoelastic", "viscoelastic_scaled", "dashpot_scaled")
+LAW_VARIANTS = ("elastic", "viscoelastic", "viscoelastic_scaled", "viscoelastic_sized", "dashpot_scaled")
+
+#: Impact speeds [m/s] of each variant's restitution trend (:func:`law_numbers`): the pulse's bead
+#: speeds in the chain (~1e-2 m/s), the striker's 0.2 m/s, and two decades either side.
+RESTITUTION_SPEEDS = (1e-4, 1e-2, 0.2, 1.0)
 
 #: Lateral-freedom variants of Fig. 3a-b. The paper does not describe its track; a round groove
 #: of 15 mm radius (just wider than the 26 mm beads) gives the 16 mm bead a gravity restoring
@@ -154,7 +162,9 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
     (a reflected wave would show there); ``figures`` holds the spectral centroids, the time-of-flight
     gain and the Fig. 4 collapse of :func:`hertzchain.paper.figures.figure_summary`;
     ``striker_restitution`` the two-body restitution of the striker hitting a free first bead at
-    the run's speed under the variant's calibrated law (:func:`hertzchain.restitution`).
+    the run's speed under the variant's calibrated law (:func:`hertzchain.restitution`), and
+    ``restitution_trend`` that restitution at each speed of :data:`RESTITUTION_SPEEDS` [m/s]
+    ({"speeds", "restitution"}: falling with speed as viscoelastic spheres' does, or rising).
     """
     from ..collision import restitution
     from .figures import figure_summary
@@ -169,8 +179,12 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
         the_law = studies["chain1"].law
         row["law"] = {"law": law, **{k: getattr(the_law, k) for k in ("A", "gamma") if hasattr(the_law, k)}}
         chain = studies["chain1"].chain
-        row["striker_restitution"] = restitution(s.striker_velocity, the_law, s.striker_diameter, s.material,
-                                                 float(chain.diameters[0]), chain.materials[0])
+        def bounce(v: float, law=the_law, d=float(chain.diameters[0]), m=chain.materials[0]) -> float:
+            return restitution(v, law, s.striker_diameter, s.material, d, m)
+
+        row["striker_restitution"] = bounce(s.striker_velocity)
+        row["restitution_trend"] = {"speeds": list(RESTITUTION_SPEEDS),
+                                    "restitution": [bounce(v) for v in RESTITUTION_SPEEDS]}
         out[law] = row
     return out
 
