@@ -285,7 +285,7 @@ class SizedViscoelastic(ScaledViscoelastic):
     of :func:`collision_time_scale` the Kuwabara-Kono loss is set by A_j / t*, t* = t v^(-1/5), so
     every pair keeps the viscoelastic spheres' trend 1 - e ~ A_j v^(1/5) / t_j (restitution
     falling with impact speed), and a pair whose collision time scale is shorter than the
-    reference beads' (the 8 mm striker on a 26 mm bead: t / t_ref = 0.27) loses less at the same
+    reference beads' (the 8 mm striker on a 26 mm bead: t / t_ref = 0.37) loses less at the same
     speed, by the factor t_j / t_ref. Calibrated to the paper's eps = 0.985 on its 26 mm beads
     (A = 4.37 us with the paper's 8 mm striker at 0.2 m/s) it gives that striker a two-body
     restitution of 0.947 at 0.2 m/s, where :class:`ScaledViscoelastic` (A_j ~ t_j) gives 0.864;

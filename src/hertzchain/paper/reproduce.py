@@ -525,21 +525,26 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     tick = progress or (lambda msg: None)
-    studies = {name: protocol.run_chain_study(name, settings, tick) for name in ("chain1", "chain2")}
-    mis = protocol.run_misalignment(settings)
-    for _ in range(6):
-        tick("Fig. 3a-b: misaligned beads")
-    subs = protocol.run_substitutions(settings)
-    for _ in range(3):
-        tick("Fig. 3c: substitutions")
-    ratio = protocol.run_wall_chain_ratio(settings)
-    tick("wall/chain ratio")
-    speed = protocol.run_speed_check(settings)
-    for _ in range(10):
-        tick("two-speed check")
-    # where the model and the paper disagree: other contact laws, lateral freedom (paper/fidelity.py)
-    variants = fidelity.run_law_variants(settings, studies, tick)
-    lateral, cost = fidelity.run_lateral_misalignment(settings, progress=tick)
+    # where the model and the paper disagree: other contact laws (paper/fidelity.py), started now in
+    # a forked process that shares them with this one once its own runs are done
+    variants = fidelity.LawVariants(settings)
+    try:
+        studies = {name: protocol.run_chain_study(name, settings, tick) for name in ("chain1", "chain2")}
+        mis = protocol.run_misalignment(settings)
+        for _ in range(6):
+            tick("Fig. 3a-b: misaligned beads")
+        subs = protocol.run_substitutions(settings)
+        for _ in range(3):
+            tick("Fig. 3c: substitutions")
+        ratio = protocol.run_wall_chain_ratio(settings)
+        tick("wall/chain ratio")
+        speed = protocol.run_speed_check(settings)
+        for _ in range(10):
+            tick("two-speed check")
+        lateral, cost = fidelity.run_lateral_misalignment(settings, progress=tick)
+        law_rows = variants.finish(studies, tick)
+    finally:
+        variants.cancel()
     t_sim = time.perf_counter() - t0
     _save_data(out, studies, mis, subs, ratio)
     for (label, b, frac), ds in lateral.items():
@@ -548,7 +553,7 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
               out / "data" / f"fig3_lateral_{label}_bead{b}_e{frac:.2f}.nc", single_precision=True)
     summary = build_summary(studies, ratio, speed, settings, {"simulation_s": t_sim})
     summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
-    summary["fidelity"] = {"laws": fidelity.law_numbers(variants, settings),
+    summary["fidelity"] = {"laws": law_rows,
                            "misalignment": fidelity.misalignment_numbers(mis, lateral),
                            "tracks": {k: t.describe() for k, t in fidelity.TRACKS.items()},
                            "lateral_cost": cost}
