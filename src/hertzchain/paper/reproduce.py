@@ -525,11 +525,12 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     tick = progress or (lambda msg: None)
+    studies = {name: protocol.run_chain_study(name, settings, tick) for name in ("chain1", "chain2")}
     # where the model and the paper disagree: other contact laws (paper/fidelity.py), started now in
-    # a forked process that shares them with this one once its own runs are done
+    # a forked process (which inherits the kernels the studies above compiled) and shared with this
+    # one once its own runs are done
     variants = fidelity.LawVariants(settings)
     try:
-        studies = {name: protocol.run_chain_study(name, settings, tick) for name in ("chain1", "chain2")}
         mis = protocol.run_misalignment(settings)
         for _ in range(6):
             tick("Fig. 3a-b: misaligned beads")
