@@ -8,6 +8,7 @@ import os
 
 import pytest
 
+from hertzchain.errors import ConfigError
 from hertzchain.paper import fidelity
 from hertzchain.paper.protocol import Settings
 
@@ -38,13 +39,19 @@ def test_an_elastic_run_compares_every_dissipative_law(fake_runs):
     assert list(out)[0] == "elastic" and set(out) == set(fidelity.LAW_VARIANTS)
 
 
-def test_a_failure_in_the_fork_is_named(monkeypatch):
+@pytest.mark.parametrize("error, raised, message", [
+    (lambda law: ValueError(f"no {law}"), RuntimeError, "variants' runs failed: ValueError: no elastic"),
+    (lambda law: ConfigError("contact.eps", f"{law} cannot give it"), ConfigError, "contact.eps: elastic cannot"),
+])
+def test_a_failure_in_the_fork_is_raised_by_the_caller(monkeypatch, error, raised, message):
+    """A ConfigError in the fork (an eps a law cannot reach) is the caller's ConfigError, naming its
+    field as a serial run did (the CLI's exit 2); anything else a RuntimeError naming it."""
     if len(os.sched_getaffinity(0)) < 2:
         pytest.skip("one core: no fork, the variants run in the caller")
 
     def fail(settings, law, progress=None):
         if os.getpid() != parent:
-            raise ValueError(f"no {law}")
+            raise error(law)
         return {}
 
     parent = os.getpid()
@@ -54,7 +61,7 @@ def test_a_failure_in_the_fork_is_named(monkeypatch):
     # let the fork claim its first variant before the caller takes the rest
     while variants._ends[0] == 0 and variants._proc.is_alive():
         pass
-    with pytest.raises(RuntimeError, match="variants' runs failed: ValueError: no elastic"):
+    with pytest.raises(raised, match=message):
         variants.finish({})
     assert variants._proc is None
 

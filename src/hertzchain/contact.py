@@ -287,7 +287,7 @@ class SizedViscoelastic(ScaledViscoelastic):
     falling with impact speed), and a pair whose collision time scale is shorter than the
     reference beads' (the 8 mm striker on a 26 mm bead: t / t_ref = 0.37) loses less at the same
     speed, by the factor t_j / t_ref. Calibrated to the paper's eps = 0.985 on its 26 mm beads
-    (A = 4.37 us with the paper's 8 mm striker at 0.2 m/s) it gives that striker a two-body
+    (A = 4.36 us with the paper's 8 mm striker at 0.2 m/s) it gives that striker a two-body
     restitution of 0.947 at 0.2 m/s, where :class:`ScaledViscoelastic` (A_j ~ t_j) gives 0.864;
     see the user guide's plasticity page. Between equal beads of one material t ~ R, so A_j ~ R^2;
     geometrically similar chains then no longer share one eps (smaller beads lose less per bead).

@@ -51,7 +51,6 @@ def read_big_text(path, fh, head: bytes, size: int) -> _Table | None:
         TDS CSV whose Record Length (checked here, with the file's size) bounds it: the caller
         reads it whole.
     """
-
     where = str(path)
     fh.seek(max(0, size - TAIL_BYTES))
     if b"\x00" in fh.read(TAIL_BYTES) or b"\x00" in head:

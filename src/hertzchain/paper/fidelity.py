@@ -36,7 +36,7 @@ from matplotlib.figure import Figure
 from .. import analysis, theory
 from ..chain import paper_chain
 from ..interrupts import forked_worker_init
-from ..errors import ElasticLimitWarning
+from ..errors import ConfigError, ElasticLimitWarning, HertzchainError
 from ..model import Model, Wall
 from ..probes import Probes
 from ..track import Track, simulate_lateral
@@ -108,7 +108,9 @@ class LawVariants:
     front of the list from the start, the caller from the back once it calls :meth:`finish`, so
     the two finish together whatever each one's other work (one core, or no ``fork``: the caller
     runs them all in :meth:`finish`, as before). Only the plain numbers of :func:`law_numbers`
-    come back from the fork, never the traces. :meth:`cancel` stops the fork (after a failure).
+    come back from the fork, never the traces; an error there is raised by :meth:`finish` as it
+    would have been here (a :class:`~hertzchain.errors.ConfigError` naming its field). :meth:`cancel`
+    stops the fork (after a failure).
 
     Parameters
     ----------
@@ -148,6 +150,10 @@ class LawVariants:
             while (law := self._claim(front=True)) is not None:
                 out[law] = _variant_numbers(self.settings, law)
             writer.send(("ok", out))
+        except ConfigError as exc:  # an input no variant can run (an eps a law cannot reach): the caller's own
+            writer.send(("config", (exc.field, exc.message)))
+        except HertzchainError as exc:  # a user's error of one message: it pickles as it is
+            writer.send(("hertzchain", exc))
         except Exception as exc:  # noqa: BLE001 - reported by the caller, which names it
             writer.send(("error", f"{type(exc).__name__}: {exc}"))
         finally:
@@ -179,6 +185,10 @@ class LawVariants:
                 status, theirs = "error", f"the process running them ended with exit code {self._proc.exitcode}"
             finally:
                 self.cancel()
+            if status == "config":
+                raise ConfigError(*theirs)
+            if status == "hertzchain":
+                raise theirs
             if status != "ok":
                 raise RuntimeError(f"the contact-law variants' runs failed: {theirs}")
             out.update(theirs)
