@@ -39,11 +39,12 @@ SUMMARY_UNITS = {
     "duration, time_of_flight, T0, uniform_time_of_flight, figures.*.duration, figures.*.time_of_flight, "
     "figures.wall_tof_shift_s, figures.tof_gain_s, timing (s)": "s",
     "front_momentum, tail_momentum": "N s",
-    "v1, local_velocity, speed_check.velocities": "m/s",
+    "v1, local_velocity, speed_check.velocities, fidelity.laws.*.restitution_trend.speeds": "m/s",
     "yield_overlap, figures.misalignment[].offset_m": "m",
     "diameter_mm": "mm",
     "figures.spectra.*_hz": "Hz",
-    "q, q_std, Q_*, eps*, *_ratio, max_force_over_yield, *_deviation, offset_fraction, collapse_rms": "1 (dimensionless)",
+    "q, q_std, Q_*, eps*, *_ratio, max_force_over_yield, *_deviation, offset_fraction, collapse_rms, "
+    "*restitution*": "1 (dimensionless)",
     "law.A": "s (Kuwabara-Kono time constant)",
     "law.gamma": "N s/m",
     "fidelity.misalignment.*.tail_oscillation": "N",
