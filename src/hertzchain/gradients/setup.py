@@ -274,7 +274,7 @@ def _registry_law(cfg, read: _Reader, kappa, inv_mass) -> tuple[np.ndarray, np.n
     shadow = object.__new__(type(law))
     shadow.__dict__.update(vars(law))
     own = set(type(cfg.contact).model_fields)
-    for name, value in cfg.contact.law_parameters().items():
+    for name in cfg.contact.law_parameters():
         if getattr(law, name, None) is not None:
             path = f"contact.{name}" if name in own else f"contact.parameters.{name}"
             object.__setattr__(shadow, name, read(path, getattr(law, name)))
