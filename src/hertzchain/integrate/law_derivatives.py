@@ -65,20 +65,21 @@ def law_engines(code: int):
     key = (code, id(kernels[0]), id(sp), id(spec.partials))
     if key not in _CACHE:
         _CACHE[key] = _build(compiled(spec.force), compiled(spec.state), compiled(spec.partials), sp, kernels[0],
-                             kernels[3])
+                             kernels[3], spec.state_size > 0)
     return _CACHE[key]
 
 
-def _build(force, update, partials, state_partials, gforces, gstride):
-    @njit(nogil=True)
+def _build(force, update, partials, state_partials, gforces, gstride, stateful):
+    @njit(nogil=True, inline="always")
     def contact_partials(uj, uj1, vj, vj1, k, p, d0, de, dx0, rsum, s, cf, ch, j):
         """Axial force F of contact j (as the generated ``forces`` computes it) at state ``s`` before
-        the step; writes its partials into column j of ``cf`` and those of the new state into
-        ``ch`` (rows: :data:`ROWS`)."""
+        the step; writes its partials into row j of ``cf`` and those of the new state into ``ch``
+        (columns: :data:`ROWS`). ``stateful`` (a constant of the closure: the branch not taken is
+        not compiled) leaves a law without state its one carried state."""
         for r in range(ROWS):
-            cf[r, j] = 0.0
-            ch[r, j] = 0.0
-        ch[8, j] = 1.0
+            cf[j, r] = 0.0
+            ch[j, r] = 0.0
+        ch[j, 8] = 1.0
         if k == 0.0:  # no contact: the state is carried
             return 0.0
         if de != 0.0:  # misaligned: delta = rsum - dist(dx), c = dx / dist, F = c f(delta, c vrel)
@@ -98,16 +99,18 @@ def _build(force, update, partials, state_partials, gforces, gstride):
         vrel = vj - vj1
         rate = c * vrel
         s1 = update(d, rate, k, p, s)
-        _, sd, sr, sk, sp, ss = state_partials(d, rate, k, p, s)
-        ch[0, j] = sd * d_w + sr * vrel * c_w
-        ch[1, j] = sr * c
-        ch[2, j] = sk
-        ch[3, j] = sp
-        ch[4, j] = sd * d_0
-        ch[5, j] = sd * d_de + sr * vrel * c_de
-        ch[6, j] = sd * d_dx0 - sr * vrel * c_w
-        ch[7, j] = sd * d_rs
-        ch[8, j] = ss
+        ss = 1.0
+        if stateful:
+            _, sd, sr, sk, sp, ss = state_partials(d, rate, k, p, s)
+            ch[j, 0] = sd * d_w + sr * vrel * c_w
+            ch[j, 1] = sr * c
+            ch[j, 2] = sk
+            ch[j, 3] = sp
+            ch[j, 4] = sd * d_0
+            ch[j, 5] = sd * d_de + sr * vrel * c_de
+            ch[j, 6] = sd * d_dx0 - sr * vrel * c_w
+            ch[j, 7] = sd * d_rs
+            ch[j, 8] = ss
         if d < 0.0:
             return 0.0
         on = d > DELTA_MIN
@@ -117,16 +120,16 @@ def _build(force, update, partials, state_partials, gforces, gstride):
             return 0.0
         fd, fr, fk, fp = partials(dd, rate, k, p, s1)
         fd = fd if on else 0.0
-        fs = state_partials(dd, rate, k, p, s1)[0]
-        cf[0, j] = c_w * f + c * (fd * d_w + fr * vrel * c_w + fs * ch[0, j])
-        cf[1, j] = c * (fr * c + fs * ch[1, j])
-        cf[2, j] = c * (fk + fs * ch[2, j])
-        cf[3, j] = c * (fp + fs * ch[3, j])
-        cf[4, j] = c * (fd * d_0 + fs * ch[4, j])
-        cf[5, j] = c_de * f + c * (fd * d_de + fr * vrel * c_de + fs * ch[5, j])
-        cf[6, j] = -c_w * f + c * (fd * d_dx0 - fr * vrel * c_w + fs * ch[6, j])
-        cf[7, j] = c * (fd * d_rs + fs * ch[7, j])
-        cf[8, j] = c * fs * ss
+        fs = state_partials(dd, rate, k, p, s1)[0] if stateful else 0.0
+        cf[j, 0] = c_w * f + c * (fd * d_w + fr * vrel * c_w + fs * ch[j, 0])
+        cf[j, 1] = c * (fr * c + fs * ch[j, 1])
+        cf[j, 2] = c * (fk + fs * ch[j, 2])
+        cf[j, 3] = c * (fp + fs * ch[j, 3])
+        cf[j, 4] = c * (fd * d_0 + fs * ch[j, 4])
+        cf[j, 5] = c_de * f + c * (fd * d_de + fr * vrel * c_de + fs * ch[j, 5])
+        cf[j, 6] = -c_w * f + c * (fd * d_dx0 - fr * vrel * c_w + fs * ch[j, 6])
+        cf[j, 7] = c * (fd * d_rs + fs * ch[j, 7])
+        cf[j, 8] = c * fs * ss
         return c * f
 
     @njit(nogil=True)
@@ -233,8 +236,8 @@ def _build(force, update, partials, state_partials, gforces, gstride):
         pf, ph, thf, thm = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
         vpt = np.zeros(n + 1)
         vp = np.zeros_like(v)
-        cf = np.zeros((ROWS, n))
-        ch = np.zeros((ROWS, n))
+        cf = np.zeros((n, ROWS))
+        ch = np.zeros((n, ROWS))
         for dd in range(nd):
             for i in range(n):
                 thf[dd * (n + 1) + i] = th[6, dd, i]
@@ -333,8 +336,8 @@ def _build(force, update, partials, state_partials, gforces, gstride):
         fb = np.zeros(n)
         p = _take_seeds(-1, ptr, fb, ub, vb, seed_step, seed_contact, seed_w)
         fs, wb, rb = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
-        cf = np.zeros((ROWS, n))
-        ch = np.zeros((ROWS, n))
+        cf = np.zeros((n, ROWS))
+        ch = np.zeros((n, ROWS))
         for j in range(n - 1):
             f = contact_partials(u0[j], u0[j + 1], v0[j], v0[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j],
                                  rsum[j], 0.0, cf, ch, j)
@@ -358,8 +361,8 @@ def _build(force, update, partials, state_partials, gforces, gstride):
         state = np.zeros(n)
         stores = (np.zeros((max_rows, n)), np.zeros((max_rows, n)), np.zeros(max_rows), np.zeros((1, max_rows, n)))
         fb, fs, wb, rb = np.zeros(n), np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
-        cf = np.zeros((ROWS, n))
-        ch = np.zeros((ROWS, n))
+        cf = np.zeros((n, ROWS))
+        ch = np.zeros((n, ROWS))
         sbar = sb[0]
         n_groups = (n_blocks + group - 1) // group
         starts = np.zeros(n_groups + 1, dtype=np.int64)
@@ -409,8 +412,8 @@ def _parameter_forces(cf, ch, th, pf, ph):
             x = 0.0
             y = 0.0
             for r in range(6):
-                x += cf[r + 2, j] * th[r, dd, j]
-                y += ch[r + 2, j] * th[r, dd, j]
+                x += cf[j, r + 2] * th[r, dd, j]
+                y += ch[j, r + 2] * th[r, dd, j]
             pf[o + j] = x
             ph[o + j] = y
 
@@ -422,8 +425,8 @@ def _contact_tangents(cf, ch, ut, vpt, ft, st, pf, ph, o, n):
         dw = ut[o + j] - ut[o + j + 1]
         dv = vpt[j] - vpt[j + 1]
         sj = st[o + j]
-        ft[o + j + 1] = cf[0, j] * dw + cf[1, j] * dv + cf[8, j] * sj + pf[o + j]
-        st[o + j] = ch[0, j] * dw + ch[1, j] * dv + ch[8, j] * sj + ph[o + j]
+        ft[o + j + 1] = cf[j, 0] * dw + cf[j, 1] * dv + cf[j, 8] * sj + pf[o + j]
+        st[o + j] = ch[j, 0] * dw + ch[j, 1] * dv + ch[j, 8] * sj + ph[o + j]
 
 
 @njit(nogil=True, inline="always")
@@ -432,8 +435,8 @@ def _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad):
     relative velocity, the parameters (``grad`` rows 0-5) and the state before (into ``sb[j]``)."""
     sbar = sb[j]
     fs[j + 1] = f
-    wb[j + 1] = fbar * cf[0, j] + sbar * ch[0, j]
-    rb[j + 1] = fbar * cf[1, j] + sbar * ch[1, j]
+    wb[j + 1] = fbar * cf[j, 0] + sbar * ch[j, 0]
+    rb[j + 1] = fbar * cf[j, 1] + sbar * ch[j, 1]
     for r in range(6):
-        grad[r, j] += fbar * cf[r + 2, j] + sbar * ch[r + 2, j]
-    sb[j] = fbar * cf[8, j] + sbar * ch[8, j]
+        grad[r, j] += fbar * cf[j, r + 2] + sbar * ch[j, r + 2]
+    sb[j] = fbar * cf[j, 8] + sbar * ch[j, 8]
