@@ -235,3 +235,17 @@ def _toml(cfg: dict) -> str:
     import tomli_w
 
     return tomli_w.dumps(cfg)
+
+
+def test_design_gradient_phase_takes_registry_laws():
+    """The design search's gradient phase accepts a power-law chain (its sensitivities exist) and
+    declines energy_at_wall for it with the sensitivity's reason (no Hertz exponent 3/2)."""
+    from hertzchain.design import parse_design
+    from hertzchain.design.gradient import gradient_support
+
+    base = _config(POWER)
+    data = {"base": base, "design": {"objective": "peak_wall_force", "budget": 40, "seed": 1,
+                                     "variables": {"chain.diameters_mm[3:6]": {"low": 10.0, "high": 20.0}}}}
+    assert gradient_support(parse_design(copy.deepcopy(data))) is None
+    data["design"]["objective"] = "energy_at_wall"
+    assert "objective" in gradient_support(parse_design(copy.deepcopy(data)))
