@@ -49,10 +49,16 @@ def variable_unit(path: str) -> str:
     tail = path.rsplit(".", 1)[-1]
     if path in ("wall.damping",):
         return "N s/m"
-    if path == "contact.stiffness":  # the power law's k
-        return "N/m^n"
+    if path.startswith("contact."):  # a law's parameter: the unit its registry entry declares
+        from ..laws import get_law, law_names
+
+        for name in law_names():
+            spec = get_law(name)
+            if tail in spec.param_names:
+                unit = spec.param(tail).unit
+                return "1" if unit == "-" else unit
     return {"velocity": "m/s", "q": "1", "precompression": "N", "mass": "kg", "A": "s", "gamma": "N s/m",
-            "stiffness": "N/m", "exponent": "1", "restitution": "1",
+            "stiffness": "N/m",
             "density": "kg/m^3", "young": "Pa", "poisson": "1", "yield_stress": "Pa"}.get(tail.split("[")[0], "1")
 
 
