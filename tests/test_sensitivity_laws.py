@@ -249,3 +249,22 @@ def test_design_gradient_phase_takes_registry_laws():
     assert gradient_support(parse_design(copy.deepcopy(data))) is None
     data["design"]["objective"] = "energy_at_wall"
     assert "objective" in gradient_support(parse_design(copy.deepcopy(data)))
+
+
+def test_hunt_crossley_state_partials_match_central_differences():
+    """Hunt-Crossley's declared state_partials: dF/dv_in and the state update's partials by delta,
+    the rate, k, chi and v_in, against central differences on each branch (rate above and below v_in)."""
+    from hertzchain.laws import hunt_crossley as law
+
+    k, chi = 1.2e10, law.damping_factor(0.8)
+    for d, rate, vin in ((1e-6, 0.1, 0.2), (1e-6, 0.3, 0.2), (2e-6, -0.05, 0.15)):
+        x = np.array([d, rate, k, chi, vin])
+        got = law.state_partials(*x)
+        for i in range(5):
+            h = np.zeros(5)
+            h[i] = 1e-6 * abs(x[i])
+            ds = (law.state(*(x + h)) - law.state(*(x - h))) / (2 * h[i])
+            assert got[1 + i] == pytest.approx(ds, rel=1e-6, abs=1e-9), (i, x)
+        h = 1e-6 * vin
+        fs = (law.force(d, rate, k, chi, vin + h) - law.force(d, rate, k, chi, vin - h)) / (2 * h)
+        assert got[0] == pytest.approx(fs, rel=1e-6)
