@@ -268,3 +268,20 @@ def test_hunt_crossley_state_partials_match_central_differences():
         h = 1e-6 * vin
         fs = (law.force(d, rate, k, chi, vin + h) - law.force(d, rate, k, chi, vin - h)) / (2 * h)
         assert got[0] == pytest.approx(fs, rel=1e-6)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("contact", [POWER, HUNT_CROSSLEY], ids=["power", "hunt_crossley"])
+def test_misaligned_chain_gradients(contact):
+    """Offsets (the misaligned geometry around the law's partials): tangent and adjoint agree to
+    1e-8 and central differences to 1e-4. The wall peak moves by ~1e-9 of itself for a 1e-6
+    relative change of an offset, at rounding's level: the differences take a 1e-3 step, whose
+    truncation error is ~3e-5 here."""
+    cfg = _config(contact)
+    cfg["chain"]["offsets_mm"] = [0.0, 0.3, 0.0, -0.2, 0.0, 0.0]
+    variables = ["chain.offsets_mm[1]", "chain.offsets_mm[3]", "chain.diameters_mm[2]"]
+    tangent = sensitivity(cfg, variables, mode="tangent").gradient
+    adjoint = sensitivity(cfg, variables, mode="adjoint").gradient
+    for path in variables:
+        assert adjoint[path] == pytest.approx(tangent[path], rel=1e-8)
+        assert tangent[path] == pytest.approx(central_difference(cfg, path, "peak_wall_force", rel=1e-3), rel=1e-4)
