@@ -329,9 +329,9 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     kstar = np.full(1, -1, dtype=np.int64)
     forward = law_engines(system.law)[0] if is_generated(system.law) else tape_forward
     status = forward(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
-                          w.dyield, w.dmax, w.dres, w.kres, system.law, system.general, w.wall_slot, sample_interval,
-                          plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, rec, out_f, fmax,
-                          fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group, w.ext, w.ext.shape[0] > 0)
+                     w.dyield, w.dmax, w.dres, w.kres, system.law, system.general, w.wall_slot, sample_interval,
+                     plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, rec, out_f, fmax,
+                     fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group, w.ext, w.ext.shape[0] > 0)
     if status != 0:
         raise SimulationDiverged("the integration diverged (non-finite state); check the inputs")
     fpk, t_pk = refine_peak(peak)
@@ -404,8 +404,8 @@ def _replay(tape: Tape, b0: int, b1: int, stores) -> tuple[np.ndarray, np.ndarra
     dmax, dres, kres = np.zeros(n), np.zeros(n), w.kappa.copy()
     replay = law_engines(sy.law)[1] if is_generated(sy.law) else replay_group
     replay(tape.ckpt[b0 // tape.group], u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
-                 w.fext, sy.law, sy.general, w.wall_slot, tape.ns_log, b0, b1, block, stores, w.dyield, dmax, dres,
-                 kres, w.ext, w.ext.shape[0] > 0)
+           w.fext, sy.law, sy.general, w.wall_slot, tape.ns_log, b0, b1, block, stores, w.dyield, dmax, dres, kres,
+           w.ext, w.ext.shape[0] > 0)
     return u, v, a
 
 
