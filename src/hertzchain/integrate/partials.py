@@ -7,7 +7,10 @@ differences in tests/test_laws.py). Laws run by the generated engines (the power
 Hunt-Crossley, users' laws) are differentiated by :mod:`hertzchain.integrate.law_derivatives`
 from their declarations alone; the fused aligned paths of the tangent and adjoint
 (``tangent._aligned_contact``, ``adjoint._steps_dissipative``) keep Kuwabara-Kono's and the
-dashpot's partials written out with selects, so that LLVM vectorises them.
+dashpot's partials written out with selects, so that LLVM vectorises them. The forces and hence
+every taped value are bit for bit those of before the partials came from the registry; of the
+partials only Kuwabara-Kono's dF/d delta on the general path (offsets, a protected body) is
+written differently there, so its gradients change at rounding level (~1e-16 relative a step).
 
 :func:`contact_partials` wraps a law in the geometry of the contact (aligned, or misaligned:
 delta = R_j + R_{j+1} - sqrt(dx^2 + de^2), axial force f dx / d; docs/conventions.rst) and
