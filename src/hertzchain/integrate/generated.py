@@ -37,8 +37,9 @@ _CACHE: dict = {}
 
 def law_kernels(code: int):
     """(forces, run, energy, stride, contact) compiled for the law of engine code ``code``; built on
-    first use (``stride`` the adaptive step's bound, ``contact`` one contact of ``forces``: the
-    threaded engine's force, :mod:`hertzchain.integrate.threaded_laws`)."""
+    first use (``stride``: the adaptive step's steps per block, which the sensitivity engines' taped
+    run, :mod:`hertzchain.integrate.law_derivatives`, takes as the run does; ``contact``: one
+    contact of ``forces``, the threaded engine's force, :mod:`hertzchain.integrate.threaded_laws`)."""
     from ..laws import law_of_code
     from ..laws.spec import compiled
 
