@@ -160,8 +160,9 @@ def main_laws(args) -> dict:
     calls: list[int] = []
     record = threaded._Pace.record
 
-    def spy(self, n, *rest):  # the thread count of every compiled call
-        calls.append(n)
+    def spy(self, n, *rest):  # the thread count of every compiled call of a run asked for several
+        if self.threads > 1:
+            calls.append(n)
         record(self, n, *rest)
 
     threaded._Pace.record = spy

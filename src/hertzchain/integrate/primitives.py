@@ -46,3 +46,21 @@ def _track_peak(fw, t, dt, peak):
         peak[7] = dt
         peak[4] = 0.0
     peak[5] = fw
+
+
+@njit(cache=True, nogil=True)
+def running_max(fmax, g):
+    """fmax = max(fmax, g) element by element (every contact's largest sampled force), on views of
+    a thread's contacts (from index 0 the loop vectorises; from a block's first slot it did not)."""
+    for j in range(fmax.shape[0]):
+        x = g[j]
+        fmax[j] = x if x > fmax[j] else fmax[j]
+
+
+@njit(cache=True, nogil=True)
+def open_block(u, v, a, dt, half):
+    """A block's opening half kick and drift, v += (dt/2) a, u += dt v, on views of a thread's
+    bodies (from index 0 the loop vectorises; from a block's first slot Numba kept it scalar)."""
+    for i in range(a.shape[0]):
+        v[i] += half * a[i]
+        u[i] += dt * v[i]

@@ -47,6 +47,7 @@ from . import kernels
 from .barrier import barrier, new_barrier
 from .kernels import DELTA_MIN, LEAN_SLOTS
 from .layout import PAD, pack
+from .primitives import open_block, running_max
 from .threaded_laws import law_thread_run
 from .verlet import RawRun, _dt_used, initialise, refine_peak, step_plan
 
@@ -213,9 +214,7 @@ def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, 
             dt = block / ns
             half = 0.5 * dt
             t0 = (k - 1) * interval + b * block
-            for i in range(s, e):
-                v[i] += half * a[i]
-                u[i] += dt * v[i]
+            open_block(u[s:e], v[s:e], a[s:e], dt, half)
             par = _publish(pub, par, tid, u, s, e)
             sense = barrier(bar, nthr, sense)
             for st in range(ns - 1):
@@ -245,18 +244,18 @@ def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, 
         # step, so the neighbour's first position is final), the energies as block sums
         for r in range(rbounds[tid], rbounds[tid + 1]):
             out_f[k, r] = g[rec[r] + 1]
-        for j in range(s, min(e, nc)):
-            x = g[j + 1]
-            fmax[j] = x if x > fmax[j] else fmax[j]
+        m = min(e, nc)
+        if m > s:
+            running_max(fmax[s:m], g[s + 1:m + 1])
         ke, pe = kernels.energies_elastic(u[s:e + 1], v[s:e + 1], g[s:e + 1], mass[s:e], d0[s:e], fext[s:e])
         energy[tid, 0] = ke
         energy[tid, 1] = pe
         if record_v:
-            for i in range(s, min(e, out_v.shape[1])):
-                out_v[k, i] = v[i]
+            m = min(e, out_v.shape[1])
+            out_v[k, s:m] = v[s:m]
         if record_u:
-            for i in range(s, min(e, out_u.shape[1])):
-                out_u[k, i] = u[i]
+            m = min(e, out_u.shape[1])
+            out_u[k, s:m] = u[s:m]
         sense = barrier(bar, nthr, sense)
         ke = energy[0, 0]
         pe = energy[0, 1]

@@ -40,7 +40,7 @@ from numba import njit
 
 from . import kernels
 from .barrier import barrier
-from .primitives import _track_peak, _viscous_force
+from .primitives import _track_peak, _viscous_force, open_block, running_max
 
 __all__ = ["law_thread_run", "contact_general"]
 
@@ -294,9 +294,7 @@ def _build(contact, stride, energies, stateful, plastic, fused):
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
-                for i in range(s, e):
-                    v[i] += half * a[i]
-                    u[i] += dt * v[i]
+                open_block(u[s:e], v[s:e], a[s:e], dt, half)
                 par = _publish(pub, par, tid, u, v, a, s, e, half)
                 sense = barrier(bar, nthr, sense)
                 for st in range(ns):
@@ -332,20 +330,20 @@ def _build(contact, stride, energies, stateful, plastic, fused):
             # last step, so the right neighbour's first position is final), energies as block sums
             for r in range(rbounds[tid], rbounds[tid + 1]):
                 out_f[k, r] = g[rec[r] + 1]
-            for j in range(s, min(e, nc)):
-                x = g[j + 1]
-                fmax[j] = x if x > fmax[j] else fmax[j]
+            m = min(e, nc)
+            if m > s:
+                running_max(fmax[s:m], g[s + 1:m + 1])
             energy[tid, 0], energy[tid, 1], energy[tid, 2] = energies(
                 u[s:e + 1], v[s:e], g[s:e + 1], mass[s:e], kappa[s:e], damping[s:e], d0[s:e], de[s:e], dx0[s:e], rsum[s:e],
                 fext[s:e], dyield[s:e], dmax[s:e], dres[s:e], kres[s:e])
             edacc[tid, 0] = ed
             edacc[tid, 1] = pprev
             if record_v:
-                for i in range(s, min(e, out_v.shape[1])):
-                    out_v[k, i] = v[i]
+                m = min(e, out_v.shape[1])
+                out_v[k, s:m] = v[s:m]
             if record_u:
-                for i in range(s, min(e, out_u.shape[1])):
-                    out_u[k, i] = u[i]
+                m = min(e, out_u.shape[1])
+                out_u[k, s:m] = u[s:m]
             sense = barrier(bar, nthr, sense)
             ke = energy[0, 0]
             pe = energy[0, 1]
