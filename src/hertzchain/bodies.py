@@ -10,9 +10,10 @@ these models change:
 - the Hertz constant and elastic limit of every contact whose faces are not two spheres or a
   sphere on a flat: a flat or curved striker face, cylinders, a spherical body face
   (:func:`hertzchain.elements.contact_constants`, Johnson's elliptical Hertz contact);
-- a drive without a striker (``Model.drive``, :mod:`hertzchain.crystal.drive`): no striker
-  body (mass 0, at rest); no contact 0 for a force drive, the massless driver's contact for a
-  displacement drive (the driver then applies the precompression);
+- no striker (``Model.striker = None``, or a ``Model.drive`` without one,
+  :mod:`hertzchain.crystal.drive`): no striker body (mass 0, at rest); no contact 0 (with no drive
+  or a force drive), the massless driver's contact for a displacement drive (the driver then
+  applies the precompression; with ``striker = None`` its face is a flat of bead 1's material);
 - the static state: every body of mass m feels m g along the chain (``gravity``), bead 1 is
   pushed by the precompression F0, the beads of ``Model.loads`` by their static forces, and contact
   j carries what bodies 0..j weigh and are pushed with, S_j = sum_{i <= j} f_i, at the overlap
@@ -66,7 +67,7 @@ STANDARD_GRAVITY = 9.80665
 
 def _faces(model) -> tuple[Face | None, list[Face], Face | None]:
     """The striker's face, every bead's face and the wall's face (None: a flat wall's default)."""
-    s = model.striker
+    s = model.body0
     k = 0.0 if s.face_radius is None else 1.0 / s.face_radius
     striker = Face(k, k, 0.0, s.material, "the flat striker" if s.shape == "flat" else "the striker")
     chain = model.chain
@@ -84,7 +85,7 @@ def _special_contacts(model) -> list[int]:
     """Contacts whose faces are not those of the sphere formulas of ``Model.system()``."""
     n = model.chain.n_beads
     out = set()
-    s = model.striker
+    s = model.body0
     if s.shape == "flat" or s.radius_of_curvature is not None:
         out.add(0)
     for i, el in enumerate(model.chain.elements):
@@ -142,8 +143,9 @@ def extend(model, parts: dict) -> dict:
         kappa[j], fy[j] = contact_constants(faces[j], faces[j + 1], _contact_field(model, j))
 
     drive = model.drive
-    driver = drive is not None and not drive.striker and drive.quantity == "displacement"
-    if drive is not None and not drive.striker:
+    no_striker = model.striker is None or (drive is not None and not drive.striker)
+    driver = no_striker and drive is not None and drive.quantity == "displacement"
+    if no_striker:
         # no striker: a force drive has no contact 0; a displacement drive's massless driver (an
         # immovable body whose position the drive prescribes) takes the striker's place
         mass[0], inv_mass[0] = 0.0, 0.0

@@ -159,7 +159,8 @@ def equilibrium(model) -> Equilibrium:
     u[n + 1] = system.mount_d0
     for j in range(n, -1, -1):
         u[j] = u[j + 1] + d0[j]
-    r = np.concatenate([[model.striker.diameter / 2], model.chain.radii])
+    # no striker: body 0 is a point at bead 1's face (a displacement drive's flat driver)
+    r = np.concatenate([[0.0 if model.striker is None else model.striker.diameter / 2], model.chain.radii])
     x = np.concatenate([[-(r[0] + r[1])], np.cumsum(np.concatenate([[0.0], r[1:-1] + r[2:]]))])
     return Equilibrium(overlaps=d0, forces=held, displacements=u[: n + 1], positions=x + u[: n + 1],
                        mount_deflection=float(system.mount_d0), external=fext.copy(),
