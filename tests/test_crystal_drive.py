@@ -152,8 +152,8 @@ def test_history_drive_from_a_csv(tmp_path):
 @pytest.mark.slow
 def test_a_dimer_with_a_defect_rectifies():
     """Ten 10 mm / 6 mm steel cells under F0 = 1 N with a 4 mm defect at bead 3, ended by the wall,
-    driven at 0.98 x its lowest in-gap mode (12.4 kHz) from bead 1, and the same chain reversed
-    (the defect near the wall, a 6 mm bead driven). Transmitted: the wall force's dynamic RMS x
+    driven at 0.98 x its lowest in-gap mode (12.4 kHz) from bead 1, and the same chain driven from
+    bead N (drive.end = 'last': bead 1 on the wall, the defect near it, a 6 mm bead driven). Transmitted: the wall force's dynamic RMS x
     sqrt(2) over the drive amplitude (every frequency: a driven gap passes energy to other
     frequencies). Measured: 6.6e-5 against 9.6e-5 at 0.01 N (ratio 0.69: the linear chain, nearly
     symmetric), 8.1e-4 against 5.7e-2 at 0.3 N (ratio 0.014: one direction passes 70 times more),
@@ -162,23 +162,72 @@ def test_a_dimer_with_a_defect_rectifies():
 
     beads = [10e-3, 6e-3] * 10
     beads[2] = 4e-3
-    chains = {"defect first": hc.Chain(beads), "defect last": hc.Chain(beads[::-1])}
+    chain = hc.Chain(beads)
     law = hc.Dashpot(3.0)
-    mds = hc.modes(hc.Model(chains["defect first"], law=law, precompression=1.0))
+    mds = hc.modes(hc.Model(chain, striker=None, law=law, precompression=1.0))
     low, high = hc.dispersion(hc.Chain([10e-3, 6e-3]), 1.0).attrs["gaps"][0]
     f = 0.98 * mds.frequencies[(mds.frequencies > low) & (mds.frequencies < high)][0]
     period = 1.0 / f
 
-    def transmitted(chain, amplitude):
-        model = hc.Model(chain, law=law, precompression=1.0,
-                         drive=hc.Drive(amplitude=amplitude, frequency=f, ramp_cycles=20))
+    def transmitted(end, amplitude):
+        model = hc.Model(chain, striker=None, law=law, precompression=1.0,
+                         drive=hc.Drive(amplitude=amplitude, frequency=f, ramp_cycles=20, end=end))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", hc.ElasticLimitWarning)
-            ds = hc.simulate(model, 220 * period, hc.Probes(period / 32, contacts=(chain.n_beads,)))
+            ds = hc.simulate(model, 220 * period, hc.Probes(period / 32, contacts=(0, chain.n_beads)))
         wall = ds.wall_force.values[ds.time.values > 150 * period]
         return np.std(wall) * np.sqrt(2) / amplitude
 
-    small = transmitted(chains["defect first"], 0.01) / transmitted(chains["defect last"], 0.01)
-    large = transmitted(chains["defect first"], 0.3) / transmitted(chains["defect last"], 0.3)
+    small = transmitted("first", 0.01) / transmitted("last", 0.01)
+    large = transmitted("first", 0.3) / transmitted("last", 0.3)
     assert 0.5 < small < 2.0
     assert large < 0.1 * small
+
+
+def test_a_drive_entering_at_either_end():
+    """drive.end = 'last': bead N driven, bead 1 resting on the wall, the wall contact (contact 0)
+    transmitting. A symmetric chain transmits the same from either end (1e-12: the same chain read
+    from bead N); an asymmetric one matches the linear response assembled here by hand for that
+    layout (wall-bead 1 a sphere-flat contact, a force on bead N) to 1e-3; the equilibrium and the
+    modes come in the model's numbers; a free end and a striker are refused naming the field."""
+    law, f0 = hc.Dashpot(20.0), 10.0
+    settings = SpectrumSettings(settle_cycles=200, measure_cycles=10)
+
+    def model(chain, end):
+        return hc.Model(chain, striker=None, law=law, precompression=f0,
+                        drive=hc.Drive(amplitude=1e-3, frequency=1000.0, end=end))
+
+    symmetric = hc.Chain([10e-3, 8e-3, 8e-3, 10e-3])
+    for f in (3e3, 12e3):
+        first, last = transmission_run(model(symmetric, "first"), f, settings), \
+            transmission_run(model(symmetric, "last"), f, settings)
+        assert last[0] == pytest.approx(first[0], rel=1e-12)
+    chain = hc.Chain([12e-3, 10e-3, 6e-3, 8e-3])
+    driven = model(chain, "last")
+    theta = hc.get_material("AISI52100").theta
+    r = chain.radii
+    kap = [1.0 / (2 * theta * np.sqrt(1 / r[0]))]  # the wall's flat against bead 1 (paper eq. 1)
+    kap += [1.0 / (2 * theta * np.sqrt(1 / r[i] + 1 / r[i + 1])) for i in range(3)]
+    k = [1.5 * x ** (2 / 3) * f0 ** (1 / 3) for x in kap]
+    kmat = np.diag([k[0] + k[1], k[1] + k[2], k[2] + k[3], k[3]])
+    for i in range(3):
+        kmat[i, i + 1] = kmat[i + 1, i] = -k[i + 1]
+    cmat = np.diag([2 * 20.0] * 3 + [20.0]) - 20.0 * (np.eye(4, k=1) + np.eye(4, k=-1))  # the dashpots' pattern
+    for f in (3e3, 9e3, 15e3):
+        w = 2 * np.pi * f
+        x = np.linalg.solve(kmat - w * w * np.diag(chain.masses) + 1j * w * cmat, [0, 0, 0, 1.0])
+        expected = abs((k[0] + 1j * w * 20.0) * x[0])
+        assert hc.linear_transmission(driven, [f])[0] == pytest.approx(expected, rel=1e-9)
+        assert transmission_run(driven, f, settings)[0] == pytest.approx(expected, rel=1e-3)
+    eq = hc.equilibrium(driven)
+    assert eq.forces[-1] == 0.0 and np.all(eq.forces[:-1] == pytest.approx(f0, rel=1e-12))
+    np.testing.assert_allclose(eq.overlaps[0], (f0 / kap[0]) ** (2 / 3), rtol=1e-12)
+    mds = hc.modes(driven)
+    assert mds.labels == ["bead 1", "bead 2", "bead 3", "bead 4"]
+    np.testing.assert_allclose(mds.matrices.stiffness, kmat, rtol=1e-12)
+    with pytest.raises(hc.ConfigError, match="drive.end"):
+        hc.Model(chain, wall=hc.Wall("none"), drive=hc.Drive(end="last"))
+    with pytest.raises(hc.ConfigError, match="drive.end"):
+        hc.Drive(end="middle")
+    with pytest.raises(hc.ConfigError, match="drive.striker"):
+        hc.Drive(end="last", striker=True)

@@ -418,10 +418,8 @@ class Model:
     chain
         The beads.
     striker
-        The impacting sphere (body 0); None: no striker, as in a precompressed crystal that a
-        ``drive`` excites (or that :func:`hertzchain.modes` analyses): body 0 is absent (no mass,
-        no contact 0), or is a displacement drive's massless driver (then a flat of bead 1's
-        material pressed on bead 1).
+        The impacting sphere (body 0); None: no striker (a crystal that a ``drive`` excites): no
+        body 0 and contact 0, or a displacement drive's driver, a flat of bead 1's material.
     wall
         The end condition (default: immovable flat of the chain's material).
     law
@@ -463,11 +461,9 @@ class Model:
         object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
-        if self.striker is None and self.chain.n_beads == 0:
-            raise ConfigError("chain.uniform.n", "a model without a striker needs at least one bead")
-        if self.chain.n_beads == 0 and not self.wall.present:
-            raise ConfigError("chain.uniform.n", "a chain of zero beads needs a wall or a body for the striker to hit "
-                              "(wall.type = 'none' leaves it flying)")
+        if self.chain.n_beads == 0 and (self.striker is None or not self.wall.present):
+            raise ConfigError("chain.uniform.n", "a chain of zero beads needs a striker and a wall or a body for it to "
+                              "hit (wall.type = 'none' leaves it flying)")
         if self.chain.n_beads == 0 and self.precompression > 0:
             raise ConfigError("chain.precompression", "a chain of zero beads has nothing to precompress")
         if self.precompression > 0 and not self.wall.present:
@@ -492,7 +488,7 @@ class Model:
         if hasattr(self.law, "limiting_pressure_factor"):
             # a law with a limiting pressure (Thornton's) needs it at every contact; a material without
             # a yield stress would silently stay elastic (plastic work 0, yield_force NaN)
-            used = [*self._striker_materials, *self.chain.materials] + ([self.wall_material] if self.wall.present else [])
+            used = [self.body0.material, *self.chain.materials] + ([self.wall_material] if self.wall.present else [])
             bare = next((m for m in used if m.yield_stress is None), None)
             if bare is not None:
                 raise ConfigError(f"materials.{bare.name}.yield_stress",
@@ -504,22 +500,16 @@ class Model:
                               "(chain.gravity, chain.precompression): give its mount a stiffness in N/m")
 
     def _check_drive(self) -> None:
-        """A drive is a :class:`hertzchain.Drive` (checked by its own constructor)."""
-        if self.drive is not None and getattr(self.drive, "quantity", None) not in ("force", "displacement"):
-            raise ConfigError("drive", f"must be a hertzchain.Drive, got {self.drive!r}")
-        if self.drive is not None and self.drive.striker and self.striker is None:
-            raise ConfigError("drive.striker", "keeps the striker hitting bead 1, but the model has none (striker=None)")
+        """A drive is a :class:`hertzchain.Drive` (checked by its own constructor) that fits the model."""
+        if self.drive is not None:
+            from .crystal.drive import check_drive_fits
 
-    @property
-    def _striker_materials(self) -> list:
-        """The striker's material, or none without a striker."""
-        return [] if self.striker is None else [self.striker.material]
+            check_drive_fits(self.drive, has_striker=self.striker is not None, has_wall=self.wall.present)
 
     @property
     def body0(self) -> Striker:
-        """The striker, or without one the stand-in from which the arrays of body 0 and contact 0 are
-        computed before :mod:`hertzchain.bodies` removes them (or makes them a driver's flat face):
-        bead 1's diameter and material."""
+        """The striker, or without one a stand-in (bead 1's diameter and material, a flat face) for the
+        arrays of body 0 and contact 0, which :mod:`hertzchain.bodies` then removes (or makes a driver's)."""
         if self.striker is not None:
             return self.striker
         return Striker(float(self.chain.diameters[0]), 1.0, self.chain.materials[0], shape="flat")

@@ -111,7 +111,17 @@ def simulate_driven(model, system, duration: float, probes, *, integrator: str =
     given); probe velocities and positions are not recorded on this path (refused).
     """
     from ..result import build_dataset
+    from .ends import dataset_to_model_numbers, driven_from_last, from_driven_end, mirrored_probes
 
+    if driven_from_last(model):  # the chain read from bead N: one code path for both ends (ends.py)
+        turned = from_driven_end(model)
+        ds = simulate_driven(turned, turned.system(), duration, mirrored_probes(probes, model.chain.n_beads),
+                             integrator=integrator, dt=dt, threads=threads, progress=progress, config=config,
+                             steps_per_radian=steps_per_radian, extra_attrs=extra_attrs)
+        ds = dataset_to_model_numbers(ds, model)
+        ds["drive_force"].attrs["long_name"] = "drive force on bead N"
+        ds["drive_displacement"].attrs["long_name"] = "driver position (force drive: bead N displacement), towards the wall"
+        return ds
     drive = model.drive
     if integrator != "verlet":
         raise ConfigError("run.integrator", f"a driven chain runs on 'verlet' (a fixed step), not {integrator!r}")

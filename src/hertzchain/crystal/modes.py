@@ -55,6 +55,10 @@ class LinearChain:
 
 def linear_matrices(model) -> LinearChain:
     """Assemble M, K and C of ``model`` linearised about its equilibrium (module docstring)."""
+    from .ends import driven_from_last, from_driven_end
+
+    if driven_from_last(model):  # the chain read from bead N, its rows and contacts in the model's numbers
+        return _to_model_numbers(linear_matrices(from_driven_end(model)), model.chain.n_beads)
     eq = equilibrium(model)
     system = model.system()
     if system.law not in HERTZ_LAWS:
@@ -106,6 +110,31 @@ def linear_matrices(model) -> LinearChain:
         spring(k, index[body], row, system.res_k[body])
     return LinearChain(mass=np.diag(masses), stiffness=k, damping=c, labels=labels, index=index,
                        contact_stiffness=kc, contact_damping=cc)
+
+
+def _to_model_numbers(lin: LinearChain, n: int) -> LinearChain:
+    """``lin`` of the chain read from bead N (hertzchain.crystal.ends) with beads i -> N + 1 - i and
+    contacts j -> N - j, rows ordered as the model's (beads 1..N, the body, the resonators)."""
+    def renumbered(label: str) -> tuple[str, tuple]:
+        kind, _, number = label.partition(" ")
+        if kind in ("bead", "resonator"):
+            i = n + 1 - int(number)
+            return f"{kind} {i}", (0 if kind == "bead" else 2, i)
+        return label, (1, 0)
+
+    pairs = [renumbered(x) for x in lin.labels]
+    order = sorted(range(len(pairs)), key=lambda r: pairs[r][1])
+    row = np.empty(len(order), dtype=int)
+    row[order] = np.arange(len(order))  # new row of each old row
+    index = np.full(n + 2, -1)
+    for body in range(n + 2):
+        old = lin.index[n + 1 - body]
+        index[body] = row[old] if old >= 0 else -1
+    pick = np.ix_(order, order)
+    return LinearChain(mass=lin.mass[pick], stiffness=lin.stiffness[pick], damping=lin.damping[pick],
+                       labels=[pairs[r][0] for r in order], index=index,
+                       contact_stiffness=lin.contact_stiffness[::-1].copy(),
+                       contact_damping=lin.contact_damping[::-1].copy())
 
 
 @dataclass(frozen=True)
@@ -182,6 +211,10 @@ def linear_transmission(model, frequencies, quantity: str | None = None) -> np.n
         abs(F_out) / abs(F_in) at each frequency: the last contact's (the wall's, else contact N - 1)
         force amplitude over the drive's force amplitude on bead 1.
     """
+    from .ends import driven_from_last, from_driven_end
+
+    if driven_from_last(model):  # bead N driven, contact 0 (the wall's) transmitting: the chain read from bead N
+        return linear_transmission(from_driven_end(model), frequencies, quantity)
     lin = linear_matrices(model)
     n = model.chain.n_beads
     if quantity is None:

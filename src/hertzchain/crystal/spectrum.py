@@ -108,6 +108,8 @@ def transmission_run(model, frequency: float, settings: SpectrumSettings = Spect
     cycles = math.ceil(d.ramp_cycles + settings.settle_cycles + settings.measure_cycles)
     n = model.chain.n_beads
     out = n if model.wall.present else n - 1
+    if d.end == "last":  # bead 1 rests on the wall (hertzchain.crystal.ends)
+        out = 0
     probes = Probes(period / settings.samples_per_period, contacts=(out,))
     ds = simulate(m, cycles * period, probes, dt=settings.dt, steps_per_radian=settings.steps_per_radian)
     return steady_transmission(ds, d.frequency, settings.measure_cycles)
@@ -266,12 +268,13 @@ def preflight(model, freqs: np.ndarray, settings: SpectrumSettings) -> float:
     """Check every frequency before any run (the driven path's own checks at each, and the total
     step count); returns the estimated steps in all."""
     from .driven import MAX_DRIVE_STEPS, drive_step
+    from .ends import from_driven_end
 
     if model.drive.type != "harmonic":
         raise ConfigError("drive.type", "a transmission spectrum needs a harmonic drive ([drive] type = 'harmonic')")
     total = 0.0
     for f in freqs:
-        m = _frequency_model(model, f)
+        m = from_driven_end(_frequency_model(model, f))  # the chain the run integrates (ends.py)
         system = m.system()
         dt = settings.dt if settings.dt is not None else drive_step(system, m.drive, settings.steps_per_radian)
         if settings.dt is not None and 1.0 / (f * dt) < 50:

@@ -142,6 +142,10 @@ def equilibrium(model) -> Equilibrium:
     Equilibrium
         Overlaps [m] and forces [N] of contacts 0..N, displacements and positions [m].
     """
+    from .ends import driven_from_last, equilibrium_to_model_numbers, from_driven_end
+
+    if driven_from_last(model):  # the chain read from bead N (hertzchain.crystal.ends)
+        return equilibrium_to_model_numbers(equilibrium(from_driven_end(model)), model)
     system = model.system()
     n = system.n_beads
     fext = system.fext
