@@ -139,8 +139,11 @@ def extend(model, parts: dict) -> dict:
 
     striker_face, bead_faces, wall_face = _faces(model)
     faces = [striker_face, *bead_faces, wall_face]
-    for j in _special_contacts(model):
+    special = _special_contacts(model)
+    for j in special:
         kappa[j], fy[j] = contact_constants(faces[j], faces[j + 1], _contact_field(model, j))
+    if special and hasattr(model.law, "contact_stiffness"):  # a law's own k (the power law's) where redone here
+        kappa[special] = model.law.contact_stiffness(kappa[special])
 
     drive = model.drive
     no_striker = model.striker is None or (drive is not None and not drive.striker)
@@ -153,6 +156,7 @@ def extend(model, parts: dict) -> dict:
         if not driver:
             kappa[0], fy[0] = 0.0, np.inf
     law = model.law
+    spec = spec_of(law)
     parts["damping"] = np.where(kappa > 0, float(law.parameter), 0.0)
     if hasattr(law, "contact_damping"):  # size-scaled law: the pair's reduced mass, the body's included
         parts["damping"] = law.contact_damping(1.0 / (inv_mass[: n + 1] + inv_mass[1:]), kappa)
@@ -176,7 +180,12 @@ def extend(model, parts: dict) -> dict:
         fext[0], fext[1] = model.precompression, fext[1] - model.precompression
     held = held_forces(fext, kappa, n)
     # loaded past F_Y (elastic-plastic): along Thornton's loading line F_y + (3/2) kappa delta_y^(1/2) (delta - delta_y)
-    d0 = static_overlaps(held[: n + 1], kappa, fy if spec_of(law).plastic else None)
+    d0 = static_overlaps(held[: n + 1], kappa, fy if spec.plastic else None)
+    if spec.generated:  # where the law's force at rest is the held force (laws/solve.py)
+        from .laws.solve import static_overlap
+
+        d0 = np.array([static_overlap(spec, s, k, p) if s > 0 and k > 0 else 0.0
+                       for s, k, p in zip(held[: n + 1], kappa, parts["damping"])])
     mount_d0 = 0.0
     if wall.is_body and held[n + 1] > 0:
         if wall.stiffness == 0:  # Model refuses this before; kept as a guard for direct callers

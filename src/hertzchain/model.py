@@ -652,7 +652,7 @@ class Model:
                      yield_pressure_ratio=getattr(self.law, "pressure_ratio", 1.0))
         if self.plain:
             return System(**parts)
-        if spec.generated:
+        if spec.generated and self.drive is None and self.striker is not None:  # the driven loop takes any law
             raise ConfigError(_not_plain_field(self), f"contact.law = {spec.name!r} runs spherical strikers and beads, "
                               "a flat wall or a free end, without gravity; this model has more")
         from .bodies import extend  # the striker's face, elements, the protected body, gravity
