@@ -280,7 +280,8 @@ def run_driven_batch(models, durations, probes, *, dt: float | None = None, step
 
     Returns
     -------
-    list of (time [s], contact forces [N] (samples, recorded contacts), drive force [N])
+    list of (time [s], contact forces [N] (samples, recorded contacts), drive force [N],
+    largest force of every contact [N])
     """
     members = []
     for model, duration, pr in zip(models, durations, probes):
@@ -321,5 +322,5 @@ def run_driven_batch(models, durations, probes, *, dt: float | None = None, step
         k = k_stop
         if progress is not None:
             progress(k - 1, n_samples - 1)
-    return [(np.arange(n_samples) * pr.sample_interval, stack["out_f"][i], stack["out_e"][i, :, 4])
+    return [(np.arange(n_samples) * pr.sample_interval, stack["out_f"][i], stack["out_e"][i, :, 4], stack["fmax"][i])
             for i, pr in enumerate(probes)]
