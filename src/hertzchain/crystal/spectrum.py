@@ -285,7 +285,7 @@ def transmission_spectrum(model, frequencies, out: str | Path | None = None,
         progress(done, freqs.size)
     for start in range(0, len(todo), int(batch)):
         part = todo[start : start + int(batch)]
-        within = None if progress is None else (lambda x, d=done, k=len(part): progress(d + x * k, freqs.size))
+        within = _within(progress, done, len(part), freqs.size)
         rows.update(zip(map(float, part), transmission_batch(model, part, settings, progress=within)))
         if folder is not None:  # after every batch: an interruption loses the batch under way only
             write_text(folder / "transmission.csv", _csv_text(rows))
@@ -301,6 +301,13 @@ def transmission_spectrum(model, frequencies, out: str | Path | None = None,
     ds.attrs.update(title="hertzchain transmission spectrum", model=json.dumps(model.describe()),
                     settings=json.dumps(dataclasses.asdict(settings)))
     return ds
+
+
+def _within(progress, done: int, count: int, total: int):
+    """``progress(done + fraction x count, total)`` as a batch of ``count`` members advances (None: none)."""
+    if progress is None:
+        return None
+    return lambda fraction: progress(done + fraction * count, total)
 
 
 def transmission_against_amplitude(model, frequency: float, amplitudes,
@@ -339,7 +346,7 @@ def transmission_against_amplitude(model, frequency: float, amplitudes,
     rows: list = []
     for start in range(0, amps.size, int(batch)):
         part = amps[start : start + int(batch)]
-        within = None if progress is None else (lambda x, d=len(rows), k=part.size: progress(d + x * k, amps.size))
+        within = _within(progress, len(rows), part.size, amps.size)
         rows += transmission_batch(model, np.full(part.size, float(frequency)), settings, amplitudes=part,
                                    progress=within)
         if progress is not None:
