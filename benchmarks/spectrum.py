@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/spectrum.py [--json PATH] [--points 20] [--settle-cycles 100]
+    python benchmarks/spectrum.py [--json PATH] [--points 20] [--settle-cycles 100] [--baseline-src DIR]
 
 The chain of ``examples/dimer_driven.toml`` (eight 10 mm / 6 mm steel cells under 1 N, dashpot
 contacts, a 1 mN force drive on bead 1), ``--points`` frequencies from 2 to 24 kHz (across its
@@ -14,6 +14,10 @@ band gap), ``--settle-cycles`` cycles after the ramp and 20 measured:
   call (one member per frequency, the members handed to the threads in turn), for batch = 4, 8 and
   all of them, and all of them on one thread (``numba.set_num_threads(1)``: what the batch saves
   besides the threads).
+
+With ``--baseline-src DIR`` (the ``src`` folder of another version, e.g. ``git archive`` of the
+commit before the batched engine) the one-at-a-time spectrum of that version runs too, in a
+subprocess (its own JIT warmed first, its wall and CPU time measured inside it), the "before".
 
 The JIT is warmed first (a two-frequency batch and one single run, short). Wall-clock and process
 CPU time (all threads, ``time.process_time``) are measured in the same run, best of ``--repeat``
@@ -47,12 +51,48 @@ def timed(fn):
     return time.perf_counter() - w0, time.process_time() - c0, out
 
 
+BASELINE = """
+import json, sys, time, warnings
+import numpy as np
+import hertzchain as hc
+from hertzchain.crystal.spectrum import SpectrumSettings, transmission_run
+warnings.simplefilter("ignore")
+config, points, settle, repeat = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
+model = hc.build_model(hc.load_config(config))
+freqs = np.linspace(2000.0, 24000.0, points)
+settings = SpectrumSettings(settle_cycles=settle, measure_cycles=20)
+transmission_run(model, float(freqs[0]), SpectrumSettings(settle_cycles=1, measure_cycles=1))
+runs = []
+for _ in range(repeat):
+    w0, c0 = time.perf_counter(), time.process_time()
+    t = [transmission_run(model, float(f), settings)[0] for f in freqs]
+    runs.append((time.perf_counter() - w0, time.process_time() - c0))
+print(json.dumps({"runs": runs, "transmission": t}))
+"""
+
+
+def baseline(src: Path, points: int, settle: float, repeat: int) -> dict:
+    """The one-at-a-time spectrum of the version whose package is in ``src``, in a subprocess."""
+    import json
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(src)}
+    run = subprocess.run([sys.executable, "-c", BASELINE, str(REPO / "examples" / "dimer_driven.toml"), str(points),
+                          str(settle), str(repeat)], env=env, capture_output=True, text=True, check=True)
+    out = json.loads(run.stdout.strip().splitlines()[-1])
+    wall, cpu = min(out["runs"])
+    return {"wall_s": wall, "cpu_s": cpu, "wall_all_s": [r[0] for r in out["runs"]],
+            "cpu_all_s": [r[1] for r in out["runs"]], "transmission": out["transmission"], "src": str(src)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--json", type=Path, default=RESULTS / "spectrum.json")
     parser.add_argument("--points", type=int, default=20)
     parser.add_argument("--settle-cycles", type=float, default=100.0)
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--baseline-src", type=Path, default=None,
+                        help="src folder of the version to compare with (its one-at-a-time spectrum)")
     args = parser.parse_args()
     quiet()
     model = hc.build_model(hc.load_config(REPO / "examples" / "dimer_driven.toml"))
@@ -91,15 +131,21 @@ def main() -> None:
             reference = values
         results[name] = {"wall_s": best[0], "cpu_s": best[1], "wall_all_s": [r[0] for r in runs],
                          "cpu_all_s": [r[1] for r in runs], "equal_to_one_at_a_time": bool(np.array_equal(values, reference))}
-    base = results["one at a time"]
+    if args.baseline_src is not None:
+        before = baseline(args.baseline_src, args.points, args.settle_cycles, args.repeat)
+        diff = float(np.max(np.abs(np.array(before.pop("transmission")) / reference - 1)))
+        results = {"before (baseline src), one at a time": {**before, "largest_relative_difference": diff},
+                   **results}
+    base = next(iter(results.values()))
     for r in results.values():
         r["wall_speedup"] = base["wall_s"] / r["wall_s"]
         r["cpu_ratio"] = r["cpu_s"] / base["cpu_s"]
     rows = [(k, f"{r['wall_s']:.2f}", f"{r['cpu_s']:.2f}", f"{r['wall_speedup']:.2f}", f"{r['cpu_ratio']:.2f}",
-             r["equal_to_one_at_a_time"]) for k, r in results.items()]
+             r.get("equal_to_one_at_a_time", f"rel. diff {r.get('largest_relative_difference', 0):.1e}"))
+            for k, r in results.items()]
     print(f"{args.points} frequencies 2-24 kHz, examples/dimer_driven.toml, {args.settle_cycles:g} settling + 20 "
           f"measured cycles; compile {compile_s['wall']:.1f} s; load {load_before[0]:.2f} -> {os.getloadavg()[0]:.2f}")
-    print(table(rows, ("spectrum", "wall s", "CPU s", "wall speed-up", "CPU / one at a time", "equal")))
+    print(table(rows, ("spectrum", "wall s", "CPU s", "wall speed-up", "CPU ratio", "equal")))
     save_json({"machine": machine_info(), "points": args.points, "settle_cycles": args.settle_cycles,
                "measure_cycles": 20, "compile_s": compile_s, "load_before": load_before,
                "load_after": os.getloadavg(), "results": results,

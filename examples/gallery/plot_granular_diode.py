@@ -19,7 +19,8 @@ of two different chains, not a reciprocal pair. Above a threshold the one-sided 
 and the response leaves the linear one: the "defect last" chain from between 0.12 and 0.26 N
 (1.1e-3 at 0.26 N, 17 times its linear value), the "defect first" chain only above 0.59 N. In
 between the chain is a diode: at 0.59 N "defect last" transmits 5.4e-3 and "defect first" 1.2e-5,
-470 times less (ratio 0.0021); at 3 N both transmit and the ratio is back to 0.063.
+470 times less (ratio 0.0021); at 3 N both transmit and the ratio is back to 0.08 (above ~1 N the
+driven chain bifurcates: there the numbers move with rounding-level changes of the step).
 Left: the defect chain's modes (two inside the gap, at 12.62 and 17.09 kHz) and the drive;
 right: transmission against the drive amplitude [N] from both ends.
 """
