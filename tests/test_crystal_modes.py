@@ -116,7 +116,8 @@ def test_dispersion_refuses_no_precompression():
 def test_a_chain_without_striker():
     """striker=None (a crystal with no impact): no body 0 and no contact 0. Its modes are those of
     the chain whose striker only touches bead 1 (no static force, no degree of freedom); a force
-    drive runs as with drive.striker = False (the same arrays, bit for bit); a displacement drive's
+    drive runs as with drive.striker = False (the same arrays, bit for bit; its plots say "no
+    striker"); a displacement drive's
     driver is a flat of bead 1's material (the sphere-flat Hertz constant 1 / (2 theta sqrt(1/R)),
     paper eq. 1); a run with nothing to excite the chain is refused naming the striker."""
     chain = hc.Chain([10e-3, 14e-3, 8e-3])
@@ -132,6 +133,9 @@ def test_a_chain_without_striker():
                     hc.Probes(5e-6))
     b = hc.simulate(hc.Model(chain, law=hc.Dashpot(5.0), precompression=F0, drive=drive), 1e-3, hc.Probes(5e-6))
     np.testing.assert_array_equal(a.contact_force.values, b.contact_force.values)
+    from hertzchain.viz.common import result_title
+
+    assert result_title(a) == "3 beads, no striker"
     shaker = hc.Model(chain, striker=None, precompression=F0, drive=hc.Drive(quantity="displacement", amplitude=1e-9))
     theta = hc.get_material("AISI52100").theta
     assert shaker.system().kappa[0] == pytest.approx(1.0 / (2 * theta * math.sqrt(2.0 / 10e-3)), rel=1e-12)
