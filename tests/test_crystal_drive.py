@@ -310,3 +310,15 @@ def test_an_interrupted_spectrum_keeps_its_finished_batches(tmp_path):
     assert seen[0] == 2  # the first batch was not run again
     whole = hc.transmission_spectrum(model, freqs, settings=settings, batch=5)
     assert resumed.transmission.values.tolist() == whole.transmission.values.tolist()
+
+
+def test_a_batch_too_big_for_memory_is_refused_before_it_runs(monkeypatch):
+    """The batch's records together are checked before anything is allocated (naming --batch)."""
+    import hertzchain.crystal.driven as driven
+
+    model = hc.Model(CHAIN, striker=None, law=hc.Dashpot(20.0), precompression=10.0,
+                     drive=hc.Drive(amplitude=1e-3, frequency=1000.0))
+    # 7,361 samples (230 cycles of 32) of 11 numbers: 0.65 MB a drive, one fits, two do not
+    monkeypatch.setattr(driven, "MAX_RECORD_BYTES", 1_000_000)
+    with pytest.raises(hc.ConfigError, match="--batch"):
+        hc.transmission_spectrum(model, [3e3, 6e3], settings=SpectrumSettings(settle_cycles=200, measure_cycles=20))

@@ -283,6 +283,12 @@ def run_driven_batch(models, durations, probes, *, dt: float | None = None, step
     list of (time [s], contact forces [N] (samples, recorded contacts), drive force [N],
     largest force of every contact [N])
     """
+    # the batch's records at once, before any is allocated (each member's own by its pre-flight)
+    size = sum((math.floor(d / pr.sample_interval + 1e-9) + 1) * (pr.recorded_contacts(m.chain.n_beads,
+               m.wall.present).size + 10) * 8 for m, d, pr in zip(models, durations, probes))
+    if len(models) > 1 and size > MAX_RECORD_BYTES:
+        raise ConfigError("--batch", f"{len(models)} drives at once would record {size / 2**30:.3g} GiB (more than "
+                          f"{MAX_RECORD_BYTES / 2**30:.0f} GiB): run fewer at a time")
     members = []
     for model, duration, pr in zip(models, durations, probes):
         system = model.system()
