@@ -133,13 +133,11 @@ def _record(k, u, v, a, g, mass, kappa, damping, d0, de, dx0, rsum, fext, ext, e
 def _fused_step(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, last, drive):
     """One step of an aligned chain with a built-in law in one pass (``kernels.step_dissipative``):
     each contact's force at the velocities predicted half a step ahead, v + (dt/2) a, then the
-    body's acceleration, with ``drive`` [N] added to bead 1's forces, and its kick and drift (when
-    ``last``: the closing half kick). Returns (dissipated power [W], bead 1's velocity at the step's
-    end [m/s]: the half-step velocity kicked by half the new acceleration)."""
+    body's acceleration with ``drive[i]`` [N] added to its forces, and its kick and drift (when
+    ``last``: the closing half kick). Returns the dissipated power [W]."""
     n = a.shape[0]
     power = 0.0
     fprev = 0.0
-    v1 = 0.0
     vq = v[0] + half * a[0]
     for i in range(n - 1):
         vq1 = v[i + 1] + half * a[i + 1]
