@@ -93,6 +93,22 @@ class Ensemble:
         ds = simulate_batch(ens, 2e-3)
     """
 
+    # Set once by _set (the instance is read-only after construction): declared for readers and mypy.
+    n_beads: int
+    has_wall: bool
+    law_name: str
+    materials: tuple
+    bead_material: np.ndarray
+    striker_material: np.ndarray
+    wall_material: np.ndarray
+    wall_material_given: bool | None
+    diameters: np.ndarray
+    offsets: np.ndarray
+    striker_diameter: np.ndarray
+    striker_velocity: np.ndarray
+    law_parameter: np.ndarray
+    precompression: np.ndarray
+
     def __init__(self, base: Model, *, n_members: int | None = None, diameters=None, offsets=None,
                  striker_velocity=None, striker_diameter=None, law_parameter=None, precompression=None) -> None:
         if not isinstance(base, Model):
