@@ -249,6 +249,13 @@ def test_registry_laws_under_a_drive():
         forces = [ds.contact_force.values for ds in runs]
         assert np.max(np.abs(forces[1] - forces[0])) < 1e-12 * np.max(np.abs(forces[0]))
         np.testing.assert_allclose(runs[1].drive_work.values, runs[0].drive_work.values, rtol=1e-9, atol=1e-25)
+    # n = 2 with its own stiffness: the step follows the law's tangent stiffness (its partials), and the
+    # elastic chain's work balance holds at the default step (2.3e-6 measured)
+    stiff = hc.Model(CHAIN, striker=None, law=hc.PowerLaw(2.0, stiffness=1e12), precompression=10.0,
+                     drive=drives["force"])
+    ds = hc.simulate(stiff, 2e-3, hc.Probes(2e-6))
+    energy = (ds.kinetic_energy + ds.potential_energy).values
+    assert np.max(np.abs(ds.drive_work.values - (energy - energy[0]))) < 1e-5 * np.max(np.abs(ds.drive_work.values))
     res = hc.Element("mim", resonator_fraction=0.3, resonator_frequency=5000.0)
     with_body = {"chain": hc.Chain([10e-3] * 4, elements=(hc.elements.SPHERE, res, hc.elements.SPHERE,
                                                           hc.elements.SPHERE)),

@@ -4,7 +4,8 @@ records). :func:`hertzchain.simulate` hands a model with a drive here.
 
 The step is fixed: dt = 1 / (steps_per_radian omega_max), omega_max a Gershgorin bound of the
 chain linearised at every contact's static force plus DRIVE_FORCE_FACTOR times the drive's force
-amplitude (the chain can ring up near a resonance), and at most 1 / (MIN_STEPS_PER_PERIOD f_max).
+amplitude (the chain can ring up near a resonance; a registry law's tangent stiffness from its
+partials there), and at most 1 / (MIN_STEPS_PER_PERIOD f_max).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from ..integrate.layout import pack
 from ..integrate.generated import is_generated
 from ..integrate.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 from ..integrate.verlet import RawRun, check_time_step
+from ..laws import law_of_code
 from .drive import drive_parameters, drive_table
 from .drive_kernel import _accelerations, kernels_for
 
@@ -49,6 +51,9 @@ def drive_force_amplitude(system, drive) -> float:
     amplitude = float(np.max(np.abs(drive.table[1]))) if drive.type == "history" else drive.amplitude
     if drive.quantity == "force":
         return amplitude
+    spec = law_of_code(system.law)
+    if spec.generated:  # the law's own force at that overlap, at rest
+        return float(spec.force(system.d0[0] + amplitude, 0.0, system.kappa[0], system.damping[0], 0.0))
     return float(system.kappa[0] * (system.d0[0] + amplitude) ** 1.5)
 
 
@@ -61,10 +66,20 @@ def drive_step(system, drive, steps_per_radian: float | None = None) -> float:
     held = held_forces(system.fext, system.kappa, n)[: n + 1]
     force = held + DRIVE_FORCE_FACTOR * drive_force_amplitude(system, drive)
     kap = system.kappa
-    with np.errstate(divide="ignore"):
-        dmax = np.where(kap > 0, (force / np.where(kap > 0, kap, 1.0)) ** (2.0 / 3.0), 0.0)
-    dmax = np.maximum(dmax, system.max_overlap())  # the striker's impact, when there is one
-    k = 1.5 * kap * np.sqrt(dmax)
+    spec = law_of_code(system.law)
+    if spec.generated:  # a registry law: its force inverted and its tangent stiffness (its partials)
+        from ..laws.solve import static_overlap
+
+        dmax = np.array([static_overlap(spec, f, kk, p) if kk > 0 and f > 0 else 0.0
+                         for f, kk, p in zip(force, kap, system.damping)])
+        dmax = np.maximum(dmax, system.max_overlap())
+        k = np.array([abs(spec.partials(d, 0.0, kk, p, 1.0)[0]) if kk > 0 and d > 0 else 0.0
+                      for d, kk, p in zip(dmax, kap, system.damping)])
+    else:
+        with np.errstate(divide="ignore"):
+            dmax = np.where(kap > 0, (force / np.where(kap > 0, kap, 1.0)) ** (2.0 / 3.0), 0.0)
+        dmax = np.maximum(dmax, system.max_overlap())  # the striker's impact, when there is one
+        k = 1.5 * kap * np.sqrt(dmax)
     nb = system.n_moving
     k = np.append(k, system.mount_k if system.body else 0.0)[: nb + 1]
     kin = np.zeros(nb) if system.res_k is None else system.res_k[:nb]
