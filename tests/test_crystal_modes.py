@@ -144,3 +144,18 @@ def test_a_chain_without_striker():
         hc.simulate(bare, 1e-3)
     with pytest.raises(hc.ConfigError, match="drive.striker"):
         hc.Model(chain, striker=None, precompression=F0, drive=hc.Drive(striker=True))
+
+
+def test_modes_of_a_registry_law():
+    """hc.modes linearises any registry law by its own dF/d(delta) at the static overlap: the power
+    law F = k delta^2 gives K = 2 k delta0 with delta0 = sqrt(F0 / k) (a hand-assembled matrix);
+    with n = 3/2 and no stiffness it is the elastic law's chain (1e-12)."""
+    chain = hc.Chain([10e-3, 14e-3, 8e-3])
+    k_law = 1e12
+    mds = hc.modes(hc.Model(chain, law=hc.PowerLaw(2.0, stiffness=k_law), precompression=F0))
+    k = 2.0 * k_law * math.sqrt(F0 / k_law)  # every contact, the wall's included, carries F0
+    kmat = np.array([[k, -k, 0.0], [-k, 2 * k, -k], [0.0, -k, 2 * k]])
+    w2 = np.sort(np.linalg.eigvals(np.diag(1.0 / chain.masses) @ kmat).real)
+    np.testing.assert_allclose(mds.frequencies, np.sqrt(w2) / (2 * math.pi), rtol=1e-10)
+    hertz = hc.modes(hc.Model(chain, law=hc.PowerLaw(1.5), precompression=F0)).frequencies
+    np.testing.assert_allclose(hertz, hc.modes(hc.Model(chain, precompression=F0)).frequencies, rtol=1e-12)

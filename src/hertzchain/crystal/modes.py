@@ -5,7 +5,8 @@ stiffness
 
     K_j = dF/d(delta) = (3/2) kappa_j delta_j^(1/2) = (3/2) kappa_j^(2/3) F_j^(1/3)
 
-(paper eq. 1 differentiated at the static force F_j); a contact that carries no static force has
+(paper eq. 1 differentiated at the static force F_j; a registry law's own dF/d(delta) there, from
+its partials, e.g. n k delta^(n - 1) for the power law); a contact that carries no static force has
 no linear stiffness (it opens or closes: the chain is not linear there). The degrees of freedom are
 the beads (their shells for mass-in-mass beads), each internal mass of a mass-in-mass bead (a
 spring k_in to its shell), a protected body (its mount k to the ground) and the striker when it
@@ -26,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..laws import law_of_code
 from ..integrate.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 from .statics import equilibrium
 
@@ -61,13 +63,18 @@ def linear_matrices(model) -> LinearChain:
         return _to_model_numbers(linear_matrices(from_driven_end(model)), model.chain.n_beads)
     eq = equilibrium(model)
     system = model.system()
-    if system.law not in HERTZ_LAWS:
+    spec = law_of_code(system.law)
+    if system.law not in HERTZ_LAWS and not spec.generated:
         raise ConfigError("contact.law", f"the linearisation K = (3/2) kappa^(2/3) F^(1/3) is that of Hertz contacts "
                           f"(the elastic, viscoelastic, dashpot and elastoplastic laws); {model.law.name!r} is not one")
     n = system.n_beads
     d0 = eq.overlaps
     loaded = (eq.forces > 0) & (system.kappa > 0)
-    kc = np.where(loaded, 1.5 * system.kappa * np.sqrt(d0), 0.0)
+    if spec.generated:  # dF/d(delta) at rest from the law's partials (its state: a first touch at 1 m/s)
+        kc = np.array([abs(spec.partials(d, 0.0, k, p, 1.0)[0]) if on else 0.0
+                       for d, k, p, on in zip(d0, system.kappa, system.damping, loaded)])
+    else:
+        kc = np.where(loaded, 1.5 * system.kappa * np.sqrt(d0), 0.0)
     cc = np.where(loaded, system.damping_coefficients(d0), 0.0)
     index = np.full(n + 2, -1)
     labels: list[str] = []
