@@ -168,7 +168,7 @@ def transmission_batch(model, frequencies, settings: SpectrumSettings = Spectrum
               for t, (m, _, pr) in zip(turned, members)]
     runs = run_driven_batch(turned, [d for _, d, _ in members], probes, dt=settings.dt,
                             steps_per_radian=settings.steps_per_radian,
-                            progress=None if progress is None else (lambda k, n: progress(k / n)))
+                            progress=None if progress is None else (lambda done, total: progress(done / total)))
     _warn_elastic_limit(turned[0], [r[3] for r in runs])
     return [_ratio(t, forces[:, 0], drive_force, m.drive.frequency, settings.measure_cycles)
             for (m, _, _), (t, forces, drive_force, _) in zip(members, runs)]
