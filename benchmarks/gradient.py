@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/gradient.py [--json PATH] [--quick]
+    python benchmarks/gradient.py [--json PATH] [--quick] [--laws]
 
 The issue's target: a full gradient for 30 variables costs at most 5 x one simulation. Measured on
 the paper's chain 1 (30 beads, 8 mm striker at 0.2 m/s, 2.5-3 ms, adaptive step) with the 30 bead
@@ -19,6 +19,11 @@ the default accuracy:
   not for the elastic-plastic law, which only the adjoint differentiates);
 - the finite-difference gradient it replaces: 31 members (the base and one step per diameter) in
   one batched call (:func:`hertzchain.simulate_batch`, all cores), as ``fit`` did.
+
+``--laws``: the registry laws instead, differentiated by the engines generated from their
+declarations (``integrate/law_derivatives.py``): chain 1 with the power law at n = 3/2 (Hertz's
+constant: the elastic problem, on the generated engines) and with Hunt-Crossley (e = 0.8, a law
+with state), at the default accuracy (saved to benchmarks/results/gradient_laws.json).
 
 Every timing is the best of N warm calls (the JIT compiled first); the machine's load average is
 saved beside them (2 shared cores: other work inflates everything, the ratios hold better).
@@ -61,6 +66,25 @@ def configs() -> dict[str, dict]:
             out[f"{name}, {spr:g} steps/rad"] = c
     plastic["run"]["steps_per_radian"] = 400.0
     out["chain1 elastic-plastic, 400 steps/rad"] = plastic
+    return out
+
+
+def law_configs() -> dict[str, dict]:
+    """Chain 1 with the registry laws (``--laws``), at the default accuracy."""
+    from hertzchain.config import read_toml
+
+    base = read_toml(REPO / "examples" / "chain1_elastic.toml")
+    base.pop("probes", None)
+    base["run"]["steps_per_radian"] = 400.0
+    out = {}
+    for name, contact, duration in (("chain1 power n = 1.5", {"law": "power", "exponent": 1.5}, None),
+                                    ("chain1 hunt_crossley e = 0.8", {"law": "hunt_crossley", "restitution": 0.8},
+                                     3.0e-3)):
+        c = copy.deepcopy(base)
+        c["contact"] = contact
+        if duration is not None:
+            c["run"]["duration"] = duration
+        out[name] = c
     return out
 
 
@@ -122,14 +146,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", type=Path, default=RESULTS / "gradient.json")
     ap.add_argument("--quick", action="store_true", help="3 repetitions instead of 7")
+    ap.add_argument("--laws", action="store_true", help="the registry laws (generated engines) instead")
     args = ap.parse_args()
+    if args.laws and args.json == RESULTS / "gradient.json":
+        args.json = RESULTS / "gradient_laws.json"
     quiet()
     repeat = 3 if args.quick else 7
     info = machine_info()
     t0 = time.perf_counter()
     results = {}
     rows = []
-    for name, cfg in configs().items():
+    for name, cfg in (law_configs() if args.laws else configs()).items():
         r = measure(cfg, repeat)
         results[name] = r
         sim, eng, adj = r["simulate"]["best_s"], r["engine"]["best_s"], r["adjoint_30"]["best_s"]

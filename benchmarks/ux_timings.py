@@ -8,9 +8,10 @@ nothing), which issue 14 found faster than redrawing (6.2 s against 14.6 s). The
 processes) are saved too: on a shared machine they vary less than the wall clock. About 2.5
 minutes on 2 cores.
 
-``--baseline-src DIR`` also times ``--from-data`` with another version's ``src`` folder first on
-``PYTHONPATH`` (the same reproduction, the two versions alternated so that both see the same
-load), e.g. the version before a change:
+``--baseline-src DIR`` also times ``reproduce`` cold (its own empty Numba cache), ``--no-figures``
+warm and ``--from-data`` with another version's ``src`` folder first on ``PYTHONPATH`` (the warm
+ones alternated with this version's so that both see the same load), e.g. the version before a
+change:
 
     git archive COMMIT src | tar -x -C /tmp/base
     .venv/bin/python benchmarks/ux_timings.py --baseline-src /tmp/base/src
@@ -85,16 +86,28 @@ def main() -> None:
         out = work / "reproduction"
         # cold: empty Numba cache, every kernel compiled in this run
         results["reproduce_cold_s"] = _run([*cli, "reproduce", "--out", str(out)], cold_env, "reproduce_cold")
+        base_env = None
+        if args.baseline_src is not None:
+            base_env = {**cold_env, "PYTHONPATH": str(args.baseline_src.resolve())}
+            results["reproduce_cold_baseline_s"] = _run(
+                [*cli, "reproduce", "--out", str(work / "base_cold")],
+                {**base_env, "NUMBA_CACHE_DIR": str(work / "numba_cache_base")}, "reproduce_cold_baseline")
         warm = [_run([*cli, "reproduce", "--out", str(out)], cold_env, "reproduce_warm") for _ in range(max(1, args.repeat - 1))]
         results["reproduce_warm_s"] = min(warm)
         results["reproduce_warm_all_s"] = warm
-        no_fig = [_run([*cli, "reproduce", "--out", str(work / "nofig"), "--no-figures"], cold_env, "no_figures")
-                  for _ in range(max(1, args.repeat - 1))]
+        no_fig, no_fig_base = [], []
+        for _ in range(max(1, args.repeat - 1)):  # alternated with the baseline's: both see the same load
+            if base_env is not None:
+                no_fig_base.append(_run([*cli, "reproduce", "--out", str(work / "nofig_base"), "--no-figures"],
+                                        {**base_env, "NUMBA_CACHE_DIR": str(work / "numba_cache_base")},
+                                        "no_figures_baseline"))
+            no_fig.append(_run([*cli, "reproduce", "--out", str(work / "nofig"), "--no-figures"], cold_env, "no_figures"))
         results["reproduce_no_figures_warm_s"] = min(no_fig)
+        if no_fig_base:
+            results["reproduce_no_figures_warm_baseline_s"] = min(no_fig_base)
         redraw, base = [], []
         for _ in range(args.repeat):
-            if args.baseline_src is not None:
-                base_env = {**cold_env, "PYTHONPATH": str(args.baseline_src.resolve())}
+            if base_env is not None:
                 base.append(_run([*cli, "reproduce", "--out", str(out), "--from-data"], base_env, "from_data_baseline"))
             redraw.append(_run([*cli, "reproduce", "--out", str(out), "--from-data"], cold_env, "from_data"))
         results["from_data_s"] = min(redraw)
@@ -119,6 +132,11 @@ def main() -> None:
     cpu = results["cpu_s"]
     rows = [("reproduce, cold (empty Numba cache): wall / CPU",
              f"{results['reproduce_cold_s']:.1f} s / {cpu['reproduce_cold']:.1f} s"),
+            *([("reproduce, cold, baseline src: wall / CPU",
+                f"{results['reproduce_cold_baseline_s']:.1f} s / {cpu['reproduce_cold_baseline']:.1f} s"),
+               ("reproduce --no-figures, warm, baseline src: wall / CPU",
+                f"{results['reproduce_no_figures_warm_baseline_s']:.1f} s / {cpu['no_figures_baseline']:.1f} s")]
+              if base else []),
             ("reproduce, warm: wall / CPU", f"{results['reproduce_warm_s']:.1f} s / {cpu['reproduce_warm']:.1f} s"),
             ("reproduce --no-figures, warm (baseline): wall / CPU",
              f"{results['reproduce_no_figures_warm_s']:.1f} s / {cpu['no_figures']:.1f} s"),

@@ -136,10 +136,6 @@ def test_engines_without_the_generated_laws_refuse_naming_the_field():
     elastic = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2))
     with pytest.raises(ConfigError, match="contact.law"):  # the GPU runs one generated law per batch
         hc.simulate_batch([model, elastic], duration=1e-4, device="cuda")
-    cfg = {"chain": {"uniform": {"n": 5, "diameter_mm": 10}}, "striker": {"diameter_mm": 8, "velocity": 0.2},
-           "contact": {"law": "power", "exponent": 2.0, "stiffness": 1e13}, "run": {"duration": 1e-4}}
-    with pytest.raises(ConfigError, match="contact.law"):  # the derivative engines take the built-in laws
-        hc.sensitivity(cfg, "striker.velocity")
     with pytest.raises(ConfigError, match="run.integrator"):
         hc.simulate(model, 1e-4, integrator="rkn4")
     with pytest.raises(ConfigError, match="striker.shape"):

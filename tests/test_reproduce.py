@@ -138,6 +138,32 @@ def test_claims_table_is_generated_from_the_run(summary):
     assert mis["lateral"]["22:0.1"]["peak_force_change"] < -0.01
 
 
+def test_every_law_variant_holds_its_restitution_trend_and_the_report_prints_the_runs(summary, tmp_path):
+    """Issue 38 item 6: the fidelity comparison runs the sized Kuwabara-Kono law beside the others
+    (its runs shared with a forked process: every law once, the run's own first); each variant
+    stores the striker's restitution at 1e-4 .. 1 m/s: the sized law's falls (1 - e ~ v^(1/5)) and
+    its striker still bounces (>= 0.93), the run's dashpot's rises, and the report quotes the
+    run's own law's trend."""
+    from hertzchain.paper.fidelity import LAW_VARIANTS, RESTITUTION_SPEEDS
+    from hertzchain.paper.report import write_report
+
+    _, s = summary
+    laws = s["fidelity"]["laws"]
+    assert list(laws) == ["dashpot_scaled", *(v for v in LAW_VARIANTS if v != "dashpot_scaled")]
+    sized, own = laws["viscoelastic_sized"], laws["dashpot_scaled"]
+    e = np.array(sized["restitution_trend"]["restitution"])
+    assert sized["restitution_trend"]["speeds"] == list(RESTITUTION_SPEEDS)
+    assert np.all(np.diff(e) < 0) and e[2] >= 0.93 and e[2] == pytest.approx(sized["striker_restitution"])
+    slope = np.polyfit(np.log(RESTITUTION_SPEEDS), np.log(1 - e), 1)[0]
+    assert slope == pytest.approx(0.2, abs=0.03)
+    assert abs(sized["chain1"]["eps_measured"] - 0.985) < 0.003
+    rising = own["restitution_trend"]["restitution"]
+    assert np.all(np.diff(rising) > 0)
+    md = write_report(tmp_path, s, {}, s["settings"])["md"].read_text(encoding="utf-8")
+    assert f"rises with the impact speed: e = {', '.join(f'{v:.3f}' for v in rising)} at 0.0001, 0.01, 0.2, 1 m/s" \
+        in " ".join(md.split())
+
+
 def _floats(x):
     if isinstance(x, dict):
         for v in x.values():

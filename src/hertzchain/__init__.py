@@ -21,7 +21,7 @@ _EXPORTS = {
     "Material": "materials", "CATALOGUE": "materials", "get_material": "materials",
     "register_material": "materials",
     "Elastic": "contact", "Viscoelastic": "contact", "ScaledViscoelastic": "contact", "Dashpot": "contact", "hertz_constant": "contact",
-    "ScaledDashpot": "contact", "Elastoplastic": "plasticity",
+    "ScaledDashpot": "contact", "SizedViscoelastic": "contact", "Elastoplastic": "plasticity",
     "PowerLaw": "laws.power", "HuntCrossley": "laws.hunt_crossley", "register_law": "laws", "LawSpec": "laws",
     "Param": "laws", "get_law": "laws",
     "yield_force": "contact",

@@ -48,12 +48,13 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .chain import Chain
-from .contact import Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic, hertz_constant
+from .contact import (Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, SizedViscoelastic, Viscoelastic,
+                      hertz_constant)
 from .errors import ConfigError
 from .integrate.verlet import run_verlet
 from .materials import Material, get_material
 from .model import Model, Striker, Wall
-from .laws import get_law
+from .laws import get_law, law_names
 
 __all__ = ["EpsMeasurement", "refine_peaks", "fit_geometric_decay", "measure_eps", "calibrate_law",
            "DEFAULT_BEADS", "DEFAULT_TRAILING_BEADS"]
@@ -256,16 +257,18 @@ MIN_EPS = 0.5
 #: loss per bead peaks near A ~ 0.3 tau and falls beyond; and each run slows as A grows).
 MAX_DAMPING_DURATIONS = 2.0
 
-#: Laws that :func:`calibrate_law` can calibrate, with the name of their parameter.
-CALIBRATED_LAWS = {"viscoelastic": "A", "viscoelastic_scaled": "A", "dashpot": "gamma", "dashpot_scaled": "gamma"}
+#: Laws that :func:`calibrate_law` can calibrate, with the name of their parameter: the built-in
+#: Kuwabara-Kono (A) and dashpot (gamma) laws and their size-scaled forms, as the registry declares
+#: them (a generated law declares no calibrated parameter: it has no calibration search).
+CALIBRATED_LAWS = {name: get_law(name).calibrated for name in law_names()
+                   if get_law(name).calibrated and not get_law(name).generated}
 
 
 def _make_law(kind: str, parameter: float, diameter: float, material: Material):
     """The law ``kind`` with ``parameter``; a size-scaled law takes the calibration beads as reference."""
     spec = get_law(kind)
-    if spec.extra.get("scaled"):
-        return (ScaledViscoelastic if spec.calibrated == "A" else ScaledDashpot)(parameter, diameter, material)
-    return (Viscoelastic if spec.calibrated == "A" else Dashpot)(parameter)
+    return spec.make({p: parameter if p == spec.calibrated else None for p in spec.param_names},
+                     Chain.uniform(1, diameter, material))
 
 
 @functools.lru_cache(maxsize=256)
@@ -308,7 +311,7 @@ def _calibrate_cached(kind: str, eps: float, diameter: float, material: Material
 
     def parameter(a: float) -> float:
         """The law's parameter for a damping time ``a`` [s]."""
-        return a if not kind.startswith("dashpot") else kap * a * math.sqrt(delta_m)
+        return a if get_law(kind).calibrated == "A" else kap * a * math.sqrt(delta_m)
 
     p0 = parameter(min(0.5 * tau * loss_target, MAX_DAMPING_DURATIONS * tau))
     z_max = math.log(parameter(MAX_DAMPING_DURATIONS * tau))
@@ -354,7 +357,7 @@ def _calibrate_cached(kind: str, eps: float, diameter: float, material: Material
 def calibrate_law(law: str, eps: float, chain: Chain | None = None, striker: Striker | None = None, *,
                   diameter: float | None = None, material: Material | str | None = None,
                   n_beads: int | None = None, beads: tuple[int, int] = DEFAULT_BEADS,
-                  xtol: float = 1e-5) -> Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot:
+                  xtol: float = 1e-5) -> Viscoelastic | ScaledViscoelastic | SizedViscoelastic | Dashpot | ScaledDashpot:
     """Contact law whose per-bead factor in a uniform chain is ``eps`` (paper Sec. III).
 
     The paper measures eps ~ 0.985 in the 26 mm monodisperse part of its chains, so the uniform
@@ -370,7 +373,9 @@ def calibrate_law(law: str, eps: float, chain: Chain | None = None, striker: Str
         ``"viscoelastic_scaled"`` (Kuwabara-Kono with A_j following each contact's collision time,
         returns :class:`ScaledViscoelastic` whose reference beads are the calibration chain's, so
         that every uniform chain of similar beads hit at the same speed by a similar striker
-        measures the same eps), ``"dashpot"`` (returns :class:`Dashpot` with gamma [N s/m]) or
+        measures the same eps), ``"viscoelastic_sized"`` (returns :class:`SizedViscoelastic`:
+        A_j following the square of each contact's collision time, the restitution falling with
+        speed while a light striker's contact loses less than the beads'), ``"dashpot"`` (returns :class:`Dashpot` with gamma [N s/m]) or
         ``"dashpot_scaled"`` (returns :class:`ScaledDashpot`: gamma_j following each contact pair,
         the same restitution for every pair at a given speed, reference beads as above).
     eps
@@ -389,7 +394,7 @@ def calibrate_law(law: str, eps: float, chain: Chain | None = None, striker: Str
 
     Returns
     -------
-    Viscoelastic or ScaledViscoelastic or Dashpot or ScaledDashpot
+    Viscoelastic or ScaledViscoelastic or SizedViscoelastic or Dashpot or ScaledDashpot
         The calibrated law (A [s] or gamma [N s/m]).
 
     Raises

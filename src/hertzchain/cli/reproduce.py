@@ -15,10 +15,13 @@ from .common import echo_warning, freeze_imports, progress_bar
 @click.option("--velocity", type=float, default=0.2, show_default=True,
               help="Striker speed [m/s] (not given in the paper; normalised results do not depend on it).")
 @click.option("--elastic", is_flag=True, help="No dissipation (default: calibrated to the paper's eps = 0.985).")
-@click.option("--law", type=click.Choice(["dashpot_scaled", "viscoelastic", "viscoelastic_scaled", "dashpot"]),
+@click.option("--law", type=click.Choice(["dashpot_scaled", "viscoelastic_sized", "viscoelastic", "viscoelastic_scaled",
+                                          "dashpot"]),
               default="dashpot_scaled", show_default=True,
               help="Dissipative contact law calibrated to eps (dashpot_scaled: a dashpot following each contact pair, "
-              "the law under which the striker also bounces like a steel ball; viscoelastic: Kuwabara-Kono, one A; "
+              "the striker bounces like a steel ball but the restitution rises with speed; viscoelastic_sized: "
+              "Kuwabara-Kono, A following the square of each contact's collision time, a steel-like bounce and a "
+              "restitution falling with speed; viscoelastic: Kuwabara-Kono, one A; "
               "viscoelastic_scaled: Kuwabara-Kono, A following each contact's collision time).")
 @click.option("--eps", type=float, default=0.985, show_default=True, help="Per-bead factor eps to calibrate to.")
 @click.option("--no-figures", is_flag=True, help="Only data and summary.json.")

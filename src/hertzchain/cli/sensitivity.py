@@ -18,7 +18,7 @@ _OPTIONS = {"variables": "--wrt", "objective": "--objective", "window": "--windo
 @click.option("--wrt", "variables", multiple=True, required=True, metavar="PATH",
               help="Config field to differentiate by (repeatable): chain.diameters_mm (every bead), "
                    "chain.diameters_mm[20], chain.diameters_mm[16:30], striker.velocity, contact.A, "
-                   "materials.AISI52100.young, ...")
+                   "materials.AISI52100.young, a registry law's contact.exponent or contact.parameters.NAME, ...")
 @click.option("--objective", default="peak_wall_force", show_default=True,
               help="Result to differentiate: peak_wall_force, peak_wall_time, time_of_flight, pulse_duration, "
                    "front_momentum_at_wall, energy_at_wall, peak_contact_force, peak_contact_force[j], "

@@ -97,10 +97,12 @@ def gradient_support(problem: DesignProblem) -> str | None:
         return f"{bad[0]} is not a real variable"
     try:
         from ..gradients.api import _prepare
+        from ..gradients.objectives import check_objective
         from ..gradients.setup import setup_derivatives
 
         cfg = parse_config(problem.base)
         _, system, _ = _prepare(cfg)
+        check_objective(problem.objectives[0], system)  # e.g. energy_at_wall of a law without Hertz's 3/2
         setup_derivatives(cfg, system, [v.path for v in problem.space.variables])
     except ConfigError as exc:
         return f"{exc.field}: {exc.message}"

@@ -49,6 +49,14 @@ def variable_unit(path: str) -> str:
     tail = path.rsplit(".", 1)[-1]
     if path in ("wall.damping",):
         return "N s/m"
+    if path.startswith("contact."):  # a law's parameter: the unit its registry entry declares
+        from ..laws import get_law, law_names
+
+        for name in law_names():
+            spec = get_law(name)
+            if tail in spec.param_names:
+                unit = spec.param(tail).unit
+                return "1" if unit == "-" else unit
     return {"velocity": "m/s", "q": "1", "precompression": "N", "mass": "kg", "A": "s", "gamma": "N s/m",
             "stiffness": "N/m",
             "density": "kg/m^3", "young": "Pa", "poisson": "1", "yield_stress": "Pa"}.get(tail.split("[")[0], "1")
@@ -319,7 +327,7 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     check_objective(objective, system)
     paths = expand_paths(cfg, variables)
     use_tangent = mode == "tangent" or (mode == "auto" and len(paths) <= TANGENT_MAX_VARIABLES
-                                        and system.law in D.TANGENT_LAWS)
+                                        and D.tangent_covers(system.law))
     check_memory(estimate_memory(cfg, system, duration, paths, use_tangent, objective))
     sd = setup_derivatives(cfg, system, paths)
     tape = D.record(system, duration, cfg.run.sample_interval, dt=cfg.run.dt,
@@ -380,7 +388,7 @@ def memory_estimate(config, variables: str | Sequence[str], *, mode: Literal["au
     _, system, duration = _prepare(cfg)
     paths = expand_paths(cfg, variables)
     tangent = mode == "tangent" or (mode == "auto" and len(paths) <= TANGENT_MAX_VARIABLES
-                                    and system.law in D.TANGENT_LAWS)
+                                    and D.tangent_covers(system.law))
     return estimate_memory(cfg, system, duration, paths, tangent).total
 
 

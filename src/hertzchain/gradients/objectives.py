@@ -41,6 +41,7 @@ import numpy as np
 
 from ..errors import ConfigError, ObjectiveUndefined, PulseNotFound
 from ..integrate import kernels
+from ..laws import law_of_code
 from . import state
 from .reading import STEP, Reading, rising, span, vertex
 from .state import BODY
@@ -105,6 +106,10 @@ def check_objective(name: str, system) -> None:
                           "peak_contact_force[j]")
     if name in _NEEDS_WALL and not system.has_wall:
         raise ConfigError("objective", f"{name} reads the wall force, but wall.type = 'none'")
+    if name == "energy_at_wall" and law_of_code(system.law).exponent != 1.5:
+        raise ConfigError("objective", f"energy_at_wall is the Hertz energy (2/5) F^(5/3) / kappa^(2/3) of the wall "
+                          f"contact; law {law_of_code(system.law).name!r} declares no Hertz exponent 3/2: use "
+                          "peak_wall_force or peak_wall_time")
     if name in ("plastic_work", "residual_overlap_max") and system.law != kernels.LAW_ELASTOPLASTIC:
         raise ConfigError("objective", f"{name} is the elastic-plastic law's: it needs contact.law = "
                           "'elastoplastic' (the other laws do no plastic work)")

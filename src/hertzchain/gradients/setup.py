@@ -19,6 +19,9 @@ Fields (units: the config's own, so ``diameters_mm`` is per mm):
   curved one (``striker.radius_of_curvature_mm``, a field of its own);
 - ``contact.A``, ``contact.gamma`` (constant or size-scaled laws); the elastic-plastic law's
   ``contact.A`` and ``contact.limiting_pressure_factor`` (its yield overlaps scale as its square);
+  a registry law's own parameters (``contact.exponent``, ``contact.stiffness``,
+  ``contact.restitution``; a user's law's ``contact.parameters.NAME``), through its object's
+  ``parameter`` and ``contact_stiffness`` (:func:`_registry_law`);
 - a protected body (``[wall] type = "body"``): ``wall.mass`` [kg], ``wall.stiffness`` [N/m] and
   ``wall.damping`` [N s/m] of its mount, and a spherical face's ``wall.radius_of_curvature_mm``;
 - ``materials.NAME.density``, ``.young``, ``.poisson``, ``.yield_stress`` for a material of the
@@ -214,8 +217,12 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     body_mass = read("wall.mass", w.mass) if body else zero + np.inf
     if body:  # a protected body: body N + 1 moves, held by its mount (contact N + 1)
         inv_mass[:, n + 1:] = 1.0 / body_mass
-    damping = _damping(cfg, read, kappa, inv_mass, d, mats)
-    plastic = get_law(cfg.contact.law).plastic
+    spec = get_law(cfg.contact.law)
+    if spec.generated:  # a registry law's k and p (Model.system)
+        kappa, damping = _registry_law(cfg, read, kappa, inv_mass)
+    else:
+        damping = _damping(cfg, read, kappa, inv_mass, d, mats)
+    plastic = spec.plastic
     ratio = read("contact.limiting_pressure_factor", cfg.contact.limiting_pressure_factor or 1.5) / 1.5 if plastic \
         else np.ones((rows, 1))
     ok = (kappa.real > 0) & np.isfinite(fy.real)
@@ -227,7 +234,10 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     mount_k = read("wall.stiffness", w.stiffness) if body else zero
     mount_c = read("wall.damping", w.damping) if body else zero
     mount_d0 = zero.astype(complex)
-    if f0[0, 0].real > 0:
+    if f0[0, 0].real > 0 and spec.generated:
+        d0[:, 1:] = _static_overlaps(spec, f0, kappa[:, 1:], damping[:, 1:])
+        fext[:, 1:2] = f0
+    elif f0[0, 0].real > 0:
         d0[:, 1:] = (f0 / kappa[:, 1:]) ** (2.0 / 3.0)
         fext[:, 1:2] = f0
         if plastic:  # statically loaded along Thornton's loading curve (Model.system)
@@ -251,6 +261,59 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
             "mount_d0": mount_d0, "dyield": dyield}
 
 
+def _registry_law(cfg, read: _Reader, kappa, inv_mass) -> tuple[np.ndarray, np.ndarray]:
+    """(kappa, damping) of a law run by the generated engines, (rows, P) complex: its stiffness k
+    and parameter p where there is a contact, as ``Model.system`` takes them from the law object
+    (``parameter``, ``contact_stiffness``, ``contact_damping``). The object is evaluated with its
+    parameters read through ``read`` (complex): a shadow of the law the config builds, its
+    declared parameters replaced. A law whose methods do not take complex numbers is refused."""
+    from ..config import build_model
+
+    spec = get_law(cfg.contact.law)
+    law = build_model(cfg).law
+    shadow = object.__new__(type(law))
+    shadow.__dict__.update(vars(law))
+    own = set(type(cfg.contact).model_fields)
+    for name in cfg.contact.law_parameters():
+        if getattr(law, name, None) is not None:
+            path = f"contact.{name}" if name in own else f"contact.parameters.{name}"
+            object.__setattr__(shadow, name, read(path, getattr(law, name)))
+    on = kappa[0].real > 0
+    try:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            damping = np.where(on, shadow.parameter, 0.0) + 0j
+            if hasattr(shadow, "contact_stiffness"):
+                kappa = np.asarray(shadow.contact_stiffness(kappa), dtype=complex)
+            if hasattr(shadow, "contact_damping"):
+                nc = kappa.shape[1]
+                mu = 1.0 / (inv_mass[:, :nc] + inv_mass[:, 1:nc + 1])
+                damping = np.asarray(shadow.contact_damping(mu, kappa), dtype=complex)
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise ConfigError("contact.law", f"gradients evaluate law {spec.name!r}'s parameter and stiffness with complex "
+                          f"numbers (the complex step), which its methods refuse ({exc}); write them with NumPy "
+                          "arithmetic (docs/guide/laws.rst)") from None
+    return np.broadcast_to(kappa, (read.rows, kappa.shape[1])).copy(), \
+        np.broadcast_to(damping, (read.rows, kappa.shape[1])).copy()
+
+
+def _static_overlaps(spec, f0, kappa, damping) -> np.ndarray:
+    """A registry law's overlap under the static force ``f0`` at every contact (rows, n) complex:
+    the real part by root finding (``laws.solve.static_overlap``, as ``Model.system``), the
+    complex step's part by the implicit function theorem on F(delta, 0, k, p) = f0:
+    delta' = (f0' - dF/dk k' - dF/dp p') / (dF/d delta), with the law's declared partials."""
+    from ..laws.solve import static_overlap
+
+    out = np.zeros(kappa.shape, dtype=complex)
+    for j in range(kappa.shape[1]):
+        k, p, f = kappa[0, j].real, damping[0, j].real, f0[0, 0].real
+        if not k > 0:
+            continue
+        d = static_overlap(spec, f, k, p)
+        fd, _, fk, fp = spec.partials(d, 0.0, k, p, 0.0)
+        out[:, j] = d + 1j * (f0[:, 0].imag - fk * kappa[:, j].imag - fp * damping[:, j].imag) / fd
+    return out
+
+
 def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
     """Per-contact law parameter (Model.system): A or gamma where kappa > 0; A_j of the size-scaled law."""
     from ..contact import collision_time_scale
@@ -258,9 +321,6 @@ def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
     k = cfg.contact
     spec = get_law(k.law)
     on = kappa[0].real > 0
-    if spec.generated:
-        raise ConfigError("contact.law", f"sensitivities of law {k.law!r} are not derived yet (the built-in laws "
-                          "before power and hunt_crossley are); run sweeps of it instead")
     if not spec.dissipative:
         return np.zeros(kappa.shape, dtype=complex)
     if spec.plastic:  # a constant A (config.build: no size scaling)
@@ -286,8 +346,9 @@ def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
     k_ref = 1.0 / (2.0 * theta * np.sqrt(4.0 / d1))
     mu_ref = 0.5 * rho * math.pi * d1**3 / 6.0
     safe = np.where(on, kappa, 1.0)
-    if spec.calibrated == "A":  # viscoelastic_scaled: A_j = A t_j / t_ref, t = (mu / kappa)^(2/5)
-        return np.where(on, a * collision_time_scale(mu, safe) / collision_time_scale(mu_ref, k_ref), 0.0)
+    if spec.calibrated == "A":  # A_j = A (t_j / t_ref)^p, t = (mu / kappa)^(2/5), p declared with the law
+        ratio = collision_time_scale(mu, safe) / collision_time_scale(mu_ref, k_ref)
+        return np.where(on, a * ratio ** spec.extra.get("size_exponent", 1.0), 0.0)
     # dashpot_scaled: gamma_j = gamma (kappa_j / kappa_ref)^(2/5) (mu_j / mu_ref)^(3/5)
     return np.where(on, a * (safe / k_ref) ** 0.4 * (mu / mu_ref) ** 0.6, 0.0)
 
@@ -419,8 +480,9 @@ _EMPTY = (np.zeros(0, dtype=np.int64), np.zeros(0))
 
 def _supported(path: str) -> str:
     return ("gradients know the continuous fields " + ", ".join(_SCALAR_FIELDS) + ", chain.diameters_mm[i], "
-            "chain.offsets_mm[i], chain.offsets_fraction[i], chain.substitutions[i].diameter_mm and "
-            "materials.NAME.{density,young,poisson,yield_stress}")
+            "chain.offsets_mm[i], chain.offsets_fraction[i], chain.substitutions[i].diameter_mm, "
+            "materials.NAME.{density,young,poisson,yield_stress} and a registry law's parameters given in the "
+            "config (contact.exponent, contact.stiffness, contact.restitution, contact.parameters.NAME)")
 #: List items that share a row of the complex step are COLOURS apart: a bead's diameter or offset
 #: moves the entries of its own bead, body and two contacts only (indices i .. i + 1 for item i),
 #: so an entry e of a shared row belongs to the one item of its colour within e - 2 .. e + 2

@@ -135,7 +135,7 @@ def _steps_dissipative(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, f
                        d0, fext, law, seed_step, seed_contact, seed_w, ptr, grad):
     """:func:`_steps_general` for an aligned viscoelastic or dashpot chain without a protected body
     (the chains ``kernels.verlet_run`` steps with its fused dissipative step): the partials of
-    ``partials.viscoelastic_partials`` / ``dashpot_partials`` written out with selects, so that
+    Kuwabara-Kono's and the dashpot's partials (``partials.law_partials``) written out with selects, so that
     LLVM vectorises the contact loop."""
     n = ab.shape[0]
     p = ptr

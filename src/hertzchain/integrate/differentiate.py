@@ -28,6 +28,8 @@ from . import adjoint as _adjoint
 from . import kernels
 from . import tangent as _tangent
 from .adjoint import STATE_U, STATE_V
+from .generated import is_generated
+from .law_derivatives import law_engines
 from .layout import PAD, Packed, pack
 from .tape import replay_group, tape_forward
 from .verlet import StepPlan, initialise, refine_peak, step_plan
@@ -162,10 +164,32 @@ def _samples(duration: float, sample_interval: float) -> int:
     return int(math.floor(duration / sample_interval + 1e-9)) + 1
 
 
-#: Contact laws the derivative engines differentiate (``contact.LAW_CODES`` values); the tangent
-#: model (forward mode) does not differentiate the elastic-plastic law (3): the adjoint does.
+#: Hand-written laws the derivative engines differentiate (engine codes); the tangent model
+#: (forward mode) does not differentiate the elastic-plastic law (3): the adjoint does. Every
+#: law run by the generated engines is differentiated by both (:mod:`.law_derivatives`).
 LAWS = frozenset({0, 1, 2, 3})
 TANGENT_LAWS = frozenset({0, 1, 2})
+
+
+def tangent_covers(law: int) -> bool:
+    """Whether the tangent model (forward mode) differentiates the law of engine code ``law``."""
+    return law in TANGENT_LAWS or is_generated(law)
+
+
+def _pstore(system: System, steps: int, n: int) -> np.ndarray:
+    """The per-step state a replay stores: the elastic-plastic law's (dmax, dres, kres), a generated
+    law's state (one row), or none (a placeholder)."""
+    if system.law == kernels.LAW_ELASTOPLASTIC:
+        return np.zeros((3, steps, n))
+    return np.zeros((1, steps, n)) if is_generated(system.law) else np.zeros((3, 1, 1))
+
+
+def _step_arrays(system: System) -> int:
+    """Arrays of P doubles the reverse sweep stores per step (positions; the velocities the forces
+    see; the elastic-plastic state, or a generated law's)."""
+    if system.law == kernels.LAW_ELASTOPLASTIC:
+        return 5
+    return 3 if is_generated(system.law) else 2 if system.general else 1
 
 
 def check_law(system: System, tangent: bool = False) -> None:
@@ -180,6 +204,9 @@ def check_law(system: System, tangent: bool = False) -> None:
     """
     from ..contact import LAW_CODES
 
+    if is_generated(system.law):  # a registry law (plain models only): its partials (and its state's)
+        law_engines(system.law)
+        return
     if system.law == kernels.LAW_ELASTOPLASTIC:
         if tangent:
             raise ConfigError("contact.law", "the tangent model (forward mode: trace_sensitivity, the fit's exact "
@@ -202,7 +229,8 @@ def _checkpoints(system: System, plan: StepPlan, n_samples: int, sample_interval
                  n_slots: int) -> tuple[int, int, int, int]:
     """(blocks, rows per checkpoint, blocks per checkpoint, most steps of a block) of a taped run."""
     n_blocks = (n_samples - 1) * plan.n_sub
-    rows = 6 if system.law == kernels.LAW_ELASTOPLASTIC else 3  # u, v, a (and dmax, dres, kres)
+    # u, v, a (and dmax, dres, kres; or a generated law's state)
+    rows = 6 if system.law == kernels.LAW_ELASTOPLASTIC else 4 if is_generated(system.law) else 3
     per_ckpt = rows * n_slots * 8
     ns_max = plan.stride if plan.stride > 0 else math.ceil(sample_interval / plan.n_sub / plan.dt - 1e-9)
     group = max(1, GROUP_STEPS // max(ns_max, 1), math.ceil(n_blocks * per_ckpt / CHECKPOINT_BYTES))
@@ -245,7 +273,7 @@ def engine_bytes(system: System, duration: float, sample_interval: float, dt: fl
     tape = records + state + max(1, -(-n_blocks // group)) * rows * p * 8 + max(n_blocks, 1) * 8
     if directions:  # sensitivity() tapes the run, then runs the tangents (trace_sensitivity only the latter)
         return {"tape": tape, "tangent": records + state + directions * per_dir, "steps": max(n_blocks, 1) * ns_max}
-    per_step = 5 if system.law == kernels.LAW_ELASTOPLASTIC else 2 if system.general else 1
+    per_step = _step_arrays(system)
     group_rows = group * ns_max + 1
     sweep = group_rows * (p + 1) * 8 * (per_step + 1) + (_ROWS + 16) * p * 8
     return {"tape": tape, "sweep": sweep, "group": group_rows * (p + 1) * 8 * per_step,
@@ -299,10 +327,11 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     step_end = np.zeros(n_samples, dtype=np.int64)
     fmax_k = np.zeros(nc, dtype=np.int64)
     kstar = np.full(1, -1, dtype=np.int64)
-    status = tape_forward(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
-                          w.dyield, w.dmax, w.dres, w.kres, system.law, system.general, w.wall_slot, sample_interval,
-                          plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, rec, out_f, fmax,
-                          fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group, w.ext, w.ext.shape[0] > 0)
+    forward = law_engines(system.law)[0] if is_generated(system.law) else tape_forward
+    status = forward(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
+                     w.dyield, w.dmax, w.dres, w.kres, system.law, system.general, w.wall_slot, sample_interval,
+                     plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, rec, out_f, fmax,
+                     fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group, w.ext, w.ext.shape[0] > 0)
     if status != 0:
         raise SimulationDiverged("the integration diverged (non-finite state); check the inputs")
     fpk, t_pk = refine_peak(peak)
@@ -368,15 +397,15 @@ def _replay(tape: Tape, b0: int, b1: int, stores) -> tuple[np.ndarray, np.ndarra
     n = w.n_slots
     if stores is None:
         steps = int(tape.ns_log[b0:b1].max()) * (b1 - b0) if b1 > b0 else 1
-        plastic = sy.law == kernels.LAW_ELASTOPLASTIC
         stores = (np.zeros((steps, n)), np.zeros((steps if sy.general else 1, n)), np.zeros(steps),
-                  np.zeros((3, steps if plastic else 1, n if plastic else 1)))
+                  _pstore(sy, steps, n))
     block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub
     u, v, a, g = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n), np.zeros(n + 1)
     dmax, dres, kres = np.zeros(n), np.zeros(n), w.kappa.copy()
-    replay_group(tape.ckpt[b0 // tape.group], u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
-                 w.fext, sy.law, sy.general, w.wall_slot, tape.ns_log, b0, b1, block, stores, w.dyield, dmax, dres,
-                 kres, w.ext, w.ext.shape[0] > 0)
+    replay = law_engines(sy.law)[1] if is_generated(sy.law) else replay_group
+    replay(tape.ckpt[b0 // tape.group], u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
+           w.fext, sy.law, sy.general, w.wall_slot, tape.ns_log, b0, b1, block, stores, w.dyield, dmax, dres, kres,
+           w.ext, w.ext.shape[0] > 0)
     return u, v, a
 
 
@@ -402,13 +431,11 @@ def replay_groups(tape: Tape, last_step: int):
     sy = tape.system
     n = tape.packed.n_slots
     n_blocks = (tape.time.size - 1) * tape.plan.n_sub
-    plastic = sy.law == kernels.LAW_ELASTOPLASTIC
     first = 0
     for b0 in range(0, n_blocks, tape.group):
         b1 = min(b0 + tape.group, n_blocks)
         steps = int(tape.ns_log[b0:b1].sum())
-        stores = (np.zeros((steps, n)), np.zeros((steps, n)), np.zeros(steps),
-                  np.zeros((3, steps if plastic else 1, n if plastic else 1)))
+        stores = (np.zeros((steps, n)), np.zeros((steps, n)), np.zeros(steps), _pstore(sy, steps, n))
         _replay(tape, b0, b1, stores)
         yield first, stores[0], stores[1], stores[2]
         first += steps
@@ -440,9 +467,8 @@ def replay(tape: Tape, first_group: int, last_group: int) -> tuple[int, np.ndarr
     b0, b1 = g0 * tape.group, min((last_group + 1) * tape.group, n_blocks)
     first = int(tape.ns_log[:b0].sum())
     steps = int(tape.ns_log[b0:b1].sum())
-    plastic = sy.law == kernels.LAW_ELASTOPLASTIC
     stores = (np.zeros((steps, n)), np.zeros((steps if sy.general else 1, n)), np.zeros(steps),
-              np.zeros((3, steps if plastic else 1, n if plastic else 1)))
+              _pstore(sy, steps, n))
     _replay(tape, b0, b1, stores)
     return first, stores[0], stores[2]
 
@@ -505,7 +531,7 @@ def gradient(tape: Tape, seeds: Seeds, final_dres: np.ndarray | None = None) -> 
     grad = np.zeros((_ROWS, n))
     group_steps = np.add.reduceat(tape.ns_log, np.arange(0, max(n_blocks, 1), tape.group)) if n_blocks else np.ones(1)
     max_rows = int(max(1, group_steps.max()))
-    per_step = 5 if sy.law == kernels.LAW_ELASTOPLASTIC else 2 if sy.general else 1  # arrays of P stored per step
+    per_step = _step_arrays(sy)
     if max_rows * (n + 1) * 8 * per_step > GROUP_LIMIT:
         raise ConfigError("run.dt", f"a group of {max_rows} steps between two checkpoints needs more memory than the "
                           "reverse sweep allows; use a larger run.dt or a shorter run.duration")
@@ -513,7 +539,15 @@ def gradient(tape: Tape, seeds: Seeds, final_dres: np.ndarray | None = None) -> 
     sb = np.zeros((2, n))  # adjoints of the elastic-plastic state (residual overlap, stiffness) at the end
     if final_dres is not None:
         sb[0, :final_dres.size] = final_dres
-    if n_blocks:
+    generated = law_engines(sy.law) if is_generated(sy.law) else None
+    if generated is not None and n_blocks:
+        generated[3](tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab, w.inv_mass,
+                     w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general, w.wall_slot, seeds.step,
+                     seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield, sb)
+    elif generated is not None:
+        generated[4](tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
+                     seeds.step, seeds.contact, seeds.weight, seeds.step.size, grad, sb[0])
+    elif n_blocks:
         _adjoint.reverse_sweep(tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab,
                                w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general,
                                w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield,
@@ -598,10 +632,16 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
     out_ft = np.zeros((n_dirs, n_samples, rec.size))
     dj = np.zeros(n_dirs)
     seeds = seeds or Seeds.build([])
-    status = _tangent.tangent_run(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
-                                  w.dcap, system.law, system.general, w.wall_slot, sample_interval, plan.stride,
-                                  plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, acc, th, v0t, rec,
-                                  out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj, w.ext)
+    if is_generated(system.law):  # the generated law's tangent run, its state's tangents too
+        status = law_engines(system.law)[2](u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
+                                            w.fext, w.dcap, w.dmax, sample_interval, plan.stride, plan.n_sub,
+                                            plan.n_eval, plan.c_steps, plan.relax, n_samples, acc, th, v0t, rec, out_f,
+                                            out_ft, seeds.step, seeds.contact, seeds.weight, dj)
+    else:
+        status = _tangent.tangent_run(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
+                                      w.fext, w.dcap, system.law, system.general, w.wall_slot, sample_interval,
+                                      plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, acc,
+                                      th, v0t, rec, out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj, w.ext)
     if status != 0:
         raise SimulationDiverged("the integration diverged (non-finite state); check the inputs")
     return rec, out_f, out_ft, dj

@@ -32,7 +32,9 @@ _CACHE: dict = {}
 
 
 def law_kernels(code: int):
-    """(forces, run, energy) compiled for the law of engine code ``code``; built on first use."""
+    """(forces, run, energy, stride) compiled for the law of engine code ``code``; built on first use
+    (``stride``: the adaptive step's steps per block, which the sensitivity engines' taped run,
+    :mod:`hertzchain.integrate.law_derivatives`, takes as the run does)."""
     from ..laws import law_of_code
     from ..laws.spec import compiled
 
@@ -207,7 +209,7 @@ def _build(force, update, stored, partials, inverse):
         acc[2] = step
         return 0
 
-    return forces, run, energy
+    return forces, run, energy, stride
 
 
 def is_generated(code: int) -> bool:

@@ -1,10 +1,16 @@
 """Partial derivatives of the contact forces, for the tangent and adjoint engines.
 
-Every law is one compiled function of the overlap delta (already >= 0), sqrt(delta), the rate
-d(delta)/dt, kappa and the law's damping parameter, returning the force f and its partials
-(f, df/d delta, df/d rate, df/d kappa, df/d damping), exactly for the expression
-:func:`hertzchain.integrate.kernels.forces_general` evaluates. A new law adds one such function
-and one branch in :func:`law_partials`.
+:func:`law_partials` gives a hand-written law's force, exactly as
+:func:`hertzchain.integrate.kernels.forces_general` evaluates it, and its partials as the law
+declares them in the registry (:mod:`hertzchain.laws.builtin`, checked against central
+differences in tests/test_laws.py). Laws run by the generated engines (the power law,
+Hunt-Crossley, users' laws) are differentiated by :mod:`hertzchain.integrate.law_derivatives`
+from their declarations alone; the fused aligned paths of the tangent and adjoint
+(``tangent._aligned_contact``, ``adjoint._steps_dissipative``) keep Kuwabara-Kono's and the
+dashpot's partials written out with selects, so that LLVM vectorises them. The forces and hence
+every taped value are bit for bit those of before the partials came from the registry; of the
+partials only Kuwabara-Kono's dF/d delta on the general path (offsets, a protected body) is
+written differently there, so its gradients change at rounding level (~1e-16 relative a step).
 
 :func:`contact_partials` wraps a law in the geometry of the contact (aligned, or misaligned:
 delta = R_j + R_{j+1} - sqrt(dx^2 + de^2), axial force f dx / d; docs/conventions.rst) and
@@ -35,46 +41,41 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..laws import law_of_code
+from ..laws.spec import compiled
 from .kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC, elastoplastic_force
 
 
-@njit(cache=True, nogil=True, inline="always")
-def elastic_partials(d, sd, rate, kappa, damping):
-    """Hertz, paper eq. 1: f = kappa delta^(3/2)."""
-    return kappa * d * sd, 1.5 * kappa * sd, 0.0, d * sd, 0.0
-
-
-@njit(cache=True, nogil=True, inline="always")
-def viscoelastic_partials(d, sd, rate, kappa, damping):
-    """Kuwabara-Kono: f = kappa (delta^(3/2) + A delta^(1/2) d(delta)/dt), clipped at zero."""
-    f = kappa * d * sd + kappa * damping * sd * rate  # the expression of kernels.forces_general
-    if f <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0
-    fd = kappa * (1.5 * sd + 0.5 * damping * rate / sd) if sd > 0.0 else 0.0
-    return f, fd, kappa * damping * sd, d * sd + damping * sd * rate, kappa * sd * rate
-
-
-@njit(cache=True, nogil=True, inline="always")
-def dashpot_partials(d, sd, rate, kappa, damping):
-    """Hertz with a linear dashpot: f = kappa delta^(3/2) + gamma d(delta)/dt, clipped at zero."""
-    f = kappa * d * sd + damping * rate
-    if f <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0
-    return f, 1.5 * kappa * sd, damping, d * sd, rate
+#: The built-in laws' partials as their registry entries declare them (:mod:`hertzchain.laws.builtin`:
+#: (dF/d delta, dF/d rate, dF/dkappa, dF/dp), the same functions every engine and the laws' tests read).
+_ELASTIC = compiled(law_of_code(LAW_ELASTIC).partials)
+_VISCOELASTIC = compiled(law_of_code(LAW_VISCOELASTIC).partials)
+_DASHPOT = compiled(law_of_code(LAW_DASHPOT).partials)
 
 
 @njit(cache=True, nogil=True, inline="always")
 def law_partials(law, d, sd, rate, kappa, damping):
     """(f, df/d delta, df/d rate, df/d kappa, df/d damping) of contact law ``law`` (LAW_CODES).
 
-    f is computed with the very expression of ``kernels.forces_general``, so that a step taken with
-    these forces is the engine's step bit for bit (:mod:`hertzchain.integrate.tangent`)."""
+    f is computed with the very expression of ``kernels.forces_general`` (clipped at zero for the
+    dissipative laws: no partials there), so that a step taken with these forces is the engine's
+    step bit for bit (:mod:`hertzchain.integrate.tangent`); the partials are the law's declared
+    ones (:data:`_ELASTIC` ...)."""
     if law == LAW_ELASTIC:
-        return elastic_partials(d, sd, rate, kappa, damping)
+        fd, fr, fk, fa = _ELASTIC(d, rate, kappa, damping, 0.0)
+        return kappa * d * sd, fd, fr, fk, fa
     if law == LAW_VISCOELASTIC:
-        return viscoelastic_partials(d, sd, rate, kappa, damping)
+        f = kappa * d * sd + kappa * damping * sd * rate  # Kuwabara-Kono
+        if f <= 0.0:
+            return 0.0, 0.0, 0.0, 0.0, 0.0
+        fd, fr, fk, fa = _VISCOELASTIC(d, rate, kappa, damping, 0.0)
+        return f, fd, fr, fk, fa
     if law == LAW_DASHPOT:
-        return dashpot_partials(d, sd, rate, kappa, damping)
+        f = kappa * d * sd + damping * rate  # Hertz with a linear dashpot
+        if f <= 0.0:
+            return 0.0, 0.0, 0.0, 0.0, 0.0
+        fd, fr, fk, fa = _DASHPOT(d, rate, kappa, damping, 0.0)
+        return f, fd, fr, fk, fa
     return np.nan, np.nan, np.nan, np.nan, np.nan  # unknown law: poisons the result (refused upstream)
 
 

@@ -39,7 +39,29 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["read_isf", "read_trc"]
+__all__ = ["read_isf", "read_trc", "MAX_SAMPLES", "BYTES_PER_SAMPLE", "check_samples"]
+
+#: Most samples one record may hold: 5e7 (a 50 ms record at 1 GS/s; a bead-chain pulse needs
+#: 1e3-1e6). A header declaring more, or a text file with more rows, is refused before any sample
+#: is read (the reader's arrays would take BYTES_PER_SAMPLE each: 2.4 GB).
+MAX_SAMPLES = 50_000_000
+#: Memory the reading takes a sample [bytes]: the codes, time and signal as float64, their SI copies.
+BYTES_PER_SAMPLE = 48
+
+
+def check_samples(n: int, field_name: str, where: str) -> None:
+    """Refuse a record of ``n`` samples above :data:`MAX_SAMPLES` or above what half the memory
+    available holds (:func:`hertzchain.checks.available_memory`), naming the header field (or
+    what counted them) that declares it. Called before any sample is read."""
+    from .. import checks
+
+    limit, why = MAX_SAMPLES, "hertzchain reads records of at most"
+    memory = checks.available_memory()
+    if memory is not None and memory // (2 * BYTES_PER_SAMPLE) < limit:
+        limit, why = memory // (2 * BYTES_PER_SAMPLE), "half the memory available holds"
+    if n > limit:
+        raise ConfigError(where, f"{field_name} declares {n} samples; {why} {limit} samples "
+                          f"({BYTES_PER_SAMPLE} bytes each as read): cut or decimate the record on the scope")
 
 
 @dataclass
@@ -120,15 +142,25 @@ def _choice(hdr: dict, key: str, where: str, default: str, allowed: dict[str, st
     return allowed[raw]
 
 
-def read_isf(path: Path, raw: bytes) -> _Table:
+#: The WFMPRE header lies in a file's first bytes (~500 of them; at most this many are searched).
+_ISF_HEAD = 1 << 16
+#: Bytes an ASCII CURVE point may take (a float's repr and its comma).
+_ISF_ASCII_POINT = 32
+
+
+def read_isf(path: Path, raw) -> _Table:
     """Decode a Tektronix ``.isf`` file (see the module docstring for the variants).
+
+    The header is read from the file's first bytes and checked, NR_PT against
+    :func:`check_samples` and against the bytes the file holds, before the samples: of a
+    memory-mapped file only the declared CURVE block is then read.
 
     Parameters
     ----------
     path : Path
         The file (for messages).
-    raw : bytes
-        Its content.
+    raw : bytes or mmap.mmap
+        Its content (slices of it are read, never the whole).
 
     Returns
     -------
@@ -137,10 +169,13 @@ def read_isf(path: Path, raw: bytes) -> _Table:
         integer samples.
     """
     where = str(path)
-    head = raw.lstrip()
+    window = bytes(raw[:_ISF_HEAD])
+    lead = len(window) - len(window.lstrip())
+    head = window[lead:]
     m = re.search(rb":CURV[A-Za-z]*", head)
     if head[:5].upper() not in (b":WFMP", b":WFMO") or m is None:
-        raise ConfigError(where, "is not a Tektronix .isf file (no ':WFMPRE:' header or ':CURVE' block)")
+        raise ConfigError(where, "is not a Tektronix .isf file (no ':WFMPRE:' header or ':CURVE' block in its "
+                          f"first {_ISF_HEAD // 1024} KiB)")
     hdr = _isf_header(head[:m.start()].decode("latin-1"))
     ascii_enc = _choice(hdr, "ENCDG", where, "BIN", {"BIN": "BIN", "BINARY": "BIN", "ASC": "ASC",
                                                      "ASCII": "ASC"}) == "ASC"
@@ -168,18 +203,23 @@ def read_isf(path: Path, raw: bytes) -> _Table:
     n = _field_count(hdr, "NR_PT", where, None, "the number of points, at least 1")
     if n < 1:
         raise ConfigError(where, f"header field NR_PT is {n}; a record has at least one point")
+    check_samples(n, "header field NR_PT", where)
     xincr = _field_number(hdr, "XINCR", where, positive=True)
     xzero = _field_number(hdr, "XZERO", where)
     pt_off = _field_number(hdr, "PT_OFF", where, 0.0)
     ymult = _field_number(hdr, "YMULT", where, nonzero=True)
     yzero = _field_number(hdr, "YZERO", where, 0.0)
     yoff = _field_number(hdr, "YOFF", where, 0.0)
-    rest = head[m.end():].lstrip()
+    at = lead + m.end()
+    at += len(window[at:at + 64]) - len(window[at:at + 64].lstrip())  # the blanks before the block
     dtype = np.dtype(f"{order}{kind}{width}")
     if ascii_enc:
-        codes = _isf_ascii(rest, n, where)
+        if len(raw) - at > n * _ISF_ASCII_POINT + 64:
+            raise ConfigError(where, f"the ASCII CURVE holds {len(raw) - at} bytes, far more than header field NR_PT "
+                              f"{n} points can fill (at most {_ISF_ASCII_POINT} bytes a point)")
+        codes = _isf_ascii(bytes(raw[at:]), n, where)
     else:
-        codes = np.frombuffer(_isf_block(rest, n * width, n, width, where), dtype=dtype).astype(float)
+        codes = np.frombuffer(_isf_block(raw, at, n * width, n, width, where), dtype=dtype).astype(float)
     if codes.size != n:
         raise ConfigError(where, f"the curve holds {codes.size} points, header field NR_PT says {n}")
     with np.errstate(over="ignore", invalid="ignore"):  # beyond float range: refused by read_trace's checks
@@ -195,29 +235,30 @@ def read_isf(path: Path, raw: bytes) -> _Table:
                   np.zeros(n, int), hdr, "tektronix-isf", valid_max, quantum)
 
 
-def _isf_block(rest: bytes, nbytes_expected: int, n: int, width: int, where: str) -> bytes:
-    """The bytes of the binary CURVE block ``#<n><length><bytes>`` (``#0<bytes>``: indefinite length)."""
-    if not rest.startswith(b"#") or len(rest) < 2 or not rest[1:2].isdigit():
-        raise ConfigError(where, f"the CURVE block starts with {rest[:12]!r}, not an IEEE 488.2 block "
+def _isf_block(raw, at: int, nbytes_expected: int, n: int, width: int, where: str) -> bytes:
+    """The bytes of the binary CURVE block ``#<n><length><bytes>`` (``#0<bytes>``: indefinite length)
+    starting at byte ``at`` of ``raw``; its declared length is checked against NR_PT and against the
+    bytes the file holds before the samples are read."""
+    lead = bytes(raw[at:at + 11])
+    if not lead.startswith(b"#") or len(lead) < 2 or not lead[1:2].isdigit():
+        raise ConfigError(where, f"the CURVE block starts with {lead[:12]!r}, not an IEEE 488.2 block "
                           "'#<digits><length>' (ENCDG BIN)")
-    ndig = int(rest[1:2])
+    ndig = int(lead[1:2])
     if ndig == 0:  # indefinite length: the samples, then a line feed
-        payload = rest[2:2 + nbytes_expected]
-        announced = nbytes_expected
+        start, announced = at + 2, nbytes_expected
     else:
-        text = rest[2:2 + ndig]
+        text = lead[2:2 + ndig]
         if len(text) != ndig or not text.isdigit():
-            raise ConfigError(where, f"the CURVE block header {rest[:2 + ndig]!r} does not give its length in "
+            raise ConfigError(where, f"the CURVE block header {lead[:2 + ndig]!r} does not give its length in "
                               f"{ndig} digits")
-        announced = int(text)
-        payload = rest[2 + ndig:2 + ndig + announced]
+        start, announced = at + 2 + ndig, int(text)
     if announced != nbytes_expected:
         raise ConfigError(where, f"the CURVE block holds {announced} bytes, header fields NR_PT {n} x BYT_NR {width} "
                           f"say {nbytes_expected}")
-    if len(payload) != announced:
-        raise ConfigError(where, f"the CURVE block holds {len(payload)} of its {announced} bytes: the file is "
-                          "truncated")
-    return payload
+    held = max(0, min(len(raw) - start, announced))
+    if held != announced:
+        raise ConfigError(where, f"the CURVE block holds {held} of its {announced} bytes: the file is truncated")
+    return bytes(raw[start:start + announced])
 
 
 def _isf_ascii(rest: bytes, n: int, where: str) -> np.ndarray:
@@ -304,6 +345,7 @@ def read_trc(path: Path, raw: bytes) -> _Table:
     n = lengths["WAVE_ARRAY_COUNT"]
     if n < 1:
         raise ConfigError(where, "WAVE_ARRAY_COUNT is 0: the file holds no samples")
+    check_samples(n, "WAVE_ARRAY_COUNT", where)
     if lengths["WAVE_ARRAY_1"] != n * width:
         raise ConfigError(where, f"WAVE_ARRAY_1 is {lengths['WAVE_ARRAY_1']} bytes, WAVE_ARRAY_COUNT {n} samples of "
                           f"{width} byte(s) (COMM_TYPE {comm_type}) are {n * width}")
@@ -323,10 +365,11 @@ def read_trc(path: Path, raw: bytes) -> _Table:
         raise ConfigError(where, f"HORIZ_OFFSET is {h_offset}; it must be a finite time")
     start = base + sum(lengths[k] for k in ("WAVE_DESCRIPTOR", "USER_TEXT", "TRIGTIME_ARRAY", "RIS_TIME_ARRAY",
                                             "RES_ARRAY1"))
-    payload = raw[start:start + n * width]
-    if len(payload) != n * width:
-        raise ConfigError(where, f"the data array holds {len(payload)} of its {n * width} bytes (WAVE_ARRAY_1): the "
+    held = max(0, min(len(raw) - start, n * width))
+    if held != n * width:  # checked on the file's size, before the array is read
+        raise ConfigError(where, f"the data array holds {held} of its {n * width} bytes (WAVE_ARRAY_1): the "
                           "file is truncated")
+    payload = raw[start:start + n * width]
     dtype = np.dtype(f"{e}i{width}")
     codes = np.frombuffer(payload, dtype=dtype).astype(float)
     index = np.arange(n, dtype=float)

@@ -36,6 +36,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..instrument import PCB_200B02_MV_PER_N, PCB_208A11_MV_PER_N
 from .formats import _Table, read_isf, read_trc
+from .textlayout import _layout, _number
 from .units import KINDS as UNIT_KINDS, UnitError, parse_unit
 
 __all__ = ["read_trace", "SENSOR_PRESETS", "PLAUSIBLE_SAMPLE_INTERVAL", "PLAUSIBLE_RECORD_LENGTH"]
@@ -53,7 +54,6 @@ PLAUSIBLE_RECORD_LENGTH = (1e-5, 10.0)
 
 _TIME_NAMES = ("time", "t", "zeit", "temps", "x-axis")
 _NETCDF = (".nc", ".nc4", ".netcdf", ".cdf", ".h5")
-_INF = {"∞": math.inf, "+∞": math.inf, "-∞": -math.inf, "inf": math.inf, "-inf": -math.inf}
 
 
 def _unit_factor(unit: str, where: str) -> tuple[float, str]:
@@ -74,15 +74,23 @@ def _unit_factor(unit: str, where: str) -> tuple[float, str]:
     return factor, kind
 
 
+#: Bytes of a text file read before its layout is known: its header, its first data lines (and the
+#: whole of a small file). A larger file's rows are then counted from its size and parsed by pandas.
+TEXT_HEAD = 1 << 20
+
+
 def _read_file(path: Path, suffix: str) -> _Table:
     """A scope file's table, its header looked at before its bulk is read.
 
     The file is opened as a received one (:func:`hertzchain.received.open_received`: a regular
     file, so a FIFO cannot hang the command) and its first bytes say the format. A LeCroy
-    ``.trc`` is then memory-mapped: :func:`~hertzchain.lab.formats.read_trc` checks the
-    descriptor and copies only the data array the descriptor declares, so a 3 GB file of which
-    the record is a few MB costs a few MB (it was read whole, 3.2 GB). Tektronix ``.isf`` and
-    delimited text are parsed whole (their length is their content).
+    ``.trc`` or Tektronix ``.isf`` is then memory-mapped: :func:`~hertzchain.lab.formats.read_trc`
+    and :func:`~hertzchain.lab.formats.read_isf` check the header (its sample count against
+    :func:`~hertzchain.lab.formats.check_samples` and the file's size) and copy only the data the
+    header declares, so a 3 GB file of which the record is a few MB costs a few MB (it was read
+    whole, 3.2 GB). Delimited text is read whole up to :data:`TEXT_HEAD`; a larger file has its
+    layout read from that head, its rows counted from its size (refused above
+    :data:`~hertzchain.lab.formats.MAX_SAMPLES`) and its numbers parsed by pandas from the file.
     """
     import mmap
 
@@ -91,119 +99,37 @@ def _read_file(path: Path, suffix: str) -> _Table:
     where = str(path)
     with open_received(path) as fh:
         size = os.fstat(fh.fileno()).st_size
-        head = fh.read(64)
-        if not size or (size <= 64 and not head.strip()):
-            raise ConfigError(where, "is empty")
-        if suffix != ".isf" and not head.startswith(b":WFMP") and (suffix == ".trc" or b"WAVEDESC" in head):
-            with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as raw:
-                return read_trc(path, raw)
         try:
-            raw = head + fh.read()
+            head = fh.read(TEXT_HEAD)
         except OSError as exc:
             raise ConfigError(where, f"cannot read the file: {exc.strerror or exc}") from None
-    if not raw.strip():
-        raise ConfigError(where, "is empty")
-    if raw.startswith(b":WFMP") or suffix == ".isf":
-        return read_isf(path, raw)
-    return _read_text(path, raw)
+        if not size or not head.strip():
+            raise ConfigError(where, "is empty")
+        isf = head.lstrip()[:5].upper() in (b":WFMP", b":WFMO") or suffix == ".isf"
+        if isf or suffix == ".trc" or b"WAVEDESC" in head[:64]:
+            with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as raw:
+                return read_isf(path, raw) if isf else read_trc(path, raw)
+        if size <= len(head):
+            return _read_text(path, head)
+        from .bigtext import read_big_text
+
+        table = read_big_text(path, fh, head, size)
+        if table is None:  # a Tektronix TDS CSV its Record Length bounds: read whole
+            fh.seek(0)
+            return _read_text(path, fh.read())
+        return table
 
 
 # ------------------------------------------------------------------------------------------
 # delimited text
 # ------------------------------------------------------------------------------------------
-def _cells(line: str, sep: str | None) -> list[str]:
-    cells = line.split() if sep is None else [c.strip().strip('"').strip() for c in line.split(sep)]
-    while cells and cells[-1] == "":
-        cells.pop()  # Tektronix and PicoScope end lines with a separator
-    return cells
-
-
-def _number(cell: str, decimal: str) -> float | None:
-    cell = cell.strip()
-    if cell in _INF:
-        return _INF[cell]
-    if decimal == ",":
-        cell = cell.replace(",", ".")
-    try:
-        return float(cell)
-    except ValueError:
-        return None
-
-
-def _numeric_row(cells: list[str], decimal: str) -> bool:
-    return bool(cells) and all(_number(c, decimal) is not None for c in cells if c != "")
-
-
-def _sniff(lines: list[str]) -> tuple[str | None, str]:
-    """Separator and decimal mark of the data lines (the last lines of the file)."""
-    from collections import Counter
-
-    sample = [ln for ln in lines[-50:] if ln.strip()]
-    for sep in (";", "\t", ","):
-        # The separator splits nearly every data line the same way (a ragged line is then
-        # reported by its number, not taken for another layout).
-        count, n = Counter(ln.count(sep) for ln in sample).most_common(1)[0]
-        if count >= 1 and n >= 0.9 * len(sample):
-            break
-    else:
-        sep = None
-    # A decimal comma: ';' / tab / blank separated numbers with commas between digits.
-    decimal = "," if sep != "," and any(re.search(r"\d,\d", ln) for ln in sample) else "."
-    return sep, decimal
-
-
 def _read_text(path: Path, raw: bytes) -> _Table:
     where = str(path)
-    if b"\x00" in raw:
-        raise ConfigError(where, "is a binary file, not text; hertzchain reads Tektronix .isf, LeCroy .trc "
-                          "and delimited text (.csv, .txt)")
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        # One rule for every text file hertzchain reads (configs, CSV): UTF-8, no guessing.
-        raise ConfigError(where, f"is not UTF-8 text (byte {exc.start} cannot be decoded); save the file "
-                          "as UTF-8 (plain ASCII numbers are fine)") from None
-    lines = text.splitlines()
-    sep_forced = None
-    if lines and lines[0].strip().lower().startswith("sep="):
-        sep_forced = lines[0].strip()[4:5] or ","
-        lines[0] = ""
-    numbered = [(i + 1, ln) for i, ln in enumerate(lines)
-                if ln.strip() and not ln.lstrip().startswith(("#", "%"))]
-    if not numbered:
-        raise ConfigError(where, "holds no data (the file is empty or only comments)")
-    first = numbered[0][1].split(",")[0].strip().strip('"')
-    if first == "Record Length":
-        return _read_tds_csv(path, numbered)
-    sep, decimal = _sniff([ln for _, ln in numbered])
-    if sep_forced is not None:
-        sep = sep_forced
-        decimal = "," if sep != "," and decimal == "," else "."
-    # The data block: the first run of three numeric rows of one width; the header above it.
-    rows = [(no, _cells(ln, sep)) for no, ln in numbered]
-    start = None
-    for k in range(len(rows)):
-        window = rows[k:k + 3]
-        if all(_numeric_row(c, decimal) for _, c in window) and len({len(c) for _, c in window}) == 1:
-            start = k
-            break
-    if start is None:
-        bad_no, bad = next(((no, c) for no, c in rows[1:] if not _numeric_row(c, decimal)), rows[0])
-        raise ConfigError(where, f"no block of numbers found (line {bad_no}: {' '.join(bad)[:60]!r} is not "
-                          "numbers); expected a time column and a signal column")
-    width = len(rows[start][1])
-    head = rows[:start]
-    units: list[str | None] = [None] * width
-    names: list[str] | None = None
-    unit_cell = re.compile(r"^\s*[\[(].*[\])]\s*$|^$")
-    if head and len(head[-1][1]) >= width - 1 and all(unit_cell.match(c) for c in head[-1][1]) \
-            and any(c for c in head[-1][1]):
-        units = [c.strip("()[] ") or None for c in head[-1][1]] + [None] * (width - len(head[-1][1]))
-        head = head[:-1]
-    if head and len(head[-1][1]) == width:
-        names = head[-1][1]
-        head = head[:-1]
-    meta = {c[0]: c[1] for _, c in head if len(c) >= 2}
+    lay = _layout(where, raw)
+    if lay.tds:
+        return _read_tds_csv(path, lay.numbered)
+    numbered, sep, decimal, start, width, names = lay.numbered, lay.sep, lay.decimal, lay.start, lay.width, lay.names
+    units, meta, rows = lay.units, lay.meta, lay.rows
     import pandas as pd
 
     body = rows[start:]

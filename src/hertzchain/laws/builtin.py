@@ -1,6 +1,7 @@
 """The built-in laws as registry entries.
 
-Hertz (paper eq. 1), Kuwabara-Kono and the linear dashpot, their size-scaled forms and Thornton's
+Hertz (paper eq. 1), Kuwabara-Kono and the linear dashpot, their size-scaled forms (``extra``:
+``scaled``, and ``size_exponent`` p of Kuwabara-Kono's A_j = A (t_j / t_ref)^p, 1 unless given) and Thornton's
 elastic-plastic law run on the hand-written engines (``generated=False``; codes 0..3 are the
 kernels' ``LAW_*``); the power law and Hunt-Crossley are written the way a user writes a law
 (:mod:`hertzchain.laws.power`, :mod:`hertzchain.laws.hunt_crossley`) and run on the generated
@@ -83,6 +84,11 @@ DASHPOT = _builtin("dashpot", "Hertz with a linear dashpot: F = kappa delta^(3/2
 VISCOELASTIC_SCALED = _builtin("viscoelastic_scaled", "Kuwabara-Kono with A_j following each contact's collision "
                                "time", 1, (_A,), _kuwabara_kono, _kk_partials, dissipative=True, calibrated="A",
                                extra={"scaled": True})
+#: A_j = A (t_j / t_ref)^2: the restitution falls with speed as Kuwabara-Kono's (1 - e ~ v^(1/5)) while
+#: a light striker's short contact loses less than the chain's (docs/guide/plasticity.rst).
+VISCOELASTIC_SIZED = _builtin("viscoelastic_sized", "Kuwabara-Kono with A_j following the square of each contact's "
+                              "collision time", 1, (_A,), _kuwabara_kono, _kk_partials, dissipative=True,
+                              calibrated="A", extra={"scaled": True, "size_exponent": 2.0})
 DASHPOT_SCALED = _builtin("dashpot_scaled", "dashpot with gamma_j ~ kappa_j^(2/5) mu_j^(3/5)", 2, (_GAMMA,),
                           _dashpot, _dashpot_partials, dissipative=True, calibrated="gamma", extra={"scaled": True})
 ELASTOPLASTIC = _builtin("elastoplastic", "Thornton (1997) elastic-plastic, optional viscous A", 3,

@@ -60,6 +60,18 @@ def partials(d, rate, k, chi, vin):
         (k * d * sd * rate / vin if vin > 0.0 else 0.0)
 
 
+@jit
+def state_partials(d, rate, k, chi, vin):
+    """(dF/d v_in at v_in, then d v_in'/d(delta, rate, k, chi, v_in)): v_in' is the rate where it
+    exceeds v_in, else v_in (0 while open)."""
+    fs = -k * d * np.sqrt(d) * chi * rate / (vin * vin) if vin > 0.0 else 0.0
+    if d < 0.0:
+        return fs, 0.0, 0.0, 0.0, 0.0, 0.0
+    if rate > vin:
+        return fs, 0.0, 1.0, 0.0, 0.0, 0.0
+    return fs, 0.0, 0.0, 0.0, 0.0, 1.0
+
+
 @dataclass(frozen=True)
 class HuntCrossley:
     """Hunt-Crossley contact whose damping gives a two-body impact the restitution e.
@@ -83,6 +95,7 @@ class HuntCrossley:
 
 SPEC = register_law(LawSpec(
     name="hunt_crossley", title="Hunt-Crossley, damping set by a restitution e (Flores et al. 2011)",
-    force=force, state=state, energy=energy, partials=partials, overlap_at_energy=overlap_at_energy, state_size=1, dissipative=True,
+    force=force, state=state, energy=energy, partials=partials, overlap_at_energy=overlap_at_energy,
+    state_partials=state_partials, state_size=1, dissipative=True,
     params=(Param("restitution", "-", "two-body coefficient of restitution e", 0.0, 1.0, open_low=True),),
     make=lambda params, chain=None: HuntCrossley(params["restitution"]), code=5))

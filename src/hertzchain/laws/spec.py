@@ -16,7 +16,12 @@ Numba-compiled functions of one contact (unit-free SI floats):
 - ``partials(d, rate, k, p, s)``: (dF/d delta, dF/d rate, dF/dk, dF/dp), analytic, checked
   against central differences in tests/test_laws.py;
 - optionally ``overlap_at_energy(e, k, p)``: the overlap [m] storing the energy ``e`` [J] (the
-  inverse of ``energy``; the engines' step bound); without it the engine bisects ``energy``.
+  inverse of ``energy``; the engines' step bound); without it the engine bisects ``energy``;
+- for a law with state, ``state_partials(d, rate, k, p, s)``: (dF/ds, ds'/d delta, ds'/d rate,
+  ds'/dk, ds'/dp, ds'/ds) with s' = ``state(d, rate, k, p, s)`` and dF/ds the force's partial at
+  state s: what the sensitivity engines (:mod:`hertzchain.integrate.law_derivatives`) need
+  besides ``partials`` to carry derivatives through the state; without it a stateful law runs
+  but has no sensitivities (refused naming ``contact.law``).
 
 Built-in laws whose engines are hand-written (``generated=False``) keep integer codes 0..3 (the
 kernels' ``LAW_*``); every other law is run by the engines generated from these functions
@@ -143,6 +148,9 @@ class LawSpec:
         The scalar functions of one contact (module docstring).
     overlap_at_energy : numba dispatcher, optional
         The inverse of ``energy`` (else bisected).
+    state_partials : numba dispatcher, optional
+        Derivatives through the state (module docstring); a law with state needs it for
+        sensitivities.
     make : callable
         ``make(params, chain=None)``: the law object from its checked parameters (a dict name ->
         float or None) and, for size-scaled laws, the chain.
@@ -169,6 +177,7 @@ class LawSpec:
     energy: Callable | None = None
     partials: Callable | None = None
     overlap_at_energy: Callable | None = None
+    state_partials: Callable | None = None
     make: Callable[..., Any] | None = None
     dissipative: bool = False
     plastic: bool = False

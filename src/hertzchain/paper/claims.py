@@ -11,7 +11,7 @@ turns each into a row of ``summary.json`` (``claims``):
 - ``quantity``: what measures it, and ``criterion``: when it counts as reproduced (or partly);
 - ``values``: the simulated quantity under every model variant -- contact laws (``elastic``,
   ``viscoelastic`` with one constant A, ``viscoelastic_scaled`` with A following each contact's
-  collision time, ``dashpot_scaled`` with a dashpot following each contact pair) for the
+  collision time, ``viscoelastic_sized`` with A following its square, ``dashpot_scaled`` with a dashpot following each contact pair) for the
   observations on the chains and the striker's own bounce, and ``rigid`` / ``lateral`` /
   ``lateral_friction`` (offset bead held on its line, free in a groove, with friction) for Fig. 3;
 - ``verdicts``: per variant, and ``verdict``: ``"reproduced"`` when the run's own model variant
@@ -321,7 +321,9 @@ def report_blocks(summary: dict, figures: dict) -> list[tuple]:
         ("p", "Each observation the paper states in words, the quantity that tests it and its value under every "
               "model variant: contact laws (elastic; Kuwabara-Kono with one constant A; Kuwabara-Kono with A "
               "following each contact's collision time, so that every bead size has the same eps, as eq. 6 "
-              "assumes; a dashpot following each contact pair, whose loss falls with the impact speed) and, "
+              "assumes; Kuwabara-Kono with A following the square of the collision time, a restitution falling "
+              "with speed and a light striker's contact losing less; a dashpot following each contact pair, whose "
+              "loss falls with the impact speed) and, "
               "for Fig. 3, the offset bead held rigidly on its line (the 1D model) or free across "
               "the axis in a groove, without and with friction. Verdict: reproduced by this run's own variant; "
               "partly when only the looser criterion holds or only another variant reproduces it."),

@@ -5,9 +5,13 @@ offset line. This module runs the same protocol under the variants that decide t
 unexplained observations and measures them:
 
 - **contact laws** (paper Figs. 5b-c, eqs. 6-8): elastic, Kuwabara-Kono with one constant A
-  (:class:`~hertzchain.contact.Viscoelastic`) and with A following each contact's collision time
+  (:class:`~hertzchain.contact.Viscoelastic`), with A following each contact's collision time
   (:class:`~hertzchain.contact.ScaledViscoelastic`, the same eps in every bead size, which is
-  what eq. 6 assumes), both calibrated to the paper's eps on the 26 mm beads;
+  what eq. 6 assumes) and with A following its square
+  (:class:`~hertzchain.contact.SizedViscoelastic`, a restitution falling with speed and a
+  steel-like striker bounce), and the dashpot following each contact pair
+  (:class:`~hertzchain.contact.ScaledDashpot`), each calibrated to the paper's eps on the 26 mm
+  beads;
 - **lateral freedom** (Fig. 3a-b): the misaligned beads of chain 2 free to move across the axis
   in a round groove (:class:`~hertzchain.track.Track`), without and with Coulomb friction.
 
@@ -18,7 +22,10 @@ and :func:`fig_laws` / :func:`fig3_lateral` draw (``--from-data`` redraws them).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import multiprocessing
+import os
 import time
 import warnings
 from typing import Callable
@@ -28,7 +35,8 @@ from matplotlib.figure import Figure
 
 from .. import analysis, theory
 from ..chain import paper_chain
-from ..errors import ElasticLimitWarning
+from ..interrupts import forked_worker_init
+from ..errors import ConfigError, ElasticLimitWarning, HertzchainError
 from ..model import Model, Wall
 from ..probes import Probes
 from ..track import Track, simulate_lateral
@@ -37,12 +45,16 @@ from .law_figure import LAW_STYLE, fig_laws  # noqa: F401 - drawn apart, re-expo
 from .values import PAPER
 from ..laws import is_conservative
 
-__all__ = ["LAW_VARIANTS", "TRACKS", "TAIL_WINDOW_S", "run_law_variants", "law_numbers",
+__all__ = ["LAW_VARIANTS", "RESTITUTION_SPEEDS", "TRACKS", "TAIL_WINDOW_S", "LawVariants", "law_numbers",
            "run_lateral_misalignment", "misalignment_numbers", "tail_oscillation", "fig_laws", "fig3_lateral",
            "count_variant_runs"]
 
 #: Contact-law variants of the chain studies (the run's own law is one of them or is added).
-LAW_VARIANTS = ("elastic", "viscoelastic", "viscoelastic_scaled", "dashpot_scaled")
+LAW_VARIANTS = ("elastic", "viscoelastic", "viscoelastic_scaled", "viscoelastic_sized", "dashpot_scaled")
+
+#: Impact speeds [m/s] of each variant's restitution trend (:func:`law_numbers`): the pulse's bead
+#: speeds in the chain (~1e-2 m/s), the striker's 0.2 m/s, and two decades either side.
+RESTITUTION_SPEEDS = (1e-4, 1e-2, 0.2, 1.0)
 
 #: Lateral-freedom variants of Fig. 3a-b. The paper does not describe its track; a round groove
 #: of 15 mm radius (just wider than the 26 mm beads) gives the 16 mm bead a gravity restoring
@@ -68,38 +80,133 @@ def _run_law(settings: protocol.Settings) -> str:
 
 
 def count_variant_runs(settings: protocol.Settings) -> int:
-    """Simulations :func:`run_law_variants` and :func:`run_lateral_misalignment` make (progress bar)."""
+    """Simulations :class:`LawVariants` and :func:`run_lateral_misalignment` make (progress bar)."""
     per_law = (PAPER["chain1"]["n_beads"] - N0 + 1) + (PAPER["chain2"]["n_beads"] - N0 + 1)
     others = sum(1 for law in LAW_VARIANTS if law != _run_law(settings))
     return others * per_law + len(TRACKS) * 4
 
 
-def run_law_variants(settings: protocol.Settings, studies: dict, progress: Callable[[str], None] | None = None
-                     ) -> dict[str, dict]:
-    """Chain studies of both chains under every law of :data:`LAW_VARIANTS` ({law: {chain: ChainStudy}}).
+def _variant_numbers(settings: protocol.Settings, law: str, progress: Callable[[str], None] | None = None) -> dict:
+    """:func:`law_numbers` of one variant: the chain studies of both chains under ``law``, run here."""
+    s = _variant_settings(settings, law)
+    return law_numbers({law: {name: protocol.run_chain_study(name, s, progress) for name in ("chain1", "chain2")}},
+                       settings)[law]
 
-    The run's own studies (``studies``, under ``settings``' law) are reused, not rerun.
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+class LawVariants:
+    """The chain studies of the other contact laws (:data:`LAW_VARIANTS`), shared with a process
+    forked when this is made, so that they run on a second core beside the rest of the reproduction.
+
+    The variants are claimed one at a time under a lock: the forked process takes them from the
+    front of the list from the start, the caller from the back once it calls :meth:`finish`, so
+    the two finish together whatever each one's other work (one core, or no ``fork``: the caller
+    runs them all in :meth:`finish`, as before). Only the plain numbers of :func:`law_numbers`
+    come back from the fork, never the traces; an error there is raised by :meth:`finish` as it
+    would have been here (a :class:`~hertzchain.errors.ConfigError` naming its field). :meth:`cancel`
+    stops the fork (after a failure).
 
     Parameters
     ----------
     settings : Settings
-        The reproduction's settings (striker, eps, durations).
-    studies : dict
-        {"chain1": ChainStudy, "chain2": ChainStudy} of the run's own law.
-    progress : callable, optional
-        Called with a message after each simulation.
-
-    Returns
-    -------
-    dict
-        {law: {"chain1": ChainStudy, "chain2": ChainStudy}}.
+        The reproduction's settings; its own law is not among the variants run.
     """
-    out = {_run_law(settings): studies}
-    for law in LAW_VARIANTS:
-        if law not in out:
-            s = _variant_settings(settings, law)
-            out[law] = {name: protocol.run_chain_study(name, s, progress) for name in ("chain1", "chain2")}
-    return out
+
+    def __init__(self, settings: protocol.Settings) -> None:
+        self.settings = settings
+        self.laws = [law for law in LAW_VARIANTS if law != _run_law(settings)]
+        self._proc = None
+        if not self.laws or _cores() < 2 or "fork" not in multiprocessing.get_all_start_methods():
+            self._ends = [0, len(self.laws)]
+            self._lock = None
+            return
+        ctx = multiprocessing.get_context("fork")
+        self._ends = ctx.Array("i", [0, len(self.laws)])
+        self._lock = self._ends.get_lock()
+        self._reader, writer = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=self._forked, args=(writer,), daemon=True)
+        self._proc.start()
+        writer.close()
+
+    def _claim(self, front: bool) -> str | None:
+        """The next variant of the list's front (the fork) or back (the caller); None when none is left."""
+        with self._lock or contextlib.nullcontext():
+            lo, hi = self._ends[0], self._ends[1]
+            if lo >= hi:
+                return None
+            self._ends[0 if front else 1] = lo + 1 if front else hi - 1
+            return self.laws[lo if front else hi - 1]
+
+    def _forked(self, writer) -> None:
+        forked_worker_init()
+        try:
+            out = {}
+            while (law := self._claim(front=True)) is not None:
+                out[law] = _variant_numbers(self.settings, law)
+            writer.send(("ok", out))
+        except ConfigError as exc:  # an input no variant can run (an eps a law cannot reach): the caller's own
+            writer.send(("config", (exc.field, exc.message)))
+        except HertzchainError as exc:  # a user's error of one message: it pickles as it is
+            writer.send(("hertzchain", exc))
+        except Exception as exc:  # noqa: BLE001 - reported by the caller, which names it
+            writer.send(("error", f"{type(exc).__name__}: {exc}"))
+        finally:
+            writer.close()
+
+    def finish(self, studies: dict, progress: Callable[[str], None] | None = None) -> dict:
+        """:func:`law_numbers` of the run's own studies and of every variant, the run's own law first.
+
+        Parameters
+        ----------
+        studies : dict
+            {"chain1": ChainStudy, "chain2": ChainStudy} of the run's own law (not rerun).
+        progress : callable, optional
+            Called with a message after each simulation (the fork's, when its numbers arrive).
+
+        Returns
+        -------
+        dict
+            {law: numbers}, as :func:`law_numbers`.
+        """
+        own = _run_law(self.settings)
+        out = law_numbers({own: studies}, self.settings)
+        while (law := self._claim(front=False)) is not None:
+            out[law] = _variant_numbers(self.settings, law, progress)
+        if self._proc is not None:
+            try:
+                status, theirs = self._reader.recv()
+            except EOFError:
+                status, theirs = "error", f"the process running them ended with exit code {self._proc.exitcode}"
+            finally:
+                self.cancel()
+            if status == "config":
+                raise ConfigError(*theirs)
+            if status == "hertzchain":
+                raise theirs
+            if status != "ok":
+                raise RuntimeError(f"the contact-law variants' runs failed: {theirs}")
+            out.update(theirs)
+            per_law = (PAPER["chain1"]["n_beads"] - N0 + 1) + (PAPER["chain2"]["n_beads"] - N0 + 1)
+            for law in theirs:
+                for _ in range(per_law):
+                    if progress:
+                        progress(f"contact-law variant {law}")
+        return {law: out[law] for law in [own, *(v for v in LAW_VARIANTS if v != own)]}
+
+    def cancel(self) -> None:
+        """Stop the forked process (nothing else to undo: it writes no file)."""
+        if self._proc is not None:
+            if self._proc.is_alive():
+                self._proc.terminate()
+            self._proc.join()
+            self._reader.close()
+            self._proc = None
 
 
 def _reflection(study, bead: int = 12) -> float:
@@ -154,7 +261,9 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
     (a reflected wave would show there); ``figures`` holds the spectral centroids, the time-of-flight
     gain and the Fig. 4 collapse of :func:`hertzchain.paper.figures.figure_summary`;
     ``striker_restitution`` the two-body restitution of the striker hitting a free first bead at
-    the run's speed under the variant's calibrated law (:func:`hertzchain.restitution`).
+    the run's speed under the variant's calibrated law (:func:`hertzchain.restitution`), and
+    ``restitution_trend`` that restitution at each speed of :data:`RESTITUTION_SPEEDS` [m/s]
+    ({"speeds", "restitution"}: falling with speed as viscoelastic spheres' does, or rising).
     """
     from ..collision import restitution
     from .figures import figure_summary
@@ -169,8 +278,10 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
         the_law = studies["chain1"].law
         row["law"] = {"law": law, **{k: getattr(the_law, k) for k in ("A", "gamma") if hasattr(the_law, k)}}
         chain = studies["chain1"].chain
-        row["striker_restitution"] = restitution(s.striker_velocity, the_law, s.striker_diameter, s.material,
-                                                 float(chain.diameters[0]), chain.materials[0])
+        bounce = [restitution(v, the_law, s.striker_diameter, s.material, float(chain.diameters[0]), chain.materials[0])
+                  for v in (s.striker_velocity, *RESTITUTION_SPEEDS)]
+        row["striker_restitution"] = bounce[0]
+        row["restitution_trend"] = {"speeds": list(RESTITUTION_SPEEDS), "restitution": bounce[1:]}
         out[law] = row
     return out
 

@@ -20,6 +20,7 @@ __all__ = ["LAW_STYLE", "fig_laws"]
 #: Marker, colour and label of each contact law in :func:`fig_laws`.
 LAW_STYLE = {"elastic": ("s", "0.45", "elastic"), "viscoelastic": ("o", "#1f77b4", "Kuwabara-Kono, constant A"),
              "viscoelastic_scaled": ("^", "#d62728", "Kuwabara-Kono, A ~ collision time"),
+             "viscoelastic_sized": ("v", "#9467bd", "Kuwabara-Kono, A ~ collision time^2"),
              "dashpot_scaled": ("D", "#2ca02c", "dashpot, gamma ~ kappa^(2/5) mu^(3/5)")}
 
 

@@ -34,6 +34,7 @@ quality), which makes the notes of Figs. 1-4 quantitative. All values in SI unit
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -119,6 +120,8 @@ def _figure_png(path: Any) -> Path | None:
 LAW_WORDS = {"elastic": "elastic Hertz contacts (no dissipation)",
              "viscoelastic": "Kuwabara-Kono contacts with one time constant A",
              "viscoelastic_scaled": "Kuwabara-Kono contacts with A following each contact's collision time",
+             "viscoelastic_sized": "Kuwabara-Kono contacts with A following the square of each contact's collision "
+                                   "time (a restitution that falls with speed; the light striker's contact loses less)",
              "dashpot": "Hertz contacts with one linear dashpot gamma",
              "dashpot_scaled": "Hertz contacts with a linear dashpot following each contact pair "
                                "(gamma ~ kappa^(2/5) mu^(3/5): every pair the same restitution at a given speed)"}
@@ -131,12 +134,29 @@ def _dissipation_sentence(summary: dict, settings_desc: dict | None) -> str:
     words = LAW_WORDS.get(law, law)
     if is_conservative(law):
         return f"Dissipation model: none, {words}."
-    e = ((summary.get("fidelity") or {}).get("laws") or {}).get(law, {}).get("striker_restitution")
+    row = ((summary.get("fidelity") or {}).get("laws") or {}).get(law, {})
+    e = row.get("striker_restitution")
     bounce = (f" Under it the 8 mm striker bounces off a free first bead with a two-body restitution of {e:.3f} at "
               f"{desc.get('striker_velocity', 0.2):g} m/s (steel balls: 0.95 or more)." if e is not None else "")
     return (f"Dissipation model: {words}, calibrated to the paper's eps = {desc.get('eps_target')} in the 26 mm "
-            f"beads.{bounce} The claims below compare it with the other laws (which model explains which "
-            "observation).")
+            f"beads.{bounce}{_trend_sentence(row.get('restitution_trend'))} The claims below compare it with the "
+            "other laws (which model explains which observation).")
+
+
+def _trend_sentence(trend: Any) -> str:
+    """The law's restitution against impact speed (``fidelity.laws.<law>.restitution_trend``), with the
+    exponent of 1 - e ~ v^x between the two lowest speeds (viscoelastic spheres: x = 1/5); "" when
+    the summary has no trend (an older one) or a damaged one."""
+    speeds, e = (trend.get("speeds"), trend.get("restitution")) if isinstance(trend, dict) else (None, None)
+    if not (isinstance(speeds, list) and isinstance(e, list) and len(speeds) == len(e) >= 2
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and 0 < x for x in speeds)
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) and 0 <= x < 1 for x in e)):
+        return ""
+    x = math.log((1 - e[1]) / (1 - e[0])) / math.log(speeds[1] / speeds[0])
+    way = "falls" if e[-1] < e[0] else "rises"
+    return (f" Its restitution {way} with the impact speed: e = {', '.join(f'{v:.3f}' for v in e)} at "
+            f"{', '.join(f'{v:g}' for v in speeds)} m/s (1 - e ~ v^({x:.2f}) between the two lowest; "
+            "viscoelastic spheres: 1 - e ~ v^(1/5), falling).")
 
 
 def _agreement_sentence(rows: list[Row]) -> str:
