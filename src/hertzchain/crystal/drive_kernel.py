@@ -294,7 +294,7 @@ def kernels_for(code: int):
     if not is_generated(code):
         return _forces, _record, driven_run, driven_batch
     if code not in _BUILT:
-        law_forces, _, law_energy = law_kernels(code)
+        law_forces, _, law_energy = law_kernels(code)[:3]
 
         @njit(nogil=True)
         def forces(u, vp, g, kappa, damping, d0, de, dx0, rsum, law, dyield, dmax, dres, kres, ext, extended):
