@@ -119,7 +119,7 @@ def accelerations(u, v, kappa, damping, d0, fext, inv_mass, law, a):
 def set_modes(ed, b, mode):
     """Every contact's branch for the step from ``ed[b]``: 1 where it carries a force, else 0."""
     for j in range(ed.shape[2]):
-        mode[j] = 1.0 if _state(ed[b, R_D, j], ed[b, R_FU, j]) == LOADED else 0.0
+        mode[j] = 1.0 if _state(ed[b, R_D, j], ed[b, R_R, j], ed[b, R_FU, j]) == LOADED else 0.0
 
 
 @njit(cache=True, nogil=True)
@@ -239,11 +239,12 @@ def end_data(u, v, a, kappa, damping, d0, fext, mass, law, dis, ed, ends, c):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _state(d, fu):
-    """OPEN (delta < 0), CLIPPED (closed, no force) or LOADED."""
+def _state(d, r, fu):
+    """OPEN (delta < 0), CLIPPED (closed, no force) or LOADED (a force, or touching and closing:
+    Kuwabara-Kono's force at delta = 0 is 0 but rises as delta^(1/2))."""
     if d < 0.0:
         return OPEN
-    return LOADED if fu > 0.0 else CLIPPED
+    return LOADED if fu > 0.0 or (d <= DELTA_MIN and r > 0.0) else CLIPPED
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -277,15 +278,15 @@ def _contact_error(d, r, fu, k, c, im, law, h, sh):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _max_error(ed, c, kappa, damping, inv_mass, law, h):
-    """(max_j e_j(h) over loaded contacts, that contact's local exponent)."""
+def _max_error(ed, c, kappa, damping, inv_mass, law, mode, h):
+    """(max_j e_j(h) over the contacts on the loaded branch ``mode``, that contact's local exponent)."""
     sh = np.sqrt(h)
     emax = 0.0
     pmax = 5.0
     for j in range(kappa.shape[0]):
         d = ed[c, R_D, j]
         fu = ed[c, R_FU, j]
-        if fu > 0.0:  # loaded (delta >= 0): open and clipped contacts carry no force
+        if mode[j] > 0.0:  # open and clipped contacts carry no force
             e, p = _contact_error(d if d > DELTA_MIN else 0.0, ed[c, R_R, j], fu, kappa[j], damping[j], inv_mass[j] + inv_mass[j + 1], law,
                                   h, sh)
             if e > emax:
@@ -295,9 +296,9 @@ def _max_error(ed, c, kappa, damping, inv_mass, law, h):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def next_step(ed, c, kappa, damping, inv_mass, law, eps, h_ref, h_max):
-    """Size [s] of the next step from the end data ``ed[c]`` of the present state: the largest h
-    with max_j e_j(h) <= eps (Newton's method on log e against log h from the last step the bound
+def next_step(ed, c, kappa, damping, inv_mass, law, mode, eps, h_ref, h_max):
+    """Size [s] of the next step from the end data ``ed[c]`` of the present state, its contacts on
+    the branches ``mode``: the largest h with max_j e_j(h) <= eps (Newton's method on log e against log h from the last step the bound
     chose, ``h_ref``: log e is convex in log h, so the iterates approach from above), at most
     MAX_GROWTH h_ref and ``h_max``, and within the stability bound (module docstring)."""
     # stability: Gershgorin bounds of the stiffness and damping rates at overlaps one step ahead
@@ -320,12 +321,12 @@ def next_step(ed, c, kappa, damping, inv_mass, law, eps, h_ref, h_max):
     rho = 2.0 * np.sqrt(w) + 4.0 * cw
     if rho > 0.0 and MAX_RHO_H / rho < h:
         h = MAX_RHO_H / rho
-    e, p = _max_error(ed, c, kappa, damping, inv_mass, law, h)
+    e, p = _max_error(ed, c, kappa, damping, inv_mass, law, mode, h)
     if e <= eps:
         return h
     for _ in range(8):
         h *= (eps / e) ** (1.0 / p)
-        e, p = _max_error(ed, c, kappa, damping, inv_mass, law, h)
+        e, p = _max_error(ed, c, kappa, damping, inv_mass, law, mode, h)
         if e <= eps * 1.0001:
             return h
     # every term grows at least as h^1.5: this factor bounds them all
@@ -373,7 +374,7 @@ def event_inside(ed, b, c, h, mode):
     best = 2.0
     switched = False
     for j in range(ed.shape[2]):
-        s1 = _state(ed[c, R_D, j], ed[c, R_FU, j])
+        s1 = _state(ed[c, R_D, j], ed[c, R_R, j], ed[c, R_FU, j])
         m = mode[j] > 0.0
         if m == (s1 == LOADED):
             continue
@@ -472,12 +473,12 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
         while t < tk:
             b = steps % 2
             c = 1 - b
+            set_modes(ed, b, mode)
             if h_fixed > 0.0:
                 h = h_fixed
             else:
-                h = next_step(ed, b, kappa, damping, inv_mass, law, eps, href, h_max)
+                h = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max)
                 href = h
-            set_modes(ed, b, mode)
             for redo in range(MAX_REDO + 1):
                 step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, fext, inv_mass, law, h,
                      ed, b)
@@ -488,8 +489,10 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
                 if x < 0.0:
                     break
                 acc[A_REDO] += 1.0
-                if x > 1.0:  # a branch switched at the start
+                if x > 1.0:  # a branch switched at the start: its step is bounded afresh
                     restart(u, v, a, kappa, damping, d0, fext, inv_mass, law, mode, pw, ed, b)
+                    hm = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max)
+                    h = hm if hm < h else h
                 else:
                     h *= x
             ends[c, E_D] = ends[b, E_D] + step_dissipation(ed, b, c, pw, mode, h)
