@@ -26,8 +26,10 @@ MODEL_KINDS = {  # model kind -> the integrator "auto" picks
     "viscoelastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Viscoelastic(A=4e-6)), "rkn4"),
     "elastoplastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Elastoplastic()), "verlet"),
     "offset dashpot": (hc.Model(hc.Chain.uniform(6, 20e-3).with_offsets({3: 1e-4}), STRIKER,
-                                law=hc.Dashpot(gamma=20.0)), "verlet"),
-    "offset beads": (hc.Model(hc.Chain.uniform(6, 20e-3).with_offsets({3: 1e-4}), STRIKER), "verlet"),
+                                law=hc.Dashpot(gamma=20.0)), "rkn4"),
+    "dashpot, protected body": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, hc.Wall("body", mass=1.0, stiffness=1e6),
+                                         law=hc.Dashpot(gamma=20.0)), "verlet"),
+    "offset beads": (hc.Model(hc.Chain.uniform(6, 20e-3).with_offsets({3: 1e-4}), STRIKER), "rkn4"),
     "protected body": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, hc.Wall("body", mass=1.0, stiffness=1e6)),
                        "verlet"),
 }
@@ -55,8 +57,8 @@ def test_explicit_values_are_kept_and_checked():
     dissipative = MODEL_KINDS["dashpot"][0].system()
     assert choose_engine(dissipative, "rkn4").integrator == "rkn4"
     with pytest.raises(ConfigError) as exc:
-        choose_engine(MODEL_KINDS["offset dashpot"][0].system(), "rkn4")
-    assert exc.value.field == "run.integrator" and "aligned chains" in exc.value.message
+        choose_engine(MODEL_KINDS["dashpot, protected body"][0].system(), "rkn4")
+    assert exc.value.field == "run.integrator" and "protected body" in exc.value.message
     with pytest.raises(ConfigError, match="run.threads"):
         choose_engine(dissipative, "verlet", 2)
     with pytest.raises(ConfigError, match="run.integrator"):
@@ -105,8 +107,8 @@ def test_result_records_the_choice():
     ds = hc.simulate(MODEL_KINDS["dashpot"][0], 4e-4, hc.Probes(sample_interval=1e-6))
     assert (ds.attrs["integrator_used"], ds.attrs["threads_used"]) == ("rkn4", 1)
     assert "aligned dissipative" in ds.attrs["engine_choice"]
-    ds = hc.simulate(MODEL_KINDS["offset dashpot"][0], 4e-4, hc.Probes(sample_interval=1e-6))
-    assert ds.attrs["integrator_used"] == "verlet" and "chain.offsets" in ds.attrs["engine_choice"]
+    ds = hc.simulate(MODEL_KINDS["dashpot, protected body"][0], 4e-4, hc.Probes(sample_interval=1e-6))
+    assert ds.attrs["integrator_used"] == "verlet" and "protected body" in ds.attrs["engine_choice"]
     ds = hc.simulate(ELASTIC, 4e-4, hc.Probes(sample_interval=1e-6), integrator="verlet")
     assert ds.attrs["integrator_used"] == "verlet" and "asked for" in ds.attrs["engine_choice"]
 

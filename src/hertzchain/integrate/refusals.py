@@ -5,10 +5,10 @@ in turn (an ``rkn4`` refusal on an elastic-plastic model once suggested ``dop853
 Each check returns why the integrator does not integrate the model (None: it does):
 
 - ``verlet``: every model;
-- ``rkn4`` (:mod:`hertzchain.integrate.rkn`): aligned chains (paper eq. 1, with or without
-  precompression) with the elastic law, Kuwabara-Kono's or the dashpot (and their size-scaled
-  forms: :mod:`hertzchain.integrate.rkn_damped`); no offsets, protected body nor mass-in-mass
-  beads, nor the elastic-plastic or generated laws;
+- ``rkn4`` (:mod:`hertzchain.integrate.rkn`): chains (paper eq. 1, with or without
+  precompression, aligned or with beads offset from the axis) with the elastic law, Kuwabara-Kono's
+  or the dashpot (and their size-scaled forms: :mod:`hertzchain.integrate.rkn_damped`); no
+  protected body nor mass-in-mass beads, nor the elastic-plastic or generated laws;
 - ``dop853``, ``rk45`` (:mod:`hertzchain.integrate.reference`, ``scipy.integrate.solve_ivp``):
   every built-in law but the elastic-plastic one, whose per-contact history (the largest overlap) a
   right-hand side evaluated at trial points cannot carry; not the laws run by the generated engines.
@@ -30,8 +30,6 @@ def _rkn4(system) -> str | None:
     from ..laws import law_of_code
 
     spec = law_of_code(system.law)
-    if system.misaligned:
-        return "'rkn4' integrates aligned chains; this model has beads offset from the axis (chain.offsets_mm or chain.offsets_fraction)"
     if system.extended:
         return "'rkn4' integrates chains of beads; this model has a protected body or mass-in-mass beads"
     if spec.generated or spec.plastic:

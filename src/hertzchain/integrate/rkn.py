@@ -3,8 +3,10 @@
 ``simulate(model, integrator="rkn4")``: a symplectic Runge-Kutta-Nystrom composition of order 4
 with a step control that follows contacts as they close and open, and probes interpolated between
 steps, so the step is not tied to the sample interval. It integrates aligned elastic chains
-(paper eq. 1, with or without precompression); dissipative laws and offset beads stay with the
-velocity Verlet. Accuracy: ``rtol``, the local velocity error allowed per step relative to the
+(paper eq. 1, with or without precompression); Kuwabara-Kono's law, the dashpot (plain or
+size-scaled) and beads offset from the axis go to :mod:`hertzchain.integrate.rkn_damped` (the
+classical RKN for y'' = f(y, y')); protected bodies, mass-in-mass beads, the elastic-plastic law
+and the generated laws stay with the velocity Verlet. Accuracy: ``rtol``, the local velocity error allowed per step relative to the
 striker speed (default 1e-6 gives a peak wall force within ~1e-8 of DOP853 at rtol 1e-12 on the
 paper's chains; benchmarks/time_to_accuracy.py).
 """
@@ -83,7 +85,7 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
         raise ConfigError("run.rtol", f"must be a positive relative tolerance, got {rtol!r}")
     if dt is not None:
         check_time_step(system, dt)
-    if system.law != 0:  # Kuwabara-Kono or the dashpot (check_rkn): the method for y'' = f(y, y')
+    if system.law != 0 or system.misaligned:  # Kuwabara-Kono, the dashpot or offsets: y'' = f(y, y')
         from .rkn_damped import run_rkn_damped
 
         v_ref = float(np.max(np.abs(system.v0)))

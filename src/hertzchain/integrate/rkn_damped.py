@@ -1,8 +1,10 @@
 """Driver of ``"rkn4"`` on the dissipative laws (:mod:`hertzchain.integrate.rkn_damped_kernels`).
 
-``simulate(model, integrator="rkn4")`` (and ``"auto"``, which picks it) on an aligned chain with
+``simulate(model, integrator="rkn4")`` (and ``"auto"``, which picks it) on a chain with
 Kuwabara-Kono's or the dashpot law (``viscoelastic``, ``viscoelastic_scaled``,
-``viscoelastic_sized``, ``dashpot``, ``dashpot_scaled``; forces clipped at zero): the classical
+``viscoelastic_sized``, ``dashpot``, ``dashpot_scaled``; forces clipped at zero), or with beads
+offset from the axis (any of these laws or the elastic one; the force F(delta) along the line of
+centres, F dx / d of it along the axis): the classical
 fourth-order Runge-Kutta-Nystrom method for y'' = f(y, y'), a step control bounding every loaded
 contact's local velocity error (its Hertz and viscous singular terms at closing, its frequency and
 its damping rate) and landing on every closing, clip and reload, the dissipated energy integrated
@@ -31,7 +33,7 @@ __all__ = ["run_rkn_damped"]
 def run_rkn_damped(system: System, duration: float, sample_interval: float, dt: float | None, eps: float,
                    record_velocities: bool, contacts: np.ndarray | None, progress: Callable[[int, int], None] | None,
                    chunk_steps: int, record_positions: bool) -> RawRun:
-    """Integrate an aligned dissipative ``system`` for ``duration`` [s] (module docstring).
+    """Integrate a dissipative or offset ``system`` for ``duration`` [s] (module docstring).
 
     Called by :func:`hertzchain.integrate.rkn.run_rkn`, which checked the model and the options;
     ``eps`` [m/s] is the local velocity error allowed per step, ``dt`` [s] a fixed step (no step
@@ -52,8 +54,9 @@ def run_rkn_damped(system: System, duration: float, sample_interval: float, dt: 
     ends = np.zeros((2, rk.ENDS))
     pw = np.zeros(p)  # per contact: stage-weighted dissipated power
     mode = np.zeros(p)  # per contact: its branch in the present step (1: carries a force)
-    rk.accelerations(u, v, w.kappa, w.damping, w.d0, w.fext, w.inv_mass, law, a)
-    rk.end_data(u, v, a, w.kappa, w.damping, w.d0, w.fext, w.mass, law, 0.0, ed, ends, 0)
+    geo = np.ascontiguousarray(np.stack([w.d0, w.de, w.dx0, w.rsum]))  # rows rk.G_*
+    rk.accelerations(u, v, w.kappa, w.damping, geo, w.fext, w.inv_mass, law, a)
+    rk.end_data(u, v, a, w.kappa, w.damping, geo, w.fext, w.mass, law, 0.0, ed, ends, 0)
     rec = np.arange(nc) if contacts is None else np.asarray(contacts, dtype=np.int64)
     out_f = np.empty((n_samples, rec.size))
     out_ke = np.empty(n_samples)
@@ -79,7 +82,7 @@ def run_rkn_damped(system: System, duration: float, sample_interval: float, dt: 
     while k < n_samples:
         k_stop = min(n_samples, k + per_call)
         status = rk.damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi, ed, ends, w.mass, w.inv_mass,
-                               w.kappa, w.damping, w.d0, w.fext, law, system.n_beads, sample_interval, k, k_stop,
+                               w.kappa, w.damping, geo, w.fext, law, system.n_beads, sample_interval, k, k_stop,
                                0.0 if dt is None else float(dt), eps, duration, rec, out_f, out_ke, out_pe, out_d,
                                out_v, record_velocities, out_u, record_positions, fmax, peak, acc)
         if status != 0:
