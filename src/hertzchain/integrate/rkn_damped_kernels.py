@@ -86,36 +86,37 @@ A_T, A_TPREV, A_H, A_STEPS, A_HMIN, A_HMAX, A_HREF, A_REDO = 0, 1, 2, 3, 4, 5, 6
 OPEN, CLIPPED, LOADED = 0, 1, 2
 
 
-#: Rows of the geometry array ``geo`` (``layout.pack``'s arrays): overlap at zero displacement of
-#: an aligned pair, perpendicular offset difference e_{j+1} - e_j, axial distance of centres at
-#: rest and R_j + R_{j+1} of an offset pair [m].
-G_D0, G_DE, G_DX0, G_RSUM = 0, 1, 2, 3
+#: Rows of the offsets array ``off`` (``layout.pack``'s arrays; None for an aligned chain, which
+#: compiles a specialisation without them): perpendicular offset difference e_{j+1} - e_j, axial
+#: distance of centres at rest and R_j + R_{j+1} of an offset pair [m].
+G_DE, G_DX0, G_RSUM = 0, 1, 2
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _line(du, dv, geo, j):
+def _line(du, dv, d0, off, j):
     """(delta, dx / d, d(delta)/dt, de^2 / d^3) of contact j from du = u_j - u_{j+1} and
     dv = v_j - v_{j+1}: an offset pair (de != 0) has d = sqrt(dx^2 + de^2), dx = dx0 - du,
     delta = R_j + R_{j+1} - d and its force acts along the line of centres, dx / d of it along
     the axis (docs/conventions.rst, misalignment); d2(delta)/dt2 = (dx / d) (a_j - a_{j+1})
-    - (de^2 / d^3) dv^2. An aligned pair: (du + d0, 1, dv, 0)."""
-    de = geo[G_DE, j]
-    if de != 0.0:
-        dx = geo[G_DX0, j] - du
-        dist = np.sqrt(dx * dx + de * de)
-        cc = dx / dist
-        return geo[G_RSUM, j] - dist, cc, cc * dv, de * de / (dist * dist * dist)
-    return du + geo[G_D0, j], 1.0, dv, 0.0
+    - (de^2 / d^3) dv^2. An aligned pair: (du + d0_j, 1, dv, 0)."""
+    if off is not None:
+        de = off[G_DE, j]
+        if de != 0.0:
+            dx = off[G_DX0, j] - du
+            dist = np.sqrt(dx * dx + de * de)
+            cc = dx / dist
+            return off[G_RSUM, j] - dist, cc, cc * dv, de * de / (dist * dist * dist)
+    return du + d0[j], 1.0, dv, 0.0
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _accel(us, vs, kappa, damping, geo, fext, inv_mass, law, mode, out, pw, weight):
+def _accel(us, vs, kappa, damping, d0, off, fext, inv_mass, law, mode, out, pw, weight):
     """a = f(us, vs) into ``out`` with every contact's branch frozen (``mode[j]`` 1: the unclipped
     force F_u, extended to delta < 0 as at delta = 0; 0: no force); adds ``weight`` times each
     contact's dissipated power (F_j - F_el,j) r_j [W] to ``pw[j]``."""
     fprev = 0.0
     for i in range(inv_mass.shape[0]):
-        d, cc, r, _ = _line(us[i] - us[i + 1], vs[i] - vs[i + 1], geo, i)
+        d, cc, r, _ = _line(us[i] - us[i + 1], vs[i] - vs[i + 1], d0, off, i)
         dd = d if d > DELTA_MIN else 0.0
         sd = np.sqrt(dd)
         fel = kappa[i] * dd * sd
@@ -128,11 +129,11 @@ def _accel(us, vs, kappa, damping, geo, fext, inv_mass, law, mode, out, pw, weig
 
 
 @njit(cache=True, nogil=True)
-def accelerations(u, v, kappa, damping, geo, fext, inv_mass, law, a):
+def accelerations(u, v, kappa, damping, d0, off, fext, inv_mass, law, a):
     """a = f(u, v) with the law as it is (clipped; the start of a run)."""
     fprev = 0.0
     for i in range(inv_mass.shape[0]):
-        d, cc, r, _ = _line(u[i] - u[i + 1], v[i] - v[i + 1], geo, i)
+        d, cc, r, _ = _line(u[i] - u[i + 1], v[i] - v[i + 1], d0, off, i)
         f, _ = _viscous_force(d, r, kappa[i], damping[i], law)
         f *= cc
         a[i] = (fprev - f + fext[i]) * inv_mass[i]
@@ -147,22 +148,22 @@ def set_modes(ed, b, mode):
 
 
 @njit(cache=True, nogil=True)
-def restart(u, v, a, kappa, damping, geo, fext, inv_mass, law, mode, pw, ed, b):
+def restart(u, v, a, kappa, damping, d0, off, fext, inv_mass, law, mode, pw, ed, b):
     """After a branch changed at a step's start: a = f(u, v) on the branches ``mode``, and the
     start's d(rate)/dt and dissipated power in ``ed[b]``."""
     n = inv_mass.shape[0]
     for i in range(n):
         pw[i] = 0.0
-    _accel(u, v, kappa, damping, geo, fext, inv_mass, law, mode, a, pw, 1.0)
+    _accel(u, v, kappa, damping, d0, off, fext, inv_mass, law, mode, a, pw, 1.0)
     for j in range(n):
         dv = v[j] - v[j + 1]
-        _, cc, _, k = _line(u[j] - u[j + 1], dv, geo, j)
+        _, cc, _, k = _line(u[j] - u[j + 1], dv, d0, off, j)
         ed[b, R_Q, j] = cc * (a[j] - a[j + 1]) - k * dv * dv
         ed[b, R_P, j] = pw[j]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, geo, fext, inv_mass, law, h, ed, b):
+def step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, off, fext, inv_mass, law, h, ed, b):
     """One step of size h from (u, v) with a = f(u, v) and end data ``ed[b]`` there, every contact
     on its branch ``mode`` (module docstring): the new state into (un, vn), f(un, vn) into ``an``;
     ``pw[j]`` the weighted sum P_1 + 2 P_2 + 2 P_3 + P_4 of contact j's dissipated power over the
@@ -174,21 +175,21 @@ def step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, geo,
         us[i] = u[i] + hh * v[i] + h8 * a[i]
         vs[i] = v[i] + hh * a[i]
         pw[i] = ed[b, R_P, i]
-    _accel(us, vs, kappa, damping, geo, fext, inv_mass, law, mode, k2, pw, 2.0)
+    _accel(us, vs, kappa, damping, d0, off, fext, inv_mass, law, mode, k2, pw, 2.0)
     for i in range(n):
         vs[i] = v[i] + hh * k2[i]
-    _accel(us, vs, kappa, damping, geo, fext, inv_mass, law, mode, k3, pw, 2.0)
+    _accel(us, vs, kappa, damping, d0, off, fext, inv_mass, law, mode, k3, pw, 2.0)
     h2 = 0.5 * h * h
     for i in range(n):
         us[i] = u[i] + h * v[i] + h2 * k3[i]
         vs[i] = v[i] + h * k3[i]
-    _accel(us, vs, kappa, damping, geo, fext, inv_mass, law, mode, k4, pw, 1.0)
+    _accel(us, vs, kappa, damping, d0, off, fext, inv_mass, law, mode, k4, pw, 1.0)
     h6 = h / 6.0
     hh6 = h * h6
     for i in range(n):
         un[i] = u[i] + h * v[i] + hh6 * (a[i] + k2[i] + k3[i])
         vn[i] = v[i] + h6 * (a[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
-    accelerations(un, vn, kappa, damping, geo, fext, inv_mass, law, an)
+    accelerations(un, vn, kappa, damping, d0, off, fext, inv_mass, law, an)
 
 
 @njit(cache=True, nogil=True)
@@ -218,7 +219,7 @@ def _unclipped(d, r, q, k, c, law):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def end_data(u, v, a, kappa, damping, geo, fext, mass, law, dis, ed, ends, c):
+def end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, dis, ed, ends, c):
     """Per contact j into ``ed[c]`` (rows R_*): F_j along the axis, dF_j/dt (the law's: 0 when open
     or clipped), delta_j, r_j, q_j = d(r_j)/dt (:func:`_line`), F_u and dF_u/dt (0 when open), the elastic energy
     (2/5) F_el,j delta_j and the dissipated power (F_j - F_el,j) r_j; into ``ends[c]``: kinetic,
@@ -232,7 +233,7 @@ def end_data(u, v, a, kappa, damping, geo, fext, mass, law, dis, ed, ends, c):
     dd = 0.0
     for i in range(mass.shape[0]):
         dv = v[i] - v[i + 1]
-        d, cc, r, k = _line(u[i] - u[i + 1], dv, geo, i)
+        d, cc, r, k = _line(u[i] - u[i + 1], dv, d0, off, i)
         q = cc * (a[i] - a[i + 1]) - k * dv * dv
         f, fel = _viscous_force(d, r, kappa[i], damping[i], law)
         fu, dfu = 0.0, 0.0
@@ -425,7 +426,7 @@ def event_inside(ed, b, c, h, mode):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _force_w(ed, b, c, j, q, w, kappa, damping, geo, law):
+def _force_w(ed, b, c, j, q, w, kappa, damping, d0, off, law):
     """Contact j's force along the axis from the weights ``q`` of the quintic Hermite (its overlap,
     through delta, r, q at both ends) and ``w`` of the cubic (its rate, through r, q): the law's,
     clipped (times dx / d for an offset pair, d = R_j + R_{j+1} - delta)."""
@@ -433,49 +434,50 @@ def _force_w(ed, b, c, j, q, w, kappa, damping, geo, law):
          + q[4] * ed[c, R_R, j] + q[5] * ed[c, R_Q, j])
     r = w[0] * ed[b, R_R, j] + w[1] * ed[b, R_Q, j] + w[2] * ed[c, R_R, j] + w[3] * ed[c, R_Q, j]
     f, _ = _viscous_force(d, r, kappa[j], damping[j], law)
-    de = geo[G_DE, j]
-    if de != 0.0:
-        dist = geo[G_RSUM, j] - d
-        x = dist * dist - de * de
-        f *= np.sqrt(x if x > 0.0 else 0.0) / dist
+    if off is not None:
+        de = off[G_DE, j]
+        if de != 0.0:
+            dist = off[G_RSUM, j] - d
+            x = dist * dist - de * de
+            f *= np.sqrt(x if x > 0.0 else 0.0) / dist
     return f
 
 
 @njit(cache=True, nogil=True)
-def _force_at(ed, b, c, j, theta, h, kappa, damping, geo, law):
+def _force_at(ed, b, c, j, theta, h, kappa, damping, d0, off, law):
     """Contact j's force at theta of the step (:func:`_force_w`)."""
-    return _force_w(ed, b, c, j, quintic(theta, h), hermite(theta, h), kappa, damping, geo, law)
+    return _force_w(ed, b, c, j, quintic(theta, h), hermite(theta, h), kappa, damping, d0, off, law)
 
 
 @njit(cache=True, nogil=True)
-def _peak_in_step(ed, b, c, j, h, kappa, damping, geo, law):
+def _peak_in_step(ed, b, c, j, h, kappa, damping, d0, off, law):
     """(largest interpolated force of contact j in the step, its theta): golden-section search."""
     g = 0.6180339887498949
     lo, hi = 0.0, 1.0
     x1 = hi - g * (hi - lo)
     x2 = lo + g * (hi - lo)
-    f1 = _force_at(ed, b, c, j, x1, h, kappa, damping, geo, law)
-    f2 = _force_at(ed, b, c, j, x2, h, kappa, damping, geo, law)
+    f1 = _force_at(ed, b, c, j, x1, h, kappa, damping, d0, off, law)
+    f2 = _force_at(ed, b, c, j, x2, h, kappa, damping, d0, off, law)
     for _ in range(60):
         if f1 < f2:
             lo = x1
             x1, f1 = x2, f2
             x2 = lo + g * (hi - lo)
-            f2 = _force_at(ed, b, c, j, x2, h, kappa, damping, geo, law)
+            f2 = _force_at(ed, b, c, j, x2, h, kappa, damping, d0, off, law)
         else:
             hi = x2
             x2, f2 = x1, f1
             x1 = hi - g * (hi - lo)
-            f1 = _force_at(ed, b, c, j, x1, h, kappa, damping, geo, law)
+            f1 = _force_at(ed, b, c, j, x1, h, kappa, damping, d0, off, law)
         if hi - lo < 1e-12:
             break
     x = 0.5 * (lo + hi)
-    return _force_at(ed, b, c, j, x, h, kappa, damping, geo, law), x
+    return _force_at(ed, b, c, j, x, h, kappa, damping, d0, off, law), x
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi, ed, ends, mass, inv_mass, kappa, damping,
-               geo, fext, law, wall_slot, interval, k_start, k_stop, h_fixed, eps, h_max, rec, out_f, out_ke, out_pe,
+               d0, off, fext, law, wall_slot, interval, k_start, k_stop, h_fixed, eps, h_max, rec, out_f, out_ke, out_pe,
                out_d, out_v, record_v, out_u, record_u, fmax, peak, acc):
     """Advance until sample ``k_stop - 1`` (samples ``interval`` seconds apart) is recorded.
 
@@ -512,9 +514,9 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
                 h = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max)
                 href = h
             for redo in range(MAX_REDO + 1):
-                step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, geo, fext, inv_mass, law, h,
+                step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, off, fext, inv_mass, law, h,
                      ed, b)
-                end_data(un, vn, an, kappa, damping, geo, fext, mass, law, 0.0, ed, ends, c)
+                end_data(un, vn, an, kappa, damping, d0, off, fext, mass, law, 0.0, ed, ends, c)
                 if h_fixed > 0.0 or redo == MAX_REDO:
                     break
                 x = event_inside(ed, b, c, h, mode)
@@ -522,7 +524,7 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
                     break
                 acc[A_REDO] += 1.0
                 if x > 1.0:  # a branch switched at the start: its step is bounded afresh
-                    restart(u, v, a, kappa, damping, geo, fext, inv_mass, law, mode, pw, ed, b)
+                    restart(u, v, a, kappa, damping, d0, off, fext, inv_mass, law, mode, pw, ed, b)
                     hm = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max)
                     h = hm if hm < h else h
                 else:
@@ -541,7 +543,7 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
             dw0 = ed[b, R_DF, ws]
             dw1 = ed[c, R_DF, ws]
             if dw0 > 0.0 and dw1 <= 0.0:
-                fk, x = _peak_in_step(ed, b, c, ws, h, kappa, damping, geo, law)
+                fk, x = _peak_in_step(ed, b, c, ws, h, kappa, damping, d0, off, law)
                 if fk > peak[0]:
                     peak[0] = fk
                     peak[1] = t + x * h
@@ -560,7 +562,7 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
         qw = quintic(theta, hl)
         hw = hermite(theta, hl)
         for j in range(nc):
-            f = _force_w(ed, b, c, j, qw, hw, kappa, damping, geo, law)
+            f = _force_w(ed, b, c, j, qw, hw, kappa, damping, d0, off, law)
             fi[j] = f
             fmax[j] = f if f > fmax[j] else fmax[j]
         for r in range(nrec):
