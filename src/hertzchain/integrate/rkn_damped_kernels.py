@@ -1,10 +1,11 @@
-"""Compiled kernels of ``"rkn4"`` on the dissipative laws: the classical fourth-order Runge-Kutta-
-Nystrom method for y'' = f(y, y'), with a step control that sees every contact's non-smooth
-instants and lands on them, and probes interpolated between steps.
+"""Compiled kernels of ``"rkn4"`` on the dissipative laws and offset beads: the classical
+fourth-order Runge-Kutta-Nystrom method for y'' = f(y, y'), with a step control that sees every
+contact's non-smooth instants and lands on them, and probes interpolated between steps.
 
 Forces: Kuwabara-Kono F = kappa (delta^(3/2) + A delta^(1/2) r) or the dashpot F = kappa
 delta^(3/2) + gamma r (r = d(delta)/dt), clipped at zero (never attractive), as the Verlet's
-(``primitives._viscous_force``: the same function). A step of size h from (u, v) with a = f(u, v)
+(``primitives._viscous_force``: the same function; the elastic law is the dashpot with gamma =
+0); an offset pair's acts along its line of centres (:func:`_line`). A step of size h from (u, v) with a = f(u, v)
 (paper eq. 1, a_i = (F_{i-1} - F_i + f_ext,i) / m_i) is Nystrom's classical method (RK4 on the
 first-order system, Hairer-Norsett-Wanner I.14)::
 
@@ -16,17 +17,22 @@ and the dissipated energy, D' = sum_j (F_j - F_el,j) r_j, takes the same weights
 stages for the contacts that carry a force (fourth order); a contact clipped or open over a step
 carries none, and what it dissipates is exactly the fall of its elastic energy (2/5) kappa
 delta^(5/2) (whose delta^(3/2) singularity at the opening a quadrature would miss): KE + PE + D
-is conserved to the method's order (:func:`step_dissipation`). f(u', v') is the next step's k1: four force passes per step.
+is conserved to the method's order (:func:`step_dissipation`). f(u', v') is the next step's k1:
+four force passes per step.
 
 Non-smooth instants of a contact, each an *event* the step lands on (a step that would straddle one
 has the error of a jump or kink, of order 1 or 2 in h whatever the method): its closing (delta
 crosses 0 upwards: the dashpot force jumps by gamma r, Kuwabara-Kono's rises as delta^(1/2)), the
 clip (the unclipped force F_u crosses 0 downwards while unloading: dF/dt jumps to 0) and a reload
-(F_u back above 0 while delta > 0). Every step is checked after it is taken: where a contact's
-state (open, closed and clipped, loaded) changed inside it, the step is redone, ending on the
-instant (the root of the cubic Hermite of delta or F_u through its values and rates at both
-ends), until the instant lies within :data:`EVENT_TOL` of a step's end. The opening after a clip
-carries no force on either side: no event.
+(F_u back above 0 while delta > 0). A step is taken with every contact on a fixed *branch*
+(``mode``: loaded, the unclipped force F_u extended smoothly, or no force), the one its state
+at the step's start gives, so that no stage sees the other side of an instant. After the step,
+where a contact's state at the end (open, closed and clipped, loaded) leaves its branch, the step
+is redone ending on the instant (the root of the cubic Hermite of delta or F_u through its values
+and rates at both ends), until the instant lies within :data:`EVENT_TOL` of a step's end; an
+instant at the step's start (a state that ended the last step just short of it) switches the
+branch and restarts the step. The opening after a clip carries no force on either side: no
+event.
 
 Step control (:func:`next_step`): per loaded contact j the local velocity error of a step h is
 bounded by
@@ -44,7 +50,7 @@ step keeps max_j e_j(h) <= eps, grows at most :data:`MAX_GROWTH`-fold, and a Ger
 keeps (omega + damping rate) h below :data:`MAX_RHO_H` (RK4 is stable to ~2.8 on both axes).
 
 Probes at the sample times: every contact's overlap by the quintic Hermite through (delta, r, q)
-at the step's ends (q = a_j - a_{j+1}) and its rate by the cubic Hermite through (r, q), the force
+at the step's ends (q = d(r)/dt, a_j - a_{j+1} for an aligned pair) and its rate by the cubic Hermite through (r, q), the force
 the law's at those (clipped): its time derivative is then the law's own, rate term included; the
 energies (kinetic, elastic, dissipated) by the cubic Hermite through their values and exact
 rates. Events end steps, so each step's interpolants are smooth. The peak wall force is the
@@ -81,7 +87,7 @@ ROWS = 9
 E_KE, E_DKE, E_PE, E_DPE, E_D, E_DD = 0, 1, 2, 3, 4, 5
 ENDS = 6
 #: Slots of the run's accumulator ``acc``.
-A_T, A_TPREV, A_H, A_STEPS, A_HMIN, A_HMAX, A_HREF, A_REDO = 0, 1, 2, 3, 4, 5, 6, 7
+A_T, A_TPREV, A_H, A_STEPS, A_HMIN, A_HMAX, A_HREF = 0, 1, 2, 3, 4, 5, 6
 #: Contact states (:func:`_state`).
 OPEN, CLIPPED, LOADED = 0, 1, 2
 
@@ -490,7 +496,7 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
     ``fi`` (their running maxima into ``fmax``), the contacts ``rec`` into row k of ``out_f``,
     energies into ``out_ke``, ``out_pe``, ``out_d``, velocities and positions of bodies 0..N when
     asked. ``peak`` = [largest wall force, its time]. ``acc`` = [time, previous step's start,
-    last step, steps, smallest step, largest step, last step the error bound chose, redone steps].
+    last step, steps, smallest step, largest step, last step the error bound chose].
     Returns 0, or 1 when the state became non-finite.
     """
     n = mass.shape[0]
@@ -522,7 +528,6 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
                 x = event_inside(ed, b, c, h, mode)
                 if x < 0.0:
                     break
-                acc[A_REDO] += 1.0
                 if x > 1.0:  # a branch switched at the start: its step is bounded afresh
                     restart(u, v, a, kappa, damping, d0, off, fext, inv_mass, law, mode, pw, ed, b)
                     hm = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max)
