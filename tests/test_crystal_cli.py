@@ -90,3 +90,43 @@ def test_spectrum_command_writes_and_resumes(tmp_path, capsys):
     assert main(args) == 2
     assert "--out" in capsys.readouterr().err
     assert math.isfinite(again[1][1])
+
+
+def test_band_gap_map_through_sweep(tmp_path, capsys):
+    """``[sweep] analysis = "dispersion"`` (examples/dimer_gap_map.toml): each member's band gap over
+    the light bead's diameter equals the diatomic closed form, from sqrt(2K/m_heavy) to
+    sqrt(2K/m_light) over 2 pi (K = (3/2) kappa^(2/3) F0^(1/3), both contacts heavy-light), to 1e-9;
+    equal beads have none; the map and gaps.nc are written; a member without precompression is
+    refused naming the field and the member."""
+    from pathlib import Path
+
+    import pandas as pd
+    import xarray as xr
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "dimer_gap_map.toml"
+    out = tmp_path / "map"
+    assert main(["sweep", str(example), "--out", str(out), "--quiet"]) == 0
+    df = pd.read_csv(out / "metrics.csv")
+    theta = hc.get_material("AISI52100").theta
+    mat = hc.get_material("AISI52100")
+    for d_mm, low, high, count in zip(df["chain.diameters_mm[1]"], df["gap_low_Hz"], df["gap_high_Hz"],
+                                      df["gap_count"]):
+        r_h, r_l = 5e-3, d_mm * 0.5e-3
+        kappa = 1.0 / (2 * theta * math.sqrt(1 / r_h + 1 / r_l))  # paper eq. 1, two steel spheres
+        k = 1.5 * kappa ** (2 / 3) * 1.0 ** (1 / 3)
+        m_h, m_l = (mat.density * math.pi * (2 * r) ** 3 / 6 for r in (r_h, r_l))
+        if d_mm == 10.0:
+            assert count == 0 and math.isnan(low)
+            continue
+        assert count == 1
+        assert low == pytest.approx(math.sqrt(2 * k / m_h) / (2 * math.pi), rel=1e-9)
+        assert high == pytest.approx(math.sqrt(2 * k / m_l) / (2 * math.pi), rel=1e-9)
+    assert (out / "gap_map.png").stat().st_size > 0
+    with xr.open_dataset(out / "gaps.nc") as ds:
+        np.testing.assert_allclose(ds.gap_low.values[:, 0], df["gap_low_Hz"].to_numpy(), rtol=1e-15)
+    text = example.read_text().replace("precompression = 1.0", "precompression = 0.0")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    assert main(["sweep", str(bad), "--out", str(tmp_path / "bad"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "chain.precompression" in err and "sweep member 0" in err

@@ -111,3 +111,51 @@ def test_mass_in_mass_gap_edges_closed_form():
 def test_dispersion_refuses_no_precompression():
     with pytest.raises(hc.ConfigError, match="chain.precompression"):
         hc.dispersion(hc.Chain.uniform(1, 10e-3), 0.0)
+
+
+def test_a_chain_without_striker():
+    """striker=None (a crystal with no impact): no body 0 and no contact 0. Its modes are those of
+    the chain whose striker only touches bead 1 (no static force, no degree of freedom); a force
+    drive runs as with drive.striker = False (the same arrays, bit for bit; its plots say "no
+    striker"); a displacement drive's
+    driver is a flat of bead 1's material (the sphere-flat Hertz constant 1 / (2 theta sqrt(1/R)),
+    paper eq. 1); a run with nothing to excite the chain is refused naming the striker."""
+    chain = hc.Chain([10e-3, 14e-3, 8e-3])
+    bare = hc.Model(chain, striker=None, precompression=F0)
+    touching = hc.Model(chain, precompression=F0)
+    np.testing.assert_array_equal(hc.modes(bare).frequencies, hc.modes(touching).frequencies)
+    eq = hc.equilibrium(bare)
+    assert eq.forces[0] == 0.0 and eq.overlaps[0] == 0.0
+    np.testing.assert_allclose(eq.forces[1:], F0, rtol=1e-12)
+    assert bare.describe()["striker"] is None
+    drive = hc.Drive(amplitude=0.1, frequency=5000.0, ramp_cycles=2)
+    a = hc.simulate(hc.Model(chain, striker=None, law=hc.Dashpot(5.0), precompression=F0, drive=drive), 1e-3,
+                    hc.Probes(5e-6))
+    b = hc.simulate(hc.Model(chain, law=hc.Dashpot(5.0), precompression=F0, drive=drive), 1e-3, hc.Probes(5e-6))
+    np.testing.assert_array_equal(a.contact_force.values, b.contact_force.values)
+    from hertzchain.viz.common import result_title
+
+    assert result_title(a) == "3 beads, no striker"
+    shaker = hc.Model(chain, striker=None, precompression=F0, drive=hc.Drive(quantity="displacement", amplitude=1e-9))
+    theta = hc.get_material("AISI52100").theta
+    assert shaker.system().kappa[0] == pytest.approx(1.0 / (2 * theta * math.sqrt(2.0 / 10e-3)), rel=1e-12)
+    assert hc.equilibrium(shaker).forces[0] == pytest.approx(F0, rel=1e-12)  # the driver applies F0
+    with pytest.raises(hc.ConfigError, match="striker"):
+        hc.simulate(bare, 1e-3)
+    with pytest.raises(hc.ConfigError, match="drive.striker"):
+        hc.Model(chain, striker=None, precompression=F0, drive=hc.Drive(striker=True))
+
+
+def test_modes_of_a_registry_law():
+    """hc.modes linearises any registry law by its own dF/d(delta) at the static overlap: the power
+    law F = k delta^2 gives K = 2 k delta0 with delta0 = sqrt(F0 / k) (a hand-assembled matrix);
+    with n = 3/2 and no stiffness it is the elastic law's chain (1e-12)."""
+    chain = hc.Chain([10e-3, 14e-3, 8e-3])
+    k_law = 1e12
+    mds = hc.modes(hc.Model(chain, law=hc.PowerLaw(2.0, stiffness=k_law), precompression=F0))
+    k = 2.0 * k_law * math.sqrt(F0 / k_law)  # every contact, the wall's included, carries F0
+    kmat = np.array([[k, -k, 0.0], [-k, 2 * k, -k], [0.0, -k, 2 * k]])
+    w2 = np.sort(np.linalg.eigvals(np.diag(1.0 / chain.masses) @ kmat).real)
+    np.testing.assert_allclose(mds.frequencies, np.sqrt(w2) / (2 * math.pi), rtol=1e-10)
+    hertz = hc.modes(hc.Model(chain, law=hc.PowerLaw(1.5), precompression=F0)).frequencies
+    np.testing.assert_allclose(hertz, hc.modes(hc.Model(chain, precompression=F0)).frequencies, rtol=1e-12)

@@ -10,9 +10,10 @@ these models change:
 - the Hertz constant and elastic limit of every contact whose faces are not two spheres or a
   sphere on a flat: a flat or curved striker face, cylinders, a spherical body face
   (:func:`hertzchain.elements.contact_constants`, Johnson's elliptical Hertz contact);
-- a drive without a striker (``Model.drive``, :mod:`hertzchain.crystal.drive`): no striker
-  body (mass 0, at rest); no contact 0 for a force drive, the massless driver's contact for a
-  displacement drive (the driver then applies the precompression);
+- no striker (``Model.striker = None``, or a ``Model.drive`` without one,
+  :mod:`hertzchain.crystal.drive`): no striker body (mass 0, at rest); no contact 0 (with no drive
+  or a force drive), the massless driver's contact for a displacement drive (the driver then
+  applies the precompression; with ``striker = None`` its face is a flat of bead 1's material);
 - the static state: every body of mass m feels m g along the chain (``gravity``), bead 1 is
   pushed by the precompression F0, the beads of ``Model.loads`` by their static forces, and contact
   j carries what bodies 0..j weigh and are pushed with, S_j = sum_{i <= j} f_i, at the overlap
@@ -66,7 +67,7 @@ STANDARD_GRAVITY = 9.80665
 
 def _faces(model) -> tuple[Face | None, list[Face], Face | None]:
     """The striker's face, every bead's face and the wall's face (None: a flat wall's default)."""
-    s = model.striker
+    s = model.body0
     k = 0.0 if s.face_radius is None else 1.0 / s.face_radius
     striker = Face(k, k, 0.0, s.material, "the flat striker" if s.shape == "flat" else "the striker")
     chain = model.chain
@@ -84,7 +85,7 @@ def _special_contacts(model) -> list[int]:
     """Contacts whose faces are not those of the sphere formulas of ``Model.system()``."""
     n = model.chain.n_beads
     out = set()
-    s = model.striker
+    s = model.body0
     if s.shape == "flat" or s.radius_of_curvature is not None:
         out.add(0)
     for i, el in enumerate(model.chain.elements):
@@ -138,12 +139,16 @@ def extend(model, parts: dict) -> dict:
 
     striker_face, bead_faces, wall_face = _faces(model)
     faces = [striker_face, *bead_faces, wall_face]
-    for j in _special_contacts(model):
+    special = _special_contacts(model)
+    for j in special:
         kappa[j], fy[j] = contact_constants(faces[j], faces[j + 1], _contact_field(model, j))
+    if special and hasattr(model.law, "contact_stiffness"):  # a law's own k (the power law's) where redone here
+        kappa[special] = model.law.contact_stiffness(kappa[special])
 
     drive = model.drive
-    driver = drive is not None and not drive.striker and drive.quantity == "displacement"
-    if drive is not None and not drive.striker:
+    no_striker = model.striker is None or (drive is not None and not drive.striker)
+    driver = no_striker and drive is not None and drive.quantity == "displacement"
+    if no_striker:
         # no striker: a force drive has no contact 0; a displacement drive's massless driver (an
         # immovable body whose position the drive prescribes) takes the striker's place
         mass[0], inv_mass[0] = 0.0, 0.0
@@ -151,6 +156,7 @@ def extend(model, parts: dict) -> dict:
         if not driver:
             kappa[0], fy[0] = 0.0, np.inf
     law = model.law
+    spec = spec_of(law)
     parts["damping"] = np.where(kappa > 0, float(law.parameter), 0.0)
     if hasattr(law, "contact_damping"):  # size-scaled law: the pair's reduced mass, the body's included
         parts["damping"] = law.contact_damping(1.0 / (inv_mass[: n + 1] + inv_mass[1:]), kappa)
@@ -174,7 +180,12 @@ def extend(model, parts: dict) -> dict:
         fext[0], fext[1] = model.precompression, fext[1] - model.precompression
     held = held_forces(fext, kappa, n)
     # loaded past F_Y (elastic-plastic): along Thornton's loading line F_y + (3/2) kappa delta_y^(1/2) (delta - delta_y)
-    d0 = static_overlaps(held[: n + 1], kappa, fy if spec_of(law).plastic else None)
+    d0 = static_overlaps(held[: n + 1], kappa, fy if spec.plastic else None)
+    if spec.generated:  # where the law's force at rest is the held force (laws/solve.py)
+        from .laws.solve import static_overlap
+
+        d0 = np.array([static_overlap(spec, s, k, p) if s > 0 and k > 0 else 0.0
+                       for s, k, p in zip(held[: n + 1], kappa, parts["damping"])])
     mount_d0 = 0.0
     if wall.is_body and held[n + 1] > 0:
         if wall.stiffness == 0:  # Model refuses this before; kept as a guard for direct callers

@@ -388,9 +388,9 @@ def smaller_radii(striker_diameter: np.ndarray, diameters: np.ndarray) -> np.nda
 def _smaller_radius(model) -> np.ndarray:
     """:func:`smaller_radii` of one model (a flat striker face: bead 1's radius; a curved one: the
     smaller of its radius of curvature and bead 1's)."""
-    face = model.striker.face_radius
+    face = model.body0.face_radius
     if face is None:  # no beads: a flat striker meets the body's curved face
-        face = model.chain.radii[0] if model.chain.n_beads else (model.wall.face_radius or model.striker.diameter / 2)
+        face = model.chain.radii[0] if model.chain.n_beads else (model.wall.face_radius or model.body0.diameter / 2)
     size = 2.0 * face
     return smaller_radii(np.array([size]), model.chain.diameters[None, :])[0]
 

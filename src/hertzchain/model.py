@@ -418,7 +418,8 @@ class Model:
     chain
         The beads.
     striker
-        The impacting sphere (body 0).
+        The impacting sphere (body 0); None: no striker (a crystal that a ``drive`` excites): no
+        body 0 and contact 0, or a displacement drive's driver, a flat of bead 1's material.
     wall
         The end condition (default: immovable flat of the chain's material).
     law
@@ -442,7 +443,7 @@ class Model:
     """
 
     chain: Chain
-    striker: Striker = field(default_factory=Striker)
+    striker: Striker | None = field(default_factory=Striker)
     wall: Wall = field(default_factory=Wall)
     #: any registered law's object (hertzchain.laws): these, PowerLaw, HuntCrossley, a user's
     law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot | Elastoplastic = field(default_factory=Elastic)
@@ -453,14 +454,16 @@ class Model:
 
     def __post_init__(self) -> None:
         spec_of(self.law)  # a registered law (ConfigError naming contact.law otherwise)
+        if self.striker is not None and not isinstance(self.striker, Striker):
+            raise ConfigError("striker", f"must be a hertzchain.Striker or None (no striker), got {self.striker!r}")
         self._check_loads()
         self._check_drive()
         object.__setattr__(self, "precompression", real(self.precompression, "chain.precompression", unit="N"))
         if not (math.isfinite(self.precompression) and self.precompression >= 0):
             raise ConfigError("chain.precompression", f"must be a force >= 0 in N, got {self.precompression!r}")
-        if self.chain.n_beads == 0 and not self.wall.present:
-            raise ConfigError("chain.uniform.n", "a chain of zero beads needs a wall or a body for the striker to hit "
-                              "(wall.type = 'none' leaves it flying)")
+        if self.chain.n_beads == 0 and (self.striker is None or not self.wall.present):
+            raise ConfigError("chain.uniform.n", "a chain of zero beads needs a striker and a wall or a body for it to "
+                              "hit (wall.type = 'none' leaves it flying)")
         if self.chain.n_beads == 0 and self.precompression > 0:
             raise ConfigError("chain.precompression", "a chain of zero beads has nothing to precompress")
         if self.precompression > 0 and not self.wall.present:
@@ -470,7 +473,7 @@ class Model:
         # The striker's contact obeys the same head-on rule as the chain's (Chain checks beads n, n+1):
         # the striker flies along the axis, so bead 1's offset e_1 must stay below (R_s + R_1) / 2;
         # past R_s + R_1 it would miss the chain and the run would report 0 N.
-        e1 = abs(float(self.chain.offsets[0])) if self.chain.n_beads else 0.0
+        e1 = abs(float(self.chain.offsets[0])) if self.chain.n_beads and self.striker is not None else 0.0
         if e1 and e1 >= (reach := 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])):
             raise ConfigError("chain.offsets", f"bead 1 is offset by {e1:.3g} m from the striker's line of flight, "
                               f"more than half the sum of their radii ({reach:.3g} m); the striker would not "
@@ -485,7 +488,7 @@ class Model:
         if hasattr(self.law, "limiting_pressure_factor"):
             # a law with a limiting pressure (Thornton's) needs it at every contact; a material without
             # a yield stress would silently stay elastic (plastic work 0, yield_force NaN)
-            used = [self.striker.material, *self.chain.materials] + ([self.wall_material] if self.wall.present else [])
+            used = [self.body0.material, *self.chain.materials] + ([self.wall_material] if self.wall.present else [])
             bare = next((m for m in used if m.yield_stress is None), None)
             if bare is not None:
                 raise ConfigError(f"materials.{bare.name}.yield_stress",
@@ -497,9 +500,19 @@ class Model:
                               "(chain.gravity, chain.precompression): give its mount a stiffness in N/m")
 
     def _check_drive(self) -> None:
-        """A drive is a :class:`hertzchain.Drive` (checked by its own constructor)."""
-        if self.drive is not None and getattr(self.drive, "quantity", None) not in ("force", "displacement"):
-            raise ConfigError("drive", f"must be a hertzchain.Drive, got {self.drive!r}")
+        """A drive is a :class:`hertzchain.Drive` (checked by its own constructor) that fits the model."""
+        if self.drive is not None:
+            from .crystal.drive import check_drive_fits
+
+            check_drive_fits(self.drive, has_striker=self.striker is not None, has_wall=self.wall.present)
+
+    @property
+    def body0(self) -> Striker:
+        """The striker, or without one a stand-in (bead 1's diameter and material, a flat face) for the
+        arrays of body 0 and contact 0, which :mod:`hertzchain.bodies` then removes (or makes a driver's)."""
+        if self.striker is not None:
+            return self.striker
+        return Striker(float(self.chain.diameters[0]), 1.0, self.chain.materials[0], shape="flat")
 
     def _check_loads(self) -> None:
         """Validate ``loads`` (:func:`hertzchain.bodies.checked_loads`) and store them as a tuple of pairs."""
@@ -554,7 +567,7 @@ class Model:
     def plain(self) -> bool:
         """True for the paper's kind of model (sphere striker, spheres, a flat wall or a free end, no
         gravity): its arrays are computed by the array set-up of ensembles too."""
-        return (self.striker.plain and not self.wall.is_body and self.chain.plain and self.gravity == 0
+        return (self.striker is not None and self.striker.plain and not self.wall.is_body and self.chain.plain and self.gravity == 0
                 and not self.loads and self.drive is None)
 
     def system(self) -> System:
@@ -569,7 +582,7 @@ class Model:
     def _build_system(self) -> System:
         n = self.chain.n_beads
         mass = np.empty(n + 2)
-        mass[0] = self.striker.mass
+        mass[0] = self.body0.mass
         mass[1 : n + 1] = self.chain.masses
         mass[n + 1] = np.inf
         inv_mass = np.zeros(n + 2)
@@ -578,8 +591,8 @@ class Model:
         # Hertz constants and elastic limits of every contact, vectorised over the chain (a Python
         # loop over contact_radii() took ~4 s for 1e6 beads): the formulas of contact.hertz_constant
         # and contact.yield_force, with bodies 0..N and the wall as body N + 1 (flat: 1/R' = 0).
-        r = np.concatenate([[self.striker.diameter / 2], self.chain.radii])
-        theta, sigma = _material_columns([self.striker.material, *self.chain.materials])
+        r = np.concatenate([[self.body0.diameter / 2], self.chain.radii])
+        theta, sigma = _material_columns([self.body0.material, *self.chain.materials])
         inv_r = 1.0 / r[:-1] + 1.0 / r[1:]
         t_sum = theta[:-1] + theta[1:]
         s_min = np.fmin(sigma[:-1], sigma[1:])  # weaker material; NaN = no yield stress given
@@ -626,20 +639,20 @@ class Model:
         e = np.concatenate([[0.0], self.chain.offsets, [0.0]])
         de = np.diff(e)
         de[n] = 0.0  # a flat wall is unaffected by the last bead's offset (docs/conventions.rst)
-        r = np.concatenate([[self.striker.diameter / 2], self.chain.radii, [0.0]])
+        r = np.concatenate([[self.body0.diameter / 2], self.chain.radii, [0.0]])
         rsum = r[:-1] + r[1:]
         # Misaligned neighbours start touching along their line of centres (docs/conventions.rst).
         dx0 = np.sqrt(np.maximum(rsum**2 - de**2, 0.0))
 
         v0 = np.zeros(n + 2)
-        v0[0] = self.striker.velocity
+        v0[0] = self.body0.velocity
         parts = dict(mass=mass, inv_mass=inv_mass, kappa=kappa, damping=damping, d0=d0, de=de, dx0=dx0,
                      rsum=rsum, fext=fext, u0=np.zeros(n + 2), v0=v0, law=spec.code,
                      misaligned=bool(np.any(de != 0.0)), has_wall=self.wall.present, yield_force=fy,
                      yield_pressure_ratio=getattr(self.law, "pressure_ratio", 1.0))
         if self.plain:
             return System(**parts)
-        if spec.generated:
+        if spec.generated and self.drive is None and self.striker is not None:  # the driven loop takes any law
             raise ConfigError(_not_plain_field(self), f"contact.law = {spec.name!r} runs spherical strikers and beads, "
                               "a flat wall or a free end, without gravity; this model has more")
         from .bodies import extend  # the striker's face, elements, the protected body, gravity
@@ -659,7 +672,7 @@ class Model:
                         else self.wall.face_radius * 1e3)
         out = {
             "chain": self.chain.describe(),
-            "striker": self.striker.describe(),
+            "striker": None if self.striker is None else self.striker.describe(),
             "wall": wall,
             "contact": law,
             "precompression": self.precompression,
@@ -675,6 +688,8 @@ class Model:
 
 def _not_plain_field(model: "Model") -> str:
     """The config field that makes ``model`` more than the plain kind (for a law that runs plain models only)."""
+    if model.striker is None:
+        return "striker"
     if not model.striker.plain:
         return "striker.shape"
     if model.wall.is_body:

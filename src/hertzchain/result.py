@@ -175,7 +175,8 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
     if model.gravity > 0 and model.wall.present:
         # the wall contact holds bodies 0..N at rest (System.static_forces()[N], from the model: a
         # batch member's arrays hold no external forces)
-        static = model.precompression + model.gravity * (model.striker.mass + float(np.sum(model.chain.masses)))
+        striker = 0.0 if model.striker is None else model.striker.mass
+        static = model.precompression + model.gravity * (striker + float(np.sum(model.chain.masses)))
         attrs.update(dynamic_peak(raw.peak_wall_force, static))
     if raw.body is not None:
         attrs.update(body_peaks(arrays["body_force"][1], arrays["body_acceleration"][1], arrays["body_energy"][1]))

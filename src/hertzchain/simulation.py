@@ -168,6 +168,9 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
     from .result import build_dataset
 
     mode = "given"
+    if model.striker is None and model.drive is None:
+        raise ConfigError("striker", "a model without a striker (striker=None) needs a drive to set it moving "
+                          "(hertzchain.Drive, [drive]); its static state is hertzchain.equilibrium(model)")
     if isinstance(duration, str) and duration == "auto":
         duration, mode = auto_duration(model), "auto"
     duration = real(duration, "run.duration", low=0.0, open_low=True, unit="s")

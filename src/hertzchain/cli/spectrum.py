@@ -21,13 +21,16 @@ from .common import progress_bar
               help="Drive cycles after the ramp before the measurement (the transient must die out).")
 @click.option("--measure-cycles", type=click.FloatRange(min=1), default=20.0, show_default=True,
               help="Whole cycles over which the amplitudes are measured.")
+@click.option("--batch", type=click.IntRange(1, 10_000), default=8, show_default=True,
+              help="Frequencies run at once by the batched engine (one per thread in turn) and written together.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def spectrum(config: Path, out: Path, fmin: float, fmax: float, points: int, log_scale: bool, settle_cycles: float,
-             measure_cycles: float, quiet: bool) -> None:
+             measure_cycles: float, batch: int, quiet: bool) -> None:
     """Stepped-sine transmission of CONFIG's chain driven by its [drive] (type = "harmonic"): the
     amplitude of the wall force (of the last contact with a free end) at the drive frequency over
-    the drive's force amplitude on bead 1, in the steady state. Each frequency is written to
-    OUT/transmission.csv as it completes; a rerun skips the frequencies done."""
+    the drive's force amplitude (on bead 1, or bead N with [drive] end = "last"), in the steady
+    state. The frequencies run --batch at a time in one compiled call; each batch is written to
+    OUT/transmission.csv as it completes, and a rerun skips the frequencies done."""
     import numpy as np
 
     from ..config.build import build_model
@@ -46,7 +49,7 @@ def spectrum(config: Path, out: Path, fmin: float, fmax: float, points: int, log
     settings = SpectrumSettings(settle_cycles=settle_cycles, measure_cycles=measure_cycles,
                                 steps_per_radian=cfg.run.steps_per_radian, dt=cfg.run.dt)
     with progress_bar("spectrum", enabled=not quiet, lazy=True) as update:
-        ds = transmission_spectrum(model, freqs, out, settings, progress=update)
+        ds = transmission_spectrum(model, freqs, out, settings, progress=update, batch=batch)
     write_bytes(out / "transmission.nc", ds.to_netcdf())
     from ..crystal.figures import plot_transmission
 

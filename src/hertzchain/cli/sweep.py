@@ -33,6 +33,9 @@ def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, overr
     Finished chunks are written at once, so an interrupted sweep resumes where it stopped when
     rerun with the same --out. --set paths are relative to [base] (e.g. --set striker.diameter_mm=10). The table OUT/metrics.csv has one row per member: the swept values
     and the wall-pulse metrics F_m [N], T [s], tau [s], Q_F [N s], Q_T [N s] (paper Sec. III).
+    With [sweep] analysis = "dispersion" each member's chain is one period of a periodic chain
+    instead: the table holds its band gaps [Hz], and OUT/gap_map.png draws them against the first
+    swept parameter (a band-gap map).
     """
     from rich.console import Console
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
@@ -61,6 +64,18 @@ def sweep(sweep_file: Path, out: Path, scheduler: str | None, force: bool, overr
     finally:
         if client is not None:
             client.close()
+    if cfg.sweep.analysis == "dispersion":  # a band-gap map: the gaps against the first swept parameter
+        from ..crystal.figures import plot_gap_map
+        from ..fileio import atomic_path
+
+        fig = plot_gap_map(result.metrics, cfg.parameter_names[0])
+        with atomic_path(out / "gap_map.png") as tmp:
+            fig.savefig(tmp, format="png", dpi=120)
+        if not quiet:
+            with_gaps = int((result.metrics["gap_count"] > 0).sum())
+            click.echo(f"wrote {result.metrics_path}, gaps.nc and gap_map.png ({len(result.metrics)} members, "
+                       f"{with_gaps} with a band gap)")
+        return
     if quiet:
         return
     df = result.metrics

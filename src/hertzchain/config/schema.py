@@ -380,6 +380,8 @@ class DriveConfig(_Section):
     ramp_cycles: float = Field(default=5.0, ge=0, le=1e6, description="cycles of the sin^2 ramp-up")
     frequency_end: float | None = _bounded("frequency", open_low=True, default=None, description="Hz, a chirp's end")
     sweep_time: float | None = Field(default=None, gt=0, le=BOUNDS["duration"][1], description="s, a chirp's sweep")
+    end: Literal["first", "last"] = Field(default="first", description="where the drive enters: bead 1, or "
+                                                                    "bead N (bead 1 then rests on the wall)")
     striker: bool = Field(default=False, description="keep the striker (force drive only)")
     file: str | None = Field(default=None, description="a history's CSV (time_s,value), relative to the "
                                                        "working folder")

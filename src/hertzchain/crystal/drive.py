@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["Drive", "drive_parameters", "drive_table", "read_history"]
+__all__ = ["Drive", "check_drive_fits", "drive_parameters", "drive_table", "read_history"]
 
 TYPES = ("harmonic", "chirp", "history")
 #: Cycles a driven run lasts after the ramp with ``run.duration = "auto"``.
@@ -40,6 +40,7 @@ AUTO_CYCLES = 100
 #: The sweep time [s] of a harmonic drive: never reached (finite, so that 0 * T stays 0).
 NEVER = 1e300
 QUANTITIES = ("force", "displacement")
+ENDS = ("first", "last")
 
 
 def _positive(value, name: str, what: str, allow_zero: bool = False) -> float:
@@ -70,6 +71,10 @@ class Drive:
         A chirp's final frequency f1 [Hz].
     sweep_time : float, optional
         A chirp's duration T [s].
+    end : {"first", "last"}
+        Where the drive enters: bead 1 (default; the wall after bead N), or bead N, the chain then
+        resting with bead 1 on the wall (:mod:`hertzchain.crystal.ends`): the transmission is
+        measured at the other end in both cases.
     striker : bool
         Keep the striker (a force drive only): it hits bead 1 as usual while the drive acts.
         False (default): no striker (contact 0 is absent, or is the driver's).
@@ -88,6 +93,7 @@ class Drive:
     ramp_cycles: float = 5.0
     frequency_end: float | None = None
     sweep_time: float | None = None
+    end: Literal["first", "last"] = "first"
     striker: bool = False
     file: str | None = None
     table: tuple | None = field(default=None, compare=False, repr=False)
@@ -118,6 +124,11 @@ class Drive:
         elif self.frequency_end is not None or self.sweep_time is not None:
             raise ConfigError("drive.frequency_end" if self.frequency_end is not None else "drive.sweep_time",
                               "belongs to a chirp (drive.type = 'chirp')")
+        if self.end not in ENDS:
+            raise ConfigError("drive.end", f"must be 'first' (bead 1) or 'last' (bead N), got {self.end!r}")
+        if self.striker and self.end == "last":
+            raise ConfigError("drive.striker", "the striker hits bead 1, which rests on the wall when the drive "
+                              "enters at bead N (drive.end = 'last'): leave drive.striker out")
         if not isinstance(self.striker, bool):
             raise ConfigError("drive.striker", f"must be true or false, got {self.striker!r}")
         if self.striker and self.quantity == "displacement":
@@ -162,11 +173,25 @@ class Drive:
         """Plain-data description (stored in result attributes)."""
         out = {"type": self.type, "quantity": self.quantity, "amplitude": self.amplitude, "frequency": self.frequency,
                "ramp_cycles": self.ramp_cycles, "striker": self.striker}
+        if self.end != "first":  # (left out at the default: the fingerprints of earlier spectra stay)
+            out["end"] = self.end
         if self.type == "chirp":
             out.update(frequency_end=self.frequency_end, sweep_time=self.sweep_time)
         if self.type == "history":
             out.update(file=str(self.file), rows=int(self.table[0].size))
         return out
+
+
+def check_drive_fits(drive, has_striker: bool, has_wall: bool) -> None:
+    """Refuse a drive that does not fit its model (ConfigError naming the field): not a Drive, a
+    drive entering at bead N with no wall to push the chain onto, the striker kept without one."""
+    if getattr(drive, "quantity", None) not in QUANTITIES:
+        raise ConfigError("drive", f"must be a hertzchain.Drive, got {drive!r}")
+    if drive.end == "last" and not has_wall:
+        raise ConfigError("drive.end", "a drive entering at bead N (drive.end = 'last') pushes the chain onto the "
+                          "wall at bead 1's end: wall.type = 'none' leaves nothing to transmit to")
+    if drive.striker and not has_striker:
+        raise ConfigError("drive.striker", "keeps the striker hitting bead 1, but the model has none (striker=None)")
 
 
 def drive_parameters(drive: Drive) -> np.ndarray:

@@ -5,7 +5,8 @@ stiffness
 
     K_j = dF/d(delta) = (3/2) kappa_j delta_j^(1/2) = (3/2) kappa_j^(2/3) F_j^(1/3)
 
-(paper eq. 1 differentiated at the static force F_j); a contact that carries no static force has
+(paper eq. 1 differentiated at the static force F_j; a registry law's own dF/d(delta) there, from
+its partials, e.g. n k delta^(n - 1) for the power law); a contact that carries no static force has
 no linear stiffness (it opens or closes: the chain is not linear there). The degrees of freedom are
 the beads (their shells for mass-in-mass beads), each internal mass of a mass-in-mass bead (a
 spring k_in to its shell), a protected body (its mount k to the ground) and the striker when it
@@ -26,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..laws import law_of_code
 from ..integrate.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 from .statics import equilibrium
 
@@ -55,15 +57,24 @@ class LinearChain:
 
 def linear_matrices(model) -> LinearChain:
     """Assemble M, K and C of ``model`` linearised about its equilibrium (module docstring)."""
+    from .ends import driven_from_last, from_driven_end
+
+    if driven_from_last(model):  # the chain read from bead N, its rows and contacts in the model's numbers
+        return _to_model_numbers(linear_matrices(from_driven_end(model)), model.chain.n_beads)
     eq = equilibrium(model)
     system = model.system()
-    if system.law not in HERTZ_LAWS:
+    spec = law_of_code(system.law)
+    if system.law not in HERTZ_LAWS and not spec.generated:
         raise ConfigError("contact.law", f"the linearisation K = (3/2) kappa^(2/3) F^(1/3) is that of Hertz contacts "
                           f"(the elastic, viscoelastic, dashpot and elastoplastic laws); {model.law.name!r} is not one")
     n = system.n_beads
     d0 = eq.overlaps
     loaded = (eq.forces > 0) & (system.kappa > 0)
-    kc = np.where(loaded, 1.5 * system.kappa * np.sqrt(d0), 0.0)
+    if spec.generated:  # dF/d(delta) at rest from the law's partials (its state: a first touch at 1 m/s)
+        kc = np.array([abs(spec.partials(d, 0.0, k, p, 1.0)[0]) if on else 0.0
+                       for d, k, p, on in zip(d0, system.kappa, system.damping, loaded)])
+    else:
+        kc = np.where(loaded, 1.5 * system.kappa * np.sqrt(d0), 0.0)
     cc = np.where(loaded, system.damping_coefficients(d0), 0.0)
     index = np.full(n + 2, -1)
     labels: list[str] = []
@@ -106,6 +117,31 @@ def linear_matrices(model) -> LinearChain:
         spring(k, index[body], row, system.res_k[body])
     return LinearChain(mass=np.diag(masses), stiffness=k, damping=c, labels=labels, index=index,
                        contact_stiffness=kc, contact_damping=cc)
+
+
+def _to_model_numbers(lin: LinearChain, n: int) -> LinearChain:
+    """``lin`` of the chain read from bead N (hertzchain.crystal.ends) with beads i -> N + 1 - i and
+    contacts j -> N - j, rows ordered as the model's (beads 1..N, the body, the resonators)."""
+    def renumbered(label: str) -> tuple[str, tuple]:
+        kind, _, number = label.partition(" ")
+        if kind in ("bead", "resonator"):
+            i = n + 1 - int(number)
+            return f"{kind} {i}", (0 if kind == "bead" else 2, i)
+        return label, (1, 0)
+
+    pairs = [renumbered(x) for x in lin.labels]
+    order = sorted(range(len(pairs)), key=lambda r: pairs[r][1])
+    row = np.empty(len(order), dtype=int)
+    row[order] = np.arange(len(order))  # new row of each old row
+    index = np.full(n + 2, -1)
+    for body in range(n + 2):
+        old = lin.index[n + 1 - body]
+        index[body] = row[old] if old >= 0 else -1
+    pick = np.ix_(order, order)
+    return LinearChain(mass=lin.mass[pick], stiffness=lin.stiffness[pick], damping=lin.damping[pick],
+                       labels=[pairs[r][0] for r in order], index=index,
+                       contact_stiffness=lin.contact_stiffness[::-1].copy(),
+                       contact_damping=lin.contact_damping[::-1].copy())
 
 
 @dataclass(frozen=True)
@@ -182,6 +218,10 @@ def linear_transmission(model, frequencies, quantity: str | None = None) -> np.n
         abs(F_out) / abs(F_in) at each frequency: the last contact's (the wall's, else contact N - 1)
         force amplitude over the drive's force amplitude on bead 1.
     """
+    from .ends import driven_from_last, from_driven_end
+
+    if driven_from_last(model):  # bead N driven, contact 0 (the wall's) transmitting: the chain read from bead N
+        return linear_transmission(from_driven_end(model), frequencies, quantity)
     lin = linear_matrices(model)
     n = model.chain.n_beads
     if quantity is None:

@@ -13,8 +13,11 @@ force on bead 1 (its amplitude A for a force drive, contact 0's force for a disp
 DESIGN convention, docs/guide/crystals.rst. The transient decays only through dissipation: an
 elastic chain driven at a resonance never settles (give the contact law some damping).
 
-:func:`transmission_spectrum` writes each frequency's result as it completes (``DIR/transmission.csv``,
-rewritten atomically), and a rerun with the same settings skips the frequencies already there.
+:func:`transmission_spectrum` runs the frequencies a batch at a time on the batched driven engine
+(:func:`transmission_batch`: one compiled call, one member per frequency, each with its own step
+and state, so each frequency's result is that of its run alone, :func:`transmission_run`, bit for
+bit), writes each batch as it completes (``DIR/transmission.csv``, rewritten atomically), and a
+rerun with the same settings skips the frequencies already there.
 """
 
 from __future__ import annotations
@@ -31,8 +34,11 @@ import xarray as xr
 
 from ..errors import ConfigError
 
-__all__ = ["lock_in", "steady_transmission", "transmission_run", "transmission_spectrum", "SpectrumSettings",
-           "read_rows", "transmission_against_amplitude"]
+__all__ = ["lock_in", "steady_transmission", "transmission_run", "transmission_batch", "transmission_spectrum",
+           "SpectrumSettings", "read_rows", "transmission_against_amplitude", "DEFAULT_BATCH"]
+
+#: Drives run in one compiled call by default (the frequencies a spectrum writes at a time).
+DEFAULT_BATCH = 8
 
 CSV_HEADER = "frequency_Hz,transmission,output_amplitude_N,input_amplitude_N"
 
@@ -58,10 +64,13 @@ def lock_in(time: np.ndarray, signal: np.ndarray, frequency: float, cycles: floa
 
 def steady_transmission(ds: xr.Dataset, frequency: float, measure_cycles: float) -> tuple[float, float, float]:
     """(T, abs(F_out) [N], abs(F_in) [N]) of a driven run ``ds`` over its last ``measure_cycles`` periods."""
-    t = ds.time.values
     out = ds.wall_force.values if "wall_force" in ds else ds.contact_force.isel(contact=-1).values
+    return _ratio(ds.time.values, out, ds.drive_force.values, frequency, measure_cycles)
+
+
+def _ratio(t, out, drive_force, frequency: float, measure_cycles: float) -> tuple[float, float, float]:
     f_out = abs(lock_in(t, out, frequency, measure_cycles))
-    f_in = abs(lock_in(t, ds.drive_force.values, frequency, measure_cycles))
+    f_in = abs(lock_in(t, drive_force, frequency, measure_cycles))
     return f_out / f_in, f_out, f_in
 
 
@@ -93,12 +102,10 @@ def _frequency_model(model, frequency: float, amplitude: float | None = None):
     return dataclasses.replace(model, drive=drive)
 
 
-def transmission_run(model, frequency: float, settings: SpectrumSettings = SpectrumSettings(),
-                     amplitude: float | None = None) -> tuple[float, float, float]:
-    """Drive ``model`` at ``frequency`` [Hz] (and ``amplitude``, N or m, when given) to its steady
-    state; returns (T, abs(F_out) [N], abs(F_in) [N])."""
+def _member(model, frequency: float, settings: SpectrumSettings, amplitude: float | None = None):
+    """The run of one drive: (model at ``frequency`` [Hz] and ``amplitude``, its duration [s], its
+    probes: the output contact at ``samples_per_period`` samples per period)."""
     from ..probes import Probes
-    from ..simulation import simulate
 
     if model.drive is None or model.drive.type != "harmonic":
         raise ConfigError("drive.type", "a transmission spectrum needs a harmonic drive ([drive] type = 'harmonic')")
@@ -108,9 +115,78 @@ def transmission_run(model, frequency: float, settings: SpectrumSettings = Spect
     cycles = math.ceil(d.ramp_cycles + settings.settle_cycles + settings.measure_cycles)
     n = model.chain.n_beads
     out = n if model.wall.present else n - 1
-    probes = Probes(period / settings.samples_per_period, contacts=(out,))
-    ds = simulate(m, cycles * period, probes, dt=settings.dt, steps_per_radian=settings.steps_per_radian)
-    return steady_transmission(ds, d.frequency, settings.measure_cycles)
+    if d.end == "last":  # bead 1 rests on the wall (hertzchain.crystal.ends)
+        out = 0
+    return m, cycles * period, Probes(period / settings.samples_per_period, contacts=(out,))
+
+
+def transmission_run(model, frequency: float, settings: SpectrumSettings = SpectrumSettings(),
+                     amplitude: float | None = None) -> tuple[float, float, float]:
+    """Drive ``model`` at ``frequency`` [Hz] (and ``amplitude``, N or m, when given) to its steady
+    state with :func:`hertzchain.simulate`; returns (T, abs(F_out) [N], abs(F_in) [N])."""
+    from ..simulation import simulate
+
+    m, duration, probes = _member(model, frequency, settings, amplitude)
+    ds = simulate(m, duration, probes, dt=settings.dt, steps_per_radian=settings.steps_per_radian)
+    return steady_transmission(ds, m.drive.frequency, settings.measure_cycles)
+
+
+def transmission_batch(model, frequencies, settings: SpectrumSettings = SpectrumSettings(),
+                       amplitudes=None, progress: Callable[[float], None] | None = None) -> list[tuple[float, float, float]]:
+    """:func:`transmission_run` for several drives in one compiled call (the batched driven engine,
+    :func:`hertzchain.crystal.driven.run_driven_batch`: one member per drive, on the threads in turn).
+
+    Parameters
+    ----------
+    model : hertzchain.Model
+        The chain with a harmonic ``drive``.
+    frequencies : array_like
+        Each member's drive frequency [Hz].
+    settings : SpectrumSettings
+        Cycles, samples and step.
+    amplitudes : array_like, optional
+        Each member's drive amplitude [N or m] (None: the drive's).
+    progress : callable, optional
+        ``progress(fraction)`` as the members advance (every member's samples, 0..1).
+
+    Returns
+    -------
+    list of (T, abs(F_out) [N], abs(F_in) [N])
+        One per member, equal to :func:`transmission_run`'s bit for bit (each member's step, records
+        and lock-in are those of its run alone).
+    """
+    from .driven import run_driven_batch
+    from .ends import from_driven_end
+
+    freqs = np.atleast_1d(np.asarray(frequencies, dtype=float))
+    amps = [None] * freqs.size if amplitudes is None else np.atleast_1d(np.asarray(amplitudes, dtype=float))
+    members = [_member(model, float(f), settings, None if a is None else float(a)) for f, a in zip(freqs, amps)]
+    # a drive entering at bead N: the chain read from there, its output contact 0 -> N (ends.py)
+    turned = [from_driven_end(m) for m, _, _ in members]
+    n = model.chain.n_beads
+    probes = [pr if t is m else dataclasses.replace(pr, contacts=(n - pr.contacts[0],))
+              for t, (m, _, pr) in zip(turned, members)]
+    runs = run_driven_batch(turned, [d for _, d, _ in members], probes, dt=settings.dt,
+                            steps_per_radian=settings.steps_per_radian,
+                            progress=None if progress is None else (lambda done, total: progress(done / total)))
+    _warn_elastic_limit(turned[0], [r[3] for r in runs])
+    return [_ratio(t, forces[:, 0], drive_force, m.drive.frequency, settings.measure_cycles)
+            for (m, _, _), (t, forces, drive_force, _) in zip(members, runs)]
+
+
+def _warn_elastic_limit(model, fmax: list) -> None:
+    """One ElasticLimitWarning when a member's contact forces passed the elastic limit (as simulate warns)."""
+    import warnings
+
+    from ..errors import ElasticLimitWarning
+    from ..laws import is_plastic
+
+    limit = model.system().yield_force[: fmax[0].size]
+    ratio = max(float(np.max(f / limit)) for f in fmax)
+    if ratio > 1.0 and not is_plastic(model.law.name):
+        warnings.warn(ElasticLimitWarning(f"a driven run's contact force reached {ratio:.3g} x its elastic limit "
+                                          "F_Y (paper Sec. II): beads would yield; lower drive.amplitude"),
+                      stacklevel=3)
 
 
 def read_rows(path: Path) -> dict[float, tuple[float, float, float]]:
@@ -144,7 +220,7 @@ def _fingerprint(model, settings: SpectrumSettings) -> str:
 
 def transmission_spectrum(model, frequencies, out: str | Path | None = None,
                           settings: SpectrumSettings = SpectrumSettings(),
-                          progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
+                          progress: Callable[[int, int], None] | None = None, batch: int = DEFAULT_BATCH) -> xr.Dataset:
     """Stepped-sine transmission T(f) of a driven chain (module docstring).
 
     Parameters
@@ -157,12 +233,15 @@ def transmission_spectrum(model, frequencies, out: str | Path | None = None,
     out : path, optional
         Folder for ``transmission.csv`` (columns ``frequency_Hz``, ``transmission``, and the two
         amplitudes [N]) and ``spectrum.json`` (what the table belongs to), written after every
-        frequency; a rerun with the same model and settings skips the frequencies already done
-        (another model or settings there is refused).
+        batch of frequencies; a rerun with the same model and settings skips the frequencies
+        already done (another model or settings there is refused).
     settings : SpectrumSettings
         Cycles, samples and step.
     progress : callable, optional
-        ``progress(done, total)`` after each frequency.
+        ``progress(done, total)`` as the frequencies advance (fractions within a batch).
+    batch : int
+        Frequencies run in one compiled call (:func:`transmission_batch`); the results do not
+        depend on it (each frequency's run is its own), only how much an interruption loses.
 
     Returns
     -------
@@ -197,16 +276,22 @@ def transmission_spectrum(model, frequencies, out: str | Path | None = None,
         else:
             write_text(stamp, json_text({"fingerprint": fp, "model": model.describe(),
                                          "settings": dataclasses.asdict(settings)}))
+    if isinstance(batch, bool) or not (isinstance(batch, (int, np.integer)) and 1 <= batch <= 10_000):
+        raise ConfigError("--batch", f"must be a whole number of frequencies from 1 to 10000, got {batch!r}")
     done_keys = np.array(sorted(rows))
     todo = [f for f in freqs if not (done_keys.size and np.min(np.abs(done_keys - f)) <= 1e-12 * f)]
+    done = freqs.size - len(todo)
     if progress is not None:
-        progress(freqs.size - len(todo), freqs.size)
-    for f in todo:
-        rows[float(f)] = transmission_run(model, float(f), settings)
-        if folder is not None:
+        progress(done, freqs.size)
+    for start in range(0, len(todo), int(batch)):
+        part = todo[start : start + int(batch)]
+        within = _within(progress, done, len(part), freqs.size)
+        rows.update(zip(map(float, part), transmission_batch(model, part, settings, progress=within)))
+        if folder is not None:  # after every batch: an interruption loses the batch under way only
             write_text(folder / "transmission.csv", _csv_text(rows))
+        done += len(part)
         if progress is not None:
-            progress(freqs.size - len(todo) + todo.index(f) + 1, freqs.size)
+            progress(done, freqs.size)
     keys = [min(rows, key=lambda k: abs(k - f)) for f in freqs]
     data = np.array([rows[k] for k in keys]).reshape(-1, 3)
     ds = xr.Dataset({"transmission": ("frequency", data[:, 0], {"units": "1", "long_name": "force transmission"}),
@@ -218,9 +303,17 @@ def transmission_spectrum(model, frequencies, out: str | Path | None = None,
     return ds
 
 
+def _within(progress, done: int, count: int, total: int):
+    """``progress(done + fraction x count, total)`` as a batch of ``count`` members advances (None: none)."""
+    if progress is None:
+        return None
+    return lambda fraction: progress(done + fraction * count, total)
+
+
 def transmission_against_amplitude(model, frequency: float, amplitudes,
                                    settings: SpectrumSettings = SpectrumSettings(),
-                                   progress: Callable[[int, int], None] | None = None) -> xr.Dataset:
+                                   progress: Callable[[int, int], None] | None = None,
+                                   batch: int = DEFAULT_BATCH) -> xr.Dataset:
     """Steady-state transmission at one ``frequency`` [Hz] against the drive's amplitude (the
     nonlinear regime: a gap that stops a small drive transmits above a threshold amplitude).
 
@@ -235,7 +328,9 @@ def transmission_against_amplitude(model, frequency: float, amplitudes,
     settings : SpectrumSettings
         Cycles, samples and step.
     progress : callable, optional
-        ``progress(done, total)`` after each amplitude.
+        ``progress(done, total)`` as the amplitudes advance (fractions within a batch).
+    batch : int
+        Amplitudes run in one compiled call (:func:`transmission_batch`).
 
     Returns
     -------
@@ -248,11 +343,14 @@ def transmission_against_amplitude(model, frequency: float, amplitudes,
     if model.drive is None:
         raise ConfigError("drive", "a transmission needs a [drive] (type = 'harmonic')")
     preflight(model, np.array([float(frequency)]), settings)
-    rows = []
-    for k, a in enumerate(amps):
-        rows.append(transmission_run(model, float(frequency), settings, amplitude=float(a)))
+    rows: list = []
+    for start in range(0, amps.size, int(batch)):
+        part = amps[start : start + int(batch)]
+        within = _within(progress, len(rows), part.size, amps.size)
+        rows += transmission_batch(model, np.full(part.size, float(frequency)), settings, amplitudes=part,
+                                   progress=within)
         if progress is not None:
-            progress(k + 1, amps.size)
+            progress(len(rows), amps.size)
     data = np.array(rows)
     unit = "N" if model.drive.quantity == "force" else "m"
     return xr.Dataset({"transmission": ("amplitude", data[:, 0], {"units": "1", "long_name": "force transmission"}),
@@ -266,12 +364,13 @@ def preflight(model, freqs: np.ndarray, settings: SpectrumSettings) -> float:
     """Check every frequency before any run (the driven path's own checks at each, and the total
     step count); returns the estimated steps in all."""
     from .driven import MAX_DRIVE_STEPS, drive_step
+    from .ends import from_driven_end
 
     if model.drive.type != "harmonic":
         raise ConfigError("drive.type", "a transmission spectrum needs a harmonic drive ([drive] type = 'harmonic')")
     total = 0.0
     for f in freqs:
-        m = _frequency_model(model, f)
+        m = from_driven_end(_frequency_model(model, f))  # the chain the run integrates (ends.py)
         system = m.system()
         dt = settings.dt if settings.dt is not None else drive_step(system, m.drive, settings.steps_per_radian)
         if settings.dt is not None and 1.0 / (f * dt) < 50:

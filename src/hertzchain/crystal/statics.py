@@ -9,7 +9,8 @@ F_{i-1} - F_i + f_i = 0, so contact j carries what bodies 0..j are pushed with,
     S_j = sum_{i <= j} f_i,
 
 and its overlap is the Hertz law inverted, delta_j = (S_j / kappa_j)^(2/3) (paper eq. 1; along
-Thornton's loading line past the elastic limit for the elastic-plastic law). A protected body's
+Thornton's loading line past the elastic limit for the elastic-plastic law; a registry law's force
+at rest inverted by root finding, hertzchain.laws.solve). A protected body's
 mount carries everything, k d = S_{N+1}. Contacts cannot pull: S_j < 0 means that bodies 0..j are
 pulled off the chain and there is no equilibrium (refused, naming ``load.forces``). The solution
 is exact, so no iterative solver is needed; :func:`equilibrium` reports the residual of the force
@@ -142,15 +143,24 @@ def equilibrium(model) -> Equilibrium:
     Equilibrium
         Overlaps [m] and forces [N] of contacts 0..N, displacements and positions [m].
     """
+    from .ends import driven_from_last, equilibrium_to_model_numbers, from_driven_end
+
+    if driven_from_last(model):  # the chain read from bead N (hertzchain.crystal.ends)
+        return equilibrium_to_model_numbers(equilibrium(from_driven_end(model)), model)
     system = model.system()
     n = system.n_beads
     fext = system.fext
     held = held_forces(fext, system.kappa, n)[: n + 1]
     held = np.where(system.kappa > 0, held, 0.0)
     d0 = np.where(system.kappa > 0, system.d0, 0.0)
-    # residual: the contact law at the overlaps (Hertz; Thornton's loading line when plastic)
-    if spec_of(model.law).plastic:
+    # residual: the contact law at the overlaps (Hertz; Thornton's loading line when plastic; a
+    # generated law's own force at rest)
+    spec = spec_of(model.law)
+    if spec.plastic:
         f_law = held.copy()
+    elif spec.generated:
+        f_law = np.array([spec.force(d, 0.0, k, p, 0.0) if k > 0 else 0.0
+                          for d, k, p in zip(d0, system.kappa, system.damping)])
     else:
         f_law = system.kappa * d0**1.5
     g = np.concatenate([[0.0], f_law, [0.0]])[: n + 2]  # g[i] = F_{i-1}
@@ -159,7 +169,8 @@ def equilibrium(model) -> Equilibrium:
     u[n + 1] = system.mount_d0
     for j in range(n, -1, -1):
         u[j] = u[j + 1] + d0[j]
-    r = np.concatenate([[model.striker.diameter / 2], model.chain.radii])
+    # no striker: body 0 is a point at bead 1's face (a displacement drive's flat driver)
+    r = np.concatenate([[0.0 if model.striker is None else model.striker.diameter / 2], model.chain.radii])
     x = np.concatenate([[-(r[0] + r[1])], np.cumsum(np.concatenate([[0.0], r[1:-1] + r[2:]]))])
     return Equilibrium(overlaps=d0, forces=held, displacements=u[: n + 1], positions=x + u[: n + 1],
                        mount_deflection=float(system.mount_d0), external=fext.copy(),

@@ -40,7 +40,14 @@ class Particles:
 def striker_diameter(run: xr.Dataset) -> float:
     """The striker's diameter [m] from the result's ``model`` attribute (checked: a positive number)."""
     try:
-        d = float(json.loads(run.attrs["model"])["striker"]["diameter_mm"]) * 1e-3
+        striker = json.loads(run.attrs["model"])["striker"]
+    except (KeyError, TypeError, ValueError):
+        striker = {}
+    if striker is None:
+        raise ConfigError("RESULT", "is a run without a striker (striker=None): the exports draw body 0 as the "
+                          "striker and cannot place it")
+    try:
+        d = float(striker["diameter_mm"]) * 1e-3
     except (KeyError, TypeError, ValueError):
         raise ConfigError("RESULT", "holds no model attribute with the striker's diameter (striker.diameter_mm): "
                           "not a result written by hertzchain") from None

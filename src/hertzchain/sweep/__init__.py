@@ -24,7 +24,9 @@ correlated, perpendicular offsets, the impact velocity; the statistical model is
 :mod:`hertzchain.sweep.tolerances`). Random draws depend only on (seed, member index): a
 member is the same whatever ``n`` or ``chunk_size`` is. ``store = "metrics"`` keeps only each
 member's metrics (a few hundred bytes: a million-member ensemble runs out of core, chunk by
-chunk) and ``traces = [...]`` the full records of the members named.
+chunk) and ``traces = [...]`` the full records of the members named. ``analysis = "dispersion"``
+makes a band-gap map instead of runs (:mod:`hertzchain.sweep.gaps`: each member's chain one period
+of a periodic chain, its band gaps in ``metrics.csv``).
 
 :func:`run_sweep` writes into ``out_dir``:
 

@@ -397,13 +397,19 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     with latched():  # a Ctrl-C is never swallowed (hertzchain.interrupts)
         # the projected time is shared by the cores the chunks run on: the local engine's, or the
         # cluster's workers' threads; the advice names only what is not in use already
-        plan = _plan(cfg, device, *_where(client, cfg.sweep.n_threads))
+        gaps = cfg.sweep.analysis == "dispersion"  # a band-gap map: band structures, no runs (sweep/gaps.py)
+        plan = None if gaps else _plan(cfg, device, *_where(client, cfg.sweep.n_threads))
         if out.exists() and not out.is_dir():
             raise ConfigError(str(out), "exists and is not a folder; --out names the sweep's output folder")
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise ConfigError(str(out), f"cannot create the output folder: {exc.strerror}") from None
+        if gaps:
+            from .gaps import run_gap_sweep
+
+            df = run_gap_sweep(cfg, out, progress, force)
+            return SweepResult(metrics=df, out_dir=out, computed=list(range(len(cfg.chunks()))), skipped=[])
         with _folder_lock(out):
             chunks_dir = _prepare_out_dir(cfg, out, force)
             return _run_chunks(cfg, plan, out, chunks_dir, client, progress)

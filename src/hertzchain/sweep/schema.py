@@ -62,6 +62,9 @@ class SweepSection(_Section):
     traces: list[int] = Field(default=[], description="members whose records are kept (store = 'metrics')")
     n_threads: int | None = Field(default=None, ge=1, le=4096)
     zip: list[list[str]] = Field(default=[], description="groups of parameters varied together (coupled)")
+    analysis: Literal["impact", "dispersion"] = Field(
+        default="impact", description="what each member gives: its impact run's wall-pulse metrics, or its band "
+                                      "gaps (the chain one period of a periodic chain under chain.precompression)")
 
 
 class _SweepFile(_Section):
@@ -141,8 +144,10 @@ class SweepConfig:
 
     def definition(self) -> dict:
         """Plain-data definition (what the hash covers)."""
-        return {"base": self.base, "sweep": self.sweep.model_dump(mode="json"),
-                "parameter_order": self.parameter_names}
+        sweep = self.sweep.model_dump(mode="json")
+        if sweep["analysis"] == "impact":  # the default left out: the hashes of earlier sweeps stay
+            del sweep["analysis"]
+        return {"base": self.base, "sweep": sweep, "parameter_order": self.parameter_names}
 
     def models(self) -> list:
         """Every member's :class:`~hertzchain.model.Model`, tolerances applied (built once, cached;
@@ -357,12 +362,10 @@ def parse_sweep(data: dict) -> SweepConfig:
                     member.update({k: copy.deepcopy(specs[k][j]) for k in ax})
             members.append({k: member[k] for k in names})
 
-    definition = {"base": base, "sweep": sw.model_dump(mode="json"),
-                  # sort_keys below loses the order of the parameters, which orders the grid
-                  # and the random draws: keep it explicitly.
-                  "parameter_order": names}
-    digest = hashlib.sha256(json.dumps(definition, sort_keys=True, default=str).encode()).hexdigest()
-    cfg = SweepConfig(base=base, sweep=sw, members=members, hash=digest)
+    cfg = SweepConfig(base=base, sweep=sw, members=members, hash="")
+    # the hash of its definition (the parameters' order kept: sort_keys loses it, and it orders the
+    # grid and the random draws)
+    cfg.hash = hashlib.sha256(json.dumps(cfg.definition(), sort_keys=True, default=str).encode()).hexdigest()
     # Every member must be a valid run config: fail now, naming the field, not halfway through
     # (each distinct set of values once: an ensemble's million members are one config).
     seen = set()

@@ -144,6 +144,8 @@ def result_title(ds: xr.Dataset, member: int | None = None) -> str:
     s = table(model.get("striker"))
     n = len(diameters) if isinstance(diameters, list) else "?"
     title = f"{n} beads, striker {num(s.get('diameter_mm'))} mm at {num(s.get('velocity'))} m/s"
+    if "striker" in model and model["striker"] is None:  # a crystal built with striker=None
+        title = f"{n} beads, no striker"
     if member is not None:
         title += f" (member {member}"
         if "parameters" in ds:
