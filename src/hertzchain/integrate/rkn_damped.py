@@ -56,10 +56,13 @@ def run_rkn_damped(system: System, duration: float, sample_interval: float, dt: 
     ends = np.zeros((2, rk.ENDS))
     pw = np.zeros(p)  # per contact: stage-weighted dissipated power
     mode = np.zeros(p)  # per contact: its branch in the present step (1: carries a force)
+    last = np.zeros(p)  # ... in the last step (at the start: the state's)
     # offset pairs' geometry (rows rk.G_*), None for an aligned chain (its own specialisation)
     off = np.ascontiguousarray(np.stack([w.de, w.dx0, w.rsum])) if system.misaligned else None
     rk.accelerations(u, v, w.kappa, w.damping, w.d0, off, w.fext, w.inv_mass, law, a)
-    rk.end_data(u, v, a, w.kappa, w.damping, w.d0, off, w.fext, w.mass, law, 0.0, ed, ends, 0)
+    rk.end_data(u, v, a, w.kappa, w.damping, w.d0, off, w.fext, w.mass, law, last, 0.0, ed, ends, 0)
+    rk.set_modes(ed, 0, last)  # the state's branches (on which a is f(u, v)), and the power on them
+    rk.end_data(u, v, a, w.kappa, w.damping, w.d0, off, w.fext, w.mass, law, last, 0.0, ed, ends, 0)
     rec = np.arange(nc) if contacts is None else np.asarray(contacts, dtype=np.int64)
     out_f = np.empty((n_samples, rec.size))
     out_ke = np.empty(n_samples)
@@ -84,7 +87,7 @@ def run_rkn_damped(system: System, duration: float, sample_interval: float, dt: 
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + per_call)
-        status = rk.damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi, ed, ends, w.mass, w.inv_mass,
+        status = rk.damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, ap, fi, ed, ends, w.mass, w.inv_mass,
                                w.kappa, w.damping, w.d0, off, w.fext, law, system.n_beads, sample_interval, k, k_stop,
                                0.0 if dt is None else float(dt), eps, duration, rec, out_f, out_ke, out_pe, out_d,
                                out_v, record_velocities, out_u, record_positions, fmax, peak, acc)

@@ -31,8 +31,10 @@ where a contact's state at the end (open, closed and clipped, loaded) leaves its
 is redone ending on the instant (the root of the cubic Hermite of delta or F_u through its values
 and rates at both ends), until the instant lies within :data:`EVENT_TOL` of a step's end; an
 instant at the step's start (a state that ended the last step just short of it) switches the
-branch and restarts the step. The opening after a clip carries no force on either side: no
-event.
+branch and restarts the step. The step's end data (accelerations, their rates, the dissipated
+power) are on the step's own branches, so that its interpolants are smooth up to its end; where the
+next step's branches differ (an instant within EVENT_TOL of the end), it restarts on them
+(:func:`restart`). The opening after a clip carries no force on either side: no event.
 
 Step control (:func:`next_step`): per loaded contact j the local velocity error of a step h is
 bounded by
@@ -154,18 +156,11 @@ def set_modes(ed, b, mode):
 
 
 @njit(cache=True, nogil=True)
-def restart(u, v, a, kappa, damping, d0, off, fext, inv_mass, law, mode, pw, ed, b):
+def restart(u, v, a, kappa, damping, d0, off, fext, mass, inv_mass, law, mode, pw, ed, ends, b):
     """After a branch changed at a step's start: a = f(u, v) on the branches ``mode``, and the
-    start's d(rate)/dt and dissipated power in ``ed[b]``."""
-    n = inv_mass.shape[0]
-    for i in range(n):
-        pw[i] = 0.0
-    _accel(u, v, kappa, damping, d0, off, fext, inv_mass, law, mode, a, pw, 1.0)
-    for j in range(n):
-        dv = v[j] - v[j + 1]
-        _, cc, _, k = _line(u[j] - u[j + 1], dv, d0, off, j)
-        ed[b, R_Q, j] = cc * (a[j] - a[j + 1]) - k * dv * dv
-        ed[b, R_P, j] = pw[j]
+    start's end data ``ed[b]``, ``ends[b]`` on them (:func:`end_data`)."""
+    _accel(u, v, kappa, damping, d0, off, fext, inv_mass, law, mode, a, pw, 0.0)
+    end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, mode, ends[b, E_D], ed, ends, b)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -195,7 +190,9 @@ def step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, 
     for i in range(n):
         un[i] = u[i] + h * v[i] + hh6 * (a[i] + k2[i] + k3[i])
         vn[i] = v[i] + h6 * (a[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
-    accelerations(un, vn, kappa, damping, d0, off, fext, inv_mass, law, an)
+    # the end's accelerations on the step's branches: the interpolants of this step are smooth up
+    # to its end even when an instant falls within EVENT_TOL of it (the next step restarts there)
+    _accel(un, vn, kappa, damping, d0, off, fext, inv_mass, law, mode, an, pw, 0.0)
 
 
 @njit(cache=True, nogil=True)
@@ -225,13 +222,14 @@ def _unclipped(d, r, q, k, c, law):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, dis, ed, ends, c):
-    """Per contact j into ``ed[c]`` (rows R_*): F_j along the axis, dF_j/dt (the law's: 0 when open
-    or clipped), delta_j, r_j, q_j = d(r_j)/dt (:func:`_line`), F_u and dF_u/dt (0 when open), the elastic energy
-    (2/5) F_el,j delta_j and the dissipated power (F_j - F_el,j) r_j; into ``ends[c]``: kinetic,
-    elastic (minus the work of f_ext) and dissipated energy ``dis`` [J] with their rates
-    dK/dt = sum m_i v_i a_i, dU/dt = sum F_el,j r_j - sum f_ext,i v_i, dD/dt = sum (F_j - F_el,j) r_j
-    [W]."""
+def end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, mode, dis, ed, ends, c):
+    """Per contact j into ``ed[c]`` (rows R_*): F_j along the axis (the law's, clipped), dF_j/dt
+    (0 when open or clipped), delta_j, r_j, q_j = d(r_j)/dt (:func:`_line`), F_u and dF_u/dt (0
+    when open), the elastic energy (2/5) F_el,j delta_j and the dissipated power
+    (F_j - F_el,j) r_j on the branch ``mode[j]`` (that of the step ending here, as ``a``);
+    into ``ends[c]``: kinetic, elastic (minus the work of f_ext) and dissipated energy ``dis`` [J]
+    with their rates dK/dt = sum m_i v_i a_i, dU/dt = sum F_el,j r_j - sum f_ext,i v_i,
+    dD/dt = sum_j of that power [W]."""
     ke = 0.0
     dke = 0.0
     pe = 0.0
@@ -256,13 +254,19 @@ def end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, dis, ed, ends, c
         ed[c, R_DFU, i] = dfu
         el = 0.4 * fel * (d if d > 0.0 else 0.0)
         ed[c, R_E, i] = el
-        ed[c, R_P, i] = (f - fel) * r
+        if mode[i] > 0.0:  # the branch's force: F_u, extended below delta = 0 as at 0
+            sd = np.sqrt(d) if d > DELTA_MIN else 0.0
+            fb = fel + (kappa[i] * damping[i] * sd * r if law == LAW_VISCOELASTIC else damping[i] * r)
+        else:
+            fb = 0.0
+        pb = (fb - fel) * r
+        ed[c, R_P, i] = pb
         mv = mass[i] * v[i]
         ke += mv * v[i]
         dke += mv * a[i]
         pe += el - fext[i] * u[i]
         dpe += fel * r - fext[i] * v[i]
-        dd += (f - fel) * r
+        dd += pb
     ends[c, E_KE] = 0.5 * ke
     ends[c, E_DKE] = dke
     ends[c, E_PE] = pe
@@ -482,14 +486,15 @@ def _peak_in_step(ed, b, c, j, h, kappa, damping, d0, off, law):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi, ed, ends, mass, inv_mass, kappa, damping,
+def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, ap, fi, ed, ends, mass, inv_mass, kappa, damping,
                d0, off, fext, law, wall_slot, interval, k_start, k_stop, h_fixed, eps, h_max, rec, out_f, out_ke, out_pe,
                out_d, out_v, record_v, out_u, record_u, fmax, peak, acc):
     """Advance until sample ``k_stop - 1`` (samples ``interval`` seconds apart) is recorded.
 
     On entry and exit (u, v, a) is the state at time acc[A_T], a = f(u, v); the end data of the
     last two step ends are ``ed[c]``, ``ends[c]`` (this one) and ``ed[1 - c]``, ``ends[1 - c]``
-    (the step's start, acc[A_TPREV]), c = steps % 2; ``up``, ``vp``, ``ap`` the bodies' state at
+    (the step's start, acc[A_TPREV]), c = steps % 2; ``mode`` the contacts' branches of the step,
+    ``last`` those of the last one (a = f(u, v) on them); ``up``, ``vp``, ``ap`` the bodies' state at
     the step's start when recorded. Steps: ``h_fixed`` [s] when > 0 (no event location), else
     :func:`next_step` with ``eps`` [m/s] and ``h_max`` [s], redone to end on an event
     (:func:`event_inside`). Probes as the module docstring says: forces of every contact into
@@ -514,6 +519,10 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
             b = steps % 2
             c = 1 - b
             set_modes(ed, b, mode)
+            for j in range(nc):
+                if mode[j] != last[j]:  # an instant at the last step's end: f(u, v) on the new branches
+                    restart(u, v, a, kappa, damping, d0, off, fext, mass, inv_mass, law, mode, pw, ed, ends, b)
+                    break
             if h_fixed > 0.0:
                 h = h_fixed
             else:
@@ -522,19 +531,21 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, up, vp, ap, fi
             for redo in range(MAX_REDO + 1):
                 step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, off, fext, inv_mass, law, h,
                      ed, b)
-                end_data(un, vn, an, kappa, damping, d0, off, fext, mass, law, 0.0, ed, ends, c)
+                end_data(un, vn, an, kappa, damping, d0, off, fext, mass, law, mode, 0.0, ed, ends, c)
                 if h_fixed > 0.0 or redo == MAX_REDO:
                     break
                 x = event_inside(ed, b, c, h, mode)
                 if x < 0.0:
                     break
                 if x > 1.0:  # a branch switched at the start: its step is bounded afresh
-                    restart(u, v, a, kappa, damping, d0, off, fext, inv_mass, law, mode, pw, ed, b)
+                    restart(u, v, a, kappa, damping, d0, off, fext, mass, inv_mass, law, mode, pw, ed, ends, b)
                     hm = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max)
                     h = hm if hm < h else h
                 else:
                     h *= x
             ends[c, E_D] = ends[b, E_D] + step_dissipation(ed, b, c, pw, mode, h)
+            for j in range(nc):
+                last[j] = mode[j]
             if record_v or record_u:
                 for i in range(n):
                     up[i] = u[i]
