@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import ConfigError, SimulationDiverged
 from ..model import System
 from . import rkn_kernels as rk
+from .kernels import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 from .layout import pack
 from .verlet import RawRun, check_time_step
 
@@ -85,7 +86,8 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
         raise ConfigError("run.rtol", f"must be a positive relative tolerance, got {rtol!r}")
     if dt is not None:
         check_time_step(system, dt)
-    if system.law != 0 or system.misaligned:  # Kuwabara-Kono, the dashpot or offsets: y'' = f(y, y')
+    if system.law in (LAW_VISCOELASTIC, LAW_DASHPOT) or (system.law == LAW_ELASTIC and system.misaligned):
+        # Kuwabara-Kono, the dashpot or offsets: the method for y'' = f(y, y')
         from .rkn_damped import run_rkn_damped
 
         v_ref = float(np.max(np.abs(system.v0)))
