@@ -240,3 +240,35 @@ def test_refuses_a_protected_body_naming_the_field():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert hc.simulate(model, 1e-4, hc.Probes(1e-6)).attrs["integrator_used"] == "verlet"
+
+
+@pytest.mark.slow  # 16 random chains, each law calibrated and run against DOP853 at rtol 1e-12 (~4 s warm)
+@pytest.mark.parametrize("law", ["dashpot_scaled", "viscoelastic_scaled", "viscoelastic_sized", "dashpot"])
+def test_random_chains_of_every_law_within_1e_6_of_dop853(law):
+    """The default call on random chains (3-9 beads of 8-26 mm, some offset from the axis, striker
+    6-12 mm at 0.1-1 m/s, flat wall) of each law rkn4 runs, calibrated to a random per-bead factor
+    eps in [0.98, 0.995]: the peak wall force within 1e-6 of DOP853 at rtol 1e-12, the dissipated
+    energy within 1e-6, KE + PE + dissipated within 1e-6 of the striker's energy."""
+    from hertzchain.config.build import build_model
+    from hertzchain.config.schema import parse_config
+
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        n = int(rng.integers(3, 10))
+        diam = rng.uniform(8.0, 26.0, size=n)
+        offsets = [float(x) if rng.random() < 0.3 else 0.0 for x in rng.uniform(-0.3, 0.3, size=n)]
+        cfg = {"chain": {"diameters_mm": diam.tolist(), "offsets_mm": offsets},
+               "striker": {"diameter_mm": float(rng.uniform(6, 12)), "velocity": float(rng.uniform(0.1, 1.0))},
+               "wall": {"type": "flat"}, "contact": {"law": law, "eps": float(rng.uniform(0.98, 0.995))}}
+        model = build_model(parse_config(cfg))
+        probes = hc.Probes(sample_interval=1e-6, contacts=())
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            auto = hc.simulate(model, "auto", probes)
+            ref = hc.simulate(model, "auto", probes, integrator="dop853", rtol=1e-12)
+        assert auto.attrs["integrator_used"] == "rkn4"
+        assert abs(auto.attrs["peak_wall_force"] / ref.attrs["peak_wall_force"] - 1) < 1e-6, seed
+        d, dr = float(auto["dissipated_energy"][-1]), float(ref["dissipated_energy"][-1])
+        assert abs(d / dr - 1) < 1e-6, seed
+        e = (auto["kinetic_energy"] + auto["potential_energy"] + auto["dissipated_energy"]).values
+        assert np.abs(e / e[0] - 1).max() < 1e-6, seed
