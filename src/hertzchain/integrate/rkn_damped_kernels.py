@@ -78,11 +78,13 @@ MAX_GROWTH = 2.0
 #: the step (its error is then below ~EVENT_TOL (c h) |r|, c the damping rate); farther inside,
 #: the step is redone to end on it.
 EVENT_TOL = 1e-7
-#: Redos of one step at most (the root of the Hermite is accurate to O(h^4): two suffice).
+#: Redos of one step at most (the root of the Hermite is accurate to O(h^4): a few suffice; the
+#: last try is kept).
 MAX_REDO = 12
 
 #: Rows of a step end's per-contact data ``ed[c]``: force, its time derivative, overlap, rate,
-#: d(rate)/dt, unclipped force and its time derivative.
+#: d(rate)/dt, unclipped force and its time derivative, elastic energy, dissipated power (on the
+#: branch of the step ending there; :func:`end_data`).
 R_F, R_DF, R_D, R_R, R_Q, R_FU, R_DFU, R_E, R_P = 0, 1, 2, 3, 4, 5, 6, 7, 8
 ROWS = 9
 #: Slots of ``ends[c]``: energies [J] and their rates [W] (dissipated: D and the power).
