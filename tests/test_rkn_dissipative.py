@@ -207,6 +207,17 @@ def test_probes_do_not_depend_on_the_sample_interval(chain1):
     assert np.abs(fine.contact_force[::100] - coarse.contact_force).max() < 1e-10 * scale
 
 
+def test_chunked_run_is_the_same_run(chain1):
+    """A run cut into compiled calls of ~50 steps carries its whole state (branches, end data,
+    step history) across the cuts: every record bit for bit the same as in one call."""
+    s = chain1.system()
+    one = run_rkn(s, 3e-3, 1e-7, record_velocities=True, record_positions=True)
+    cut = run_rkn(s, 3e-3, 1e-7, record_velocities=True, record_positions=True, chunk_steps=50)
+    for name in ("contact_force", "velocity", "displacement", "kinetic_energy", "dissipated_energy"):
+        assert np.array_equal(getattr(one, name), getattr(cut, name)), name
+    assert (one.peak_wall_force, one.n_steps) == (cut.peak_wall_force, cut.n_steps)
+
+
 @pytest.mark.parametrize("law", ["dashpot_scaled", "elastic"])
 def test_offset_beads_within_1e_6_of_dop853(chain1, law):
     """Chain 1 with five beads off the axis by up to 0.5 mm (the force along the line of centres,
