@@ -58,7 +58,8 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
     Parameters
     ----------
     system : hertzchain.model.System
-        An aligned elastic model (:func:`check_rkn`).
+        A model :func:`check_rkn` accepts (aligned elastic here; dissipative or offset chains go
+        to :func:`hertzchain.integrate.rkn_damped.run_rkn_damped`).
     duration : float
         Simulated time [s].
     sample_interval : float
