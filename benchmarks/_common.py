@@ -211,26 +211,62 @@ def quiet():
 
 
 # ----------------------------------------------------------------------------- scipy baselines
+def _viscous(system) -> tuple[str | None, np.ndarray]:
+    """The system's viscous term: (None | "dashpot" | "kuwabara_kono", per-contact gamma or A)."""
+    from hertzchain.laws import law_of_code
+
+    spec = law_of_code(system.law)
+    if not spec.dissipative:
+        return None, np.zeros_like(system.kappa)
+    if spec.plastic or spec.generated or system.law not in (1, 2):
+        raise ValueError(f"the NumPy right-hand side writes the elastic, Kuwabara-Kono and dashpot laws, not {spec.name}")
+    return ("kuwabara_kono" if system.law == 1 else "dashpot"), np.array(system.damping, dtype=float)
+
+
 def numpy_rhs(system) -> Callable[[float, np.ndarray], np.ndarray]:
     """The right-hand side a competent user writes in plain vectorised NumPy (paper eq. 1).
 
     State y = [u_0..u_N, v_0..v_N] (striker and beads); the immovable wall sits at u = 0 after
     bead N, so the overlaps are delta_j = u_j - u_{j+1} with u_{N+1} = 0 (a free end has kappa_N = 0).
+    Dissipative laws (the same as the model's): F = kappa delta^(3/2) + gamma r (dashpot) or
+    kappa (delta^(3/2) + A delta^(1/2) r) (Kuwabara-Kono), r = d(delta)/dt, never attractive.
     """
     nb = system.n_beads + 1
     kappa = np.array(system.kappa, dtype=float)        # (N+1,) N/m^1.5, contact N = wall
     inv_m = 1.0 / np.array(system.mass[:nb], dtype=float)  # (N+1,) 1/kg
     zero = np.zeros(1)
+    viscous, c = _viscous(system)
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
         u = y[:nb]
         v = y[nb:]
-        delta = np.maximum(-np.diff(u, append=0.0), 0.0)   # u_j - u_{j+1}, never attractive
-        f = kappa * delta**1.5                             # Hertz, F = kappa delta^(3/2)
+        if viscous is None:
+            delta = np.maximum(-np.diff(u, append=0.0), 0.0)   # u_j - u_{j+1}, never attractive
+            f = kappa * delta**1.5                             # Hertz, F = kappa delta^(3/2)
+        else:
+            d = -np.diff(u, append=0.0)
+            rate = -np.diff(v, append=0.0)
+            delta = np.maximum(d, 0.0)
+            f = kappa * delta**1.5 + (c * rate if viscous == "dashpot" else kappa * c * np.sqrt(delta) * rate)
+            f = np.where(d >= 0.0, np.maximum(f, 0.0), 0.0)
         a = (np.concatenate((zero, f[:-1])) - f) * inv_m   # (F_{i-1} - F_i) / m_i
         return np.concatenate((v, a))
 
     return rhs
+
+
+def wall_force(system, u_last, v_last):
+    """The wall contact's force [N] at the last bead's displacement and velocity (arrays)."""
+    kw = float(system.kappa[-1])
+    viscous, c = _viscous(system)
+    d = np.asarray(u_last, dtype=float)
+    delta = np.maximum(d, 0.0)
+    if viscous is None:
+        return kw * delta**1.5
+    cw = float(c[-1])
+    v = np.asarray(v_last, dtype=float)
+    f = kw * delta**1.5 + (cw * v if viscous == "dashpot" else kw * cw * np.sqrt(delta) * v)
+    return np.where(d >= 0.0, np.maximum(f, 0.0), 0.0)
 
 
 def solve_scipy(system, duration: float, method: str, rtol: float, rhs_kind: str = "numpy",
@@ -248,7 +284,6 @@ def solve_scipy(system, duration: float, method: str, rtol: float, rhs_kind: str
     from scipy.optimize import minimize_scalar
 
     nb = system.n_beads + 1
-    kw = float(system.kappa[-1])
     energy = 0.5 * system.mass[0] * system.v0[0] ** 2
     d_scale = (2.5 * energy / system.kappa[0]) ** 0.4
     v_scale = float(abs(system.v0).max())
@@ -270,11 +305,11 @@ def solve_scipy(system, duration: float, method: str, rtol: float, rhs_kind: str
                     atol=np.concatenate(atol), t_eval=t_eval, dense_output=True)
     if not sol.success:
         raise RuntimeError(f"solve_ivp({method}, rtol={rtol:g}) failed: {sol.message}")
-    fw = kw * np.maximum(sol.y[nb - 1], 0.0) ** 1.5   # wall force at the samples
+    fw = wall_force(system, sol.y[nb - 1], sol.y[2 * nb - 1])   # wall force at the samples
     k = int(np.argmax(fw))
     lo, hi = t_eval[max(k - 1, 0)], t_eval[min(k + 1, n_samples - 1)]
-    res = minimize_scalar(lambda t: -kw * max(sol.sol(t)[nb - 1], 0.0) ** 1.5, bounds=(lo, hi), method="bounded",
-                          options={"xatol": 1e-13})
+    res = minimize_scalar(lambda t: -float(wall_force(system, sol.sol(t)[nb - 1], sol.sol(t)[2 * nb - 1])),
+                          bounds=(lo, hi), method="bounded", options={"xatol": 1e-13})
     peak = max(-float(res.fun), float(fw[k]))
     return {"peak_wall_force": peak, "peak_wall_time": float(res.x), "nfev": int(sol.nfev)}
 

@@ -50,4 +50,4 @@ def test_elastoplastic_rkn4_refusal_suggests_verlet_only():
     with pytest.raises(hc.ConfigError) as refused:
         _run(MODELS["elastoplastic"], "rkn4")
     assert str(refused.value).endswith("use integrator 'auto' (the default) or 'verlet'")
-    assert accepted_integrators(MODELS["viscoelastic"].system()) == ["verlet", "dop853", "rk45"]
+    assert accepted_integrators(MODELS["viscoelastic"].system()) == ["verlet", "rkn4", "dop853", "rk45"]

@@ -145,17 +145,13 @@ def test_fixed_step(chain1):
         hc.simulate(chain1, 1e-3, integrator="rkn4", dt=1e-5)
 
 
-@pytest.mark.parametrize("law", [hc.Viscoelastic(A=1e-6), hc.Dashpot(gamma=5.0)])
-def test_refuses_dissipative_laws(law):
-    model = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), law=law)
-    with pytest.raises(hc.ConfigError, match="run.integrator"):
-        hc.simulate(model, 1e-4, integrator="rkn4")
-
-
-def test_refuses_offsets_and_bad_rtol():
-    chain = hc.Chain.from_diameters(np.full(5, 10e-3), offsets=np.array([0, 1e-4, 0, 0, 0]))
-    with pytest.raises(hc.ConfigError, match="run.integrator"):
-        hc.simulate(hc.Model(chain, hc.Striker(8e-3, 0.2)), 1e-4, integrator="rkn4")
+def test_refuses_the_elastoplastic_law_bodies_and_bad_rtol():
+    """Kuwabara-Kono, the dashpot and offsets run (tests/test_rkn_dissipative.py); the elastic-plastic
+    law and a protected body are refused naming run.integrator."""
+    for model in (hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), law=hc.Elastoplastic()),
+                  hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), hc.Wall("body", mass=0.5, stiffness=1e6))):
+        with pytest.raises(hc.ConfigError, match="run.integrator"):
+            hc.simulate(model, 1e-4, integrator="rkn4")
     model = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2))
     with pytest.raises(hc.ConfigError, match="run.rtol"):
         hc.simulate(model, 1e-4, integrator="rkn4", rtol=-1.0)

@@ -40,7 +40,9 @@ HERTZ_MAX_OVERLAP = 0.1
 LONG_RUN_S = 180.0
 #: Cost of one bead-step of the compiled Verlet [s] (benchmarks/kernel.py: ~1.2 ns aligned
 #: elastic; the general loop for dissipation or offsets is a few times slower), on one core.
-NS_PER_BEAD_STEP = {"elastic": 1.5e-9, "general": 6e-9, "rkn4": 1.2e-8}
+#: ``"rkn4_general"``: rkn4 on the dissipative laws or offsets (integrate/rkn_damped.py: ~43 ns on
+#: chain 1 with its dashpot, the probes apart: four force passes, the error bound and the events).
+NS_PER_BEAD_STEP = {"elastic": 1.5e-9, "general": 6e-9, "rkn4": 1.2e-8, "rkn4_general": 4.5e-8}
 #: The fourth-order integrator ``"rkn4"`` advances about this many radians of omega_max per step
 #: at its default accuracy (an upper estimate of its steps; ~0.25 on the paper's chains).
 RKN_RADIANS_PER_STEP = 0.1
@@ -161,7 +163,7 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
         seconds = steps * (n + 1) * members * per
     elif integrator == "rkn4":
         steps = duration / dt if dt is not None else duration * system.max_frequency() / RKN_RADIANS_PER_STEP
-        seconds = steps * (n + 1) * members * NS_PER_BEAD_STEP["rkn4"]
+        seconds = steps * (n + 1) * members * NS_PER_BEAD_STEP["rkn4_general" if system.general else "rkn4"]
     else:
         # solve_ivp: about SCIPY_RADIANS_PER_STEP of the fastest motion per step, each step a few
         # Python-level right-hand-side calls

@@ -4,9 +4,11 @@ The rules (documented in the user guide's "Running" page, tested per model kind 
 tests/test_engine_choice.py):
 
 * integrator: the fourth-order ``"rkn4"`` (:mod:`hertzchain.integrate.rkn`) when it integrates the
-  model, i.e. an aligned elastic chain without a protected body, mass-in-mass beads or a
-  dissipative law (``System.general`` is False): its default step control keeps the peak wall
-  force within ~1e-8 of DOP853, better than the Verlet's ~1e-6, at a fraction of the steps.
+  model, i.e. a chain without a protected body or mass-in-mass beads, with the elastic law (aligned:
+  its default step control keeps the peak wall force within ~1e-8 of DOP853, better than the
+  Verlet's ~1e-6, at a fraction of the steps), or Kuwabara-Kono's or the dashpot, plain or
+  size-scaled, or beads offset from the axis (:mod:`hertzchain.integrate.rkn_damped`: within
+  ~4e-7 on the paper's chain 1).
   Otherwise, or when the call sets the Verlet's own accuracy (``steps_per_radian``), a fixed
   step ``dt`` or several threads, the compiled velocity ``"verlet"`` (peak wall force within ~1e-6).
 * threads: more than one only where the threaded engine runs the model (the Verlet on a chain of
@@ -144,7 +146,8 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
         elif threads != "auto" and threads > 1:
             integrator, why = "verlet", "verlet: several threads asked for"
         else:
-            integrator, why = "rkn4", "rkn4: aligned elastic chain"
+            integrator, why = "rkn4", (f"rkn4: {'offset' if system.misaligned else 'aligned'} "
+                                       f"{'dissipative' if system.law else 'elastic'} chain")
     else:
         why = f"{integrator}: asked for"
     if threads == "auto":

@@ -5,8 +5,10 @@ in turn (an ``rkn4`` refusal on an elastic-plastic model once suggested ``dop853
 Each check returns why the integrator does not integrate the model (None: it does):
 
 - ``verlet``: every model;
-- ``rkn4`` (:mod:`hertzchain.integrate.rkn`): aligned elastic chains only (paper eq. 1, with or
-  without precompression), no protected body nor mass-in-mass beads;
+- ``rkn4`` (:mod:`hertzchain.integrate.rkn`): chains (paper eq. 1, with or without
+  precompression, aligned or with beads offset from the axis) with the elastic law, Kuwabara-Kono's
+  or the dashpot (and their size-scaled forms: :mod:`hertzchain.integrate.rkn_damped`); no
+  protected body nor mass-in-mass beads, nor the elastic-plastic or generated laws;
 - ``dop853``, ``rk45`` (:mod:`hertzchain.integrate.reference`, ``scipy.integrate.solve_ivp``):
   every built-in law but the elastic-plastic one, whose per-contact history (the largest overlap) a
   right-hand side evaluated at trial points cannot carry; not the laws run by the generated engines.
@@ -25,11 +27,15 @@ INTEGRATORS = ("verlet", "rkn4", "dop853", "rk45")
 
 
 def _rkn4(system) -> str | None:
-    if not system.general:
-        return None
-    what = ("a contact law other than the elastic one" if system.law != 0 else "beads offset from the axis" if system.misaligned
-            else "a protected body or mass-in-mass beads")
-    return f"'rkn4' integrates aligned elastic chains; this model has {what}"
+    from ..laws import law_of_code
+
+    spec = law_of_code(system.law)
+    if system.extended:
+        return "'rkn4' integrates chains of beads; this model has a protected body or mass-in-mass beads"
+    if spec.generated or spec.plastic:
+        return (f"'rkn4' integrates the elastic, Kuwabara-Kono and dashpot laws; this model's contact.law is "
+                f"{spec.name!r}")
+    return None
 
 
 def _scipy(name: str) -> Callable:
