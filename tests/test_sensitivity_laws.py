@@ -164,7 +164,8 @@ def _register_memory(state_partials=_memory_state_partials, name="test_memory"):
         make=lambda params, chain=None: law(params["damping"])), replace=True)
 
 
-@pytest.mark.parametrize("modes", [("tangent",), pytest.param(("tangent", "adjoint"), marks=pytest.mark.slow)],
+# slow (~8 s): the default run keeps a stateful law through Hunt-Crossley's adjoint test below
+@pytest.mark.parametrize("modes", [pytest.param(m, marks=pytest.mark.slow) for m in (("tangent",), ("tangent", "adjoint"))],
                          ids=["tangent", "both"])
 def test_users_law_with_state_gradients_match_central_differences(modes):
     """A law registered with hc.register_law, its state carried by its declared state_partials:
