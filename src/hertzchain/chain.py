@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -127,7 +127,8 @@ class Chain:
                        offsets: ArrayLike | None = None) -> "Chain":
         """Chain from explicit diameters [m] (one material for all beads, or one per bead)."""
         d = real_array(diameters, "chain.diameters")
-        mats = material if isinstance(material, (str, Material)) else tuple(material)
+        # a name or a Material is broadcast to every bead by __post_init__
+        mats: Any = material if isinstance(material, (str, Material)) else tuple(material)
         return cls(d, mats, None if offsets is None else real_array(offsets, "chain.offsets"))
 
     @classmethod
@@ -151,6 +152,7 @@ class Chain:
         mat = get_material(material) if material is not None else self.materials[-1]
         # One Chain built (not a tapered one and then the concatenation): geometry checks of a
         # design search build thousands.
+        assert self.offsets is not None  # __post_init__ sets it (zeros when aligned)
         aligned = not self.offsets.any()
         return Chain(np.concatenate([self.diameters, new]), self.materials + (mat,) * int(n),
                      None if aligned else np.concatenate([self.offsets, np.zeros(int(n))]),
@@ -158,6 +160,7 @@ class Chain:
 
     def concat(self, other: "Chain") -> "Chain":
         """Beads of ``self`` followed by the beads of ``other``."""
+        assert self.offsets is not None and other.offsets is not None  # __post_init__ sets them
         aligned = not (self.offsets.any() or other.offsets.any())
         return Chain(np.concatenate([self.diameters, other.diameters]), self.materials + other.materials,
                      None if aligned else np.concatenate([self.offsets, other.offsets]),
@@ -168,6 +171,7 @@ class Chain:
         n = count(n, "chain.truncate")
         if not (1 <= n <= self.n_beads):
             raise ConfigError("chain.truncate", f"must be between 1 and {self.n_beads}, got {n}")
+        assert self.offsets is not None  # __post_init__ sets it
         return Chain(self.diameters[:n], self.materials[:n], self.offsets[:n], self.elements[:n])
 
     def substitute(self, bead: int, diameter: float | None = None,
@@ -189,6 +193,7 @@ class Chain:
     def with_offsets(self, offsets: ArrayLike | dict[int, float]) -> "Chain":
         """Same beads with perpendicular offsets [m]: a full list, or {bead: offset} (1-based)."""
         if isinstance(offsets, dict):
+            assert self.offsets is not None  # __post_init__ sets it
             e = self.offsets.copy()
             for bead, value in offsets.items():
                 if not (1 <= int(bead) <= self.n_beads):
@@ -247,6 +252,7 @@ class Chain:
             return "Chain(no beads: the striker hits the wall)"
         text = f"Chain({diameters_text(self.diameters)}; {counts_text(m.name for m in self.materials)}"
         if not self.is_aligned:
+            assert self.offsets is not None  # __post_init__ sets it
             text += f"; offsets up to {np.abs(self.offsets).max() * 1e3:.3g} mm"
         return text + ")"
 
@@ -257,16 +263,17 @@ class Chain:
                 ("materials", counts_text(m.name for m in self.materials)),
                 ("mass", f"{self.masses.sum() * 1e3:.4g} g"),
                 ("length", f"{self.diameters.sum() * 1e3:.4g} mm"),
-                ("offsets", "aligned" if self.is_aligned else f"up to {np.abs(self.offsets).max() * 1e3:.3g} mm")]
+                ("offsets", "aligned" if self.is_aligned else
+                 f"up to {np.abs(np.asarray(self.offsets)).max() * 1e3:.3g} mm")]
         return html_table("Chain", rows)
 
     def describe(self) -> dict:
         """Plain-data description (stored in result attributes)."""
         names = [m.name for m in self.materials]
-        out = {
+        out: dict[str, Any] = {
             "diameters_mm": [float(x) for x in self.diameters * 1e3],
             "materials": names[0] if len(set(names)) == 1 else names,
-            "offsets_mm": [float(x) for x in self.offsets * 1e3],
+            "offsets_mm": [float(x) for x in np.asarray(self.offsets) * 1e3],
         }
         if not self.plain:
             out["elements"] = [x.describe() for x in self.elements]

@@ -13,25 +13,28 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from .bounds import check_bound
 from .chain import Chain
-from .contact import Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Viscoelastic
-from .plasticity import Elastoplastic
+from .contact import Elastic
 from .errors import ConfigError
 from .laws import law_of_code, spec_of
+from .laws.spec import LawObject
 from .laws.solve import overlap_at_energy, static_overlap
 from .materials import Material, get_material
 from .strict import real
+
+if TYPE_CHECKING:  # the drive's module loads only for a driven model
+    from .crystal.drive import Drive
 
 __all__ = ["Striker", "Wall", "Model", "System"]
 
 
 def _positive(value, field_name: str, what: str) -> None:
-    if isinstance(value, bool) or not (isinstance(value, numbers.Real) and math.isfinite(value) and value > 0):
+    if isinstance(value, bool) or not (isinstance(value, numbers.Real) and math.isfinite(value) and float(value) > 0):
         raise ConfigError(field_name, f"must be {what}, got {value!r}")
 
 
@@ -201,7 +204,8 @@ class Wall:
         return self.radius_of_curvature if self.shape == "sphere" else None
 
     def __repr__(self) -> str:
-        text = f"Wall({self.kind!r}" + (f", {self.material.name}" if self.material is not None else "")
+        # (__post_init__ made a given material a Material)
+        text = f"Wall({self.kind!r}" + (f", {self.material.name}" if isinstance(self.material, Material) else "")
         if self.is_body:
             text += f", {self.mass:.4g} kg on {self.stiffness:.4g} N/m, {self.damping:.4g} N s/m"
         return text + ")"
@@ -316,6 +320,7 @@ class System:
         kap = self.kappa
         spec = law_of_code(self.law)
         if spec.generated:  # the law's own energy: delta with energy(delta) = E
+            assert spec.energy is not None  # a generated law has all its functions (register_law)
             inv = spec.overlap_at_energy or (lambda e, k, p: overlap_at_energy(spec.energy, e, k, p))
             energy += float(np.sum([spec.energy(d, k, p) for d, k, p in zip(self.d0, kap, self.damping) if k > 0]))
             return np.array([inv(energy, k, p) if k > 0 else 0.0 for k, p in zip(kap, self.damping)]) + self.d0
@@ -337,6 +342,7 @@ class System:
         """
         spec = law_of_code(self.law)
         if spec.generated:  # dF/d rate of the law at that overlap (at the state of first touch)
+            assert spec.partials is not None  # a generated law has all its functions (register_law)
             return np.array([abs(spec.partials(max(d, 0.0), 0.0, k, p, 1.0)[1]) if k > 0 else 0.0
                              for d, k, p in zip(overlap, self.kappa, self.damping)])
         if not spec.dissipative:
@@ -389,6 +395,7 @@ class System:
         beta = 2.0 * (np.concatenate([[0.0], c[: nb - 1]]) + c[:nb]) * self.inv_mass[:nb]
         inner = np.zeros(0)
         if self.res_k is not None:
+            assert self.res_m is not None  # set together with res_k (bodies.extend)
             with np.errstate(divide="ignore", invalid="ignore"):
                 inner = np.where(self.res_m[:nb] > 0, np.sqrt(2.0 * self.res_k[:nb] / self.res_m[:nb]), 0.0)
         return omega2, beta, inner
@@ -446,11 +453,11 @@ class Model:
     striker: Striker | None = field(default_factory=Striker)
     wall: Wall = field(default_factory=Wall)
     #: any registered law's object (hertzchain.laws): these, PowerLaw, HuntCrossley, a user's
-    law: Elastic | Viscoelastic | ScaledViscoelastic | Dashpot | ScaledDashpot | Elastoplastic = field(default_factory=Elastic)
+    law: LawObject = field(default_factory=Elastic)
     precompression: float = 0.0
     gravity: float = 0.0
     loads: tuple = ()
-    drive: object = None
+    drive: Drive | None = None
 
     def __post_init__(self) -> None:
         spec_of(self.law)  # a registered law (ConfigError naming contact.law otherwise)
@@ -473,8 +480,8 @@ class Model:
         # The striker's contact obeys the same head-on rule as the chain's (Chain checks beads n, n+1):
         # the striker flies along the axis, so bead 1's offset e_1 must stay below (R_s + R_1) / 2;
         # past R_s + R_1 it would miss the chain and the run would report 0 N.
-        e1 = abs(float(self.chain.offsets[0])) if self.chain.n_beads and self.striker is not None else 0.0
-        if e1 and e1 >= (reach := 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])):
+        e1 = abs(float(np.asarray(self.chain.offsets)[0])) if self.chain.n_beads and self.striker is not None else 0.0
+        if e1 and self.striker is not None and e1 >= (reach := 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])):
             raise ConfigError("chain.offsets", f"bead 1 is offset by {e1:.3g} m from the striker's line of flight, "
                               f"more than half the sum of their radii ({reach:.3g} m); the striker would not "
                               "hit it head-on (or would miss the chain)")
@@ -489,7 +496,7 @@ class Model:
             # a law with a limiting pressure (Thornton's) needs it at every contact; a material without
             # a yield stress would silently stay elastic (plastic work 0, yield_force NaN)
             used = [self.body0.material, *self.chain.materials] + ([self.wall_material] if self.wall.present else [])
-            bare = next((m for m in used if m.yield_stress is None), None)
+            bare = next((m for m in used if m is not None and m.yield_stress is None), None)
             if bare is not None:
                 raise ConfigError(f"materials.{bare.name}.yield_stress",
                                   f"material {bare.name!r} has no yield stress, which law {self.law.name!r} needs at "
@@ -529,11 +536,12 @@ class Model:
         from .display import counts_text, diameters_text, html_table
 
         chain = self.chain
+        wall_material = self.wall_material  # None exactly when there is no wall
         rows = [("chain", diameters_text(chain.diameters)),
                 ("materials", counts_text(m.name for m in chain.materials)),
                 ("striker", repr(self.striker)[len("Striker("):-1]),
-                ("wall", "free end" if not self.wall.present else
-                 f"{'protected body' if self.wall.is_body else 'flat'}, {self.wall_material.name}"),
+                ("wall", "free end" if wall_material is None else
+                 f"{'protected body' if self.wall.is_body else 'flat'}, {wall_material.name}"),
                 ("contact law", repr(self.law))]
         if self.precompression:
             rows.append(("precompression", f"{self.precompression:.4g} N"))
@@ -547,8 +555,10 @@ class Model:
         if not self.wall.present:
             return None
         if self.wall.material is None and not self.chain.n_beads:  # no beads: the striker's (a config: the chain's)
+            assert self.striker is not None  # zero beads need a striker (__post_init__)
             return self.striker.material
-        return self.wall.material or self.chain.materials[0]
+        # (Wall.__post_init__ made a given material a Material)
+        return self.wall.material if isinstance(self.wall.material, Material) else self.chain.materials[0]
 
     @property
     def extended(self) -> bool:
@@ -596,8 +606,8 @@ class Model:
         inv_r = 1.0 / r[:-1] + 1.0 / r[1:]
         t_sum = theta[:-1] + theta[1:]
         s_min = np.fmin(sigma[:-1], sigma[1:])  # weaker material; NaN = no yield stress given
-        if self.wall.present:
-            wall_theta, wall_sigma = _material_columns([self.wall_material])
+        if (wall_material := self.wall_material) is not None:  # (exactly when the wall is present)
+            wall_theta, wall_sigma = _material_columns([wall_material])
             inv_r = np.append(inv_r, 1.0 / r[-1])
             t_sum = np.append(t_sum, theta[-1] + wall_theta[0])
             s_min = np.append(s_min, np.fmin(sigma[-1], wall_sigma[0]))
@@ -629,6 +639,7 @@ class Model:
                 d0[1:] = [static_overlap(spec, self.precompression, k, p) for k, p in zip(kappa[1:], damping[1:])]
             if spec.plastic:
                 # statically loaded along Thornton's loading curve: past F_y the line F_y + slope (d - dy)
+                assert hasattr(self.law, "pressure_ratio")  # a plastic law's limiting pressure (Thornton's)
                 f_y = fy[1:] * self.law.pressure_ratio**3
                 with np.errstate(invalid="ignore"):
                     dy = (f_y / kappa[1:]) ** (2.0 / 3.0)
@@ -661,11 +672,12 @@ class Model:
 
     def describe(self) -> dict:
         """Plain-data description of the model (stored in result attributes)."""
-        law = {"law": self.law.name}
+        law: dict[str, Any] = {"law": self.law.name}
         law.update({p: getattr(self.law, p) for p in spec_of(self.law).param_names})  # as declared in laws/
-        if getattr(self.law, "diameter", None) is not None:  # a size-scaled law's reference pair
-            law.update(reference_diameter_mm=self.law.diameter * 1e3, reference_material=self.law.material.name)
-        wall = {"type": self.wall.kind, "material": None if self.wall_material is None else self.wall_material.name}
+        scaled: Any = self.law  # a size-scaled law (ScaledViscoelastic, ScaledDashpot) names its reference pair
+        if getattr(scaled, "diameter", None) is not None:
+            law.update(reference_diameter_mm=scaled.diameter * 1e3, reference_material=scaled.material.name)
+        wall: dict[str, Any] = {"type": self.wall.kind, "material": None if self.wall_material is None else self.wall_material.name}
         if self.wall.is_body:
             wall.update(mass=self.wall.mass, stiffness=self.wall.stiffness, damping=self.wall.damping,
                         shape=self.wall.shape, radius_of_curvature_mm=None if self.wall.face_radius is None

@@ -26,7 +26,7 @@ import math
 import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -147,6 +147,7 @@ class Drive:
         if self.type == "history":
             return float(self.table[0][-1])
         if self.type == "chirp":
+            assert self.sweep_time is not None and self.frequency_end is not None  # a chirp has both (__post_init__)
             return self.ramp_time + self.sweep_time + AUTO_CYCLES / self.frequency_end
         return self.ramp_time + AUTO_CYCLES / self.frequency
 
@@ -171,7 +172,7 @@ class Drive:
 
     def describe(self) -> dict:
         """Plain-data description (stored in result attributes)."""
-        out = {"type": self.type, "quantity": self.quantity, "amplitude": self.amplitude, "frequency": self.frequency,
+        out: dict[str, Any] = {"type": self.type, "quantity": self.quantity, "amplitude": self.amplitude, "frequency": self.frequency,
                "ramp_cycles": self.ramp_cycles, "striker": self.striker}
         if self.end != "first":  # (left out at the default: the fingerprints of earlier spectra stay)
             out["end"] = self.end
@@ -200,6 +201,7 @@ def drive_parameters(drive: Drive) -> np.ndarray:
     if drive.type == "history":
         return np.array([1.0, 1.0, 0.0, NEVER, 0.0, 1.0])
     if drive.type == "chirp":
+        assert drive.sweep_time is not None and drive.frequency_end is not None  # a chirp has both (__post_init__)
         rate, tsw = (drive.frequency_end - drive.frequency) / drive.sweep_time, drive.sweep_time
     else:
         rate, tsw = 0.0, NEVER

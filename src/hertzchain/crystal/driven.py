@@ -19,11 +19,12 @@ import numpy as np
 
 from ..checks import check_before_run
 from ..errors import ConfigError, SimulationDiverged
-from ..integrate.layout import pack
+from ..integrate.layout import Packed, pack
 from ..integrate.generated import is_generated
 from ..integrate.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 from ..integrate.verlet import RawRun, check_time_step
 from ..laws import law_of_code
+from ..model import System
 from .drive import drive_parameters, drive_table
 from .drive_kernel import _accelerations, kernels_for
 
@@ -53,6 +54,7 @@ def drive_force_amplitude(system, drive) -> float:
         return amplitude
     spec = law_of_code(system.law)
     if spec.generated:  # the law's own force at that overlap, at rest
+        assert spec.force is not None  # a generated law has all its functions (register_law)
         return float(spec.force(system.d0[0] + amplitude, 0.0, system.kappa[0], system.damping[0], 0.0))
     return float(system.kappa[0] * (system.d0[0] + amplitude) ** 1.5)
 
@@ -70,6 +72,7 @@ def drive_step(system, drive, steps_per_radian: float | None = None) -> float:
     if spec.generated:  # a registry law: its force inverted and its tangent stiffness (its partials)
         from ..laws.solve import static_overlap
 
+        assert spec.partials is not None  # a generated law has all its functions (register_law)
         dmax = np.array([static_overlap(spec, f, kk, p) if kk > 0 and f > 0 else 0.0
                          for f, kk, p in zip(force, kap, system.damping)])
         dmax = np.maximum(dmax, system.max_overlap())
@@ -122,12 +125,12 @@ def _preflight(drive, duration: float, sample_interval: float, dt: float, n_rec:
 class _Member:
     """One driven run set up: its step, samples, packed arrays, state and records at t = 0."""
 
-    system: object
+    system: System
     step: float
     stride: int
     n_samples: int
     rec: np.ndarray
-    w: object
+    w: Packed
     u: np.ndarray
     v: np.ndarray
     a: np.ndarray
@@ -268,7 +271,7 @@ def simulate_driven(model, system, duration: float, probes, *, integrator: str =
 
 
 def run_driven_batch(models, durations, probes, *, dt: float | None = None, steps_per_radian: float | None = None,
-                     progress=None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+                     progress=None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     """Run several driven models in one compiled call (:func:`~hertzchain.crystal.drive_kernel.driven_batch`).
 
     The members differ only in their drives (a frequency or an amplitude each): they share the

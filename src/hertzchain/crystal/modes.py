@@ -71,6 +71,7 @@ def linear_matrices(model) -> LinearChain:
     d0 = eq.overlaps
     loaded = (eq.forces > 0) & (system.kappa > 0)
     if spec.generated:  # dF/d(delta) at rest from the law's partials (its state: a first touch at 1 m/s)
+        assert spec.partials is not None  # a generated law has all its functions (register_law)
         kc = np.array([abs(spec.partials(d, 0.0, k, p, 1.0)[0]) if on else 0.0
                        for d, k, p, on in zip(d0, system.kappa, system.damping, loaded)])
     else:

@@ -159,6 +159,7 @@ def equilibrium(model) -> Equilibrium:
     if spec.plastic:
         f_law = held.copy()
     elif spec.generated:
+        assert spec.force is not None  # a generated law has all its functions (register_law)
         f_law = np.array([spec.force(d, 0.0, k, p, 0.0) if k > 0 else 0.0
                           for d, k, p in zip(d0, system.kappa, system.damping)])
     else:

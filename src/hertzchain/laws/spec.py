@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Protocol
 
 from ..errors import ConfigError
 
@@ -128,6 +128,19 @@ def jit(fn: Callable) -> LazyJit:
 def compiled(fn: Any) -> Any:
     """The Numba dispatcher of a law function declared with :func:`jit` or with ``numba.njit``."""
     return fn.dispatcher if isinstance(fn, LazyJit) else fn
+
+
+class LawObject(Protocol):
+    """What the package reads of every law object (a built-in one, PowerLaw, HuntCrossley, a user's):
+    ``name``, its registered law, and ``parameter``, its scalar parameter. Anything else (a
+    size-scaled law's ``contact_damping``, a law's own ``contact_stiffness``) is looked up with
+    ``hasattr``."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def parameter(self) -> float: ...
 
 
 @dataclass(frozen=True)
