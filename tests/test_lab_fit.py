@@ -247,3 +247,28 @@ def test_compare_residual_has_the_sign_of_the_differences():
     peak = np.argmax(comp.measured_force)
     assert comp.residual[peak] == pytest.approx(0.2, rel=1e-3)
     np.testing.assert_allclose(comp.residual, comp.simulated_force - comp.measured_force)
+
+
+def test_the_start_runs_a_config_left_at_the_automatic_duration(signal):
+    """run.duration left out ("auto", the schema's default): the starting model runs over the
+    model's automatic duration (hertzchain.auto_duration), exactly as with that duration written
+    in the config, and finds the record's own gain (1) and time offset (0) (the start compared the
+    string "auto" with a number and failed with a TypeError before)."""
+    import copy
+
+    import xarray as xr
+
+    from hertzchain.config import build_model, parse_config
+    from hertzchain.lab.fit import FD_STEP, _Problem
+
+    t, f = signal
+    noise = np.random.default_rng(7).normal(0.0, 1e-3 * f.max(), t[::25].size)
+    da = xr.DataArray(f[::25] + noise, dims="time", coords={"time": t[::25]}, attrs={"units": "N"})
+    auto = copy.deepcopy(START)
+    auto["striker"]["velocity"] = TRUTH["velocity"]
+    del auto["run"]["duration"]
+    given = copy.deepcopy(auto)
+    given["run"]["duration"] = hc.auto_duration(build_model(parse_config(auto)))
+    starts = [_Problem(data, [Trace(da)], ["gain", "time_offset"], FD_STEP, 1).start() for data in (auto, given)]
+    np.testing.assert_array_equal(starts[0], starts[1])
+    assert abs(starts[0][0] - 1.0) < 1e-2 and abs(starts[0][1]) < 2 * (t[1] - t[0])

@@ -33,13 +33,16 @@ import time as _time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
 from ..errors import ConfigError
 from .fit_checks import check_records, fit_doubts, parameter_unit
 from .quantised import expected, refit_noise, robust_covariance
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 __all__ = ["Trace", "FitResult", "fit_traces", "MEASUREMENT_PARAMETERS"]
 
@@ -75,7 +78,7 @@ class Trace:
         Label in tables and plots (default: the file name).
     """
 
-    data: object
+    data: xr.DataArray
     signal: str = "wall"
     overrides: tuple[str, ...] = ()
     name: str = ""
@@ -269,8 +272,8 @@ class _Problem:
         for k, tr in enumerate(self.traces):
             d = apply_overrides(data, tr.overrides)
             n_beads = build_chain(parse_config(d)).n_beads
-            if self.beads[k] is not None and not 1 <= self.beads[k] <= n_beads:
-                raise ConfigError(f"{tr.name or f'trace {k}'}@signal", f"sensor:{self.beads[k]} names no bead of "
+            if (bead := self.beads[k]) is not None and not 1 <= bead <= n_beads:
+                raise ConfigError(f"{tr.name or f'trace {k}'}@signal", f"sensor:{bead} names no bead of "
                                   f"this trace's chain (beads 1..{n_beads})")
             self.trace_data.append(d)
         base_cfg = parse_config(data).model_dump(mode="json")
@@ -290,8 +293,8 @@ class _Problem:
                                   "value, so give a non-zero starting value in the config")
             self.x_cfg0.append(float(value))
         self.sample_interval = parse_config(data).run.sample_interval
-        self.t = [np.asarray(tr.data["time"].values, float) for tr in self.traces]
-        self.y = [np.asarray(tr.data.values, float) for tr in self.traces]
+        self.t = [np.asarray(tr.data["time"].values, np.float64) for tr in self.traces]
+        self.y = [np.asarray(tr.data.values, np.float64) for tr in self.traces]
         # No record is more precise than a millionth of its range (a 20-bit converter): the floor
         # keeps a noise-free record (a simulation, a finely written file) from getting a weight
         # set by rounding errors.
@@ -301,7 +304,7 @@ class _Problem:
                       [tr.data.attrs.get("valid_max") for tr in self.traces])
         # Integer samples: the code grid [N] (step, one level) and, once fitted, the noise under
         # the codes; the model is then the quantiser's expected value (lab.quantised).
-        self.quanta = [(tr.data.attrs["quantum"], tr.data.attrs["quantum_origin"]) if "quantum" in tr.data.attrs
+        self.quanta: list[tuple[float, float] | None] = [(tr.data.attrs["quantum"], tr.data.attrs["quantum_origin"]) if "quantum" in tr.data.attrs
                        else None for tr in self.traces]
         self.code_noise: list[float | None] = [None] * K
         # A trace whose time offset is not free reads the simulation on its own clock.
@@ -401,8 +404,8 @@ class _Problem:
         for k, (ts, f) in enumerate(sims):
             fk = np.interp(self.t[k] + taus[k], ts, f)
             mk = gains[k] * fk + bases[k]
-            if self.code_noise[k] is not None:
-                mk = expected(mk, *self.quanta[k], self.code_noise[k])[0]
+            if (quantiser := self.quantiser(k)) is not None:
+                mk = expected(mk, *quantiser)[0]
             res.append((self.y[k] - mk) / self.sigma[k])
             parts.append((ts, f, fk, mk))
         out = (np.concatenate(res), parts)
@@ -436,8 +439,8 @@ class _Problem:
                 J[rows, self.tau_idx[k]] = -gains[k] * dfdt / self.sigma[k]
             if self.base_idx[k] is not None:
                 J[rows, self.base_idx[k]] = -1.0 / self.sigma[k]
-            if self.code_noise[k] is not None:  # chain rule through the quantiser's expected value
-                J[rows] *= expected(gains[k] * fk + bases[k], *self.quanta[k], self.code_noise[k])[1][:, None]
+            if (quantiser := self.quantiser(k)) is not None:  # chain rule through the quantiser's expected value
+                J[rows] *= expected(gains[k] * fk + bases[k], *quantiser)[1][:, None]
         return J
 
     # ---- start -----------------------------------------------------------------------------
@@ -448,10 +451,13 @@ class _Problem:
         x[:len(self.cfg_paths)] = self.x_cfg0
         # The starting model over the config's own run.duration (at least one record long),
         # where the records are then placed by cross-correlation.
-        from ..config import parse_config
+        from ..config import build_model, parse_config
+        from ..simulation import auto_duration
 
         span = max(float(t[-1] - t[0]) for t in self.t)
-        duration = max(parse_config(self.data).run.duration, span)
+        cfg = parse_config(self.data)
+        own = auto_duration(build_model(cfg)) if cfg.run.duration == "auto" else float(cfg.run.duration)
+        duration = max(own, span)
         sims = self.simulate([np.asarray(self.x_cfg0)], self.tau_fixed, duration=duration)[0]
         for k, (ts, f) in enumerate(sims):
             if not np.any(f > 0):
@@ -484,6 +490,12 @@ class _Problem:
                 raise ConfigError("--free gain", f"bad start: the records are anti-correlated with the model "
                                   f"(best gain {x[i]:.3g}); is the signal inverted?")
         return x
+
+    def quantiser(self, k: int) -> tuple[float, float, float] | None:
+        """(code step [N], code origin [N], noise under the codes [N]) of trace k once its noise
+        under the codes is fitted (lab.quantised), else None (the model is the signal itself)."""
+        grid, noise = self.quanta[k], self.code_noise[k]
+        return None if grid is None or noise is None else (grid[0], grid[1], noise)
 
     def _label(self, k: int) -> str:
         return self.traces[k].name or f"#{k}"

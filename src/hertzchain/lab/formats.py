@@ -30,6 +30,7 @@ returns the value it stands for (``valid_max``), at which a pulse is clipped
 from __future__ import annotations
 
 import math
+import mmap
 import re
 import struct
 from dataclasses import dataclass, field
@@ -286,7 +287,7 @@ _TRC_OTHER = {2: "histogram", 3: "graph", 4: "filter_coefficient", 5: "complex",
 _DESC_BYTES = 346
 
 
-def read_trc(path: Path, raw: bytes) -> _Table:
+def read_trc(path: Path, raw: bytes | mmap.mmap) -> _Table:
     """Decode a LeCroy ``.trc`` file (template LECROY_2_3; see the module docstring).
 
     Parameters

@@ -18,7 +18,7 @@ __all__ = ["signal_jacobians"]
 
 
 def signal_jacobians(configs: list, paths: list[str], beads: list[int | None], duration: float,
-                     n_threads: int | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+                     n_threads: int | None = None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Per trace, the simulated signal's times and its derivative by every free field.
 
     Parameters
@@ -59,7 +59,7 @@ def signal_jacobians(configs: list, paths: list[str], beads: list[int | None], d
     if n_threads is None:
         import numba
 
-        n_threads = numba.config.NUMBA_NUM_THREADS
+        n_threads = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # set at import; not in numba's types
     first = one(0)  # the first run compiles or loads the kernels, once
     if len(configs) == 1 or n_threads <= 1:
         return [first] + [one(k) for k in range(1, len(configs))]

@@ -162,7 +162,9 @@ def refit_noise(prob, sol, solve, rounds: int = 8):
         out = []
         for k, err in errors.items():
             col = np.zeros(edges[-1])
-            d_dsigma = expected(gains[k] * parts[k][2] + bases[k], *prob.quanta[k], prob.code_noise[k])[2]
+            quantiser = prob.quantiser(k)
+            assert quantiser is not None  # errors holds the traces whose code noise is fitted
+            d_dsigma = expected(gains[k] * parts[k][2] + bases[k], *quantiser)[2]
             col[edges[k]:edges[k + 1]] = -d_dsigma / prob.sigma[k]
             out.append((col, err))
         return out

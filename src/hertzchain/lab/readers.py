@@ -199,7 +199,7 @@ def _read_result(path: Path, column) -> _Table:
         ds = load(path)
     except (OSError, ValueError) as exc:
         raise ConfigError(str(path), f"is not a hertzchain NetCDF result ({exc})") from None
-    signals = [v for v in ds.data_vars if any(str(d).endswith("time") for d in ds[v].dims)
+    signals = [str(v) for v in ds.data_vars if any(str(d).endswith("time") for d in ds[v].dims)
                and ds[v].attrs.get("units") == "N"]
     name, _, index = str(column if column is not None else "").partition(":")
     if not name:

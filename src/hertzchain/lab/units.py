@@ -50,7 +50,7 @@ _ALIASES = {"S": "s", "Volts": "V", "Volt": "V"}
 _TOKEN = re.compile(r"\s*(?:(?P<pow>\*\*|\^)|(?P<op>[*/·⋅])|(?P<name>[A-Za-zµμ]+)|(?P<int>[+-]?\d+)|(?P<bad>\S))")
 
 #: Dimensions of the kinds a record's column can hold.
-KINDS = {(0, 0, 1, 0): "time", (1, 1, -2, 0): "force", (2, 1, -3, -1): "voltage"}
+KINDS: dict[tuple[int, ...], str] = {(0, 0, 1, 0): "time", (1, 1, -2, 0): "force", (2, 1, -3, -1): "voltage"}
 
 
 class UnitError(ValueError):
@@ -138,7 +138,7 @@ def parse_unit(text: str) -> tuple[float, tuple[int, ...]]:
                 pending = None
             sign, expect_term = (-1 if m.group("op") == "/" else 1), True
         else:
-            what = m.group(kind)
+            what = m.group(kind or 0)
             raise UnitError(f"{what!r} is not allowed in a unit (no numbers, brackets or other operators)")
     if expect_term:
         raise UnitError("ends without a unit")
