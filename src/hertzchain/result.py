@@ -12,7 +12,7 @@ import datetime as _dt
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final, Hashable
 
 import numpy as np
 import xarray as xr
@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # the compiled kernels load only when a run is made, not to r
 __all__ = ["build_dataset", "fields_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes",
            "netcdf_bytes"]
 
-ENGINE = "h5netcdf"
+ENGINE: Final = "h5netcdf"
 #: The integrators of hertzchain's own (``dt``, ``dt_max`` and ``time_step`` attributes mean steps).
 STEPPERS = ("verlet", "rkn4")
 
@@ -113,7 +113,7 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         "dissipated_energy": (("time",), raw.dissipated_energy),
         "diameter": (("bead",), chain.diameters.copy()),
         "mass": (("bead",), chain.masses),
-        "offset": (("bead",), chain.offsets.copy()),
+        "offset": (("bead",), np.array(chain.offsets)),
         "kappa": (("contact_all",), system.kappa[:nc]),
         "yield_force": (("contact_all",), system.yield_force[:nc]),
         "max_contact_force": (("contact_all",), raw.max_force),
@@ -182,6 +182,7 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
         attrs.update(body_peaks(arrays["body_force"][1], arrays["body_acceleration"][1], arrays["body_energy"][1]))
     if raw.plastic_work is not None:
         attrs["plastic_work"] = float(raw.plastic_work[-1])
+        assert raw.residual_overlap is not None  # recorded with the plastic work (verlet.py)
         attrs["residual_overlap_max"] = float(raw.residual_overlap.max()) if raw.residual_overlap.size else 0.0
     attrs.update(extra_attrs or {})
     return RunFields(data, coords, attrs)
@@ -284,12 +285,12 @@ def fields_dataset(f: RunFields) -> xr.Dataset:
     """
     try:
         import pandas as pd
-        from xarray.core.indexes import PandasIndex
+        from xarray.core.indexes import Index, PandasIndex
 
         # NumPy arrays throughout, so the checks of the public constructors can be skipped
         out = {name: xr.Variable(dims, np.asarray(values), attrs=attrs, fastpath=True)
                for name, (dims, values, attrs) in f.data.items()}
-        indexes = {}
+        indexes: dict[Hashable, Index] = {}
         for name, (dim, values, attrs) in f.coords.items():
             # the run's own arrays: indexed without a copy, named (so that xarray does not copy the
             # index to name it) and of a known dtype (no cast, no inference: fastpath)
@@ -299,7 +300,7 @@ def fields_dataset(f: RunFields) -> xr.Dataset:
             variables = index.create_variables()
             variables[name].attrs.update(attrs)
             out.update(variables)
-        sizes: dict[str, int] = {}
+        sizes: dict[Hashable, int] = {}
         for var in out.values():
             sizes.update((d, n) for d, n in zip(var.dims, var.shape) if d not in sizes)
         return xr.Dataset._construct_direct(out, set(f.coords), sizes, dict(f.attrs), indexes)

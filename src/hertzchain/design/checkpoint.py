@@ -155,7 +155,7 @@ def _save(out: Path, state: Any) -> None:
     head = json.dumps(meta, default=_plain, allow_nan=True, separators=(",", ":"))
     text = head[:-1] + "".join(f',"{name}":[' + ",".join(done[name]) + "]" for name in parts) + "}"
     buf = io.BytesIO()
-    np.savez(buf, meta=np.frombuffer(text.encode("utf-8"), np.uint8), **arrays)
+    np.savez(buf, meta=np.frombuffer(text.encode("utf-8"), np.uint8), **arrays)  # type: ignore[arg-type]  # NumPy's stub matches **arrays against savez's allow_pickle: bool
     write_bytes(out / _CHECKPOINT, buf.getvalue())
 
 
@@ -261,6 +261,7 @@ def _read(path: Path, problem) -> Saved:
         raise _Damaged(f"not a NumPy .npz archive of plain arrays ({exc})") from None
     raw_meta = files.pop("meta", None)
     _need(raw_meta is not None and raw_meta.dtype == np.uint8 and raw_meta.ndim == 1, "no 'meta' document")
+    assert raw_meta is not None  # (_need raised otherwise)
     try:
         meta = json.loads(raw_meta.tobytes().decode("utf-8"))
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:

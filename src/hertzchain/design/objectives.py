@@ -322,6 +322,7 @@ def _metrics(rec: _Records, objectives: list[str], window: tuple[float, float] |
                                   "pulse_at_wall": _pulses_passed(wall)}
     if rec.plastic_work is not None:
         out["plastic_work"] = rec.plastic_work
+        assert rec.residual_overlap_max is not None  # recorded with the plastic work
         out["residual_overlap_max"] = rec.residual_overlap_max
     for name in objectives:
         if name == "peak_wall_force":
@@ -505,7 +506,8 @@ class Evaluator:
             return [nominal]
         out = []
         tol = Tolerances(**self.robust.tolerances) if self.robust.tolerances else None
-        for v in self.robust.velocities or [None]:
+        speeds: list[float | None] = [*self.robust.velocities] if self.robust.velocities else [None]
+        for v in speeds:
             model = nominal if v is None else build_model(parse_config(
                 {**cfg, "striker": {**cfg.get("striker", {}), "velocity": v}}))
             for d in range(self.robust.draws):
@@ -601,6 +603,7 @@ class Evaluator:
                 models += ms
                 counts.append(len(ms))
             fid = self.fidelity
+            assert run0 is not None  # (the config of the first pending candidate)
             interval = build_probes(run0).sample_interval
             if fid.coarse_sampling:  # from every scenario: a faster striker gives a shorter pulse
                 interval = search_interval(models, interval, run0.run.duration)

@@ -29,7 +29,7 @@ import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
@@ -67,7 +67,7 @@ class DesignSection(BaseModel):
     chunk_size: int = Field(default=64, ge=1)
     robust: Robust | None = None
     shape: dict[str, Any] | None = None
-    search_steps_per_radian: float | str = SEARCH_STEPS_PER_RADIAN
+    search_steps_per_radian: float | Literal["full"] = SEARCH_STEPS_PER_RADIAN
     verify_top: int = Field(default=4, ge=1, le=1000)
 
     @field_validator("search_steps_per_radian", mode="before")

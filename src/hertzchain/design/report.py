@@ -122,7 +122,8 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
 
     prob = result.problem
     sec = prob.section
-    window = None if sec.window is None else tuple(sec.window)
+    window = None if sec.window is None else (sec.window[0], sec.window[1])
+    assert result.best is not None  # (write_report refuses a search without a best)
     cfgs = _reference_configs(prob.base, result.best["config"])
     # No geometric rejection here: the references get values even where they break the design's
     # constraints (the uniform chain may be longer or heavier); feasibility is reported beside them.
@@ -137,6 +138,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
         warnings.simplefilter("ignore", ElasticLimitWarning)
         # a reference whose pulse misses the wall within the run gets no value (pulse_at_wall below)
         warnings.simplefilter("ignore", PulseNotReachedWarning)
+        assert isinstance(runs[0].run.duration, float)  # build_problem wrote the automatic duration into [base.run]
         ds = simulate_batch(models, runs[0].run.duration, probes, dt=runs[0].run.dt,
                             steps_per_radian=runs[0].run.steps_per_radian)
     out: dict[str, Any] = {}
@@ -297,7 +299,7 @@ def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]
 
     # What each objective reads (the body's force for peak_body_force, not the face's), then the
     # wall force too when no objective reads it: the pulse the chain delivers to what it ends on.
-    drawn = []
+    drawn: list[tuple[str, str, np.ndarray, np.ndarray, str]] = []
     for name in names:
         signal = objective_signal(name, ds)
         if signal[0] not in [d[0] for d in drawn]:
@@ -305,12 +307,12 @@ def _figures(result: DesignResult, comparison: dict, ds) -> list[tuple[str, str]
             drawn.append((*signal, f"{name}: the {signal[0].split(' [')[0]}{note}"))
     if not any(d[0] == "force on the wall [N]" for d in drawn):
         drawn.append((*objective_signal("peak_wall_force", ds), "The force on the wall (or the body's face), for reference"))
-    for ylabel, xlabel, x, y, title in drawn:
+    for ylabel, xlabel, along, values, title in drawn:
         fig, ax = plt.subplots(figsize=(7, 3.6))
         marker = "o-" if xlabel.startswith("contact") else "-"
         for i, label in enumerate(labels):
             bad = "" if label == "best" or not comparison[label]["breaks"] else " (breaks the constraints)"
-            ax.plot(x, y[i], marker, ms=3, lw=1.4 if label == "best" else 1.0, label=label + bad)
+            ax.plot(along, values[i], marker, ms=3, lw=1.4 if label == "best" else 1.0, label=label + bad)
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes: clear of the curves
@@ -474,7 +476,7 @@ def write_report(result: DesignResult, figures: bool = True) -> dict:
     if result.best is None:
         raise ValueError("the search evaluated no candidate")
     comparison, ds = _comparison(result)
-    info = {
+    info: dict[str, Any] = {
         "objective_name": prob.objective_name,
         "objective_label": objective_label(prob),
         "objectives": prob.objectives,

@@ -83,11 +83,11 @@ def write_comparison(out, key: str, comparison: dict, ds) -> None:
             "attrs": dict(ds.attrs)}
     text = json.dumps(meta, default=_plain, allow_nan=True, separators=(",", ":"))
     buf = io.BytesIO()
-    np.savez(buf, meta=np.frombuffer(text.encode("utf-8"), np.uint8), **arrays)
+    np.savez(buf, meta=np.frombuffer(text.encode("utf-8"), np.uint8), **arrays)  # type: ignore[arg-type]  # NumPy's stub matches **arrays against savez's allow_pickle: bool
     write_bytes(out / COMPARISON_FILE, buf.getvalue())
 
 
-def _check(ok: bool, what: str) -> None:
+def _check(ok: object, what: str) -> None:
     if not ok:
         raise ValueError(what)
 
@@ -133,6 +133,7 @@ def read_comparison(out, key: str, objectives: list[str]):
         files = load_npz(path, out)
         raw = files.pop("meta", None)
         _check(raw is not None and raw.dtype == np.uint8 and raw.ndim == 1, "no 'meta' document")
+        assert raw is not None  # (_check raised otherwise)
         meta = json.loads(raw.tobytes().decode("utf-8"))
         _check(isinstance(meta, dict) and meta.get("format") == _FORMAT and meta.get("schema") == SCHEMA,
                "not a design comparison of this layout")
@@ -143,7 +144,8 @@ def read_comparison(out, key: str, objectives: list[str]):
         layout = meta.get("variables")
         _check(isinstance(layout, dict) and layout, "no records")
         sizes: dict[str, int] = {}
-        variables, coords = {}, {}
+        variables: dict[str, xr.Variable] = {}
+        coords: dict[str, xr.Variable] = {}
         for name, spec in layout.items():
             where = f"variables.{name}"
             _check(isinstance(spec, dict) and isinstance(spec.get("member"), str), f"{where} names no member")
@@ -151,6 +153,7 @@ def read_comparison(out, key: str, objectives: list[str]):
             _check(isinstance(dims, list) and all(isinstance(d, str) for d in dims), f"{where}.dims are names")
             arr = files.get(spec["member"])
             _check(arr is not None and arr.ndim == len(dims), f"{where}: its array is missing or not {len(dims)}-D")
+            assert arr is not None  # (_check raised otherwise)
             for d, n in zip(dims, arr.shape):
                 _check(sizes.setdefault(d, n) == n, f"{where}: dimension {d} is {n} long, elsewhere {sizes[d]}")
             var = xr.Variable(dims, arr, attrs=_attrs(spec.get("attrs"), where))

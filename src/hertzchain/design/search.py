@@ -45,6 +45,7 @@ runs and ends with the same result as an uninterrupted run. The random streams a
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -251,12 +252,19 @@ def _evaluate(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: l
     values = [space.values(x) for x in xs]
     keys = [space.key_of(v) for v in values]
     evaluator.cache = state.full_cache if evaluator.fidelity.name == "full" and phase == "verify" else state.cache
-    evs = evaluator.evaluate(keys, [lambda v=v: space.config(v) for v in values])
+    evs = evaluator.evaluate(keys, [functools.partial(space.config, v) for v in values])
     elapsed = clock()
     for x, vals, ev in zip(xs, values, evs):
         state.n_evaluations += ev.engine_runs
         state.history.append({**_row(problem, state, phase, x, ev, vals), "elapsed_s": elapsed})
     return [ev.fitness(problem.objectives) for ev in evs]
+
+
+def _best_x(problem: DesignProblem, history: list[dict]) -> np.ndarray:
+    """The unit-cube point of the best row of a history that holds rows."""
+    best = _best_row(problem, history)
+    assert best is not None  # (a history with rows)
+    return np.asarray(best["x"])
 
 
 def _best_row(problem: DesignProblem, history: list[dict], fidelity: str | None = None) -> dict | None:
@@ -302,7 +310,7 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float, evaluato
             y = x.copy()
             y[j] = min(max(y[j] + s, 0.0), 1.0)
             y = problem.space.centre(y)
-            if repair and v.kind == "real" and f_x >= 0:  # stop on the boundary only from a point inside it
+            if f_x is not None and v.kind == "real" and f_x >= 0:  # (f_x: set when repairing)  # stop on the boundary only from a point inside it
                 f_y = _margin(problem, evaluator, y)
                 if f_y < 0:
                     # The accepted band narrows with the step, so that the polish closes in on the
@@ -424,13 +432,15 @@ def preflight(problem: DesignProblem, client=None, chunk_size: int | None = None
                           f"{first * per:,} engine runs, more than the {sec.budget - reserve:,} of design.budget = "
                           f"{sec.budget:,} left for the search: lower design.population or raise design.budget")
     model = build_model(cfg := parse_config(problem.base))
-    members = min(max(_population(problem), first) * per, sec.budget)  # later generations: checked as they come
+    members = int(min(max(_population(problem), first) * per, sec.budget))  # later generations: checked as they come
     members = members if client is None else min(members, chunk_size or sec.chunk_size)
     probes = Probes(sample_interval=cfg.run.sample_interval, contacts=())
+    assert isinstance(cfg.run.duration, float)  # build_problem wrote the automatic duration into [base.run]
     one = estimate_resources(model.system(), cfg.run.duration, probes, dt=cfg.run.dt,
                              steps_per_radian=fidelity.steps_per_radian or cfg.run.steps_per_radian)
     mem = estimate_memory(model.chain.n_beads, model.wall.present, cfg.run.duration, probes, members)
-    parallel = max(1, min(numba.config.NUMBA_NUM_THREADS, members)) if client is None else worker_threads(client)
+    threads = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # set at import, not in its types
+    parallel = max(1, min(threads, members)) if client is None else worker_threads(client)
     est = _replace(mem, steps=one.steps, seconds=one.seconds * sec.budget / parallel)
     field = "design.population" if client is None else "design.chunk_size"
     check_resources(est, memory_field=field,
@@ -503,6 +513,7 @@ def run_design(problem: DesignProblem, out_dir: str | Path, *, client=None, devi
         try:
             return _run_design(problem, out, client, device, progress, checkpoint_interval, saved)
         except ReplayDiverged as exc:
+            assert saved is not None  # (only a saved search replays)
             # Another program version (or an edited file) wrote it: its generations are not this
             # search's. Kept aside, and the search starts from its seed.
             set_aside(saved.path, f"does not replay to the search it was saved from ({exc})")
@@ -516,7 +527,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
     fidelity = search_fidelity(problem)
     coarse = fidelity.name != "full"
     evaluator = Evaluator(problem.objectives, sec.constraints, sec.robust,
-                          None if sec.window is None else tuple(sec.window), client, sec.chunk_size, device,
+                          None if sec.window is None else (sec.window[0], sec.window[1]), client, sec.chunk_size, device,
                           fidelity=fidelity, base=problem.base)
     replay = Replay(saved) if saved is not None else None
     resumed = replay is not None
@@ -558,6 +569,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
     def improved() -> bool:
         """Whether the best fitness improved since the last call (tracks stagnation)."""
         best = _best_row(problem, state.history)
+        assert best is not None  # (called after a generation: the history holds its rows)
         f = best[problem.objectives[0]] if best["feasible"] else INFEASIBLE * (1.0 + best["violation"])
         if f < state.best_f - 1e-12 * abs(state.best_f):
             state.best_f = f
@@ -604,7 +616,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
                                   f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
             _evaluate(problem, evaluator, state, xs, "population", clock, replay)
             improved()
-            state.optimiser = _new_optimiser(problem, x0=np.asarray(_best_row(problem, state.history)["x"]))
+            state.optimiser = _new_optimiser(problem, x0=_best_x(problem, state.history))
             if gradients:
                 state.phase = "gradient"
         elif state.phase == "gradient":
@@ -648,7 +660,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
                     next_cycle()
         else:  # polish: batched compass search around the best point
             if state.polish_x is None:
-                state.polish_x = problem.space.centre(np.asarray(_best_row(problem, state.history)["x"]))
+                state.polish_x = problem.space.centre(_best_x(problem, state.history))
                 state.polish_h = _POLISH_H0
             x = state.polish_x
             f0 = state.cache[problem.space.key(x)].fitness(problem.objectives)[0]  # evaluated: the best so far
@@ -680,6 +692,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
         from .constraints import broken_geometry
 
         least = _best_row(problem, state.history)
+        assert least is not None  # (the history is not empty)
         closest = problem.space.values(np.asarray(least["x"]))
         raise ConfigError("design.constraints", f"no candidate of the design space meets the geometric constraints "
                           f"({len(state.history)} tried); the closest one, {closest}"

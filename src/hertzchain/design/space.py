@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Iterable, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -224,7 +224,7 @@ def parse_variables(spec: dict, base: dict, shape: Shape | None) -> tuple[list[V
             if not (0 <= start < stop <= len(seq)):
                 raise ConfigError(name, f"range [{start}:{stop}] must lie inside the base list (0..{len(seq)}) and "
                                   "hold at least one item")
-            items = range(start, stop)
+            items: Iterable[int | None] = range(start, stop)
         else:
             if monotone:
                 raise ConfigError(name, "monotone applies to a range of list items such as 'chain.diameters_mm[16:30]'")
@@ -238,7 +238,7 @@ def parse_variables(spec: dict, base: dict, shape: Shape | None) -> tuple[list[V
     return out, monotone_groups
 
 
-def _parse_spec(raw: Any, name: str) -> tuple[str, float, float, tuple, bool | str]:
+def _parse_spec(raw: Any, name: str) -> tuple[Literal["real", "integer", "choice"], float, float, tuple, bool | str]:
     """(kind, low, high, choices, monotone) of one variable's spec."""
     def is_int(v: Any) -> bool:
         return isinstance(v, int) and not isinstance(v, bool)
@@ -312,7 +312,9 @@ def _set_own(cfg: dict, tokens: tuple, value: Any, copied: set[int], name: str) 
             node[tok] = child
         node = child
     last = tokens[-1]
-    if (type(node) is dict and type(last) is str) or (type(node) is list and type(last) is int and last < len(node)):
+    if type(node) is dict and type(last) is str:
+        node[last] = value
+    elif type(node) is list and type(last) is int and last < len(node):
         node[last] = value
     else:
         set_path(cfg, list(tokens), value, name)
@@ -408,6 +410,7 @@ class Space:
         """Replace ``[chain]``'s bead list by the base beads followed by the shape's beads."""
         from ..config import build_chain, parse_config
 
+        assert self.shape is not None  # (config() calls it for a shape only)
         _shape_value_error(self.shape, params)
         chain = build_chain(parse_config(cfg))
         names = [m.name for m in chain.materials]
