@@ -20,6 +20,7 @@ import numpy as np
 from .bounds import check_bound
 from .chain import Chain
 from .contact import Elastic
+from . import plasticity  # noqa: F401  (attaches the elastoplastic law's maker: laws.spec.attach_maker)
 from .errors import ConfigError
 from .laws import law_of_code, spec_of
 from .laws.spec import LawObject

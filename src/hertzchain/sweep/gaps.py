@@ -108,7 +108,7 @@ def run_gap_sweep(cfg: SweepConfig, out: Path, progress: Callable[[int, int], No
         table: dict = {"member": np.arange(cfg.n_members), "chunk": chunk_of}
         for name in cfg.parameter_names:
             table[name] = [json.dumps(v) if isinstance(v, (list, dict)) else v for v in
-                           (m[name] for m in cfg.members)]
+                           (cfg.members[m][name] for m in range(cfg.n_members))]
         table.update(gap_count=[len(g) for g in gaps], gap_low_Hz=edges[:, 0, 0], gap_high_Hz=edges[:, 0, 1],
                      top_Hz=top, gaps_Hz=[json.dumps(g) for g in gaps])
         df = pd.DataFrame(table)

@@ -90,7 +90,9 @@ def _drawn_columns(cfg: SweepConfig, members: np.ndarray) -> dict[str, np.ndarra
     def widen(a: np.ndarray, width: int) -> np.ndarray:
         return np.pad(a, ((0, 0), (0, width - a.shape[1])), constant_values=np.nan)
 
-    diam = offs = vel = None
+    diam: np.ndarray | None = None
+    offs: np.ndarray | None = None
+    vel: np.ndarray | None = None
     built: dict = {}
     for chunk in cfg.chunks():
         check()
@@ -107,8 +109,10 @@ def _drawn_columns(cfg: SweepConfig, members: np.ndarray) -> dict[str, np.ndarra
             diam = np.full((members.size, d.shape[1]), np.nan) if diam is None else widen(diam, d.shape[1])
             offs = np.full((members.size, d.shape[1]), np.nan) if offs is None else widen(offs, d.shape[1])
             vel = np.full(members.size, np.nan) if vel is None else vel
+        assert offs is not None and vel is not None  # (allocated with diam)
         rows = order[np.searchsorted(members, np.asarray(chunk), sorter=order)]  # the chunk's table rows
         diam[rows, :d.shape[1]], offs[rows, :d.shape[1]], vel[rows] = d * 1e3, e * 1e3, v
+    assert diam is not None and offs is not None and vel is not None  # (a sweep has a chunk)
     cols = {f"diameter_mm_{j + 1}": diam[:, j] for j in range(diam.shape[1])}
     if _any(tol.offset_mm):
         cols |= {f"offset_mm_{j + 1}": offs[:, j] for j in range(offs.shape[1])}
@@ -410,6 +414,7 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
 
             df = run_gap_sweep(cfg, out, progress, force)
             return SweepResult(metrics=df, out_dir=out, computed=list(range(len(cfg.chunks()))), skipped=[])
+        assert plan is not None  # (made for every sweep but a band-gap map)
         with _folder_lock(out):
             chunks_dir = _prepare_out_dir(cfg, out, force)
             return _run_chunks(cfg, plan, out, chunks_dir, client, progress)
@@ -477,7 +482,7 @@ def _plan(cfg: SweepConfig, device: str, cores: int = 1, advice: str | None = No
     else:  # metrics: what the metrics need, the wall force and the energies, and nothing is kept
         probes = Probes(sample_interval=base_probes.sample_interval, contacts=())
     auto = run_cfg.run.duration == "auto"
-    duration = 0.0 if auto else run_cfg.run.duration
+    duration = 0.0 if isinstance(run_cfg.run.duration, str) else run_cfg.run.duration
     built: dict = {}
     largest = None  # (beads, a model of that length, its dt)
     for members in cfg.chunks():
@@ -492,6 +497,7 @@ def _plan(cfg: SweepConfig, device: str, cores: int = 1, advice: str | None = No
 
             # Members share one time axis (the batched engine): the slowest member's duration.
             duration = max(duration, max(auto_duration(m) for m in models))
+    assert largest is not None  # (a sweep has a chunk)
     est = _sweep_estimate(cfg, largest[1], largest[2], duration, probes, base_probes if cfg.sweep.traces else None)
     table_bytes = _table_bytes(cfg, largest[0])
     _check_sweep_resources(cfg, est, cores, advice, table_bytes)

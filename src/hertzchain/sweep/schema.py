@@ -338,14 +338,14 @@ def parse_sweep(data: dict) -> SweepConfig:
     axes = _zip_axes(sw, specs)
     if sw.mode == "grid":
         # One grid axis per zipped group (its lists walked together) and per other parameter.
-        size = math.prod(len(specs[ax[0]]) for ax in axes)
+        size = math.prod(len(_listed(specs, ax[0])) for ax in axes)
         if size > MAX_MEMBERS:
             raise ConfigError("sweep.parameters", f"the grid has {size:,} members (the product of the list "
                               f"lengths); at most {MAX_MEMBERS:,} are allowed: use fewer values or mode = 'random'")
-        combos = itertools.product(*(range(len(specs[ax[0]])) for ax in axes)) if axes else [()]
+        combos = itertools.product(*(range(len(_listed(specs, ax[0]))) for ax in axes)) if axes else [()]
         members = []
         for c in combos:
-            member = {k: specs[k][i] for ax, i in zip(axes, c) for k in ax}
+            member = {k: _listed(specs, k)[i] for ax, i in zip(axes, c) for k in ax}
             members.append({k: member[k] for k in names})
     elif not axes:  # an ensemble: n copies of the base, made different by their tolerances alone
         members = [{}] * sw.n  # one empty mapping, shared (members are read, never changed): 8 bytes each
@@ -358,8 +358,8 @@ def parse_sweep(data: dict) -> SweepConfig:
                 if len(ax) == 1:
                     member[ax[0]] = _draw(specs[ax[0]], rng)
                 else:  # a zipped group: one draw picks the same position in every list
-                    j = int(rng.integers(len(specs[ax[0]])))
-                    member.update({k: copy.deepcopy(specs[k][j]) for k in ax})
+                    j = int(rng.integers(len(_listed(specs, ax[0]))))
+                    member.update({k: copy.deepcopy(_listed(specs, k)[j]) for k in ax})
             members.append({k: member[k] for k in names})
 
     cfg = SweepConfig(base=base, sweep=sw, members=members, hash="")
@@ -389,6 +389,13 @@ def parse_sweep(data: dict) -> SweepConfig:
     return cfg
 
 
+def _listed(specs: dict[str, list | Range], path: str) -> list:
+    """The values of a listed parameter (every one of a grid, those of a zipped group: checked to be lists)."""
+    values = specs[path]
+    assert isinstance(values, list)
+    return values
+
+
 def _zip_axes(sw: SweepSection, specs: dict[str, list | Range]) -> list[list[str]]:
     """Axes of the sweep: each ``zip`` group (coupled parameters) and each other parameter alone."""
     grouped: dict[str, int] = {}
@@ -404,7 +411,7 @@ def _zip_axes(sw: SweepSection, specs: dict[str, list | Range]) -> list[list[str
             if not isinstance(specs[path], list):
                 raise ConfigError(f'sweep.parameters["{path}"]', "a zipped parameter needs a list of values, not a range")
             grouped[path] = g
-        lengths = {p: len(specs[p]) for p in group}
+        lengths = {p: len(_listed(specs, p)) for p in group}
         if len(set(lengths.values())) != 1:
             raise ConfigError(name, "zipped parameters need lists of equal length, got "
                               + ", ".join(f"{p}: {n}" for p, n in lengths.items()))

@@ -17,7 +17,7 @@ import json
 import os
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Iterator, Sequence
 
 import numpy as np
 
@@ -105,7 +105,7 @@ def _checksum_ok(path: Path) -> bool:
     return digest.hexdigest() == recorded
 
 
-def _chunk_is_done(path: Path, sweep_hash: str, members, traced: list[int] = ()) -> bool:
+def _chunk_is_done(path: Path, sweep_hash: str, members, traced: Sequence[int] = ()) -> bool:
     """True when ``path`` is a complete, undamaged chunk of this sweep holding exactly ``members``
     (and, with ``traced``, its traces file beside it holding exactly those members)."""
     if not _file_holds(path, sweep_hash, members):
@@ -298,7 +298,7 @@ def _metrics_table(cfg: SweepConfig, chunks_dir: Path):
                 parts[c].append(np.asarray(f[c][...]) if c in f else np.full(members.size, np.nan))
             for c, var in optional.items():
                 parts[c].append(np.asarray(f[var][...], dtype=float) if var in f else np.full(members.size, np.nan))
-    table = {"member": np.concatenate(parts.pop("member")), "chunk": np.concatenate(parts.pop("chunk"))}
+    table: dict[str, Any] = {"member": np.concatenate(parts.pop("member")), "chunk": np.concatenate(parts.pop("chunk"))}
     for name in cfg.parameter_names:
         vals = [cfg.members[m][name] for m in table["member"].tolist()]
         table[name] = [json.dumps(v) if isinstance(v, (list, dict)) else v for v in vals]
