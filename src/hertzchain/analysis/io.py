@@ -18,7 +18,7 @@ import math
 import os
 import re
 from pathlib import Path
-from typing import Iterable
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -206,7 +206,7 @@ def read_signal_csv(path: str | os.PathLike, *, time_column: str | int | None = 
 
 # --------------------------------------------------------------------------------------------
 def _row(signal: str, index, time: np.ndarray, force: np.ndarray, fit_kwargs: dict) -> dict:
-    row = dict.fromkeys(ROW_KEYS, math.nan)
+    row: dict[str, Any] = dict.fromkeys(ROW_KEYS, math.nan)
     row.update(signal=signal, index=index, error=None)
     try:
         fit = fit_pulse(time, force, **fit_kwargs)

@@ -15,13 +15,18 @@ import shutil
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 import xarray as xr
 
 from ..errors import ConfigError
 from .common import bead_centres, contact_positions, result_title, select_member, time_window
+
+if TYPE_CHECKING:  # Matplotlib loads when a figure is drawn
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
 __all__ = ["ChainFrames", "chain_frames", "animate"]
 
@@ -152,10 +157,10 @@ FRAME_INCHES, FRAME_DPI = (8.0, 4.5), 100
 class _FrameFigure:
     """The figure of an animation: ``show(k)`` sets it to frame ``k`` (the caller draws it)."""
 
-    figure: object            # matplotlib Figure with the Agg canvas attached
-    chain_axes: object        # the chain, to scale (equal aspect), on the left
-    trace_axes: object        # the wall force against time [ms], on the right
-    trace: object             # the Line2D of the wall force up to the frame's time
+    figure: Figure            # with the Agg canvas attached
+    chain_axes: Axes          # the chain, to scale (equal aspect), on the left
+    trace_axes: Axes          # the wall force against time [ms], on the right
+    trace: Line2D             # the wall force up to the frame's time
     show: Callable[[int], None]
 
 
@@ -179,8 +184,9 @@ def _frame_figure(run: xr.Dataset, fr: ChainFrames, title: str) -> _FrameFigure:
     norm = Normalize(0.0, max(float(fr.force.max()), 1e-30))
     r = 0.5 * fr.diameter
     colours = ScalarMappable(norm=norm, cmap=matplotlib.colormaps["magma_r"])
-    circles = [ax_chain.add_patch(Circle((x, e), rad, edgecolor="0.3", linewidth=0.5))
-               for x, e, rad in zip(fr.centre[0], fr.offset, r)]
+    circles = [Circle((x, e), rad, edgecolor="0.3", linewidth=0.5) for x, e, rad in zip(fr.centre[0], fr.offset, r)]
+    for circle in circles:
+        ax_chain.add_patch(circle)
     # The view follows the beads and the striker's place at impact; an exaggerated rebound
     # carries the striker out of it to the left, as it leaves the chain.
     left = float(min(fr.centre[0, 0] - r[0], (fr.centre[:, 1:] - r[1:]).min()) - r[0])
@@ -279,6 +285,7 @@ def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float 
             canvas.draw()
             rgba = np.asarray(canvas.buffer_rgba())
             if proc is not None:
+                assert proc.stdin is not None  # (opened with stdin=PIPE)
                 proc.stdin.write(rgba.tobytes())
             else:
                 from PIL import Image
@@ -287,6 +294,7 @@ def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float 
             if progress is not None:
                 progress(k + 1, fr.time.size)
         if proc is not None:
+            assert proc.stdin is not None  # (opened with stdin=PIPE)
             proc.stdin.close()
             if proc.wait() != 0:
                 raise ConfigError("--out", f"ffmpeg failed to write {out}")

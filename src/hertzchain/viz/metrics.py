@@ -11,6 +11,10 @@ or for random draws one coloured point per member.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # Matplotlib loads when a figure is drawn
+    from matplotlib.collections import PathCollection, QuadMesh
 
 __all__ = ["plot_metrics", "metrics_figure", "swept_parameters", "MAX_TICK_LABELS"]
 
@@ -95,8 +99,7 @@ def metrics_figure(path: str | Path, metric: str = "F_m", x: str | None = None, 
         for key, g in groups:
             g = g.sort_values(x)
             key = key if isinstance(key, tuple) else (key,)
-            name = ", ".join(f"{p} = {v}" for p, v in zip(others, key)) or None
-            ax.plot(g[x], g[metric], "o-", ms=3, label=name)
+            ax.plot(g[x], g[metric], "o-", ms=3, label=", ".join(f"{p} = {v}" for p, v in zip(others, key)) or None)
         ax.set_xlabel(x)
         ax.set_ylabel(label)
         if others:
@@ -105,7 +108,7 @@ def metrics_figure(path: str | Path, metric: str = "F_m", x: str | None = None, 
         table = df.pivot_table(index=y, columns=x, values=metric, aggfunc="mean")
         if table.size <= 4 * len(df):
             # A grid: one cell per pair of values, labelled with them (swept values are rarely evenly spaced).
-            mesh = ax.pcolormesh(np.arange(table.shape[1] + 1), np.arange(table.shape[0] + 1),
+            mesh: QuadMesh | PathCollection = ax.pcolormesh(np.arange(table.shape[1] + 1), np.arange(table.shape[0] + 1),
                                  np.ma.masked_invalid(table.values))
             cols = _cell_ticks(table.shape[1], MAX_TICK_LABELS["x"])
             rows = _cell_ticks(table.shape[0], MAX_TICK_LABELS["y"])

@@ -66,6 +66,7 @@ def signal_list(ds: xr.Dataset, signals: Sequence[str] | None = None,
             raise ConfigError("--signal", f"the result has no {name!r} (recorded: {', '.join(recorded) or 'none'})")
         var = ds[name]
         tdim = _time_dim(var)
+        assert tdim is not None  # (every one of SIGNALS is a record along a time dimension)
         t = ds[tdim].values
         units = var.attrs.get("units", "")
         other = [d for d in var.dims if d != tdim]
