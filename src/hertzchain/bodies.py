@@ -65,8 +65,8 @@ def mount_half_period(mass: float, stiffness: float) -> float:
 STANDARD_GRAVITY = 9.80665
 
 
-def _faces(model) -> tuple[Face | None, list[Face], Face | None]:
-    """The striker's face, every bead's face and the wall's face (None: a flat wall's default)."""
+def _faces(model) -> tuple[Face, list[Face], Face | None]:
+    """The striker's face, every bead's face and the wall's face (None: no wall)."""
     s = model.body0
     k = 0.0 if s.face_radius is None else 1.0 / s.face_radius
     striker = Face(k, k, 0.0, s.material, "the flat striker" if s.shape == "flat" else "the striker")
@@ -141,7 +141,9 @@ def extend(model, parts: dict) -> dict:
     faces = [striker_face, *bead_faces, wall_face]
     special = _special_contacts(model)
     for j in special:
-        kappa[j], fy[j] = contact_constants(faces[j], faces[j + 1], _contact_field(model, j))
+        a, b = faces[j], faces[j + 1]
+        assert a is not None and b is not None  # (contact N is special only with a wall)
+        kappa[j], fy[j] = contact_constants(a, b, _contact_field(model, j))
     if special and hasattr(model.law, "contact_stiffness"):  # a law's own k (the power law's) where redone here
         kappa[special] = model.law.contact_stiffness(kappa[special])
 
@@ -206,7 +208,7 @@ def checked_loads(items, chain, wall) -> tuple:
         if not (isinstance(item, (tuple, list)) and len(item) == 2):
             raise ConfigError("load", f"each load is a pair (bead number, force in N), got {item!r}")
         bead, force = item
-        if isinstance(bead, bool) or not isinstance(bead, numbers.Integral) or not 1 <= bead <= n:
+        if isinstance(bead, bool) or not isinstance(bead, numbers.Integral) or not 1 <= int(bead) <= n:
             raise ConfigError("load.beads", f"must be bead numbers from 1 to {n}, got {bead!r}")
         force = real(force, "load.forces", unit="N")
         if not math.isfinite(force):

@@ -244,6 +244,7 @@ class ScaledViscoelastic:
             (mu / kappa)^(2/5) with mu = m / 2 and kappa of paper eq. 1 for two beads of the
             reference diameter and material.
         """
+        assert isinstance(self.material, Material)  # (__post_init__)
         return collision_time_scale(*_reference_pair(self.diameter, self.material))
 
     @property
@@ -356,6 +357,7 @@ class ScaledDashpot:
         tuple of float
             (mu_ref = m / 2, kappa_ref of paper eq. 1).
         """
+        assert isinstance(self.material, Material)  # (__post_init__)
         return _reference_pair(self.diameter, self.material)
 
     def contact_damping(self, mu, kappa):

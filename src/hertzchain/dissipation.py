@@ -267,6 +267,7 @@ CALIBRATED_LAWS = {name: get_law(name).calibrated for name in law_names()
 def _make_law(kind: str, parameter: float, diameter: float, material: Material):
     """The law ``kind`` with ``parameter``; a size-scaled law takes the calibration beads as reference."""
     spec = get_law(kind)
+    assert spec.make is not None  # every registered law has its maker (laws.spec.attach_maker)
     return spec.make({p: parameter if p == spec.calibrated else None for p in spec.param_names},
                      Chain.uniform(1, diameter, material))
 
@@ -337,14 +338,14 @@ def _calibrate_cached(kind: str, eps: float, diameter: float, material: Material
         if flo <= 0.0 <= fhi:
             break
         if flo > fhi:  # the loss no longer grows with the parameter: past the weak-damping branch
-            raise unreachable(max(cache.values()), max(cache, key=cache.get))
+            raise unreachable(max(cache.values()), max(cache, key=lambda z: cache[z]))
         if flo > 0.0:
             hi, fhi = lo, flo
             lo -= math.log(1.5)
             flo = loss(lo) - loss_target
         else:
             if hi >= z_max:  # as strong as the search goes, and still too weak
-                raise unreachable(max(cache.values()), max(cache, key=cache.get))
+                raise unreachable(max(cache.values()), max(cache, key=lambda z: cache[z]))
             lo, flo = hi, fhi
             hi = min(hi + math.log(1.5), z_max)
             fhi = loss(hi) - loss_target

@@ -23,7 +23,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -127,7 +127,8 @@ def _matlab_name(name: str) -> str:
 def _write_mat(run: xr.Dataset, path: Path) -> None:
     from scipy.io import savemat
 
-    variables, units = {}, {}
+    variables: dict[str, Any] = {}
+    units: dict[str, str] = {}
     for name in [*run.coords, *run.data_vars]:
         var = run[name]
         if not (np.issubdtype(var.dtype, np.number) or var.dtype == bool):
@@ -135,7 +136,7 @@ def _write_mat(run: xr.Dataset, path: Path) -> None:
         key = _matlab_name(str(name))
         variables[key] = np.asarray(var.values, dtype=float if var.dtype != bool else np.uint8)
         units[key] = var.attrs.get("units", "")
-    attrs = {}
+    attrs: dict[str, Any] = {}
     for key, value in run.attrs.items():
         if isinstance(value, (str, int, float, np.number)) and not isinstance(value, bool):
             attrs[_matlab_name(key)] = value

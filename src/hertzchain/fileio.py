@@ -138,7 +138,7 @@ def check_not_input(out: str | os.PathLike, *inputs: str | os.PathLike, option: 
 
 
 def _reason(exc: OSError) -> str:
-    return _REASONS.get(exc.errno, exc.strerror or str(exc))
+    return _REASONS.get(exc.errno or 0, exc.strerror or str(exc))
 
 
 def _new_file_mode(path: Path) -> int:

@@ -117,6 +117,7 @@ def default_probes(duration: float) -> Probes:
         The probes.
     """
     default = Probes.__dataclass_fields__["sample_interval"].default
+    assert isinstance(default, float)
     return Probes(sample_interval=max(default, duration / DEFAULT_MAX_SAMPLES))
 
 

@@ -102,6 +102,7 @@ def lateral_arrays(model: Model, track: Track) -> LateralArrays:
     from .integrate.lateral import LateralArrays
 
     n = model.chain.n_beads
+    assert model.striker is not None  # a lateral run takes plain models: a sphere striker (simulate_lateral)
     mass = np.concatenate([[model.striker.mass], model.chain.masses, [0.0]])
     radius = np.concatenate([[model.striker.diameter / 2], model.chain.radii, [0.0]])
     stiffness = np.full(n + 2, float(track.spring))

@@ -8,8 +8,12 @@ clone gets one with ``hertzchain example chain1 > chain1.toml``.
 from __future__ import annotations
 
 from importlib import resources
+from typing import TYPE_CHECKING
 
 from ..errors import ConfigError
+
+if TYPE_CHECKING:
+    from importlib.resources.abc import Traversable
 
 __all__ = ["example_names", "example_summary", "example_text"]
 
@@ -17,7 +21,7 @@ __all__ = ["example_names", "example_summary", "example_text"]
 _SUFFIXES = (".toml", ".csv")
 
 
-def _files() -> dict[str, object]:
+def _files() -> dict[str, Traversable]:
     """The shipped examples by name (file name without its suffix)."""
     root = resources.files(__name__)
     return {p.name.rsplit(".", 1)[0]: p for p in root.iterdir()

@@ -130,7 +130,7 @@ def check_memory(est: MemoryEstimate, available: int | None = None) -> None:
     available = available_memory() if available is None else available
     if available is None or est.total <= MEMORY_SHARE * available:
         return
-    part = max(est.parts, key=est.parts.get)
+    part = max(est.parts, key=lambda p: est.parts[p])
     hints = {"variables": "differentiate by fewer variables (--wrt)",
              "tape": "shorten run.duration or raise run.sample_interval",
              "sweep": "shorten run.duration or raise run.sample_interval",

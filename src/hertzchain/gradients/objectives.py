@@ -195,6 +195,7 @@ def read_objective(name: str, tape, window: tuple[float, float] | None = None) -
         t = tape.time
         mask = np.ones(t.size, bool) if window is None else (t >= window[0]) & (t <= window[1])
         if not mask.any():
+            assert window is not None  # (the whole run holds samples)
             raise ObjectiveUndefined("window", f"[{window[0] * 1e3:g}, {window[1] * 1e3:g}] ms holds no sample of the "
                                      f"run ({span(tape)}): energy_at_wall is undefined there; choose a window "
                                      "inside the run, or lengthen run.duration")
@@ -392,8 +393,8 @@ def pulse_partials(time: np.ndarray, force: np.ndarray, name: str) -> tuple[floa
     if name != "front_momentum_at_wall":
         raise ConfigError("objective", f"unknown pulse quantity {name!r}")
     split = fit.time_of_flight + fit.duration
-    w, f_split = _front_weights(t, y - b0, split)
-    grad = w - (min(max(split, t[0]), t[-1]) - t[0]) * db + f_split * (dT + dtau)
+    weights, f_split = _front_weights(t, y - b0, split)
+    grad = weights - (min(max(split, t[0]), t[-1]) - t[0]) * db + f_split * (dT + dtau)
     return fit.front_momentum, grad
 
 

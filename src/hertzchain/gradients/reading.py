@@ -5,8 +5,12 @@ a parabola through three steps."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from ..errors import ObjectiveUndefined
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ["Reading", "STEP", "span", "rising", "never", "vertex"]
 
@@ -39,7 +43,7 @@ class Reading:
     steps: list = field(default_factory=list)
     direct: dict = field(default_factory=dict)
     arrays: tuple | None = None
-    final_dres: object = None
+    final_dres: np.ndarray | None = None
 
 
 def span(tape, window=None) -> str:

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -195,10 +196,11 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     if cfg.wall.type != "none":
         wall = _material(cfg.wall.material or mats[-1]).name
         wt, _, ws = props[wall] if wall in props else _theta(_material(wall), read)
-        face = 0.0  # a flat (the wall's cap, a body's flat face), or a body's spherical face
+        # 1/R of the wall's face: a flat (the wall's cap, a body's flat face), or a body's spherical face
+        wall_curvature: Any = 0.0
         if cfg.wall.type == "body" and cfg.wall.shape == "sphere":
-            face = 1.0 / (read("wall.radius_of_curvature_mm", cfg.wall.radius_of_curvature_mm) * 1e-3)
-        inv_r = np.concatenate([inv_r, 1.0 / r[:, -1:] + face], axis=1)
+            wall_curvature = 1.0 / (read("wall.radius_of_curvature_mm", cfg.wall.radius_of_curvature_mm) * 1e-3)
+        inv_r = np.concatenate([inv_r, 1.0 / r[:, -1:] + wall_curvature], axis=1)
         t_sum = np.concatenate([t_sum, theta[:, -1:] + wt], axis=1)
         s_min = np.concatenate([s_min, _weaker(sigma[:, -1:], ws)], axis=1)
     m = inv_r.shape[1]

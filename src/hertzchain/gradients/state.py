@@ -57,6 +57,7 @@ def body_peak(tape, name: str) -> Reading:
         f = float(sy.mount_k) * x + float(sy.mount_c) * v[b]
         if best is None or abs(f) > abs(best[1]):
             best = (k, f, x, v[b])
+    assert best is not None  # (a tape holds more than one sample: the loop ran)
     k, f, x, vb = best
     if k == tape.time.size - 1:
         raise rising(tape, name)

@@ -150,8 +150,8 @@ def _check_stiffness(run: xr.Dataset, radius: np.ndarray, mats: list[Material], 
                 for j in range(radius.size - 1)]
     if wall is not None:
         expected.append(4 / 3 * _e_star(mats[-1], wall) * math.sqrt(radius[-1]))
-    expected = np.asarray(expected[: kappa.size])
-    bad = np.flatnonzero(~np.isclose(kappa[: expected.size], expected, rtol=1e-9, atol=0.0))
+    want = np.asarray(expected[: kappa.size])
+    bad = np.flatnonzero(~np.isclose(kappa[: want.size], want, rtol=1e-9, atol=0.0))
     if bad.size:
         j = int(bad[0])
         raise ConfigError("RESULT", f"contact {j}'s stiffness {kappa[j]:.6g} N/m^1.5 is not that of Hertz spheres "
@@ -245,6 +245,7 @@ def write_lammps(run: xr.Dataset, path: Path) -> list[Path]:
             script.append(f"pair_coeff      {i} {j} {coeff} {gran}   {note}")
     script += [f"neighbor        {_num(0.05 * d.min())} bin", "neigh_modify    every 1 delay 0 check yes", ""]
     if wall_x is not None:
+        assert wall_mat is not None  # (wall_x is set exactly when there is a wall)
         last = mats[-1]
         if last == wall_mat:
             coeff, note = f"hertz/material {_num(last.young)} 0.0 {_num(last.poisson)}", f"{last.name} on itself"
