@@ -88,7 +88,7 @@ def check_bound(value, kind: str, field: str, unit: str = "", *, allow_none: boo
         return None
     lo, hi = BOUNDS[kind]
     ok = (not isinstance(value, bool) and isinstance(value, numbers.Real) and math.isfinite(value)
-          and lo <= value <= hi)
+          and lo <= float(value) <= hi)
     if not ok:
         raise ConfigError(field, f"must be a number from {lo:g} to {hi:g}{' ' + unit if unit else ''}, got {value!r}")
     return float(value)

@@ -165,8 +165,8 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
         return cuda.to_device(np.ascontiguousarray(pk.flat[name].reshape(nmem, width)[:, :rows].T))
 
     d = {k: slots(k, p) for k in _SLOT_ARRAYS + ("a",)}
-    for k in ("u", "v", "g"):
-        d[k] = slots(k, p + 1)
+    for name in ("u", "v", "g"):
+        d[name] = slots(name, p + 1)
     d["vp"] = cuda.to_device(np.zeros((p + 1, nmem)))
     d["sc"] = cuda.to_device(np.zeros((p + 1, nmem if warp else 1)))  # the warp kernel's per-slot terms
     ints = {k: cuda.to_device(np.ascontiguousarray(getattr(pk, k), dtype=np.int64))

@@ -10,13 +10,14 @@ array. Checked in Numba's CUDA simulator against the CPU engine (tests/test_laws
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from .cuda_device import _cuda
 from .generated import bisection
 from .kernels import DELTA_MIN
 
 _CACHE: dict = {}
-cuda = None  # numba.cuda (a module global, as cuda_kernels: the simulator swaps it)
+cuda: Any = None  # numba.cuda (a module global, as cuda_kernels: the simulator swaps it)
 
 
 def generated_kernel(code: int):
@@ -29,9 +30,11 @@ def generated_kernel(code: int):
         return _CACHE[code]
     cuda = _cuda()
     dev = cuda.jit(device=True)
-    force, update, stored, partials = (dev(f.py_func) for f in (spec.force, spec.state, spec.energy, spec.partials))
-    if spec.overlap_at_energy is not None:
-        inverse = dev(spec.overlap_at_energy.py_func)
+    # (Numba dispatchers: their Python functions, compiled again for the device)
+    functions: tuple[Any, ...] = (spec.force, spec.state, spec.energy, spec.partials, spec.overlap_at_energy)
+    force, update, stored, partials = (dev(f.py_func) for f in functions[:4])
+    if functions[4] is not None:
+        inverse = dev(functions[4].py_func)
     else:
         inverse = dev(bisection(stored))  # the CPU loop's bisection, compiled for the device
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import Any
 
 from .cuda_device import _cuda, _simulated
 from .kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
@@ -41,7 +42,7 @@ def _lanes() -> int:
 
 
 _KERNEL = None
-cuda = None  # numba.cuda, imported by _kernels()
+cuda: Any = None  # numba.cuda, imported by _kernels()
 
 
 def _kernels() -> dict:

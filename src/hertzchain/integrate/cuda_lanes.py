@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import Any
 
 from .cuda_device import _cuda, _simulated
 from .kernels import DELTA_MIN
@@ -44,7 +45,7 @@ CHAINS_PER_BLOCK = 32
 TILE = 256
 HALO = 16
 
-cuda = None  # numba.cuda, set by _module(): the simulator swaps a module global for its fake module
+cuda: Any = None  # numba.cuda, set by _module(): the simulator swaps a module global for its fake module
 
 
 def _module():

@@ -308,8 +308,8 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     n_samples = _samples(duration, sample_interval)
     w = pack(system)
     nc = system.n_contacts
-    rec = sorted(set(int(c) for c in (contacts or ())) | ({system.n_beads} if system.has_wall else set()))
-    rec = np.array(rec or [0], dtype=np.int64)
+    wanted = sorted(set(int(c) for c in (contacts or ())) | ({system.n_beads} if system.has_wall else set()))
+    rec = np.array(wanted or [0], dtype=np.int64)
     u, v = w.u, w.v
     u0, v0 = u.copy(), v.copy()
     g = np.zeros(w.n_slots + 1)

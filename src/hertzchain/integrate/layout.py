@@ -58,6 +58,7 @@ def extension(system: System, p: int) -> np.ndarray:
         ext[n + 1, EXT_KLIN] = system.mount_k
         ext[n + 1, EXT_CLIN] = system.mount_c
     if system.res_k is not None:
+        assert system.res_m is not None  # set together with res_k (bodies.extend)
         nb = system.n_moving
         inner = system.res_m[:nb] > 0
         ext[:nb, EXT_KIN] = system.res_k[:nb]

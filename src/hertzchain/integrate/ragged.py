@@ -88,7 +88,7 @@ def ragged(models: Sequence[Model]) -> Ragged:
                           "(elastic, viscoelastic or dashpot)")
     m0 = models[0]
     has_wall = m0.wall.present
-    n_each = np.array([k[0] for k in keys], dtype=np.int64)
+    n_each = np.array([k[0] for k in keys if k is not None], dtype=np.int64)  # (none is None: checked above)
     nmax = int(n_each.max())
     table: dict[int, int] = {}
     materials: list[Material] = []
@@ -118,12 +118,14 @@ def ragged(models: Sequence[Model]) -> Ragged:
             row = rows[key] = [idx(first)] * n if one else [idx(x) for x in mats]
         bead_material[i, :n] = row
         bead_material[i, n:] = row[-1]
-    scalars = np.array([(x.striker.diameter, x.striker.velocity, float(x.law.parameter), x.precompression)
-                        for x in models], dtype=float).T.copy()
+    # (plain models, layout_key: body0 is the striker)
+    scalars = np.array([(x.body0.diameter, x.body0.velocity, float(x.law.parameter), x.precompression)
+                        for x in models], dtype=np.float64).T.copy()
     return Ragged(n_beads=nmax, n_each=n_each, has_wall=has_wall, law_name=m0.law.name,
                   bead_material=bead_material,
-                  striker_material=np.array([idx(x.striker.material) for x in models], dtype=np.int64),
-                  wall_material=np.array([idx(x.wall_material) if has_wall else -1 for x in models], dtype=np.int64),
+                  striker_material=np.array([idx(x.body0.material) for x in models], dtype=np.int64),
+                  wall_material=np.array([-1 if (wm := x.wall_material) is None else idx(wm) for x in models],
+                                         dtype=np.int64),
                   materials=tuple(materials), diameters=diameters, offsets=offsets, striker_diameter=scalars[0],
                   striker_velocity=scalars[1], law_parameter=scalars[2], precompression=scalars[3],
                   models=list(models))

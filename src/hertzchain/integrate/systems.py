@@ -184,10 +184,10 @@ def systems(ens: Ensemble | Ragged, start: int = 0, stop: int | None = None) -> 
         for row, i in zip(f0[:, None] / np.ascontiguousarray(kappa[pushed, 1:]), pushed):
             d0[i, 1:] = np.ascontiguousarray(row) ** (2.0 / 3.0)
         fext[pushed, 1] = precompression[pushed]
-    elif pushed.size:
-        for i in pushed.tolist():
-            end = int(nn[i]) + 1
-            d0[i, 1:end] = (precompression[i] / np.ascontiguousarray(kappa[i, 1:end])) ** (2.0 / 3.0)
+    elif pushed.size and nn is not None:
+        for member in pushed.tolist():
+            end = int(nn[member]) + 1
+            d0[member, 1:end] = (precompression[member] / np.ascontiguousarray(kappa[member, 1:end])) ** (2.0 / 3.0)
         fext[pushed, 1] = precompression[pushed]
 
     e = np.zeros((m, n + 2))
@@ -208,11 +208,11 @@ def systems(ens: Ensemble | Ragged, start: int = 0, stop: int | None = None) -> 
     energy = 0.5 * mass[:, 0] * _scalar_map(lambda v: v**2, striker_velocity)
     if pushed.size and nn is None:
         energy = energy + np.sum(0.4 * kappa * d0**2.5, axis=1)
-    elif pushed.size:
+    elif pushed.size and nn is not None:
         stored = np.zeros(m)  # each member's sum over its own N_i + 1 slots (the same pairwise sum)
         pe = 0.4 * kappa * d0**2.5
-        for i in pushed.tolist():
-            stored[i] = np.sum(pe[i, :int(nn[i]) + 1])
+        for member in pushed.tolist():
+            stored[member] = np.sum(pe[member, :int(nn[member]) + 1])
         energy = energy + stored
     else:
         energy = energy + 0.0

@@ -402,10 +402,10 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
     general = system.general
     if general:  # every other law, offsets: the thread function built from the law's contact
         run = law_thread_run(system.law, not system.misaligned)
-        arrays = (u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
-                  w.dyield, w.dmax, w.dres, w.kres, w.wall_slot, *steps)
-        tail = (rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_velocities, out_u, record_positions, fmax,
-                peak, acc, w.ext)
+        arrays: tuple = (u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
+                         w.dyield, w.dmax, w.dres, w.kres, w.wall_slot, *steps)
+        tail: tuple = (rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_velocities, out_u, record_positions,
+                       fmax, peak, acc, w.ext)
     else:
         run = _thread_run
         lean = bool(p >= LEAN_SLOTS and not np.any(w.d0) and not np.any(w.fext))

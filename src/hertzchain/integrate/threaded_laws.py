@@ -101,7 +101,7 @@ def law_thread_run(code: int, aligned: bool):
 
     if is_generated(code):
         _, _, energy, stride, contact = law_kernels(code)
-        key = ("generated", int(code), bool(aligned), id(contact))
+        key: tuple = ("generated", int(code), bool(aligned), id(contact))
     else:
         key = ("builtin", int(code), bool(aligned))
     if key not in _CACHE:

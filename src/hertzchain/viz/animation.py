@@ -270,7 +270,10 @@ def animate(ds: xr.Dataset, out: str | Path, *, n_frames: int = 100, fps: float 
     fr = chain_frames(ds, n_frames, window=window, member=member, exaggeration=exaggeration)
     run = select_member(ds, member)
     view = _frame_figure(run, fr, result_title(run, member if "member" in ds.dims else None))
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
     canvas = view.figure.canvas
+    assert isinstance(canvas, FigureCanvasAgg)  # (attached by _frame_figure)
 
     frames: list = []
     width, height = canvas.get_width_height()
