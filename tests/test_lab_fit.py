@@ -21,7 +21,7 @@ import hertzchain as hc
 from hertzchain.cli.main import main
 from hertzchain.errors import ConfigError
 from hertzchain.lab import Trace, fit_traces, read_trace
-from hertzchain.lab.fit import _identifiability
+from hertzchain.lab.fit_checks import check_identifiable
 
 from lab_files import (START, TRUTH, lab_record, truth_signal, write_isf, write_mso_csv, write_picoscope,
                        write_tds_csv, write_trc)
@@ -153,7 +153,7 @@ def test_non_identifiable_and_bad_start(tmp_path, signal, capsys):
     J = np.random.default_rng(0).standard_normal((200, 3))
     J[:, 2] = -2.0 * J[:, 0]
     with pytest.raises(ConfigError, match=r"--free a: cannot be separated from c"):
-        _identifiability(["a", "b", "c"], J, "at the start")
+        check_identifiable(["a", "b", "c"], J, "at the start")
     # Without a time offset the record (times from its trigger) lies before the simulated pulse.
     capsys.readouterr()
     assert main(["fit", "examples/lab_chain1.toml", str(path), "--sensor", "pcb_208a11", "--free", "gain",

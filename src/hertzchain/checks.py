@@ -350,7 +350,7 @@ def preflight_batch(models, duration: float, probes, dt=None, *, n_threads: int 
     mem = estimate_memory(n_beads, has_wall, duration, p, n)
     step = dt[big] if isinstance(dt, (list, tuple, np.ndarray)) else dt
     step = float(step) if step is not None and float(step) > 0 else None  # NaN: the automatic step
-    threads = n_threads or numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # set at import, not in its types
+    threads = n_threads or numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # numba sets it at import
     try:
         one = replace(mem, steps=0.0, seconds=0.0)
         if not on_gpu:

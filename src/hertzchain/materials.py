@@ -22,6 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from .bounds import check_bound
 from .errors import ConfigError
 
@@ -133,3 +135,19 @@ def get_material(material: str | Material) -> Material:
             return mat
     raise ConfigError("material", f"unknown material {material!r}; known: {', '.join(sorted(CATALOGUE))} "
                       "(or define one under [materials.NAME] with density, young, poisson, yield_stress)")
+
+
+def material_columns(materials: list[Material]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-body compliance theta [1/Pa] and yield stress [Pa] (NaN when not given) of ``materials``,
+    each distinct Material read once (a chain of a million beads holds a few)."""
+    index: dict[int, int] = {}
+    unique: list[Material] = []
+    rows = np.empty(len(materials), dtype=np.int64)
+    for i, mat in enumerate(materials):
+        k = index.setdefault(id(mat), len(unique))
+        if k == len(unique):
+            unique.append(mat)
+        rows[i] = k
+    theta = np.array([m.theta for m in unique])
+    sigma = np.array([np.nan if m.yield_stress is None else m.yield_stress for m in unique])
+    return theta[rows], sigma[rows]

@@ -25,7 +25,7 @@ from .errors import ConfigError
 from .laws import law_of_code, spec_of
 from .laws.spec import LawObject
 from .laws.solve import overlap_at_energy, static_overlap
-from .materials import Material, get_material
+from .materials import Material, get_material, material_columns
 from .strict import real
 
 if TYPE_CHECKING:  # the drive's module loads only for a driven model
@@ -205,7 +205,6 @@ class Wall:
         return self.radius_of_curvature if self.shape == "sphere" else None
 
     def __repr__(self) -> str:
-        # (__post_init__ made a given material a Material)
         text = f"Wall({self.kind!r}" + (f", {self.material.name}" if isinstance(self.material, Material) else "")
         if self.is_body:
             text += f", {self.mass:.4g} kg on {self.stiffness:.4g} N/m, {self.damping:.4g} N s/m"
@@ -402,21 +401,6 @@ class System:
         return omega2, beta, inner
 
 
-def _material_columns(materials: list[Material]) -> tuple[np.ndarray, np.ndarray]:
-    """Per-body compliance theta [1/Pa] and yield stress [Pa] (NaN when not given)."""
-    index: dict[int, int] = {}
-    unique: list[Material] = []
-    rows = np.empty(len(materials), dtype=np.int64)
-    for i, mat in enumerate(materials):
-        k = index.setdefault(id(mat), len(unique))
-        if k == len(unique):
-            unique.append(mat)
-        rows[i] = k
-    theta = np.array([m.theta for m in unique])
-    sigma = np.array([np.nan if m.yield_stress is None else m.yield_stress for m in unique])
-    return theta[rows], sigma[rows]
-
-
 @dataclass(frozen=True)
 class Model:
     """A chain hit by a striker, ended by a wall, with a contact law.
@@ -482,7 +466,8 @@ class Model:
         # the striker flies along the axis, so bead 1's offset e_1 must stay below (R_s + R_1) / 2;
         # past R_s + R_1 it would miss the chain and the run would report 0 N.
         e1 = abs(float(np.asarray(self.chain.offsets)[0])) if self.chain.n_beads and self.striker is not None else 0.0
-        if e1 and self.striker is not None and e1 >= (reach := 0.5 * (self.striker.diameter / 2 + self.chain.radii[0])):
+        if (e1 and self.striker is not None
+                and e1 >= (reach := 0.5 * (self.striker.diameter / 2 + self.chain.radii[0]))):
             raise ConfigError("chain.offsets", f"bead 1 is offset by {e1:.3g} m from the striker's line of flight, "
                               f"more than half the sum of their radii ({reach:.3g} m); the striker would not "
                               "hit it head-on (or would miss the chain)")
@@ -537,11 +522,10 @@ class Model:
         from .display import counts_text, diameters_text, html_table
 
         chain = self.chain
-        wall_material = self.wall_material  # None exactly when there is no wall
         rows = [("chain", diameters_text(chain.diameters)),
                 ("materials", counts_text(m.name for m in chain.materials)),
                 ("striker", repr(self.striker)[len("Striker("):-1]),
-                ("wall", "free end" if wall_material is None else
+                ("wall", "free end" if (wall_material := self.wall_material) is None else
                  f"{'protected body' if self.wall.is_body else 'flat'}, {wall_material.name}"),
                 ("contact law", repr(self.law))]
         if self.precompression:
@@ -558,7 +542,6 @@ class Model:
         if self.wall.material is None and not self.chain.n_beads:  # no beads: the striker's (a config: the chain's)
             assert self.striker is not None  # zero beads need a striker (__post_init__)
             return self.striker.material
-        # (Wall.__post_init__ made a given material a Material)
         return self.wall.material if isinstance(self.wall.material, Material) else self.chain.materials[0]
 
     @property
@@ -603,12 +586,12 @@ class Model:
         # loop over contact_radii() took ~4 s for 1e6 beads): the formulas of contact.hertz_constant
         # and contact.yield_force, with bodies 0..N and the wall as body N + 1 (flat: 1/R' = 0).
         r = np.concatenate([[self.body0.diameter / 2], self.chain.radii])
-        theta, sigma = _material_columns([self.body0.material, *self.chain.materials])
+        theta, sigma = material_columns([self.body0.material, *self.chain.materials])
         inv_r = 1.0 / r[:-1] + 1.0 / r[1:]
         t_sum = theta[:-1] + theta[1:]
         s_min = np.fmin(sigma[:-1], sigma[1:])  # weaker material; NaN = no yield stress given
         if (wall_material := self.wall_material) is not None:  # (exactly when the wall is present)
-            wall_theta, wall_sigma = _material_columns([wall_material])
+            wall_theta, wall_sigma = material_columns([wall_material])
             inv_r = np.append(inv_r, 1.0 / r[-1])
             t_sum = np.append(t_sum, theta[-1] + wall_theta[0])
             s_min = np.append(s_min, np.fmin(sigma[-1], wall_sigma[0]))
@@ -678,7 +661,8 @@ class Model:
         scaled: Any = self.law  # a size-scaled law (ScaledViscoelastic, ScaledDashpot) names its reference pair
         if getattr(scaled, "diameter", None) is not None:
             law.update(reference_diameter_mm=scaled.diameter * 1e3, reference_material=scaled.material.name)
-        wall: dict[str, Any] = {"type": self.wall.kind, "material": None if self.wall_material is None else self.wall_material.name}
+        wall: dict[str, Any] = {"type": self.wall.kind,
+                                "material": None if self.wall_material is None else self.wall_material.name}
         if self.wall.is_body:
             wall.update(mass=self.wall.mass, stiffness=self.wall.stiffness, damping=self.wall.damping,
                         shape=self.wall.shape, radius_of_curvature_mm=None if self.wall.face_radius is None

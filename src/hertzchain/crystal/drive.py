@@ -172,8 +172,8 @@ class Drive:
 
     def describe(self) -> dict:
         """Plain-data description (stored in result attributes)."""
-        out: dict[str, Any] = {"type": self.type, "quantity": self.quantity, "amplitude": self.amplitude, "frequency": self.frequency,
-               "ramp_cycles": self.ramp_cycles, "striker": self.striker}
+        out: dict[str, Any] = {"type": self.type, "quantity": self.quantity, "amplitude": self.amplitude,
+                               "frequency": self.frequency, "ramp_cycles": self.ramp_cycles, "striker": self.striker}
         if self.end != "first":  # (left out at the default: the fingerprints of earlier spectra stay)
             out["end"] = self.end
         if self.type == "chirp":

@@ -155,7 +155,8 @@ def _save(out: Path, state: Any) -> None:
     head = json.dumps(meta, default=_plain, allow_nan=True, separators=(",", ":"))
     text = head[:-1] + "".join(f',"{name}":[' + ",".join(done[name]) + "]" for name in parts) + "}"
     buf = io.BytesIO()
-    np.savez(buf, meta=np.frombuffer(text.encode("utf-8"), np.uint8), **arrays)  # type: ignore[arg-type]  # NumPy's stub matches **arrays against savez's allow_pickle: bool
+    document = np.frombuffer(text.encode("utf-8"), np.uint8)
+    np.savez(buf, meta=document, **arrays)  # type: ignore[arg-type]  # NumPy's stub: **arrays vs allow_pickle: bool
     write_bytes(out / _CHECKPOINT, buf.getvalue())
 
 

@@ -83,7 +83,8 @@ def write_comparison(out, key: str, comparison: dict, ds) -> None:
             "attrs": dict(ds.attrs)}
     text = json.dumps(meta, default=_plain, allow_nan=True, separators=(",", ":"))
     buf = io.BytesIO()
-    np.savez(buf, meta=np.frombuffer(text.encode("utf-8"), np.uint8), **arrays)  # type: ignore[arg-type]  # NumPy's stub matches **arrays against savez's allow_pickle: bool
+    document = np.frombuffer(text.encode("utf-8"), np.uint8)
+    np.savez(buf, meta=document, **arrays)  # type: ignore[arg-type]  # NumPy's stub: **arrays vs allow_pickle: bool
     write_bytes(out / COMPARISON_FILE, buf.getvalue())
 
 

@@ -59,6 +59,7 @@ from ..parallel import worker_threads
 from .boundary import _BOUNDARY_SLACK, _margin, _repair_initial, _repair_point, _repairs, _to_boundary
 from .checkpoint import DesignMismatch, Replay, ReplayDiverged, _load, _save, set_aside
 from .gradient import gradient_step, gradient_support, initial_points
+from .history import best_row, best_x, pareto_rows
 from .objectives import INFEASIBLE, Evaluator, Fidelity
 from .problem import DesignProblem, search_fidelity
 
@@ -260,44 +261,6 @@ def _evaluate(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: l
     return [ev.fitness(problem.objectives) for ev in evs]
 
 
-def _best_x(problem: DesignProblem, history: list[dict]) -> np.ndarray:
-    """The unit-cube point of the best row of a history that holds rows."""
-    best = _best_row(problem, history)
-    assert best is not None  # (a history with rows)
-    return np.asarray(best["x"])
-
-
-def _best_row(problem: DesignProblem, history: list[dict], fidelity: str | None = None) -> dict | None:
-    """Best feasible row (least infeasible when none is), among the rows of ``fidelity`` when given."""
-    if fidelity is not None:
-        history = [r for r in history if r["fidelity"] == fidelity]
-    if not history:
-        return None
-    obj = problem.objectives[0]
-    feasible = [r for r in history if r["feasible"]]
-    if feasible:
-        return min(feasible, key=lambda r: (r[obj], r["evaluation"]))
-    return min(history, key=lambda r: (r["violation"], r["evaluation"]))
-
-
-def pareto_rows(problem: DesignProblem, history: list[dict]) -> list[dict]:
-    """Non-dominated feasible rows (one per distinct design), sorted by the first objective."""
-    names = problem.objectives
-    rows, seen = [], set()
-    for r in history:
-        key = tuple(r[n] for n in names)
-        if r["feasible"] and key not in seen:
-            seen.add(key)
-            rows.append(r)
-    if not rows:
-        return []
-    f = np.array([[r[n] for n in names] for r in rows])
-    # Row i is dominated when another row is no worse in every objective and better in one.
-    front = [r for r, a in zip(rows, f) if not np.any(np.all(f <= a, axis=1) & np.any(f < a, axis=1))]
-    return sorted(front, key=lambda r: r[names[0]])
-
-
-
 def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float, evaluator: Evaluator) -> list[np.ndarray]:
     """Compass neighbours of ``x``: +- h on every real coordinate, the next bin on every discrete
     one; a real step that breaks a geometric constraint stops on its boundary instead."""
@@ -310,7 +273,8 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float, evaluato
             y = x.copy()
             y[j] = min(max(y[j] + s, 0.0), 1.0)
             y = problem.space.centre(y)
-            if f_x is not None and v.kind == "real" and f_x >= 0:  # (f_x: set when repairing)  # stop on the boundary only from a point inside it
+            # stop on the boundary only from a point inside it (f_x: set when repairing)
+            if f_x is not None and v.kind == "real" and f_x >= 0:
                 f_y = _margin(problem, evaluator, y)
                 if f_y < 0:
                     # The accepted band narrows with the step, so that the polish closes in on the
@@ -325,7 +289,7 @@ def _polish_neighbours(problem: DesignProblem, x: np.ndarray, h: float, evaluato
 def _repair(problem: DesignProblem, evaluator: Evaluator, state: _State, xs: list[np.ndarray]) -> list[np.ndarray]:
     """Population candidates that break a geometric constraint, moved onto its boundary on their
     way to the best feasible point so far (:func:`_to_boundary`); the others unchanged."""
-    best = _best_row(problem, state.history)
+    best = best_row(problem, state.history)
     if best is None or not best["feasible"] or not _repairs(problem):
         return xs
     good = np.asarray(best["x"], float)
@@ -358,7 +322,7 @@ def _verify(problem: DesignProblem, search: Evaluator, state: _State, budget: in
     rows = sorted((r for r in state.history if r["fidelity"] == "search" and r["feasible"]),
                   key=lambda r: (r[obj], r["evaluation"]))
     if not rows:
-        least = _best_row(problem, state.history, "search")
+        least = best_row(problem, state.history, "search")
         rows = [least] if least is not None else []
     queue, seen = [], set()
     for r in rows:
@@ -439,7 +403,7 @@ def preflight(problem: DesignProblem, client=None, chunk_size: int | None = None
     one = estimate_resources(model.system(), cfg.run.duration, probes, dt=cfg.run.dt,
                              steps_per_radian=fidelity.steps_per_radian or cfg.run.steps_per_radian)
     mem = estimate_memory(model.chain.n_beads, model.wall.present, cfg.run.duration, probes, members)
-    threads = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # set at import, not in its types
+    threads = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # numba sets it at import
     parallel = max(1, min(threads, members)) if client is None else worker_threads(client)
     est = _replace(mem, steps=one.steps, seconds=one.seconds * sec.budget / parallel)
     field = "design.population" if client is None else "design.chunk_size"
@@ -527,8 +491,8 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
     fidelity = search_fidelity(problem)
     coarse = fidelity.name != "full"
     evaluator = Evaluator(problem.objectives, sec.constraints, sec.robust,
-                          None if sec.window is None else (sec.window[0], sec.window[1]), client, sec.chunk_size, device,
-                          fidelity=fidelity, base=problem.base)
+                          None if sec.window is None else (sec.window[0], sec.window[1]), client, sec.chunk_size,
+                          device, fidelity=fidelity, base=problem.base)
     replay = Replay(saved) if saved is not None else None
     resumed = replay is not None
     state = _State(problem.hash)
@@ -568,7 +532,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
         progress(min(state.n_evaluations, budget), budget)
     def improved() -> bool:
         """Whether the best fitness improved since the last call (tracks stagnation)."""
-        best = _best_row(problem, state.history)
+        best = best_row(problem, state.history)
         assert best is not None  # (called after a generation: the history holds its rows)
         f = best[problem.objectives[0]] if best["feasible"] else INFEASIBLE * (1.0 + best["violation"])
         if f < state.best_f - 1e-12 * abs(state.best_f):
@@ -616,7 +580,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
                                   f"candidates x {per_candidate} scenarios; raise the budget or lower design.population")
             _evaluate(problem, evaluator, state, xs, "population", clock, replay)
             improved()
-            state.optimiser = _new_optimiser(problem, x0=_best_x(problem, state.history))
+            state.optimiser = _new_optimiser(problem, x0=best_x(problem, state.history))
             if gradients:
                 state.phase = "gradient"
         elif state.phase == "gradient":
@@ -660,7 +624,7 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
                     next_cycle()
         else:  # polish: batched compass search around the best point
             if state.polish_x is None:
-                state.polish_x = problem.space.centre(_best_x(problem, state.history))
+                state.polish_x = problem.space.centre(best_x(problem, state.history))
                 state.polish_h = _POLISH_H0
             x = state.polish_x
             f0 = state.cache[problem.space.key(x)].fitness(problem.objectives)[0]  # evaluated: the best so far
@@ -691,14 +655,14 @@ def _run_design(problem: DesignProblem, out: Path, client, device, progress, che
         # Every candidate broke a geometric constraint: nothing could be run, so there is no best.
         from .constraints import broken_geometry
 
-        least = _best_row(problem, state.history)
+        least = best_row(problem, state.history)
         assert least is not None  # (the history is not empty)
         closest = problem.space.values(np.asarray(least["x"]))
         raise ConfigError("design.constraints", f"no candidate of the design space meets the geometric constraints "
                           f"({len(state.history)} tried); the closest one, {closest}"
                           f", breaks {'; '.join(broken_geometry(sec.constraints, least))}: relax the constraints or "
                           "widen the variables' ranges")
-    best = _best_row(problem, state.history, "full" if coarse else None)
+    best = best_row(problem, state.history, "full" if coarse else None)
     best_out = None
     if best is not None:
         values = problem.space.values(np.asarray(best["x"]))

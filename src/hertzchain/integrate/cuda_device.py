@@ -52,7 +52,7 @@ def _cuda():
 def _simulated() -> bool:
     from numba import config
 
-    return bool(config.ENABLE_CUDASIM)  # type: ignore[attr-defined]  # set at import, not in Numba's types
+    return bool(config.ENABLE_CUDASIM)  # type: ignore[attr-defined]  # numba sets it at import
 
 
 @functools.lru_cache(maxsize=1)

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from ..errors import ConfigError
-from .fit_checks import check_records, fit_doubts, parameter_unit
+from .fit_checks import check_identifiable, check_records, fit_doubts, parameter_unit
 from .quantised import expected, refit_noise, robust_covariance
 
 if TYPE_CHECKING:
@@ -55,9 +55,6 @@ FD_STEP = 1e-4
 #: error) and relative step in the parameters' natural units.
 FTOL = 1e-6
 XTOL = 1e-6
-#: Condition number of the column-normalised Jacobian above which a parameter set is refused
-#: as not identifiable (a combination of parameters leaves the traces unchanged).
-MAX_CONDITION = 1e7
 
 
 @dataclass(frozen=True)
@@ -304,8 +301,9 @@ class _Problem:
                       [tr.data.attrs.get("valid_max") for tr in self.traces])
         # Integer samples: the code grid [N] (step, one level) and, once fitted, the noise under
         # the codes; the model is then the quantiser's expected value (lab.quantised).
-        self.quanta: list[tuple[float, float] | None] = [(tr.data.attrs["quantum"], tr.data.attrs["quantum_origin"]) if "quantum" in tr.data.attrs
-                       else None for tr in self.traces]
+        self.quanta: list[tuple[float, float] | None] = [
+            (tr.data.attrs["quantum"], tr.data.attrs["quantum_origin"]) if "quantum" in tr.data.attrs else None
+            for tr in self.traces]
         self.code_noise: list[float | None] = [None] * K
         # A trace whose time offset is not free reads the simulation on its own clock.
         self.tau_fixed = np.zeros(K)
@@ -513,23 +511,6 @@ class _Problem:
         return float(ts[0] + lag * dt - grid[0])
 
 
-def _identifiability(names: list[str], J: np.ndarray, when: str) -> None:
-    norms = np.linalg.norm(J, axis=0)
-    scale = norms.max() if norms.size else 0.0
-    for n, v in zip(names, norms):
-        if not v > 1e-9 * max(scale, 1e-300):
-            raise ConfigError(f"--free {n}", f"cannot be fitted ({when}): the simulated traces do not change "
-                              "when it changes, so the data say nothing about it; leave it out")
-    Jn = J / norms
-    _, s, vt = np.linalg.svd(Jn, full_matrices=False)
-    if s[-1] < s[0] / MAX_CONDITION:
-        v = vt[-1]
-        involved = [names[i] for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.2]
-        raise ConfigError(f"--free {involved[0]}", f"cannot be separated from {', '.join(involved[1:]) or 'the others'} "
-                          f"({when}): changing them together along ({', '.join(f'{c:+.2f}' for c in v)}) leaves the "
-                          f"traces unchanged (condition number {s[0] / s[-1]:.2g}); fix one of them")
-
-
 def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, overrides: Sequence[str] = (),
                rel_step: float = FD_STEP, max_evaluations: int = 100, n_threads: int | None = None,
                bootstrap: int = 0, seed: int | None = 0,
@@ -622,7 +603,7 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
             scale[prob.tau_idx[k]] = float(np.median(np.diff(prob.t[k])))
         if prob.base_idx[k] is not None:
             scale[prob.base_idx[k]] = prob.sigma[k]
-    _identifiability(prob.names, prob.jacobian(x0) * scale, "at the start")
+    check_identifiable(prob.names, prob.jacobian(x0) * scale, "at the start")
 
     meas = np.arange(P, x0.size)
     if P and meas.size:
@@ -644,7 +625,7 @@ def fit_traces(config, traces: Sequence[Trace], free: Sequence[str], *, override
                                                                    max_evaluations))
     x = sol.x
     J = prob.jacobian(x)
-    _identifiability(prob.names, J * scale, "at the optimum")
+    check_identifiable(prob.names, J * scale, "at the optimum")
     res, parts = prob.model(x)
     n, p = res.size, x.size
     s2 = float(res @ res) / max(n - p, 1)

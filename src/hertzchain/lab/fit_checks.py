@@ -7,7 +7,10 @@ Refused (:func:`check_records`, a :class:`~hertzchain.errors.ConfigError` naming
   so ``hertzchain analyze``) requires: a least-squares fit of noise converges too, on a
   meaningless striker speed with small error bars;
 - a clipped record (:func:`hertzchain.analysis.saturation.find_clipping`): the fit would match
-  the cut top.
+  the cut top;
+- (:func:`check_identifiable`, at the start and at the optimum, naming ``--free NAME``) a free
+  parameter the simulated traces do not depend on, or a combination of them that leaves the
+  traces unchanged.
 
 Flagged (:func:`fit_doubts`, the result's ``warnings``): a fit that did not converge; residuals
 above the noise (s^2 > S2_DOUBT: a local minimum, physics the model lacks, or a record the
@@ -27,8 +30,8 @@ import numpy as np
 
 from ..errors import ConfigError
 
-__all__ = ["SNR_MIN", "MAX_RESIDUAL_VARIANCE", "S2_DOUBT", "STRUCTURE_P", "EDGE_FRACTION", "check_records", "fit_doubts",
-           "parameter_unit", "structure_p"]
+__all__ = ["SNR_MIN", "MAX_RESIDUAL_VARIANCE", "S2_DOUBT", "STRUCTURE_P", "EDGE_FRACTION", "MAX_CONDITION",
+           "check_records", "check_identifiable", "fit_doubts", "parameter_unit", "structure_p"]
 
 #: Least height of a record's pulse over its noise (fit_pulse's snr_min: analyze's criterion).
 SNR_MIN = 8.0
@@ -42,6 +45,9 @@ STRUCTURE_P = 1e-6
 #: A model pulse "leaves the record" when it is above this fraction of its height at an end of the
 #: record, or before the record starts.
 EDGE_FRACTION = 0.5
+#: Condition number of the column-normalised Jacobian above which a parameter set is refused
+#: as not identifiable (a combination of parameters leaves the traces unchanged).
+MAX_CONDITION = 1e7
 
 
 #: Units of the free parameters, by the last part of their name (SI, as fit reports them).
@@ -208,3 +214,24 @@ def fit_doubts(sol, s2: float, labels: Sequence[str], times: Sequence[np.ndarray
                           f"clock): the fit sees part of the pulse only; record a longer window or check "
                           "time_offset")
     return doubts
+
+
+def check_identifiable(names: list[str], J: np.ndarray, when: str) -> None:
+    """Refuse free parameters the traces cannot determine (ConfigError naming ``--free NAME``): a
+    column of the Jacobian ``J`` (samples, parameters) that is zero, or a combination of columns
+    that leaves the traces unchanged (condition number of the column-normalised J over
+    MAX_CONDITION); ``when`` says at which point (the start, the optimum)."""
+    norms = np.linalg.norm(J, axis=0)
+    scale = norms.max() if norms.size else 0.0
+    for n, v in zip(names, norms):
+        if not v > 1e-9 * max(scale, 1e-300):
+            raise ConfigError(f"--free {n}", f"cannot be fitted ({when}): the simulated traces do not change "
+                              "when it changes, so the data say nothing about it; leave it out")
+    Jn = J / norms
+    _, s, vt = np.linalg.svd(Jn, full_matrices=False)
+    if s[-1] < s[0] / MAX_CONDITION:
+        v = vt[-1]
+        involved = [names[i] for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.2]
+        raise ConfigError(f"--free {involved[0]}", f"cannot be separated from {', '.join(involved[1:]) or 'the others'} "
+                          f"({when}): changing them together along ({', '.join(f'{c:+.2f}' for c in v)}) leaves the "
+                          f"traces unchanged (condition number {s[0] / s[-1]:.2g}); fix one of them")

@@ -59,7 +59,7 @@ def signal_jacobians(configs: list, paths: list[str], beads: list[int | None], d
     if n_threads is None:
         import numba
 
-        n_threads = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # set at import; not in numba's types
+        n_threads = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # numba sets it at import
     first = one(0)  # the first run compiles or loads the kernels, once
     if len(configs) == 1 or n_threads <= 1:
         return [first] + [one(k) for k in range(1, len(configs))]

@@ -108,8 +108,8 @@ def metrics_figure(path: str | Path, metric: str = "F_m", x: str | None = None, 
         table = df.pivot_table(index=y, columns=x, values=metric, aggfunc="mean")
         if table.size <= 4 * len(df):
             # A grid: one cell per pair of values, labelled with them (swept values are rarely evenly spaced).
-            mesh: QuadMesh | PathCollection = ax.pcolormesh(np.arange(table.shape[1] + 1), np.arange(table.shape[0] + 1),
-                                 np.ma.masked_invalid(table.values))
+            mesh: QuadMesh | PathCollection = ax.pcolormesh(
+                np.arange(table.shape[1] + 1), np.arange(table.shape[0] + 1), np.ma.masked_invalid(table.values))
             cols = _cell_ticks(table.shape[1], MAX_TICK_LABELS["x"])
             rows = _cell_ticks(table.shape[0], MAX_TICK_LABELS["y"])
             ax.set_xticks(cols + 0.5, [f"{v:.4g}" for v in table.columns.values[cols]],
