@@ -450,7 +450,7 @@ class _Problem:
         # The starting model over the config's own run.duration (at least one record long),
         # where the records are then placed by cross-correlation.
         from ..config import build_model, parse_config
-        from ..simulation import auto_duration
+        from ..runs.simulation import auto_duration
 
         span = max(float(t[-1] - t[0]) for t in self.t)
         cfg = parse_config(self.data)
