@@ -32,6 +32,7 @@ import numpy as np
 
 from .objectives import Evaluation, Evaluator, _pulses_passed
 from .problem import DesignProblem
+from .space import Space
 
 __all__ = ["GRADIENT_RUNS", "gradient_support", "Coordinates", "local_search", "initial_points", "pick_start",
            "evaluate_with_gradient", "gradient_step"]
@@ -118,7 +119,7 @@ class Coordinates:
         The design space (its ``monotone`` groups).
     """
 
-    def __init__(self, space):
+    def __init__(self, space: Space) -> None:
         self.dim = space.dim
         groups: dict[str, list[int]] = {}
         for i, v in enumerate(space.variables):
