@@ -404,6 +404,11 @@ def rkn_run(u, v, a, g, sq, ed, ends, up, vp, ap, fi, cross, coef, sx, sw, st, s
     hl = acc[A_H]
     steps = int(acc[A_STEPS])
     ncross = -1  # crossing contacts of the last step: not listed yet
+    # contacts lo..hi-1 hold every contact loaded at either end of the last step: the others'
+    # force quintic is zero (its value and derivatives vanish at both ends, so it evaluates to 0
+    # exactly), and samples evaluate this range only (a pulse loads a stretch of the chain: most
+    # of a long chain is open or at rest); a range, not a list, keeps the loops vectorised
+    lo, hi = 0, nc
     for k in range(k_start, k_stop):
         tk = k * interval
         while t < tk:
@@ -441,22 +446,28 @@ def rkn_run(u, v, a, g, sq, ed, ends, up, vp, ap, fi, cross, coef, sx, sw, st, s
             # opening (or to their closing) than one step at either end, where the Taylor terms
             # of the force (whose second derivative grows as delta^(-1/2)) do not hold
             ncross = 0
+            lo, hi = nc, 0
             for j in range(nc):
                 da, db = ed[b, R_D, j], ed[c, R_D, j]
                 ca, cb = da > DELTA_MIN, db > DELTA_MIN
+                if ca or cb:
+                    lo = j if j < lo else lo
+                    hi = j + 1
+                else:
+                    fi[j] = 0.0
                 if ca != cb or (ca and da < abs(ed[b, R_R, j]) * hl) or (cb and db < abs(ed[c, R_R, j]) * hl):
                     cross[ncross] = j
                     ncross += 1
         theta = (tk - tp) / hl
         if ncross == 0:
-            for j in range(nc):
+            for j in range(lo, hi):
                 f = coef[0, j] + theta * (coef[1, j] + theta * (coef[2, j] + theta * (
                     coef[3, j] + theta * (coef[4, j] + theta * coef[5, j]))))
                 f = f if f > 0.0 else 0.0
                 fi[j] = f
                 fmax[j] = f if f > fmax[j] else fmax[j]
         else:
-            for j in range(nc):
+            for j in range(lo, hi):
                 f = coef[0, j] + theta * (coef[1, j] + theta * (coef[2, j] + theta * (
                     coef[3, j] + theta * (coef[4, j] + theta * coef[5, j]))))
                 fi[j] = f if f > 0.0 else 0.0
@@ -466,7 +477,7 @@ def rkn_run(u, v, a, g, sq, ed, ends, up, vp, ap, fi, cross, coef, sx, sw, st, s
                 d = (q0 * ed[b, R_D, j] + q0d * ed[b, R_R, j] + q0dd * ed[b, R_Q, j] + q1 * ed[c, R_D, j]
                      + q1d * ed[c, R_R, j] + q1dd * ed[c, R_Q, j])
                 fi[j] = kappa[j] * d * np.sqrt(d) if d > DELTA_MIN else 0.0
-            for j in range(nc):
+            for j in range(lo, hi):
                 f = fi[j]
                 fmax[j] = f if f > fmax[j] else fmax[j]
         for r in range(nrec):
