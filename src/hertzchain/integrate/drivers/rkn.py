@@ -122,24 +122,25 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
     fmax = f0.copy()
     peak = np.array([g[system.n_beads + 1], 0.0])
     acc = np.array([0.0, 0.0, 0.0, 0.0, np.inf, 0.0])
-    # up, vp, ap, fi, cross, coef, sx, sw, st, sc
-    scratch = (np.zeros(p), np.zeros(p), np.zeros(p), np.zeros(nc), np.zeros(nc, dtype=np.int64), np.zeros((6, nc)),
-               np.zeros(p), np.zeros(p), np.zeros(p), np.zeros(p))
+    scratch = rk.RknScratch(np.zeros(p), np.zeros(p), np.zeros(p), np.zeros(nc), np.zeros(nc, dtype=np.int64),
+                            np.zeros((6, nc)), np.zeros(p), np.zeros(p), np.zeros(p), np.zeros(p))
     v_ref = float(np.max(np.abs(system.v0)))
     eps = rtol * (v_ref if v_ref > 0 else 1.0)
 
     # samples per compiled call: about chunk_steps steps at the controlled step's typical size
     # (~1 us on the paper's chains), at least one
     per_call = max(1, round(chunk_steps * 1e-6 / sample_interval))
+    state = rk.RknState(u, v, a, g, sq, ed, ends)
+    chain = rk.ChainArrays(w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.fext, system.n_beads)
+    probes = rk.ProbeBuffers(rec, out_f, out_ke, out_pe, out_ke, out_v, bool(record_velocities), out_u,
+                             bool(record_positions), fmax, peak)
+    control = rk.StepControl(float(sample_interval), 0.0 if dt is None else float(dt), float(eps), float(duration))
     if progress is not None:
         progress(0, n_samples - 1)
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + per_call)
-        status = rk.rkn_run(u, v, a, g, sq, ed, ends, *scratch, w.mass, w.inv_mass, w.kappa, w.d0, w.fext,
-                            system.n_beads, sample_interval, k, k_stop, 0.0 if dt is None else float(dt), eps,
-                            duration, rec, out_f, out_ke, out_pe, out_v, record_velocities, out_u, record_positions,
-                            fmax, peak, acc)
+        status = rk.rkn_run(state, scratch, chain, probes, control, k, k_stop, acc)
         if status != 0:
             raise SimulationDiverged(f"the integration diverged (non-finite state) before t = "
                                      f"{k_stop * sample_interval:.4g} s with integrator 'rkn4'; "

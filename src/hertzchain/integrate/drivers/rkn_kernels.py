@@ -43,6 +43,8 @@ force turns down.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -71,6 +73,79 @@ LAND_ERROR = 1e-2
 
 #: Slots of the per-step end data ``ends`` (see :func:`end_data`): the energies and their rates.
 E_KE, E_DKE, E_PE, E_DPE = 0, 1, 2, 3
+
+
+# The compiled runs of both fourth-order paths take these typed structures (Numba compiles a
+# NamedTuple's fields as one typed argument), not dozens of positional arrays.
+
+class ChainArrays(NamedTuple):
+    """The chain as the runs read it: padded per-slot arrays (``layout.pack``) and the wall's slot."""
+
+    mass: np.ndarray       # [kg]
+    inv_mass: np.ndarray   # [1/kg]
+    kappa: np.ndarray      # Hertz constants [N/m^1.5]
+    damping: np.ndarray    # the law's damping (A [s] or gamma [kg/s]; unused by the elastic run)
+    d0: np.ndarray         # static overlaps [m]
+    fext: np.ndarray       # external forces [N]
+    wall_slot: int         # contact N (the wall's), also where the peak is tracked
+
+
+class ProbeBuffers(NamedTuple):
+    """What a run records: the contacts ``rec``, one row per sample of their forces ``out_f``
+    [N], the energies [J] (``out_d``: dissipated; unused by the elastic run), velocities [m/s]
+    and positions [m] of bodies 0..N when ``record_v`` / ``record_u``, every contact's largest
+    force ``fmax`` [N] and ``peak`` = [largest wall force, its time]."""
+
+    rec: np.ndarray
+    out_f: np.ndarray
+    out_ke: np.ndarray
+    out_pe: np.ndarray
+    out_d: np.ndarray
+    out_v: np.ndarray
+    record_v: bool
+    out_u: np.ndarray
+    record_u: bool
+    fmax: np.ndarray
+    peak: np.ndarray
+
+
+class StepControl(NamedTuple):
+    """Samples ``interval`` [s] apart; a fixed step ``h_fixed`` [s] when > 0, else step control
+    with the local velocity error ``eps`` [m/s] per step and steps of at most ``h_max`` [s]."""
+
+    interval: float
+    h_fixed: float
+    eps: float
+    h_max: float
+
+
+class RknState(NamedTuple):
+    """The elastic run's state (u, v, a, g, sq) and the end data of its last two step ends."""
+
+    u: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    g: np.ndarray
+    sq: np.ndarray
+    ed: np.ndarray
+    ends: np.ndarray
+
+
+class RknScratch(NamedTuple):
+    """Work arrays of the elastic run: the step's start (up, vp, ap) when recorded, the sampled
+    forces ``fi``, the crossing contacts ``cross``, the force quintics ``coef`` and the step
+    control's (sx, sw, st, sc)."""
+
+    up: np.ndarray
+    vp: np.ndarray
+    ap: np.ndarray
+    fi: np.ndarray
+    cross: np.ndarray
+    coef: np.ndarray
+    sx: np.ndarray
+    sw: np.ndarray
+    st: np.ndarray
+    sc: np.ndarray
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -371,10 +446,12 @@ A_T, A_TPREV, A_H, A_STEPS, A_HMIN, A_HMAX = 0, 1, 2, 3, 4, 5
 
 
 @njit(cache=True, nogil=True)
-def rkn_run(u, v, a, g, sq, ed, ends, up, vp, ap, fi, cross, coef, sx, sw, st, sc, mass, inv_mass, kappa, d0, fext, wall_slot,
-            interval, k_start, k_stop, h_fixed, eps, h_max, rec, out_f, out_ke, out_pe, out_v, record_v, out_u,
-            record_u, fmax, peak, acc):
+def rkn_run(state, scratch, chain, probes, control, k_start, k_stop, acc):
     """Advance until sample ``k_stop - 1`` (samples ``interval`` seconds apart) is recorded.
+
+    ``state`` (:class:`RknState`), ``scratch`` (:class:`RknScratch`), ``chain``
+    (:class:`ChainArrays`), ``probes`` (:class:`ProbeBuffers`) and ``control``
+    (:class:`StepControl`) carry the arrays and numbers named below.
 
     On entry and exit (u, v, a, g, sq) is the state at time acc[A_T]. The end data of the last
     two step ends (:func:`end_data`) are ``ed[c]``, ``ends[c]`` (this one) and ``ed[1 - c]``,
@@ -395,6 +472,11 @@ def rkn_run(u, v, a, g, sq, ed, ends, up, vp, ap, fi, cross, coef, sx, sw, st, s
     (:func:`quintic_peak`). ``acc`` = [time, previous step's start, last step, steps, smallest
     step, largest step]. Returns 0, or 1 when the state became non-finite.
     """
+    u, v, a, g, sq, ed, ends = state
+    up, vp, ap, fi, cross, coef, sx, sw, st, sc = scratch
+    mass, inv_mass, kappa, _, d0, fext, wall_slot = chain
+    rec, out_f, out_ke, out_pe, _, out_v, record_v, out_u, record_u, fmax, peak = probes
+    interval, h_fixed, eps, h_max = control
     n = mass.shape[0]
     nc = fmax.shape[0]
     nrec = rec.shape[0]
@@ -404,6 +486,11 @@ def rkn_run(u, v, a, g, sq, ed, ends, up, vp, ap, fi, cross, coef, sx, sw, st, s
     hl = acc[A_H]
     steps = int(acc[A_STEPS])
     ncross = -1  # crossing contacts of the last step: not listed yet
+    # contacts lo..hi-1 hold every contact loaded at either end of the last step: the others'
+    # force quintic is zero (its value and derivatives vanish at both ends, so it evaluates to 0
+    # exactly), and samples evaluate this range only (a pulse loads a stretch of the chain: most
+    # of a long chain is open or at rest); a range, not a list, keeps the loops vectorised
+    lo, hi = 0, nc
     for k in range(k_start, k_stop):
         tk = k * interval
         while t < tk:
@@ -441,22 +528,28 @@ def rkn_run(u, v, a, g, sq, ed, ends, up, vp, ap, fi, cross, coef, sx, sw, st, s
             # opening (or to their closing) than one step at either end, where the Taylor terms
             # of the force (whose second derivative grows as delta^(-1/2)) do not hold
             ncross = 0
+            lo, hi = nc, 0
             for j in range(nc):
                 da, db = ed[b, R_D, j], ed[c, R_D, j]
                 ca, cb = da > DELTA_MIN, db > DELTA_MIN
+                if ca or cb:
+                    lo = j if j < lo else lo
+                    hi = j + 1
+                else:
+                    fi[j] = 0.0
                 if ca != cb or (ca and da < abs(ed[b, R_R, j]) * hl) or (cb and db < abs(ed[c, R_R, j]) * hl):
                     cross[ncross] = j
                     ncross += 1
         theta = (tk - tp) / hl
         if ncross == 0:
-            for j in range(nc):
+            for j in range(lo, hi):
                 f = coef[0, j] + theta * (coef[1, j] + theta * (coef[2, j] + theta * (
                     coef[3, j] + theta * (coef[4, j] + theta * coef[5, j]))))
                 f = f if f > 0.0 else 0.0
                 fi[j] = f
                 fmax[j] = f if f > fmax[j] else fmax[j]
         else:
-            for j in range(nc):
+            for j in range(lo, hi):
                 f = coef[0, j] + theta * (coef[1, j] + theta * (coef[2, j] + theta * (
                     coef[3, j] + theta * (coef[4, j] + theta * coef[5, j]))))
                 fi[j] = f if f > 0.0 else 0.0
@@ -466,7 +559,7 @@ def rkn_run(u, v, a, g, sq, ed, ends, up, vp, ap, fi, cross, coef, sx, sw, st, s
                 d = (q0 * ed[b, R_D, j] + q0d * ed[b, R_R, j] + q0dd * ed[b, R_Q, j] + q1 * ed[c, R_D, j]
                      + q1d * ed[c, R_R, j] + q1dd * ed[c, R_Q, j])
                 fi[j] = kappa[j] * d * np.sqrt(d) if d > DELTA_MIN else 0.0
-            for j in range(nc):
+            for j in range(lo, hi):
                 f = fi[j]
                 fmax[j] = f if f > fmax[j] else fmax[j]
         for r in range(nrec):
