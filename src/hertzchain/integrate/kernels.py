@@ -42,7 +42,7 @@ from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_K
 from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
 # the law codes, the overlap floor and the helpers the fused steps share (re-exported: kernels.DELTA_MIN & co.)
 from .primitives import (DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC,  # noqa: F401
-                         _track_peak, _viscous_force)
+                         _track_peak, _viscous_force, predict)
 
 
 @njit(cache=True, nogil=True)
@@ -233,22 +233,25 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax
 
 
 @njit(cache=True, nogil=True, inline="always")
-def step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, last):
+def step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, last):
     """One step of an aligned chain with the viscoelastic or dashpot law, fused into one pass (as
-    :func:`step_elastic`): the forces of :func:`forces_general` at velocities predicted half a step
-    ahead, v + (dt/2) a (carried from body to body), then the kick and drift (or, when ``last``,
-    the closing half kick); returns the dissipated power [W]. The same operations per contact in the
-    same order as forces_general and the update loops of :func:`verlet_run` (the same forces,
-    positions and velocities); the power is summed by :func:`dissipative_block` in a vectorised
-    order (its last bits may differ). The last slot (padding, kappa = damping = 0) is peeled off:
-    its right neighbour's prediction is 0, as in forces_general."""
-    n = a.shape[0]
+    :func:`step_elastic`): the forces of :func:`forces_general` at the velocities predicted half a
+    step ahead, ``vp`` = v + (dt/2) a (P + 1 slots, vp[P] = 0; set by
+    :func:`~hertzchain.integrate.primitives.predict` before a block's first step), then the kick
+    and drift (or, when ``last``, the closing half kick); returns the dissipated power [W].
+
+    The kick leaves the next step's predictions in ``vp`` (v + dt a + (dt/2) a, the numbers the
+    next step would compute from v and a), so the pass covers every slot, the padding slot P - 1
+    included (its right neighbour's prediction is vp[P] = 0, as in forces_general): a loop over
+    P - 1 slots left LLVM's vectorised loop a long scalar remainder, and predicting at the start
+    of the pass (a load straddling the vectors just stored) stalled on the store buffer; either
+    cost ~2x. The same operations per contact in the same order as forces_general and the
+    update loops of :func:`verlet_run` (the same forces, positions and velocities); the power is
+    summed by :func:`dissipative_block` in a vectorised order (its last bits may differ)."""
     power = 0.0
     fprev = 0.0
-    vq = v[0] + half * a[0]
-    for i in range(n - 1):
-        vq1 = v[i + 1] + half * a[i + 1]
-        rate = vq - vq1
+    for i in range(a.shape[0]):
+        rate = vp[i] - vp[i + 1]
         f, fel = _viscous_force(u[i] - u[i + 1] + d0[i], rate, kappa[i], damping[i], law)
         power += (f - fel) * rate
         g[i + 1] = f
@@ -257,37 +260,29 @@ def step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, ha
         if last:
             v[i] += half * ai
         else:
-            v[i] += dt * ai
-            u[i] += dt * v[i]
+            vi = v[i] + dt * ai
+            v[i] = vi
+            vp[i] = vi + half * ai
+            u[i] += dt * vi
         fprev = f
-        vq = vq1
-    i = n - 1
-    f, fel = _viscous_force(u[i] - u[i + 1] + d0[i], vq, kappa[i], damping[i], law)
-    g[i + 1] = f
-    ai = (fprev - f + fext[i]) * inv_mass[i]
-    a[i] = ai
-    if last:
-        v[i] += half * ai
-    else:
-        v[i] += dt * ai
-        u[i] += dt * v[i]
-    return power + (f - fel) * vq
+    return power
 
 
 @njit(cache=True, nogil=True, fastmath={"reassoc"})
-def dissipative_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc):
+def dissipative_block(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc):
     """The ``ns`` steps of a block of :func:`verlet_run` for an aligned viscoelastic or dashpot
-    chain (:func:`step_dissipative`), with the dissipated energy's
-    trapezoidal integral in acc[0:2] and the wall peak; a function of its own, called once per
-    block (inlined into verlet_run's large body, LLVM left the fused loop scalar), whose power sum
-    may be reassociated: in contact order it held the loop scalar (~1.8x slower); the forces,
-    positions and velocities do not depend on it (tests/test_fused.py)."""
+    chain (:func:`step_dissipative`, ``vp`` its P + 1 predicted velocities), with the dissipated
+    energy's trapezoidal integral in acc[0:2] and the wall peak; a function of its own, called
+    once per block (inlined into verlet_run's large body, LLVM left the fused loop scalar), whose
+    power sum may be reassociated: in contact order it held the loop scalar (~1.8x slower); the
+    forces, positions and velocities do not depend on it (tests/test_fused.py)."""
     half = 0.5 * dt
+    predict(v, a, half, vp)
     for s in range(ns):
         if s < ns - 1:
-            p = step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, False)
+            p = step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, False)
         else:
-            p = step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, True)
+            p = step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, True)
         acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
         acc[1] = p
         _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
@@ -534,7 +529,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
                 # aligned viscous chains: one fused pass per step, the same numbers as below (the
                 # elastic-plastic law branches per contact; its two passes below beat one fused
                 # scalar pass: benchmarks/dissipative.py)
-                dissipative_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc)
+                dissipative_block(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak,
+                                  acc)
             elif general and law == LAW_ELASTIC:  # offsets: the fused steps of fused.py, the same numbers
                 offset_elastic_block(u, v, a, g, ec, kappa, d0, de, dx0, rsum, fext, inv_mass, ns, dt, t0, wall_slot,
                                      peak)

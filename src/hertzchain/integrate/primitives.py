@@ -32,6 +32,17 @@ def _viscous_force(d, rate, kappa, damping, law):
     return (f if d >= 0.0 else 0.0), fel
 
 
+@njit(cache=True, nogil=True, inline="always")
+def predict(v, a, half, vp):
+    """vp_i = v_i + (dt/2) a_i for every body slot and vp[P] = 0 (no body beyond the last slot):
+    the predicted velocities the dissipative forces see at a step's positions, which the fused
+    viscous steps (``kernels.step_dissipative``) read on entry and leave for their next step."""
+    n = a.shape[0]
+    for i in range(n):
+        vp[i] = v[i] + half * a[i]
+    vp[n] = 0.0
+
+
 @njit(cache=True, nogil=True)
 def _track_peak(fw, t, dt, peak):
     """Running maximum of the wall force with its neighbours (see ``kernels.verlet_run``)."""
