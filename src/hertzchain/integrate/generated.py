@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from .kernels import DELTA_MIN, _adapt_stride, kinetic_energy
-from .primitives import _track_peak, open_block, predict
+from .primitives import _track_peak, kick, open_block, predict, total
 
 _CACHE: dict = {}
 
@@ -74,35 +74,6 @@ def bisection(stored):
 def _bisect(stored):
     """:func:`bisection` compiled for the CPU."""
     return njit(nogil=True)(bisection(stored))
-
-
-@njit(cache=True, nogil=True, fastmath={"reassoc"})
-def _total(x):
-    """The sum of ``x`` in any order (vectorised): the contacts' dissipated powers, whose sum in
-    contact order (a chain of dependent additions) set the pace of a generated step (~2x slower);
-    only the dissipated energy's last bits depend on the order."""
-    t = 0.0
-    for j in range(x.shape[0]):
-        t += x[j]
-    return t
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _kick(u, v, vp, a, g, fext, inv_mass, dt, half, last):
-    """The bodies' accelerations a_i = (F_{i-1} - F_i + f_ext,i) / m_i from the forces ``g``, then
-    v += dt a, u += dt v with the next step's predicted velocities vp = v + (dt/2) a (or, when
-    ``last``, the closing half kick v += half a): the numbers of the update loops of
-    ``kernels.verlet_run``."""
-    for i in range(a.shape[0]):
-        ai = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-        a[i] = ai
-        if last:
-            v[i] += half * ai
-        else:
-            vi = v[i] + dt * ai
-            v[i] = vi
-            vp[i] = vi + half * ai
-            u[i] += dt * vi
 
 
 def _build(force, update, stored, partials, inverse, dissipative):
@@ -176,9 +147,9 @@ def _build(force, update, stored, partials, inverse, dissipative):
                   wall_slot, peak, acc):
         """The ``ns`` steps of a block (its opening half kick and drift done by the caller): the
         forces at the predicted velocities ``vp`` (P + 1 slots, vp[P] = 0), the dissipated energy's
-        trapezoidal integral in acc[0:2], the wall peak, then :func:`_kick`, which leaves the next
+        trapezoidal integral in acc[0:2], the wall peak, then :func:`~hertzchain.integrate.primitives.kick`, which leaves the next
         step's predictions in ``vp`` (``aligned``: no offsets); the contacts' powers are summed by
-        :func:`_total`. One function, everything inlined: a call per step and pass (arrays passed
+        :func:`~hertzchain.integrate.primitives.total`. One function, everything inlined: a call per step and pass (arrays passed
         field by field, their references counted) cost as much as the pass on short chains."""
         half = 0.5 * dt
         predict(v, a, half, vp)
@@ -187,11 +158,11 @@ def _build(force, update, stored, partials, inverse, dissipative):
                 forces_into_aligned(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, pw)
             else:
                 forces_into(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, pw)
-            p = _total(pw)
+            p = total(pw)
             acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
             acc[1] = p
             _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
-            _kick(u, v, vp, a, g, fext, inv_mass, dt, half, s == ns - 1)
+            kick(u, v, vp, a, g, fext, inv_mass, dt, half, s == ns - 1)
 
     @njit(nogil=True)
     def energy(u, kappa, damping, d0, de, dx0, rsum, fext):
