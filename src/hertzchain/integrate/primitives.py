@@ -60,15 +60,12 @@ def kick(u, v, vp, a, g, fext, inv_mass, dt, half, last):
     v += dt a, u += dt v with the next step's predicted velocities vp = v + (dt/2) a (or, when
     ``last``, the closing half kick v += half a): the numbers of the update loops of
     ``kernels.verlet_run``."""
-    if last:  # two loops, not a branch per body: LLVM vectorises each
-        for i in range(a.shape[0]):
-            ai = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-            a[i] = ai
+    for i in range(a.shape[0]):
+        ai = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+        a[i] = ai
+        if last:
             v[i] += half * ai
-    else:
-        for i in range(a.shape[0]):
-            ai = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-            a[i] = ai
+        else:
             vi = v[i] + dt * ai
             v[i] = vi
             vp[i] = vi + half * ai
