@@ -14,7 +14,7 @@ below 1 % of it):
   kernel and per-step work (the wall peak every step), its probes (every contact force and
   the energies) every 50 steps (1 us), sparse enough that they are not what is measured: the
   hand-written kernels for the built-in laws, the loop generated from the declaration
-  (:mod:`hertzchain.integrate.generated`) for the power and Hunt-Crossley laws;
+  (:mod:`hertzchain.integrate.core.generated`) for the power and Hunt-Crossley laws;
 - **bare loop** (the baseline the issue names): symplectic Euler, one fused loop over the
   contacts then one over the bodies, v += dt a(u, v); u += dt v, with the law's own scalar
   ``force`` and ``state`` functions from its declaration (the elastic-plastic law:
@@ -46,7 +46,7 @@ from numba import njit  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, machine_info, quiet, save_json, table  # noqa: E402
 
-from hertzchain.integrate.kernels import elastoplastic_force  # noqa: E402
+from hertzchain.integrate.core.kernels import elastoplastic_force  # noqa: E402
 
 DT = 2e-8
 SAMPLE = 1e-6  # probes every 50 steps
@@ -108,7 +108,7 @@ def _laws():
 
 def measure(chain_name: str, chain, label: str, law, repeat: int) -> dict:
     import hertzchain as hc
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
     from hertzchain.laws import spec_of
     from hertzchain.laws.spec import compiled
 
