@@ -29,6 +29,7 @@ Probes are sampled inside the loop every ``stride`` steps (no Python call per st
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -645,7 +646,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     return 0
 
 
-def flush_stale_cache(*kernels_using: object) -> None:
+def flush_stale_cache(*kernels_using: Any) -> None:
     """Drop the on-disk cache of these compiled functions when this module (or ``extension.py``,
     ``energies.py``, ``primitives.py`` or ``fused.py``, whose functions it compiles in) is newer
     than it.
