@@ -2,8 +2,9 @@
 functions a fresh process compiled or loaded (a dispatcher with signatures), not by timing.
 
 The reproduction's chain 1 (``examples/chain1.toml``: ``dashpot_scaled`` calibrated to eps =
-0.985) runs on ``rkn4``'s y'' = f(y, y') method; its calibration runs on the same kernels, so no
-Verlet kernel is compiled (it cost ~13 CPU-s of the first run in a fresh environment)."""
+0.985) runs on ``rkn4``'s y'' = f(y, y') method; its calibration and the two-body restitution of
+its law run on the same kernels, so no Verlet kernel is compiled (it cost ~13 CPU-s of the first
+run in a fresh environment, and of a cold ``reproduce``)."""
 
 from __future__ import annotations
 
@@ -20,9 +21,11 @@ import gc, json, sys
 import hertzchain as hc
 from hertzchain.config import build_model, load_config
 from numba.core.registry import CPUDispatcher
-ds = hc.simulate(build_model(load_config(sys.argv[1], ())))
+model = build_model(load_config(sys.argv[1], ()))
+ds = hc.simulate(model)
+e = hc.restitution(0.2, model.law, 8e-3, "AISI52100", 26e-3)  # the striker's bounce (paper/fidelity.py)
 used = sorted({d.py_func.__module__ for d in gc.get_objects() if isinstance(d, CPUDispatcher) and d.signatures})
-print(json.dumps({"integrator": ds.attrs["integrator_used"], "modules": used}))
+print(json.dumps({"integrator": ds.attrs["integrator_used"], "modules": used, "e": e}))
 """
 
 
@@ -33,6 +36,7 @@ def test_calibrated_chain1_compiles_only_the_engine_it_runs():
     assert proc.returncode == 0, proc.stderr
     seen = json.loads(proc.stdout.strip().splitlines()[-1])
     assert seen["integrator"] == "rkn4"
+    assert 0.95 < seen["e"] < 0.97  # the size-scaled dashpot: a steel-like bounce (docs: e ~ 0.96 at 0.2 m/s)
     engine = [m for m in seen["modules"] if m.startswith("hertzchain.")]
     assert engine == ["hertzchain.integrate.rkn_damped_kernels"]
 
