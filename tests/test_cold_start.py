@@ -60,3 +60,37 @@ def test_calibration_on_rkn4_matches_the_verlet():
     raw = run_verlet(model.system(), m.duration, 1e-6, steps_per_radian=800.0, contacts=m.contacts)
     _, f_verlet = refine_peaks(raw.time, raw.contact_force)
     assert np.allclose(f_verlet, m.peak_force, rtol=2e-6, atol=0)
+
+
+THREADED = """
+import gc, json, warnings
+warnings.simplefilter("ignore")
+import hertzchain as hc
+from numba.core.registry import CPUDispatcher
+m = hc.Model(hc.Chain.uniform(64, 26e-3), hc.Striker(8e-3, 0.2), hc.Wall("flat"), hc.Dashpot(20.0))
+ds = hc.simulate(m, 1e-4, threads=2)
+stats = {d.py_func.__qualname__: [sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values())]
+         for d in gc.get_objects() if isinstance(d, CPUDispatcher) and d.signatures
+         and d.py_func.__module__ == "hertzchain.integrate.threaded_laws"}
+print(json.dumps({"threads": int(ds.attrs["threads_used"]), "stats": stats,
+                  "force": ds.contact_force.values[-1].tolist()}))
+"""
+
+
+def test_threaded_law_closures_load_from_the_cache_in_a_new_process():
+    """The threaded engine's closures over compiled functions (a built-in law's thread function and
+    its segments) are cached on disk: a second process (a new Dask worker, a second run) loads
+    them instead of compiling them (~7 CPU-s a law before), and runs the same numbers."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")])}
+    runs = []
+    for _ in range(2):  # the first fills the cache where no earlier run did
+        proc = subprocess.run([sys.executable, "-c", THREADED], capture_output=True, text=True, env=env, timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    second = runs[1]
+    assert second["threads"] == 2
+    # the thread function comes from the cache whole (its segments, stride and energies compiled
+    # in): nothing of the module is compiled
+    assert second["stats"]["_build.<locals>.thread_run"][0] >= 1
+    assert all(misses == 0 for _, misses in second["stats"].values()), second["stats"]
+    assert runs[0]["force"] == second["force"]  # the cached code is the compiled one
