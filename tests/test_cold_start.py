@@ -94,3 +94,40 @@ def test_threaded_law_closures_load_from_the_cache_in_a_new_process():
     assert second["stats"]["_build.<locals>.thread_run"][0] >= 1
     assert all(misses == 0 for _, misses in second["stats"].values()), second["stats"]
     assert runs[0]["force"] == second["force"]  # the cached code is the compiled one
+
+
+def test_report_formulas_are_drawn_once_per_installation(tmp_path, monkeypatch):
+    """The report's formulas (~0.7 CPU-s of mathtext) are kept beside Numba's cache: a new process
+    reads them instead of drawing them, the same HTML; a damaged or foreign file is redrawn over."""
+    from hertzchain.paper import render
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(render, "_DRAWN", {})
+    monkeypatch.setattr(render, "_STORE", {"read": False, "new": False})
+    tex = r"(F_m^{n+1}/F_m^{n})^{5/6}"
+    drawn = render._svg_formula(tex)
+    assert drawn.startswith('<span class="math"') and "<path" in drawn
+    render._save_formulas()
+    store = render._formula_store()
+    assert store.parent == tmp_path and store.is_file()
+
+    def no_drawing(tex):
+        raise AssertionError("drawn again")
+
+    # a new process: nothing in memory, the formula read from the file
+    monkeypatch.setattr(render, "_DRAWN", {})
+    monkeypatch.setattr(render, "_STORE", {"read": False, "new": False})
+    monkeypatch.setattr(render, "_draw_formula", no_drawing)
+    assert render._svg_formula(tex) == drawn
+
+    # a damaged file: ignored, the formula drawn
+    store.write_text('{"x": "<script>alert(1)</script>", ' * 3)
+    monkeypatch.setattr(render, "_DRAWN", {})
+    monkeypatch.setattr(render, "_STORE", {"read": False, "new": False})
+    monkeypatch.setattr(render, "_draw_formula", lambda t: drawn)
+    assert render._svg_formula(tex) == drawn
+    # a foreign entry that is not a drawn formula is not taken
+    store.write_text(json.dumps({tex: "<script>alert(1)</script>"}))
+    monkeypatch.setattr(render, "_DRAWN", {})
+    monkeypatch.setattr(render, "_STORE", {"read": False, "new": False})
+    assert render._svg_formula(tex) == drawn
