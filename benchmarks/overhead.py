@@ -42,8 +42,8 @@ def _cpu_per_call(fn, calls: int, repeat: int) -> float:
 
 
 def overhead(calls: int, repeat: int) -> dict:
-    from hertzchain.integrate.rkn import run_rkn
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.rkn import run_rkn
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     model = hc.Model(hc.Chain.uniform(6, 20e-3), hc.Striker(8e-3, 0.2))
     probes = hc.Probes(sample_interval=1e-6, sensors=(3,))
@@ -84,7 +84,7 @@ def batch_ratio(members: int, repeat: int) -> dict:
     import numpy as np
 
     from hertzchain.config import build_model, load_config
-    from hertzchain.integrate import batch
+    from hertzchain.runs import batch
 
     base = build_model(load_config("examples/chain1_elastic.toml", ()))
     models = [hc.Model(base.chain, hc.Striker(base.striker.diameter, float(v)), base.wall, base.law)

@@ -38,7 +38,7 @@ def test_calibrated_chain1_compiles_only_the_engine_it_runs():
     assert seen["integrator"] == "rkn4"
     assert 0.95 < seen["e"] < 0.97  # the size-scaled dashpot: a steel-like bounce (docs: e ~ 0.96 at 0.2 m/s)
     engine = [m for m in seen["modules"] if m.startswith("hertzchain.")]
-    assert engine == ["hertzchain.integrate.rkn_damped_kernels"]
+    assert engine == ["hertzchain.integrate.drivers.rkn_damped_kernels"]
 
 
 def test_calibration_on_rkn4_matches_the_verlet():
@@ -50,7 +50,7 @@ def test_calibration_on_rkn4_matches_the_verlet():
 
     import hertzchain as hc
     from hertzchain.dissipation import calibrate_law, measure_eps, refine_peaks
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     striker = hc.Striker(8e-3, 0.2)
     law = calibrate_law("dashpot", 0.985, diameter=26e-3, striker=striker)
@@ -71,7 +71,7 @@ m = hc.Model(hc.Chain.uniform(64, 26e-3), hc.Striker(8e-3, 0.2), hc.Wall("flat")
 ds = hc.simulate(m, 1e-4, threads=2)
 stats = {d.py_func.__qualname__: [sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values())]
          for d in gc.get_objects() if isinstance(d, CPUDispatcher) and d.signatures
-         and d.py_func.__module__ == "hertzchain.integrate.threaded_laws"}
+         and d.py_func.__module__ == "hertzchain.integrate.drivers.threaded_laws"}
 print(json.dumps({"threads": int(ds.attrs["threads_used"]), "stats": stats,
                   "force": ds.contact_force.values[-1].tolist()}))
 """

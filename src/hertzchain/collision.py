@@ -2,7 +2,7 @@
 
 A sphere a of diameter phi_a hits, head on at relative speed v, either a free sphere b at rest
 or an immovable flat of material b (a wall). The collision is integrated with the engine's own
-compiled Verlet and contact forces (:mod:`hertzchain.integrate.verlet`), so the restitution is
+compiled Verlet and contact forces (:mod:`hertzchain.integrate.drivers.verlet`), so the restitution is
 that of exactly the law a chain run uses, contact for contact: e = (v_b' - v_a') / v after the
 bodies part (e = -v_a' / v on a flat). For Hertz e = 1; for Thornton's elastic-plastic law it
 follows :func:`hertzchain.contact.thornton_restitution`; for the viscous laws it is what their
@@ -116,13 +116,13 @@ def _two_body_system(velocity: float, law, diameter_a: float, mat_a: Material, d
 def _engine(system):
     """``run_rkn`` where ``rkn4`` integrates the pair (engine_choice's rule for ``"auto"``), else
     ``run_verlet``; imported here, when a collision is run (no compiled module before)."""
-    from .integrate.refusals import why_not
+    from .integrate.drivers.refusals import why_not
 
     if why_not("rkn4", system) is None:
-        from .integrate.rkn import run_rkn
+        from .integrate.drivers.rkn import run_rkn
 
         return run_rkn
-    from .integrate.verlet import run_verlet
+    from .integrate.drivers.verlet import run_verlet
 
     return run_verlet
 
@@ -136,7 +136,7 @@ def _check_steps(system, duration: float, law, mu: float) -> None:
     """Refuse, before the run, a collision whose adaptive step makes it take more than
     :data:`_MAX_STEPS` steps over all tries (a dashpot so strong that its damping time mu/gamma
     is a tiny fraction of the contact time: the step resolves it), naming ``law``."""
-    from .integrate.verlet import step_plan
+    from .integrate.drivers.verlet import step_plan
 
     dt = step_plan(system, duration / 8, None, None).dt
     steps = duration / dt * (2**_MAX_TRIES - 1)  # every try doubles the time: the worst case

@@ -34,10 +34,10 @@ Two consequences worth knowing (26 mm AISI 52100 beads, 8 mm striker at 0.2 m/s,
   the weak-damping branch is searched; a smaller eps is refused with a ConfigError.
 
 Runs use the engine that ``integrator = "auto"`` gives the law's chains: the fourth-order RKN for
-y'' = f(y, y') (:func:`hertzchain.integrate.rkn_damped.run_rkn_damped`, the elastic baseline
+y'' = f(y, y') (:func:`hertzchain.integrate.drivers.rkn_damped.run_rkn_damped`, the elastic baseline
 included) for Kuwabara-Kono and the dashpot, so that a calibrated run compiles one engine, not
 two (issue 37: the Verlet's kernels cost ~13 CPU-s of a cold start); the compiled velocity
-Verlet (:func:`hertzchain.integrate.verlet.run_verlet`) for a law rkn4 does not integrate. A
+Verlet (:func:`hertzchain.integrate.drivers.verlet.run_verlet`) for a law rkn4 does not integrate. A
 calibration of 26 mm AISI 52100 beads hit by an 8 mm striker takes about ten runs of a 34-bead
 chain (a fraction of a second once the kernels are compiled). Results are cached.
 """
@@ -55,10 +55,10 @@ from .chain import Chain
 from .contact import (Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, SizedViscoelastic, Viscoelastic,
                       hertz_constant)
 from .errors import ConfigError
-from .integrate.refusals import why_not
-from .integrate.rkn import DAMPED_EPS, RKN_RTOL
-from .integrate.rkn_damped import run_rkn_damped
-from .integrate.verlet import run_verlet
+from .integrate.drivers.refusals import why_not
+from .integrate.drivers.rkn import DAMPED_EPS, RKN_RTOL
+from .integrate.drivers.rkn_damped import run_rkn_damped
+from .integrate.drivers.verlet import run_verlet
 from .materials import Material, get_material
 from .model import Model, Striker, Wall
 from .laws import get_law, law_names
