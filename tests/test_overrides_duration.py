@@ -109,6 +109,15 @@ def test_auto_duration_200_bead_chain():
     assert fit.time_of_flight > 0.5 * auto.attrs["duration"]
 
 
+def test_auto_duration_of_a_model_without_striker_or_drive_names_the_striker():
+    """Nothing sets such a chain moving, so there is no pulse to size a run by: a ConfigError
+    naming the striker, as simulate() gives (an AttributeError on None before; found by mypy)."""
+    model = hc.Model(hc.Chain.uniform(5, 10e-3), striker=None)
+    with pytest.raises(hc.ConfigError) as err:
+        auto_duration(model)
+    assert err.value.field == "striker" and "drive" in err.value.message
+
+
 def test_elastic_limit_message_names_worst_contact_and_range():
     model = hc.Model(hc.Chain.uniform(100, 26e-3), hc.Striker(26e-3, 3.0), hc.Wall("flat"), hc.Elastic())
     with warnings.catch_warnings(record=True) as caught:

@@ -273,6 +273,24 @@ def test_redraw_names_a_missing_trace(summary, tmp_path, capsys, missing):
     assert err.startswith(f"error: {tmp_path / 'r' / 'data' / missing}: is missing") and "Traceback" not in err
 
 
+@pytest.mark.parametrize("stray", ["chain1_truncated_30 (2).nc", "fig3_chain2_offset_bead22_e0.05.1.nc"])
+def test_redraw_names_a_file_named_like_a_trace_that_is_not_one(summary, tmp_path, capsys, stray):
+    """--from-data with a copy of a trace beside it, named like a trace but not as reproduce names
+    them: exit 2 naming that file, before anything is read (an AttributeError on a failed name
+    match, or a ValueError on its number, before; found by mypy)."""
+    import shutil
+
+    from hertzchain.cli.main import main
+
+    out, _ = summary
+    shutil.copytree(out, tmp_path / "r")
+    data = tmp_path / "r" / "data"
+    shutil.copy(data / "chain1_truncated_30.nc", data / stray)
+    assert main(["reproduce", "--out", str(tmp_path / "r"), "--from-data"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {data / stray}: is not a trace") and "Traceback" not in err
+
+
 @pytest.mark.parametrize("edit,message", [
     (lambda s: s["settings"].update(striker_velocity="0.2"), "settings.striker_velocity is '0.2'"),
     (lambda s: s["settings"].update(law=3), "settings.law is 3"),

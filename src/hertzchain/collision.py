@@ -213,6 +213,7 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     run = _engine(system)
     for _ in range(_MAX_TRIES):
         raw = run(system, duration, duration / 8, record_velocities=True, record_positions=True)
+        assert raw.displacement is not None and raw.velocity is not None  # (recorded: asked for above)
         u, vel = raw.displacement[-1], raw.velocity[-1]
         if db is None:
             gap, rel = -u[0], -vel[0]

@@ -143,14 +143,14 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
             integrator, why = "verlet", "verlet: its steps_per_radian is set"
         elif dt is not None:
             integrator, why = "verlet", "verlet: a fixed dt is set"
-        elif threads != "auto" and threads > 1:
+        elif isinstance(threads, int) and threads > 1:
             integrator, why = "verlet", "verlet: several threads asked for"
         else:
             integrator, why = "rkn4", (f"rkn4: {'offset' if system.misaligned else 'aligned'} "
                                        f"{'dissipative' if system.law else 'elastic'} chain")
     else:
         why = f"{integrator}: asked for"
-    if threads == "auto":
+    if isinstance(threads, str):  # "auto" (checked above)
         if cores is None or load is None:
             machine_cores, machine_load = free_cores()
             cores = machine_cores if cores is None else cores

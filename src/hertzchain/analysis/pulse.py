@@ -253,8 +253,8 @@ def _refined(t: np.ndarray, y: np.ndarray, p0: tuple[float, float, float], fit_w
 
     T, tau = p0[1], p0[2]
     span = (fit_window[1] - fit_window[0] + 2.0) * tau
-    lo = np.searchsorted(t, T + fit_window[0] * tau - span, side="left")
-    hi = np.searchsorted(t, T + fit_window[1] * tau + span, side="right")
+    lo = int(np.searchsorted(t, T + fit_window[0] * tau - span, side="left"))
+    hi = int(np.searchsorted(t, T + fit_window[1] * tau + span, side="right"))
     lo, hi = max(lo - 2, 0), min(hi + 2, t.size)
     if hi - lo < 4:
         return t, y

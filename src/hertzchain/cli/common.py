@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Sequence
 
 import click
 
@@ -157,7 +158,7 @@ class UnitsTable:
         Header and unit of each column (None: no unit, e.g. a label).
     """
 
-    def __init__(self, title: str, columns: list[tuple[str, str | None]]):
+    def __init__(self, title: str, columns: Sequence[tuple[str, str | None]]):
         self.title = title
         self.headers = [name if unit is None else f"{name} [{unit}]" for name, unit in columns]
         self.rows: list[tuple[list[str], str | None]] = []

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -24,7 +25,8 @@ def parse_measured(item: str) -> tuple[Path, str | None, list[str], dict]:
     if Path(item).exists() or "@" not in item:
         return Path(item), None, [], {}
     name, *settings = item.split("@")
-    signal, read, overrides = None, {}, []
+    signal, overrides = None, []
+    read: dict[str, Any] = {}
     for s in settings:
         key, eq, value = s.partition("=")
         if not eq:
@@ -97,7 +99,7 @@ def fit(config: Path, measured: tuple[str, ...], free: tuple[str, ...], out: Pat
     traces = []
     for item in measured:
         path, sig, sets, own = parse_measured(item)
-        options = {"column": column, "time_unit": time_unit}
+        options: dict[str, Any] = {"column": column, "time_unit": time_unit}
         if "sensitivity" not in own and "sensor" not in own:
             options.update(sensitivity=sensitivity, sensor=sensor)
         options.update(own)

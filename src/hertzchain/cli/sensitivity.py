@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 import click
 
@@ -33,8 +34,8 @@ _OPTIONS = {"variables": "--wrt", "objective": "--objective", "window": "--windo
               help="Write a bar chart (per bead for list fields, elasticities for the others), e.g. sens.png.")
 @click.option("--json", "json_path", is_flag=False, flag_value="-", default=None, metavar="PATH",
               help="Write the result as JSON to PATH; --json alone prints it instead of the table.")
-def sensitivity(config: Path, variables: tuple[str, ...], objective: str, mode: str, window: str | None,
-                overrides: tuple[str, ...], plot_path: Path | None, json_path: str | None) -> None:
+def sensitivity(config: Path, variables: tuple[str, ...], objective: str, mode: Literal["auto", "adjoint", "tangent"],
+                window: str | None, overrides: tuple[str, ...], plot_path: Path | None, json_path: str | None) -> None:
     """Derivatives of a result of CONFIG (TOML) by config fields, exact (discrete adjoint of the run).
 
     Each derivative is in the result's unit per the field's config unit (a diameter in mm: N/mm for

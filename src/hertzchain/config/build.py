@@ -146,7 +146,7 @@ def _chain(c: ChainConfig, elements: dict | None = None):
             raise ConfigError("chain.taper", f"q = {c.taper.q:g} over n = {c.taper.n} beads makes the last bead "
                               f"{smallest_mm:.3g} mm; beads must be at least {BOUNDS['diameter_mm'][0]:g} mm")
         d = np.concatenate([d, d[-1] * (1.0 - c.taper.q) ** np.arange(1, c.taper.n + 1)])  # Chain.append_taper
-    chain = Chain(d, c.material)
+    chain = Chain.from_diameters(d, c.material)
     if c.truncate is not None:
         if c.truncate > chain.n_beads:
             raise ConfigError("chain.truncate", f"must be at most the number of beads ({chain.n_beads}), got {c.truncate}")
@@ -225,6 +225,7 @@ def build_model(cfg: RunConfig, chain=None):
     if not chain.n_beads:
         from ..chain import Chain
 
+        assert cfg.chain.uniform is not None  # zero beads: chain.uniform.n = 0 (an empty list is refused)
         ref = Chain.uniform(1, cfg.chain.uniform.diameter_mm * 1e-3, cfg.chain.material)
     spec = get_law(k.law)
     if k.eps is not None and spec.calibrated:
@@ -232,6 +233,7 @@ def build_model(cfg: RunConfig, chain=None):
 
         law: Any = calibrate_law(k.law, k.eps, chain=ref, striker=striker)
     else:  # the law's own constructor from its declared parameters (hertzchain.laws)
+        assert spec.make is not None  # every registered law has its maker (laws.spec.attach_maker)
         law = spec.make(k.law_parameters(), ref)
     loads = () if cfg.load is None else tuple(zip(cfg.load.beads, cfg.load.forces))
     drive = None
@@ -356,9 +358,10 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
     from ..runs.track import simulate_lateral
 
     auto = cfg.run.duration == "auto"
+    duration = auto_duration(model) if isinstance(cfg.run.duration, str) else cfg.run.duration
     track = build_track(cfg)
     with _as_written("track.groove_radius", "track.groove_radius_mm"):
-        ds = simulate_lateral(model, track, auto_duration(model) if auto else cfg.run.duration, probes,
+        ds = simulate_lateral(model, track, duration, probes,
                               integrator="verlet" if cfg.run.integrator == "auto" else cfg.run.integrator,
                               dt=cfg.run.dt,
                               rtol=SCIPY_RTOL if cfg.run.rtol is None else cfg.run.rtol, config=config)

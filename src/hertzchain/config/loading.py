@@ -124,7 +124,7 @@ def apply_overrides(data: dict, assignments: Iterable[str], prefix: str = "") ->
         except ValueError:
             raise ConfigError(f"--set {path}", "is not a dotted field path (names joined by '.', list items "
                               "as key[i])") from None
-        set_path(out, ([prefix] if prefix else []) + tokens, value, f"--set {path}")
+        set_path(out, [*([prefix] if prefix else []), *tokens], value, f"--set {path}")
     return out
 
 

@@ -38,8 +38,8 @@ def _bounded(kind: str, *, open_low: bool = False, **kw: Any) -> Any:
 def _law_field(law: str, name: str) -> Any:
     """A config field for parameter ``name`` of the registered law ``law``: its unit and bounds."""
     p = get_law(law).param(name)
-    lo = {"gt": p.low} if p.open_low else {"ge": p.low}
-    hi = {"lt": p.high} if p.open_high else {"le": p.high}
+    lo: dict[str, Any] = {"gt": p.low} if p.open_low else {"ge": p.low}
+    hi: dict[str, Any] = {"lt": p.high} if p.open_high else {"le": p.high}
     return Field(default=None, description=f"{law}: {p.description}, {p.unit}", **lo, **hi)
 
 
@@ -225,6 +225,7 @@ class ContactConfig(_Section):
                     spec.param(name).check(value)
                 except ConfigError as exc:
                     raise ValueError(str(exc)) from None
+            assert spec.make is not None  # every registered law has its maker (laws.spec.attach_maker)
             try:  # the law's own checks across parameters (e.g. the power law's n = 1 needs a stiffness)
                 spec.make(self.law_parameters())
             except ConfigError as exc:

@@ -28,7 +28,7 @@ import multiprocessing
 import os
 import time
 import warnings
-from typing import Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -38,6 +38,9 @@ from ..chain import paper_chain
 from ..interrupts import forked_worker_init
 from ..errors import ConfigError, ElasticLimitWarning, HertzchainError
 from ..model import Model, Wall
+
+if TYPE_CHECKING:
+    from multiprocessing.sharedctypes import SynchronizedArray
 from ..probes import Probes
 from ..runs.track import Track, simulate_lateral
 from . import protocol
@@ -123,12 +126,12 @@ class LawVariants:
         self.laws = [law for law in LAW_VARIANTS if law != _run_law(settings)]
         self._proc = None
         if not self.laws or _cores() < 2 or "fork" not in multiprocessing.get_all_start_methods():
-            self._ends = [0, len(self.laws)]
+            self._ends: list[int] | SynchronizedArray = [0, len(self.laws)]
             self._lock = None
             return
         ctx = multiprocessing.get_context("fork")
-        self._ends = ctx.Array("i", [0, len(self.laws)])
-        self._lock = self._ends.get_lock()
+        ends = ctx.Array("i", [0, len(self.laws)])
+        self._ends, self._lock = ends, ends.get_lock()
         self._reader, writer = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(target=self._forked, args=(writer,), daemon=True)
         self._proc.start()
@@ -272,7 +275,7 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
     for law, studies in variants.items():
         s = _variant_settings(settings, law)
         eps = 1.0 if s.elastic else s.eps
-        row = {name: _chain_numbers(study, eps) for name, study in studies.items()}
+        row: dict[str, Any] = {name: _chain_numbers(study, eps) for name, study in studies.items()}
         fs = figure_summary(studies["chain1"], studies["chain2"], None, None, s)
         row["figures"] = {"spectra": fs["spectra"], "tof_gain_s": fs["tof_gain_s"], "collapse_rms": fs["collapse_rms"]}
         the_law = studies["chain1"].law

@@ -119,7 +119,7 @@ def _bandwidth(freq: np.ndarray, power: np.ndarray, level: float = BANDWIDTH_LEV
     return float(freq[above[-1]]) if above.size else math.nan
 
 
-def _uniform_speed(study, settings, beads: np.ndarray) -> np.ndarray:
+def _uniform_speed(study, settings, beads: np.ndarray | list[int]) -> np.ndarray:
     """Wave speed v_n = v_1 eps^((n - 1)/5) of the uniform-part fit (eq. 8 with q = 0)."""
     return study.v1 * _eps_theory(settings) ** ((np.asarray(beads, float) - 1.0) / 5.0)
 
@@ -138,7 +138,7 @@ def _tof_prediction(study, settings, q: float) -> tuple[np.ndarray, np.ndarray]:
     T = np.empty(beads.size)
     T[: n0 + 1] = theory.time_of_flight_uniform(beads[: n0 + 1], float(phi[0]), study.v1, study.T0, eps)
     v = float(_uniform_speed(study, settings, [n0])[0])
-    ratio = theory.ballistic_ratios(q, eps).speed
+    ratio = float(theory.ballistic_ratios(q, eps).speed)
     for n in range(n0 + 1, phi.size + 1):
         v *= ratio
         T[n] = T[n - 1] + phi[n - 1] / v

@@ -11,7 +11,7 @@ and the key), and its ``data/`` folder must hold every trace the reproduction wr
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, TypeGuard
 
 from ..errors import ConfigError
 
@@ -27,7 +27,7 @@ _SETTINGS = {"striker_velocity": "positive", "striker_diameter": "positive", "ep
              "n0": "count"}
 
 
-def _number(v: Any) -> bool:
+def _number(v: Any) -> TypeGuard[float]:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 

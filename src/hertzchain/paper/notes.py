@@ -100,7 +100,7 @@ def agreement_count(rows: list[Row]) -> tuple[int, int]:
         constants are never counted.
     """
     judged = [r for r in rows if r.kind == "measured" and r.agrees is not None]
-    return sum(r.agrees for r in judged), len(judged)
+    return sum(bool(r.agrees) for r in judged), len(judged)
 
 
 def _tol(rel: float | None, tol: float) -> bool | None:

@@ -261,14 +261,14 @@ def run_speed_check(settings: Settings, factor: float = 2.0) -> dict:
     for v in (settings.striker_velocity, factor * settings.striker_velocity):
         full = paper_chain("chain1", settings.material)
         law = Elastic() if settings.elastic else contact_law(settings, full, velocity=v)
-        peaks, durations = [], []
+        peak_list, duration_list = [], []
         for n in (N0, 20, 24, 28, 30):
             model = Model(full.truncated(n), settings.striker(v), Wall("flat"), law)
             ds = _simulate(model, settings, Probes(settings.sample_interval, contacts=(n,)))
             fit = analysis.fit_pulse(ds.time.values, ds.wall_force.values)
-            peaks.append(fit.peak_force)
-            durations.append(fit.duration)
-        peaks, durations = np.array(peaks), np.array(durations)
+            peak_list.append(fit.peak_force)
+            duration_list.append(fit.duration)
+        peaks, durations = np.array(peak_list), np.array(duration_list)
         rows[v] = {"beads": [N0, 20, 24, 28, 30], "peak_force": peaks, "duration": durations,
                    "peak_norm": peaks / peaks[0], "duration_norm": durations / durations[0]}
     v1, v2 = list(rows)

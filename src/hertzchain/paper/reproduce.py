@@ -282,6 +282,18 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
 
     chains = {name: sorted(data.glob(f"{name}_truncated_*.nc")) for name in ("chain1", "chain2")}
     mis_files = sorted(data.glob("fig3_chain2_offset_bead*_e*.nc"))
+
+    def numbers(p: Path, pattern: str) -> tuple[str, ...]:
+        """The numbers in the name of trace ``p`` (the groups of ``pattern``)."""
+        m = re.fullmatch(pattern, p.name)
+        if m is None:  # a copy or another file named like a trace ("chain1_truncated_16 (2).nc")
+            raise ConfigError(str(p), "is not a trace 'hertzchain reproduce' writes (not named as one); move it "
+                              "out of the data folder")
+        return m.groups()
+
+    # (named before anything is read, like a foreign file below)
+    numbered = {p: numbers(p, r"fig3_chain2_offset_bead(\d+)_e(\d+(?:\.\d+)?)\.nc") for p in mis_files}
+    numbered |= {p: numbers(p, r"chain[12]_truncated_(\d+)\.nc") for files in chains.values() for p in files}
     sub_files = {label: data / f"fig3c_chain1_24_{tag}.nc" for label, tag in SUB_TAGS.items()}
     ratio_file = data / "uniform16_elastic_wall_chain_ratio.nc"
     # A truncated or foreign file is named before anything is read (and before the Fig. 3
@@ -307,12 +319,12 @@ def _load_data(data: Path, settings: Settings, load, after_fig3: Callable | None
                           "reproduce' without --from-data")
     mis = {}
     for p in mis_files:
-        m = re.search(r"bead(\d+)_e([\d.]+)\.nc$", p.name)
-        mis[(int(m.group(1)), float(m.group(2)))] = read(p)
+        bead, offset = numbered[p]
+        mis[(int(bead), float(offset))] = read(p)
     subs = {label: read(p) for label, p in sub_files.items()}
     if after_fig3 is not None:
         after_fig3(mis, subs)
-    walls = {name: {int(re.search(r"_(\d+)\.nc$", p.name).group(1)): read(p) for p in files}
+    walls = {name: {int(numbered[p][0]): read(p) for p in files}
              for name, files in chains.items()}
     studies = {name: protocol.study_from_datasets(name, wall, settings) for name, wall in walls.items()}
     ratio = protocol.wall_chain_ratio_from_dataset(read(ratio_file, whole=True)) if with_ratio else None
@@ -338,6 +350,7 @@ _DRAW_JOB: tuple | None = None
 def _draw_one(name: str) -> tuple[str, Path]:
     from . import figures as figs
 
+    assert _DRAW_JOB is not None  # (set by _draw_all before the processes fork)
     out_dir, makers = _DRAW_JOB
     return name, figs.save_figure(makers[name](), Path(out_dir), name)
 

@@ -59,19 +59,23 @@ def auto_duration(model: Model) -> float:
 
     if model.drive is not None:  # a driven chain: the ramp and the drive's cycles (Drive.auto_duration)
         return model.drive.auto_duration
+    striker = model.striker
+    if striker is None:  # nothing sets the chain moving: no pulse to size the run by (simulate refuses it too)
+        raise ConfigError("striker", "a model without a striker (striker=None) has no pulse to size a run by: give "
+                          "it a striker or a drive (hertzchain.Drive, [drive])")
     chain = model.chain
     m = chain.masses
-    v0 = model.striker.velocity
+    v0 = striker.velocity
     wall = model.wall
     if chain.n_beads == 0:
         # no chain: one two-body Hertz collision of the striker with the wall or body, which lasts
         # 2.943 delta_m / v0 (delta_m = (5 mu v0^2 / (4 kappa))^(2/5)); twice that, with the margin
         from ..theory import two_body_impact
 
-        mu = 1.0 / (1.0 / model.striker.mass + (1.0 / wall.mass if wall.is_body else 0.0))
+        mu = 1.0 / (1.0 / striker.mass + (1.0 / wall.mass if wall.mass is not None else 0.0))
         duration = AUTO_MARGIN * 2.0 * two_body_impact(mu, float(model.system().kappa[0]), v0)["contact_time"]
     else:
-        vm = v0 * np.minimum(model.striker.mass, m) / (WAVE_MASS_BEADS * m)
+        vm = v0 * np.minimum(striker.mass, m) / (WAVE_MASS_BEADS * m)
         # eq. 5 per material, vectorised over its beads (a loop over 1e6 beads took seconds)
         materials = chain.materials
         ids = np.fromiter(map(id, materials), dtype=np.int64, count=len(materials))
@@ -82,7 +86,7 @@ def auto_duration(model: Model) -> float:
         arrival = float(np.sum(chain.diameters / speed))
         tau = float(pulse_duration(chain.diameters[-1], speed[-1]))
         duration = AUTO_MARGIN * (arrival + AUTO_TAIL_DURATIONS * tau)
-    if wall.kind == "body" and wall.stiffness > 0:
+    if wall.mass is not None and wall.stiffness > 0:  # (a mass: wall.type = "body")
         # the body swings on its mount: the force it passes to the ground peaks up to half a
         # period after the pulse has pushed it (a 1 kg body on 1e6 N/m behind chain 1: at
         # 4.4 ms, past the pulse's 3.6 ms)
@@ -198,8 +202,8 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         warn_elastic_limit(ds, stacklevel=3)
         return ds
     choice = choose_engine(system, integrator, threads, steps_per_radian=steps_per_radian, dt=dt)
-    integrator, threads = choice.integrator, choice.threads
-    check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # before any allocation
+    engine, threads = choice.integrator, choice.threads
+    check_before_run(model, system, duration, probes, dt=dt, integrator=engine)  # before any allocation
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     if threads > 1:
         from ..integrate.drivers.threaded import run_verlet_threaded
@@ -207,13 +211,13 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         raw = run_verlet_threaded(system, duration, probes.sample_interval, threads, dt=dt,
                                   record_velocities=probes.velocities, contacts=rec, progress=progress,
                                   record_positions=probes.positions, steps_per_radian=steps_per_radian)
-    elif integrator == "verlet":
+    elif engine == "verlet":
         from ..integrate.drivers.verlet import run_verlet
 
         raw = run_verlet(system, duration, probes.sample_interval, dt=dt, record_velocities=probes.velocities,
                          contacts=rec, progress=progress, record_positions=probes.positions,
                          steps_per_radian=steps_per_radian)
-    elif integrator == "rkn4":
+    elif engine == "rkn4":
         from ..integrate.drivers.rkn import RKN_RTOL, run_rkn
 
         rtol = RKN_RTOL if rtol is None else rtol
@@ -223,13 +227,13 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         rtol = SCIPY_RTOL if rtol is None else rtol
         from ..integrate.drivers.reference import run_reference  # scipy.integrate: loaded only for these
 
-        raw = run_reference(system, duration, probes.sample_interval, method=integrator.upper(), rtol=rtol,
+        raw = run_reference(system, duration, probes.sample_interval, method=engine.upper(), rtol=rtol,
                             record_velocities=probes.velocities, record_positions=probes.positions)
-    extra = {"integrator_used": integrator, "threads_used": threads, "engine_choice": choice.reason}
+    extra = {"integrator_used": engine, "threads_used": threads, "engine_choice": choice.reason}
     if mode == "auto":
         extra["duration_mode"] = "auto"
     ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system, extra_attrs=extra)
-    check_after_run(ds, model, system, dt=dt, integrator=integrator, rtol=rtol, stacklevel=3)
+    check_after_run(ds, model, system, dt=dt, integrator=engine, rtol=rtol, stacklevel=3)
     warn_elastic_limit(ds, stacklevel=3)
     if mode == "auto" and "wall_force" in ds and ds.attrs["peak_wall_time"] > 0.8 * duration:
         warnings.warn(DurationWarning(

@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
@@ -127,7 +127,7 @@ _LATERAL_VARIABLES = {
 
 
 def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes | None = None, *,
-                     integrator: Literal["verlet", "dop853"] = "verlet", dt: float | None = None,
+                     integrator: str = "verlet", dt: float | None = None,
                      rtol: float = 1e-12, config: dict | None = None) -> xr.Dataset:
     """Simulate ``model`` with transverse freedom on ``track`` for ``duration`` [s].
 
