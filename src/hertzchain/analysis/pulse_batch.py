@@ -21,6 +21,7 @@ gets status 1 and no numbers: the caller fits it with ``fit_pulse`` itself, whic
 from __future__ import annotations
 
 import math
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -313,6 +314,11 @@ def _fit_one(t, f, min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out):
     return True
 
 
+# Numba's workqueue threading layer aborts the process when two threads launch parallel loops at
+# once (two Dask worker threads in one process); one launch already uses every core.
+_LAUNCH_LOCK = threading.Lock()
+
+
 @njit(parallel=True, cache=True)
 def _fit_all(t, force, min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out, status):
     for m in prange(force.shape[0]):
@@ -347,8 +353,9 @@ def fit_pulses(time: np.ndarray, force: np.ndarray, *, refine: int = 1, max_iter
     f = np.ascontiguousarray(force, dtype=float)
     out = np.full((f.shape[0], len(PULSE_COLUMNS)), np.nan)
     status = np.empty(f.shape[0], dtype=np.int64)
-    _fit_all(t, f, float(min_prominence), float(snr_min), float(fit_window[0]), float(fit_window[1]), int(max_iter),
-             int(refine), out, status)
+    with _LAUNCH_LOCK:
+        _fit_all(t, f, float(min_prominence), float(snr_min), float(fit_window[0]), float(fit_window[1]), int(max_iter),
+                 int(refine), out, status)
     out[status != FITTED] = np.nan
     return out, status
 

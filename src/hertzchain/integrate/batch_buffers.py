@@ -103,6 +103,8 @@ class _Packed:
     body_slot: np.ndarray = None  # (M,) N + 1 for a member with a protected body, else -1
     out_b: np.ndarray = None      # flat: member m's body record out_b[b_off[m]:b_off[m + 1]] seen as (K, 4)
     b_off: np.ndarray = None
+    integrator: str = "verlet"    # the engine that ran it: "verlet" or "rkn4" (batch_rkn)
+    rkn_steps: np.ndarray = None  # (M, 3) with "rkn4": steps, smallest and largest step [s] per member
 
     @property
     def n_members(self) -> int:
