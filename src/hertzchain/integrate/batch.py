@@ -215,7 +215,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
                    dt: float | Sequence[float | None] | None = None, progress: Callable[[int, int], None] | None = None,
                    n_threads: int | None = None, configs: Sequence[dict | None] | None = None,
                    device: str = "auto", steps_per_radian: float | None = None, integrator: str = "verlet",
-                   max_force: str = "samples") -> xr.Dataset:
+                   rtol: float | None = None, max_force: str = "samples") -> xr.Dataset:
     """Simulate many independent chains in one parallel compiled call; results stacked along ``member``.
 
     Every member's arrays are bit-identical to :func:`hertzchain.simulate` run on it alone (see
@@ -266,6 +266,9 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         Kuwabara-Kono or dashpot law, an automatic step and no recorded velocities) or ``"auto"``
         (``"rkn4"`` where it runs every member and ``steps_per_radian`` is not given, else the
         Verlet), on the CPU.
+    rtol
+        Step tolerance of ``"rkn4"`` (default :data:`hertzchain.integrate.rkn.RKN_RTOL`, as
+        ``simulate``'s).
     max_force
         ``"samples"`` (default): ``max_contact_force`` is the largest sampled force, as in a single
         run; ``"run"``: the largest over the run (step ends and in-step maxima) where the engine is
@@ -301,7 +304,9 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
                           "device='cuda'")
     if integrator == "auto" and steps_per_radian is not None:
         integrator = "verlet"  # the call set the Verlet's accuracy (as simulate's "auto")
-    engine_options = {"integrator": integrator, "all_forces": max_force == "samples"}
+    if rtol is not None:
+        rtol = real(rtol, "run.rtol", low=0.0, open_low=True)
+    engine_options = {"integrator": integrator, "all_forces": max_force == "samples", "rtol": rtol}
     if device == "cuda" and not isinstance(models, Ensemble):
         _cuda.refuse_elastoplastic([_law_code(m) for m in models])
     ens = None

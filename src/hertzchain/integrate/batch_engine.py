@@ -120,20 +120,22 @@ _LAUNCH_LOCK = threading.Lock()
 kernels.flush_stale_cache(_batch_kernel)
 
 
-def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_forces: bool = True) -> None:
+def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_forces: bool = True,
+            rtol: float | None = None) -> None:
     """Run the packed batch to the end on the CPU (all cores), in compiled calls of ~CHUNK_SLOT_STEPS.
 
     ``integrator``: ``"verlet"``, or ``"rkn4"`` / ``"auto"``: the fourth-order engine of
     :mod:`.batch_rkn` when it runs every member (:func:`~.batch_rkn.rkn_members`; ``"rkn4"`` refuses
     a batch it does not, ``"auto"`` then runs the Verlet), each member in one compiled call (no
     progress within a member). ``all_forces`` False: the largest contact forces over the run
-    rather than over the samples, with ``"rkn4"`` (``batch_rkn``'s docstring).
+    rather than over the samples, with ``"rkn4"`` (``batch_rkn``'s docstring); ``rtol`` its step
+    tolerance (None: the default).
     """
     if integrator != "verlet":
         from .batch_rkn import rkn_engine, rkn_members
 
         if rkn_members(pk):
-            pk.rkn_steps = rkn_engine(pk, n_threads, all_forces)
+            pk.rkn_steps = rkn_engine(pk, n_threads, all_forces, rtol)
             pk.integrator = "rkn4"
             check_interrupt()
             if progress is not None:

@@ -30,8 +30,10 @@ from .kernels import LAW_ELASTOPLASTIC
 from .verlet import RawRun
 
 
-#: The ``engine`` attribute of a batch computed on the CPU.
+#: The ``engine`` attribute of a batch computed on the CPU, by its integrator.
 _ENGINE_CPU = "batched compiled velocity Verlet (numba prange), bit-identical to single runs"
+_ENGINE_RKN = ("batched compiled rkn4 (numba prange), bit-identical to single runs with integrator='rkn4' "
+               "(max_contact_force: over the run where max_force='run')")
 
 #: Per-member scalar attributes of a single run that become variables along ``member``.
 _MEMBER_ATTRS = {
@@ -205,7 +207,7 @@ def _batch_attrs(a0, nmem: int) -> dict:
         "title": "hertzchain batch simulation",
         "hertzchain_version": a0["hertzchain_version"],
         "integrator": a0["integrator"],
-        "engine": _ENGINE_CPU,
+        "engine": _ENGINE_RKN if a0["integrator"] == "rkn4" else _ENGINE_CPU,
         "duration": a0["duration"],
         "sample_interval": a0["sample_interval"],
         "n_members": nmem,

@@ -134,12 +134,13 @@ def _flush_stale_cache() -> None:
 _flush_stale_cache()
 
 
-def rkn_engine(pk: _Packed, n_threads, all_forces: bool = True, rtol: float = RKN_RTOL) -> np.ndarray:
+def rkn_engine(pk: _Packed, n_threads, all_forces: bool = True, rtol: float | None = None) -> np.ndarray:
     """Run every member of ``pk`` (:func:`rkn_members` holds) to the end; (M, 3) array of [steps,
     smallest step [s], largest step [s]] per member.
 
     ``pk.peak[m, :2]`` receive the largest wall force [N] and its time [s] (``peak[m, 4] = 1``: the
     Verlet's parabola refinement does not apply); the step tolerance of member m is ``rtol``
+    (None: :data:`~hertzchain.integrate.rkn.RKN_RTOL`) times
     :data:`~hertzchain.integrate.rkn.DAMPED_EPS` times its striker speed, as ``run_rkn``'s.
     """
     import numba
@@ -149,7 +150,7 @@ def rkn_engine(pk: _Packed, n_threads, all_forces: bool = True, rtol: float = RK
 
     flat = pk.flat
     v_ref = np.array([np.max(np.abs(flat["v"][pk.off[m]:pk.off[m] + pk.n_slots[m] + 1])) for m in range(pk.n_members)])
-    eps = rtol * DAMPED_EPS * np.where(v_ref > 0, v_ref, 1.0)
+    eps = (RKN_RTOL if rtol is None else rtol) * DAMPED_EPS * np.where(v_ref > 0, v_ref, 1.0)
     duration = (pk.n_samples - 1) * pk.interval
     # most contacts first, so that dynamic scheduling does not leave a long member for the end
     order = np.argsort(-pk.n_slots, kind="stable").astype(np.int64)

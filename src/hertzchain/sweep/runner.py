@@ -136,6 +136,8 @@ class _ChunkTask:
     sweep_hash: str
     device: str = "auto"
     steps_per_radian: float | None = None
+    integrator: str = "auto"
+    rtol: float | None = None
     metrics_only: bool = False
     traced: tuple[int, ...] = ()
     trace_probes: Any = None
@@ -191,8 +193,12 @@ def compute_chunk(task: _ChunkTask):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ElasticLimitWarning)
             warnings.simplefilter("ignore", PulseNotReachedWarning)  # fit_error says "no pulse" per member
+            # The largest contact forces over the run (force_over_yield), whatever is stored: the
+            # fourth-order engine then interpolates only the recorded contacts at the samples (a
+            # metrics-only chunk: the wall), and every store gives the same metrics.
             return simulate_batch(which, task.duration, probes, dt=which_dts, n_threads=task.n_threads,
-                                  configs=None, device=task.device, steps_per_radian=task.steps_per_radian)
+                                  configs=None, device=task.device, steps_per_radian=task.steps_per_radian,
+                                  integrator=task.integrator, rtol=task.rtol, max_force="run")
 
     ds = simulate(models, dts, task.probes)
     ds = ds.assign_coords(member=("member", np.asarray(task.members, dtype=np.int64), ds["member"].attrs))
@@ -203,7 +209,8 @@ def compute_chunk(task: _ChunkTask):
     walled = np.flatnonzero(ds["has_wall"].values)
     # Every wall pulse fitted at once in compiled code; the records it leaves (status 1: possibly
     # clipped, no pulse, a fit that fails...) are fitted below by fit_pulse, which says why.
-    fitted, status = fit_pulses(time, ds["wall_force"].values[walled], refine=F_M_REFINE)
+    wall = ds["wall_force"].values
+    fitted, status = fit_pulses(time, wall if walled.size == wall.shape[0] else wall[walled], refine=F_M_REFINE)
     for k, attr in METRIC_COLUMNS.items():
         values[k][walled] = fitted[:, PULSE_COLUMNS.index(attr)]
     done = np.zeros(len(task.members), dtype=bool)
@@ -434,6 +441,8 @@ class _Plan:
     trace_probes: Any
     device: str
     steps_per_radian: float | None
+    integrator: str = "auto"
+    rtol: float | None = None
     estimate: Any = None
     table_bytes: int = 0  # the metrics table per member [bytes] (_table_bytes)
 
@@ -506,7 +515,10 @@ def _plan(cfg: SweepConfig, device: str, cores: int = 1, advice: str | None = No
     table_bytes = _table_bytes(cfg, largest[0])
     _check_sweep_resources(cfg, est, cores, advice, table_bytes)
     return _Plan(duration=duration, probes=probes, trace_probes=base_probes, device=device,
-                 steps_per_radian=run_cfg.run.steps_per_radian, estimate=est, table_bytes=table_bytes)
+                 steps_per_radian=run_cfg.run.verlet_steps_per_radian, estimate=est, table_bytes=table_bytes,
+                 # the batched engines: the fourth-order one where "auto" picks it for every member
+                 integrator=run_cfg.run.integrator if run_cfg.run.integrator in ("auto", "rkn4") else "verlet",
+                 rtol=run_cfg.run.rtol)
 
 
 #: Memory of metrics.csv's table while it is collected and written, per member [bytes]: its numeric
@@ -594,7 +606,8 @@ def _tasks(cfg: SweepConfig, plan: _Plan, todo: list[int]) -> Iterator[_ChunkTas
         members = list(chunks[index])
         yield _ChunkTask(index=index, members=members, recipe=cfg.subset(members), duration=plan.duration,
                          probes=plan.probes, n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash,
-                         device=plan.device, steps_per_radian=plan.steps_per_radian,
+                         device=plan.device, steps_per_radian=plan.steps_per_radian, integrator=plan.integrator,
+                         rtol=plan.rtol,
                          metrics_only=cfg.sweep.store == "metrics",
                          traced=tuple(m for m in members if m in traced), trace_probes=plan.trace_probes)
 
