@@ -6,8 +6,8 @@
 - the models every script uses (the contract chain, uniform chains, the paper's chain 1);
 - :func:`solve_scipy`: ``scipy.integrate.solve_ivp`` on a chain, with either a plain vectorised
   NumPy right-hand side (:func:`numpy_rhs`, what a competent user writes) or hertzchain's compiled
-  one (:func:`hertzchain.integrate.reference.make_rhs`), and the peak wall force refined on the
-  dense output exactly as :mod:`hertzchain.integrate.reference` does.
+  one (:func:`hertzchain.integrate.drivers.reference.make_rhs`), and the peak wall force refined on the
+  dense output exactly as :mod:`hertzchain.integrate.drivers.reference` does.
 
 Units are SI throughout (s, m, N), as in the package.
 """
@@ -275,7 +275,7 @@ def solve_scipy(system, duration: float, method: str, rtol: float, rhs_kind: str
 
     ``atol`` is ``rtol`` times the natural scale of each component (the striker contact's maximum
     overlap for positions, the striker speed for velocities), as in
-    :func:`hertzchain.integrate.reference.run_reference`, so that a tolerance means the same thing
+    :func:`hertzchain.integrate.drivers.reference.run_reference`, so that a tolerance means the same thing
     for both right-hand sides. The state is sampled every ``sample_interval`` (the oscilloscope's
     100 ns, like hertzchain's probes); the wall-force maximum of the samples is refined on the
     dense output with ``minimize_scalar`` over the two neighbouring sample intervals.
@@ -294,7 +294,7 @@ def solve_scipy(system, duration: float, method: str, rtol: float, rhs_kind: str
     if rhs_kind == "numpy":
         rhs = numpy_rhs(system)
     elif rhs_kind == "compiled":
-        from hertzchain.integrate.reference import make_rhs
+        from hertzchain.integrate.drivers.reference import make_rhs
 
         rhs = make_rhs(system)  # state has one extra component: the dissipated energy
         atol.append([rtol * energy])
@@ -330,8 +330,8 @@ def time_to_solution(model, duration: float, tolerance: float, repeat: int, repe
     kernel alone is ``run_verlet`` / ``run_rkn`` with the same probes.
     """
     import hertzchain as hc
-    from hertzchain.integrate.rkn import run_rkn
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.rkn import run_rkn
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     system = model.system()
     t_ref, _, ref_ds = best_of(lambda: hc.simulate(model, duration, integrator="dop853", rtol=1e-12), 1)

@@ -39,8 +39,9 @@ from _common import RESULTS, best_of, machine_info, quiet, save_json, table  # n
 
 import hertzchain as hc  # noqa: E402
 from hertzchain.errors import ElasticLimitWarning  # noqa: E402
-from hertzchain.integrate import batch, batch_engine, batch_pack, batch_results  # noqa: E402
-from hertzchain.integrate.ensemble import Ensemble  # noqa: E402
+from hertzchain.runs import batch, batch_results
+from hertzchain.integrate.batch import engine as batch_engine, pack as batch_pack  # noqa: E402
+from hertzchain.integrate.batch.ensemble import Ensemble  # noqa: E402
 
 DURATION = 2e-3           # s
 INTERVAL = 5e-6           # s

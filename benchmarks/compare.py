@@ -64,7 +64,7 @@ def probes():
 # ----------------------------------------------------------------------------- throughput
 def single_chain(n_beads: int, min_time: float, repeat: int) -> dict:
     """Bead-steps/s of one chain through run_verlet (serial kernel)."""
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     model = uniform_model(n_beads)
     t_sys, _, system = best_of(model.system, 1)
@@ -81,9 +81,9 @@ def single_chain(n_beads: int, min_time: float, repeat: int) -> dict:
 
 
 def batch_available() -> str | None:
-    """None when hertzchain.integrate.batch.simulate_batch can be used, else why not."""
+    """None when hertzchain.runs.batch.simulate_batch can be used, else why not."""
     try:
-        from hertzchain.integrate.batch import run_batch, simulate_batch  # noqa: F401
+        from hertzchain.runs.batch import run_batch, simulate_batch  # noqa: F401
     except Exception as exc:  # ImportError while the batch engine is being written
         return f"{type(exc).__name__}: {exc}"
     return None
@@ -92,7 +92,7 @@ def batch_available() -> str | None:
 def batched(n_chains: int, n_beads: int, n_threads: int, min_time: float, repeat: int,
             end_to_end: bool = True) -> dict:
     """Bead-steps/s of ``n_chains`` chains of ``n_beads`` beads in one batched call."""
-    from hertzchain.integrate.batch import run_batch, simulate_batch
+    from hertzchain.runs.batch import run_batch, simulate_batch
 
     models = [uniform_model(n_beads) for _ in range(n_chains)]
     total = n_chains * n_beads
@@ -116,7 +116,7 @@ def batched(n_chains: int, n_beads: int, n_threads: int, min_time: float, repeat
 
 def looped(n_chains: int, n_beads: int, min_time: float, repeat: int) -> dict:
     """Baseline of the batch: a plain Python loop of single-chain runs (``system()`` + ``run_verlet``)."""
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     models = [uniform_model(n_beads) for _ in range(n_chains)]
     rec = probes().recorded_contacts(n_beads, True)
@@ -346,7 +346,7 @@ def main(argv: list[str] | None = None) -> dict:
     t0 = time.perf_counter()
     hc.simulate(uniform_model(30), 1e-6, dt=DT)
     if why_no_batch is None:
-        from hertzchain.integrate.batch import simulate_batch
+        from hertzchain.runs.batch import simulate_batch
 
         simulate_batch([uniform_model(30)] * 2, 1e-6, probes(), dt=DT, n_threads=1)
     warm = time.perf_counter() - t0
@@ -373,7 +373,7 @@ def main(argv: list[str] | None = None) -> dict:
         res["batched_engine_bead_steps_per_s"] = ball["engine_bead_steps_per_s"]
         res["batched_engine_bead_steps_per_s_1core"] = b1["engine_bead_steps_per_s"]
     else:
-        res["batched_error"] = f"hertzchain.integrate.batch unavailable: {why_no_batch}"
+        res["batched_error"] = f"hertzchain.runs.batch unavailable: {why_no_batch}"
         res["batched_bead_steps_per_s"] = res["batched_bead_steps_per_s_1core"] = None
     print_throughput(res, ncpu)
 

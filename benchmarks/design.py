@@ -44,7 +44,7 @@ from _common import RESULTS, machine_info, quiet, save_json, table  # noqa: E402
 import hertzchain as hc  # noqa: E402
 from hertzchain.design import parse_design, run_design  # noqa: E402
 from hertzchain.design.problem import SEARCH_STEPS_PER_RADIAN, search_fidelity  # noqa: E402
-from hertzchain.integrate.batch import simulate_batch  # noqa: E402
+from hertzchain.runs.batch import simulate_batch  # noqa: E402
 
 STRIKER = {"diameter_mm": 8.0, "velocity": 0.2}
 

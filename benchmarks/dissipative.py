@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from hertzchain.integrate.kernels import elastoplastic_force, forces_general
+from hertzchain.integrate.core.kernels import elastoplastic_force, forces_general
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, machine_info, quiet, save_json, table  # noqa: E402
@@ -116,8 +116,8 @@ def model(law: str):
 
 
 def measure_law(law: str, repeat: int) -> dict:
-    from hertzchain.integrate.layout import pack
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.core.layout import pack
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     system = model(law).system()
     stride = round(SAMPLE / DT)

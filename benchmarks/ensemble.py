@@ -8,7 +8,7 @@ Measures, after a JIT warm-up, on chains of 30 beads of 26 mm AISI 52100 (diamet
 by 0.1 % tolerances, 1 sigma, a different draw per member), striker 8 mm at 0.5 m/s, flat wall:
 
 1. ``setup_s_per_member``: set-up of 1e5 members on the CPU, per member: building the
-   :class:`~hertzchain.integrate.ensemble.Ensemble` from the (member, bead) diameters, every
+   :class:`~hertzchain.integrate.batch.ensemble.Ensemble` from the (member, bead) diameters, every
    member's System arrays, step plans, packing into the engine's buffers and the initial state
    (everything ``simulate_batch`` does before the engine runs). Also from a list of 1e5 Models
    (``Ensemble.from_models``), and, as the baseline, the member-by-member set-up
@@ -42,9 +42,11 @@ from _common import RESULTS, best_of, machine_info, quiet, save_json, table  # n
 
 from hertzchain import Chain, Model, Probes, Striker, Viscoelastic  # noqa: E402
 from hertzchain.errors import ElasticLimitWarning  # noqa: E402
-from hertzchain.integrate import batch, batch_engine, batch_pack, cuda, cuda_kernels  # noqa: E402
-from hertzchain.integrate.verlet import step_plan  # noqa: E402
-from hertzchain.integrate.ensemble import Ensemble  # noqa: E402
+from hertzchain.runs import batch
+from hertzchain.integrate.batch import engine as batch_engine, pack as batch_pack
+from hertzchain.integrate.cuda import launch as cuda, kernels as cuda_kernels  # noqa: E402
+from hertzchain.integrate.drivers.verlet import step_plan  # noqa: E402
+from hertzchain.integrate.batch.ensemble import Ensemble  # noqa: E402
 
 N_BEADS = 30
 DIAMETER = 26e-3

@@ -1,4 +1,4 @@
-"""The GPU kernels of hertzchain.integrate.cuda_lanes: to run on a machine with an NVIDIA GPU.
+"""The GPU kernels of hertzchain.integrate.cuda.lanes: to run on a machine with an NVIDIA GPU.
 
 Usage::
 
@@ -40,8 +40,8 @@ TARGET = 3e11
 
 def batch(sizes, repeat: int) -> dict:
     import hertzchain as hc
-    from hertzchain.integrate import cuda as hc_cuda
-    from hertzchain.integrate.batch import simulate_batch
+    from hertzchain.integrate.cuda import launch as hc_cuda
+    from hertzchain.runs.batch import simulate_batch
 
     base = uniform_model(30)
     probes = hc.Probes(1e-6, contacts=(0,))
@@ -81,10 +81,10 @@ def batch(sizes, repeat: int) -> dict:
 
 
 def long_chain(sizes, repeat: int) -> dict:
-    from hertzchain.integrate.cuda_device import _cuda
-    from hertzchain.integrate.cuda_lanes import HALO, TILE, tile_kernel
-    from hertzchain.integrate.layout import pack
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.cuda.device import _cuda
+    from hertzchain.integrate.cuda.lanes import HALO, TILE, tile_kernel
+    from hertzchain.integrate.core.layout import pack
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     cuda = _cuda()
     kernel, width = tile_kernel()
@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--quick", action="store_true", help="1e3-1e5 chains, 1e5 beads, one repetition")
     args = ap.parse_args(argv)
     quiet()
-    from hertzchain.integrate.cuda_device import gpu_usable
+    from hertzchain.integrate.cuda.device import gpu_usable
 
     info = machine_info()
     res = {"benchmark": "gpu_kernels", "machine": info}

@@ -21,7 +21,7 @@ the default accuracy:
   one batched call (:func:`hertzchain.simulate_batch`, all cores), as ``fit`` did.
 
 ``--laws``: the registry laws instead, differentiated by the engines generated from their
-declarations (``integrate/law_derivatives.py``): chain 1 with the power law at n = 3/2 (Hertz's
+declarations (``integrate/derivatives/law_derivatives.py``): chain 1 with the power law at n = 3/2 (Hertz's
 constant: the elastic problem, on the generated engines) and with Hunt-Crossley (e = 0.8, a law
 with state), at the default accuracy (saved to benchmarks/results/gradient_laws.json).
 
@@ -92,8 +92,8 @@ def measure(cfg: dict, repeat: int) -> dict:
     import hertzchain as hc
     from hertzchain.config import build_model, parse_config
     from hertzchain.gradients.objectives import read_objective
-    from hertzchain.integrate import differentiate as D
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.derivatives import differentiate as D
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     run_cfg = parse_config(cfg)
     model = build_model(run_cfg)

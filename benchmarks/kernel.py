@@ -7,7 +7,7 @@ Usage::
 Measures, after a JIT warm-up (compile / cache-load time is reported apart from run time):
 
 1. Throughput, in bead-steps per second (beads N x Verlet steps / wall-clock seconds), of
-   :func:`hertzchain.integrate.verlet.run_verlet` on ``Model(...).system()`` for uniform chains
+   :func:`hertzchain.integrate.drivers.verlet.run_verlet` on ``Model(...).system()`` for uniform chains
    of 30 and 10,000 beads of 26 mm AISI 52100 hit by the paper's 8 mm striker at 0.5 m/s, flat
    wall, dt = 5 ns, default probes (every contact force, kinetic and potential energy every
    100 ns; wall-force peak tracked every step). Best of several repetitions, each long enough
@@ -93,7 +93,7 @@ def bare_state(system):
 # ----------------------------------------------------------------------------- throughput
 def measure_verlet(n_beads: int, min_time: float, repeat: int) -> dict:
     """Bead-steps/s of run_verlet (dt = 5 ns, default probes) and of the bare loop."""
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     system = uniform_model(n_beads).system()
     stride = round(SAMPLE / DT)
@@ -129,7 +129,7 @@ def measure_verlet(n_beads: int, min_time: float, repeat: int) -> dict:
 
 def first_call_times() -> dict:
     """JIT warm-up: first (compile or cache load) and second call of run_verlet and of the bare loop."""
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     system = uniform_model(30).system()
     t_first, _, _ = best_of(lambda: run_verlet(system, 1e-6, SAMPLE, dt=DT), 1)
@@ -148,7 +148,7 @@ _COLD_SNIPPET = r"""
 import json, time
 t0 = time.perf_counter()
 import hertzchain as hc
-from hertzchain.integrate.verlet import run_verlet
+from hertzchain.integrate.drivers.verlet import run_verlet
 s = hc.Model(hc.Chain.uniform(30, 26e-3), hc.Striker(8e-3, 0.5)).system()
 t1 = time.perf_counter(); run_verlet(s, 1e-6, 1e-7, dt=5e-9)
 t2 = time.perf_counter(); run_verlet(s, 1e-6, 1e-7, dt=5e-9)
@@ -174,7 +174,7 @@ def cold_compile_time() -> dict:
 def contract_time_to_solution(repeat: int, repeat_scipy: int) -> dict:
     """:func:`_common.time_to_solution` on the contract chain, plus the fixed-step error scan."""
     import hertzchain as hc
-    from hertzchain.integrate.verlet import auto_time_step, run_verlet
+    from hertzchain.integrate.drivers.verlet import auto_time_step, run_verlet
 
     model = contract_model()
     system = model.system()

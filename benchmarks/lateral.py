@@ -33,7 +33,7 @@ SAMPLE = 1e-6
 
 def models():
     import hertzchain as hc
-    from hertzchain.track import Track
+    from hertzchain.runs.track import Track
 
     chain = hc.paper_chain("chain2")
     law = hc.Viscoelastic(4.4e-6)
@@ -45,9 +45,9 @@ def models():
 
 
 def runner(model, track, duration):
-    from hertzchain.integrate.lateral import run_lateral
-    from hertzchain.integrate.verlet import run_verlet
-    from hertzchain.track import lateral_arrays
+    from hertzchain.integrate.drivers.lateral import run_lateral
+    from hertzchain.integrate.drivers.verlet import run_verlet
+    from hertzchain.runs.track import lateral_arrays
 
     system = model.system()
     n = model.chain.n_beads

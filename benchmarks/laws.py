@@ -10,7 +10,7 @@ fixed step, one core (``NUMBA_NUM_THREADS=1``), best of N:
 
 - **hertzchain**: ``run_verlet(Model(...).system(), ...)`` with default probes (every contact
   force and the energies every 100 ns, the wall peak every step): the hand-written kernels for
-  the built-in laws, the loop generated from the declaration (:mod:`hertzchain.integrate.generated`)
+  the built-in laws, the loop generated from the declaration (:mod:`hertzchain.integrate.core.generated`)
   for the power and Hunt-Crossley laws;
 - **bare loop** (the baseline the issue names): symplectic Euler, v += dt a(u, v); u += dt v, with
   the law's own scalar ``force`` function from its declaration (the elastic-plastic law:
@@ -38,7 +38,7 @@ from numba import njit  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, machine_info, quiet, save_json, table  # noqa: E402
 
-from hertzchain.integrate.kernels import elastoplastic_force  # noqa: E402
+from hertzchain.integrate.core.kernels import elastoplastic_force  # noqa: E402
 
 DT = 2e-8
 SAMPLE = 1e-7
@@ -101,7 +101,7 @@ def _laws():
 
 def measure(chain_name: str, chain, label: str, law, repeat: int) -> dict:
     import hertzchain as hc
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
     from hertzchain.laws import spec_of
 
     system = hc.Model(chain, hc.Striker(8e-3, 0.2), hc.Wall("flat"), law=law).system()

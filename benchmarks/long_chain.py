@@ -8,8 +8,8 @@ Usage::
 Uniform chains of 26 mm AISI 52100 beads (1e4, 1e5 and, without ``--quick``, 1e6), the paper's
 striker at 0.5 m/s, flat wall, the automatic (adaptive) step, probes of the striker and wall
 contacts and the energies every 100 ns (every contact of a 1e5-bead chain every 100 ns would be
-~20 GB): ``hertzchain.integrate.verlet.run_verlet`` (one thread) and
-``hertzchain.integrate.threaded.run_verlet_threaded`` with T threads (default: every core),
+~20 GB): ``hertzchain.integrate.drivers.verlet.run_verlet`` (one thread) and
+``hertzchain.integrate.drivers.threaded.run_verlet_threaded`` with T threads (default: every core),
 alternated, best of N, each run >= 0.3 s. Throughput in bead-steps per second; the speed-up is
 the ratio of the two in the same run. Every timed pair is checked bit for bit (forces, steps).
 The load average is recorded before and after every measurement: the target (>= 1.7x on 2 cores
@@ -63,8 +63,8 @@ def law_models(n_beads: int) -> dict:
 def measure(n_beads: int, threads: int, repeat: int, min_time: float, model=None) -> dict:
     """Bead-steps/s of one thread and of ``threads`` threads on a chain of ``n_beads`` beads
     (``model``: that chain with another law; default the elastic uniform chain)."""
-    from hertzchain.integrate.threaded import run_verlet_threaded
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.threaded import run_verlet_threaded
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     system = (model or uniform_model(n_beads)).system()
     run_verlet(system, 2 * SAMPLE, SAMPLE, contacts=np.array([0, n_beads]))  # compile both (a registry law's
@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> dict:
     info = machine_info()
     print(f"long chains — {info['cpu_model']}, {info['usable_cores']} usable cores, load {info['load_average_at_start']}")
     # warm the JIT (and its cache) on a chain long enough to be split
-    from hertzchain.integrate.threaded import run_verlet_threaded
+    from hertzchain.integrate.drivers.threaded import run_verlet_threaded
 
     run_verlet_threaded(uniform_model(5000).system(), 1e-6, SAMPLE, args.threads)
     rows = [measure(n, args.threads, repeat, min_time) for n in sizes]
@@ -155,7 +155,7 @@ def main_laws(args) -> dict:
     info = machine_info()
     print(f"one chain of {args.beads:,} beads, every law, 1 vs {args.threads} threads — {info['cpu_model']}, "
           f"{info['usable_cores']} usable cores, load {info['load_average_at_start']}")
-    from hertzchain.integrate import threaded
+    from hertzchain.integrate.drivers import threaded
 
     calls: list[int] = []
     record = threaded._Pace.record

@@ -49,7 +49,7 @@ def estimate(kind: str, path: Path):
 def _estimate(kind: str, path: Path):
     from hertzchain.checks import estimate_resources
     from hertzchain.config import build_model, build_probes, load_config
-    from hertzchain.simulation import auto_duration
+    from hertzchain.runs.simulation import auto_duration
 
     if kind == "run":
         cfg = load_config(path)

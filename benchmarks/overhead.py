@@ -39,8 +39,8 @@ def _cpu_per_call(fn, calls: int, repeat: int) -> float:
 
 
 def overhead(calls: int, repeat: int) -> dict:
-    from hertzchain.integrate.rkn import run_rkn
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.rkn import run_rkn
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     model = hc.Model(hc.Chain.uniform(6, 20e-3), hc.Striker(8e-3, 0.2))
     probes = hc.Probes(sample_interval=1e-6, sensors=(3,))

@@ -6,7 +6,7 @@ Usage::
 
 The paper's chain 1 (30 beads) hit by the 8 mm striker at 2 m/s (the striker contact and the
 first beads yield), 2 ms at a fixed step of 5 ns (400,000 steps), default probes every 100 ns,
-run with :func:`hertzchain.integrate.verlet.run_verlet` under four laws, each the best of several
+run with :func:`hertzchain.integrate.drivers.verlet.run_verlet` under four laws, each the best of several
 calls after a warm-up (compilation excluded):
 
 - ``elastic``: Hertz, the fused vectorised path (``kernels.step_elastic``);
@@ -53,7 +53,7 @@ def models() -> dict:
 
 
 def runner(model, duration: float):
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     system = model.system()
     return lambda: run_verlet(system, duration, SAMPLE, dt=DT)

@@ -33,7 +33,7 @@ from _common import RESULTS, best_of, machine_info, quiet, save_json, table  # n
 
 def checks_overhead(repeat: int) -> dict:
     import hertzchain as hc
-    from hertzchain import simulation
+    from hertzchain.runs import simulation
 
     model = hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.2), hc.Wall("flat"))
     run = lambda: hc.simulate(model, 3e-3)  # noqa: E731

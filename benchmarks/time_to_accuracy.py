@@ -66,7 +66,7 @@ def order(steps, errors) -> float:
 def convergence(quick: bool) -> dict:
     """Errors against steps, controlled and fixed, on chain 1 and the two-body impact."""
     import hertzchain as hc
-    from hertzchain.integrate.rkn import run_rkn
+    from hertzchain.integrate.drivers.rkn import run_rkn
 
     out = {}
     # chain 1: velocities of every body at every microsecond against a much finer run
@@ -171,10 +171,10 @@ def overhead(repeat: int) -> dict:
     """simulate() minus its kernel, for both integrators, and the pieces of it."""
     import hertzchain as hc
     from hertzchain.checks import check_after_run, check_before_run
-    from hertzchain.integrate.rkn import run_rkn
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.rkn import run_rkn
+    from hertzchain.integrate.drivers.verlet import run_verlet
     from hertzchain.result import build_dataset
-    from hertzchain.simulation import warn_elastic_limit
+    from hertzchain.runs.simulation import warn_elastic_limit
 
     model = paper_chain1_model()
     system = model.system()

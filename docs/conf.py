@@ -141,7 +141,7 @@ _GROUP_TITLES = {
     "hertzchain.elements": "Bead elements",
     "hertzchain.model": "Model",
     "hertzchain.probes": "Probes",
-    "hertzchain.simulation": "Running",
+    "hertzchain.runs.simulation": "Running",
     "hertzchain.result": "Results",
     "hertzchain.config": "Configuration files",
     "hertzchain.integrate": "Many chains at once",

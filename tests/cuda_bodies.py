@@ -10,7 +10,7 @@ import numpy as np
 
 from hertzchain import Chain, ConfigError, Dashpot, Model, Probes, Striker, Wall
 from hertzchain.elements import Element
-from hertzchain.integrate.batch import simulate_batch
+from hertzchain.runs.batch import simulate_batch
 
 
 def main() -> dict:

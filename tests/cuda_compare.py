@@ -13,8 +13,8 @@ import numpy as np
 
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall
 from hertzchain.errors import ElasticLimitWarning
-from hertzchain.integrate.batch import simulate_batch
-from hertzchain.integrate.ensemble import Ensemble
+from hertzchain.runs.batch import simulate_batch
+from hertzchain.integrate.batch.ensemble import Ensemble
 
 INTERVAL = 1e-6  # s
 
@@ -113,7 +113,7 @@ def compare(members: int = 3, beads: int = 3, kernel: str = "thread", which=None
     """Per case: max relative difference GPU vs CPU of every compared variable, and whether the
     step counts, steps and NaN layouts are identical. ``kernel``: "thread" or "warp" per member over
     :func:`cases`, or "register" (the register kernel) over :func:`register_cases`."""
-    from hertzchain.integrate import cuda as hc_cuda
+    from hertzchain.integrate.cuda import launch as hc_cuda
 
     saved = hc_cuda.WARP_PER_MEMBER_BELOW, hc_cuda.USE_REGISTER_KERNEL
     hc_cuda.WARP_PER_MEMBER_BELOW = 10**12 if kernel == "warp" else 0
@@ -150,7 +150,7 @@ def _compare(which: dict) -> dict:
 
 def multi_launch() -> dict:
     """A run cut into ~10 launches (small output budget): state carried across launches exactly."""
-    from hertzchain.integrate import cuda as hc_cuda
+    from hertzchain.integrate.cuda import launch as hc_cuda
 
     ens = Ensemble(Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.2)), striker_velocity=[0.1, 0.2])
     saved = hc_cuda.LAUNCH_OUTPUT_BYTES, hc_cuda.WARP_PER_MEMBER_BELOW

@@ -1,4 +1,4 @@
-"""The lanes-per-chain and tile kernels (hertzchain.integrate.cuda_lanes) against the CPU engine.
+"""The lanes-per-chain and tile kernels (hertzchain.integrate.cuda.lanes) against the CPU engine.
 
 Run as a script under Numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1 python
 tests/cuda_lanes_compare.py``) by tests/test_cuda_lanes.py, or on a GPU; prints JSON.
@@ -13,13 +13,13 @@ import numpy as np
 
 from hertzchain import Chain, Model, Probes, Striker
 from hertzchain.errors import ElasticLimitWarning
-from hertzchain.integrate.batch import simulate_batch
-from hertzchain.integrate.ensemble import Ensemble
+from hertzchain.runs.batch import simulate_batch
+from hertzchain.integrate.batch.ensemble import Ensemble
 
 
 def lanes(members: int = 3, beads: int = 5, steps_per_sample: int = 8, samples: int = 6) -> dict:
     """CPU engine vs the lanes kernel on a fixed step: largest relative differences."""
-    from hertzchain.integrate import cuda as hc_cuda
+    from hertzchain.integrate.cuda import launch as hc_cuda
 
     rng = np.random.default_rng(3)
     base = Model(Chain.uniform(beads, 10e-3), Striker(8e-3, 0.2))
@@ -54,10 +54,10 @@ def lanes(members: int = 3, beads: int = 5, steps_per_sample: int = 8, samples: 
 def tile(beads: int = 40, steps: int = 12) -> dict:
     """One chain: ``steps`` lean steps on the CPU (kernels.step_elastic_lean) against the tile
     kernel with a tile of 8 bodies and a halo of 4 (3 launches of 4 steps)."""
-    from hertzchain.integrate import kernels
-    from hertzchain.integrate.cuda_device import _cuda
-    from hertzchain.integrate.cuda_lanes import tile_kernel
-    from hertzchain.integrate.layout import pack
+    from hertzchain.integrate.core import kernels
+    from hertzchain.integrate.cuda.device import _cuda
+    from hertzchain.integrate.cuda.lanes import tile_kernel
+    from hertzchain.integrate.core.layout import pack
     from numba import njit
 
     @njit
@@ -99,7 +99,7 @@ def ptx() -> dict:
     from numba import cuda, types
     from numba.cuda import dispatcher
 
-    from hertzchain.integrate import cuda_lanes
+    from hertzchain.integrate.cuda import lanes as cuda_lanes
 
     dispatcher.get_current_device = lambda: pytypes.SimpleNamespace(compute_capability=(9, 0))
     f1, f2, f3 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]

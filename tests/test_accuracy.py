@@ -66,7 +66,7 @@ def test_uniform_chain_wall_to_chain_force_ratio():
 
 
 def test_diverging_run_raises(monkeypatch):
-    from hertzchain.integrate import verlet
+    from hertzchain.integrate.drivers import verlet
 
     # A precompressed chain stepped far beyond Verlet's stability limit (omega dt = 30 > 2) blows
     # up; the user gets an error, not a file of NaNs. The guard that refuses such a dt is lifted.

@@ -21,9 +21,10 @@ from conftest import assert_same_run
 
 import hertzchain as hc
 from hertzchain.errors import ElasticLimitWarning
-from hertzchain.integrate import batch_engine, kernels
-from hertzchain.integrate.batch import run_batch, simulate_many
-from hertzchain.integrate.verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, HORIZON_STEPS, auto_time_step,
+from hertzchain.integrate.batch import engine as batch_engine
+from hertzchain.integrate.core import kernels
+from hertzchain.runs.batch import run_batch, simulate_many
+from hertzchain.integrate.drivers.verlet import (ADAPTIVE_STEPS_PER_RADIAN, HORIZON_RADIANS, HORIZON_STEPS, auto_time_step,
                                          horizon_radians, refine_peak, run_verlet, step_plan)
 
 REF_RTOL = 1e-12  # DOP853 reference tolerance (converged to ~1e-8, tests/test_accuracy.py)

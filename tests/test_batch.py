@@ -10,8 +10,8 @@ from conftest import assert_same_run
 
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
 from hertzchain.errors import ConfigError, ElasticLimitWarning
-from hertzchain.integrate import batch_engine
-from hertzchain.integrate.batch import run_batch, simulate_batch, simulate_many
+from hertzchain.integrate.batch import engine as batch_engine
+from hertzchain.runs.batch import run_batch, simulate_batch, simulate_many
 
 DURATION = 2.5e-4  # s: short, but long enough for the pulse to hit the wall of every chain below
 INTERVAL = 1e-6    # s

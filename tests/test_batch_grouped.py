@@ -17,10 +17,11 @@ from conftest import assert_same_run
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
 from hertzchain.contact import ScaledViscoelastic
 from hertzchain.errors import ConfigError, ElasticLimitWarning
-from hertzchain.integrate import batch, batch_pack
-from hertzchain.integrate.batch import run_batch, simulate_batch, simulate_many
-from hertzchain.integrate.ensemble import Ensemble, layout_key, same_layout
-from hertzchain.integrate.ragged import Ragged
+from hertzchain.runs import batch
+from hertzchain.integrate.batch import pack as batch_pack
+from hertzchain.runs.batch import run_batch, simulate_batch, simulate_many
+from hertzchain.integrate.batch.ensemble import Ensemble, layout_key, same_layout
+from hertzchain.integrate.batch.ragged import Ragged
 
 DURATION = 2.5e-4  # s: the pulse reaches the wall of every chain below
 INTERVAL = 1e-6    # s

@@ -14,7 +14,7 @@ import pytest
 
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall
 from hertzchain.errors import ElasticLimitWarning, PulseNotReachedWarning
-from hertzchain.integrate.batch import simulate_batch, simulate_many, stack_results
+from hertzchain.runs.batch import simulate_batch, simulate_many, stack_results
 from hertzchain.result import build_dataset, run_fields
 
 DURATION = 1.2e-4  # s
@@ -141,7 +141,7 @@ def test_stack_results_of_other_datasets_and_member_numbers():
 def test_build_dataset_is_run_fields_wrapped():
     model = Model(Chain.uniform(4, 10e-3), Striker(8e-3, 0.2))
     probes = Probes(INTERVAL, sensors=(2,), velocities=True)
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     raw = run_verlet(model.system(), 2e-5, INTERVAL, record_velocities=True,
                      contacts=probes.recorded_contacts(4, True))

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain.integrate.batch import simulate_batch, simulate_many
-from hertzchain.integrate.reference import run_reference
-from hertzchain.integrate.verlet import run_verlet
+from hertzchain.runs.batch import simulate_batch, simulate_many
+from hertzchain.integrate.drivers.reference import run_reference
+from hertzchain.integrate.drivers.verlet import run_verlet
 
 from conftest import assert_same_run
 

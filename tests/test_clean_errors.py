@@ -134,7 +134,7 @@ def test_batch_projected_long_warns_before_it_starts(monkeypatch):
     def boom(*args, **kwargs):
         raise AssertionError("the engine ran before the warning")
 
-    monkeypatch.setattr("hertzchain.integrate.batch._pack_ensemble", boom)
+    monkeypatch.setattr("hertzchain.runs.batch._pack_ensemble", boom)
     with pytest.warns(LongRunWarning, match=r"split the 3 members \(models\) into smaller batches"), \
             pytest.raises(AssertionError):
         hc.simulate_batch([base] * 3, 1e-3)

@@ -14,9 +14,9 @@ import pytest
 
 from hertzchain import Chain, Model, Probes, Striker
 from hertzchain.errors import ConfigError
-from hertzchain.integrate import cuda as hc_cuda
-from hertzchain.integrate.batch import simulate_batch
-from hertzchain.integrate.ensemble import Ensemble
+from hertzchain.integrate.cuda import launch as hc_cuda
+from hertzchain.runs.batch import simulate_batch
+from hertzchain.integrate.batch.ensemble import Ensemble
 
 pytest.importorskip("numba.cuda", reason="the CUDA backend needs numba-cuda (the 'gpu' / 'test' extras)")
 

@@ -1,4 +1,4 @@
-"""The lanes-per-chain batch kernel and the long-chain tile kernel (hertzchain.integrate.cuda_lanes):
+"""The lanes-per-chain batch kernel and the long-chain tile kernel (hertzchain.integrate.cuda.lanes):
 against the CPU engine through Numba's CUDA simulator, and compiled to PTX for an H100 without a
 GPU (when the CUDA compiler libraries, the ``gpu`` extra, are installed)."""
 

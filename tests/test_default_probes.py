@@ -13,7 +13,7 @@ import hertzchain as hc
 from hertzchain.checks import estimate_resources
 from hertzchain.config import build_probes, parse_config
 from hertzchain.probes import AUTO_ALL_CONTACTS, AUTO_SAMPLED_CONTACTS, DEFAULT_MAX_SAMPLES, default_probes
-from hertzchain.simulation import auto_duration
+from hertzchain.runs.simulation import auto_duration
 
 
 def test_auto_contacts_every_contact_of_a_short_chain():

@@ -13,7 +13,7 @@ import pytest
 import hertzchain as hc
 from hertzchain.cli.main import main
 from hertzchain.design import parse_design, run_design, write_report
-from hertzchain.integrate.batch import simulate_batch
+from hertzchain.runs.batch import simulate_batch
 
 STRIKER = {"diameter_mm": 8.0, "velocity": 0.2}
 # Sampling every 1 us: the engine refines the wall peak between samples, so the objective does
@@ -258,7 +258,7 @@ def test_a_generation_too_large_for_memory_is_refused_naming_the_population(tmp_
 
 
 def test_device_option_reaches_the_engine(tmp_path, capsys):
-    from hertzchain.integrate import cuda
+    from hertzchain.integrate.cuda import launch as cuda
 
     f = tmp_path / "d.toml"
     _write_design(f, _nq_design(budget=40, polish=False, population=8))

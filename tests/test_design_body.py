@@ -8,7 +8,7 @@ import pytest
 
 import hertzchain as hc
 from hertzchain.design import parse_design, run_design, write_report
-from hertzchain.integrate.batch import simulate_batch
+from hertzchain.runs.batch import simulate_batch
 
 BODY = {"type": "body", "mass": 1.0, "stiffness": 1e7}
 RUN = {"duration": 3e-3, "sample_interval": 1e-6}

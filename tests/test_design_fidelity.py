@@ -18,7 +18,7 @@ from hertzchain.design.objectives import (Fidelity, _records, _records_of_datase
                                          search_interval)
 from hertzchain.design.problem import search_fidelity
 from hertzchain.errors import ConfigError
-from hertzchain.integrate.batch import run_batch, simulate_batch
+from hertzchain.runs.batch import run_batch, simulate_batch
 
 STRIKER = {"diameter_mm": 8.0, "velocity": 0.2}
 RUN = {"duration": 2.0e-3, "sample_interval": 1e-6}

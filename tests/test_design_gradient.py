@@ -11,7 +11,7 @@ import pytest
 import hertzchain as hc
 from hertzchain.design import parse_design, run_design
 from hertzchain.design.gradient import Coordinates, gradient_support
-from hertzchain.integrate.batch import simulate_batch
+from hertzchain.runs.batch import simulate_batch
 
 STRIKER = {"diameter_mm": 8.0, "velocity": 0.2}
 RUN = {"duration": 1.5e-3, "sample_interval": 1e-6}

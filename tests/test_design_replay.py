@@ -16,7 +16,7 @@ from hertzchain.design import parse_design, run_design, write_report
 from hertzchain.design.report import compare_with_references
 from hertzchain.design.saved_comparison import COMPARISON_FILE, comparison_key, read_comparison
 from hertzchain.errors import CheckpointWarning
-from hertzchain.integrate import batch
+from hertzchain.runs import batch
 
 DESIGN = {"base": {"chain": {"uniform": {"n": 4, "diameter_mm": 26.0}, "taper": {"n": 4, "q": 0.05}},
                    "striker": {"diameter_mm": 8.0, "velocity": 0.2},

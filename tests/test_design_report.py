@@ -14,7 +14,7 @@ import hertzchain as hc
 from hertzchain.design import parse_design, run_design, write_report
 from hertzchain.design.objectives import member_metrics
 from hertzchain.design.report import compare_with_references, headline_sentence, objective_signal
-from hertzchain.integrate.batch import simulate_batch
+from hertzchain.runs.batch import simulate_batch
 
 #: 4 x 26 mm then a taper of 4 beads (q = 0.05: 195.6 mm long) on a 1 kg body on a 1e7 N/m mount;
 #: no chain longer than 190 mm allowed, which the base and the uniform chain of 8 x 26 mm break.

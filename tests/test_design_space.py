@@ -10,7 +10,7 @@ import pytest
 import hertzchain as hc
 from hertzchain.design import CATALOGUES, parse_design, run_design
 from hertzchain.design.objectives import member_metrics
-from hertzchain.integrate.batch import simulate_batch
+from hertzchain.runs.batch import simulate_batch
 from hertzchain.errors import ConfigError
 
 BASE = {"chain": {"uniform": {"n": 4, "diameter_mm": 26.0}, "taper": {"n": 4, "q": 0.05}},
@@ -185,7 +185,7 @@ def test_design_table_types_are_strict(design, field):
 def test_automatic_duration_is_resolved_once_for_the_whole_space(tmp_path):
     """run.duration = "auto" (the default): one duration for every candidate (one time axis per
     batch), the longest automatic one over the space's corners and centre, written into best.toml."""
-    from hertzchain.simulation import auto_duration
+    from hertzchain.runs.simulation import auto_duration
 
     base = {"chain": {"uniform": {"n": 4, "diameter_mm": 26.0}, "taper": {"n": 4, "q": 0.05}},
             "striker": {"diameter_mm": 8.0, "velocity": 0.2}, "run": {"sample_interval": 1e-6}}

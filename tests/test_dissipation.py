@@ -17,10 +17,10 @@ from hertzchain.chain import Chain, paper_chain
 from hertzchain.contact import Dashpot, Elastic, Viscoelastic
 from hertzchain.errors import ConfigError
 from hertzchain.dissipation import calibrate_law, fit_geometric_decay, measure_eps, refine_peaks
-from hertzchain.integrate.verlet import auto_time_step
+from hertzchain.integrate.drivers.verlet import auto_time_step
 from hertzchain.model import Model, Striker, Wall
 from hertzchain.probes import Probes
-from hertzchain.simulation import simulate
+from hertzchain.runs.simulation import simulate
 
 EPS = 0.985
 PHI = 26e-3  # m, the paper's monodisperse beads

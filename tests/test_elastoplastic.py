@@ -20,7 +20,7 @@ from hertzchain.plasticity import (LIMITING_PRESSURE_FACTOR, limiting_pressure, 
                                    thornton_loading_overlap, thornton_loading_work, thornton_restitution,
                                    thornton_unloading, yield_velocity)
 from hertzchain.errors import ConfigError
-from hertzchain.integrate.kernels import elastoplastic_force
+from hertzchain.integrate.core.kernels import elastoplastic_force
 
 STEEL = hc.get_material("AISI52100")
 
@@ -228,7 +228,7 @@ def test_pairs_that_meet_again_reload_on_their_unloading_curve():
 
 
 def test_state_is_carried_across_chunks():
-    from hertzchain.integrate.verlet import run_verlet
+    from hertzchain.integrate.drivers.verlet import run_verlet
 
     system = hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 2.0), hc.Wall(), hc.Elastoplastic()).system()
     one = run_verlet(system, 1e-3, 1e-7)

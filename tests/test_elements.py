@@ -12,8 +12,8 @@ from scipy.optimize import brentq
 
 import hertzchain as hc
 from hertzchain.elements import Element, Face, contact_constants, elliptic_hertz, relative_curvatures
-from hertzchain.integrate.reference import run_reference
-from hertzchain.integrate.verlet import run_verlet
+from hertzchain.integrate.drivers.reference import run_reference
+from hertzchain.integrate.drivers.verlet import run_verlet
 
 STEEL = hc.get_material("AISI52100")
 E_STAR = STEEL.young / (2 * (1 - STEEL.poisson ** 2))

@@ -12,9 +12,9 @@ from test_batch_stacking import assert_identical
 
 from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall, simulate
 from hertzchain.errors import ConfigError, ElasticLimitWarning
-from hertzchain.integrate.batch import simulate_batch, simulate_many, stack_results
-from hertzchain.integrate.ensemble import Ensemble, same_layout
-from hertzchain.integrate.systems import systems
+from hertzchain.runs.batch import simulate_batch, simulate_many, stack_results
+from hertzchain.integrate.batch.ensemble import Ensemble, same_layout
+from hertzchain.integrate.batch.systems import systems
 
 DURATION = 2.5e-4  # s: the pulse reaches the wall of every member below
 INTERVAL = 1e-6    # s
@@ -149,7 +149,7 @@ def _tolerance_sweep(n: int = 6, **tol) -> dict:
 
 
 def test_sweep_members_as_one_ensemble_are_the_models_number_for_number():
-    from hertzchain.integrate.ensemble import Ensemble
+    from hertzchain.integrate.batch.ensemble import Ensemble
     from hertzchain.sweep import parse_sweep
     from hertzchain.sweep.schema import chunk_members
 
@@ -183,7 +183,7 @@ def test_sweep_tolerances_out_of_range_name_the_field():
 def test_cli_device_option(tmp_path, capsys):
     """--device is accepted; 'cuda' without a GPU is a user error naming the option (exit 2)."""
     from hertzchain.cli.main import main
-    from hertzchain.integrate.cuda import gpu_usable
+    from hertzchain.integrate.cuda.launch import gpu_usable
 
     sweep = tmp_path / "s.toml"
     sweep.write_text('[base]\nchain = { uniform = { n = 3, diameter_mm = 10.0 } }\n'
@@ -202,7 +202,7 @@ def test_cli_device_option(tmp_path, capsys):
 def test_configs_and_the_member_by_member_fallback_give_the_same_dataset(monkeypatch):
     """Per-member configs are stored as given; a variable the array path does not know (one
     added to run_fields later) makes it stack member by member, with the same result."""
-    from hertzchain.integrate import batch_results
+    from hertzchain.runs import batch_results
 
     ens = ensembles()["viscoelastic"]
     models = [ens.model(i) for i in range(M)]

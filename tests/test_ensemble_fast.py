@@ -1,4 +1,4 @@
-"""The fast path of a metrics-only ensemble: the batched fourth-order engine (integrate/batch_rkn.py)
+"""The fast path of a metrics-only ensemble: the batched fourth-order engine (integrate/batch/rkn.py)
 is the single run of ``integrate="rkn4"`` member by member, its largest contact forces over the run
 bound the sampled ones, the compiled pulse fit (analysis/pulse_batch.py) is ``fit_pulse``'s, and a
 sweep's metrics are those of single runs of the same drawn members."""
@@ -18,7 +18,7 @@ from hertzchain.analysis import fit_pulse
 from hertzchain.analysis.pulse import cos6_pulse
 from hertzchain.analysis.pulse_batch import PULSE_COLUMNS, fit_pulses
 from hertzchain.errors import ConfigError
-from hertzchain.integrate.batch import simulate_batch
+from hertzchain.runs.batch import simulate_batch
 from hertzchain.sweep import parse_sweep, run_sweep
 from hertzchain.sweep.runner import F_M_REFINE
 

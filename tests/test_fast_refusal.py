@@ -45,6 +45,6 @@ def test_bad_config_is_refused_before_any_kernel_is_imported(tmp_path, override,
     assert field in proc.stderr and "Traceback" not in proc.stderr
     # at most the integrate package and its refusal checks (plain Python), no compiled module
     assert seen["compiled"] == []
-    assert set(seen["integrate"]) <= {"hertzchain.integrate", "hertzchain.integrate.refusals"}
+    assert set(seen["integrate"]) <= {"hertzchain.integrate", "hertzchain.integrate.drivers.refusals"}
     assert not seen["xarray"]  # ~0.5 s of imports, needed only once the config is valid
     assert not out.exists()

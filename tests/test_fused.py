@@ -1,6 +1,6 @@
 """The fused steps against the general path they replace (the predicted velocities,
 kernels.forces_general, the update loops): the viscous laws' step of aligned chains
-(kernels.step_dissipative) and the elastic and viscous steps of misaligned chains (integrate/fused.py):
+(kernels.step_dissipative) and the elastic and viscous steps of misaligned chains (integrate/core/fused.py):
 positions, velocities, accelerations and forces bit for bit over a whole pulse; the dissipated
 power, summed in a vectorised order (kernels.dissipative_block, fused.offset_dissipative_block),
 within 1e-14 of the contact-order sum; the energies of the probes of a misaligned chain
@@ -14,9 +14,9 @@ import pytest
 from numba import njit
 
 import hertzchain as hc
-from hertzchain.integrate import fused as FU
-from hertzchain.integrate import kernels as K
-from hertzchain.integrate.layout import pack
+from hertzchain.integrate.core import fused as FU
+from hertzchain.integrate.core import kernels as K
+from hertzchain.integrate.core.layout import pack
 
 #: The documented bound on the dissipated power of the viscous laws (relative to its largest value).
 POWER_REL = 1e-14

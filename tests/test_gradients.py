@@ -20,7 +20,7 @@ from hertzchain.config import build_model, parse_config, parse_path
 from hertzchain.errors import ConfigError
 from hertzchain.gradients import OBJECTIVES, sensitivity
 from hertzchain.gradients.objectives import read_objective
-from hertzchain.integrate import differentiate as D
+from hertzchain.integrate.derivatives import differentiate as D
 
 MAT = {"mysteel": {"density": 7800.0, "young": 2.0e11, "poisson": 0.3, "yield_stress": 2e9}}
 BASE = {"materials": MAT,

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from hertzchain.config import build_model, parse_config
-from hertzchain.integrate import differentiate as D
-from hertzchain.integrate.verlet import run_verlet
+from hertzchain.integrate.derivatives import differentiate as D
+from hertzchain.integrate.drivers.verlet import run_verlet
 
 BASE = {"chain": {"diameters_mm": [20.0, 19.0, 18.0, 17.0, 16.0, 15.0, 14.0, 13.0]},
         "striker": {"velocity": 0.3, "diameter_mm": 8.0},

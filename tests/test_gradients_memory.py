@@ -21,7 +21,7 @@ from hertzchain.config import build_model, parse_config
 from hertzchain.errors import ConfigError
 from hertzchain.gradients.memory import MemoryEstimate, check_memory, estimate_memory
 from hertzchain.gradients.setup import _plan, expand_paths, setup_derivatives
-from hertzchain.integrate import differentiate as D
+from hertzchain.integrate.derivatives import differentiate as D
 
 CONFIGS = {
     # a listed chain extended by a taper (its last listed bead scales every tapered one), under a

@@ -28,7 +28,7 @@ from hertzchain.config import build_model, parse_config
 from hertzchain.errors import ConfigError
 from hertzchain.gradients import sensitivity
 from hertzchain.gradients.objectives import contacts_needed, read_objective
-from hertzchain.integrate import differentiate as D
+from hertzchain.integrate.derivatives import differentiate as D
 
 BODY = _with(BASE, wall={"type": "body", "mass": 0.05, "stiffness": 2e5, "damping": 5.0},
              striker={"shape": "flat", "mass": 0.004}, run={"duration": 1.2e-3})

@@ -73,7 +73,7 @@ def test_a_step_count_past_the_limit_names_run_dt_and_the_batch_engine_refuses_t
         hc.simulate(model, 50.0, dt=1e-15)
     assert err.value.field == "run.dt" and "5e+16" in err.value.message
     body = hc.Model(hc.Chain.uniform(3, 10e-3), hc.Striker(8e-3, 0.2), hc.Wall("body", mass=1e-15, damping=1e12))
-    from hertzchain.integrate.batch import simulate_many
+    from hertzchain.runs.batch import simulate_many
 
     with pytest.raises(TooManySteps, match="wall.damping"):
         simulate_many([body, body], 1e-3)
@@ -206,7 +206,7 @@ def _preflight(cfg: dict):
     """Validation, model, its arrays and the pre-flight: a ConfigError, or what passed it."""
     from hertzchain.checks import estimate_resources
     from hertzchain.config import build_model, build_probes, parse_config
-    from hertzchain.simulation import auto_duration
+    from hertzchain.runs.simulation import auto_duration
 
     parsed = parse_config(cfg)
     model = build_model(parsed)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain.integrate.refusals import INTEGRATORS, accepted_integrators
+from hertzchain.integrate.drivers.refusals import INTEGRATORS, accepted_integrators
 
 CHAIN = hc.Chain.uniform(4, 10e-3)
 MODELS = {

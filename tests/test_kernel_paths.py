@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 import hertzchain as hc
-from hertzchain.integrate import kernels
-from hertzchain.integrate.layout import pack
+from hertzchain.integrate.core import kernels
+from hertzchain.integrate.core.layout import pack
 
 
 def test_long_chain_lean_loop_matches_short_chain_loop():

@@ -9,7 +9,7 @@ import hertzchain as hc
 from conftest import assert_sums_agree
 from hertzchain.chain import Chain, paper_chain
 from hertzchain.model import Model, Striker, Wall
-from hertzchain.track import Track, lateral_arrays, simulate_lateral
+from hertzchain.runs.track import Track, lateral_arrays, simulate_lateral
 
 
 def _oblique_pair(law=None) -> Model:

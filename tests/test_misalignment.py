@@ -28,7 +28,7 @@ from hertzchain.contact import Viscoelastic
 from hertzchain.dissipation import calibrate_law
 from hertzchain.model import Model, Striker
 from hertzchain.probes import Probes
-from hertzchain.simulation import simulate
+from hertzchain.runs.simulation import simulate
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 STRIKER = Striker(8e-3, 0.2)  # the paper's striker; forces far below the elastic limit

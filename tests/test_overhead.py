@@ -7,7 +7,7 @@ import numpy as np
 import xarray as xr
 
 import hertzchain as hc
-from hertzchain.integrate.verlet import run_verlet
+from hertzchain.integrate.drivers.verlet import run_verlet
 from hertzchain.result import fields_dataset, run_fields
 
 

@@ -14,7 +14,7 @@ import pytest
 
 import hertzchain as hc
 from hertzchain.cli.main import main
-from hertzchain.simulation import auto_duration, elastic_limit_message
+from hertzchain.runs.simulation import auto_duration, elastic_limit_message
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

@@ -77,7 +77,7 @@ def test_fixed_step_must_respect_the_damping_bound():
 def test_a_run_that_gains_energy_is_stopped_naming_the_cause(monkeypatch):
     """Bypass the step check: a fixed step beyond 2 m / gamma gains energy, and the balance check
     stops the run naming run.dt (never exit 0 with 1e17 N)."""
-    from hertzchain.integrate import verlet
+    from hertzchain.integrate.drivers import verlet
 
     monkeypatch.setattr(verlet, "check_time_step", lambda system, dt: None)
     model = dashpot_model(1e5)
@@ -197,7 +197,7 @@ def test_records_that_cannot_fit_in_memory_are_refused_before_allocation():
 
 def test_long_run_is_allowed_with_a_warning_and_the_estimate():
     model = hc.Model(hc.Chain.uniform(1000, 26e-3))
-    from hertzchain.integrate.verlet import step_plan
+    from hertzchain.integrate.drivers.verlet import step_plan
 
     est = checks.estimate_resources(model.system(), 10.0, hc.Probes(sample_interval=1e-3))
     # steps at the smallest adaptive step (an upper estimate) x moving bodies x cost of a bead-step
@@ -222,7 +222,7 @@ def test_cli_refuses_a_run_too_large_for_memory(tmp_path, capsys):
 
 def test_divergence_message_names_run_dt_only_when_it_was_given(monkeypatch):
     """Issue: the divergence message asked for a smaller run.dt when none was given."""
-    from hertzchain.integrate import kernels
+    from hertzchain.integrate.core import kernels
 
     monkeypatch.setattr(kernels, "verlet_run", lambda *args: 1)  # the kernel reports a non-finite state
     model = hc.Model(hc.Chain.uniform(3, 26e-3), hc.Striker(8e-3, 0.2))
@@ -235,7 +235,7 @@ def test_divergence_message_names_run_dt_only_when_it_was_given(monkeypatch):
 
 def test_sweep_member_that_gains_energy_stops_the_sweep(tmp_path, monkeypatch):
     """The batched engine has no balance check of its own: compute_chunk checks every member."""
-    from hertzchain.integrate import verlet
+    from hertzchain.integrate.drivers import verlet
 
     monkeypatch.setattr(verlet, "check_time_step", lambda system, dt: None)
     w = dashpot_model(1e5).system().max_frequency()

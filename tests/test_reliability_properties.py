@@ -390,7 +390,7 @@ def test_configs_drawn_from_the_schema_are_accepted_or_refused_by_field(data):
     and the resource estimate either succeed or raise a ConfigError naming a field of the input
     (the chain or instrument key as written); never another exception."""
     from hertzchain.config import build_instruments, build_model, build_probes, parse_config
-    from hertzchain.simulation import auto_duration
+    from hertzchain.runs.simulation import auto_duration
 
     try:
         cfg = parse_config(data)

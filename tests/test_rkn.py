@@ -11,7 +11,7 @@ import pytest
 
 import hertzchain as hc
 from hertzchain.errors import ElasticLimitWarning, PulseNotReachedWarning
-from hertzchain.integrate.rkn import RKN_RTOL, run_rkn
+from hertzchain.integrate.drivers.rkn import RKN_RTOL, run_rkn
 
 REF_RTOL = 1e-12
 

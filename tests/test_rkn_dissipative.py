@@ -1,4 +1,4 @@
-"""``"rkn4"`` on the dissipative laws and offset beads (:mod:`hertzchain.integrate.rkn_damped`):
+"""``"rkn4"`` on the dissipative laws and offset beads (:mod:`hertzchain.integrate.drivers.rkn_damped`):
 convergence on a two-body impact with the dashpot and with Kuwabara-Kono against DOP853 on an
 independent NumPy right-hand side (error proportional to rtol; order 4 with fixed steps where the
 force is smooth), the paper's chain 1 with its calibrated dashpot (aligned and with offsets)
@@ -14,7 +14,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import hertzchain as hc
-from hertzchain.integrate.rkn import RKN_RTOL, run_rkn
+from hertzchain.integrate.drivers.rkn import RKN_RTOL, run_rkn
 
 LAWS = {"dashpot": hc.Dashpot(gamma=8.0), "viscoelastic": hc.Viscoelastic(A=2e-6)}
 

@@ -1,5 +1,5 @@
 """Sensitivities of registry laws (the engines generated from a law's declared functions,
-:mod:`hertzchain.integrate.law_derivatives`).
+:mod:`hertzchain.integrate.derivatives.law_derivatives`).
 
 Every derivative is checked against central differences of the forward run itself
 (``hertzchain.simulate`` with the Verlet engine, the generated loop), on a short chain at a fixed

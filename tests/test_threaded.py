@@ -1,4 +1,4 @@
-"""One chain on several threads (hertzchain.integrate.threaded) against the single-thread
+"""One chain on several threads (hertzchain.integrate.drivers.threaded) against the single-thread
 Verlet: forces, velocities, positions, the wall peak and the steps bit for bit; the energies,
 summed block by block, within 1e-12 of the one-thread sums."""
 
@@ -12,8 +12,8 @@ import pytest
 
 import hertzchain as hc
 from hertzchain.errors import ElasticLimitWarning, PulseNotReachedWarning
-from hertzchain.integrate import threaded
-from hertzchain.integrate.verlet import run_verlet
+from hertzchain.integrate.drivers import threaded
+from hertzchain.integrate.drivers.verlet import run_verlet
 
 #: The documented bound on the energies (block sums added in block order vs one sum).
 ENERGY_REL = 1e-12
@@ -104,7 +104,7 @@ def test_barrier_orders_memory():
     neighbour's write of the same round (a missing acquire/release would show stale rounds)."""
     from numba import njit
 
-    from hertzchain.integrate.barrier import barrier, new_barrier
+    from hertzchain.integrate.core.barrier import barrier, new_barrier
 
     @njit(nogil=True)
     def ring(bar, n, me, box, rounds):

@@ -1,4 +1,4 @@
-"""One chain on several threads for every contact law (hertzchain.integrate.threaded_laws) against
+"""One chain on several threads for every contact law (hertzchain.integrate.drivers.threaded_laws) against
 the single-thread Verlet of the same law: forces, velocities, positions, the per-contact state,
 the wall peak and the steps bit for bit (the threads compute each contact as the one-thread loop
 does); the energies, the dissipated energy and the plastic work, summed block by block, within
@@ -14,8 +14,8 @@ import pytest
 
 import hertzchain as hc
 from hertzchain.errors import ElasticLimitWarning, PulseNotReachedWarning
-from hertzchain.integrate import threaded
-from hertzchain.integrate.verlet import run_verlet
+from hertzchain.integrate.drivers import threaded
+from hertzchain.integrate.drivers.verlet import run_verlet
 
 #: The documented bound on the block sums (energies, dissipated energy, plastic work) against one sum.
 SUM_REL = 1e-12

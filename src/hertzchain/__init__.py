@@ -28,14 +28,14 @@ _EXPORTS = {
     "Chain": "chain", "paper_chain": "chain", "TABLE_I_MM": "chain", "Element": "elements",
     "Striker": "model", "Wall": "model", "Model": "model",
     # lateral freedom (the 2D path)
-    "Track": "track", "simulate_lateral": "track",
+    "Track": "runs.track", "simulate_lateral": "runs.track",
     # running and results
-    "Probes": "probes", "simulate": "simulation", "auto_duration": "simulation", "save": "result", "load": "result",
+    "Probes": "probes", "simulate": "runs.simulation", "auto_duration": "runs.simulation", "save": "result", "load": "result",
     "export": "exporting",
     "load_config": "config.loading", "parse_config": "config.schema", "run_config": "config.build",
     "build_model": "config.build",
     # many chains
-    "simulate_batch": "integrate.batch", "simulate_many": "integrate.batch", "Ensemble": "integrate.ensemble",
+    "simulate_batch": "runs.batch", "simulate_many": "runs.batch", "Ensemble": "integrate.batch.ensemble",
     "run_sweep": "sweep.runner", "load_sweep": "sweep.schema",
     # design search
     "load_design": "design", "parse_design": "design", "run_design": "design", "write_report": "design",

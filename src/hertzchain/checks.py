@@ -40,7 +40,7 @@ HERTZ_MAX_OVERLAP = 0.1
 LONG_RUN_S = 180.0
 #: Cost of one bead-step of the compiled Verlet [s] (benchmarks/kernel.py: ~1.2 ns aligned
 #: elastic; the general loop for dissipation or offsets is a few times slower), on one core.
-#: ``"rkn4_general"``: rkn4 on the dissipative laws or offsets (integrate/rkn_damped.py: ~43 ns on
+#: ``"rkn4_general"``: rkn4 on the dissipative laws or offsets (integrate/drivers/rkn_damped.py: ~43 ns on
 #: chain 1 with its dashpot, the probes apart: four force passes, the error bound and the events).
 NS_PER_BEAD_STEP = {"elastic": 1.5e-9, "general": 6e-9, "rkn4": 1.2e-8, "rkn4_general": 4.5e-8}
 #: The fourth-order integrator ``"rkn4"`` advances about this many radians of omega_max per step
@@ -152,7 +152,7 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
     ResourceEstimate
         Samples, signals, members, memory [bytes], steps and seconds on one core.
     """
-    from .integrate.verlet import step_plan
+    from .integrate.drivers.verlet import step_plan
 
     n = system.n_beads
     samples, signals, memory = _records_size(n, system.has_wall, duration, probes, members, written)
@@ -520,7 +520,7 @@ def energy_tolerance(system, dt_max: float, integrator: str = "verlet", rtol: fl
         return 1e-3
     if integrator != "verlet":
         return max(1e-2, 1e3 * (1e-10 if rtol is None else rtol))
-    from .integrate.verlet import MAX_OMEGA_DT
+    from .integrate.drivers.verlet import MAX_OMEGA_DT
 
     if not dt_max > 0:  # no step to follow (system may then be None): the floor
         return 1e-3

@@ -2,7 +2,7 @@
 
 A sphere a of diameter phi_a hits, head on at relative speed v, either a free sphere b at rest
 or an immovable flat of material b (a wall). The collision is integrated with the engine's own
-compiled Verlet and contact forces (:mod:`hertzchain.integrate.verlet`), so the restitution is
+compiled Verlet and contact forces (:mod:`hertzchain.integrate.drivers.verlet`), so the restitution is
 that of exactly the law a chain run uses, contact for contact: e = (v_b' - v_a') / v after the
 bodies part (e = -v_a' / v on a flat). For Hertz e = 1; for Thornton's elastic-plastic law it
 follows :func:`hertzchain.contact.thornton_restitution`; for the viscous laws it is what their
@@ -122,7 +122,7 @@ def _check_steps(system, duration: float, law, mu: float) -> None:
     """Refuse, before the run, a collision whose adaptive step makes it take more than
     :data:`_MAX_STEPS` steps over all tries (a dashpot so strong that its damping time mu/gamma
     is a tiny fraction of the contact time: the step resolves it), naming ``law``."""
-    from .integrate.verlet import step_plan
+    from .integrate.drivers.verlet import step_plan
 
     dt = step_plan(system, duration / 8, None, None).dt
     steps = duration / dt * (2**_MAX_TRIES - 1)  # every try doubles the time: the worst case
@@ -179,7 +179,7 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     >>> round(hc.restitution(0.2, "elastic", 8e-3, "AISI52100", 26e-3), 6)
     1.0
     """
-    from .integrate.verlet import run_verlet
+    from .integrate.drivers.verlet import run_verlet
 
     v = _positive("velocity", velocity)
     da = _positive("diameter_a", diameter_a)

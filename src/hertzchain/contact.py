@@ -1,7 +1,7 @@
 """Contact laws between two bodies: Hertz elastic force (paper eq. 1) and dissipative variants.
 
 Geometry helpers here are plain Python (used to build a model and by :mod:`hertzchain.theory`);
-the compiled force evaluations live in :mod:`hertzchain.integrate.kernels`. The elastic-plastic
+the compiled force evaluations live in :mod:`hertzchain.integrate.core.kernels`. The elastic-plastic
 law (Thornton 1997) and its closed forms are in :mod:`hertzchain.plasticity`.
 
 Conventions (docs/conventions.rst): overlap delta > 0 in compression, force
@@ -91,7 +91,7 @@ def yield_force(radius1: float, radius2: float | None, mat1: str | Material, mat
 
 
 # --- dissipative laws ------------------------------------------------------------------------
-# Integer codes select the compiled force function (see integrate/kernels.py).
+# Integer codes select the compiled force function (see integrate/core/kernels.py).
 # The size-scaled Kuwabara-Kono law is the Kuwabara-Kono force with a per-contact A (code 1).
 # The size-scaled dashpot is the dashpot force with a per-contact gamma (code 2).
 LAW_CODES = {"elastic": 0, "viscoelastic": 1, "dashpot": 2, "viscoelastic_scaled": 1, "viscoelastic_sized": 1,

@@ -33,7 +33,7 @@ Two consequences worth knowing (26 mm AISI 52100 beads, 8 mm striker at 0.2 m/s,
   eps ~ 0.963 near gamma ~ 150 N s/m) and falls again as heavy damping spreads the pulse. Only
   the weak-damping branch is searched; a smaller eps is refused with a ConfigError.
 
-Runs use the compiled velocity Verlet (:func:`hertzchain.integrate.verlet.run_verlet`): a
+Runs use the compiled velocity Verlet (:func:`hertzchain.integrate.drivers.verlet.run_verlet`): a
 calibration of 26 mm AISI 52100 beads hit by an 8 mm striker takes about ten runs of a
 34-bead chain (a fraction of a second once the kernels are compiled). Results are cached.
 """
@@ -51,7 +51,7 @@ from .chain import Chain
 from .contact import (Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, SizedViscoelastic, Viscoelastic,
                       hertz_constant)
 from .errors import ConfigError
-from .integrate.verlet import run_verlet
+from .integrate.drivers.verlet import run_verlet
 from .materials import Material, get_material
 from .model import Model, Striker, Wall
 from .laws import get_law, law_names

@@ -3,17 +3,17 @@
 The rules (documented in the user guide's "Running" page, tested per model kind in
 tests/test_engine_choice.py):
 
-* integrator: the fourth-order ``"rkn4"`` (:mod:`hertzchain.integrate.rkn`) when it integrates the
+* integrator: the fourth-order ``"rkn4"`` (:mod:`hertzchain.integrate.drivers.rkn`) when it integrates the
   model, i.e. a chain without a protected body or mass-in-mass beads, with the elastic law (aligned:
   its default step control keeps the peak wall force within ~1e-8 of DOP853, better than the
   Verlet's ~1e-6, at a fraction of the steps), or Kuwabara-Kono's or the dashpot, plain or
-  size-scaled, or beads offset from the axis (:mod:`hertzchain.integrate.rkn_damped`: within
+  size-scaled, or beads offset from the axis (:mod:`hertzchain.integrate.drivers.rkn_damped`: within
   ~4e-7 on the paper's chain 1).
   Otherwise, or when the call sets the Verlet's own accuracy (``steps_per_radian``), a fixed
   step ``dt`` or several threads, the compiled velocity ``"verlet"`` (peak wall force within ~1e-6).
 * threads: more than one only where the threaded engine runs the model (the Verlet on a chain of
   beads, every contact law, offsets too; not a protected body nor mass-in-mass beads,
-  :mod:`hertzchain.integrate.threaded`), the chain is long enough for a per-step barrier to pay
+  :mod:`hertzchain.integrate.drivers.threaded`), the chain is long enough for a per-step barrier to pay
   (:data:`AUTO_THREADS_MIN_BEADS` beads, :data:`BEADS_PER_THREAD` per thread) and cores are free:
   the cores this process may run on (``os.sched_getaffinity``) less the one-minute load average
   beyond this process's own (a barrier that waits for a scheduler slice makes a shared core
@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 from .errors import ConfigError
 # the refusals' checks: plain Python, no compiled kernel imported
-from .integrate.refusals import INTEGRATORS as NAMED, refuse, why_not
+from .integrate.drivers.refusals import INTEGRATORS as NAMED, refuse, why_not
 
 __all__ = ["EngineChoice", "choose_engine", "free_cores", "INTEGRATORS",
            "AUTO_THREADS_MIN_BEADS", "BEADS_PER_THREAD"]

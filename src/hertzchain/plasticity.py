@@ -4,7 +4,7 @@ Thornton, C. (1997), "Coefficient of restitution for collinear collisions of ela
 plastic spheres", J. Appl. Mech. 64, 383-386. Hertz (paper eq. 1) until the largest contact
 pressure reaches a limiting value p_y; then the force grows linearly with the overlap; unloading
 is Hertzian with an enlarged radius of curvature, down to a residual (permanent) overlap. The
-compiled force is :func:`hertzchain.integrate.kernels.elastoplastic_force`; the functions here
+compiled force is :func:`hertzchain.integrate.core.kernels.elastoplastic_force`; the functions here
 are the same law in closed form (loading curve, its work and inverse, the unloading curve, the
 yield velocity and Thornton's restitution), used to size the time step, by the tests and by
 :func:`hertzchain.restitution`'s users. Overlaps [m], forces [N], stiffnesses kappa [N/m^1.5].

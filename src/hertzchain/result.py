@@ -22,7 +22,7 @@ from .model import Model
 from .probes import Probes, sensor_forces
 
 if TYPE_CHECKING:  # the compiled kernels load only when a run is made, not to read a result
-    from .integrate.verlet import RawRun
+    from .integrate.drivers.verlet import RawRun
 
 __all__ = ["build_dataset", "fields_dataset", "run_fields", "RunFields", "save", "load", "to_netcdf_bytes",
            "netcdf_bytes"]

@@ -76,7 +76,7 @@ def require_device(device: str) -> None:
     if device != "cuda":
         return
     from ..errors import ConfigError
-    from ..integrate.cuda import require_gpu
+    from ..integrate.cuda.launch import require_gpu
 
     try:
         require_gpu()

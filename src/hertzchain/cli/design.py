@@ -98,7 +98,7 @@ def _import_search() -> None:
     from scipy.stats import qmc  # noqa: F401
 
     from ..design import search  # noqa: F401
-    from ..integrate import batch  # noqa: F401
+    from ..runs import batch  # noqa: F401
 
 
 def _improvement(info: dict, ref: str) -> str:

@@ -46,7 +46,7 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
     check_writable(out)
     # xarray (~0.5 s to import) only once the config is valid: a bad one is refused at once
     from ..result import save
-    from ..simulation import auto_duration
+    from ..runs.simulation import auto_duration
     model = build_model(cfg)
     probes = build_probes(cfg)
     build_instruments(cfg)  # fail on bad instrument settings before a long run

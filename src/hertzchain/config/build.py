@@ -310,7 +310,7 @@ def build_track(cfg: RunConfig):
     """The :class:`hertzchain.Track` of ``[track]``, or None when the config has none (1D engine)."""
     if cfg.track is None:
         return None
-    from ..track import Track
+    from ..runs.track import Track
 
     t = cfg.track
     with _as_written("track.groove_radius", "track.groove_radius_mm"):
@@ -340,7 +340,7 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
     probes = build_probes(cfg) if probes is None else probes
     config = cfg.model_dump(mode="json")
     if cfg.track is None:
-        from ..simulation import simulate
+        from ..runs.simulation import simulate
 
         return simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                         rtol=cfg.run.rtol, progress=progress, config=config,
@@ -352,8 +352,8 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
     if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:
         raise ConfigError("run.steps_per_radian", "is a setting of the 1D engine's adaptive step; the lateral "
                           "(2D) path of [track] has its own: leave it out")
-    from ..simulation import SCIPY_RTOL, auto_duration
-    from ..track import simulate_lateral
+    from ..runs.simulation import SCIPY_RTOL, auto_duration
+    from ..runs.track import simulate_lateral
 
     auto = cfg.run.duration == "auto"
     track = build_track(cfg)

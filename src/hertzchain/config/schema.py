@@ -256,7 +256,7 @@ class ContactConfig(_Section):
 class RunSection(_Section):
     duration: float | Literal["auto"] = Field(
         default="auto", description="s, or 'auto': until the front has crossed the chain and its tail passed "
-                                    "(hertzchain.simulation.auto_duration)")
+                                    "(hertzchain.runs.simulation.auto_duration)")
     sample_interval: float = _bounded("sample_interval", default=1e-7, description="s")
     dt: float | None = _bounded("dt", default=None, description="s; automatic when absent")
     integrator: Literal["auto", "verlet", "rkn4", "dop853", "rk45"] = Field(

@@ -3,5 +3,5 @@ structure, harmonic drives and steady-state transmission spectra.
 
 The modules are loaded one by one (``hertzchain.equilibrium`` and the other public names are
 re-exported lazily by :mod:`hertzchain`); this package imports nothing itself, so that the engine
-(:mod:`hertzchain.bodies`, :mod:`hertzchain.simulation`) can use one of its modules without the rest.
+(:mod:`hertzchain.bodies`, :mod:`hertzchain.runs.simulation`) can use one of its modules without the rest.
 """

@@ -40,12 +40,12 @@ import types
 import numpy as np
 from numba import njit, prange
 
-from ..integrate.energies import kinetic_energy, potential_energy
-from ..integrate.extension import (EXT_W, EXT_WV, accelerations_extended, energies_extended,
+from ..integrate.core.energies import kinetic_energy, potential_energy
+from ..integrate.core.extension import (EXT_W, EXT_WV, accelerations_extended, energies_extended,
                                    forces_linear)
-from ..integrate.generated import is_generated, law_kernels
-from ..integrate.kernels import forces_general, step_dissipative
-from ..integrate.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
+from ..integrate.core.generated import is_generated, law_kernels
+from ..integrate.core.kernels import forces_general, step_dissipative
+from ..integrate.core.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 
 __all__ = ["drive_value", "driven_run", "driven_batch", "kernels_for"]
 

@@ -19,10 +19,10 @@ import numpy as np
 
 from ..checks import check_before_run
 from ..errors import ConfigError, SimulationDiverged
-from ..integrate.layout import pack
-from ..integrate.generated import is_generated
-from ..integrate.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
-from ..integrate.verlet import RawRun, check_time_step
+from ..integrate.core.layout import pack
+from ..integrate.core.generated import is_generated
+from ..integrate.core.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
+from ..integrate.drivers.verlet import RawRun, check_time_step
 from ..laws import law_of_code
 from .drive import drive_parameters, drive_table
 from .drive_kernel import _accelerations, kernels_for

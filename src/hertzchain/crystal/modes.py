@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..laws import law_of_code
-from ..integrate.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
+from ..integrate.core.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 from .statics import equilibrium
 
 #: The law codes whose elastic part is Hertz's kappa delta^(3/2) (what the linearisation assumes).

@@ -124,7 +124,7 @@ def transmission_run(model, frequency: float, settings: SpectrumSettings = Spect
                      amplitude: float | None = None) -> tuple[float, float, float]:
     """Drive ``model`` at ``frequency`` [Hz] (and ``amplitude``, N or m, when given) to its steady
     state with :func:`hertzchain.simulate`; returns (T, abs(F_out) [N], abs(F_in) [N])."""
-    from ..simulation import simulate
+    from ..runs.simulation import simulate
 
     m, duration, probes = _member(model, frequency, settings, amplitude)
     ds = simulate(m, duration, probes, dt=settings.dt, steps_per_radian=settings.steps_per_radian)

@@ -27,7 +27,7 @@ the ``worst`` case, the ``mean``, or ``mean+ksigma`` (mean + k standard deviatio
 scenarios; run constraints must hold in every scenario.
 
 All scenario runs of all candidates of a generation go to the batched engine in one
-:func:`hertzchain.integrate.batch.run_batch` call (or one per chunk on a Dask cluster), which
+:func:`hertzchain.runs.batch.run_batch` call (or one per chunk on a Dask cluster), which
 returns the engine's arrays without building a Dataset (the design needs a handful of numbers
 per member, not the stacked result).
 
@@ -224,7 +224,7 @@ def member_metrics(ds, objectives: list[str], window: tuple[float, float] | None
     Parameters
     ----------
     ds : xarray.Dataset
-        :func:`~hertzchain.integrate.batch.simulate_batch` result (with ``wall_force``).
+        :func:`~hertzchain.runs.batch.simulate_batch` result (with ``wall_force``).
     objectives : list of str
         Names from :data:`OBJECTIVES` to compute.
     window : (float, float) or None
@@ -283,8 +283,8 @@ def _records_of_dataset(ds) -> "_Records":
 
 
 def _records(runs, systems) -> _Records:
-    """:class:`_Records` of :func:`hertzchain.integrate.batch.run_batch`'s RawRuns and
-    :class:`~hertzchain.integrate.batch.MemberSystem` rows (``return_systems=True``): each member's
+    """:class:`_Records` of :func:`hertzchain.runs.batch.run_batch`'s RawRuns and
+    :class:`~hertzchain.runs.batch.MemberSystem` rows (``return_systems=True``): each member's
     bead count, Hertz constants and elastic limits, computed by the batched set-up (no
     ``Model.system()`` per member)."""
     m = len(runs)
@@ -367,8 +367,8 @@ class _Task:
 
 def _on_gpu(task: _Task) -> bool:
     """Whether the engine would run this task on the GPU (simulate_batch's device choice)."""
-    from ..integrate import cuda
-    from ..integrate.ensemble import same_layout
+    from ..integrate.cuda import launch as cuda
+    from ..integrate.batch.ensemble import same_layout
 
     if task.device in (None, "auto"):
         return (len(task.models) >= cuda.AUTO_MIN_MEMBERS and same_layout(task.models) and cuda.gpu_usable())
@@ -378,12 +378,12 @@ def _on_gpu(task: _Task) -> bool:
 def run_task(task: _Task) -> dict[str, np.ndarray]:
     """Simulate a task's models in ONE batched engine call and return their :func:`member_metrics`.
 
-    On the CPU the engine's arrays are used as they are (:func:`~hertzchain.integrate.batch.run_batch`,
+    On the CPU the engine's arrays are used as they are (:func:`~hertzchain.runs.batch.run_batch`,
     no Dataset: stacking one costs more than a coarse run of a short chain); a task the GPU runs
-    goes through :func:`~hertzchain.integrate.batch.simulate_batch`.
+    goes through :func:`~hertzchain.runs.batch.simulate_batch`.
     """
     from ..errors import ElasticLimitWarning, PulseNotReachedWarning
-    from ..integrate.batch import run_batch, simulate_batch
+    from ..runs.batch import run_batch, simulate_batch
 
     with warnings.catch_warnings():
         # Designs past the elastic limit, or whose pulse misses the wall, are ranked by constraints

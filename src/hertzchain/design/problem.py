@@ -280,7 +280,7 @@ def parse_design(data: dict) -> DesignProblem:
         # is resolved once, the longest over the space's corners and centre at every robust speed,
         # and written into [base.run] (so best.toml holds it). A candidate whose pulse still does
         # not arrive in time is infeasible (constraint pulse_at_wall), never a false optimum.
-        from ..simulation import auto_duration
+        from ..runs.simulation import auto_duration
 
         speeds = sec.robust.velocities if sec.robust is not None and sec.robust.velocities else [None]
         longest = max(auto_duration(build_model(parse_config(

@@ -115,7 +115,7 @@ def compare_with_references(result: DesignResult) -> tuple[dict, Any]:
 
     from ..config import build_model, build_probes, parse_config
     from ..errors import ElasticLimitWarning, PulseNotReachedWarning
-    from ..integrate.batch import simulate_batch
+    from ..runs.batch import simulate_batch
     from ..probes import Probes
     from .constraints import Constraints, broken_geometry, broken_run, geometric_violation, run_violation
     from .objectives import Evaluator

@@ -3,7 +3,7 @@
 :func:`sensitivity` differentiates one result (the peak wall force by default) with respect to any
 number of continuous config fields (bead diameters, materials, striker, law constants, offsets,
 precompression), by the discrete adjoint (or tangent) of the velocity-Verlet steps the engine
-takes (:mod:`hertzchain.integrate.tape`, ``adjoint``, ``tangent``) and the exact derivatives of the
+takes (:mod:`hertzchain.integrate.derivatives.tape`, ``adjoint``, ``tangent``) and the exact derivatives of the
 set-up (:mod:`~hertzchain.gradients.setup`); :func:`trace_sensitivity` differentiates a whole
 sampled signal (a fit's Jacobian). The results it knows: :data:`OBJECTIVES`.
 """

@@ -1,6 +1,6 @@
 """``hertzchain.sensitivity``: exact derivatives of a run's results with respect to config fields.
 
-One call = one taped primal run (:func:`hertzchain.integrate.differentiate.record`), the
+One call = one taped primal run (:func:`hertzchain.integrate.derivatives.differentiate.record`), the
 objective's value and partials (:mod:`hertzchain.gradients.objectives`), then either one reverse
 sweep (adjoint: the whole gradient for about two more runs, whatever the number of variables) or
 one tangent run (about half a run more per variable: cheaper for one or two), and the chain rule
@@ -166,9 +166,9 @@ def _prepare(cfg):
     """Model, System and run settings of a config, refusing what the derivative engines do not cover."""
     from ..checks import check_before_run
     from ..config import build_model
-    from ..integrate import differentiate as D
+    from ..integrate.derivatives import differentiate as D
     from ..probes import Probes
-    from ..simulation import auto_duration
+    from ..runs.simulation import auto_duration
 
     if cfg.track is not None:
         raise ConfigError("track", "gradients follow the 1D engine; a run with [track] (beads leaving the axis) "
@@ -305,7 +305,7 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     forces and the choice of the sample or step of a maximum are held fixed likewise: where they
     switch, the result has a kink or a jump, and the gradient is that of the branch the run is on.
     """
-    from ..integrate import differentiate as D
+    from ..integrate.derivatives import differentiate as D
     from .memory import check_memory, estimate_memory
     from .objectives import (
         check_objective,
@@ -380,7 +380,7 @@ def memory_estimate(config, variables: str | Sequence[str], *, mode: Literal["au
     int
         The estimate [bytes] beyond the model and the imported package.
     """
-    from ..integrate import differentiate as D
+    from ..integrate.derivatives import differentiate as D
     from .memory import estimate_memory
     from .setup import expand_paths
 
@@ -434,7 +434,7 @@ def trace_sensitivity(config, variables: str | Sequence[str], signal: str = "wal
     TraceSensitivity
         Times, the signal and its Jacobian.
     """
-    from ..integrate import differentiate as D
+    from ..integrate.derivatives import differentiate as D
     from .memory import check_memory, estimate_memory
     from .setup import expand_paths, setup_derivatives
 

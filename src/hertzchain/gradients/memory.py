@@ -10,7 +10,7 @@ derivatives were once a dense variables x beads matrix, 0.57 GB at 1,000 beads a
   computed, then each variable's nonzero entries (a bead's diameter moves about ten; a material
   constant every contact) and the Python objects that hold them, measured at ~3.4 kB per variable
   (benchmarks/sensitivity_memory.py);
-- the engines (:func:`hertzchain.integrate.differentiate.engine_bytes`): the taped run's
+- the engines (:func:`hertzchain.integrate.derivatives.differentiate.engine_bytes`): the taped run's
   checkpoints, step log and records, and the reverse sweep's replayed group; or, in tangent mode,
   the D tangents;
 - the result: a few Python objects per variable;
@@ -86,7 +86,7 @@ def estimate_memory(cfg, system, duration: float, paths: list[str], tangent: boo
     MemoryEstimate
         The parts.
     """
-    from ..integrate.differentiate import engine_bytes
+    from ..integrate.derivatives.differentiate import engine_bytes
     from .setup import _plan
 
     rows_of, masks = _plan(cfg, paths)
@@ -111,7 +111,7 @@ def check_memory(est: MemoryEstimate, available: int | None = None) -> None:
     """Refuse (ConfigError naming the input behind the largest part) a sensitivity that would not
     fit in the memory available (:func:`hertzchain.checks.available_memory`, of which a run may
     plan to use :data:`hertzchain.checks.MEMORY_SHARE`), or whose reverse sweep would store more
-    steps at once than :data:`hertzchain.integrate.differentiate.GROUP_LIMIT`.
+    steps at once than :data:`hertzchain.integrate.derivatives.differentiate.GROUP_LIMIT`.
 
     Parameters
     ----------
@@ -121,7 +121,7 @@ def check_memory(est: MemoryEstimate, available: int | None = None) -> None:
         Memory available [bytes]; the machine's when None.
     """
     from ..checks import MEMORY_SHARE, available_memory
-    from ..integrate.differentiate import GROUP_LIMIT
+    from ..integrate.derivatives.differentiate import GROUP_LIMIT
 
     if est.group > GROUP_LIMIT:
         raise ConfigError("run.sample_interval", f"the reverse sweep would replay {est.group / 2**20:.0f} MiB of steps "

@@ -1,5 +1,5 @@
 """The results a sensitivity differentiates: each one's value and its partials (*seeds*) with
-respect to the forces it reads, from a taped run (:class:`hertzchain.integrate.differentiate.Tape`).
+respect to the forces it reads, from a taped run (:class:`hertzchain.integrate.derivatives.differentiate.Tape`).
 
 Objectives (SI units; the names of the design objectives mean the same numbers as there):
 
@@ -40,7 +40,7 @@ import re
 import numpy as np
 
 from ..errors import ConfigError, ObjectiveUndefined, PulseNotFound
-from ..integrate import kernels
+from ..integrate.core import kernels
 from ..laws import law_of_code
 from . import state
 from .reading import STEP, Reading, rising, span, vertex
@@ -275,7 +275,7 @@ def soft_peak(tape, width: float) -> Reading:
 def _peak(tape, wall: int, want_time: bool) -> Reading:
     """The refined wall peak (or its time) and its partials on the three steps around the maximum;
     the time of a wall contact that yielded is that of its overlap's peak (:func:`~hertzchain.gradients.state.overlap_peak_time`)."""
-    from ..integrate.verlet import refine_peak
+    from ..integrate.drivers.verlet import refine_peak
 
     if want_time and state.yielded_wall(tape, wall):
         return state.overlap_peak_time(tape, wall)

@@ -1,7 +1,7 @@
 """Objectives that read the state of the run, not only its recorded forces: a protected body's
 peaks, the time a yielded wall contact stops being compressed, the energy delivered to the body and
 the plastic work. Their partials include *state seeds* (a position or velocity after a step,
-:func:`hertzchain.integrate.differentiate.state_seed`), and the primal numbers they need are
+:func:`hertzchain.integrate.derivatives.differentiate.state_seed`), and the primal numbers they need are
 those of the taped run, run again from its checkpoints (``differentiate.replay``, ``state_after``).
 """
 
@@ -28,7 +28,7 @@ def body_peak(tape, name: str) -> Reading:
     The sample of the maximum is held fixed (as every maximum over samples). The force's sample is
     found from the mount's recorded force (which sees the velocity half a step earlier), then
     among its neighbours on the exact k x + c v of the state run again from a checkpoint."""
-    from ..integrate import differentiate as D
+    from ..integrate.derivatives import differentiate as D
 
     sy, w = tape.system, tape.packed
     n = sy.n_beads
@@ -72,7 +72,7 @@ def yielded_wall(tape, wall: int) -> bool:
     """Whether the wall contact went plastic (Thornton's law, its largest overlap past the yield
     overlap) without a viscous part: its force then peaks where its overlap stops growing, with a
     kink in the force's curvature there (loading line, steeper unloading curve)."""
-    from ..integrate import kernels
+    from ..integrate.core import kernels
 
     w = tape.packed
     return (tape.system.law == kernels.LAW_ELASTOPLASTIC and w.damping[wall] == 0.0
@@ -87,7 +87,7 @@ def overlap_peak_time(tape, wall: int) -> Reading:
     line to the stiffer unloading curve: a parabola through three forces across that kink misplaces
     the peak by a fraction of a step that cycles as the peak moves from step to step, and its
     derivative then differs from the trend by ~13 % (issue 38); the overlap's vertex does not."""
-    from ..integrate import differentiate as D
+    from ..integrate.derivatives import differentiate as D
 
     starts = np.concatenate([[0], np.cumsum(np.add.reduceat(tape.ns_log, np.arange(0, tape.ns_log.size,
                                                                                     tape.group)))])
@@ -126,7 +126,7 @@ def energy_to_body(tape) -> Reading:
     steps. The partials: on F_N of every step up to the sample of the maximum
     (held fixed), and on the velocity the step sees, vp_s = v_s + h_s a_s: the state after step
     s - 1 (a state seed) and the forces on the body then."""
-    from ..integrate import differentiate as D
+    from ..integrate.derivatives import differentiate as D
 
     sy, w = tape.system, tape.packed
     n = sy.n_beads
@@ -205,8 +205,8 @@ def plastic_work(tape) -> Reading:
     residual overlaps (the reverse sweep carries them back to the loading steps), and on d_max,
     the overlap of the step where each contact reached it (state seeds on its two beads'
     positions, found by running the tape again)."""
-    from ..integrate import differentiate as D
-    from ..integrate.energies import plastic_work as total
+    from ..integrate.derivatives import differentiate as D
+    from ..integrate.core.energies import plastic_work as total
 
     sy, w = tape.system, tape.packed
     nc = sy.n_contacts

@@ -328,7 +328,7 @@ class _Problem:
         """One batched engine call: for every config vector, every trace's (sim time, force)."""
         from ..config import build_model
         from ..errors import ElasticLimitWarning, PulseNotReachedWarning
-        from ..integrate.batch import simulate_batch
+        from ..runs.batch import simulate_batch
         from ..probes import Probes
 
         models, probes = [], []

@@ -19,13 +19,13 @@ Numba-compiled functions of one contact (unit-free SI floats):
   inverse of ``energy``; the engines' step bound); without it the engine bisects ``energy``;
 - for a law with state, ``state_partials(d, rate, k, p, s)``: (dF/ds, ds'/d delta, ds'/d rate,
   ds'/dk, ds'/dp, ds'/ds) with s' = ``state(d, rate, k, p, s)`` and dF/ds the force's partial at
-  state s: what the sensitivity engines (:mod:`hertzchain.integrate.law_derivatives`) need
+  state s: what the sensitivity engines (:mod:`hertzchain.integrate.derivatives.law_derivatives`) need
   besides ``partials`` to carry derivatives through the state; without it a stateful law runs
   but has no sensitivities (refused naming ``contact.law``).
 
 Built-in laws whose engines are hand-written (``generated=False``) keep integer codes 0..3 (the
 kernels' ``LAW_*``); every other law is run by the engines generated from these functions
-(:mod:`hertzchain.integrate.generated`) and gets a code from :data:`FIRST_GENERATED_CODE` on.
+(:mod:`hertzchain.integrate.core.generated`) and gets a code from :data:`FIRST_GENERATED_CODE` on.
 """
 
 from __future__ import annotations

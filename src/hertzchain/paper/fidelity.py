@@ -13,7 +13,7 @@ unexplained observations and measures them:
   (:class:`~hertzchain.contact.ScaledDashpot`), each calibrated to the paper's eps on the 26 mm
   beads;
 - **lateral freedom** (Fig. 3a-b): the misaligned beads of chain 2 free to move across the axis
-  in a round groove (:class:`~hertzchain.track.Track`), without and with Coulomb friction.
+  in a round groove (:class:`~hertzchain.runs.track.Track`), without and with Coulomb friction.
 
 :func:`law_numbers` and :func:`misalignment_numbers` reduce the runs to the plain numbers stored
 in ``summary.json`` (``fidelity``), from which :mod:`hertzchain.paper.claims` writes its verdicts
@@ -39,7 +39,7 @@ from ..interrupts import forked_worker_init
 from ..errors import ConfigError, ElasticLimitWarning, HertzchainError
 from ..model import Model, Wall
 from ..probes import Probes
-from ..track import Track, simulate_lateral
+from ..runs.track import Track, simulate_lateral
 from . import protocol
 from .law_figure import LAW_STYLE, fig_laws  # noqa: F401 - drawn apart, re-exported here
 from .values import PAPER

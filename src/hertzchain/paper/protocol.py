@@ -23,7 +23,7 @@ from ..contact import Elastic
 from ..errors import ElasticLimitWarning, PulseNotFound
 from ..model import Model, Striker, Wall
 from ..probes import Probes
-from ..simulation import simulate
+from ..runs.simulation import simulate
 from .values import PAPER
 
 __all__ = ["Settings", "ChainStudy", "run_chain_study", "run_misalignment", "run_substitutions",

@@ -93,10 +93,10 @@ def elastic_limit_summary(studies: dict, mis: dict, subs: dict) -> dict:
     """The elastic-limit check over every run of a reproduction (paper Sec. II).
 
     Returns ``{"max_force_over_yield", "runs_past_limit", "runs", "message"}``; ``message`` is
-    :func:`hertzchain.simulation.elastic_limit_message` of the worst run (None when no run passes
+    :func:`hertzchain.runs.simulation.elastic_limit_message` of the worst run (None when no run passes
     the limit).
     """
-    from ..simulation import elastic_limit_message
+    from ..runs.simulation import elastic_limit_message
 
     runs = [(f"{name.replace('chain', 'chain ')} cut after bead {n}: ", ds)
             for name, s in studies.items() for n, ds in sorted(s.wall.items())]

@@ -184,7 +184,7 @@ def compute_chunk(task: _ChunkTask):
 
     from ..analysis.pulse_batch import PULSE_COLUMNS, fit_pulses
     from ..errors import ElasticLimitWarning, PulseNotFound, PulseNotReachedWarning
-    from ..integrate.batch import simulate_batch
+    from ..runs.batch import simulate_batch
     from ..interrupts import check
 
     models, dts = chunk_members(task.recipe, task.members)
@@ -408,7 +408,7 @@ def run_sweep(sweep_cfg: SweepConfig | dict | str | Path, out_dir: str | Path, *
     else:
         cfg = sweep_cfg
     out = Path(out_dir)
-    from ..integrate.cuda import check_device
+    from ..integrate.cuda.launch import check_device
 
     check_device(device)
     with latched():  # a Ctrl-C is never swallowed (hertzchain.interrupts)
@@ -507,7 +507,7 @@ def _plan(cfg: SweepConfig, device: str, cores: int = 1, advice: str | None = No
             r = 0 if hasattr(models, "n_beads") else max(range(len(models)), key=lambda i: models[i].chain.n_beads)
             largest = (n_beads, models.model(r) if hasattr(models, "model") else models[r], dts[r])
         if auto:
-            from ..simulation import auto_duration
+            from ..runs.simulation import auto_duration
 
             # Members share one time axis (the batched engine): the slowest member's duration.
             duration = max(duration, max(auto_duration(m) for m in models))

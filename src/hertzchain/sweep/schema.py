@@ -188,7 +188,7 @@ def chunk_members(cfg: SweepConfig, members: Sequence[int], built: dict | None =
 
     One model is built per distinct set of parameter values (``built`` caches them across calls:
     a tolerance Monte Carlo builds one for the whole sweep); members that share a layout come back
-    as one :class:`~hertzchain.integrate.ensemble.Ensemble` (array code, microseconds per member),
+    as one :class:`~hertzchain.integrate.batch.ensemble.Ensemble` (array code, microseconds per member),
     others as a list of Models. Either way member r is, number for number, the model of member
     ``members[r]``: its draws depend on (seed, member index) alone, so a chunk built here, on a
     Dask worker or as part of the whole sweep is the same.
@@ -213,7 +213,7 @@ def chunk_members(cfg: SweepConfig, members: Sequence[int], built: dict | None =
         Naming the field and the member when a member's model or its deviations are invalid.
     """
     from ..config import build_model, parse_config
-    from ..integrate.ensemble import Ensemble, same_layout
+    from ..integrate.batch.ensemble import Ensemble, same_layout
 
     built = {} if built is None else built
     bases, dts = [], []

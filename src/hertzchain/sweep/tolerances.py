@@ -212,7 +212,7 @@ def apply_to_ensemble(ens, tol: Tolerances, members):
 
     Parameters
     ----------
-    ens : hertzchain.integrate.ensemble.Ensemble
+    ens : hertzchain.integrate.batch.ensemble.Ensemble
         The nominal members.
     tol : Tolerances
         The tolerances.
@@ -221,7 +221,7 @@ def apply_to_ensemble(ens, tol: Tolerances, members):
 
     Returns
     -------
-    hertzchain.integrate.ensemble.Ensemble
+    hertzchain.integrate.batch.ensemble.Ensemble
         The perturbed members; member r is ``apply_to_model(ens.model(r), tol, members[r])``.
 
     Raises

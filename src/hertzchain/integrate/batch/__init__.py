@@ -1,0 +1,1 @@
+"""Many chains: ensembles as arrays, their packing and the batched CPU engine."""

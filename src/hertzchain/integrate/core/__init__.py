@@ -1,0 +1,1 @@
+"""The compiled pieces every engine shares: law codes, forces, steps, energies, packed layouts."""

@@ -1,0 +1,243 @@
+"""Engines generated from a registered contact law's scalar functions (:mod:`hertzchain.laws`).
+
+For a law with ``generated=True`` (the power law, Hunt-Crossley, every user's law),
+:func:`law_kernels` builds, once per law and process, compiled functions that close over the
+law's ``force``/``state``/``energy``/``partials`` (Numba inlines the jitted closures):
+
+- ``contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, state)``: one contact's axial
+  force, dissipated power and new state (``forces`` loops over it; the threaded engine,
+  :mod:`hertzchain.integrate.drivers.threaded_laws`, compiles it into its thread function);
+- ``forces(u, v, kappa, damping, d0, de, dx0, rsum, g, state)``: every contact's force, written
+  as ``kernels.forces_general`` writes them (the same overlap geometry, misaligned pairs
+  included, the same d == 0 convention), the law's state updated in place; returns the
+  dissipated power (F - F(rate = 0)) d(delta)/dt [W];
+- ``run``: :func:`hertzchain.integrate.core.kernels.verlet_run` with the same arguments and the same
+  kick-drift-kick steps, adaptive step controller and probes (the law's per-contact state lives
+  in the ``dmax`` slots; ``kappa`` holds the law's stiffness k, ``damping`` its parameter p);
+- ``energy(u, kappa, damping, d0, de, dx0, rsum, fext)``: the stored energy minus the work of the
+  external forces [J];
+- ``stride``: the adaptive step's bound (below).
+
+The step's accuracy bound uses the law's partials: tangent stiffness dF/d delta and damping
+dF/d rate at an upper estimate of each overlap, as ``kernels.required_stride`` does for Hertz.
+Models with a protected body or mass-in-mass beads are refused (``wall.type``, elements) before
+they reach here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .kernels import DELTA_MIN, _adapt_stride, kinetic_energy
+from .primitives import _track_peak
+
+_CACHE: dict = {}
+
+
+def law_kernels(code: int):
+    """(forces, run, energy, stride, contact) compiled for the law of engine code ``code``; built on
+    first use (``stride``: the adaptive step's steps per block, which the sensitivity engines' taped
+    run, :mod:`hertzchain.integrate.derivatives.law_derivatives`, takes as the run does; ``contact``: one
+    contact of ``forces``, the threaded engine's force, :mod:`hertzchain.integrate.drivers.threaded_laws`)."""
+    from ...laws import law_of_code
+    from ...laws.spec import compiled
+
+    spec = law_of_code(code)
+    key = (code, id(spec.force), id(spec.state), id(spec.energy), id(spec.partials))
+    if key not in _CACHE:
+        force, state, stored, partials = (compiled(f) for f in (spec.force, spec.state, spec.energy, spec.partials))
+        inverse = compiled(spec.overlap_at_energy) if spec.overlap_at_energy is not None else _bisect(stored)
+        _CACHE[key] = _build(force, state, stored, partials, inverse)
+    return _CACHE[key]
+
+
+def bisection(stored):
+    """The overlap storing energy e by bisection of a law's ``energy`` (increasing in d), as plain
+    Python closing over ``stored``: the caller compiles it for its target (CPU here, a CUDA device
+    function in :mod:`hertzchain.integrate.cuda.generated`)."""
+    def inverse(e, k, p):
+        hi = 1e-9
+        while stored(hi, k, p) < e and hi < 1.0:
+            hi *= 2.0
+        lo = 0.0
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if stored(mid, k, p) < e:
+                lo = mid
+            else:
+                hi = mid
+        return hi
+    return inverse
+
+
+def _bisect(stored):
+    """:func:`bisection` compiled for the CPU."""
+    return njit(nogil=True)(bisection(stored))
+
+
+def _build(force, update, stored, partials, inverse):
+    @njit(nogil=True)
+    def overlap(u, d0, de, dx0, rsum, j):
+        if de[j] != 0.0:
+            dx = dx0[j] - (u[j] - u[j + 1])
+            dist = np.sqrt(dx * dx + de[j] * de[j])
+            return rsum[j] - dist, dx / dist
+        return u[j] - u[j + 1] + d0[j], 1.0
+
+    @njit(nogil=True, inline="always")
+    def contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, state):
+        """One contact of ``forces`` (bodies at ``ui``, ``uj`` [m] moving at ``vi``, ``vj`` [m/s]):
+        (axial force [N], dissipated power [W], new state). Shared with the threaded engine."""
+        if kappa == 0.0:  # no contact (free end, padding)
+            return 0.0, 0.0, state
+        if de != 0.0:
+            dx = dx0 - (ui - uj)
+            dist = np.sqrt(dx * dx + de * de)
+            d, c = rsum - dist, dx / dist
+        else:
+            d, c = ui - uj + d0, 1.0
+        rate = c * (vi - vj)
+        state = update(d, rate, kappa, damping, state)
+        if d < 0.0:
+            return 0.0, 0.0, state
+        if d <= DELTA_MIN:
+            d = 0.0
+        f = force(d, rate, kappa, damping, state)
+        fel = force(d, 0.0, kappa, damping, state)
+        f = f if f > 0.0 else 0.0
+        return c * f, (f - fel) * rate, state
+
+    @njit(nogil=True)
+    def forces(u, v, kappa, damping, d0, de, dx0, rsum, g, state):
+        power = 0.0
+        for j in range(kappa.shape[0]):
+            g[j + 1], p, state[j] = contact(u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j],
+                                            dx0[j], rsum[j], state[j])
+            power += p
+        return power
+
+    @njit(nogil=True)
+    def energy(u, kappa, damping, d0, de, dx0, rsum, fext):
+        e = 0.0
+        for j in range(kappa.shape[0]):
+            if kappa[j] != 0.0:
+                d, c = overlap(u, d0, de, dx0, rsum, j)
+                if d > 0.0:
+                    e += stored(d, kappa[j], damping[j])
+        for i in range(fext.shape[0]):
+            e -= fext[i] * u[i]
+        return e
+
+    @njit(nogil=True)
+    def stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps):
+        """Steps per block so that omega dt <= 1 / c_steps: ``kernels.required_stride``'s Gershgorin
+        bound and overlap estimate (Taylor over the horizon, or the closing contact's energy all
+        stored, capped by the run's bound dcap) with the law's tangent stiffness and damping."""
+        kprev = 0.0
+        cprev = 0.0
+        weff = 0.0
+        hh = 0.5 * horizon * horizon
+        for j in range(kappa.shape[0]):
+            k = 0.0
+            c = 0.0
+            if kappa[j] != 0.0:
+                d, cc = overlap(u, d0, de, dx0, rsum, j)
+                rate = v[j] - v[j + 1]
+                q = a[j] - a[j + 1]
+                est = d + 2.0 * (q if q > 0.0 else 0.0) * hh
+                if rate > 0.0 and d + 2.0 * rate * horizon > 0.0:  # closing, touching within the horizon
+                    dp = d if d > 0.0 else 0.0
+                    e = stored(dp, kappa[j], damping[j]) + 0.5 * rate * rate / (inv_mass[j] + inv_mass[j + 1])
+                    de_ = inverse(e, kappa[j], damping[j])
+                    est = de_ if de_ > est else est
+                est = est if est < dcap[j] else dcap[j]
+                if est > 0.0:
+                    vin = state[j] if state[j] > abs(rate) else abs(rate)
+                    k, c, _, _ = partials(est, abs(rate), kappa[j], damping[j], vin)
+                    k = abs(k)
+                    c = abs(c)
+            om2 = 2.0 * (kprev + k) * inv_mass[j]
+            beta = 2.0 * (cprev + c) * inv_mass[j]
+            weff = max(weff, np.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta)
+            kprev = k
+            cprev = c
+        return max(1, int(np.ceil(block * c_steps * weff - 1e-9)))
+
+    @njit(nogil=True)
+    def run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres,
+            law, general, wall_slot, interval, stride_, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f,
+            out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, ext, ext_on, body_slot, out_b):
+        n = a.shape[0]
+        if dmax.shape[0] < n:  # the law's state lives in dmax: the caller must give one slot per contact
+            raise ValueError("generated law: the state array (dmax) is shorter than the contacts")
+        nout = rec.shape[0]
+        block = interval / n_sub
+        adaptive = stride_ == 0
+        ns = stride_ if not adaptive else int(acc[3])
+        vp = np.zeros_like(v)
+        step = int(acc[2])
+        for k in range(k_start, k_stop):
+            for b in range(n_sub):
+                if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
+                    req = stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, dmax, inv_mass, n_eval * block,
+                                 block, c_steps)
+                    ns = _adapt_stride(req, ns, relax, acc)
+                dt = block / ns
+                half = 0.5 * dt
+                t0 = (k - 1) * interval + b * block
+                for i in range(n):
+                    v[i] += half * a[i]
+                    u[i] += dt * v[i]
+                for s in range(ns):
+                    for i in range(n):
+                        vp[i] = v[i] + half * a[i]
+                    p = forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax)
+                    acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
+                    acc[1] = p
+                    _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
+                    if s < ns - 1:
+                        for i in range(n):
+                            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+                            v[i] += dt * a[i]
+                            u[i] += dt * v[i]
+                    else:
+                        for i in range(n):
+                            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+                            v[i] += half * a[i]
+                step += ns
+            for j in range(nout):
+                out_f[k, j] = g[rec[j] + 1]
+            for j in range(fmax.shape[0]):
+                x = g[j + 1]
+                fmax[j] = x if x > fmax[j] else fmax[j]
+            ke = kinetic_energy(v, mass)
+            out_ke[k] = ke
+            out_pe[k] = energy(u, kappa, damping, d0, de, dx0, rsum, fext)
+            out_ed[k] = acc[0]
+            if record_v:
+                for i in range(out_v.shape[1]):
+                    out_v[k, i] = v[i]
+            if not np.isfinite(ke) or not np.isfinite(g[1]):
+                acc[2] = step
+                return 1
+        acc[2] = step
+        return 0
+
+    return forces, run, energy, stride, contact
+
+
+def is_generated(code: int) -> bool:
+    """True when engine code ``code`` is run by the generated engines (not a hand-written one)."""
+    from ...laws import FIRST_GENERATED_CODE
+
+    return int(code) >= FIRST_GENERATED_CODE
+
+
+def run_kernel(code: int):
+    """The stepping loop for law code ``code``: ``kernels.verlet_run`` or the law's generated ``run``."""
+    if is_generated(code):
+        return law_kernels(code)[1]
+    from .kernels import verlet_run
+
+    return verlet_run

@@ -1,0 +1,581 @@
+"""The CUDA kernels of the batched engine: :func:`kernels.verlet_run`'s velocity Verlet on a GPU.
+
+Written with ``numba.cuda``, the same Numba family as the CPU kernels, so they also run on a CPU
+through Numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1``). Compiled lazily (:func:`_kernels`,
+:func:`_register_kernel`), so that importing needs no GPU. Three kernels, one order of
+operations: ``verlet_kernel`` (one thread per member), ``warp_kernel`` (one warp per member, a
+lane per slot) and the register kernel for aligned elastic chains (a member's state on the chip);
+the per-contact and per-body device functions are shared, so they integrate with the very same
+arithmetic. Every per-slot array is (slot, member), as :func:`hertzchain.integrate.cuda.launch.run_packed`
+lays them out, so that the threads of a warp, which run neighbouring members, read neighbouring
+addresses (coalesced).
+
+Measured facts behind the choices (NVIDIA H100, 30-bead chains, fixed 5 ns step,
+benchmarks/ensemble.py): ``sqrt(0)`` takes CUDA's slow path, so overlaps below
+:data:`kernels.DELTA_MIN` take the square root of a dummy 1.0 and a zero force (1.5-2x). The
+general kernels stream the state through global memory every step, which bounds them by memory
+bandwidth: 1.7e10 bead-steps/s (thread per member, from 1e4 chains) and 1e10 (warp per member).
+The register kernel reads and writes global memory once per block instead: 1.3e10 at 1e3 chains,
+1.0e11 at 1e4, 1.3e11 at 1e5, 1.1e11 at 1e6.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+from .device import _cuda, _simulated
+from ..core.kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
+
+
+#: Threads (lanes) per member in the warp-per-member kernel: one warp, one slot per lane for
+#: chains of up to 30 beads (32 slots).
+LANES = 32
+
+
+def _lanes() -> int:
+    """Lanes per member of the warp kernel: LANES on a GPU; 2 under the simulator, where every
+    lane is a Python thread and every barrier costs milliseconds (the kernel's arithmetic does
+    not depend on the number of lanes; 2 still exchange forces and maxima between lanes)."""
+    return 2 if _simulated() else LANES
+
+
+_KERNEL = None
+cuda = None  # numba.cuda, imported by _kernels()
+
+
+def _kernels() -> dict:
+    """Compile (once) and return the CUDA kernels by name; built lazily so that importing needs no GPU."""
+    from numba import float64
+
+    # ``cuda`` is a module global: Numba's simulator swaps the kernels' global reference to
+    # numba.cuda for its fake module (cuda.grid...), and cannot see a local one.
+    global _KERNEL, cuda
+    if _KERNEL is not None:
+        return _KERNEL
+    cuda = _cuda()
+    nl = _lanes()  # a compile-time constant of the warp kernel
+    # inlined by NVVM on a GPU (the simulator takes no such option)
+    inline = {} if _simulated() else {"forceinline": True}
+
+    @cuda.jit(device=True, **inline)
+    def hertz(kap, d):
+        # kappa d^(3/2), 0 for d <= DELTA_MIN; sqrt of a dummy 1.0 there, not of 0 (CUDA's slow path)
+        ok = d > DELTA_MIN
+        dd = d if ok else 1.0
+        f = kap * dd * math.sqrt(dd)
+        return f if ok else 0.0
+
+    # The per-contact and per-body pieces below are shared by both kernels (one thread per member,
+    # one warp per member), so that they integrate with the very same arithmetic; inlined, they
+    # compile to what the kernels held written out.
+
+    @cuda.jit(device=True, **inline)
+    def overlap(u, d0, de, dx0, rsum, j, m):
+        """Overlap [m] of contact j of member m, as kernels.required_stride and
+        kernels.potential_energy take it: along the line of centres of a misaligned pair."""
+        if de[j, m] != 0.0:
+            dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+            return rsum[j, m] - math.sqrt(dx * dx + de[j, m] * de[j, m])
+        return u[j, m] - u[j + 1, m] + d0[j, m]
+
+    @cuda.jit(device=True, **inline)
+    def contact_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, j, m, power):
+        """kernels.forces_general for contact j of member m: writes its axial force g[j + 1, m]
+        and returns ``power`` plus the contact's dissipated power [W] (the running sum)."""
+        if de[j, m] != 0.0:
+            dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
+            dist = math.sqrt(dx * dx + de[j, m] * de[j, m])
+            d = rsum[j, m] - dist
+            c = dx / dist
+        else:
+            d = u[j, m] - u[j + 1, m] + d0[j, m]
+            c = 1.0
+        if d < 0.0:
+            g[j + 1, m] = 0.0
+            return power
+        sd = 0.0
+        if d > DELTA_MIN:
+            sd = math.sqrt(d)
+        else:
+            d = 0.0
+        fel = kappa[j, m] * d * sd
+        if law == LAW_ELASTIC:
+            g[j + 1, m] = c * fel
+            return power
+        rate = c * (v[j, m] - v[j + 1, m])
+        if law == LAW_VISCOELASTIC:
+            f = fel + kappa[j, m] * damping[j, m] * sd * rate
+        else:
+            f = fel + damping[j, m] * rate
+        f = max(f, 0.0)
+        g[j + 1, m] = c * f
+        return power + (f - fel) * rate
+
+    @cuda.jit(device=True, **inline)
+    def tangent_stiffness(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, hh, j, m):
+        """kernels.required_stride's tangent stiffness [N/m] of contact j of member m over the
+        horizon [s] (hh = horizon^2 / 2)."""
+        if kappa[j, m] == 0.0:
+            return 0.0
+        d = overlap(u, d0, de, dx0, rsum, j, m)
+        rate = v[j, m] - v[j + 1, m]
+        q = a[j, m] - a[j + 1, m]
+        dt_ = d + 2.0 * (q if q > 0.0 else 0.0) * hh
+        if rate > 0.0 and d + 2.0 * rate * horizon > 0.0:
+            dp = d if d > 0.0 else 0.0
+            e = 0.4 * kappa[j, m] * dp * dp * math.sqrt(dp) + 0.5 * rate * rate / (
+                inv_mass[j, m] + inv_mass[j + 1, m])
+            de_ = (2.5 * e / kappa[j, m]) ** 0.4
+            dt_ = de_ if de_ > dt_ else dt_
+        dt_ = dt_ if dt_ < dcap[j, m] else dcap[j, m]
+        return 1.5 * kappa[j, m] * math.sqrt(dt_) if dt_ > 0.0 else 0.0
+
+    @cuda.jit(device=True, **inline)
+    def adapt_stride(req, ns, relax, r4, r5):
+        """kernels._adapt_stride on the controller state (r4, r5) = (acc[4], acc[5]) of a member:
+        returns the new (ns, r4, r5)."""
+        if req > ns:
+            return req, 0.0, 0.0
+        if req < ns:
+            r4 += 1.0
+            r5 = max(r5, req)
+            if r4 >= relax:
+                return int(r5), 0.0, 0.0
+            return ns, r4, r5
+        return ns, 0.0, 0.0
+
+    @cuda.jit(device=True, **inline)
+    def kick_drift(u, v, a, fl, fr, fext, inv_mass, dt, half, last, i, m):
+        """Body i of member m between contact forces fl (left) and fr (right): its acceleration,
+        then kernels.step_elastic's kick and drift, or the closing half kick on the last step."""
+        ai = (fl - fr + fext[i, m]) * inv_mass[i, m]
+        a[i, m] = ai
+        if last:
+            v[i, m] += half * ai
+        else:
+            v[i, m] += dt * ai
+            u[i, m] += dt * v[i, m]
+
+    @cuda.jit(device=True)
+    def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, n, m):
+        """kernels.forces_general for member m (returns the dissipated power [W])."""
+        power = 0.0
+        for j in range(n):
+            power = contact_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, j, m, power)
+        return power
+
+    @cuda.jit(device=True)
+    def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, law,
+                        n, m):
+        """kernels.required_stride for member m."""
+        kprev = 0.0
+        cprev = 0.0
+        w2 = 0.0
+        weff = 0.0
+        hh = 0.5 * horizon * horizon
+        for j in range(n):
+            k = tangent_stiffness(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, hh, j, m)
+            if law == LAW_ELASTIC:
+                w2 = max(w2, (kprev + k) * inv_mass[j, m])
+            else:
+                w, cprev = damped_bound(kprev, k, cprev, damping[j, m], inv_mass[j, m], law)
+                weff = max(weff, w)
+            kprev = k
+        w = math.sqrt(2.0 * w2) if law == LAW_ELASTIC else weff
+        return max(1, int(math.ceil(block * c_steps * w - 1e-9)))
+
+    @cuda.jit(device=True, **inline)
+    def damped_bound(kprev, k, cprev, damp, inv_m, law):
+        """kernels.required_stride's bound for a body between contacts of stiffness kprev, k and
+        damping cprev, c (dashpot: gamma; Kuwabara-Kono: (2/3) A k): (omega_eff, c)."""
+        c = damp if law == LAW_DASHPOT else (2.0 / 3.0) * damp * k
+        om2 = 2.0 * (kprev + k) * inv_m
+        beta = 2.0 * (cprev + c) * inv_m
+        return math.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta, c
+
+    @cuda.jit(device=True, **inline)
+    def track_peak(fw, t, dt, peak, m):
+        """kernels._track_peak for member m (peak is (8, M))."""
+        if fw > peak[0, m]:
+            peak[0, m] = fw
+            peak[1, m] = t
+            peak[2, m] = peak[5, m]
+            peak[6, m] = dt
+            peak[4, m] = 1.0
+        elif peak[4, m] != 0.0:
+            peak[3, m] = fw
+            peak[7, m] = dt
+            peak[4, m] = 0.0
+        peak[5, m] = fw
+
+    @cuda.jit(device=True, **inline)
+    def adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, lw, n, m, ns,
+              relax, acc):
+        """The adaptive step's evaluation for member m (kernels.required_stride, then
+        kernels._adapt_stride on acc[3:8]): returns the new steps per block."""
+        req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping,
+                              lw, n, m)
+        ns, r4, r5 = adapt_stride(req, ns, relax, acc[4, m], acc[5, m])
+        acc[4, m] = r4
+        acc[5, m] = r5
+        acc[3, m] = ns
+        acc[6, m] = max(acc[6, m], ns)
+        acc[7, m] = min(acc[7, m], ns)
+        return ns
+
+    @cuda.jit(device=True, **inline)
+    def sample(row, gen, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke, out_pe, out_ed,
+               out_v, record_v, acc, n, m):
+        """The probes of member m at a sample time into row ``row`` (recorded forces, running
+        maxima, energies, velocities); returns False when the state is no longer finite."""
+        for j in range(rec.shape[0]):
+            out_f[row, j, m] = g[rec[j] + 1, m]
+        for j in range(fmax.shape[0]):
+            x = g[j + 1, m]
+            if x > fmax[j, m]:
+                fmax[j, m] = x
+        ke = 0.0
+        pe = 0.0
+        if gen:  # kernels.kinetic_energy and kernels.potential_energy
+            for i in range(n):
+                ke += 0.5 * mass[i, m] * v[i, m] * v[i, m]
+            for j in range(n):
+                d = overlap(u, d0, de, dx0, rsum, j, m)
+                if d > 0.0:
+                    pe += 0.4 * kappa[j, m] * d * d * math.sqrt(d)
+            for i in range(n):
+                pe -= fext[i, m] * u[i, m]
+        else:  # kernels.energies_elastic
+            for i in range(n):
+                ke += mass[i, m] * v[i, m] * v[i, m]
+                pe += 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
+            ke = 0.5 * ke
+        out_ke[row, m] = ke
+        out_pe[row, m] = pe
+        out_ed[row, m] = acc[0, m]
+        if record_v[m]:
+            for i in range(out_v.shape[1]):
+                out_v[row, i, m] = v[i, m]
+        return math.isfinite(ke) and math.isfinite(g[1, m])
+
+    @cuda.jit
+    def verlet_kernel(u, v, a, g, vp, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
+                      wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
+                      out_pe, out_ed, out_v, record_v, fmax, peak, acc, status):
+        """kernels.verlet_run for member m = the thread's index, samples k_start..k_stop - 1.
+
+        Sample k is written at row k - k_start of out_f (rows, rec, M), out_ke/pe/ed (rows, M)
+        and out_v (rows, bodies, M).
+        """
+        m = cuda.grid(1)
+        if m >= status.shape[0] or status[m] != 0:
+            return
+        n = a.shape[0]
+        lw = law[m]
+        gen = general[m]
+        ws = wall_slot[m] + 1
+        nsub = n_sub[m]
+        neval = n_eval[m]
+        block = interval / nsub
+        adaptive = stride[m] == 0
+        ns = stride[m] if not adaptive else int(acc[3, m])
+        step = acc[2, m]
+        for k in range(k_start, k_stop):
+            for b in range(nsub):
+                if adaptive and ((k - 1) * nsub + b) % neval == 0:
+                    ns = adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block, c_steps[m],
+                               damping, lw, n, m, ns, relax[m], acc)
+                dt = block / ns
+                half = 0.5 * dt
+                t0 = (k - 1) * interval + b * block
+                for i in range(n):
+                    v[i, m] += half * a[i, m]
+                    u[i, m] += dt * v[i, m]
+                if gen:
+                    for s in range(ns):
+                        for i in range(n):
+                            vp[i, m] = v[i, m] + half * a[i, m]
+                        p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, n, m)
+                        acc[0, m] += half * (acc[1, m] + p)  # trapezoidal integral of the dissipated power
+                        acc[1, m] = p
+                        track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
+                        last = s == ns - 1
+                        for i in range(n):
+                            kick_drift(u, v, a, g[i, m], g[i + 1, m], fext, inv_mass, dt, half, last, i, m)
+                else:
+                    for s in range(ns):
+                        # kernels.step_elastic (final_step_elastic on the last step: closing half kick)
+                        last = s == ns - 1
+                        fprev = 0.0
+                        for i in range(n):
+                            f = hertz(kappa[i, m], u[i, m] - u[i + 1, m] + d0[i, m])
+                            g[i + 1, m] = f
+                            kick_drift(u, v, a, fprev, f, fext, inv_mass, dt, half, last, i, m)
+                            fprev = f
+                        track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
+                step += ns
+            # --- probes, sampled on the device
+            if not sample(k - k_start, gen, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke,
+                          out_pe, out_ed, out_v, record_v, acc, n, m):
+                acc[2, m] = step
+                status[m] = 1
+                return
+        acc[2, m] = step
+
+
+    @cuda.jit
+    def warp_kernel(u, v, a, g, vp, sc, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
+                    wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
+                    out_pe, out_ed, out_v, record_v, fmax, peak, acc, status):
+        """verlet_kernel with one block of nl threads per member (m = the block's index).
+
+        Lane l owns slots l, l + nl, ...: forces of its contacts, then (after a barrier) the
+        kick and drift of its bodies, as in kernels.step_elastic; sums are taken by lane 0 in
+        slot order from per-slot terms in ``sc``, maxima through shared memory. The whole block
+        is one member, so every thread takes the same branches and reaches every barrier.
+        """
+        m = cuda.blockIdx.x
+        lane = cuda.threadIdx.x
+        if m >= status.shape[0] or status[m] != 0:
+            return
+        red = cuda.shared.array(nl, float64)
+        n = a.shape[0]
+        nrec = rec.shape[0]
+        lw = law[m]
+        gen = general[m]
+        ws = wall_slot[m] + 1
+        nsub = n_sub[m]
+        neval = n_eval[m]
+        block = interval / nsub
+        adaptive = stride[m] == 0
+        ns = stride[m] if not adaptive else int(acc[3, m])
+        r4 = acc[4, m]
+        r5 = acc[5, m]
+        step = acc[2, m]
+        for k in range(k_start, k_stop):
+            for b in range(nsub):
+                if adaptive and ((k - 1) * nsub + b) % neval == 0:
+                    # kernels.required_stride: tangent stiffness of every contact into sc, then the
+                    # Gershgorin maximum over the bodies (a maximum: the order does not matter)
+                    horizon = neval * block
+                    hh = 0.5 * horizon * horizon
+                    for j in range(lane, n, nl):
+                        sc[j, m] = tangent_stiffness(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, hh,
+                                                     j, m)
+                    cuda.syncthreads()
+                    w2 = 0.0  # elastic: max (k_left + k_right) / m; dissipative: max omega_eff
+                    for j in range(lane, n, nl):
+                        kprev = sc[j - 1, m] if j > 0 else 0.0
+                        if lw == LAW_ELASTIC:
+                            w2 = max(w2, (kprev + sc[j, m]) * inv_mass[j, m])
+                        else:
+                            cprev = 0.0
+                            if j > 0 and lw == LAW_DASHPOT:
+                                cprev = damping[j - 1, m]
+                            elif j > 0:
+                                cprev = (2.0 / 3.0) * damping[j - 1, m] * kprev
+                            w, _ = damped_bound(kprev, sc[j, m], cprev, damping[j, m], inv_mass[j, m], lw)
+                            w2 = max(w2, w)
+                    red[lane] = w2
+                    cuda.syncthreads()
+                    w2 = 0.0
+                    for i in range(nl):
+                        w2 = max(w2, red[i])
+                    w = math.sqrt(2.0 * w2) if lw == LAW_ELASTIC else w2
+                    req = max(1, int(math.ceil(block * c_steps[m] * w - 1e-9)))
+                    ns, r4, r5 = adapt_stride(req, ns, relax[m], r4, r5)
+                    if lane == 0:
+                        acc[3, m] = ns
+                        acc[6, m] = max(acc[6, m], ns)
+                        acc[7, m] = min(acc[7, m], ns)
+                    cuda.syncthreads()  # red is read before the next reduction writes it
+                dt = block / ns
+                half = 0.5 * dt
+                t0 = (k - 1) * interval + b * block
+                for i in range(lane, n, nl):
+                    v[i, m] += half * a[i, m]
+                    u[i, m] += dt * v[i, m]
+                for s in range(ns):
+                    last = s == ns - 1
+                    if gen:
+                        for i in range(lane, n, nl):
+                            vp[i, m] = v[i, m] + half * a[i, m]
+                    cuda.syncthreads()  # positions (and predicted velocities) of the neighbours are written
+                    if gen:
+                        for j in range(lane, n, nl):  # contact j's dissipated power into sc
+                            sc[j, m] = contact_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, j, m, 0.0)
+                    else:
+                        for j in range(lane, n, nl):
+                            g[j + 1, m] = hertz(kappa[j, m], u[j, m] - u[j + 1, m] + d0[j, m])
+                    cuda.syncthreads()  # every contact force is written
+                    if lane == 0:
+                        if gen:
+                            p = 0.0
+                            for j in range(n):  # in contact order, as forces_general sums
+                                p += sc[j, m]
+                            acc[0, m] += half * (acc[1, m] + p)
+                            acc[1, m] = p
+                            track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
+                        else:
+                            track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
+                    for i in range(lane, n, nl):
+                        kick_drift(u, v, a, g[i, m], g[i + 1, m], fext, inv_mass, dt, half, last, i, m)
+                    cuda.syncthreads()  # bodies moved before the next step's forces (and g is read)
+                step += ns
+            # --- probes: per-slot energy terms into sc and vp, summed by lane 0 in slot order
+            row = k - k_start
+            for j in range(lane, nrec, nl):
+                out_f[row, j, m] = g[rec[j] + 1, m]
+            for j in range(lane, fmax.shape[0], nl):
+                x = g[j + 1, m]
+                if x > fmax[j, m]:
+                    fmax[j, m] = x
+            for i in range(lane, n, nl):
+                if gen:
+                    sc[i, m] = 0.5 * mass[i, m] * v[i, m] * v[i, m]
+                    d = overlap(u, d0, de, dx0, rsum, i, m)
+                    vp[i, m] = 0.4 * kappa[i, m] * d * d * math.sqrt(d) if d > 0.0 else 0.0
+                else:
+                    sc[i, m] = mass[i, m] * v[i, m] * v[i, m]
+                    vp[i, m] = 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
+            if record_v[m]:
+                for i in range(lane, out_v.shape[1], nl):
+                    out_v[row, i, m] = v[i, m]
+            cuda.syncthreads()
+            if lane == 0:
+                ke = 0.0
+                pe = 0.0
+                for i in range(n):
+                    ke += sc[i, m]
+                    pe += vp[i, m]
+                if gen:
+                    for i in range(n):
+                        pe -= fext[i, m] * u[i, m]
+                else:
+                    ke = 0.5 * ke
+                out_ke[row, m] = ke
+                out_pe[row, m] = pe
+                out_ed[row, m] = acc[0, m]
+                if not (math.isfinite(ke) and math.isfinite(g[1, m])):
+                    status[m] = 1
+            cuda.syncthreads()
+            if status[m] != 0:
+                if lane == 0:
+                    acc[2, m] = step
+                    acc[4, m] = r4
+                    acc[5, m] = r5
+                return
+        if lane == 0:
+            acc[2, m] = step
+            acc[4, m] = r4
+            acc[5, m] = r5
+
+    _KERNEL = {"thread": verlet_kernel, "warp": warp_kernel, "adapt": adapt, "sample": sample,
+               "track_peak": track_peak, "hertz": hertz}
+    return _KERNEL
+
+
+#: Threads per block of the register kernel: its per-member parameters sit in shared memory,
+#: (slots x threads) doubles per array, under the 48 KiB of static shared memory a block may use.
+REGISTER_THREADS = 64
+
+
+@functools.lru_cache(maxsize=None)
+def _register_kernel(p: int, pre: bool):
+    """The thread-per-member kernel for aligned elastic members of ``p`` slots, compiled for that p.
+
+    Same integration, same order of operations as ``verlet_kernel``'s elastic branch (so the same
+    numbers), but what a step touches stays on the chip: with p known at compile time NVVM
+    unrolls the loops over the bodies and keeps positions and velocities in registers, and the
+    per-member parameters (kappa, 1/m; d0 and the end forces only when a member is precompressed,
+    ``pre``) are read from shared memory. Global memory is read and written once per block (the
+    adaptive step's evaluation and the probes read the state there), not once per step: the
+    general kernel's state, streamed through global memory every step, held an H100 to ~1.6e10
+    bead-steps/s at 1e5 chains (benchmarks/ensemble.py), bound by memory bandwidth.
+    """
+    from numba import float64
+
+    kern = _kernels()
+    adapt, sample, track_peak, hertz = kern["adapt"], kern["sample"], kern["track_peak"], kern["hertz"]
+    tpb = REGISTER_THREADS if not pre else REGISTER_THREADS // 2
+    # array shapes must be compile-time constants (an expression inside the kernel is not)
+    p1 = p + 1
+    pp = p if pre else 1
+
+    @cuda.jit
+    def register_kernel(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, wall_slot,
+                        interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke, out_pe,
+                        out_ed, out_v, record_v, fmax, peak, acc, status):
+        m = cuda.grid(1)
+        t = cuda.threadIdx.x
+        if m >= status.shape[0] or status[m] != 0:
+            return
+        skap = cuda.shared.array((p, tpb), float64)
+        sinv = cuda.shared.array((p, tpb), float64)
+        sd0 = cuda.shared.array((pp, tpb), float64)
+        sfx = cuda.shared.array((pp, tpb), float64)
+        for i in range(p):
+            skap[i, t] = kappa[i, m]
+            sinv[i, t] = inv_mass[i, m]
+            if pre:
+                sd0[i, t] = d0[i, m]
+                sfx[i, t] = fext[i, m]
+        ul = cuda.local.array(p1, float64)
+        vl = cuda.local.array(p, float64)
+        pk = cuda.local.array((8, 1), float64)  # the member's peak tracker, a per-thread copy
+        for j in range(8):
+            pk[j, 0] = peak[j, m]
+        ul[p] = u[p, m]  # the far end (wall) never moves
+        ws = wall_slot[m] + 1
+        nsub = n_sub[m]
+        neval = n_eval[m]
+        block = interval / nsub
+        adaptive = stride[m] == 0
+        ns = stride[m] if not adaptive else int(acc[3, m])
+        step = acc[2, m]
+        for k in range(k_start, k_stop):
+            for b in range(nsub):
+                if adaptive and ((k - 1) * nsub + b) % neval == 0:
+                    ns = adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block, c_steps[m],
+                               damping, LAW_ELASTIC, p, m, ns, relax[m], acc)
+                dt = block / ns
+                half = 0.5 * dt
+                t0 = (k - 1) * interval + b * block
+                for i in range(p):  # the block's opening half kick and drift
+                    vi = v[i, m] + half * a[i, m]
+                    vl[i] = vi
+                    ul[i] = u[i, m] + dt * vi
+                for s in range(ns - 1):  # kernels.step_elastic
+                    fprev = 0.0
+                    fw = 0.0
+                    for i in range(p):
+                        f = hertz(skap[i, t], ul[i] - ul[i + 1] + (sd0[i, t] if pre else 0.0))
+                        if i + 1 == ws:
+                            fw = f
+                        ai = (fprev - f + (sfx[i, t] if pre else 0.0)) * sinv[i, t]
+                        vl[i] += dt * ai
+                        ul[i] += dt * vl[i]
+                        fprev = f
+                    track_peak(fw, t0 + (s + 1) * dt, dt, pk, 0)
+                fprev = 0.0  # kernels.final_step_elastic: forces, closing half kick, state to memory
+                for i in range(p):
+                    f = hertz(skap[i, t], ul[i] - ul[i + 1] + (sd0[i, t] if pre else 0.0))
+                    g[i + 1, m] = f
+                    ai = (fprev - f + (sfx[i, t] if pre else 0.0)) * sinv[i, t]
+                    a[i, m] = ai
+                    v[i, m] = vl[i] + half * ai
+                    u[i, m] = ul[i]
+                    fprev = f
+                track_peak(g[ws, m], t0 + block, dt, pk, 0)
+                step += ns
+            # --- probes, sampled on the device (verlet_kernel's, elastic branch)
+            if not sample(k - k_start, False, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke,
+                          out_pe, out_ed, out_v, record_v, acc, p, m):
+                status[m] = 1
+                break
+        for j in range(8):
+            peak[j, m] = pk[j, 0]
+        acc[2, m] = step
+
+    return register_kernel, tpb

@@ -1,0 +1,450 @@
+"""The discrete adjoint of velocity Verlet: gradients of one scalar result with respect to every
+System parameter in one reverse sweep (reverse-mode differentiation of the steps the engine took).
+
+The result J depends on the forces of some steps (the samples it reads, the three steps around
+the wall peak): its partials dJ/dF^(s)_j are the *seeds*. With the step convention of
+:mod:`hertzchain.integrate.derivatives.tape`, the adjoint of step s maps the adjoints (u', v', a') of
+(u_{s+1}, v_{s+1}, a_{s+1}) to those of (u_s, v_s, a_s):
+
+    a' += h/2 v';  Fbar_j = seed_j + a'_{j+1} / m_{j+1} - a'_j / m_j;
+    u'_j += Fbar_j dF_j/dw, u'_{j+1} -= Fbar_j dF_j/dw;  vpbar_j, vpbar_{j+1} likewise with dF_j/dvrel;
+    vhbar = v' + h u' + vpbar;  a'_s = h/2 (vhbar + vpbar);  v'_s = vhbar;  u'_s = u',
+
+while the parameter adjoints collect Fbar_j dF_j/dtheta_j and a'_i (net force)_i for 1/m_i
+(:mod:`hertzchain.integrate.derivatives.partials`). The sweep runs group by group backwards: each group of
+blocks is replayed from its checkpoint (:func:`tape.replay_group`), then its steps are
+differentiated in reverse (:func:`_steps_general` and its elastic variants). Cost: about one
+primal run for the replay and one for the adjoint steps, whatever the number of parameters.
+
+The elastic-plastic law (:func:`_steps_plastic`) has a state per contact (residual overlap and
+unloading stiffness, ``kernels.elastoplastic_force``) that a step's forces update: the sweep
+carries the adjoints of that state backwards too, from step to step and group to group, and
+ends them in kappa (the stiffness every contact starts with). Its checkpoints and replays keep
+the state as well: memory 6 P doubles per checkpoint, and 5 P per step of the group replayed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..core.extension import EXT_CLIN, EXT_KLIN
+from ..core.kernels import DELTA_MIN, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
+from .partials import contact_partials, elastoplastic_adjoint
+from .tape import _fused, replay_group
+
+#: Seeds on the state rather than on a force: a seed's contact number STATE_U + i (STATE_V + i)
+#: is the position (velocity) of slot i after the step (``differentiate.Seeds``).
+STATE_U = 1 << 30
+STATE_V = 2 << 30
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _take_seeds(s, p, fb, ub, vb, seed_step, seed_contact, seed_w):
+    """Add the seeds of step ``s`` (those just below pointer ``p``) into ``fb`` (a force's) or into
+    the adjoints ``ub``, ``vb`` of the state after the step (a position's or a velocity's);
+    returns the new pointer."""
+    q = p
+    while q > 0 and seed_step[q - 1] == s:
+        q -= 1
+        c = seed_contact[q]
+        if c >= STATE_V:
+            vb[c - STATE_V] += seed_w[q]
+        elif c >= STATE_U:
+            ub[c - STATE_U] += seed_w[q]
+        else:
+            fb[c] += seed_w[q]
+    return q
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _clear_seeds(p, q, fb, seed_contact):
+    """Zero the entries of ``fb`` that the force seeds q..p-1 wrote."""
+    while p > q:
+        p -= 1
+        if seed_contact[p] < STATE_U:
+            fb[seed_contact[p]] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
+                   d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, ptr, grad, ext):
+    """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse, general forces; returns the seed pointer.
+
+    ``grad`` rows: kappa, damping, d0, de, dx0, rsum, fext, inv_mass, then the linear spring and
+    dashpot of every contact (``ext``: a protected body's mount; an empty ``ext`` has none).
+    Seeds are sorted by step; ``ptr`` is one past the last seed not consumed yet. ``fb`` (zero on
+    entry and exit) receives a step's seeds; ``fs, wb, rb`` are scratch (size P + 1, slot 0 zero).
+    The loops read shifted views (``x1[j]`` for x[j + 1], made once) so that LLVM vectorises them,
+    the adjoint of a_{s+1}, a' + h/2 v', is formed where it is read, and the stored step is indexed
+    (a row view per step costs two atomic reference counts). The three kinds of steps (this one,
+    :func:`_steps_static`, :func:`_steps_plain`) are compiled apart: one function holding them all
+    compiled each into slower code.
+    """
+    n = ab.shape[0]
+    p = ptr
+    gk, gdamp, gd0, gde, gdx0, grs, gfext, ginv = grad[0], grad[1], grad[2], grad[3], grad[4], grad[5], grad[6], grad[7]
+    gkl, gcl = grad[8], grad[9]
+    ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
+    m = n - 1
+    linear = ext.shape[0] > 0
+    for sl in range(nsteps - 1, -1, -1):
+        h = hstore[sl]
+        hh = 0.5 * h
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
+        for j in range(m):
+            f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
+                                                                   vpstore[sl, j + 1], kappa[j], damping[j], d0[j],
+                                                                   de[j], dx0[j], rsum[j], law)
+            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            if linear and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
+                # the mount's spring and dashpot (extension.forces_linear): k delta + c d(delta)/dt
+                dl = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
+                rl = vpstore[sl, j] - vpstore[sl, j + 1]
+                f += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
+                gw += ext[j, EXT_KLIN]
+                g0 += ext[j, EXT_KLIN]
+                gv += ext[j, EXT_CLIN]
+                gkl[j] += fbar * dl
+                gcl[j] += fbar * rl
+            fs1[j] = f
+            wb1[j] = fbar * gw
+            rb1[j] = fbar * gv
+            gk[j] += fbar * gkk
+            gdamp[j] += fbar * ga
+            gd0[j] += fbar * g0
+            gde[j] += fbar * gdd
+            gdx0[j] += fbar * gx
+            grs[j] += fbar * gr
+        for i in range(n):
+            abi = ab[i] + hh * vb[i]
+            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+            gfext[i] += abi * inv_mass[i]
+            ub[i] += wb1[i] - wb[i]
+            vpb = rb1[i] - rb[i]
+            vh = vb[i] + h * ub[i] + vpb
+            ab[i] = hh * (vh + vpb)
+            vb[i] = vh
+        _clear_seeds(p, q, fb, seed_contact)
+        p = q
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _steps_dissipative(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
+                       d0, fext, law, seed_step, seed_contact, seed_w, ptr, grad):
+    """:func:`_steps_general` for an aligned viscoelastic or dashpot chain without a protected body
+    (the chains ``kernels.verlet_run`` steps with its fused dissipative step): the partials of
+    Kuwabara-Kono's and the dashpot's partials (``partials.law_partials``) written out with selects, so that
+    LLVM vectorises the contact loop."""
+    n = ab.shape[0]
+    p = ptr
+    gk, gdamp, gd0, gfext, ginv = grad[0], grad[1], grad[2], grad[6], grad[7]
+    ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
+    m = n - 1
+    visco = law == LAW_VISCOELASTIC
+    for sl in range(nsteps - 1, -1, -1):
+        h = hstore[sl]
+        hh = 0.5 * h
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
+        for j in range(m):
+            d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
+            dd = d if d > DELTA_MIN else 0.0
+            sd = np.sqrt(dd)
+            rate = vpstore[sl, j] - vpstore[sl, j + 1]
+            k = kappa[j]
+            c = damping[j]
+            if visco:
+                f = k * dd * sd + k * c * sd * rate
+                inv = 1.0 / sd if sd > 0.0 else 0.0
+                fd = k * (1.5 * sd + 0.5 * c * rate * inv) if sd > 0.0 else 0.0
+                fr = k * c * sd
+                fk = dd * sd + c * sd * rate
+                fa = k * sd * rate
+            else:
+                f = k * dd * sd + c * rate
+                fd = 1.5 * k * sd
+                fr = c
+                fk = dd * sd
+                fa = rate
+            on = d >= 0.0 and f > 0.0
+            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fb_on = fbar if on else 0.0
+            fs1[j] = f if on else 0.0
+            wb1[j] = fb_on * fd
+            rb1[j] = fb_on * fr
+            gk[j] += fb_on * fk
+            gdamp[j] += fb_on * fa
+            gd0[j] += fb_on * fd
+        for i in range(n):
+            abi = ab[i] + hh * vb[i]
+            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+            gfext[i] += abi * inv_mass[i]
+            ub[i] += wb1[i] - wb[i]
+            vpb = rb1[i] - rb[i]
+            vh = vb[i] + h * ub[i] + vpb
+            ab[i] = hh * (vh + vpb)
+            vb[i] = vh
+        _clear_seeds(p, q, fb, seed_contact)
+        p = q
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, fb, fs, wb, rb, sb, inv_mass, kappa,
+                   damping, d0, fext, dyield, seed_step, seed_contact, seed_w, ptr, grad, ext):
+    """:func:`_steps_general` for the elastic-plastic law on an aligned chain
+    (:func:`partials.elastoplastic_adjoint`): ``pstore`` holds the state (dmax, dres, kres) each
+    step started from, ``sb`` (2, P) the adjoints of the state (dres, kres) after the step being
+    differentiated, carried backwards from step to step (and group to group). ``grad`` row 10
+    receives the yield overlaps' gradient."""
+    n = ab.shape[0]
+    p = ptr
+    gk, gdamp, gd0, gfext, ginv, gdy = grad[0], grad[1], grad[2], grad[6], grad[7], grad[10]
+    gkl, gcl = grad[8], grad[9]
+    ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
+    m = n - 1
+    linear = ext.shape[0] > 0
+    for sl in range(nsteps - 1, -1, -1):
+        h = hstore[sl]
+        hh = 0.5 * h
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
+        for j in range(m):
+            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
+            f = 0.0
+            gw = 0.0
+            gv = 0.0
+            if d >= 0.0 and kappa[j] != 0.0:
+                rate = vpstore[sl, j] - vpstore[sl, j + 1]
+                dd = d if d > DELTA_MIN else 0.0
+                f, dbar, rbar, kbar, abar, dybar, sb[0, j], sb[1, j] = elastoplastic_adjoint(
+                    dd, rate, kappa[j], damping[j], dyield[j], pstore[0, sl, j], pstore[1, sl, j], pstore[2, sl, j],
+                    fbar, sb[0, j], sb[1, j])
+                if d > DELTA_MIN:
+                    gw = dbar
+                gv = rbar
+                gk[j] += kbar
+                gdamp[j] += abar
+                gdy[j] += dybar
+            if linear and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
+                dl = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
+                rl = vpstore[sl, j] - vpstore[sl, j + 1]
+                f += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
+                gw += fbar * ext[j, EXT_KLIN]
+                gv += fbar * ext[j, EXT_CLIN]
+                gkl[j] += fbar * dl
+                gcl[j] += fbar * rl
+            fs1[j] = f
+            wb1[j] = gw
+            rb1[j] = gv
+            gd0[j] += gw
+        for i in range(n):
+            abi = ab[i] + hh * vb[i]
+            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+            gfext[i] += abi * inv_mass[i]
+            ub[i] += wb1[i] - wb[i]
+            vpb = rb1[i] - rb[i]
+            vh = vb[i] + h * ub[i] + vpb
+            ab[i] = hh * (vh + vpb)
+            vb[i] = vh
+        _clear_seeds(p, q, fb, seed_contact)
+        p = q
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _steps_static(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mass, kappa, d0, fext, seed_step,
+                  seed_contact, seed_w, ptr, grad):
+    """:func:`_steps_general` for an aligned elastic chain under a static load (precompression):
+    F_j = kappa_j delta_j^(3/2) (kernels.step_elastic), d0 and f_ext differentiated too."""
+    n = ab.shape[0]
+    p = ptr
+    gk, gd0, gfext, ginv = grad[0], grad[2], grad[6], grad[7]
+    ab1, vb1, im1, fs1, wb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:]
+    m = n - 1
+    for sl in range(nsteps - 1, -1, -1):
+        h = hstore[sl]
+        hh = 0.5 * h
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
+        for j in range(m):
+            d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
+            d = d if d > DELTA_MIN else 0.0
+            sd = np.sqrt(d)
+            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fs1[j] = kappa[j] * d * sd
+            gw = 1.5 * kappa[j] * sd
+            wb1[j] = fbar * gw
+            gk[j] += fbar * d * sd
+            gd0[j] += fbar * gw
+        for i in range(n):
+            abi = ab[i] + hh * vb[i]
+            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+            gfext[i] += abi * inv_mass[i]
+            ub[i] += wb1[i] - wb[i]
+            vh = vb[i] + h * ub[i]
+            ab[i] = hh * vh
+            vb[i] = vh
+        _clear_seeds(p, q, fb, seed_contact)
+        p = q
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _steps_plain(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mass, kappa, seed_step, seed_contact,
+                 seed_w, ptr, grad):
+    """:func:`_steps_static` without a static load (d0 = f_ext = 0: their gradients are not kept)."""
+    n = ab.shape[0]
+    p = ptr
+    gk, ginv = grad[0], grad[7]
+    ab1, vb1, im1, fs1, wb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:]
+    m = n - 1
+    for sl in range(nsteps - 1, -1, -1):
+        h = hstore[sl]
+        hh = 0.5 * h
+        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
+        for j in range(m):
+            d = ustore[sl, j] - ustore[sl, j + 1]
+            d = d if d > DELTA_MIN else 0.0
+            sd = np.sqrt(d)
+            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fs1[j] = kappa[j] * d * sd
+            wb1[j] = fbar * 1.5 * kappa[j] * sd
+            gk[j] += fbar * d * sd
+        for i in range(n):
+            abi = ab[i] + hh * vb[i]
+            ginv[i] += abi * (fs[i] - fs1[i])
+            ub[i] += wb1[i] - wb[i]
+            vh = vb[i] + h * ub[i]
+            ab[i] = hh * vh
+            vb[i] = vh
+        _clear_seeds(p, q, fb, seed_contact)
+        p = q
+    return p
+
+
+@njit(cache=True, nogil=True)
+def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
+                     seed_step, seed_contact, seed_w, ptr, grad, ext, dyield, sb):
+    """The state at t = 0: a_0 = (F(u_0, v_0)_{i-1} - F(u_0, v_0)_i + f_ext,i) / m_i (seeds of step -1).
+
+    The elastic-plastic law's forces at t = 0 start its state from (0, 0, kappa) (``layout.pack``):
+    ``sb`` holds the adjoints of the state they leave, and the stiffness's flows into kappa's."""
+    n = ab.shape[0]
+    fb = np.zeros(n)
+    p = _take_seeds(-1, ptr, fb, ub, vb, seed_step, seed_contact, seed_w)
+    fs = np.zeros(n + 1)
+    wb = np.zeros(n + 1)
+    rb = np.zeros(n + 1)
+    plastic = general and law == LAW_ELASTOPLASTIC
+    for j in range(n - 1):
+        fbar = fb[j] + inv_mass[j + 1] * ab[j + 1] - inv_mass[j] * ab[j]
+        if plastic:  # aligned only (differentiate.check_law), as _steps_plastic
+            d = u0[j] - u0[j + 1] + d0[j]
+            f, wbar, rbar, kresb = 0.0, 0.0, 0.0, sb[1, j]
+            if d >= 0.0 and kappa[j] != 0.0:
+                f, dbar, rbar, kbar, abar, dybar, _, kresb = elastoplastic_adjoint(
+                    d if d > DELTA_MIN else 0.0, v0[j] - v0[j + 1], kappa[j], damping[j], dyield[j], 0.0, 0.0,
+                    kappa[j], fbar, sb[0, j], sb[1, j])
+                wbar = dbar if d > DELTA_MIN else 0.0
+                grad[0, j] += kbar
+                grad[1, j] += abar
+                grad[10, j] += dybar
+            grad[0, j] += kresb  # the stiffness the state starts from is kappa
+            grad[2, j] += wbar
+        else:
+            f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(u0[j], u0[j + 1], v0[j], v0[j + 1], kappa[j],
+                                                                   damping[j], d0[j], de[j], dx0[j], rsum[j],
+                                                                   law if general else 0)
+            wbar = fbar * gw
+            rbar = fbar * gv
+            grad[0, j] += fbar * gkk
+            grad[1, j] += fbar * ga
+            grad[2, j] += fbar * g0
+            grad[3, j] += fbar * gdd
+            grad[4, j] += fbar * gx
+            grad[5, j] += fbar * gr
+        if ext.shape[0] > 0 and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
+            dl = u0[j] - u0[j + 1] + d0[j]
+            rl = v0[j] - v0[j + 1]
+            f += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
+            wbar += fbar * ext[j, EXT_KLIN]
+            rbar += fbar * ext[j, EXT_CLIN]
+            grad[2, j] += fbar * ext[j, EXT_KLIN]
+            grad[8, j] += fbar * dl
+            grad[9, j] += fbar * rl
+        fs[j + 1] = f
+        wb[j + 1] = wbar
+        rb[j + 1] = rbar
+    for i in range(n):
+        grad[6, i] += ab[i] * inv_mass[i]
+        grad[7, i] += ab[i] * (fs[i] - fs[i + 1] + fext[i])
+        ub[i] += wb[i + 1] - wb[i]
+        vb[i] += rb[i + 1] - rb[i]
+    return p
+
+
+@njit(cache=True, nogil=True)
+def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
+                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb):
+    """The whole reverse sweep: every group replayed and differentiated, last group first, then
+    the initial state. On entry ``ub, vb, ab`` hold the seeds on the final state (usually zero);
+    on exit the adjoints of (u_0, v_0, a_0), and ``grad`` the parameter gradients (rows as in
+    :func:`_steps_general`; row 10: the yield overlaps of the elastic-plastic law). ``max_rows``:
+    most steps in one group. With the elastic-plastic law the checkpoints hold its state too
+    (rows 3-5), and the adjoints of its state (``sb``, (2, P): residual overlap and unloading
+    stiffness; on entry those of the final state, for a result that reads it, as the plastic work)
+    cross from group to group."""
+    n = ab.shape[0]
+    u = np.zeros(n + 1)
+    v = np.zeros(n + 1)
+    a = np.zeros(n)
+    g = np.zeros(n + 1)
+    plastic = general and law == LAW_ELASTOPLASTIC
+    dmax = np.zeros(n)  # the elastic-plastic state: scratch of the replays (from the checkpoints)
+    dres = np.zeros(n)
+    kres = kappa.copy()
+    ustore = np.zeros((max_rows, n))
+    vpstore = np.zeros((max_rows if general else 1, n))
+    hstore = np.zeros(max_rows)
+    pstore = np.zeros((3, max_rows if plastic else 1, n if plastic else 1))
+    fb = np.zeros(n)
+    fs = np.zeros(n + 1)
+    wb = np.zeros(n + 1)
+    rb = np.zeros(n + 1)
+    n_groups = (n_blocks + group - 1) // group
+    static = False
+    for i in range(n):
+        static = static or d0[i] != 0.0 or fext[i] != 0.0
+    # global number of the first step of every group
+    starts = np.zeros(n_groups + 1, dtype=np.int64)
+    for b in range(n_blocks):
+        starts[b // group + 1] += ns_log[b]
+    for i in range(n_groups):
+        starts[i + 1] += starts[i]
+    p = seed_step.shape[0]
+    fused = _fused(general, law, de, ext.shape[0] > 0)
+    for gi in range(n_groups - 1, -1, -1):
+        b0 = gi * group
+        b1 = min(b0 + group, n_blocks)
+        rows = replay_group(ckpt[gi], u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
+                            wall_slot, ns_log, b0, b1, block, (ustore, vpstore, hstore, pstore), dyield, dmax, dres,
+                            kres, ext, ext.shape[0] > 0)
+        if plastic:
+            p = _steps_plastic(rows, ustore, vpstore, hstore, pstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, sb,
+                               inv_mass, kappa, damping, d0, fext, dyield, seed_step, seed_contact, seed_w, p, grad,
+                               ext)
+        elif fused:
+            p = _steps_dissipative(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass,
+                                   kappa, damping, d0, fext, law, seed_step, seed_contact, seed_w, p, grad)
+        elif general:
+            p = _steps_general(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
+                               damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad, ext)
+        elif static:
+            p = _steps_static(rows, ustore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, inv_mass, kappa, d0, fext,
+                              seed_step, seed_contact, seed_w, p, grad)
+        else:
+            p = _steps_plain(rows, ustore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, inv_mass, kappa, seed_step,
+                             seed_contact, seed_w, p, grad)
+    return _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
+                            seed_step, seed_contact, seed_w, p, grad, ext, dyield, sb)

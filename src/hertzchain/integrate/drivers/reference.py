@@ -1,0 +1,244 @@
+"""Reference integrator: the same model through ``scipy.integrate.solve_ivp`` (DOP853 by default).
+
+The right-hand side calls the very force functions of the compiled Verlet
+(:mod:`hertzchain.integrate.core.kernels`), so the two integrators differ only in how they step.
+The dissipated energy is integrated as one extra state component.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import minimize_scalar
+
+from ...errors import SimulationDiverged
+from ...model import System
+from ..core import kernels
+from ..core.layout import pack
+from .verlet import RawRun
+
+__all__ = ["run_reference", "make_rhs"]
+
+#: The elastic-plastic state arrays of ``kernels.forces_general``, unused by the laws solved here
+#: (a history-dependent force has no place in an ODE right-hand side evaluated at trial points).
+_NO_STATE = np.zeros(0)
+
+
+def _check_law(system: System, method: str = "DOP853") -> None:
+    """Refuse the elastic-plastic law (ConfigError naming ``run.integrator``, suggesting only the
+    integrators that take the model: :mod:`hertzchain.integrate.drivers.refusals`)."""
+    from .refusals import refuse
+
+    refuse(method.lower(), system)
+
+
+def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
+    """dy/dt for y = [u_0..u_N, v_0..v_N, E_dissipated] (SI units); not for the elastic-plastic law. An
+    extended system (a protected body, mass-in-mass beads: :func:`_make_rhs_extended`) has more
+    components."""
+    _check_law(system)
+    if system.extended:
+        return _make_rhs_extended(system)
+    nb = system.n_beads + 1
+    u = np.zeros(nb + 1)
+    v = np.zeros(nb + 1)
+    g = np.zeros(nb + 1)
+    a = np.zeros(nb)
+    s = system
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        u[:nb] = y[:nb]
+        v[:nb] = y[nb : 2 * nb]
+        if s.general:
+            power = kernels.forces_general(u, v, s.kappa, s.damping, s.d0, s.de, s.dx0, s.rsum, s.law, g,
+                                           *(_NO_STATE,) * 4)
+        else:
+            kernels.forces_elastic(u, s.kappa, s.d0, g)
+            power = 0.0
+        kernels.accelerations(g, s.fext, s.inv_mass, a)
+        return np.concatenate([v[:nb], a, [power]])
+
+    return rhs
+
+
+class _Extended:
+    """The arrays of an extended system laid out as the kernels take them (``layout.pack``), and
+    the state vector's parts: y = [u (nb), v (nb), w (nb), wv (nb), E_dissipated, W_body], nb the
+    moving bodies (the protected body included), w and wv the internal masses' motion."""
+
+    def __init__(self, system: System) -> None:
+        w = pack(system)
+        self.w = w
+        self.nb = system.n_moving
+        p = w.n_slots
+        self.u = np.zeros(p + 1)
+        self.v = np.zeros(p + 1)
+        self.g = np.zeros(p + 1)
+        self.a = np.zeros(p)
+        self.wa = np.zeros(p)
+        self.ext = w.ext.copy()
+
+    def load(self, y: np.ndarray) -> None:
+        nb, e = self.nb, self.ext
+        self.u[:nb] = y[:nb]
+        self.v[:nb] = y[nb:2 * nb]
+        e[:nb, kernels.EXT_W] = y[2 * nb:3 * nb]
+        e[:nb, kernels.EXT_WV] = y[3 * nb:4 * nb]
+
+    def forces(self, law: int) -> float:
+        w = self.w
+        power = kernels.forces_general(self.u, self.v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, law, self.g,
+                                       w.dyield, w.dmax, w.dres, w.kres)
+        return power + kernels.forces_linear(self.u, self.v, w.d0, self.ext, self.g)
+
+
+def _make_rhs_extended(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
+    """dy/dt of an extended system (see :class:`_Extended`)."""
+    x = _Extended(system)
+    nb, b = x.nb, x.w.body_slot
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        x.load(y)
+        power = x.forces(system.law)
+        kernels.accelerations_extended(x.u, x.g, x.w.fext, x.w.inv_mass, x.ext, x.a, x.wa)
+        work = x.g[b] * x.v[b] if b >= 0 else 0.0
+        return np.concatenate([x.v[:nb], x.a[:nb], x.ext[:nb, kernels.EXT_WV], x.wa[:nb], [power, work]])
+
+    return rhs
+
+
+def _wall_force(system: System, y: np.ndarray) -> float:
+    nb = system.n_beads + 1
+    if system.general:
+        # Dissipative laws: the wall force includes the rate term, so use the same kernel as the
+        # recorded forces (the elastic part alone is not the force the wall sensor reads).
+        u = np.zeros(nb + 1)
+        v = np.zeros(nb + 1)
+        g = np.zeros(nb + 1)
+        u[:nb] = y[:nb]
+        v[:nb] = y[nb : 2 * nb]
+        kernels.forces_general(u, v, system.kappa, system.damping, system.d0, system.de, system.dx0, system.rsum,
+                               system.law, g, *(_NO_STATE,) * 4)
+        return float(g[nb])
+    d = y[nb - 1] + system.d0[-1]
+    return float(system.kappa[-1] * max(d, 0.0) ** 1.5)
+
+
+def run_reference(system: System, duration: float, sample_interval: float, method: str = "DOP853",
+                  rtol: float = 1e-10, atol_scale: float | None = None,
+                  record_velocities: bool = False, record_positions: bool = False) -> RawRun:
+    """Integrate with ``solve_ivp(method=method, rtol=rtol)`` and sample like :func:`run_verlet`.
+
+    ``atol`` is set per component from ``rtol`` and natural scales (overlap of the striker
+    contact, striker speed, striker energy) so that a tolerance means the same for every chain.
+    The peak wall force is refined on the dense output. The elastic-plastic law is refused
+    (ConfigError naming ``run.integrator``).
+    """
+    _check_law(system, method)
+    if system.extended:
+        return _run_reference_extended(system, duration, sample_interval, method, rtol, atol_scale,
+                                       record_velocities, record_positions)
+    nb = system.n_beads + 1
+    n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
+    time = np.arange(n_samples) * sample_interval
+    y0 = np.concatenate([system.u0[:nb], system.v0[:nb], [0.0]])
+    v_scale = max(abs(system.v0).max(), 1e-12)
+    energy = 0.5 * system.mass[0] * system.v0[0] ** 2
+    d_scale = (2.5 * energy / system.kappa[0]) ** 0.4 if system.kappa[0] > 0 else 1e-6
+    if atol_scale is None:
+        atol_scale = rtol
+    atol = np.concatenate([np.full(nb, atol_scale * d_scale), np.full(nb, atol_scale * v_scale), [atol_scale * energy]])
+    sol = solve_ivp(make_rhs(system), (0.0, time[-1]), y0, method=method, rtol=rtol, atol=atol, t_eval=time,
+                    dense_output=True)
+    if not sol.success or not np.all(np.isfinite(sol.y)):
+        raise SimulationDiverged(f"solve_ivp({method}) failed: {sol.message}")
+    u = np.zeros((n_samples, nb + 1))
+    u[:, :nb] = sol.y[:nb].T
+    vel = sol.y[nb : 2 * nb].T
+    nc = system.n_contacts
+    forces = np.empty((n_samples, nc))
+    g = np.zeros(nb + 1)
+    ke = 0.5 * (vel**2 * system.mass[:nb]).sum(axis=1)
+    pe = np.empty(n_samples)
+    vv = np.zeros(nb + 1)
+    for k in range(n_samples):
+        vv[:nb] = vel[k]
+        if system.general:
+            kernels.forces_general(u[k], vv, system.kappa, system.damping, system.d0, system.de, system.dx0,
+                                   system.rsum, system.law, g, *(_NO_STATE,) * 4)
+        else:
+            kernels.forces_elastic(u[k], system.kappa, system.d0, g)
+        forces[k] = g[1 : nc + 1]
+        pe[k] = kernels.potential_energy(u[k], g, system.kappa, system.d0, system.de, system.dx0, system.rsum,
+                                         system.fext, False)
+    peak_f, peak_t = 0.0, 0.0
+    if system.has_wall:
+        k = int(np.argmax(forces[:, -1]))
+        lo, hi = time[max(k - 1, 0)], time[min(k + 1, n_samples - 1)]
+        if hi > lo:
+            res = minimize_scalar(lambda t: -_wall_force(system, sol.sol(t)), bounds=(lo, hi), method="bounded",
+                                  options={"xatol": 1e-13})
+            peak_f, peak_t = -float(res.fun), float(res.x)
+        peak_f = max(peak_f, float(forces[k, -1]))
+    return RawRun(time=time, contact_force=forces, kinetic_energy=ke, potential_energy=pe, max_force=forces.max(axis=0),
+                  dissipated_energy=sol.y[-1].copy(), velocity=vel if record_velocities else None,
+                  peak_wall_force=peak_f, peak_wall_time=peak_t, dt=0.0,
+                  integrator=f"scipy.solve_ivp({method}, rtol={rtol:g})", n_steps=int(sol.nfev), contacts=np.arange(nc),
+                  displacement=u[:, :nb].copy() if record_positions else None)
+
+
+def _run_reference_extended(system: System, duration: float, sample_interval: float, method: str, rtol: float,
+                            atol_scale: float | None, record_velocities: bool, record_positions: bool) -> RawRun:
+    """:func:`run_reference` of an extended system (a protected body, mass-in-mass beads)."""
+    x = _Extended(system)
+    nb, n, b = x.nb, system.n_beads, x.w.body_slot
+    n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
+    time = np.arange(n_samples) * sample_interval
+    y0 = np.concatenate([system.u0[:nb], system.v0[:nb], np.zeros(2 * nb + 2)])
+    v_scale = max(abs(system.v0).max(), 1e-12)
+    energy = 0.5 * system.mass[0] * system.v0[0] ** 2
+    d_scale = (2.5 * energy / system.kappa[0]) ** 0.4 if system.kappa[0] > 0 else 1e-6
+    tol = rtol if atol_scale is None else atol_scale
+    atol = np.concatenate([np.full(nb, tol * d_scale), np.full(nb, tol * v_scale), np.full(nb, tol * d_scale),
+                           np.full(nb, tol * v_scale), [tol * energy, tol * energy]])
+    sol = solve_ivp(make_rhs(system), (0.0, time[-1]), y0, method=method, rtol=rtol, atol=atol, t_eval=time,
+                    dense_output=True)
+    if not sol.success or not np.all(np.isfinite(sol.y)):
+        raise SimulationDiverged(f"solve_ivp({method}) failed: {sol.message}")
+    nc = system.n_contacts
+    forces = np.empty((n_samples, nc))
+    ke, pe = np.empty(n_samples), np.empty(n_samples)
+    body = np.empty((n_samples, 4)) if b >= 0 else None
+    w = x.w
+    for k in range(n_samples):
+        x.load(sol.y[:, k])
+        x.forces(system.law)
+        kernels.accelerations_extended(x.u, x.g, w.fext, w.inv_mass, x.ext, x.a, x.wa)
+        forces[k] = x.g[1:nc + 1]
+        ke_in, pe_lin = kernels.energies_extended(x.u, w.d0, x.ext)
+        ke[k] = kernels.kinetic_energy(x.v, w.mass) + ke_in
+        pe[k] = kernels.potential_energy(x.u, x.g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False) + pe_lin
+        if body is not None:
+            body[k] = (x.u[b], x.v[b], x.a[b], sol.y[-1, k])
+
+    def wall_force(t: float) -> float:
+        x.load(sol.sol(t))
+        x.forces(system.law)
+        return float(x.g[n + 1])
+
+    peak_f, peak_t = 0.0, 0.0
+    if system.has_wall:
+        k = int(np.argmax(forces[:, -1]))
+        lo, hi = time[max(k - 1, 0)], time[min(k + 1, n_samples - 1)]
+        if hi > lo:
+            res = minimize_scalar(lambda t: -wall_force(t), bounds=(lo, hi), method="bounded", options={"xatol": 1e-13})
+            peak_f, peak_t = -float(res.fun), float(res.x)
+        peak_f = max(peak_f, float(forces[k, -1]))
+    return RawRun(time=time, contact_force=forces, kinetic_energy=ke, potential_energy=pe, max_force=forces.max(axis=0),
+                  dissipated_energy=sol.y[-2].copy(), velocity=sol.y[nb:nb + n + 1].T.copy() if record_velocities else None,
+                  peak_wall_force=peak_f, peak_wall_time=peak_t, dt=0.0,
+                  integrator=f"scipy.solve_ivp({method}, rtol={rtol:g})", n_steps=int(sol.nfev), contacts=np.arange(nc),
+                  displacement=sol.y[:n + 1].T.copy() if record_positions else None, body=body)

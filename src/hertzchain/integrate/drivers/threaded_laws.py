@@ -1,0 +1,375 @@
+"""The threaded long-chain engine for every contact law: one block of bodies per thread.
+
+:func:`hertzchain.integrate.drivers.threaded.run_verlet_threaded` runs aligned elastic chains with the
+hand-fused elastic steps of :mod:`hertzchain.integrate.drivers.threaded`; every other model it runs with
+a thread function built here, once per law and process, from the law's one-contact function:
+
+- the built-in laws (elastic with offsets, Kuwabara-Kono, dashpot, their size-scaled forms,
+  Thornton's elastic-plastic law): :func:`contact_general`, the contact of
+  ``kernels.forces_general`` operation for operation;
+- the laws declared in :mod:`hertzchain.laws` (power, Hunt-Crossley, a user's): the ``contact``
+  that :func:`hertzchain.integrate.core.generated.law_kernels` builds from the law's ``force`` and
+  ``state``, the contact of the generated single-thread loop.
+
+A step is the single-thread general path's (``kernels.verlet_run``, ``generated``'s ``run``):
+the forces at the drifted positions and at the velocities predicted half a step ahead,
+v + (dt/2) a, then a = (F_{i-1} - F_i + f_ext) / m, the kick and the drift (the closing half kick
+at a block's end); fused into one pass over a thread's bodies (as ``kernels.step_dissipative``),
+which computes each contact's force from the same numbers in the same operations. The contact
+on a block's left edge needs the left neighbour's last position and predicted velocity, the
+last contact the right neighbour's first: each thread publishes both after it moves its bodies,
+in one of two slots that alternate from step to step, and reads its neighbours' after one
+barrier (one per step, :mod:`hertzchain.integrate.core.barrier`). The contact on the left edge is
+computed by both threads from the same numbers; its per-contact state (elastic-plastic: the
+largest overlap and the unloading curve; Hunt-Crossley: the approach speed) belongs to the
+thread that owns the contact (the left one), the right one carries a private copy, updated by
+the same arithmetic, so both see the same force.
+
+So positions, velocities, forces, the per-contact state and the wall peak are those of one
+thread bit for bit. The dissipated energy is each block's trapezoidal integral of its own
+dissipated power, added over the blocks, and the kinetic and potential energies and the plastic
+work are block sums added in block order: they round differently from the one-thread sums
+(relative difference ~1e-15 x sqrt(N); tests/test_threaded_laws.py bounds it by 1e-12 of the
+largest energy).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..core import kernels
+from ..core.barrier import barrier
+from ..core.primitives import _track_peak, _viscous_force, open_block, running_max
+
+__all__ = ["law_thread_run", "contact_general"]
+
+_CACHE: dict = {}
+
+
+@njit(nogil=True, inline="always")
+def contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyield, dmax, dres, kres):
+    """One contact of :func:`hertzchain.integrate.core.kernels.forces_general`, operation for operation (bodies at ``ui``, ``uj`` [m]
+    moving at ``vi``, ``vj`` [m/s], the contact's parameters and, for the elastic-plastic law, its
+    state); returns (axial force [N], dissipated power [W], dmax, dres, kres), the state unchanged
+    for the other laws: the built-in laws' contact in the threads (tests/test_threaded_laws.py
+    requires their runs to equal the one-thread loop's bit for bit). ``forces_general`` keeps its
+    own loop: calling this from it made the one-thread elastic-plastic loop ~30 % slower (it
+    stores the state of open contacts too)."""
+    if de != 0.0:
+        dx = dx0 - (ui - uj)
+        dist = np.sqrt(dx * dx + de * de)
+        d = rsum - dist
+        c = dx / dist
+    else:
+        d = ui - uj + d0
+        c = 1.0
+    # d == 0 is kept as a contact: at the impact instant (t = 0, striker just touching) the
+    # dashpot force is already gamma d(delta)/dt = gamma v0 (the law jumps at closure); taking
+    # 0 there instead made Verlet's first half kick miss an O(dt) impulse (first-order error).
+    # The elastic part and the Kuwabara-Kono term (~ delta^(1/2)) vanish at d == 0 anyway.
+    if d < 0.0:
+        return 0.0, 0.0, dmax, dres, kres
+    if d <= kernels.DELTA_MIN:
+        d = 0.0
+    if law == kernels.LAW_ELASTOPLASTIC:
+        if kappa == 0.0:  # no contact (free end, padding)
+            return 0.0, 0.0, dmax, dres, kres
+        rate = c * (vi - vj)
+        f, fep, dmax, dres, kres = kernels.elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres)
+        return c * f, (f - fep) * rate, dmax, dres, kres
+    sd = np.sqrt(d)
+    fel = kappa * d * sd
+    if law == kernels.LAW_ELASTIC:
+        return c * fel, 0.0, dmax, dres, kres
+    rate = c * (vi - vj)  # d(delta)/dt
+    if law == kernels.LAW_VISCOELASTIC:
+        f = fel + kappa * damping * sd * rate
+    else:
+        f = fel + damping * rate
+    f = max(f, 0.0)
+    # F_diss * d(delta)/dt >= 0: power lost to dissipation
+    return c * f, (f - fel) * rate, dmax, dres, kres
+
+
+def law_thread_run(code: int, aligned: bool):
+    """The thread function (:func:`_build`) for the law of engine code ``code`` on an aligned chain
+    (``aligned``: no offsets, the misaligned geometry compiled out) or one with offsets; compiled on
+    first use in a process (a closure over the law's functions: Numba keeps it in memory, not on
+    disk)."""
+    from ..core.generated import is_generated, law_kernels
+
+    if is_generated(code):
+        _, _, energy, stride, contact = law_kernels(code)
+        key = ("generated", int(code), bool(aligned), id(contact))
+    else:
+        key = ("builtin", int(code), bool(aligned))
+    if key not in _CACHE:
+        _CACHE[key] = (_generated(contact, stride, energy, aligned) if is_generated(code)
+                       else _builtin(int(code), aligned))
+    return _CACHE[key]
+
+
+def _builtin(law: int, aligned: bool):
+    """The thread function of a built-in law (engine code ``law``: ``kernels.LAW_*``)."""
+    plastic = law == kernels.LAW_ELASTOPLASTIC
+    # aligned Kuwabara-Kono and dashpot chains: the one-thread loop's fused step
+    # (kernels.step_dissipative), whose contact is _viscous_force; its power sum may be
+    # reassociated (vectorised) as kernels.dissipative_block's
+    fused = aligned and law in (kernels.LAW_VISCOELASTIC, kernels.LAW_DASHPOT)
+
+    @njit(nogil=True, inline="always")
+    def contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, dyield, s0, s1, s2):
+        if fused:
+            rate = vi - vj
+            f, fel = _viscous_force(ui - uj + d0, rate, kappa, damping, law)
+            return f, (f - fel) * rate, s0, s1, s2
+        if aligned:  # the offset branch folded away (computed, even untaken, it cost ~4x)
+            return contact_general(ui, uj, vi, vj, kappa, damping, d0, 0.0, 0.0, 0.0, law, dyield, s0, s1,
+                                           s2)
+        return contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyield, s0, s1, s2)
+
+    @njit(nogil=True)
+    def stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps, ext):
+        return kernels.required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps,
+                                       damping, law, ext, False)
+
+    @njit(nogil=True)
+    def energies(u, v, g, mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres):
+        ke = kernels.kinetic_energy(v, mass)
+        if plastic:
+            pe = kernels.potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres)
+            return ke, pe, kernels.plastic_work(kappa, dyield, dmax, dres)
+        return ke, kernels.potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False), 0.0
+
+    return _build(contact, stride, energies, plastic, plastic, fused)
+
+
+def _generated(law_contact, law_stride, law_energy, aligned: bool):
+    """The thread function of a law run by the generated engines (its state in the ``dmax`` slots)."""
+
+    @njit(nogil=True, inline="always")
+    def contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, dyield, s0, s1, s2):
+        if aligned:  # the offset branch folded away
+            f, p, s0 = law_contact(ui, uj, vi, vj, kappa, damping, d0, 0.0, 0.0, 0.0, s0)
+        else:
+            f, p, s0 = law_contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, s0)
+        return f, p, s0, s1, s2
+
+    @njit(nogil=True)
+    def stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps, ext):
+        return law_stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps)
+
+    @njit(nogil=True)
+    def energies(u, v, g, mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres):
+        return kernels.kinetic_energy(v, mass), law_energy(u, kappa, damping, d0, de, dx0, rsum, fext), 0.0
+
+    return _build(contact, stride, energies, True, False, False)
+
+
+@njit(nogil=True, inline="always")
+def _publish(pub, par, tid, u, v, a, s, e, half):
+    """The block's first and last positions and predicted velocities v + half a into the other
+    parity's slots; returns that parity (a slot is written only after a barrier has followed every
+    read of it)."""
+    par = 1 - par
+    pub[par, tid, 0] = u[s]
+    pub[par, tid, 1] = v[s] + half * a[s]
+    pub[par, tid, 2] = u[e - 1]
+    pub[par, tid, 3] = v[e - 1] + half * a[e - 1]
+    return par
+
+
+@njit(nogil=True, inline="always")
+def _move(u, v, a, g, i, f, fprev, fext, inv_mass, dt, half, last):
+    """Contact i's force into g, body i's acceleration, then its kick and drift (or, ``last``, the
+    closing half kick): the general path's update loops, one body."""
+    g[i + 1] = f
+    ai = (fprev - f + fext) * inv_mass
+    a[i] = ai
+    if last:
+        v[i] += half * ai
+    else:
+        v[i] += dt * ai
+        u[i] += dt * v[i]
+
+
+def _segment(contact, stateful, fused, last):
+    """One step over a block's bodies: ``last`` (a constant, so that the loop has no branch on it
+    and vectorises where the contact allows) the block's closing half kick, else kick and drift."""
+
+    @njit(nogil=True, fastmath={"reassoc"} if fused else False)
+    def segment(u, v, a, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres, kres, dt, half,
+                fprev, ur, vr):
+        """The step on a block's bodies, given as views from its first body (``u``, ``g`` one slot
+        longer): ``fprev`` the force of the contact on its left, ``ur``, ``vr`` the right
+        neighbour's position and predicted velocity. Returns the block's dissipated power [W].
+        Views from 0, so that the indices are known to be non-negative (from the block's first
+        slot, Numba wraps every access for negative indices)."""
+        n = inv_mass.shape[0]
+        vq = v[0] + half * a[0]
+        power = 0.0
+        for i in range(n - 1):
+            vq1 = v[i + 1] + half * a[i + 1]
+            f, p, x0, x1, x2 = contact(u[i], u[i + 1], vq, vq1, kappa[i], damping[i], d0[i], de[i], dx0[i], rsum[i],
+                                       dyield[i], dmax[i], dres[i], kres[i])
+            if stateful:
+                dmax[i] = x0
+                dres[i] = x1
+                kres[i] = x2
+            power += p
+            _move(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
+            fprev = f
+            vq = vq1
+        i = n - 1
+        f, p, x0, x1, x2 = contact(u[i], ur, vq, vr, kappa[i], damping[i], d0[i], de[i], dx0[i], rsum[i], dyield[i],
+                                   dmax[i], dres[i], kres[i])
+        if stateful:
+            dmax[i] = x0
+            dres[i] = x1
+            kres[i] = x2
+        _move(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
+        return power + p
+
+    return segment
+
+
+def _build(contact, stride, energies, stateful, plastic, fused):
+    """The thread function over ``contact`` (one contact: (axial force, dissipated power, state)),
+    ``stride`` (the adaptive step's bound over a range of contacts) and ``energies`` (a block's
+    kinetic and potential energies and plastic work); ``stateful``: the contacts carry state;
+    ``plastic``: the plastic work is recorded (``out_wp``); ``fused``: the block's power sum may be
+    reassociated (``kernels.dissipative_block``'s flag, for its contact only)."""
+
+    kick_drift = _segment(contact, stateful, fused, False)
+    half_kick = _segment(contact, stateful, fused, True)
+
+    @njit(nogil=True)
+    def thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, edacc, u, v, a, g, mass, inv_mass, kappa,
+                   damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres, wall_slot, interval, stride_,
+                   n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp,
+                   out_v, record_v, out_u, record_u, fmax, peak, acc, ext):
+        """Thread ``tid``'s share of the single-thread general loop from sample ``k_start`` to
+        ``k_stop``: bodies and contacts [bounds[tid], bounds[tid + 1]), recorded contacts
+        rec[rbounds[tid]:rbounds[tid + 1]]. ``pub`` (2, nthr, 4): first and last position and
+        predicted velocity of each block, by parity; ``part`` (nthr,) the blocks' required steps;
+        ``energy`` (nthr, 3) their kinetic, potential energies and plastic work; ``edacc``
+        (nthr, 2) their dissipated energy and last dissipated power (kept from call to call).
+        Thread 0 keeps ``acc`` (the others a copy: the same numbers). Returns 1 when the state is
+        not finite (every thread sees the same sums), else 0."""
+        s = bounds[tid]
+        e = bounds[tid + 1]
+        nc = fmax.shape[0]
+        ws = wall_slot
+        owns_wall = s <= ws < e
+        left = tid > 0
+        right = tid < nthr - 1
+        my = acc if tid == 0 else acc.copy()
+        sense = 0
+        par = 0
+        block = interval / n_sub
+        adaptive = stride_ == 0
+        ns = stride_ if not adaptive else int(my[3])
+        step = int(my[2])
+        j0 = s - 1 if left else 0
+        # the contact on the block's left: its parameters and a private copy of its owner's state
+        kl, cl, d0l, del_, dxl, rl, dyl = kappa[j0], damping[j0], d0[j0], de[j0], dx0[j0], rsum[j0], dyield[j0]
+        gs0, gs1, gs2 = dmax[j0], dres[j0], kres[j0]
+        ed = edacc[tid, 0]
+        pprev = edacc[tid, 1]
+        for k in range(k_start, k_stop):
+            for b in range(n_sub):
+                if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
+                    # a maximum over bodies of a bound from their contacts: the largest of the
+                    # blocks' values (each with its left contact) is the chain's
+                    sense = barrier(bar, nthr, sense)
+                    part[tid] = stride(u[j0:e + 1], v[j0:e + 1], a[j0:e + 1], kappa[j0:e], damping[j0:e], d0[j0:e],
+                                       de[j0:e], dx0[j0:e], rsum[j0:e], dcap[j0:e], dmax[j0:e], inv_mass[j0:e + 1],
+                                       n_eval * block, block, c_steps, ext)
+                    sense = barrier(bar, nthr, sense)
+                    req = part[0]
+                    for t in range(1, nthr):
+                        req = part[t] if part[t] > req else req
+                    ns = kernels._adapt_stride(req, ns, relax, my)
+                dt = block / ns
+                half = 0.5 * dt
+                t0 = (k - 1) * interval + b * block
+                open_block(u[s:e], v[s:e], a[s:e], dt, half)
+                par = _publish(pub, par, tid, u, v, a, s, e, half)
+                sense = barrier(bar, nthr, sense)
+                for st in range(ns):
+                    last = st == ns - 1
+                    if right:
+                        ur = pub[par, tid + 1, 0]
+                        vr = pub[par, tid + 1, 1]
+                    else:  # the slot past the last (padding): at rest, as the one-thread loop's
+                        ur = u[e]
+                        vr = 0.0
+                    vq = v[s] + half * a[s]
+                    fprev = 0.0
+                    if left:
+                        fprev, _, gs0, gs1, gs2 = contact(pub[par, tid - 1, 2], u[s], pub[par, tid - 1, 3], vq, kl, cl,
+                                                          d0l, del_, dxl, rl, dyl, gs0, gs1, gs2)
+                    if last:
+                        power = half_kick(u[s:e + 1], v[s:e], a[s:e], g[s:e + 1], kappa[s:e], damping[s:e], d0[s:e],
+                                          de[s:e], dx0[s:e], rsum[s:e], fext[s:e], inv_mass[s:e], dyield[s:e],
+                                          dmax[s:e], dres[s:e], kres[s:e], dt, half, fprev, ur, vr)
+                    else:
+                        power = kick_drift(u[s:e + 1], v[s:e], a[s:e], g[s:e + 1], kappa[s:e], damping[s:e], d0[s:e],
+                                           de[s:e], dx0[s:e], rsum[s:e], fext[s:e], inv_mass[s:e], dyield[s:e],
+                                           dmax[s:e], dres[s:e], kres[s:e], dt, half, fprev, ur, vr)
+                    ed += half * (pprev + power)  # the block's trapezoidal integral of its dissipated power
+                    pprev = power
+                    if owns_wall:
+                        _track_peak(g[ws + 1], t0 + (st + 1) * dt, dt, peak)
+                    if not last:
+                        par = _publish(pub, par, tid, u, v, a, s, e, half)
+                        sense = barrier(bar, nthr, sense)
+                step += ns
+            # --- probes: each thread its own contacts and bodies (positions stay put in a block's
+            # last step, so the right neighbour's first position is final), energies as block sums
+            for r in range(rbounds[tid], rbounds[tid + 1]):
+                out_f[k, r] = g[rec[r] + 1]
+            m = min(e, nc)
+            if m > s:
+                running_max(fmax[s:m], g[s + 1:m + 1])
+            energy[tid, 0], energy[tid, 1], energy[tid, 2] = energies(
+                u[s:e + 1], v[s:e], g[s:e + 1], mass[s:e], kappa[s:e], damping[s:e], d0[s:e], de[s:e], dx0[s:e], rsum[s:e],
+                fext[s:e], dyield[s:e], dmax[s:e], dres[s:e], kres[s:e])
+            edacc[tid, 0] = ed
+            edacc[tid, 1] = pprev
+            if record_v:
+                m = min(e, out_v.shape[1])
+                out_v[k, s:m] = v[s:m]
+            if record_u:
+                m = min(e, out_u.shape[1])
+                out_u[k, s:m] = u[s:m]
+            sense = barrier(bar, nthr, sense)
+            ke = energy[0, 0]
+            pe = energy[0, 1]
+            wp = energy[0, 2]
+            edk = edacc[0, 0]
+            pk = edacc[0, 1]
+            for t in range(1, nthr):
+                ke += energy[t, 0]
+                pe += energy[t, 1]
+                wp += energy[t, 2]
+                edk += edacc[t, 0]
+                pk += edacc[t, 1]
+            if tid == 0:
+                out_ke[k] = ke
+                out_pe[k] = pe
+                out_ed[k] = edk
+                if plastic:
+                    out_wp[k] = wp
+                my[0] = edk
+                my[1] = pk
+            # every thread read the sums before any writes the next sample's
+            sense = barrier(bar, nthr, sense)
+            if not np.isfinite(ke) or not np.isfinite(g[1]):
+                my[2] = step
+                return 1
+        my[2] = step
+        return 0
+
+    return thread_run
