@@ -169,3 +169,26 @@ def test_sweep_metrics_are_within_1e5_of_a_fine_reference(tmp_path):
         for col, attr in (("F_m", "peak_force"), ("T", "time_of_flight"), ("tau", "duration"),
                           ("Q_F", "front_momentum"), ("Q_T", "tail_momentum")):
             assert math.isclose(df.loc[i, col], getattr(fit, attr), rel_tol=1e-5), (i, col)
+
+
+@pytest.mark.skipif(not hasattr(__import__("mmap"), "MADV_NOHUGEPAGE"), reason="records are mapped on Linux only")
+def test_record_pages_are_reused_only_once_their_arrays_are_gone():
+    """A batch's record mapping is reused by the next batch of that size (no fresh page faults)
+    only when no array of it is left: live results are never written over."""
+    from hertzchain.integrate.batch.buffers import _records, release_records
+
+    release_records()
+    a = _records(600, 1000)  # 4.8 MB: mapped
+    a[:] = 1.0
+    b = _records(600, 1000)
+    assert not np.shares_memory(a, b)
+    address = a.ctypes.data
+    del a
+    c = _records(600, 1000, zeros=True)
+    assert c.ctypes.data == address and not c.any()  # a's pages, zeroed as asked
+    view = c[10:20]
+    del c
+    d = _records(600, 1000)
+    d[:] = 2.0
+    assert not np.shares_memory(d, view) and not view.any()
+    release_records()

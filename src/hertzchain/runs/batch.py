@@ -52,6 +52,7 @@ from ..model import Model
 from ..probes import Probes
 from .simulation import warn_members_elastic_limit
 from ..strict import real, run_options
+from ..integrate.batch.buffers import release_records  # noqa: F401 (for sweeps: entry points only)
 from ..integrate.batch.engine import _engine
 from ..integrate.batch.pack import MemberSystem, _ensemble_dts, _pack_ensemble, _setup_groups, _setup_members
 from .batch_results import _ensemble_dataset, _member_runs, _stack_members, stack_results

@@ -649,6 +649,9 @@ def _run_chunks(cfg: SweepConfig, plan: _Plan, out: Path, chunks_dir: Path, clie
         if progress is not None:
             progress(done_members, total)
 
+    from ..runs.batch import release_records
+
+    release_records()  # the last chunk's record pages, kept for a next chunk, go before the table comes
     df = _metrics_table(cfg, chunks_dir)
     for name, values in (_drawn_columns(cfg, df["member"].to_numpy()).items()):
         df.insert(df.columns.get_loc("dt"), name, values)  # inputs, before dt; the metrics follow it
