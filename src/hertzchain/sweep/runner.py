@@ -511,7 +511,8 @@ def _plan(cfg: SweepConfig, device: str, cores: int = 1, advice: str | None = No
 
             # Members share one time axis (the batched engine): the slowest member's duration.
             duration = max(duration, max(auto_duration(m) for m in models))
-    est = _sweep_estimate(cfg, largest[1], largest[2], duration, probes, base_probes if cfg.sweep.traces else None)
+    est = _sweep_estimate(cfg, largest[1], largest[2], duration, probes, base_probes if cfg.sweep.traces else None,
+                          _batch_integrator(run_cfg, largest[1], largest[2]))
     table_bytes = _table_bytes(cfg, largest[0])
     _check_sweep_resources(cfg, est, cores, advice, table_bytes)
     return _Plan(duration=duration, probes=probes, trace_probes=base_probes, device=device,
@@ -534,18 +535,33 @@ def _table_bytes(cfg: SweepConfig, n_beads: int) -> int:
     return TABLE_BYTES_PER_MEMBER + (0 if tol is None else 8 * (2 * n_beads + 1))
 
 
-def _sweep_estimate(cfg: SweepConfig, model, dt, duration: float, probes, trace_probes):
+def _batch_integrator(run_cfg, model, dt) -> str:
+    """The batched engine that runs ``model`` in a chunk (``simulate_batch(integrator=...)``'s
+    ``"auto"``): ``"rkn4"`` for offset beads or the Kuwabara-Kono or dashpot law with an automatic
+    step, unless the config names the Verlet or sets its accuracy; else ``"verlet"``."""
+    run = run_cfg.run
+    if run.integrator not in ("auto", "rkn4") or run.verlet_steps_per_radian is not None or dt is not None:
+        return "verlet"
+    law = model.law.name
+    return "rkn4" if law in ("viscoelastic", "dashpot") or (law == "elastic" and model.system().misaligned) \
+        else "verlet"
+
+
+def _sweep_estimate(cfg: SweepConfig, model, dt, duration: float, probes, trace_probes, integrator: str = "verlet"):
     """The memory of one chunk (the largest member stands for all, ``dt`` its fixed step), and of
-    the metrics table at the end, whichever is larger; the run time of the whole sweep."""
+    the metrics table at the end, whichever is larger; the run time of the whole sweep on the
+    batched engine ``integrator``."""
     from dataclasses import replace as _replace
 
     from ..checks import estimate_resources
 
     members = min(cfg.sweep.chunk_size, cfg.n_members)
     system = model.system()
-    est = estimate_resources(system, duration, probes, dt=dt, members=members, written=cfg.sweep.store != "metrics")
+    est = estimate_resources(system, duration, probes, dt=dt, members=members, written=cfg.sweep.store != "metrics",
+                             integrator=integrator)
     if trace_probes is not None:  # the traced members of a chunk are run again with every probe
-        extra = estimate_resources(system, duration, trace_probes, dt=dt, members=min(members, len(cfg.sweep.traces)))
+        extra = estimate_resources(system, duration, trace_probes, dt=dt, members=min(members, len(cfg.sweep.traces)),
+                                   integrator=integrator)
         est = _replace(est, memory_bytes=est.memory_bytes + extra.memory_bytes)
     return est
 
