@@ -199,20 +199,23 @@ def _refined(t, y, T, tau, w_lo, w_hi, refine):
     yy = y[lo:hi]
     m = _spline_slopes(x, yy)
     tf = np.linspace(t[lo], t[hi - 1], (hi - lo - 1) * refine + 1)
-    yf = np.empty(tf.size)
     n = x.size
+    c0 = np.empty(n - 1)  # scipy's PPoly coefficients of each interval, once per interval
+    c1 = np.empty(n - 1)
+    for i in range(n - 1):
+        h = x[i + 1] - x[i]
+        s = (yy[i + 1] - yy[i]) / h
+        c = (m[i] + m[i + 1] - 2.0 * s) / h
+        c0[i] = c / h
+        c1[i] = (s - m[i]) / h - c
+    yf = np.empty(tf.size)
     i = 0
     for k in range(tf.size):
         # scipy's PPoly: the interval [x_i, x_i+1) holding tf[k] (tf increases: a walk, not a search)
         while i < n - 2 and tf[k] >= x[i + 1]:
             i += 1
-        h = x[i + 1] - x[i]
-        s = (yy[i + 1] - yy[i]) / h
-        c = (m[i] + m[i + 1] - 2.0 * s) / h
-        c0 = c / h
-        c1 = (s - m[i]) / h - c
         u = tf[k] - x[i]
-        yf[k] = ((c0 * u + c1) * u + m[i]) * u + yy[i]
+        yf[k] = ((c0[i] * u + c1[i]) * u + m[i]) * u + yy[i]
     return tf, yf
 
 

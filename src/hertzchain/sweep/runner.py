@@ -154,9 +154,9 @@ def _wall_metrics(time: np.ndarray, force: np.ndarray) -> dict[str, float]:
     """
     from ..analysis import fit_pulse
 
-    # One per member: the compiled window updates pay. On the record resampled 8 times finer, F_m's
-    # sampling error (a comb of ~0.2 % steps at 1 us samples) falls to ~0.03 %, below the spreads of
-    # a tolerance ensemble (a few tenths of a per cent) that its histogram shows.
+    # The records the compiled fit of a chunk (analysis.pulse_batch) leaves, one at a time. On the
+    # record resampled 8 times finer, F_m's sampling error (a comb of ~0.2 % steps at 1 us samples)
+    # falls to ~0.03 %, below the spreads of a tolerance ensemble (a few tenths of a per cent).
     fit = fit_pulse(time, force, compiled=True, refine=F_M_REFINE)
     return {col: float(getattr(fit, attr)) for col, attr in METRIC_COLUMNS.items()}
 
