@@ -2,19 +2,26 @@
 
 Usage::
 
-    python benchmarks/laws.py [--json PATH] [--quick]
+    python benchmarks/laws.py [--json PATH] [--quick] [--before PATH]
 
 For every law (the built-in ones, the power law at n = 3/2 and n = 2, Hunt-Crossley), on the
 paper's chain 1 (30 beads, striker 8 mm at 0.2 m/s, flat wall) and on 300 uniform 26 mm beads,
-fixed step, one core (``NUMBA_NUM_THREADS=1``), best of N:
+fixed step dt = 20 ns, one core (``NUMBA_NUM_THREADS=1``), best of N, about 1.2e7 bead-steps a
+run (400,000 steps on chain 1, 50,000 on 300 beads, so that the Python set-up of a run is
+below 1 % of it):
 
-- **hertzchain**: ``run_verlet(Model(...).system(), ...)`` with default probes (every contact
-  force and the energies every 100 ns, the wall peak every step): the hand-written kernels for
-  the built-in laws, the loop generated from the declaration (:mod:`hertzchain.integrate.core.generated`)
-  for the power and Hunt-Crossley laws;
-- **bare loop** (the baseline the issue names): symplectic Euler, v += dt a(u, v); u += dt v, with
-  the law's own scalar ``force`` function from its declaration (the elastic-plastic law:
+- **hertzchain**: ``run_verlet(Model(...).system(), ...)`` as a run does it: the engine's own
+  kernel and per-step work (the wall peak every step), its probes (every contact force and
+  the energies) every 50 steps (1 us), sparse enough that they are not what is measured: the
+  hand-written kernels for the built-in laws, the loop generated from the declaration
+  (:mod:`hertzchain.integrate.core.generated`) for the power and Hunt-Crossley laws;
+- **bare loop** (the baseline the issue names): symplectic Euler, one fused loop over the
+  contacts then one over the bodies, v += dt a(u, v); u += dt v, with the law's own scalar
+  ``force`` and ``state`` functions from its declaration (the elastic-plastic law:
   ``kernels.elastoplastic_force`` with its state), no probes, no padding, compiled with ``@njit``.
+
+``--before PATH`` reads an earlier run's JSON (e.g. the code before a change) and adds its
+engine times to the rows (``before_ns_per_bead_step``) and to the table.
 
 ``ratio_to_bare`` = hertzchain time / bare time per bead-step; ``ratio_to_elastic`` = a law's
 hertzchain time over the elastic law's on the same chain. CPU time of the thread
@@ -28,6 +35,7 @@ import os
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -41,11 +49,11 @@ from _common import RESULTS, machine_info, quiet, save_json, table  # noqa: E402
 from hertzchain.integrate.core.kernels import elastoplastic_force  # noqa: E402
 
 DT = 2e-8
-SAMPLE = 1e-7
-STEPS = 50_000
+SAMPLE = 1e-6  # probes every 50 steps
+BEAD_STEPS = 12_000_000  # per timed run
 
 
-def _bare(force):
+def _bare(force, update):
     @njit(nogil=True)
     def loop(u, v, kappa, damping, inv_m, state, dt, n_steps):
         n = u.shape[0]
@@ -53,14 +61,13 @@ def _bare(force):
         for _ in range(n_steps):
             for j in range(n - 1):
                 d = u[j] - u[j + 1]
+                rate = v[j] - v[j + 1]
+                state[j] = update(d, rate, kappa[j], damping[j], state[j])
                 if d >= 0.0:
-                    rate = v[j] - v[j + 1]
-                    state[j] = rate if rate > state[j] else state[j]
                     x = force(d, rate, kappa[j], damping[j], state[j])
                     f[j] = x if x > 0.0 else 0.0
                 else:
                     f[j] = 0.0
-                    state[j] = 0.0
             v[0] -= dt * f[0] * inv_m[0]
             u[0] += dt * v[0]
             for i in range(1, n - 1):
@@ -103,16 +110,19 @@ def measure(chain_name: str, chain, label: str, law, repeat: int) -> dict:
     import hertzchain as hc
     from hertzchain.integrate.drivers.verlet import run_verlet
     from hertzchain.laws import spec_of
+    from hertzchain.laws.spec import compiled
 
     system = hc.Model(chain, hc.Striker(8e-3, 0.2), hc.Wall("flat"), law=law).system()
     spec = spec_of(law)
     nb = system.n_beads + 1
     n_beads = system.n_beads
 
+    steps = max(50_000, int(round(BEAD_STEPS / n_beads, -4)))
+
     def hc_run(steps):
         run_verlet(system, steps * DT, SAMPLE, dt=DT)
 
-    bare_fn = _bare(spec.force) if spec.force is not None else None
+    bare_fn = _bare(compiled(spec.force), compiled(spec.state)) if spec.force is not None else None
 
     def bare(steps):
         u = np.zeros(nb + 1)
@@ -134,11 +144,11 @@ def measure(chain_name: str, chain, label: str, law, repeat: int) -> dict:
     for _ in range(repeat):
         for name, fn, _ in fns:
             c0 = time.thread_time()
-            fn(STEPS)
+            fn(steps)
             cpu[name].append(time.thread_time() - c0)
-    out = {"chain": chain_name, "law": label}
+    out = {"chain": chain_name, "law": label, "steps": steps}
     for name, _, _ in fns:
-        out[f"{name}_ns_per_bead_step"] = min(cpu[name]) / (STEPS * n_beads) * 1e9
+        out[f"{name}_ns_per_bead_step"] = min(cpu[name]) / (steps * n_beads) * 1e9
     out["ratio_to_bare"] = out["hertzchain_ns_per_bead_step"] / out["bare_ns_per_bead_step"]
     return out
 
@@ -149,7 +159,12 @@ def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", type=Path, default=RESULTS / "laws.json", help="where to save the results")
     ap.add_argument("--quick", action="store_true", help="fewer repetitions")
+    ap.add_argument("--before", type=Path, help="an earlier run's JSON whose engine times the rows add")
     args = ap.parse_args(argv)
+    before = {}
+    if args.before is not None:
+        old = json.loads(args.before.read_text())
+        before = {(r["chain"], r["law"]): r["hertzchain_ns_per_bead_step"] for r in old["rows"]}
     quiet()
     repeat = 3 if args.quick else 7
     info = machine_info()
@@ -162,10 +177,16 @@ def main(argv: list[str] | None = None) -> dict:
         for r in rows:
             if r["chain"] == chain_name:
                 r["ratio_to_elastic"] = r["hertzchain_ns_per_bead_step"] / elastic["hertzchain_ns_per_bead_step"]
-    print(table([(r["chain"], r["law"], f"{r['hertzchain_ns_per_bead_step']:.2f}", f"{r['bare_ns_per_bead_step']:.2f}",
+    for r in rows:
+        if (r["chain"], r["law"]) in before:
+            r["before_ns_per_bead_step"] = before[r["chain"], r["law"]]
+    print(table([(r["chain"], r["law"], f"{r['before_ns_per_bead_step']:.2f}" if "before_ns_per_bead_step" in r else "-",
+                  f"{r['hertzchain_ns_per_bead_step']:.2f}", f"{r['bare_ns_per_bead_step']:.2f}",
                   f"{r['ratio_to_bare']:.2f}", f"{r['ratio_to_elastic']:.2f}") for r in rows],
-                ("chain", "law", "hertzchain ns/bead-step", "bare ns/bead-step", "hc / bare", "hc / elastic")))
-    res = {"benchmark": "laws", "quick": args.quick, "machine": info, "dt": DT, "steps": STEPS, "rows": rows,
+                ("chain", "law", "before ns/bead-step", "hertzchain ns/bead-step", "bare ns/bead-step", "hc / bare",
+                 "hc / elastic")))
+    res = {"benchmark": "laws", "quick": args.quick, "machine": info, "dt": DT, "sample_interval": SAMPLE,
+           "rows": rows, "before": str(args.before) if args.before else None,
            "load_average_at_end": list(os.getloadavg())}
     save_json(res, args.json)
     print(f"saved {args.json}")

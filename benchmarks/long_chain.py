@@ -4,6 +4,7 @@ Usage::
 
     python benchmarks/long_chain.py [--json PATH] [--quick] [--threads T]
     python benchmarks/long_chain.py --laws [--json PATH] [--threads T] [--beads N]
+    python benchmarks/long_chain.py --defaults [--json PATH] [--threads T] [--beads N]
 
 Uniform chains of 26 mm AISI 52100 beads (1e4, 1e5 and, without ``--quick``, 1e6), the paper's
 striker at 0.5 m/s, flat wall, the automatic (adaptive) step, probes of the striker and wall
@@ -25,6 +26,11 @@ for the elastic-plastic law, whose contacts then yield), saved to
 shared cores (``threaded._Pace``) can act: each row records how many calls ran on how many
 threads, and the CPU time of the threaded loop on one block against the one-thread loop (the
 per-thread cost, little changed by other work on the cores).
+
+``--defaults``: what a user gets without options. For every law of ``--laws``, the default call
+``hc.simulate(model, DEFAULTS_DURATION)`` (integrator and threads "auto") against the Verlet on one
+thread and on T threads, alternated, best of 3, with the default probes; the integrator auto chose
+and the ratios in one run, saved to ``results/long_chain_defaults.json``.
 """
 
 from __future__ import annotations
@@ -42,6 +48,8 @@ from _common import RESULTS, machine_info, quiet, save_json, table, uniform_mode
 
 TARGET_SPEEDUP = 1.7
 SAMPLE = 1e-7
+#: Simulated time of a ``--defaults`` row [s] (the wave crosses a few beads; every bead is stepped).
+DEFAULTS_DURATION = 2e-4
 
 
 def law_models(n_beads: int) -> dict:
@@ -116,11 +124,14 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--quick", action="store_true", help="1e4 and 1e5 beads, fewer repetitions")
     ap.add_argument("--threads", type=int, default=os.cpu_count(), help="threads of the split chain")
     ap.add_argument("--laws", action="store_true", help="every built-in contact law on one chain (--beads)")
-    ap.add_argument("--beads", type=int, default=100_000, help="beads of the --laws chain")
+    ap.add_argument("--beads", type=int, default=100_000, help="beads of the --laws / --defaults chain")
+    ap.add_argument("--defaults", action="store_true", help="the default call against the Verlet on 1 and T threads")
     args = ap.parse_args(argv)
     quiet()
     if args.laws:
         return main_laws(args)
+    if args.defaults:
+        return main_defaults(args)
     repeat, min_time = (3, 0.2) if args.quick else (5, 0.3)
     sizes = (10_000, 100_000) if args.quick else (10_000, 100_000, 1_000_000)
     info = machine_info()
@@ -190,6 +201,48 @@ def main_laws(args) -> dict:
     if not res["clean"]:
         print("\nthe load average was >= 0.5 during the runs: other work shared the cores, the speed-ups are not a "
               f"clean measurement of the threads (target: >= {TARGET_SPEEDUP}x on 2 idle cores)")
+    save_json(res, json_path)
+    print(f"saved {json_path}")
+    return res
+
+
+def main_defaults(args) -> dict:
+    """The ``--defaults`` comparison (module docstring)."""
+    import hertzchain as hc
+
+    json_path = RESULTS / "long_chain_defaults.json" if args.json == RESULTS / "long_chain.json" else args.json
+    info = machine_info()
+    print(f"one chain of {args.beads:,} beads, the default call against the Verlet on 1 and {args.threads} threads "
+          f"— {info['cpu_model']}, {info['usable_cores']} usable cores, load {info['load_average_at_start']}")
+    calls = {"default": {}, "verlet, 1 thread": {"integrator": "verlet", "threads": 1},
+             f"verlet, {args.threads} threads": {"integrator": "verlet", "threads": args.threads}}
+    rows = []
+    for name, model in law_models(args.beads).items():
+        for kw in calls.values():
+            hc.simulate(model, 2 * SAMPLE, **kw)  # compile
+        best = dict.fromkeys(calls, np.inf)
+        attrs = {}
+        load = [os.getloadavg()[0]]
+        for _ in range(3):
+            for label, kw in calls.items():
+                t0 = time.perf_counter()
+                ds = hc.simulate(model, DEFAULTS_DURATION, **kw)
+                best[label] = min(best[label], time.perf_counter() - t0)
+                attrs[label] = (ds.attrs.get("integrator_used"), int(ds.attrs.get("threads_used", 1)))
+        load.append(os.getloadavg()[0])
+        row = {"law": name, "seconds": best, "engines": attrs, "load_average_1min": load,
+               "default_over_verlet_threads": best[list(calls)[2]] / best["default"],
+               "default_over_verlet_1": best["verlet, 1 thread"] / best["default"]}
+        rows.append(row)
+        print(f"  {name}: default {best['default']:.3f} s ({attrs['default'][0]}, {attrs['default'][1]} thread(s)); "
+              f"verlet 1 thread {best['verlet, 1 thread']:.3f} s; verlet {args.threads} threads "
+              f"{best[list(calls)[2]]:.3f} s (load {load[-1]:.1f})", flush=True)
+    res = {"benchmark": "long_chain_defaults", "machine": info, "n_beads": args.beads, "duration_s": DEFAULTS_DURATION,
+           "rows": rows, "load_average_at_end": list(os.getloadavg())}
+    print(table([(r["law"], r["engines"]["default"][0], f"{r['seconds']['default']:.3f}",
+                  f"{r['default_over_verlet_1']:.2f}", f"{r['default_over_verlet_threads']:.2f}") for r in rows],
+                ("law", "default engine", "default [s]", "verlet 1 thread / default",
+                 f"verlet {args.threads} threads / default")))
     save_json(res, json_path)
     print(f"saved {json_path}")
     return res

@@ -45,8 +45,10 @@ def _general(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, 
 @njit
 def _fused(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, n_steps, powers):
     half = 0.5 * dt
+    vp = np.zeros(u.shape[0])
+    K.predict(v, a, half, vp)
     for s in range(n_steps):
-        powers[s] = K.step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half,
+        powers[s] = K.step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half,
                                        s == n_steps - 1)
 
 

@@ -44,7 +44,7 @@ from ..integrate.core.energies import kinetic_energy, potential_energy
 from ..integrate.core.extension import (EXT_W, EXT_WV, accelerations_extended, energies_extended,
                                    forces_linear)
 from ..integrate.core.generated import is_generated, law_kernels
-from ..integrate.core.kernels import forces_general, step_dissipative
+from ..integrate.core.kernels import forces_general, predict, step_dissipative
 from ..integrate.core.primitives import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 
 __all__ = ["drive_value", "driven_run", "driven_batch", "kernels_for"]
@@ -130,31 +130,33 @@ def _record(k, u, v, a, g, mass, kappa, damping, d0, de, dx0, rsum, fext, ext, e
 
 
 @njit(cache=True, nogil=True, fastmath={"reassoc"})
-def _fused_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, stride, p, tt, vv, displacement, drive,
-                 acc):
+def _fused_block(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, stride, p, tt, vv, displacement,
+                 drive, acc):
     """The ``stride`` steps between two samples by the fused step (leapfrog: the closing half
     kick at the last), the drive computed at each step and its power and the dissipated power
     integrated (trapezoidal rule) into ``acc``. Each step is the engine's own fused step
     (``kernels.step_dissipative``) with ``drive`` as its external forces: the static ones ``fext``
     plus, on bead 1, the drive's force (the same sum as the engine's when fext[1] = 0, rounding
-    otherwise). A function of its own whose power sum may be reassociated (as the engine's
-    ``kernels.dissipative_block``): the state does not depend on it."""
+    otherwise), ``vp`` its P + 1 predicted velocities. A function of its own whose power sum may
+    be reassociated (as the engine's ``kernels.dissipative_block``): the state does not depend on it."""
     half = 0.5 * dt
     for i in range(a.shape[0]):
         drive[i] = fext[i]
     for i in range(a.shape[0]):
         v[i] += half * a[i]
         u[i] += dt * v[i]
+    predict(v, a, half, vp)
     for s in range(stride):
         acc[4] += 1.0
         x, xd = drive_value(acc[4] * dt, p, tt, vv)
         if displacement:  # the driver's place and speed; a[0] = 0 (1/m = 0): its prediction is xd
             u[0] = x
             v[0] = xd
+            vp[0] = xd
         else:
             drive[1] = fext[1] + x
         last = s == stride - 1
-        pd = step_dissipative(u, v, a, g, kappa, damping, d0, drive, inv_mass, law, dt, half, last)
+        pd = step_dissipative(u, v, vp, a, g, kappa, damping, d0, drive, inv_mass, law, dt, half, last)
         acc[0] += half * (acc[1] + pd)
         acc[1] = pd
         # bead 1's velocity at the step's end: the closing half kick's, or the half-step one's
@@ -186,8 +188,8 @@ def driven_run(u, v, a, wa, vp, g, mass, inv_mass, kappa, damping, d0, de, dx0, 
         fused = fused and de[i] == 0.0
     for k in range(k_start, k_stop):
         if fused:  # wa (the extension's, unused here) carries each step's external forces
-            _fused_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, stride, p, tt, vv, displacement, wa,
-                         acc)
+            _fused_block(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, stride, p, tt, vv, displacement,
+                         wa, acc)
         for _ in range(stride if not fused else 0):
             for i in range(n):
                 v[i] += half * a[i]

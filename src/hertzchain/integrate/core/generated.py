@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from .kernels import DELTA_MIN, _adapt_stride, kinetic_energy
-from .primitives import _track_peak
+from .primitives import _track_peak, kick, open_block, predict, total
 
 _CACHE: dict = {}
 
@@ -44,11 +44,11 @@ def law_kernels(code: int):
     from ...laws.spec import compiled
 
     spec = law_of_code(code)
-    key = (code, id(spec.force), id(spec.state), id(spec.energy), id(spec.partials))
+    key = (code, id(spec.force), id(spec.state), id(spec.energy), id(spec.partials), spec.dissipative)
     if key not in _CACHE:
         force, state, stored, partials = (compiled(f) for f in (spec.force, spec.state, spec.energy, spec.partials))
         inverse = compiled(spec.overlap_at_energy) if spec.overlap_at_energy is not None else _bisect(stored)
-        _CACHE[key] = _build(force, state, stored, partials, inverse)
+        _CACHE[key] = _build(force, state, stored, partials, inverse, spec.dissipative)
     return _CACHE[key]
 
 
@@ -76,7 +76,7 @@ def _bisect(stored):
     return njit(nogil=True)(bisection(stored))
 
 
-def _build(force, update, stored, partials, inverse):
+def _build(force, update, stored, partials, inverse, dissipative):
     @njit(nogil=True)
     def overlap(u, d0, de, dx0, rsum, j):
         if de[j] != 0.0:
@@ -85,13 +85,22 @@ def _build(force, update, stored, partials, inverse):
             return rsum[j] - dist, dx / dist
         return u[j] - u[j + 1] + d0[j], 1.0
 
+    def make_contact(aligned):
+        """``contact`` below; with ``aligned`` (a compile-time constant) for chains without
+        offsets, whose step then has no geometry branch per contact (the untaken branch alone
+        made a step of the generated loop ~2x slower)."""
+        @njit(nogil=True, inline="always")
+        def contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, state):
+            return _contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, state, aligned)
+        return contact
+
     @njit(nogil=True, inline="always")
-    def contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, state):
+    def _contact(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, state, aligned):
         """One contact of ``forces`` (bodies at ``ui``, ``uj`` [m] moving at ``vi``, ``vj`` [m/s]):
         (axial force [N], dissipated power [W], new state). Shared with the threaded engine."""
         if kappa == 0.0:  # no contact (free end, padding)
             return 0.0, 0.0, state
-        if de != 0.0:
+        if not aligned and de != 0.0:
             dx = dx0 - (ui - uj)
             dist = np.sqrt(dx * dx + de * de)
             d, c = rsum - dist, dx / dist
@@ -104,9 +113,25 @@ def _build(force, update, stored, partials, inverse):
         if d <= DELTA_MIN:
             d = 0.0
         f = force(d, rate, kappa, damping, state)
-        fel = force(d, 0.0, kappa, damping, state)
         f = f if f > 0.0 else 0.0
+        if not dissipative:  # a compile-time constant: a law declared without dissipation does not
+            return c * f, 0.0, state  # depend on the rate (F - F(rate = 0) = 0): one force, not two
+        fel = force(d, 0.0, kappa, damping, state)
         return c * f, (f - fel) * rate, state
+
+    contact = make_contact(False)
+
+    def make_forces_into(cf):
+        @njit(nogil=True, inline="always")
+        def forces_into(u, v, kappa, damping, d0, de, dx0, rsum, g, state, pw):
+            """``forces`` with each contact's dissipated power in ``pw`` instead of their sum."""
+            for j in range(kappa.shape[0]):
+                g[j + 1], pw[j], state[j] = cf(u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j],
+                                               dx0[j], rsum[j], state[j])
+        return forces_into
+
+    forces_into = make_forces_into(contact)
+    forces_into_aligned = make_forces_into(make_contact(True))
 
     @njit(nogil=True)
     def forces(u, v, kappa, damping, d0, de, dx0, rsum, g, state):
@@ -116,6 +141,28 @@ def _build(force, update, stored, partials, inverse):
                                             dx0[j], rsum[j], state[j])
             power += p
         return power
+
+    @njit(nogil=True)
+    def law_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, state, aligned, ns, dt, t0,
+                  wall_slot, peak, acc):
+        """The ``ns`` steps of a block (its opening half kick and drift done by the caller): the
+        forces at the predicted velocities ``vp`` (P + 1 slots, vp[P] = 0), the dissipated energy's
+        trapezoidal integral in acc[0:2], the wall peak, then :func:`~hertzchain.integrate.core.primitives.kick`, which leaves the next
+        step's predictions in ``vp`` (``aligned``: no offsets); the contacts' powers are summed by
+        :func:`~hertzchain.integrate.core.primitives.total`. One function, everything inlined: a call per step and pass (arrays passed
+        field by field, their references counted) cost as much as the pass on short chains."""
+        half = 0.5 * dt
+        predict(v, a, half, vp)
+        for s in range(ns):
+            if aligned:
+                forces_into_aligned(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, pw)
+            else:
+                forces_into(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, pw)
+            p = total(pw)
+            acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
+            acc[1] = p
+            _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
+            kick(u, v, vp, a, g, fext, inv_mass, dt, half, s == ns - 1)
 
     @njit(nogil=True)
     def energy(u, kappa, damping, d0, de, dx0, rsum, fext):
@@ -176,6 +223,10 @@ def _build(force, update, stored, partials, inverse):
         adaptive = stride_ == 0
         ns = stride_ if not adaptive else int(acc[3])
         vp = np.zeros_like(v)
+        pw = np.zeros(n)
+        aligned = True
+        for i in range(n):
+            aligned = aligned and de[i] == 0.0
         step = int(acc[2])
         for k in range(k_start, k_stop):
             for b in range(n_sub):
@@ -186,25 +237,9 @@ def _build(force, update, stored, partials, inverse):
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
-                for i in range(n):
-                    v[i] += half * a[i]
-                    u[i] += dt * v[i]
-                for s in range(ns):
-                    for i in range(n):
-                        vp[i] = v[i] + half * a[i]
-                    p = forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax)
-                    acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
-                    acc[1] = p
-                    _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
-                    if s < ns - 1:
-                        for i in range(n):
-                            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-                            v[i] += dt * a[i]
-                            u[i] += dt * v[i]
-                    else:
-                        for i in range(n):
-                            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-                            v[i] += half * a[i]
+                open_block(u, v, a, dt, half)
+                law_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dmax, aligned, ns, dt,
+                          t0, wall_slot, peak, acc)
                 step += ns
             for j in range(nout):
                 out_f[k, j] = g[rec[j] + 1]

@@ -42,7 +42,7 @@ from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_K
 from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
 # the law codes, the overlap floor and the helpers the fused steps share (re-exported: kernels.DELTA_MIN & co.)
 from .primitives import (DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC,  # noqa: F401
-                         _track_peak, _viscous_force)
+                         _track_peak, _viscous_force, kick, predict, total)
 
 
 @njit(cache=True, nogil=True)
@@ -175,6 +175,49 @@ def elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres):
     return f, fep, dmax, dres, kres
 
 
+@njit(cache=True, nogil=True, inline="always")
+def contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyield, dmax, dres, kres, aligned):
+    """One contact of :func:`forces_general` (its body: bodies at ``ui``, ``uj`` [m] moving at
+    ``vi``, ``vj`` [m/s], the contact's parameters and elastic-plastic state): (axial force [N],
+    dissipated power [W], new dmax, dres, kres). With ``aligned`` (a constant in the caller: no
+    offsets in the chain) the geometry branch is compiled out, with the same numbers for aligned
+    pairs. Scalars in and out: inlined with the arrays as arguments, each call counted the
+    arrays' references (~50 ns a contact)."""
+    if not aligned and de != 0.0:
+        dx = dx0 - (ui - uj)
+        dist = np.sqrt(dx * dx + de * de)
+        d = rsum - dist
+        c = dx / dist
+    else:
+        d = ui - uj + d0
+        c = 1.0
+    # d == 0 is kept as a contact: at the impact instant (t = 0, striker just touching) the
+    # dashpot force is already gamma d(delta)/dt = gamma v0 (the law jumps at closure); taking
+    # 0 there instead made Verlet's first half kick miss an O(dt) impulse (first-order error).
+    # The elastic part and the Kuwabara-Kono term (~ delta^(1/2)) vanish at d == 0 anyway.
+    if d < 0.0:
+        return 0.0, 0.0, dmax, dres, kres
+    if d <= DELTA_MIN:
+        d = 0.0
+    if law == LAW_ELASTOPLASTIC:
+        if kappa == 0.0:  # no contact (free end, padding)
+            return 0.0, 0.0, dmax, dres, kres
+        rate = c * (vi - vj)
+        f, fep, dmax, dres, kres = elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres)
+        return c * f, (f - fep) * rate, dmax, dres, kres
+    sd = np.sqrt(d)
+    fel = kappa * d * sd
+    if law == LAW_ELASTIC:
+        return c * fel, 0.0, dmax, dres, kres
+    rate = c * (vi - vj)  # d(delta)/dt
+    if law == LAW_VISCOELASTIC:
+        f = fel + kappa * damping * sd * rate
+    else:
+        f = fel + damping * rate
+    f = max(f, 0.0)
+    return c * f, (f - fel) * rate, dmax, dres, kres  # F_diss * d(delta)/dt >= 0: power lost to dissipation
+
+
 @njit(cache=True, nogil=True)
 def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres):
     """Axial contact forces with dissipation and/or misalignment; returns the dissipated power [W].
@@ -184,71 +227,79 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax
     Kuwabara-Kono: F = kappa (delta^(3/2) + A delta^(1/2) ddelta/dt); dashpot:
     F = kappa delta^(3/2) + gamma ddelta/dt; both clipped at zero (never attractive).
     Elastic-plastic (Thornton): :func:`elastoplastic_force`, whose state (``dmax``, ``dres``,
-    ``kres``; unused by the other laws) is updated in place; the dissipated power returned is the
-    viscous part's only (the plastic work follows from the state, :func:`plastic_work`).
+    ``kres``; unused by the other laws, which may pass empty arrays) is updated in place; the
+    dissipated power returned is the viscous part's only (the plastic work follows from the
+    state, :func:`plastic_work`). Each contact: :func:`contact_general`.
     """
     power = 0.0
+    plastic = law == LAW_ELASTOPLASTIC
     for j in range(kappa.shape[0]):
-        if de[j] != 0.0:
-            dx = dx0[j] - (u[j] - u[j + 1])
-            dist = np.sqrt(dx * dx + de[j] * de[j])
-            d = rsum[j] - dist
-            c = dx / dist
+        if plastic:
+            g[j + 1], p, dmax[j], dres[j], kres[j] = contact_general(
+                u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j], law, dyield[j],
+                dmax[j], dres[j], kres[j], False)
         else:
-            d = u[j] - u[j + 1] + d0[j]
-            c = 1.0
-        # d == 0 is kept as a contact: at the impact instant (t = 0, striker just touching) the
-        # dashpot force is already gamma d(delta)/dt = gamma v0 (the law jumps at closure); taking
-        # 0 there instead made Verlet's first half kick miss an O(dt) impulse (first-order error).
-        # The elastic part and the Kuwabara-Kono term (~ delta^(1/2)) vanish at d == 0 anyway.
-        if d < 0.0:
-            g[j + 1] = 0.0
-            continue
-        if d <= DELTA_MIN:
-            d = 0.0
-        if law == LAW_ELASTOPLASTIC:
-            if kappa[j] == 0.0:  # no contact (free end, padding)
-                g[j + 1] = 0.0
-                continue
-            rate = c * (v[j] - v[j + 1])
-            f, fep, dmax[j], dres[j], kres[j] = elastoplastic_force(d, rate, kappa[j], damping[j], dyield[j],
-                                                                    dmax[j], dres[j], kres[j])
-            power += (f - fep) * rate
-            g[j + 1] = c * f
-            continue
-        sd = np.sqrt(d)
-        fel = kappa[j] * d * sd
-        if law == LAW_ELASTIC:
-            g[j + 1] = c * fel
-            continue
-        rate = c * (v[j] - v[j + 1])  # d(delta)/dt
-        if law == LAW_VISCOELASTIC:
-            f = fel + kappa[j] * damping[j] * sd * rate
-        else:
-            f = fel + damping[j] * rate
-        f = max(f, 0.0)
-        power += (f - fel) * rate  # F_diss * d(delta)/dt >= 0: power lost to dissipation
-        g[j + 1] = c * f
+            g[j + 1], p, _, _, _ = contact_general(u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j],
+                                                   dx0[j], rsum[j], law, 0.0, 0.0, 0.0, 0.0, False)
+        power += p
     return power
 
 
-@njit(cache=True, nogil=True, inline="always")
-def step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, last):
-    """One step of an aligned chain with the viscoelastic or dashpot law, fused into one pass (as
-    :func:`step_elastic`): the forces of :func:`forces_general` at velocities predicted half a step
-    ahead, v + (dt/2) a (carried from body to body), then the kick and drift (or, when ``last``,
-    the closing half kick); returns the dissipated power [W]. The same operations per contact in the
-    same order as forces_general and the update loops of :func:`verlet_run` (the same forces,
-    positions and velocities); the power is summed by :func:`dissipative_block` in a vectorised
-    order (its last bits may differ). The last slot (padding, kappa = damping = 0) is peeled off:
-    its right neighbour's prediction is 0, as in forces_general."""
+@njit(cache=True, nogil=True)
+def plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres, kres,
+                  aligned, ns, dt, t0, wall_slot, peak, acc):
+    """The ``ns`` steps of a block of :func:`verlet_run` for the elastic-plastic law (its opening
+    half kick and drift done by the caller): every contact's force (:func:`contact_general`,
+    inlined, without the geometry branch when ``aligned``) at the predicted velocities ``vp``
+    (P + 1 slots, vp[P] = 0), their powers in ``pw`` summed by
+    :func:`~hertzchain.integrate.core.primitives.total` (the dissipated energy's trapezoidal integral
+    in acc[0:2]), the wall peak, then the kick (:func:`~hertzchain.integrate.core.primitives.kick`),
+    which leaves the next step's predictions in ``vp``. The numbers of forces_general and the
+    update loops, but for the last bits of the dissipated energy (the power summed in another
+    order). One function for the block: a call of forces_general per step cost as much as its
+    pass on short chains, and the power summed in contact order (a chain of dependent additions)
+    set the pace of the step."""
+    half = 0.5 * dt
     n = a.shape[0]
+    predict(v, a, half, vp)
+    for s in range(ns):
+        if aligned:
+            for j in range(n):
+                g[j + 1], pw[j], dmax[j], dres[j], kres[j] = contact_general(
+                    u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j],
+                    LAW_ELASTOPLASTIC, dyield[j], dmax[j], dres[j], kres[j], True)
+        else:
+            for j in range(n):
+                g[j + 1], pw[j], dmax[j], dres[j], kres[j] = contact_general(
+                    u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j],
+                    LAW_ELASTOPLASTIC, dyield[j], dmax[j], dres[j], kres[j], False)
+        p = total(pw)
+        acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
+        acc[1] = p
+        _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
+        kick(u, v, vp, a, g, fext, inv_mass, dt, half, s == ns - 1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, last):
+    """One step of an aligned chain with the viscoelastic or dashpot law, fused into one pass (as
+    :func:`step_elastic`): the forces of :func:`forces_general` at the velocities predicted half a
+    step ahead, ``vp`` = v + (dt/2) a (P + 1 slots, vp[P] = 0; set by
+    :func:`~hertzchain.integrate.core.primitives.predict` before a block's first step), then the kick
+    and drift (or, when ``last``, the closing half kick); returns the dissipated power [W].
+
+    The kick leaves the next step's predictions in ``vp`` (v + dt a + (dt/2) a, the numbers the
+    next step would compute from v and a), so the pass covers every slot, the padding slot P - 1
+    included (its right neighbour's prediction is vp[P] = 0, as in forces_general): a loop over
+    P - 1 slots left LLVM's vectorised loop a long scalar remainder, and predicting at the start
+    of the pass (a load straddling the vectors just stored) stalled on the store buffer; either
+    cost ~2x. The same operations per contact in the same order as forces_general and the
+    update loops of :func:`verlet_run` (the same forces, positions and velocities); the power is
+    summed by :func:`dissipative_block` in a vectorised order (its last bits may differ)."""
     power = 0.0
     fprev = 0.0
-    vq = v[0] + half * a[0]
-    for i in range(n - 1):
-        vq1 = v[i + 1] + half * a[i + 1]
-        rate = vq - vq1
+    for i in range(a.shape[0]):
+        rate = vp[i] - vp[i + 1]
         f, fel = _viscous_force(u[i] - u[i + 1] + d0[i], rate, kappa[i], damping[i], law)
         power += (f - fel) * rate
         g[i + 1] = f
@@ -257,37 +308,29 @@ def step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, ha
         if last:
             v[i] += half * ai
         else:
-            v[i] += dt * ai
-            u[i] += dt * v[i]
+            vi = v[i] + dt * ai
+            v[i] = vi
+            vp[i] = vi + half * ai
+            u[i] += dt * vi
         fprev = f
-        vq = vq1
-    i = n - 1
-    f, fel = _viscous_force(u[i] - u[i + 1] + d0[i], vq, kappa[i], damping[i], law)
-    g[i + 1] = f
-    ai = (fprev - f + fext[i]) * inv_mass[i]
-    a[i] = ai
-    if last:
-        v[i] += half * ai
-    else:
-        v[i] += dt * ai
-        u[i] += dt * v[i]
-    return power + (f - fel) * vq
+    return power
 
 
 @njit(cache=True, nogil=True, fastmath={"reassoc"})
-def dissipative_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc):
+def dissipative_block(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc):
     """The ``ns`` steps of a block of :func:`verlet_run` for an aligned viscoelastic or dashpot
-    chain (:func:`step_dissipative`), with the dissipated energy's
-    trapezoidal integral in acc[0:2] and the wall peak; a function of its own, called once per
-    block (inlined into verlet_run's large body, LLVM left the fused loop scalar), whose power sum
-    may be reassociated: in contact order it held the loop scalar (~1.8x slower); the forces,
-    positions and velocities do not depend on it (tests/test_fused.py)."""
+    chain (:func:`step_dissipative`, ``vp`` its P + 1 predicted velocities), with the dissipated
+    energy's trapezoidal integral in acc[0:2] and the wall peak; a function of its own, called
+    once per block (inlined into verlet_run's large body, LLVM left the fused loop scalar), whose
+    power sum may be reassociated: in contact order it held the loop scalar (~1.8x slower); the
+    forces, positions and velocities do not depend on it (tests/test_fused.py)."""
     half = 0.5 * dt
+    predict(v, a, half, vp)
     for s in range(ns):
         if s < ns - 1:
-            p = step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, False)
+            p = step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, False)
         else:
-            p = step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, True)
+            p = step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, True)
         acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
         acc[1] = p
         _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
@@ -498,6 +541,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     ns = stride if not adaptive else int(acc[3])
     vp = np.zeros_like(v)
     wa = np.zeros(n)
+    pw = np.zeros(n)  # the contacts' dissipated powers (plastic_block)
     ec = np.zeros(n)  # contact energies at a block's end (offset chains' fused steps, their probes)
     if ext_on:  # the internal masses' accelerations: a function of the positions, not state
         for i in range(n):
@@ -534,7 +578,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
                 # aligned viscous chains: one fused pass per step, the same numbers as below (the
                 # elastic-plastic law branches per contact; its two passes below beat one fused
                 # scalar pass: benchmarks/dissipative.py)
-                dissipative_block(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc)
+                dissipative_block(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak,
+                                  acc)
             elif general and law == LAW_ELASTIC:  # offsets: the fused steps of fused.py, the same numbers
                 offset_elastic_block(u, v, a, g, ec, kappa, d0, de, dx0, rsum, fext, inv_mass, ns, dt, t0, wall_slot,
                                      peak)
@@ -542,22 +587,8 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
                 offset_dissipative_block(u, v, a, g, ec, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, ns,
                                          dt, t0, wall_slot, peak, acc)
             elif general:
-                for s in range(ns):
-                    for i in range(n):
-                        vp[i] = v[i] + half * a[i]
-                    p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
-                    acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
-                    acc[1] = p
-                    _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
-                    if s < ns - 1:
-                        for i in range(n):
-                            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-                            v[i] += dt * a[i]
-                            u[i] += dt * v[i]
-                    else:
-                        for i in range(n):
-                            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-                            v[i] += half * a[i]
+                plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres,
+                              kres, aligned, ns, dt, t0, wall_slot, peak, acc)
             else:
                 if lean:
                     for s in range(ns - 1):
@@ -644,4 +675,5 @@ def flush_stale_cache(*kernels_using: object) -> None:
 
 # The stepping loop compiles the functions of extension.py, primitives.py and fused.py into itself:
 # an edit there must recompile it too (Numba's cache only checks the file of the function it caches).
-flush_stale_cache(step_extended, dissipative_block, offset_elastic_block, offset_dissipative_block, verlet_run)
+flush_stale_cache(step_extended, dissipative_block, plastic_block, offset_elastic_block, offset_dissipative_block,
+                  verlet_run)

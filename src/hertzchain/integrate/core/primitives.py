@@ -32,6 +32,46 @@ def _viscous_force(d, rate, kappa, damping, law):
     return (f if d >= 0.0 else 0.0), fel
 
 
+@njit(cache=True, nogil=True, inline="always")
+def predict(v, a, half, vp):
+    """vp_i = v_i + (dt/2) a_i for every body slot and vp[P] = 0 (no body beyond the last slot):
+    the predicted velocities the dissipative forces see at a step's positions, which the fused
+    viscous steps (``kernels.step_dissipative``) read on entry and leave for their next step."""
+    n = a.shape[0]
+    for i in range(n):
+        vp[i] = v[i] + half * a[i]
+    vp[n] = 0.0
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc"})
+def total(x):
+    """The sum of ``x`` in any order (vectorised): the contacts' dissipated powers, whose sum in
+    contact order (a chain of dependent additions) set the pace of a scalar step (~2x slower);
+    only the dissipated energy's last bits depend on the order."""
+    t = 0.0
+    for j in range(x.shape[0]):
+        t += x[j]
+    return t
+
+
+@njit(cache=True, nogil=True, inline="always")
+def kick(u, v, vp, a, g, fext, inv_mass, dt, half, last):
+    """The bodies' accelerations a_i = (F_{i-1} - F_i + f_ext,i) / m_i from the forces ``g``, then
+    v += dt a, u += dt v with the next step's predicted velocities vp = v + (dt/2) a (or, when
+    ``last``, the closing half kick v += half a): the numbers of the update loops of
+    ``kernels.verlet_run``."""
+    for i in range(a.shape[0]):
+        ai = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+        a[i] = ai
+        if last:
+            v[i] += half * ai
+        else:
+            vi = v[i] + dt * ai
+            v[i] = vi
+            vp[i] = vi + half * ai
+            u[i] += dt * vi
+
+
 @njit(cache=True, nogil=True)
 def _track_peak(fw, t, dt, peak):
     """Running maximum of the wall force with its neighbours (see ``kernels.verlet_run``)."""

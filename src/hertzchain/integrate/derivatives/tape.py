@@ -87,21 +87,23 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _dissipative_block(u, v, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, t0, step, peak, kstar,
-                       store, ustore, vpstore, hstore, s0):
+def _dissipative_block(u, v, vp, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, t0, step, peak,
+                       kstar, store, ustore, vpstore, hstore, s0):
     """One block for an aligned viscoelastic or dashpot chain with the engine's fused step
     (``kernels.step_dissipative``, as ``kernels.dissipative_block``: the same numbers as
-    :func:`_general_block`, in one pass); with ``store`` every step's positions and predicted
-    velocities v + dt/2 a are stored (the velocities the forces see)."""
+    :func:`_general_block`, in one pass; ``vp`` its P + 1 predicted velocities); with ``store``
+    every step's positions and predicted velocities v + dt/2 a are stored (the velocities the
+    forces see)."""
     half = 0.5 * dt
     n = a.shape[0]
+    kernels.predict(v, a, half, vp)
     for s in range(ns):
         if store:
             _store(ustore, s0 + s, u)
             for i in range(n):
-                vpstore[s0 + s, i] = v[i] + half * a[i]
+                vpstore[s0 + s, i] = vp[i]
             hstore[s0 + s] = dt
-        kernels.step_dissipative(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, s == ns - 1)
+        kernels.step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, s == ns - 1)
         before = peak[0]
         kernels._track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
         if g[wall_slot + 1] > before:
@@ -209,8 +211,8 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
             t0 = (k - 1) * interval + b * block
             _open_block(u, v, a, dt)
             if fused:
-                _dissipative_block(u, v, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, t0, step,
-                                   peak, kstar, False, dummy, dummy, dummy_h, 0)
+                _dissipative_block(u, v, vp, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, t0,
+                                   step, peak, kstar, False, dummy, dummy, dummy_h, 0)
             elif general:
                 _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns,
                                dt, t0, step, peak, kstar, False, (dummy, dummy, dummy_h, dummy_p), 0,
@@ -261,8 +263,8 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
         dt = block / ns
         _open_block(u, v, a, dt)
         if fused:
-            _dissipative_block(u, v, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, 0.0, 0, peak,
-                               kstar, True, stores[0], stores[1], stores[2], s0)
+            _dissipative_block(u, v, vp, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, 0.0, 0,
+                               peak, kstar, True, stores[0], stores[1], stores[2], s0)
         elif general:
             _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt,
                            0.0, 0, peak, kstar, True, stores, s0, (dyield, dmax, dres, kres), ext,

@@ -1,8 +1,9 @@
 """Reference integrator: the same model through ``scipy.integrate.solve_ivp`` (DOP853 by default).
 
 The right-hand side calls the very force functions of the compiled Verlet
-(:mod:`hertzchain.integrate.core.kernels`), so the two integrators differ only in how they step.
-The dissipated energy is integrated as one extra state component.
+(:mod:`hertzchain.integrate.core.kernels`, or the loop generated from a registry law without
+per-contact state: :mod:`hertzchain.integrate.core.generated`), so the two integrators differ only
+in how they step. The dissipated energy is integrated as one extra state component.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from scipy.optimize import minimize_scalar
 from ...errors import SimulationDiverged
 from ...model import System
 from ..core import kernels
+from ..core.generated import is_generated, law_kernels
 from ..core.layout import pack
 from .verlet import RawRun
 
@@ -35,6 +37,35 @@ def _check_law(system: System, method: str = "DOP853") -> None:
     refuse(method.lower(), system)
 
 
+def _contact_forces(law: int, kappa, damping, d0, de, dx0, rsum, general: bool):
+    """``forces(u, v, g) -> dissipated power [W]``: the axial contact forces into ``g`` as the
+    Verlet computes them (the generated loop of a registry law, ``forces_general`` or the elastic
+    loop), and ``energy(u, g, fext) -> stored energy [J]`` as its probes do."""
+    if is_generated(law):
+        forces_g, _, stored, _, _ = law_kernels(law)
+        state = np.zeros(kappa.size)  # a law without per-contact state (refusals.py) leaves it as is
+
+        def forces(u, v, g):
+            return forces_g(u, v, kappa, damping, d0, de, dx0, rsum, g, state)
+
+        def energy(u, g, fext):
+            return stored(u, kappa, damping, d0, de, dx0, rsum, fext)
+        return forces, energy
+
+    def energy_hertz(u, g, fext):
+        return kernels.potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
+
+    if general:
+        def forces_general(u, v, g):
+            return kernels.forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, *(_NO_STATE,) * 4)
+        return forces_general, energy_hertz
+
+    def forces_elastic(u, v, g):
+        kernels.forces_elastic(u, kappa, d0, g)
+        return 0.0
+    return forces_elastic, energy_hertz
+
+
 def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
     """dy/dt for y = [u_0..u_N, v_0..v_N, E_dissipated] (SI units); not for the elastic-plastic law. An
     extended system (a protected body, mass-in-mass beads: :func:`_make_rhs_extended`) has more
@@ -48,16 +79,12 @@ def make_rhs(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
     g = np.zeros(nb + 1)
     a = np.zeros(nb)
     s = system
+    forces, _ = _contact_forces(s.law, s.kappa, s.damping, s.d0, s.de, s.dx0, s.rsum, s.general)
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
         u[:nb] = y[:nb]
         v[:nb] = y[nb : 2 * nb]
-        if s.general:
-            power = kernels.forces_general(u, v, s.kappa, s.damping, s.d0, s.de, s.dx0, s.rsum, s.law, g,
-                                           *(_NO_STATE,) * 4)
-        else:
-            kernels.forces_elastic(u, s.kappa, s.d0, g)
-            power = 0.0
+        power = forces(u, v, g)
         kernels.accelerations(g, s.fext, s.inv_mass, a)
         return np.concatenate([v[:nb], a, [power]])
 
@@ -80,6 +107,13 @@ class _Extended:
         self.a = np.zeros(p)
         self.wa = np.zeros(p)
         self.ext = w.ext.copy()
+        self.contact_forces, self.stored = _contact_forces(system.law, w.kappa, w.damping, w.d0, w.de, w.dx0,
+                                                           w.rsum, True)
+        if not is_generated(system.law):  # the elastic-plastic state of forces_general (refused laws aside)
+            def forces_general(u, v, g):
+                return kernels.forces_general(u, v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, system.law, g,
+                                              w.dyield, w.dmax, w.dres, w.kres)
+            self.contact_forces = forces_general
 
     def load(self, y: np.ndarray) -> None:
         nb, e = self.nb, self.ext
@@ -88,11 +122,9 @@ class _Extended:
         e[:nb, kernels.EXT_W] = y[2 * nb:3 * nb]
         e[:nb, kernels.EXT_WV] = y[3 * nb:4 * nb]
 
-    def forces(self, law: int) -> float:
-        w = self.w
-        power = kernels.forces_general(self.u, self.v, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, law, self.g,
-                                       w.dyield, w.dmax, w.dres, w.kres)
-        return power + kernels.forces_linear(self.u, self.v, w.d0, self.ext, self.g)
+    def forces(self) -> float:
+        power = self.contact_forces(self.u, self.v, self.g)
+        return power + kernels.forces_linear(self.u, self.v, self.w.d0, self.ext, self.g)
 
 
 def _make_rhs_extended(system: System) -> Callable[[float, np.ndarray], np.ndarray]:
@@ -102,7 +134,7 @@ def _make_rhs_extended(system: System) -> Callable[[float, np.ndarray], np.ndarr
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
         x.load(y)
-        power = x.forces(system.law)
+        power = x.forces()
         kernels.accelerations_extended(x.u, x.g, x.w.fext, x.w.inv_mass, x.ext, x.a, x.wa)
         work = x.g[b] * x.v[b] if b >= 0 else 0.0
         return np.concatenate([x.v[:nb], x.a[:nb], x.ext[:nb, kernels.EXT_WV], x.wa[:nb], [power, work]])
@@ -110,21 +142,17 @@ def _make_rhs_extended(system: System) -> Callable[[float, np.ndarray], np.ndarr
     return rhs
 
 
-def _wall_force(system: System, y: np.ndarray) -> float:
+def _wall_force(system: System, forces: Callable, y: np.ndarray) -> float:
+    """The wall contact's force in state ``y``, by the recorded forces' function (a dissipative
+    law's includes the rate term the wall sensor reads)."""
     nb = system.n_beads + 1
-    if system.general:
-        # Dissipative laws: the wall force includes the rate term, so use the same kernel as the
-        # recorded forces (the elastic part alone is not the force the wall sensor reads).
-        u = np.zeros(nb + 1)
-        v = np.zeros(nb + 1)
-        g = np.zeros(nb + 1)
-        u[:nb] = y[:nb]
-        v[:nb] = y[nb : 2 * nb]
-        kernels.forces_general(u, v, system.kappa, system.damping, system.d0, system.de, system.dx0, system.rsum,
-                               system.law, g, *(_NO_STATE,) * 4)
-        return float(g[nb])
-    d = y[nb - 1] + system.d0[-1]
-    return float(system.kappa[-1] * max(d, 0.0) ** 1.5)
+    u = np.zeros(nb + 1)
+    v = np.zeros(nb + 1)
+    g = np.zeros(nb + 1)
+    u[:nb] = y[:nb]
+    v[:nb] = y[nb : 2 * nb]
+    forces(u, v, g)
+    return float(g[nb])
 
 
 def run_reference(system: System, duration: float, sample_interval: float, method: str = "DOP853",
@@ -164,22 +192,20 @@ def run_reference(system: System, duration: float, sample_interval: float, metho
     ke = 0.5 * (vel**2 * system.mass[:nb]).sum(axis=1)
     pe = np.empty(n_samples)
     vv = np.zeros(nb + 1)
+    s = system
+    contact_forces, stored = _contact_forces(s.law, s.kappa, s.damping, s.d0, s.de, s.dx0, s.rsum, s.general)
     for k in range(n_samples):
         vv[:nb] = vel[k]
-        if system.general:
-            kernels.forces_general(u[k], vv, system.kappa, system.damping, system.d0, system.de, system.dx0,
-                                   system.rsum, system.law, g, *(_NO_STATE,) * 4)
-        else:
-            kernels.forces_elastic(u[k], system.kappa, system.d0, g)
+        contact_forces(u[k], vv, g)
         forces[k] = g[1 : nc + 1]
-        pe[k] = kernels.potential_energy(u[k], g, system.kappa, system.d0, system.de, system.dx0, system.rsum,
-                                         system.fext, False)
+        pe[k] = stored(u[k], g, system.fext)
     peak_f, peak_t = 0.0, 0.0
     if system.has_wall:
         k = int(np.argmax(forces[:, -1]))
         lo, hi = time[max(k - 1, 0)], time[min(k + 1, n_samples - 1)]
         if hi > lo:
-            res = minimize_scalar(lambda t: -_wall_force(system, sol.sol(t)), bounds=(lo, hi), method="bounded",
+            res = minimize_scalar(lambda t: -_wall_force(system, contact_forces, sol.sol(t)), bounds=(lo, hi),
+                                  method="bounded",
                                   options={"xatol": 1e-13})
             peak_f, peak_t = -float(res.fun), float(res.x)
         peak_f = max(peak_f, float(forces[k, -1]))
@@ -215,18 +241,18 @@ def _run_reference_extended(system: System, duration: float, sample_interval: fl
     w = x.w
     for k in range(n_samples):
         x.load(sol.y[:, k])
-        x.forces(system.law)
+        x.forces()
         kernels.accelerations_extended(x.u, x.g, w.fext, w.inv_mass, x.ext, x.a, x.wa)
         forces[k] = x.g[1:nc + 1]
         ke_in, pe_lin = kernels.energies_extended(x.u, w.d0, x.ext)
         ke[k] = kernels.kinetic_energy(x.v, w.mass) + ke_in
-        pe[k] = kernels.potential_energy(x.u, x.g, w.kappa, w.d0, w.de, w.dx0, w.rsum, w.fext, False) + pe_lin
+        pe[k] = x.stored(x.u, x.g, w.fext) + pe_lin
         if body is not None:
             body[k] = (x.u[b], x.v[b], x.a[b], sol.y[-1, k])
 
     def wall_force(t: float) -> float:
         x.load(sol.sol(t))
-        x.forces(system.law)
+        x.forces()
         return float(x.g[n + 1])
 
     peak_f, peak_t = 0.0, 0.0

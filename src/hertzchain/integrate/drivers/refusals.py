@@ -10,8 +10,9 @@ Each check returns why the integrator does not integrate the model (None: it doe
   or the dashpot (and their size-scaled forms: :mod:`hertzchain.integrate.drivers.rkn_damped`); no
   protected body nor mass-in-mass beads, nor the elastic-plastic or generated laws;
 - ``dop853``, ``rk45`` (:mod:`hertzchain.integrate.drivers.reference`, ``scipy.integrate.solve_ivp``):
-  every built-in law but the elastic-plastic one, whose per-contact history (the largest overlap) a
-  right-hand side evaluated at trial points cannot carry; not the laws run by the generated engines.
+  every law without a per-contact history, which a right-hand side evaluated at trial points cannot
+  carry: not the elastic-plastic law (the largest overlap) nor a registry law with state
+  (Hunt-Crossley's approach speed); the power law and a user's law without state run.
 """
 
 from __future__ import annotations
@@ -40,12 +41,14 @@ def _rkn4(system) -> str | None:
 
 def _scipy(name: str) -> Callable:
     def check(system) -> str | None:
+        from ...laws import law_of_code
         from ..core.generated import is_generated
         from ..core.kernels import LAW_ELASTOPLASTIC
 
-        if is_generated(system.law):
-            return (f"'{name}' solves the built-in laws; a law declared in hertzchain.laws (power, hunt_crossley, a "
-                    "user's) runs with the engines generated from it")
+        if is_generated(system.law) and law_of_code(system.law).state_size:
+            spec = law_of_code(system.law)
+            return (f"'{name}' cannot run the contact law {spec.name!r}: it keeps a state per contact, which the scipy "
+                    "integrators cannot carry between their trial steps")
         if system.law == LAW_ELASTOPLASTIC:
             return (f"'{name}' cannot run the elastoplastic contact law: it keeps a history per contact (its largest "
                     "overlap), which the scipy integrators cannot carry between their trial steps")

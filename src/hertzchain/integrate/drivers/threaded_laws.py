@@ -35,6 +35,10 @@ largest energy).
 
 from __future__ import annotations
 
+import functools
+import hashlib
+from pathlib import Path
+
 import numpy as np
 from numba import njit
 
@@ -45,6 +49,46 @@ from ..core.primitives import _track_peak, _viscous_force, open_block, running_m
 __all__ = ["law_thread_run", "contact_general"]
 
 _CACHE: dict = {}
+
+#: The modules whose functions a built-in law's thread function compiles in (its on-disk cache
+#: key holds their text: an edit of any of them compiles it afresh).
+_COMPILED_IN = ("drivers/threaded_laws.py", "core/kernels.py", "core/primitives.py", "core/barrier.py",
+                "core/extension.py", "core/energies.py", "core/fused.py")
+
+
+@functools.lru_cache(maxsize=1)
+def _sources_digest() -> bytes:
+    """SHA-256 of the text of :data:`_COMPILED_IN` (read once per process, ~1 ms)."""
+    h = hashlib.sha256()
+    for name in _COMPILED_IN:
+        h.update(Path(__file__).parents[1].joinpath(name).read_bytes())  # from hertzchain/integrate/
+    return h.digest()
+
+
+def _on_disk(dispatcher, *variant):
+    """Give ``dispatcher``, a closure built here, Numba's on-disk cache under a key made of
+    ``variant`` (the constants it was built with) and :func:`_sources_digest`, and return it.
+
+    Numba's own key of a closure holds its cells pickled, and a compiled function pickles with an
+    id new in every process: a closure over compiled functions (the thread function over its
+    contact, its segments over theirs) was compiled again in every process (~7 CPU-s a law,
+    issue 37), a new Dask worker included. The functions a built-in law's closures call are this
+    package's, fixed by the sources; ``variant`` says which law and geometry they were built for.
+    Where Numba's caching API has moved, the closure stays cached in memory only, as before.
+    """
+    try:
+        from numba.core.caching import FunctionCache
+
+        key = hashlib.sha256(repr(variant).encode() + _sources_digest()).hexdigest()
+
+        class StableKey(FunctionCache):
+            def _index_key(self, sig, codegen):
+                return (sig, codegen.magic_tuple(), (key,))
+
+        dispatcher._cache = StableKey(dispatcher.py_func)
+    except (ImportError, AttributeError, TypeError, RuntimeError, OSError):  # no usable cache: compiled per process
+        pass
+    return dispatcher
 
 
 @njit(nogil=True, inline="always")
@@ -95,8 +139,8 @@ def contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyie
 def law_thread_run(code: int, aligned: bool):
     """The thread function (:func:`_build`) for the law of engine code ``code`` on an aligned chain
     (``aligned``: no offsets, the misaligned geometry compiled out) or one with offsets; compiled on
-    first use in a process (a closure over the law's functions: Numba keeps it in memory, not on
-    disk)."""
+    first use in a process and cached on disk for a built-in law (:func:`_on_disk`: the next
+    process loads it), in memory for a declared law (a closure over the law's own functions)."""
     from ..core.generated import is_generated, law_kernels
 
     if is_generated(code):
@@ -142,7 +186,9 @@ def _builtin(law: int, aligned: bool):
             return ke, pe, kernels.plastic_work(kappa, dyield, dmax, dres)
         return ke, kernels.potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False), 0.0
 
-    return _build(contact, stride, energies, plastic, plastic, fused)
+    variant = ("builtin", law, aligned)
+    return _build(contact, _on_disk(stride, *variant), _on_disk(energies, *variant), plastic, plastic, fused,
+                  variant)
 
 
 def _generated(law_contact, law_stride, law_energy, aligned: bool):
@@ -164,7 +210,7 @@ def _generated(law_contact, law_stride, law_energy, aligned: bool):
     def energies(u, v, g, mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres):
         return kernels.kinetic_energy(v, mass), law_energy(u, kappa, damping, d0, de, dx0, rsum, fext), 0.0
 
-    return _build(contact, stride, energies, True, False, False)
+    return _build(contact, stride, energies, True, False, False, None)
 
 
 @njit(nogil=True, inline="always")
@@ -234,15 +280,19 @@ def _segment(contact, stateful, fused, last):
     return segment
 
 
-def _build(contact, stride, energies, stateful, plastic, fused):
+def _build(contact, stride, energies, stateful, plastic, fused, variant):
     """The thread function over ``contact`` (one contact: (axial force, dissipated power, state)),
     ``stride`` (the adaptive step's bound over a range of contacts) and ``energies`` (a block's
     kinetic and potential energies and plastic work); ``stateful``: the contacts carry state;
     ``plastic``: the plastic work is recorded (``out_wp``); ``fused``: the block's power sum may be
-    reassociated (``kernels.dissipative_block``'s flag, for its contact only)."""
+    reassociated (``kernels.dissipative_block``'s flag, for its contact only); ``variant``: what
+    the built-in law's closures were built for (:func:`_on_disk`), None to keep them in memory."""
 
-    kick_drift = _segment(contact, stateful, fused, False)
-    half_kick = _segment(contact, stateful, fused, True)
+    def kept(dispatcher, *part):
+        return dispatcher if variant is None else _on_disk(dispatcher, *variant, *part)
+
+    kick_drift = kept(_segment(contact, stateful, fused, False), "kick_drift")
+    half_kick = kept(_segment(contact, stateful, fused, True), "half_kick")
 
     @njit(nogil=True)
     def thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, edacc, u, v, a, g, mass, inv_mass, kappa,
@@ -372,4 +422,4 @@ def _build(contact, stride, energies, stateful, plastic, fused):
         my[2] = step
         return 0
 
-    return thread_run
+    return kept(thread_run, "thread_run")
