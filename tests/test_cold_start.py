@@ -131,3 +131,58 @@ def test_report_formulas_are_drawn_once_per_installation(tmp_path, monkeypatch):
     monkeypatch.setattr(render, "_DRAWN", {})
     monkeypatch.setattr(render, "_STORE", {"read": False, "new": False})
     assert render._svg_formula(tex) == drawn
+
+
+GENERATED = """
+import gc, json, warnings
+warnings.simplefilter("ignore")
+import hertzchain as hc
+from numba.core.registry import CPUDispatcher
+m = hc.Model(hc.Chain.uniform(12, 20e-3), hc.Striker(8e-3, 0.2), hc.Wall("flat"), hc.PowerLaw(1.7, 2e11))
+ds = hc.simulate(m, 1e-4, integrator="verlet", threads=1)
+stats = {d.py_func.__qualname__: [sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values())]
+         for d in gc.get_objects() if isinstance(d, CPUDispatcher) and d.signatures
+         and d.py_func.__module__ == "hertzchain.integrate.core.generated"}
+print(json.dumps({"stats": stats, "force": ds.contact_force.values[-1].tolist(),
+                  "peak": float(ds.attrs["peak_wall_force"])}))
+"""
+
+
+def test_a_registry_laws_loops_load_from_the_cache_in_a_new_process(tmp_path):
+    """The loops generated from a registry law (closures over the law's own functions) are cached
+    on disk under the text of the law's file and of the engine's files: a second process loads the
+    run instead of compiling it (~2-5 CPU-s a law before), and runs the same numbers."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path),
+           "PYTHONPATH": os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")])}
+    runs = []
+    for _ in range(2):  # an empty cache, then the one the first process left
+        proc = subprocess.run([sys.executable, "-c", GENERATED], capture_output=True, text=True, env=env, timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    first, second = runs
+    assert first["stats"]["_build.<locals>.run"][1] >= 1  # compiled in the first process
+    assert second["stats"]["_build.<locals>.run"] == [1, 0]  # loaded in the second: nothing compiled
+    assert all(misses == 0 for _, misses in second["stats"].values()), second["stats"]
+    assert first["force"] == second["force"] and first["peak"] == second["peak"]
+
+
+def test_the_cache_key_follows_the_law_files_text(tmp_path):
+    """The key holds the whole text of the file that defines a law's functions (its constants
+    too), read when the law is built: an edit (in the same session too) gives another key; a
+    function without a source file gives none (memory only)."""
+    import importlib.util
+
+    from hertzchain.integrate.core import disk_cache
+
+    path = tmp_path / "mylaw.py"
+    path.write_text("K = 2.0\ndef force(d):\n    return K * d\n")
+    spec = importlib.util.spec_from_file_location("mylaw", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    before = disk_cache.function_files_digest(module.force)
+    path.write_text("K = 3.0\ndef force(d):\n    return K * d\n")
+    after = disk_cache.function_files_digest(module.force)
+    assert before is not None and after is not None and before != after
+    namespace: dict = {}
+    exec("def typed(d):\n    return d\n", namespace)
+    assert disk_cache.function_files_digest(namespace["typed"]) is None

@@ -35,15 +35,13 @@ largest energy).
 
 from __future__ import annotations
 
-import functools
-import hashlib
-from pathlib import Path
 
 import numpy as np
 from numba import njit
 
 from ..core import kernels
 from ..core.barrier import barrier
+from ..core.disk_cache import INTEGRATE, files_digest, on_disk
 from ..core.primitives import _track_peak, _viscous_force, open_block, running_max
 
 __all__ = ["law_thread_run", "contact_general"]
@@ -56,39 +54,12 @@ _COMPILED_IN = ("drivers/threaded_laws.py", "core/kernels.py", "core/primitives.
                 "core/extension.py", "core/energies.py", "core/fused.py")
 
 
-@functools.lru_cache(maxsize=1)
-def _sources_digest() -> bytes:
-    """SHA-256 of the text of :data:`_COMPILED_IN` (read once per process, ~1 ms)."""
-    h = hashlib.sha256()
-    for name in _COMPILED_IN:
-        h.update(Path(__file__).parents[1].joinpath(name).read_bytes())  # from hertzchain/integrate/
-    return h.digest()
-
-
 def _on_disk(dispatcher, *variant):
-    """Give ``dispatcher``, a closure built here, Numba's on-disk cache under a key made of
-    ``variant`` (the constants it was built with) and :func:`_sources_digest`, and return it.
-
-    Numba's own key of a closure holds its cells pickled, and a compiled function pickles with an
-    id new in every process: a closure over compiled functions (the thread function over its
-    contact, its segments over theirs) was compiled again in every process (~7 CPU-s a law,
-    issue 37), a new Dask worker included. The functions a built-in law's closures call are this
-    package's, fixed by the sources; ``variant`` says which law and geometry they were built for.
-    Where Numba's caching API has moved, the closure stays cached in memory only, as before.
-    """
-    try:
-        from numba.core.caching import FunctionCache
-
-        key = hashlib.sha256(repr(variant).encode() + _sources_digest()).hexdigest()
-
-        class StableKey(FunctionCache):
-            def _index_key(self, sig, codegen):
-                return (sig, codegen.magic_tuple(), (key,))
-
-        dispatcher._cache = StableKey(dispatcher.py_func)
-    except (ImportError, AttributeError, TypeError, RuntimeError, OSError):  # no usable cache: compiled per process
-        pass
-    return dispatcher
+    """``dispatcher``, a closure built here over this package's functions only, cached on disk
+    under ``variant`` (the law and geometry it was built for) and the text of :data:`_COMPILED_IN`
+    (:func:`hertzchain.integrate.core.disk_cache.on_disk`): a new process or Dask worker loads it
+    instead of compiling it (~7 CPU-s a law, issue 37)."""
+    return on_disk(dispatcher, *variant, sources=files_digest(*(INTEGRATE / name for name in _COMPILED_IN)))
 
 
 @njit(nogil=True, inline="always")
