@@ -141,6 +141,20 @@ def test_bad_member_values_name_the_field_and_member():
     assert e.value.field == "probes.sensors[0]"
 
 
+def test_an_ensemble_with_different_probes_per_member_is_refused_naming_probes():
+    """An Ensemble's members share one Probes: a list of different ones is a ConfigError naming
+    ``probes`` (an AttributeError on None inside the run before; found by mypy). A list of equal
+    ones is the one Probes."""
+    model = Model(Chain.uniform(3, 10e-3), Striker(8e-3, 0.1))
+    ens = Ensemble.from_models([model, model])
+    with pytest.raises(ConfigError) as err:
+        simulate_batch(ens, 2e-5, [Probes(1e-6), Probes(2e-6)])
+    assert err.value.field == "probes" and "Ensemble" in err.value.message
+    same = simulate_batch(ens, 2e-5, [Probes(1e-6), Probes(1e-6)])
+    one = simulate_batch(ens, 2e-5, Probes(1e-6))
+    np.testing.assert_array_equal(same.contact_force.values, one.contact_force.values)
+
+
 def _tolerance_sweep(n: int = 6, **tol) -> dict:
     return {"base": {"chain": {"uniform": {"n": 5, "diameter_mm": 10.0}}, "striker": {"velocity": 0.2},
                      "run": {"duration": 1e-4, "sample_interval": 1e-6}},

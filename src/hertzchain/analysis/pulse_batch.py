@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import threading
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numba import njit, prange
@@ -368,7 +369,8 @@ def _flush_stale_cache() -> None:
     ``pulse.py``'s code (constants included) when either is newer than it: Numba's cache checks
     only the file of the cached function, and a caller compiles its callees' cached code in."""
     newest = max(Path(__file__).with_name(n).stat().st_mtime for n in ("window_fit.py", "pulse.py"))
-    for fn in (_fit_loading, _fit_one, _fit_all):
+    compiled: tuple[Any, ...] = (_fit_loading, _fit_one, _fit_all)  # (their cache: private Numba API, untyped)
+    for fn in compiled:
         try:
             index = Path(fn._cache._cache_file._index_path)
             if index.exists() and index.stat().st_mtime < newest:

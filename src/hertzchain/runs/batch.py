@@ -39,7 +39,7 @@ have the stacked layout, such as the (member, time) energies, are used without a
 from __future__ import annotations
 
 import math
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numba
 import numpy as np
@@ -120,9 +120,9 @@ def _check_no_positions(plist) -> None:
 
 
 def _check_threads(n_threads) -> None:
-    if n_threads is not None and not (isinstance(n_threads, (int, np.integer))
-                                      and 1 <= n_threads <= numba.config.NUMBA_NUM_THREADS):
-        raise ConfigError("n_threads", f"must be an integer in 1..{numba.config.NUMBA_NUM_THREADS}, got {n_threads!r}")
+    most = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # numba sets it at import
+    if n_threads is not None and not (isinstance(n_threads, (int, np.integer)) and 1 <= n_threads <= most):
+        raise ConfigError("n_threads", f"must be an integer in 1..{most}, got {n_threads!r}")
 
 
 def _run(models: Sequence[Model], duration: float, plist: list[Probes], dts: list, progress, n_threads,
@@ -307,7 +307,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         integrator = "verlet"  # the call set the Verlet's accuracy (as simulate's "auto")
     if rtol is not None:
         rtol = real(rtol, "run.rtol", low=0.0, open_low=True)
-    engine_options = {"integrator": integrator, "all_forces": max_force == "samples", "rtol": rtol}
+    engine_options: dict[str, Any] = {"integrator": integrator, "all_forces": max_force == "samples", "rtol": rtol}
     if device == "cuda" and not isinstance(models, Ensemble):
         _cuda.refuse_elastoplastic([_law_code(m) for m in models])
     ens = None
@@ -318,7 +318,10 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     if device == "cuda" and ens is None:
         _refuse_extended(models)
     if ens is not None:
-        ds = _simulate_ensemble(ens, duration, _one_probes(probes, ens.n_members), dt, progress, n_threads,
+        if (one := _one_probes(probes, ens.n_members)) is None:
+            raise ConfigError("probes", f"the {ens.n_members} members of an Ensemble share one Probes: give one, "
+                              "or a list of equal ones (a list of models takes different Probes)")
+        ds = _simulate_ensemble(ens, duration, one, dt, progress, n_threads,
                                 configs, device, steps_per_radian, engine_options)
     elif device == "cuda" and _one_layout(models) and _one_probes(probes, len(models)) is not None:
         # beyond the paper's kind (a given striker, cylinders, gravity) but not extended: set up
@@ -343,6 +346,7 @@ def _refuse_extended(models) -> None:
     """The CUDA engine has no protected body nor mass-in-mass beads: a ConfigError naming the field."""
     for i, m in enumerate(models):
         if isinstance(m, Model) and m.extended:
+            assert m.extension_field is not None  # (an extended model names its field)
             raise ConfigError(m.extension_field, f"member {i}: the CUDA engine does not model a protected body or "
                               "mass-in-mass beads; run this batch on the CPU (device='cpu')")
 

@@ -72,15 +72,15 @@ class _Part:
 
 def _part_of_dataset(ds: xr.Dataset) -> _Part:
     """The :class:`_Part` of a single-run Dataset (a dimension without coordinate counts 0, 1, ...)."""
-    data = {}
+    data: dict[str, tuple[tuple[str, ...], np.ndarray, dict]] = {}
     for name in ds.data_vars:
         var = ds.variables[name]
-        data[name] = (var.dims, var.values, var.attrs)
-    dims = {}
+        data[str(name)] = (tuple(str(d) for d in var.dims), var.values, var.attrs)
+    dims: dict[str, tuple[np.ndarray, dict]] = {}
     for d in ds.dims:
         if d != "time":
-            var = ds.variables.get(d)
-            dims[d] = (var.values, var.attrs) if var is not None else (np.arange(ds.sizes[d]), {})
+            coord = ds.variables.get(d)
+            dims[str(d)] = (coord.values, coord.attrs) if coord is not None else (np.arange(ds.sizes[d]), {})
     return _Part(data, dims, ds.attrs)
 
 
@@ -126,9 +126,9 @@ def _stack(parts: Sequence[_Part], time, n_time: int, member, ready: dict[str, n
     for p in parts:
         pk = {}
         for d, (vals, attrs) in p.dims.items():
-            key = (vals.dtype.str, vals.shape, vals.tobytes())
-            pk[d] = key
-            distinct.setdefault(d, {}).setdefault(key, vals)
+            fingerprint = (vals.dtype.str, vals.shape, vals.tobytes())
+            pk[d] = fingerprint
+            distinct.setdefault(d, {}).setdefault(fingerprint, vals)
             coord_attrs.setdefault(d, dict(attrs))
         keys.append(pk)
     dims = {d: np.unique(np.concatenate([v.ravel() for v in arrays.values()]))
@@ -239,6 +239,7 @@ def stack_results(datasets: Sequence[xr.Dataset], member: Sequence[int] | None =
 def _dts_used(pk: _Packed) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hertzchain.integrate.drivers.verlet._dt_used` of every member: smallest and largest step [s]."""
     if pk.integrator == "rkn4":
+        assert pk.rkn_steps is not None  # (the rkn4 engine's step counts)
         return pk.rkn_steps[:, 1].copy(), pk.rkn_steps[:, 2].copy()
     adaptive = pk.stride == 0
     block = pk.interval / pk.n_sub
@@ -250,7 +251,10 @@ def _dts_used(pk: _Packed) -> tuple[np.ndarray, np.ndarray]:
 
 def _steps(pk: _Packed) -> np.ndarray:
     """Steps every member took (a copy)."""
-    return (pk.rkn_steps[:, 0] if pk.integrator == "rkn4" else pk.acc[:, 2]).copy()
+    if pk.integrator == "rkn4":
+        assert pk.rkn_steps is not None  # (the rkn4 engine's step counts)
+        return pk.rkn_steps[:, 0].copy()
+    return pk.acc[:, 2].copy()
 
 
 def _member_runs(pk: _Packed) -> list[RawRun]:
@@ -427,8 +431,8 @@ def _ready(stacked: dict[str, np.ndarray], raw: RawRun, model: Model, part: _Par
     """The engine's buffers as the stacked variables of ``run_fields`` (row m = member m's array),
     assuming every member is laid out as member 0 (``raw``, ``model``, ``part``); :func:`_stack`
     uses one only where that holds. Views where possible, so a uniform batch copies nothing."""
-    ready = {k: stacked[k] for k in ("kinetic_energy", "potential_energy", "dissipated_energy", "velocity")
-             if k in stacked}
+    ready: dict[str, np.ndarray] = {k: stacked[k] for k in ("kinetic_energy", "potential_energy",
+                                                            "dissipated_energy", "velocity") if k in stacked}
     forces = stacked.get("recorded_force")
     if forces is not None:
         # the columns run_fields takes from raw.contact_force (= forces[m])

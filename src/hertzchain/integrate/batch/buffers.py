@@ -15,6 +15,7 @@ import mmap
 import threading
 import weakref
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -23,6 +24,8 @@ from ...errors import SimulationDiverged
 
 #: Doubles per 64-byte cache line.
 _LINE = 8
+#: A slot count: one member's (int) or every member's (array).
+_Slots = TypeVar("_Slots", int, np.ndarray)
 
 
 def _aligned_zeros(n: int) -> np.ndarray:
@@ -140,14 +143,14 @@ class _Packed:
     fmax_off: np.ndarray
     peak: np.ndarray
     acc: np.ndarray
-    ext: np.ndarray = None        # (rows, EXT_COLUMNS): the extended members' extension arrays, one after another
-    ext_off: np.ndarray = None    # member m's rows: ext[ext_off[m]:ext_off[m + 1]] (none when not extended)
-    ext_on: np.ndarray = None     # (M,) bool
-    body_slot: np.ndarray = None  # (M,) N + 1 for a member with a protected body, else -1
-    out_b: np.ndarray = None      # flat: member m's body record out_b[b_off[m]:b_off[m + 1]] seen as (K, 4)
-    b_off: np.ndarray = None
+    ext: np.ndarray               # (rows, EXT_COLUMNS): the extended members' extension arrays, one after another
+    ext_off: np.ndarray           # member m's rows: ext[ext_off[m]:ext_off[m + 1]] (none when not extended)
+    ext_on: np.ndarray            # (M,) bool
+    body_slot: np.ndarray         # (M,) N + 1 for a member with a protected body, else -1
+    out_b: np.ndarray             # flat: member m's body record out_b[b_off[m]:b_off[m + 1]] seen as (K, 4)
+    b_off: np.ndarray
     integrator: str = "verlet"    # the engine that ran it: "verlet" or "rkn4" (integrate.batch.rkn)
-    rkn_steps: np.ndarray = None  # (M, 3) with "rkn4": steps, smallest and largest step [s] per member
+    rkn_steps: np.ndarray | None = None  # (M, 3) with "rkn4": steps, smallest and largest step [s] per member
 
     @property
     def n_members(self) -> int:
@@ -160,7 +163,7 @@ _NAMES = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fe
 _STATE = ("dyield", "dmax", "dres", "kres")
 
 
-def _slot_sizes(n_slots: np.ndarray) -> np.ndarray:
+def _slot_sizes(n_slots: _Slots) -> _Slots:
     """Slots a member owns in the flat buffers: P + 1 rounded up to whole 64-byte cache lines (on
     an aligned buffer two threads then never write to one cache line: false sharing would cost a
     line transfer per step)."""

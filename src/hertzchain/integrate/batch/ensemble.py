@@ -19,7 +19,7 @@ number of beads too are a :class:`~hertzchain.integrate.batch.ragged.Ragged` set
 from __future__ import annotations
 
 import json
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -29,6 +29,7 @@ from ...errors import ConfigError
 from ...materials import Material
 from ...model import Model, Striker, Wall
 from ...laws import spec_of
+from ...laws.spec import LawObject
 
 __all__ = ["Ensemble", "same_layout", "layout_key"]
 
@@ -132,16 +133,17 @@ class Ensemble:
         if m < 1 or any(s != m for s in sizes):
             raise ConfigError("n_members", "the per-member arrays disagree on the number of members: "
                               f"{sorted(set(sizes))}")
-        materials, index = _material_table([base.striker.material, *base.chain.materials, base.wall_material])
+        # (a model of the paper's kind, layout_key: body0 is its striker)
+        materials, index = _material_table([base.body0.material, *base.chain.materials, base.wall_material])
         self._set(n_beads=n, has_wall=base.wall.present, law_name=base.law.name, materials=materials,
                   bead_material=np.broadcast_to(index[1:n + 1], (m, n)),
                   striker_material=np.full(m, index[0]),
                   wall_material=np.full(m, index[n + 1] if base.wall.present else -1),
                   wall_material_given=base.wall.material is not None,
                   diameters=_per_bead(diameters, base.chain.diameters, m, "chain.diameters"),
-                  offsets=_per_bead(offsets, base.chain.offsets, m, "chain.offsets"),
-                  striker_diameter=_per_member(striker_diameter, m, "striker.diameter_mm", base.striker.diameter),
-                  striker_velocity=_per_member(striker_velocity, m, "striker.velocity", base.striker.velocity),
+                  offsets=_per_bead(offsets, np.asarray(base.chain.offsets), m, "chain.offsets"),
+                  striker_diameter=_per_member(striker_diameter, m, "striker.diameter_mm", base.body0.diameter),
+                  striker_velocity=_per_member(striker_velocity, m, "striker.velocity", base.body0.velocity),
                   law_parameter=_per_member(law_parameter, m, _LAW_FIELD[base.law.name], base.law.parameter),
                   precompression=_per_member(precompression, m, "chain.precompression", base.precompression))
         if not spec_of(base.law).dissipative and np.any(self.law_parameter != 0.0):
@@ -199,16 +201,18 @@ class Ensemble:
             bead_rows.append(row)
         has_wall = m0.wall.present
         # the per-member scalars in one pass (a design's generation builds ~10 small ensembles)
-        scalars = np.array([(x.striker.diameter, x.striker.velocity, float(x.law.parameter), x.precompression)
-                            for x in models], dtype=float).T.copy()
+        # (models of the paper's kind, layout_key: body0 is the striker)
+        scalars = np.array([(x.body0.diameter, x.body0.velocity, float(x.law.parameter), x.precompression)
+                            for x in models], dtype=np.float64).T.copy()
         self = cls.__new__(cls)
         self._set(n_beads=n, has_wall=has_wall, law_name=m0.law.name, materials=None,
                   # one row for all when the members share their materials (systems() then
                   # looks the material columns up once: a stride-0 first axis says so)
                   bead_material=np.broadcast_to(bead_rows[0], (len(models), n)) if len(rows) == 1
                   else np.array(bead_rows),
-                  striker_material=np.array([idx(x.striker.material) for x in models], dtype=np.int64),
-                  wall_material=np.array([idx(x.wall_material) if has_wall else -1 for x in models], dtype=np.int64),
+                  striker_material=np.array([idx(x.body0.material) for x in models], dtype=np.int64),
+                  wall_material=np.array([-1 if (wm := x.wall_material) is None else idx(wm) for x in models],
+                                         dtype=np.int64),
                   wall_material_given=None,
                   wall_given=np.array([x.wall.material is not None for x in models]),
                   diameters=np.array([x.chain.diameters for x in models], dtype=float),
@@ -369,8 +373,10 @@ class Ensemble:
         if models is not None:
             return models[i]
         mats = self.materials
-        law = {"elastic": lambda p: Elastic(), "viscoelastic": lambda p: Viscoelastic(A=p),
-               "dashpot": lambda p: Dashpot(gamma=p)}[self.law_name](float(self.law_parameter[i]))
+        make: dict[str, Callable[[float], LawObject]] = {
+            "elastic": lambda p: Elastic(), "viscoelastic": lambda p: Viscoelastic(A=p),
+            "dashpot": lambda p: Dashpot(gamma=p)}
+        law = make[self.law_name](float(self.law_parameter[i]))
         wall = Wall("flat", mats[self.wall_material[i]] if self._wall_given()[i] else None) if self.has_wall \
             else Wall("none")
         return Model(Chain(self.diameters[i], tuple(mats[k] for k in self.bead_material[i]), self.offsets[i]),

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from ...errors import ConfigError
-from ...model import Model
+from ...model import Model, System
 from ...probes import Probes
 from ..core import kernels
 from ..drivers import verlet
@@ -41,7 +41,7 @@ from ..drivers.verlet import (ADAPTIVE_STEPS_PER_RADIAN, MAX_OMEGA_DT, RELAX_EVA
 class _Member:
     """What one member needs besides the shared buffers (mirrors the locals of run_verlet)."""
 
-    system: object
+    system: System
     rec: np.ndarray
     plan: StepPlan
     record_v: bool
@@ -318,8 +318,8 @@ def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_s
         rec_off = np.concatenate([[0], np.cumsum(nrec)])
         rec_all = np.empty(int(rec_off[-1]), dtype=np.int64)
         for rows, (rec, which) in zip(index, recs):
-            for k, r in enumerate(rec):
-                rec_all[rec_off[rows[which == k]][:, None] + np.arange(r.size)] = r
+            for j, r in enumerate(rec):
+                rec_all[rec_off[rows[which == j]][:, None] + np.arange(r.size)] = r
         slot_order = np.concatenate(index)
     zeros_i, zeros_f = np.zeros(nmem, dtype=np.int64), np.zeros(nmem)
     pk = _outputs(interval, n_samples, n_slots=n_slots, nrec=nrec, rec=rec_all, nb=nb, record_v=record_v,
@@ -357,7 +357,8 @@ def _pack_groups(groups: Sequence[_Group], dts: np.ndarray, interval: float, n_s
             w[at] = sy.max_frequency
             kept.append((sy.bead_mass, sy.kappa, sy.yield_force))
         # one block (a design's group): systems()'s own arrays, nothing copied
-        out.append(tuple(parts[0] if len(kept) == 1 else np.concatenate(parts) for parts in zip(*kept)))
+        bead_mass, kappa, fy = (parts[0] if len(kept) == 1 else np.concatenate(parts) for parts in zip(*kept))
+        out.append((bead_mass, kappa, fy))
     for k, x in _step_plans(w, interval, dts, check, steps_per_radian).items():
         setattr(pk, k, x)
     f = flat
@@ -437,4 +438,6 @@ def _setup_groups(models: Sequence[Model], plist: Sequence[Probes], dts: list, i
         else:
             for i, n, k, f in zip(rows, n_each.tolist(), kappa, fy):
                 member_systems[i] = MemberSystem(n, wall, k[:n + 1], f[:n + 1])
-    return pk, member_systems
+    done = [s for s in member_systems if s is not None]
+    assert len(done) == len(models)  # (every member is in one group)
+    return pk, done

@@ -19,6 +19,7 @@ metrics asks for, since interpolating every contact at every sample would cost m
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numba
 import numpy as np
@@ -124,10 +125,11 @@ def _flush_stale_cache() -> None:
     ``damped_run`` it compiles in) is newer than it; ``kernels.flush_stale_cache`` watches the
     files that compiles in. Numba's cache checks only the file of the cached function."""
     kernels.flush_stale_cache(_rkn_kernel)
+    cache: Any = getattr(_rkn_kernel, "_cache", None)  # private Numba API, untyped
     try:
-        index = Path(_rkn_kernel._cache._cache_file._index_path)
+        index = Path(cache._cache_file._index_path)
         if index.exists() and index.stat().st_mtime < Path(rk.__file__).stat().st_mtime:
-            _rkn_kernel._cache.flush()
+            cache.flush()
     except (AttributeError, OSError):  # private Numba API moved or no cache: nothing to protect
         pass
 
