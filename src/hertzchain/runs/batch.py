@@ -280,7 +280,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     dt, _, steps_per_radian, n_threads = run_options(dt=dt, steps_per_radian=steps_per_radian, threads=n_threads,
                                                      threads_field="n_threads", threads_max=4096)
     if device == "cuda" and not isinstance(models, Ensemble):
-        _cuda.refuse_elastoplastic([_law_code(m) for m in models])
+        _cuda.refuse_mixed_laws([_law_code(m) for m in models])
     ens = None
     if isinstance(models, Ensemble):
         ens = models
