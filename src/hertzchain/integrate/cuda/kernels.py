@@ -6,7 +6,10 @@ through Numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1``). Compiled lazily (:f
 operations: ``verlet_kernel`` (one thread per member), ``warp_kernel`` (one warp per member, a
 lane per slot) and the register kernel for aligned elastic chains (a member's state on the chip);
 the per-contact and per-body device functions are shared, so they integrate with the very same
-arithmetic. Every per-slot array is (slot, member), as :func:`hertzchain.integrate.cuda.launch.run_packed`
+arithmetic. The general kernels also run Thornton's elastic-plastic law: its device function is
+the CPU kernel's own source (``core.kernels.elastoplastic_force.py_func``, and the energies'
+per-contact terms likewise), its state (``dyield``, ``dmax``, ``dres``, ``kres``) four more
+(slot, member) arrays updated in place. Every per-slot array is (slot, member), as :func:`hertzchain.integrate.cuda.launch.run_packed`
 lays them out, so that the threads of a warp, which run neighbouring members, read neighbouring
 addresses (coalesced).
 
