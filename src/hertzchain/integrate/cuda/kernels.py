@@ -9,9 +9,9 @@ the per-contact and per-body device functions are shared, so they integrate with
 arithmetic. The general kernels also run Thornton's elastic-plastic law: its device function is
 the CPU kernel's own source (``core.kernels.elastoplastic_force.py_func``, and the energies'
 per-contact terms likewise), its state (``dyield``, ``dmax``, ``dres``, ``kres``) four more
-(slot, member) arrays updated in place. Every per-slot array is (slot, member), as :func:`hertzchain.integrate.cuda.launch.run_packed`
-lays them out, so that the threads of a warp, which run neighbouring members, read neighbouring
-addresses (coalesced).
+(slot, member) arrays updated in place. Every per-slot array is (slot, member), as
+:func:`hertzchain.integrate.cuda.launch.run_packed` lays them out, so that the threads of a warp,
+which run neighbouring members, read neighbouring addresses (coalesced).
 
 Measured facts behind the choices (NVIDIA H100, 30-bead chains, fixed 5 ns step,
 benchmarks/ensemble.py): ``sqrt(0)`` takes CUDA's slow path, so overlaps below
