@@ -107,20 +107,21 @@ def _kernels() -> dict:
         if d < 0.0:
             g[j + 1, m] = 0.0
             return power
-        sd = 0.0
-        if d > DELTA_MIN:
-            sd = math.sqrt(d)
-        else:
-            d = 0.0
-        if law == LAW_ELASTOPLASTIC:
+        if law == LAW_ELASTOPLASTIC:  # before the Hertz square root, which this law does not use
             if kappa[j, m] == 0.0:  # no contact (free end, padding)
                 g[j + 1, m] = 0.0
                 return power
             rate = c * (v[j, m] - v[j + 1, m])
             f, fep, dmax[j, m], dres[j, m], kres[j, m] = elastoplastic_force(
-                d, rate, kappa[j, m], damping[j, m], dyield[j, m], dmax[j, m], dres[j, m], kres[j, m])
+                d if d > DELTA_MIN else 0.0, rate, kappa[j, m], damping[j, m], dyield[j, m], dmax[j, m], dres[j, m],
+                kres[j, m])
             g[j + 1, m] = c * f
             return power + (f - fep) * rate
+        sd = 0.0
+        if d > DELTA_MIN:
+            sd = math.sqrt(d)
+        else:
+            d = 0.0
         fel = kappa[j, m] * d * sd
         if law == LAW_ELASTIC:
             g[j + 1, m] = c * fel
