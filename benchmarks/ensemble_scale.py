@@ -52,7 +52,7 @@ def sweep_file(folder: Path, members: int, chunk_size: int) -> Path:
 
 
 def timed(argv: list[str]) -> dict:
-    """Run ``argv``; wall time [s], peak resident memory [bytes] (os.wait4), exit status."""
+    """Run ``argv``; wall time [s], CPU time [s] and peak resident memory [bytes] (os.wait4), exit status."""
     t0 = time.perf_counter()
     with tempfile.TemporaryFile() as err:
         proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=err, cwd=REPO)
@@ -63,7 +63,7 @@ def timed(argv: list[str]) -> dict:
     code = os.waitstatus_to_exitcode(status)
     if code != 0:
         raise SystemExit(f"{' '.join(argv)}: exit status {code}\n{tail}")
-    return {"seconds": seconds, "peak_rss_bytes": usage.ru_maxrss * 1024}
+    return {"seconds": seconds, "cpu_seconds": usage.ru_utime + usage.ru_stime, "peak_rss_bytes": usage.ru_maxrss * 1024}
 
 
 def local_run(path: Path, out: Path) -> dict:
@@ -78,7 +78,8 @@ def local_run(path: Path, out: Path) -> dict:
     est = replace(estimate_sweep(cfg), process_bytes=RUNTIME_BYTES)  # as the sweep's fresh process makes it
     r = timed([str(BIN / "hertzchain"), "sweep", str(path), "--out", str(out), "-q"])
     chunk_bytes = sum(p.stat().st_size for p in (out / "chunks").glob("chunk_*.nc"))
-    r.update(members=cfg.n_members, members_per_s=cfg.n_members / r["seconds"], estimate_peak_bytes=est.peak_bytes,
+    r.update(members=cfg.n_members, members_per_s=cfg.n_members / r["seconds"],
+             cpu_ms_per_member=1e3 * r["cpu_seconds"] / cfg.n_members, estimate_peak_bytes=est.peak_bytes,
              peak_over_estimate=r["peak_rss_bytes"] / est.peak_bytes, chunk_bytes_per_member=chunk_bytes / cfg.n_members,
              metrics_csv_bytes=(out / "metrics.csv").stat().st_size)
     return r
@@ -165,7 +166,8 @@ def main() -> int:
         r = local_run(sweep_file(folder, args.members, args.chunk_size), folder / "local")
         shutil.rmtree(folder / "local")
         info["local"] = r
-        print(f"local engine: {r['seconds']:.0f} s, {r['members_per_s']:.1f} members/s, peak RSS "
+        print(f"local engine: {r['seconds']:.0f} s, {r['members_per_s']:.1f} members/s "
+              f"({r['cpu_ms_per_member']:.2f} CPU-ms per member, compilation included), peak RSS "
               f"{r['peak_rss_bytes'] / 2**20:.0f} MiB (estimate {r['estimate_peak_bytes'] / 2**20:.0f} MiB, ratio "
               f"{r['peak_over_estimate']:.2f}), {r['chunk_bytes_per_member']:.0f} bytes/member on disk", flush=True)
         if args.members < 1_000_000:
@@ -177,13 +179,18 @@ def main() -> int:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the LongRunWarning of a sweep that is not run
                 est = estimate_sweep(load_sweep(sweep_file(folder, 1_000_000, args.chunk_size)))
+            cores = len(os.sched_getaffinity(0))
             info["extrapolated_1e6"] = {
                 "note": f"EXTRAPOLATED from {args.members} members, not measured",
                 "seconds": 1_000_000 / r["members_per_s"],
+                # what the CPU time per member gives on this machine's cores when nothing else runs
+                # (the wall time above carries the load of whatever shares the cores)
+                "seconds_on_idle_cores": 1e-3 * r["cpu_ms_per_member"] * 1_000_000 / cores, "cores": cores,
                 "estimate_peak_rss_bytes": est.peak_bytes,
                 "disk_bytes": 1_000_000 * r["chunk_bytes_per_member"]}
             x = info["extrapolated_1e6"]
-            print(f"EXTRAPOLATED to 1e6 members (not measured): {x['seconds'] / 3600:.1f} h, peak RSS "
+            print(f"EXTRAPOLATED to 1e6 members (not measured): {x['seconds'] / 3600:.2f} h at this load, "
+                  f"{x['seconds_on_idle_cores'] / 60:.0f} min from the CPU time on {cores} idle cores; peak RSS "
                   f"~{x['estimate_peak_rss_bytes'] / 2**20:.0f} MiB (the sweep's estimate), "
                   f"{x['disk_bytes'] / 2**20:.0f} MiB of chunks", flush=True)
         if args.dask_members:

@@ -9,6 +9,9 @@ record, so that the kernel is small and the Python around it shows. Each timing 
 Auto: the CPU time per run of chain 1 (elastic and the reproduction's ``dashpot_scaled`` law) with
 the defaults against each integrator named, the default probes.
 
+Batch: ``simulate_batch`` end to end against the compiled batched loop it calls, CPU time, one
+thread (:func:`batch_ratio`).
+
     .venv/bin/python benchmarks/overhead.py [--json benchmarks/results/overhead.json]
 """
 
@@ -73,11 +76,50 @@ def auto_choice(repeat: int) -> dict:
     return out
 
 
+def batch_ratio(members: int, repeat: int) -> dict:
+    """``simulate_batch`` end to end against its engine: chain 1 elastic, ``members`` strikers at
+    0.1-0.3 m/s (one layout: the array set-up), 3 ms, default probes, one thread. The engine's CPU
+    time is that spent inside ``batch._engine`` (the compiled batched loop) in the same calls;
+    the best of ``repeat`` calls. Target (issue 37): engine / end to end >= 0.85."""
+    import numpy as np
+
+    from hertzchain.config import build_model, load_config
+    from hertzchain.runs import batch
+
+    base = build_model(load_config("examples/chain1_elastic.toml", ()))
+    models = [hc.Model(base.chain, hc.Striker(base.striker.diameter, float(v)), base.wall, base.law)
+              for v in np.linspace(0.1, 0.3, members)]
+    engine = batch._engine
+    spent = [0.0]
+
+    def timed(*args):
+        t = time.process_time()
+        try:
+            return engine(*args)
+        finally:
+            spent[0] += time.process_time() - t
+
+    batch._engine = timed
+    try:
+        hc.simulate_batch(models[:2], 3e-3, n_threads=1)  # compiled first
+        rows = []
+        for _ in range(repeat):
+            spent[0] = 0.0
+            t = time.process_time()
+            hc.simulate_batch(models, 3e-3, n_threads=1)
+            rows.append((time.process_time() - t, spent[0]))
+    finally:
+        batch._engine = engine
+    total, kernel = min(rows)
+    return {"members": members, "end_to_end_s": total, "engine_s": kernel, "engine_share": kernel / total}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", default=str(RESULTS / "overhead.json"))
     ap.add_argument("--calls", type=int, default=200)
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--members", type=int, default=64, help="members of the simulate_batch timing")
     ap.add_argument("--overhead-only", action="store_true",
                     help="only the overhead (runs on versions before integrator 'auto', for a baseline)")
     args = ap.parse_args()
@@ -86,6 +128,7 @@ def main() -> None:
     load0 = os.getloadavg()
     res = {"overhead": overhead(args.calls, args.repeat),
            "auto": {} if args.overhead_only else auto_choice(args.repeat)}
+    res["batch"] = None if args.overhead_only else batch_ratio(args.members, args.repeat)
     res["load_average"] = [load0, os.getloadavg()]
     for name, r in res["overhead"].items():
         print(f"simulate() {name}: {r['simulate_ms']:.3f} ms CPU, engine {r['engine_ms']:.3f} ms, "
@@ -93,6 +136,10 @@ def main() -> None:
     for label, r in res["auto"].items():
         print(f"{label}: auto picks {r['auto_picks']}; CPU per run auto {r['auto_ms']:.2f} ms, verlet "
               f"{r['verlet_ms']:.2f} ms, rkn4 " + ("refused" if r["rkn4_ms"] is None else f"{r['rkn4_ms']:.2f} ms"))
+    if res["batch"]:
+        b = res["batch"]
+        print(f"simulate_batch, {b['members']} members of chain 1: {b['end_to_end_s']:.3f} CPU-s end to end, engine "
+              f"{b['engine_s']:.3f} CPU-s: engine share {b['engine_share']:.3f}")
     print(f"load average {res['load_average']}")
     save_json({"machine": machine_info(), **res}, Path(args.json))
 

@@ -156,7 +156,7 @@ def test_projection_on_a_dask_cluster_counts_its_threads(monkeypatch):
     from hertzchain.errors import LongRunWarning
     from hertzchain.sweep import runner
 
-    monkeypatch.setattr(checks, "NS_PER_BEAD_STEP", {"elastic": 1.0, "general": 1.0, "rkn4": 1.0})
+    monkeypatch.setattr(checks, "NS_PER_BEAD_STEP", {"elastic": 1.0, "general": 1.0, "rkn4": 1.0, "rkn4_general": 1.0})
     monkeypatch.setattr(parallel, "_is_dask", lambda client: True)
     monkeypatch.setattr(parallel, "_dask_threads", lambda client: 6)
     cfg = parse_sweep({"base": copy.deepcopy(BASE), "sweep": {"mode": "random", "n": 8, "chunk_size": 4,

@@ -211,7 +211,7 @@ def test_a_long_sweep_is_projected_on_the_cores_that_run_it(monkeypatch, tmp_pat
     from hertzchain.errors import LongRunWarning
     from hertzchain.sweep import runner
 
-    monkeypatch.setattr(checks, "NS_PER_BEAD_STEP", {"elastic": 1.0, "general": 1.0, "rkn4": 1.0})
+    monkeypatch.setattr(checks, "NS_PER_BEAD_STEP", {"elastic": 1.0, "general": 1.0, "rkn4": 1.0, "rkn4_general": 1.0})
     cfg = parse_sweep(ensemble(n=8, chunk_size=4, n_threads=3, store="metrics"))
     projected = []
     real_check = checks.check_resources

@@ -113,6 +113,20 @@ def _two_body_system(velocity: float, law, diameter_a: float, mat_a: Material, d
     return system, mu
 
 
+def _engine(system):
+    """``run_rkn`` where ``rkn4`` integrates the pair (engine_choice's rule for ``"auto"``), else
+    ``run_verlet``; imported here, when a collision is run (no compiled module before)."""
+    from .integrate.drivers.refusals import why_not
+
+    if why_not("rkn4", system) is None:
+        from .integrate.drivers.rkn import run_rkn
+
+        return run_rkn
+    from .integrate.drivers.verlet import run_verlet
+
+    return run_verlet
+
+
 #: Time steps the collision may take, all tries together (~10 s of the compiled Verlet, which
 #: measured 34 s for a dashpot of 1e5 N s/m on an 8 mm sphere: 8e8 steps at worst).
 _MAX_STEPS = 1e8
@@ -142,8 +156,10 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     Sphere a (diameter ``diameter_a``, ``material_a``) hits at relative speed ``velocity`` either
     sphere b (``diameter_b``, ``material_b``) at rest, or, with ``diameter_b=None``, an immovable
     flat of ``material_b`` (a sphere-on-flat Hertz contact, 1/R' = 0 in paper eq. 1). The
-    collision is integrated with the engine's compiled Verlet (adaptive step) until the bodies
-    have parted; e = (v_b' - v_a') / v (sphere) or -v_a' / v (flat).
+    collision is integrated until the bodies have parted, with the engine ``integrator = "auto"``
+    picks for the law (the fourth-order ``rkn4`` for the elastic law, Kuwabara-Kono and the
+    dashpot: the kernels a chain of that law runs on, so that nothing else compiles; the compiled
+    Verlet, adaptive step, for the others); e = (v_b' - v_a') / v (sphere) or -v_a' / v (flat).
 
     Parameters
     ----------
@@ -179,8 +195,6 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     >>> round(hc.restitution(0.2, "elastic", 8e-3, "AISI52100", 26e-3), 6)
     1.0
     """
-    from .integrate.drivers.verlet import run_verlet
-
     v = _positive("velocity", velocity)
     da = _positive("diameter_a", diameter_a)
     db = None if diameter_b is None else _positive("diameter_b", diameter_b)
@@ -196,8 +210,9 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     dmax = thornton_loading_overlap(energy, kappa, float(system.yield_overlap()[0]))
     duration = 2.0 * max(_HERTZ_CONTACT_TIME * dm / v, math.pi * math.sqrt(mu / (1.5 * kappa * math.sqrt(dmax))))
     _check_steps(system, duration, law, mu)
+    run = _engine(system)
     for _ in range(_MAX_TRIES):
-        raw = run_verlet(system, duration, duration / 8, record_velocities=True, record_positions=True)
+        raw = run(system, duration, duration / 8, record_velocities=True, record_positions=True)
         u, vel = raw.displacement[-1], raw.velocity[-1]
         if db is None:
             gap, rel = -u[0], -vel[0]

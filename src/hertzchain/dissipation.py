@@ -33,9 +33,13 @@ Two consequences worth knowing (26 mm AISI 52100 beads, 8 mm striker at 0.2 m/s,
   eps ~ 0.963 near gamma ~ 150 N s/m) and falls again as heavy damping spreads the pulse. Only
   the weak-damping branch is searched; a smaller eps is refused with a ConfigError.
 
-Runs use the compiled velocity Verlet (:func:`hertzchain.integrate.drivers.verlet.run_verlet`): a
-calibration of 26 mm AISI 52100 beads hit by an 8 mm striker takes about ten runs of a
-34-bead chain (a fraction of a second once the kernels are compiled). Results are cached.
+Runs use the engine that ``integrator = "auto"`` gives the law's chains: the fourth-order RKN for
+y'' = f(y, y') (:func:`hertzchain.integrate.drivers.rkn_damped.run_rkn_damped`, the elastic baseline
+included) for Kuwabara-Kono and the dashpot, so that a calibrated run compiles one engine, not
+two (issue 37: the Verlet's kernels cost ~13 CPU-s of a cold start); the compiled velocity
+Verlet (:func:`hertzchain.integrate.drivers.verlet.run_verlet`) for a law rkn4 does not integrate. A
+calibration of 26 mm AISI 52100 beads hit by an 8 mm striker takes about ten runs of a 34-bead
+chain (a fraction of a second once the kernels are compiled). Results are cached.
 """
 
 from __future__ import annotations
@@ -51,6 +55,9 @@ from .chain import Chain
 from .contact import (Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, SizedViscoelastic, Viscoelastic,
                       hertz_constant)
 from .errors import ConfigError
+from .integrate.drivers.refusals import why_not
+from .integrate.drivers.rkn import DAMPED_EPS, RKN_RTOL
+from .integrate.drivers.rkn_damped import run_rkn_damped
 from .integrate.drivers.verlet import run_verlet
 from .materials import Material, get_material
 from .model import Model, Striker, Wall
@@ -171,7 +178,14 @@ def _duration_estimate(chain: Chain, striker: Striker, last: int) -> float:
 
 
 def _run_peaks(model: Model, contacts: np.ndarray, duration: float, sample_interval: float):
-    raw = run_verlet(model.system(), duration, sample_interval, contacts=contacts)
+    system = model.system()
+    if why_not("rkn4", system) is None:
+        # rkn4's default accuracy (rkn.run_rkn's local error bound), on its y'' = f(y, y') method
+        # for every law, the elastic baseline too: the kernels the calibrated run will use
+        eps = RKN_RTOL * DAMPED_EPS * float(np.max(np.abs(system.v0)))
+        raw = run_rkn_damped(system, duration, sample_interval, None, eps, False, contacts, None, 200_000, False)
+    else:
+        raw = run_verlet(system, duration, sample_interval, contacts=contacts)
     t_pk, f_pk = refine_peaks(raw.time, raw.contact_force)
     # The pulse has passed the last fitted contact when its maximum lies well inside the record
     # and the force there has fallen below half the peak.

@@ -10,7 +10,6 @@ are turned into TeX (:func:`_texify`).
 from __future__ import annotations
 
 import base64
-import functools
 import html
 import io
 import os
@@ -153,11 +152,86 @@ def _display_width(png: Path) -> int | None:
     return round(int.from_bytes(head[16:20], "big") / _FIGURE_DPI * _PX_PER_INCH)
 
 
-@functools.lru_cache(maxsize=None)
+#: Formulas drawn by this installation, kept on disk (:func:`_formula_store`): {TeX: HTML}.
+_DRAWN: dict[str, str] = {}
+#: Whether _DRAWN was read from disk, and whether it holds formulas the file does not.
+_STORE = {"read": False, "new": False}
+#: Largest formula cache file read [bytes] (the report's ~45 formulas take ~0.3 MB).
+_STORE_MAX_BYTES = 16 * 2**20
+
+
+def _formula_store() -> Path:
+    """The file of the formulas this installation has drawn (a report's take ~0.7 CPU-s to draw).
+
+    Beside Numba's cache of the compiled kernels: in ``NUMBA_CACHE_DIR`` when set, else this
+    package's ``__pycache__`` (as Numba's own), else the user's cache folder
+    (``$XDG_CACHE_HOME/hertzchain`` or ``~/.cache/hertzchain``). The name holds the Matplotlib
+    version and a digest of this module, which draws them: either changed, the formulas are drawn
+    afresh.
+    """
+    import hashlib
+
+    import matplotlib
+
+    digest = hashlib.sha256(Path(__file__).read_bytes() + matplotlib.__version__.encode()).hexdigest()[:16]
+    name = f"hertzchain-formulas-{digest}.json"
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"]) / name
+    here = Path(__file__).parent / "__pycache__"
+    if os.access(here if here.is_dir() else here.parent, os.W_OK):
+        return here / name
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "hertzchain" / name
+
+
+def _read_formulas() -> None:
+    """Fill _DRAWN from :func:`_formula_store` (once; a missing, unreadable or foreign file is skipped)."""
+    import json
+
+    _STORE["read"] = True
+    try:
+        path = _formula_store()
+        if not path.is_file() or path.stat().st_size > _STORE_MAX_BYTES:
+            return
+        stored = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    if isinstance(stored, dict):
+        _DRAWN.update({k: v for k, v in stored.items() if isinstance(k, str) and isinstance(v, str)
+                       and v.startswith('<span class="math"') and v.endswith("</svg></span>")})
+
+
+def _save_formulas() -> None:
+    """Write _DRAWN to :func:`_formula_store` when it gained formulas (atomically; a cache that
+    cannot be written is left out: the next report draws them again)."""
+    import json
+
+    from ..fileio import write_text
+
+    if not _STORE["new"]:
+        return
+    try:
+        path = _formula_store()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_text(path, json.dumps(_DRAWN, sort_keys=True))
+        _STORE["new"] = False
+    except OSError:
+        pass
+
+
 def _svg_formula(tex: str) -> str:
     """One formula as inline SVG (Matplotlib's mathtext, glyphs as paths: no font, script or
     network needed to show it), lowered to sit on the text's baseline; the TeX is kept in
-    ``data-tex`` and as the accessible label."""
+    ``data-tex`` and as the accessible label. Drawn once per installation (:func:`_formula_store`)."""
+    if not _STORE["read"]:
+        _read_formulas()
+    if tex not in _DRAWN:
+        _DRAWN[tex] = _draw_formula(tex)
+        _STORE["new"] = True
+    return _DRAWN[tex]
+
+
+def _draw_formula(tex: str) -> str:
+    """:func:`_svg_formula`, drawn."""
     from matplotlib import rc_context
     from matplotlib.font_manager import FontProperties
     from matplotlib.mathtext import math_to_image
@@ -211,6 +285,7 @@ def _to_html(blocks: list[tuple]) -> str:
                 body.append(f'<p class="missing">figure file missing: {e(str(png))}</p>')
             body.append(f"<figcaption><b>Shows:</b> {m(what)}<br><b>Against the paper:</b> {m(agree)}"
                         "</figcaption></figure>")
+    _save_formulas()
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{e(title)}</title><style>{_CSS}</style></head><body>\n"
             + "\n".join(body) + "\n</body></html>\n")

@@ -351,7 +351,8 @@ def _usable_cores() -> int:
 
 def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
          progress: Callable[[str], None] | None = None, workers: int | None = None,
-         extra: dict[str, Callable] | None = None, figures=FIGURE_NAMES) -> dict[str, Path]:
+         extra: dict[str, Callable] | None = None, figures=FIGURE_NAMES,
+         meanwhile: Callable[[], None] | None = None) -> dict[str, Path]:
     """Draw Figs. 1-6 (PNG + PDF) into ``out_dir``; returns {name: png path}.
 
     Text layout makes drawing CPU-bound, so the figures are drawn by ``workers`` forked processes
@@ -359,7 +360,8 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     one core). ``extra`` ({name: function returning a figure}, e.g. :func:`_fidelity_makers`) is
     drawn in the same processes, so that every figure shares the cores; ``progress(message)`` is
     called after each of Figs. 1-6 is written (not after the extra ones: :func:`count_steps`).
-    ``figures`` names the ones of Figs. 1-6 to draw (default all).
+    ``figures`` names the ones of Figs. 1-6 to draw (default all). ``meanwhile()`` is run in this
+    process once the drawing processes have their figures (before the figures, without them).
     """
     global _DRAW_JOB
     makers = {name: make for name, make in _figure_makers(studies, mis, subs, settings).items() if name in figures}
@@ -377,9 +379,14 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     try:
         if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
             with multiprocessing.get_context("fork").Pool(workers, initializer=forked_worker_init) as pool:
-                for name, path in pool.imap_unordered(_draw_one, order):
+                drawing = pool.imap_unordered(_draw_one, order)  # the figures are handed out now
+                if meanwhile is not None:
+                    meanwhile()
+                for name, path in drawing:
                     done(name, path)
         else:
+            if meanwhile is not None:
+                meanwhile()
             for name in order:
                 done(*_draw_one(name))
     finally:
@@ -549,11 +556,14 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     finally:
         variants.cancel()
     t_sim = time.perf_counter() - t0
-    _save_data(out, studies, mis, subs, ratio)
-    for (label, b, frac), ds in lateral.items():
-        # the figure needs the wall force; the per-body transverse records would add ~2 MB a run
-        _save(ds.drop_vars(["lateral_displacement", "momentum"]),
-              out / "data" / f"fig3_lateral_{label}_bead{b}_e{frac:.2f}.nc", single_precision=True)
+
+    def save_data() -> None:
+        _save_data(out, studies, mis, subs, ratio)
+        for (label, b, frac), ds in lateral.items():
+            # the figure needs the wall force; the per-body transverse records would add ~2 MB a run
+            _save(ds.drop_vars(["lateral_displacement", "momentum"]),
+                  out / "data" / f"fig3_lateral_{label}_bead{b}_e{frac:.2f}.nc", single_precision=True)
+
     summary = build_summary(studies, ratio, speed, settings, {"simulation_s": t_sim})
     summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
     summary["fidelity"] = {"laws": law_rows,
@@ -565,11 +575,15 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     if figures:
         from .report import write_report
 
-        fig_paths = draw(out, studies, mis, subs, settings, tick, extra=_fidelity_makers(summary, mis, lateral))
+        # the traces are written (~50 files, a few CPU-s of HDF5) while the forked processes draw
+        fig_paths = draw(out, studies, mis, subs, settings, tick, extra=_fidelity_makers(summary, mis, lateral),
+                         meanwhile=save_data)
         summary["figures"] = _figure_numbers(studies, mis, subs, settings)
         summary["timing"]["total_s"] = time.perf_counter() - t0
         write_report(out, _round(summary), fig_paths, settings.describe())
         tick("wrote the report")
+    else:
+        save_data()
     summary["timing"]["total_s"] = time.perf_counter() - t0
     _write_summary(out, summary)
     return summary

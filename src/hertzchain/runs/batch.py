@@ -52,6 +52,7 @@ from ..model import Model
 from ..probes import Probes
 from .simulation import warn_members_elastic_limit
 from ..strict import real, run_options
+from ..integrate.batch.buffers import release_records  # noqa: F401 (for sweeps: entry points only)
 from ..integrate.batch.engine import _engine
 from ..integrate.batch.pack import MemberSystem, _ensemble_dts, _pack_ensemble, _setup_groups, _setup_members
 from .batch_results import _ensemble_dataset, _member_runs, _stack_members, stack_results
@@ -214,7 +215,8 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
                    probes: Probes | Sequence[Probes] | None = None, *,
                    dt: float | Sequence[float | None] | None = None, progress: Callable[[int, int], None] | None = None,
                    n_threads: int | None = None, configs: Sequence[dict | None] | None = None,
-                   device: str = "auto", steps_per_radian: float | None = None) -> xr.Dataset:
+                   device: str = "auto", steps_per_radian: float | None = None, integrator: str = "verlet",
+                   rtol: float | None = None, max_force: str = "samples") -> xr.Dataset:
     """Simulate many independent chains in one parallel compiled call; results stacked along ``member``.
 
     Every member's arrays are bit-identical to :func:`hertzchain.simulate` run on it alone (see
@@ -258,6 +260,21 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     steps_per_radian
         Accuracy of the adaptive step, as ``simulate(steps_per_radian=)`` (``run.steps_per_radian``):
         None for the default ``ADAPTIVE_STEPS_PER_RADIAN``; one value for every member.
+    integrator
+        ``"verlet"`` (default: every member bit-identical to ``simulate(..., integrator="verlet")``),
+        ``"rkn4"`` (the fourth-order engine, :mod:`hertzchain.integrate.batch.rkn`: every member
+        bit-identical to ``simulate(..., integrator="rkn4")``; for members with offsets or the
+        Kuwabara-Kono or dashpot law, an automatic step and no recorded velocities) or ``"auto"``
+        (``"rkn4"`` where it runs every member and ``steps_per_radian`` is not given, else the
+        Verlet), on the CPU.
+    rtol
+        Step tolerance of ``"rkn4"`` (default :data:`hertzchain.integrate.drivers.rkn.RKN_RTOL`, as
+        ``simulate``'s).
+    max_force
+        ``"samples"`` (default): ``max_contact_force`` is the largest sampled force, as in a single
+        run; ``"run"``: the largest over the run (step ends and in-step maxima) where the engine is
+        ``"rkn4"``, which then interpolates only the recorded contacts at the samples (a metrics-only
+        sweep: several times faster at 100 ns samples).
 
     Returns
     -------
@@ -279,6 +296,18 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
     # n_threads: the bound of a sweep's sweep.n_threads (sweep/schema.py), whose chunks run here.
     dt, _, steps_per_radian, n_threads = run_options(dt=dt, steps_per_radian=steps_per_radian, threads=n_threads,
                                                      threads_field="n_threads", threads_max=4096)
+    if integrator not in ("verlet", "rkn4", "auto"):
+        raise ConfigError("integrator", f"must be 'verlet', 'rkn4' or 'auto', got {integrator!r}")
+    if max_force not in ("samples", "run"):
+        raise ConfigError("max_force", f"must be 'samples' or 'run', got {max_force!r}")
+    if integrator == "rkn4" and device == "cuda":
+        raise ConfigError("integrator", "the CUDA engine runs the Verlet: use integrator='verlet' or 'auto' with "
+                          "device='cuda'")
+    if integrator == "auto" and steps_per_radian is not None:
+        integrator = "verlet"  # the call set the Verlet's accuracy (as simulate's "auto")
+    if rtol is not None:
+        rtol = real(rtol, "run.rtol", low=0.0, open_low=True)
+    engine_options = {"integrator": integrator, "all_forces": max_force == "samples", "rtol": rtol}
     if device == "cuda" and not isinstance(models, Ensemble):
         _cuda.refuse_mixed_laws([_law_code(m) for m in models])
     ens = None
@@ -290,7 +319,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         _refuse_extended(models)
     if ens is not None:
         ds = _simulate_ensemble(ens, duration, _one_probes(probes, ens.n_members), dt, progress, n_threads,
-                                configs, device, steps_per_radian)
+                                configs, device, steps_per_radian, engine_options)
     elif device == "cuda" and _one_layout(models) and _one_probes(probes, len(models)) is not None:
         # beyond the paper's kind (a given striker, cylinders, gravity) but not extended: set up
         # member by member, run on the GPU
@@ -304,7 +333,8 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
                           "beads, end, contact law kind) and one Probes; this batch mixes them: split it, or use "
                           "device='cpu'")
     else:
-        ds = _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian)
+        ds = _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian,
+                              engine=lambda pk, progress: _engine(pk, progress, n_threads, **engine_options))
     warn_members_pulse_not_reached(ds)
     return ds
 
@@ -336,8 +366,9 @@ def _one_probes(probes, n: int) -> Probes | None:
 
 
 def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progress, n_threads, configs,
-                       device: str, steps_per_radian: float | None = None) -> xr.Dataset:
-    """:func:`simulate_batch` of an ensemble: set up, run and stacked with array code."""
+                       device: str, steps_per_radian: float | None = None, engine_options=None) -> xr.Dataset:
+    """:func:`simulate_batch` of an ensemble: set up, run and stacked with array code
+    (``engine_options``: :func:`_engine`'s keywords on the CPU)."""
     from ..integrate.cuda import launch as _cuda
 
     _check_threads(n_threads)
@@ -358,7 +389,7 @@ def _simulate_ensemble(ens: Ensemble, duration: float, probes: Probes, dt, progr
     if on_gpu:
         _cuda.run_packed(pk, progress)
     else:
-        _engine(pk, progress, n_threads)
+        _engine(pk, progress, n_threads, **(engine_options or {}))
     # checks.check_after_run's Hertz range, for every member at once
     smaller = smaller_radii(ens.striker_diameter, ens.diameters)[:, :arrays.n_contacts]
     warn_members_hertz_range(pk.fmax.reshape(nmem, arrays.n_contacts), arrays.kappa, smaller, stacklevel=4)

@@ -30,13 +30,15 @@ from ..integrate.core.kernels import LAW_ELASTOPLASTIC
 from ..integrate.drivers.verlet import RawRun
 
 
-#: The ``engine`` attribute of a batch computed on the CPU.
+#: The ``engine`` attribute of a batch computed on the CPU, by its integrator.
 _ENGINE_CPU = "batched compiled velocity Verlet (numba prange), bit-identical to single runs"
+_ENGINE_RKN = ("batched compiled rkn4 (numba prange), bit-identical to single runs with integrator='rkn4' "
+               "(max_contact_force: over the run where max_force='run')")
 
 #: Per-member scalar attributes of a single run that become variables along ``member``.
 _MEMBER_ATTRS = {
     "dt": ("s", "Verlet time step of the member"),
-    "n_steps": ("1", "number of Verlet steps"),
+    "n_steps": ("1", "number of steps of the integrator"),
     "peak_wall_force": ("N", "peak wall force, refined between steps (NaN without a wall)"),
     "peak_wall_time": ("s", "time of the peak wall force (NaN without a wall)"),
     "elastic_limit_exceeded": ("1", "1 when a recorded contact force passed the elastic limit"),
@@ -205,7 +207,7 @@ def _batch_attrs(a0, nmem: int) -> dict:
         "title": "hertzchain batch simulation",
         "hertzchain_version": a0["hertzchain_version"],
         "integrator": a0["integrator"],
-        "engine": _ENGINE_CPU,
+        "engine": _ENGINE_RKN if a0["integrator"] == "rkn4" else _ENGINE_CPU,
         "duration": a0["duration"],
         "sample_interval": a0["sample_interval"],
         "n_members": nmem,
@@ -236,6 +238,8 @@ def stack_results(datasets: Sequence[xr.Dataset], member: Sequence[int] | None =
 
 def _dts_used(pk: _Packed) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hertzchain.integrate.drivers.verlet._dt_used` of every member: smallest and largest step [s]."""
+    if pk.integrator == "rkn4":
+        return pk.rkn_steps[:, 1].copy(), pk.rkn_steps[:, 2].copy()
     adaptive = pk.stride == 0
     block = pk.interval / pk.n_sub
     with np.errstate(divide="ignore"):
@@ -244,12 +248,17 @@ def _dts_used(pk: _Packed) -> tuple[np.ndarray, np.ndarray]:
     return dt_min, dt_max
 
 
+def _steps(pk: _Packed) -> np.ndarray:
+    """Steps every member took (a copy)."""
+    return (pk.rkn_steps[:, 0] if pk.integrator == "rkn4" else pk.acc[:, 2]).copy()
+
+
 def _member_runs(pk: _Packed) -> list[RawRun]:
     """Every member's :class:`RawRun`, views of the packed outputs."""
     time = np.arange(pk.n_samples) * pk.interval
     fpk, tpk = _refine_peaks(pk.peak)
     dt_min, dt_max = _dts_used(pk)
-    per_member = zip(fpk.tolist(), tpk.tolist(), dt_min.tolist(), dt_max.tolist(), pk.acc[:, 2].tolist(),
+    per_member = zip(fpk.tolist(), tpk.tolist(), dt_min.tolist(), dt_max.tolist(), _steps(pk).tolist(),
                      (pk.stride == 0).tolist(), pk.record_v.tolist(), pk.rec_off.tolist(), pk.fmax_off.tolist())
     runs = []
     for m, (f_peak, t_peak, dt0, dt1, steps, adaptive, record_v, r0, c0) in enumerate(per_member):
@@ -257,7 +266,7 @@ def _member_runs(pk: _Packed) -> list[RawRun]:
                            potential_energy=pk.out_pe[m], dissipated_energy=pk.out_ed[m],
                            velocity=_member_velocities(pk, m) if record_v else None,
                            max_force=pk.fmax[c0:pk.fmax_off[m + 1]], peak_wall_force=f_peak, peak_wall_time=t_peak,
-                           dt=dt0, integrator="verlet", n_steps=int(steps), contacts=pk.rec[r0:pk.rec_off[m + 1]],
+                           dt=dt0, integrator=pk.integrator, n_steps=int(steps), contacts=pk.rec[r0:pk.rec_off[m + 1]],
                            dt_max=dt1, adaptive=adaptive, body=_member_body(pk, m) if pk.body_slot[m] >= 0 else None,
                            **_plastic_fields(pk, m)))
     return runs
@@ -338,7 +347,7 @@ def _ensemble_dataset(ens: Ensemble, sy: _EnsembleArrays, pk: _Packed, probes: P
     raw0 = RawRun(time=time, contact_force=forces[0], kinetic_energy=pk.out_ke[0], potential_energy=pk.out_pe[0],
                   dissipated_energy=pk.out_ed[0], velocity=None if velocity is None else velocity[0],
                   max_force=fmax[0], peak_wall_force=float(fpk[0]), peak_wall_time=float(tpk[0]), dt=float(dt_min[0]),
-                  integrator="verlet", n_steps=int(pk.acc[0, 2]), contacts=rec, dt_max=float(dt_max[0]),
+                  integrator=pk.integrator, n_steps=int(_steps(pk)[0]), contacts=rec, dt_max=float(dt_max[0]),
                   adaptive=bool(adaptive[0]))
     cfg0 = None if configs is None else configs[0]
     fields0 = run_fields(raw0, ens.model(0), probes, duration=duration, config=cfg0)
@@ -376,7 +385,7 @@ def _ensemble_dataset(ens: Ensemble, sy: _EnsembleArrays, pk: _Packed, probes: P
     ratio = fmax / sy.yield_force
     over = ratio > 1.0
     exceeded = over.any(axis=1)
-    member_vals = {"dt": dt_min, "n_steps": pk.acc[:, 2].copy(), "peak_wall_force": fpk, "peak_wall_time": tpk,
+    member_vals = {"dt": dt_min, "n_steps": _steps(pk), "peak_wall_force": fpk, "peak_wall_time": tpk,
                    "elastic_limit_exceeded": exceeded.astype(float)}
     for key, (units, long_name) in _MEMBER_ATTRS.items():
         vals = member_vals[key]

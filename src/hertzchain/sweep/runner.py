@@ -136,6 +136,8 @@ class _ChunkTask:
     sweep_hash: str
     device: str = "auto"
     steps_per_radian: float | None = None
+    integrator: str = "auto"
+    rtol: float | None = None
     metrics_only: bool = False
     traced: tuple[int, ...] = ()
     trace_probes: Any = None
@@ -152,9 +154,9 @@ def _wall_metrics(time: np.ndarray, force: np.ndarray) -> dict[str, float]:
     """
     from ..analysis import fit_pulse
 
-    # One per member: the compiled window updates pay. On the record resampled 8 times finer, F_m's
-    # sampling error (a comb of ~0.2 % steps at 1 us samples) falls to ~0.03 %, below the spreads of
-    # a tolerance ensemble (a few tenths of a per cent) that its histogram shows.
+    # The records the compiled fit of a chunk (analysis.pulse_batch) leaves, one at a time. On the
+    # record resampled 8 times finer, F_m's sampling error (a comb of ~0.2 % steps at 1 us samples)
+    # falls to ~0.03 %, below the spreads of a tolerance ensemble (a few tenths of a per cent).
     fit = fit_pulse(time, force, compiled=True, refine=F_M_REFINE)
     return {col: float(getattr(fit, attr)) for col, attr in METRIC_COLUMNS.items()}
 
@@ -180,6 +182,7 @@ def compute_chunk(task: _ChunkTask):
     """
     import xarray as xr
 
+    from ..analysis.pulse_batch import PULSE_COLUMNS, fit_pulses
     from ..errors import ElasticLimitWarning, PulseNotFound, PulseNotReachedWarning
     from ..runs.batch import simulate_batch
     from ..interrupts import check
@@ -190,8 +193,12 @@ def compute_chunk(task: _ChunkTask):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ElasticLimitWarning)
             warnings.simplefilter("ignore", PulseNotReachedWarning)  # fit_error says "no pulse" per member
+            # The largest contact forces over the run (force_over_yield), whatever is stored: the
+            # fourth-order engine then interpolates only the recorded contacts at the samples (a
+            # metrics-only chunk: the wall), and every store gives the same metrics.
             return simulate_batch(which, task.duration, probes, dt=which_dts, n_threads=task.n_threads,
-                                  configs=None, device=task.device, steps_per_radian=task.steps_per_radian)
+                                  configs=None, device=task.device, steps_per_radian=task.steps_per_radian,
+                                  integrator=task.integrator, rtol=task.rtol, max_force="run")
 
     ds = simulate(models, dts, task.probes)
     ds = ds.assign_coords(member=("member", np.asarray(task.members, dtype=np.int64), ds["member"].attrs))
@@ -199,7 +206,17 @@ def compute_chunk(task: _ChunkTask):
     values = {k: np.full(len(task.members), np.nan) for k in METRIC_COLUMNS}
     errors = [""] * len(task.members)
     time = ds["time"].values
-    for i in range(len(task.members)):
+    walled = np.flatnonzero(ds["has_wall"].values)
+    # Every wall pulse fitted at once in compiled code; the records it leaves (status 1: possibly
+    # clipped, no pulse, a fit that fails...) are fitted below by fit_pulse, which says why.
+    wall = ds["wall_force"].values
+    fitted, status = fit_pulses(time, wall if walled.size == wall.shape[0] else wall[walled], refine=F_M_REFINE)
+    for k, attr in METRIC_COLUMNS.items():
+        values[k][walled] = fitted[:, PULSE_COLUMNS.index(attr)]
+    done = np.zeros(len(task.members), dtype=bool)
+    done[walled[status == 0]] = True
+    check()
+    for i in np.flatnonzero(~done).tolist():
         check()  # a Ctrl-C swallowed by a cleanup stops the chunk here
         if not ds["has_wall"].values[i]:
             errors[i] = "no wall: no wall pulse"
@@ -424,6 +441,8 @@ class _Plan:
     trace_probes: Any
     device: str
     steps_per_radian: float | None
+    integrator: str = "auto"
+    rtol: float | None = None
     estimate: Any = None
     table_bytes: int = 0  # the metrics table per member [bytes] (_table_bytes)
 
@@ -492,11 +511,15 @@ def _plan(cfg: SweepConfig, device: str, cores: int = 1, advice: str | None = No
 
             # Members share one time axis (the batched engine): the slowest member's duration.
             duration = max(duration, max(auto_duration(m) for m in models))
-    est = _sweep_estimate(cfg, largest[1], largest[2], duration, probes, base_probes if cfg.sweep.traces else None)
+    est = _sweep_estimate(cfg, largest[1], largest[2], duration, probes, base_probes if cfg.sweep.traces else None,
+                          _batch_integrator(run_cfg, largest[1], largest[2]))
     table_bytes = _table_bytes(cfg, largest[0])
     _check_sweep_resources(cfg, est, cores, advice, table_bytes)
     return _Plan(duration=duration, probes=probes, trace_probes=base_probes, device=device,
-                 steps_per_radian=run_cfg.run.steps_per_radian, estimate=est, table_bytes=table_bytes)
+                 steps_per_radian=run_cfg.run.verlet_steps_per_radian, estimate=est, table_bytes=table_bytes,
+                 # the batched engines: the fourth-order one where "auto" picks it for every member
+                 integrator=run_cfg.run.integrator if run_cfg.run.integrator in ("auto", "rkn4") else "verlet",
+                 rtol=run_cfg.run.rtol)
 
 
 #: Memory of metrics.csv's table while it is collected and written, per member [bytes]: its numeric
@@ -512,18 +535,33 @@ def _table_bytes(cfg: SweepConfig, n_beads: int) -> int:
     return TABLE_BYTES_PER_MEMBER + (0 if tol is None else 8 * (2 * n_beads + 1))
 
 
-def _sweep_estimate(cfg: SweepConfig, model, dt, duration: float, probes, trace_probes):
+def _batch_integrator(run_cfg, model, dt) -> str:
+    """The batched engine that runs ``model`` in a chunk (``simulate_batch(integrator=...)``'s
+    ``"auto"``): ``"rkn4"`` for offset beads or the Kuwabara-Kono or dashpot law with an automatic
+    step, unless the config names the Verlet or sets its accuracy; else ``"verlet"``."""
+    run = run_cfg.run
+    if run.integrator not in ("auto", "rkn4") or run.verlet_steps_per_radian is not None or dt is not None:
+        return "verlet"
+    law = model.law.name
+    return "rkn4" if law in ("viscoelastic", "dashpot") or (law == "elastic" and model.system().misaligned) \
+        else "verlet"
+
+
+def _sweep_estimate(cfg: SweepConfig, model, dt, duration: float, probes, trace_probes, integrator: str = "verlet"):
     """The memory of one chunk (the largest member stands for all, ``dt`` its fixed step), and of
-    the metrics table at the end, whichever is larger; the run time of the whole sweep."""
+    the metrics table at the end, whichever is larger; the run time of the whole sweep on the
+    batched engine ``integrator``."""
     from dataclasses import replace as _replace
 
     from ..checks import estimate_resources
 
     members = min(cfg.sweep.chunk_size, cfg.n_members)
     system = model.system()
-    est = estimate_resources(system, duration, probes, dt=dt, members=members, written=cfg.sweep.store != "metrics")
+    est = estimate_resources(system, duration, probes, dt=dt, members=members, written=cfg.sweep.store != "metrics",
+                             integrator=integrator)
     if trace_probes is not None:  # the traced members of a chunk are run again with every probe
-        extra = estimate_resources(system, duration, trace_probes, dt=dt, members=min(members, len(cfg.sweep.traces)))
+        extra = estimate_resources(system, duration, trace_probes, dt=dt, members=min(members, len(cfg.sweep.traces)),
+                                   integrator=integrator)
         est = _replace(est, memory_bytes=est.memory_bytes + extra.memory_bytes)
     return est
 
@@ -584,7 +622,8 @@ def _tasks(cfg: SweepConfig, plan: _Plan, todo: list[int]) -> Iterator[_ChunkTas
         members = list(chunks[index])
         yield _ChunkTask(index=index, members=members, recipe=cfg.subset(members), duration=plan.duration,
                          probes=plan.probes, n_threads=cfg.sweep.n_threads, sweep_hash=cfg.hash,
-                         device=plan.device, steps_per_radian=plan.steps_per_radian,
+                         device=plan.device, steps_per_radian=plan.steps_per_radian, integrator=plan.integrator,
+                         rtol=plan.rtol,
                          metrics_only=cfg.sweep.store == "metrics",
                          traced=tuple(m for m in members if m in traced), trace_probes=plan.trace_probes)
 
@@ -626,6 +665,9 @@ def _run_chunks(cfg: SweepConfig, plan: _Plan, out: Path, chunks_dir: Path, clie
         if progress is not None:
             progress(done_members, total)
 
+    from ..runs.batch import release_records
+
+    release_records()  # the last chunk's record pages, kept for a next chunk, go before the table comes
     df = _metrics_table(cfg, chunks_dir)
     for name, values in (_drawn_columns(cfg, df["member"].to_numpy()).items()):
         df.insert(df.columns.get_loc("dt"), name, values)  # inputs, before dt; the metrics follow it

@@ -17,9 +17,11 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from ...errors import ConfigError
 from ...interrupts import check as check_interrupt
 from ..core import kernels
 from .buffers import _Packed, check_members_finite
+from .rkn import rkn_engine, rkn_members
 from ..core.generated import is_generated, law_kernels
 
 
@@ -119,8 +121,36 @@ _LAUNCH_LOCK = threading.Lock()
 kernels.flush_stale_cache(_batch_kernel)
 
 
-def _engine(pk: _Packed, progress, n_threads) -> None:
-    """Run the packed batch to the end on the CPU (all cores), in compiled calls of ~CHUNK_SLOT_STEPS."""
+def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_forces: bool = True,
+            rtol: float | None = None) -> None:
+    """Run the packed batch to the end on the CPU (all cores), in compiled calls of ~CHUNK_SLOT_STEPS.
+
+    ``integrator``: ``"verlet"``, or ``"rkn4"`` / ``"auto"``: the fourth-order engine of
+    :mod:`.rkn` when it runs every member (:func:`~.rkn.rkn_members`; ``"rkn4"`` refuses
+    a batch it does not, ``"auto"`` then runs the Verlet), each member in one compiled call (no
+    progress within a member). ``all_forces`` False: the largest contact forces over the run
+    rather than over the samples, with ``"rkn4"`` (``batch.rkn``'s docstring); ``rtol`` its step
+    tolerance (None: the default).
+    """
+    if integrator != "verlet":
+        if rkn_members(pk):
+            with _LAUNCH_LOCK:
+                previous = numba.get_num_threads()
+                try:
+                    if n_threads is not None:
+                        numba.set_num_threads(int(n_threads))
+                    pk.rkn_steps = rkn_engine(pk, all_forces, rtol)
+                finally:
+                    numba.set_num_threads(previous)
+            pk.integrator = "rkn4"
+            check_interrupt()
+            if progress is not None:
+                progress(pk.n_samples - 1, pk.n_samples - 1)
+            return
+        if integrator == "rkn4":
+            raise ConfigError("integrator", "'rkn4' runs a batch whose members all have offsets or the Kuwabara-Kono "
+                              "or dashpot law, an automatic step (no dt), no recorded velocities and no protected "
+                              "body or mass-in-mass beads; use 'verlet' or 'auto'")
     interval, n_samples = pk.interval, pk.n_samples
     steps_per_sample = interval / pk.plan_dt
     status = np.zeros(pk.n_members, dtype=np.int64)

@@ -29,10 +29,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .disk_cache import INTEGRATE, files_digest, function_files_digest, on_disk
 from .kernels import DELTA_MIN, _adapt_stride, kinetic_energy
 from .primitives import _track_peak, kick, open_block, predict, total
 
 _CACHE: dict = {}
+#: The package's files compiled into a generated law's loops (with the law's own file: their
+#: on-disk cache key, :mod:`.disk_cache`).
+_COMPILED_IN = ("core/generated.py", "core/kernels.py", "core/primitives.py", "core/energies.py",
+                "core/extension.py", "core/fused.py")
 
 
 def law_kernels(code: int):
@@ -48,7 +53,18 @@ def law_kernels(code: int):
     if key not in _CACHE:
         force, state, stored, partials = (compiled(f) for f in (spec.force, spec.state, spec.energy, spec.partials))
         inverse = compiled(spec.overlap_at_energy) if spec.overlap_at_energy is not None else _bisect(stored)
-        _CACHE[key] = _build(force, state, stored, partials, inverse, spec.dissipative)
+        built = _build(force, state, stored, partials, inverse, spec.dissipative)
+        # The loops Python calls, cached on disk under the text of everything compiled into them:
+        # the law's own file(s) and this package's (a law without a source file: in memory only)
+        law_files = function_files_digest(force, state, stored, partials, spec.overlap_at_energy)
+        if law_files is not None:
+            sources = law_files + files_digest(*(INTEGRATE / name for name in _COMPILED_IN))
+            variant = ("generated", spec.name, spec.dissipative, spec.overlap_at_energy is not None)
+            forces, run, energy, stride, contact = built
+            built = (on_disk(forces, *variant, "forces", sources=sources), on_disk(run, *variant, "run", sources=sources),
+                     on_disk(energy, *variant, "energy", sources=sources),
+                     on_disk(stride, *variant, "stride", sources=sources), contact)
+        _CACHE[key] = built
     return _CACHE[key]
 
 

@@ -490,7 +490,7 @@ def _peak_in_step(ed, b, c, j, h, kappa, damping, d0, off, law):
 @njit(cache=True, nogil=True, error_model="numpy")
 def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, ap, fi, ed, ends, mass, inv_mass, kappa, damping,
                d0, off, fext, law, wall_slot, interval, k_start, k_stop, h_fixed, eps, h_max, rec, out_f, out_ke, out_pe,
-               out_d, out_v, record_v, out_u, record_u, fmax, peak, acc):
+               out_d, out_v, record_v, out_u, record_u, fmax, peak, acc, all_forces=True):
     """Advance until sample ``k_stop - 1`` (samples ``interval`` seconds apart) is recorded.
 
     On entry and exit (u, v, a) is the state at time acc[A_T], a = f(u, v); the end data of the
@@ -504,6 +504,12 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, 
     energies into ``out_ke``, ``out_pe``, ``out_d``, velocities and positions of bodies 0..N when
     asked. ``peak`` = [largest wall force, its time]. ``acc`` = [time, previous step's start,
     last step, steps, smallest step, largest step, last step the error bound chose].
+    With ``all_forces`` False (a batch that keeps only its metrics) only the contacts ``rec`` are
+    interpolated at the samples, and ``fmax`` holds every contact's largest force over the run
+    instead of over the samples: its value at every step's end and, in a step where its force
+    turns down, the interpolant's maximum (as the wall's peak): never below the sampled maximum,
+    above it by the interpolant's curvature over at most one sample interval (every contact is
+    interpolated at the last sample, k_stop - 1, the end of a batch's run).
     Returns 0, or 1 when the state became non-finite.
     """
     n = mass.shape[0]
@@ -515,6 +521,7 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, 
     hl = acc[A_H]
     href = acc[A_HREF]
     steps = int(acc[A_STEPS])
+    t_last = (k_stop - 1) * interval
     for k in range(k_start, k_stop):
         tk = k * interval
         while t < tk:
@@ -568,6 +575,13 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, 
             if ed[c, R_F, ws] > peak[0]:
                 peak[0] = ed[c, R_F, ws]
                 peak[1] = t + h
+            if not all_forces:  # the run's maxima up to the last sample (a last step may pass it)
+                for j in range(nc):
+                    fj = ed[c, R_F, j] if t + h <= t_last else 0.0
+                    if ed[b, R_DF, j] > 0.0 and ed[c, R_DF, j] <= 0.0:
+                        fk, x = _peak_in_step(ed, b, c, j, h, kappa, damping, d0, off, law)
+                        fj = fk if fk > fj and t + x * h <= t_last else fj
+                    fmax[j] = fj if fj > fmax[j] else fmax[j]
             tp = t
             t += h
             hl = h
@@ -579,12 +593,16 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, 
         theta = (tk - tp) / hl
         qw = quintic(theta, hl)
         hw = hermite(theta, hl)
-        for j in range(nc):
-            f = _force_w(ed, b, c, j, qw, hw, kappa, damping, d0, off, law)
-            fi[j] = f
-            fmax[j] = f if f > fmax[j] else fmax[j]
-        for r in range(nrec):
-            out_f[k, r] = fi[rec[r]]
+        if all_forces or k == k_stop - 1:  # (every contact at the last sample: a force still rising)
+            for j in range(nc):
+                f = _force_w(ed, b, c, j, qw, hw, kappa, damping, d0, off, law)
+                fi[j] = f
+                fmax[j] = f if f > fmax[j] else fmax[j]
+            for r in range(nrec):
+                out_f[k, r] = fi[rec[r]]
+        else:
+            for r in range(nrec):
+                out_f[k, r] = _force_w(ed, b, c, rec[r], qw, hw, kappa, damping, d0, off, law)
         w0, w0d, w1, w1d = hermite(theta, hl)
         ke = w0 * ends[b, E_KE] + w0d * ends[b, E_DKE] + w1 * ends[c, E_KE] + w1d * ends[c, E_DKE]
         out_ke[k] = ke

@@ -35,16 +35,31 @@ largest energy).
 
 from __future__ import annotations
 
+
 import numpy as np
 from numba import njit
 
 from ..core import kernels
 from ..core.barrier import barrier
+from ..core.disk_cache import INTEGRATE, files_digest, on_disk
 from ..core.primitives import _track_peak, _viscous_force, open_block, running_max
 
 __all__ = ["law_thread_run", "contact_general"]
 
 _CACHE: dict = {}
+
+#: The modules whose functions a built-in law's thread function compiles in (its on-disk cache
+#: key holds their text: an edit of any of them compiles it afresh).
+_COMPILED_IN = ("drivers/threaded_laws.py", "core/kernels.py", "core/primitives.py", "core/barrier.py",
+                "core/extension.py", "core/energies.py", "core/fused.py")
+
+
+def _on_disk(dispatcher, *variant):
+    """``dispatcher``, a closure built here over this package's functions only, cached on disk
+    under ``variant`` (the law and geometry it was built for) and the text of :data:`_COMPILED_IN`
+    (:func:`hertzchain.integrate.core.disk_cache.on_disk`): a new process or Dask worker loads it
+    instead of compiling it (~7 CPU-s a law, issue 37)."""
+    return on_disk(dispatcher, *variant, sources=files_digest(*(INTEGRATE / name for name in _COMPILED_IN)))
 
 
 @njit(nogil=True, inline="always")
@@ -95,8 +110,8 @@ def contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyie
 def law_thread_run(code: int, aligned: bool):
     """The thread function (:func:`_build`) for the law of engine code ``code`` on an aligned chain
     (``aligned``: no offsets, the misaligned geometry compiled out) or one with offsets; compiled on
-    first use in a process (a closure over the law's functions: Numba keeps it in memory, not on
-    disk)."""
+    first use in a process and cached on disk for a built-in law (:func:`_on_disk`: the next
+    process loads it), in memory for a declared law (a closure over the law's own functions)."""
     from ..core.generated import is_generated, law_kernels
 
     if is_generated(code):
@@ -142,7 +157,9 @@ def _builtin(law: int, aligned: bool):
             return ke, pe, kernels.plastic_work(kappa, dyield, dmax, dres)
         return ke, kernels.potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False), 0.0
 
-    return _build(contact, stride, energies, plastic, plastic, fused)
+    variant = ("builtin", law, aligned)
+    return _build(contact, _on_disk(stride, *variant), _on_disk(energies, *variant), plastic, plastic, fused,
+                  variant)
 
 
 def _generated(law_contact, law_stride, law_energy, aligned: bool):
@@ -164,7 +181,7 @@ def _generated(law_contact, law_stride, law_energy, aligned: bool):
     def energies(u, v, g, mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres):
         return kernels.kinetic_energy(v, mass), law_energy(u, kappa, damping, d0, de, dx0, rsum, fext), 0.0
 
-    return _build(contact, stride, energies, True, False, False)
+    return _build(contact, stride, energies, True, False, False, None)
 
 
 @njit(nogil=True, inline="always")
@@ -234,15 +251,19 @@ def _segment(contact, stateful, fused, last):
     return segment
 
 
-def _build(contact, stride, energies, stateful, plastic, fused):
+def _build(contact, stride, energies, stateful, plastic, fused, variant):
     """The thread function over ``contact`` (one contact: (axial force, dissipated power, state)),
     ``stride`` (the adaptive step's bound over a range of contacts) and ``energies`` (a block's
     kinetic and potential energies and plastic work); ``stateful``: the contacts carry state;
     ``plastic``: the plastic work is recorded (``out_wp``); ``fused``: the block's power sum may be
-    reassociated (``kernels.dissipative_block``'s flag, for its contact only)."""
+    reassociated (``kernels.dissipative_block``'s flag, for its contact only); ``variant``: what
+    the built-in law's closures were built for (:func:`_on_disk`), None to keep them in memory."""
 
-    kick_drift = _segment(contact, stateful, fused, False)
-    half_kick = _segment(contact, stateful, fused, True)
+    def kept(dispatcher, *part):
+        return dispatcher if variant is None else _on_disk(dispatcher, *variant, *part)
+
+    kick_drift = kept(_segment(contact, stateful, fused, False), "kick_drift")
+    half_kick = kept(_segment(contact, stateful, fused, True), "half_kick")
 
     @njit(nogil=True)
     def thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, edacc, u, v, a, g, mass, inv_mass, kappa,
@@ -372,4 +393,4 @@ def _build(contact, stride, energies, stateful, plastic, fused):
         my[2] = step
         return 0
 
-    return thread_run
+    return kept(thread_run, "thread_run")

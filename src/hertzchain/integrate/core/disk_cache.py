@@ -1,0 +1,81 @@
+"""Numba's on-disk cache for closures the engines build at run time (issue 37: compile once per
+installation, not per process or Dask worker).
+
+Numba keys a cached function by its bytecode and, for a closure, its cells pickled; a compiled
+function pickles with an id new in every process, so a closure over compiled functions (the
+threaded engine's thread function over its contact, the loops generated from a registry law over
+the law's force) was compiled again in every process. :func:`on_disk` keys such a closure instead
+by what it was built from: the text of the source files compiled into it and the constants it
+was built with (``variant``). An edit of any of those files gives a new key (compiled afresh); a
+file that cannot be read gives no key, and the closure stays cached in memory only.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+from pathlib import Path
+
+__all__ = ["on_disk", "files_digest", "function_files_digest"]
+
+#: hertzchain/integrate/, against which the engines name the files compiled into their closures.
+INTEGRATE = Path(__file__).resolve().parents[1]
+
+_DIGESTS: dict = {}
+
+
+def _digest(paths) -> bytes:
+    h = hashlib.sha256()
+    for p in paths:
+        h.update(Path(p).read_bytes())
+    return h.digest()
+
+
+def files_digest(*paths: Path) -> bytes:
+    """SHA-256 of the text of ``paths``, this package's own files (read once per process)."""
+    key = tuple(str(p) for p in paths)
+    if key not in _DIGESTS:
+        _DIGESTS[key] = _digest(paths)
+    return _DIGESTS[key]
+
+
+def function_files_digest(*functions) -> bytes | None:
+    """SHA-256 of the files defining ``functions`` (Python functions or Numba dispatchers: their
+    ``py_func``), whole files so that module constants count; None where one has no readable
+    source file (a function typed at the prompt, made by ``exec``). Read at every call (a law is
+    built once per process and definition): a law file edited and registered again in the same
+    session gets the key of its new text."""
+    paths = []
+    for fn in functions:
+        if fn is None:
+            continue
+        try:
+            path = inspect.getsourcefile(getattr(fn, "py_func", fn))
+        except TypeError:
+            return None
+        if path is None or not Path(path).is_file():
+            return None
+        paths.append(Path(path).resolve())
+    try:
+        return _digest(sorted(set(paths)))
+    except OSError:
+        return None
+
+
+def on_disk(dispatcher, *variant, sources: bytes):
+    """Give ``dispatcher``, a closure, Numba's on-disk cache under a key made of ``variant`` and
+    ``sources`` (a digest of every file compiled into it), and return it. Where Numba's caching API
+    has moved, the closure stays cached in memory only."""
+    try:
+        from numba.core.caching import FunctionCache
+
+        key = hashlib.sha256(repr(variant).encode() + sources).hexdigest()
+
+        class StableKey(FunctionCache):
+            def _index_key(self, sig, codegen):
+                return (sig, codegen.magic_tuple(), (key,))
+
+        dispatcher._cache = StableKey(dispatcher.py_func)
+    except (ImportError, AttributeError, TypeError, RuntimeError, OSError):  # no usable cache: compiled per process
+        pass
+    return dispatcher
