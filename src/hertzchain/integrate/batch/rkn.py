@@ -28,6 +28,7 @@ from ..core import kernels
 from ..core.kernels import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 from ..drivers import rkn_damped_kernels as rk
 from ..drivers.rkn import DAMPED_EPS, RKN_RTOL
+from ..drivers.rkn_kernels import ChainArrays, ProbeBuffers, StepControl
 from .buffers import _Packed, check_members_finite
 
 __all__ = ["rkn_members", "rkn_engine"]
@@ -108,10 +109,10 @@ def _rkn_kernel(order, off, n_slots, u0, v0, mass, inv_mass, kappa, damping, d0,
         pk = np.array([ed[0, rk.R_F, wall_slot[m]] if wall_slot[m] < nc else 0.0, 0.0])
         acc = np.array([0.0, 0.0, 0.0, 0.0, np.inf, 0.0, 0.0])
         no_v = np.empty((1, p + 1))
-        status[m] = rk.damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, ap, fi, ed, ends,
-                                  ms, ims, ka, da, dz, off3, fx, lw, wall_slot[m], interval, 1, n_samples, 0.0, eps[m],
-                                  h_max, recm, f, out_ke[m], out_pe[m], out_ed[m], no_v, False, no_v, False, fm, pk,
-                                  acc, all_forces)
+        state = rk.DampedState(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, ap, fi, ed, ends)
+        probes = ProbeBuffers(recm, f, out_ke[m], out_pe[m], out_ed[m], no_v, False, no_v, False, fm, pk)
+        status[m] = rk.damped_run(state, ChainArrays(ms, ims, ka, da, dz, fx, wall_slot[m]), off3, lw, probes,
+                                  StepControl(interval, 0.0, eps[m], h_max), 1, n_samples, acc, all_forces)
         peak[m, 0] = pk[0]
         peak[m, 1] = pk[1]
         acc_out[m, 0] = acc[rk.A_STEPS]

@@ -27,6 +27,7 @@ from ...errors import SimulationDiverged
 from ...model import System
 from . import rkn_damped_kernels as rk
 from ..core.layout import pack
+from .rkn_kernels import ChainArrays, ProbeBuffers, StepControl
 from .verlet import RawRun
 
 __all__ = ["run_rkn_damped"]
@@ -82,15 +83,17 @@ def run_rkn_damped(system: System, duration: float, sample_interval: float, dt: 
     acc = np.array([0.0, 0.0, 0.0, 0.0, np.inf, 0.0, 0.0])
 
     per_call = max(1, round(chunk_steps * 1e-6 / sample_interval))
+    state = rk.DampedState(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, ap, fi, ed, ends)
+    chain = ChainArrays(w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.fext, system.n_beads)
+    probes = ProbeBuffers(rec, out_f, out_ke, out_pe, out_d, out_v, bool(record_velocities), out_u,
+                          bool(record_positions), fmax, peak)
+    control = StepControl(float(sample_interval), 0.0 if dt is None else float(dt), float(eps), float(duration))
     if progress is not None:
         progress(0, n_samples - 1)
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + per_call)
-        status = rk.damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, ap, fi, ed, ends, w.mass, w.inv_mass,
-                               w.kappa, w.damping, w.d0, off, w.fext, law, system.n_beads, sample_interval, k, k_stop,
-                               0.0 if dt is None else float(dt), eps, duration, rec, out_f, out_ke, out_pe, out_d,
-                               out_v, record_velocities, out_u, record_positions, fmax, peak, acc)
+        status = rk.damped_run(state, chain, off, law, probes, control, k, k_stop, acc)
         if status != 0:
             raise SimulationDiverged(f"the integration diverged (non-finite state) before t = "
                                      f"{k_stop * sample_interval:.4g} s with integrator 'rkn4'; "

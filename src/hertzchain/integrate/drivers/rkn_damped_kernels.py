@@ -62,12 +62,42 @@ section search).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from ..core import kernels
 from ..core.primitives import DELTA_MIN, LAW_VISCOELASTIC, _viscous_force
 from .rkn_kernels import hermite, quintic
+
+
+class DampedState(NamedTuple):
+    """The run's state (u, v, a = f(u, v)), the new state and stage state of a step, the stages
+    k2..k4, each contact's stage-weighted dissipated power ``pw``, its branch in the step
+    (``mode``) and in the last one (``last``), the step's start (up, vp, ap) when recorded, the
+    sampled forces ``fi`` and the end data of the last two step ends (``ed``, ``ends``)."""
+
+    u: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    un: np.ndarray
+    vn: np.ndarray
+    an: np.ndarray
+    us: np.ndarray
+    vs: np.ndarray
+    k2: np.ndarray
+    k3: np.ndarray
+    k4: np.ndarray
+    pw: np.ndarray
+    mode: np.ndarray
+    last: np.ndarray
+    up: np.ndarray
+    vp: np.ndarray
+    ap: np.ndarray
+    fi: np.ndarray
+    ed: np.ndarray
+    ends: np.ndarray
 
 #: Largest (omega + damping rate) h (Gershgorin bounds); RK4 is stable to ~2.8 on the imaginary and
 #: the negative real axis, and the error control keeps real steps below this.
@@ -488,10 +518,13 @@ def _peak_in_step(ed, b, c, j, h, kappa, damping, d0, off, law):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, ap, fi, ed, ends, mass, inv_mass, kappa, damping,
-               d0, off, fext, law, wall_slot, interval, k_start, k_stop, h_fixed, eps, h_max, rec, out_f, out_ke, out_pe,
-               out_d, out_v, record_v, out_u, record_u, fmax, peak, acc, all_forces=True):
+def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, all_forces=True):
     """Advance until sample ``k_stop - 1`` (samples ``interval`` seconds apart) is recorded.
+
+    ``state`` (:class:`DampedState`), ``chain`` (:class:`~.rkn_kernels.ChainArrays`), ``probes``
+    (:class:`~.rkn_kernels.ProbeBuffers`) and ``control`` (:class:`~.rkn_kernels.StepControl`)
+    carry the arrays and numbers named below; ``off`` the offset pairs' geometry (rows G_*, None
+    for an aligned chain), ``law`` the law's code.
 
     On entry and exit (u, v, a) is the state at time acc[A_T], a = f(u, v); the end data of the
     last two step ends are ``ed[c]``, ``ends[c]`` (this one) and ``ed[1 - c]``, ``ends[1 - c]``
@@ -512,6 +545,10 @@ def damped_run(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, 
     interpolated at the last sample, k_stop - 1, the end of a batch's run).
     Returns 0, or 1 when the state became non-finite.
     """
+    u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, up, vp, ap, fi, ed, ends = state
+    mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
+    rec, out_f, out_ke, out_pe, out_d, out_v, record_v, out_u, record_u, fmax, peak = probes
+    interval, h_fixed, eps, h_max = control
     n = mass.shape[0]
     nc = fmax.shape[0]
     nrec = rec.shape[0]
