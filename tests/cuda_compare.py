@@ -1,7 +1,8 @@
 """CPU engine vs CUDA engine on small ensembles covering every feature the batch engine supports.
 
 Used by tests/test_cuda.py in-process on a GPU, and as a script under Numba's CUDA simulator
-(``NUMBA_ENABLE_CUDASIM=1 python tests/cuda_compare.py``), printing the comparison as JSON.
+(``NUMBA_ENABLE_CUDASIM=1 python tests/cuda_compare.py``), printing the comparison as JSON;
+``python tests/cuda_compare.py ptx`` compiles the general kernels to PTX instead (no GPU needed).
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import warnings
 
 import numpy as np
 
-from hertzchain import Chain, Dashpot, Model, Probes, Striker, Viscoelastic, Wall
+from hertzchain import Chain, Dashpot, Elastoplastic, Model, Probes, Striker, Viscoelastic, Wall
 from hertzchain.errors import ElasticLimitWarning
 from hertzchain.runs.batch import simulate_batch
 from hertzchain.integrate.batch.ensemble import Ensemble
@@ -96,6 +97,23 @@ def warp_cases() -> dict[str, tuple[Ensemble, Probes, list, float]]:
     }
 
 
+def plastic_cases(warp: bool = False) -> dict[str, tuple[list, Probes, list, float]]:
+    """Elastic-plastic members (Thornton's law) fast enough to yield, as a list of models (the
+    law is set up member by member), 3 beads: the plain law on the adaptive step; with a viscous
+    term (A > 0) and a misaligned bead; with a viscous term on a fixed step. 30 us (the pulse
+    reaches the wall; the striker's contact yields from the first microsecond); ``warp``: the viscous misaligned member alone,
+    3 us (every barrier costs milliseconds under the simulator)."""
+    def model(velocity: float, A: float, offset: float = 0.0) -> Model:
+        return Model(Chain(np.full(3, 10e-3), offsets=np.array([0.0, offset, 0.0])), Striker(8e-3, velocity),
+                     law=Elastoplastic(A))
+
+    models = [model(2.0, 0.0), model(2.5, 1e-6, 0.2e-3), model(1.5, 2e-6)]
+    if warp:
+        return {"warp_elastoplastic_misaligned": (models[1:2], Probes(INTERVAL, velocities=True), [None], 3e-6)}
+    return {"elastoplastic_misaligned_fixed_dt": (models, Probes(INTERVAL, velocities=True), [None, None, 2e-8],
+                                                  3e-5)}
+
+
 def _rel(a: np.ndarray, b: np.ndarray) -> float:
     """Largest difference relative to the variable's largest magnitude in each member (NaN-aware)."""
     a = a.reshape(a.shape[0], -1)
@@ -133,7 +151,8 @@ def _compare(which: dict) -> dict:
             gpu = simulate_batch(ens, duration, probes, dt=dts, device="cuda")
         res = {"engine": gpu.attrs["engine"]}
         for v in ("peak_wall_force", "peak_wall_time", "contact_force", "wall_force", "sensor_force", "velocity",
-                  "kinetic_energy", "potential_energy", "dissipated_energy", "max_contact_force"):
+                  "kinetic_energy", "potential_energy", "dissipated_energy", "max_contact_force", "plastic_work",
+                  "residual_overlap"):
             if v in cpu:
                 res[v] = _rel(cpu[v].values, gpu[v].values)
         res["same_steps"] = bool(np.array_equal(cpu["n_steps"].values, gpu["n_steps"].values)
@@ -141,9 +160,12 @@ def _compare(which: dict) -> dict:
         res["same_nan"] = all(np.array_equal(np.isnan(cpu[v].values), np.isnan(gpu[v].values))
                               for v in cpu.data_vars if cpu[v].dtype.kind == "f")
         res["pulse_N"] = float(np.nanmax(cpu["contact_force"].values))
-        res["min_peak_wall_N"] = float(np.min(cpu["peak_wall_force"].values)) if ens.has_wall else None
+        has_wall = ens.has_wall if isinstance(ens, Ensemble) else ens[0].wall.present
+        res["min_peak_wall_N"] = float(np.min(cpu["peak_wall_force"].values)) if has_wall else None
         res["n_steps"] = cpu["n_steps"].values.tolist()
         res["dissipated_J"] = float(np.nanmax(cpu["dissipated_energy"].values))
+        if "plastic_work" in cpu:  # every member yields: its plastic work at the end
+            res["plastic_work_J"] = cpu["plastic_work"].values[:, -1].tolist()
         out[name] = res
     return out
 
@@ -166,7 +188,43 @@ def multi_launch() -> dict:
             "peaks_equal": bool(np.array_equal(one["peak_wall_force"].values, many["peak_wall_force"].values))}
 
 
+def ptx() -> dict:
+    """Compile the general kernels (one thread and one warp per member, the elastic-plastic law's
+    state included) to PTX for an H100 (sm_90) without a GPU, as tests/cuda_lanes_compare.py
+    does: numba-cuda asks the current device for its compute capability, answered here."""
+    import types as pytypes
+
+    from numba import cuda, types
+    from numba.cuda import dispatcher
+
+    from hertzchain.integrate.cuda.kernels import _kernels
+
+    dispatcher.get_current_device = lambda: pytypes.SimpleNamespace(compute_capability=(9, 0))
+    f1, f2, f3 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]
+    i1, b1, i8, f8 = types.int64[::1], types.boolean[::1], types.int64, types.float64
+    # (u, v, a, g, vp[, sc]), 10 parameters, the 4 elastic-plastic state arrays, then law ... status
+    tail = (f2,) * 10 + (f2,) * 4 + (i1, b1, i1, f8, i1, i1, i1, f1, i1, i8, i8, i1, f3, f2, f2, f2, f2, f3, b1, f2, f2,
+                                     f2, i1)
+    from hertzchain.integrate.core.kernels import elastoplastic_force
+
+    code, _ = cuda.compile_ptx(elastoplastic_force.py_func, (f8,) * 8, device=True, cc=(9, 0))
+    out = {"elastoplastic_force": {"ieee_sqrt": code.count("sqrt.rn.f64"), "division": code.count("div.rn.f64"),
+                                   "approximate": code.count(".approx."), "chars": len(code)}}
+    for name, n_state in (("thread", 5), ("warp", 6)):
+        code, _ = cuda.compile_ptx(_kernels()[name].py_func, (f2,) * n_state + tail, cc=(9, 0))
+        out[name] = {"ieee_sqrt": code.count("sqrt.rn.f64"), "division": code.count("div.rn.f64"),
+                     "barriers": code.count("bar.sync"), "chars": len(code)}
+    return out
+
+
 if __name__ == "__main__":
+    import sys
+
+    if sys.argv[1:] == ["ptx"]:
+        print(json.dumps(ptx()))
+        sys.exit()
     print(json.dumps({"thread": compare(), "register": compare(kernel="register"),
                       "warp": compare(kernel="warp", which=warp_cases()),
+                      "plastic": compare(which=plastic_cases()),
+                      "plastic_warp": compare(kernel="warp", which=plastic_cases(warp=True)),
                       "multi_launch": multi_launch()}))

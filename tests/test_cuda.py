@@ -52,14 +52,43 @@ def _check(result: dict, short: bool = False) -> None:
                 assert res[key] <= (REL if key in PEAKS else accumulated), (name, key, res[key])
 
 
-def test_simulated_kernels_match_the_cpu_engine():
-    """Every feature through Numba's CUDA simulator, in a fresh process (the simulator is chosen
-    when numba.cuda is first imported)."""
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
-    proc = subprocess.run([sys.executable, str(HERE / "cuda_compare.py")], capture_output=True, text=True, env=env,
-                          timeout=600, cwd=HERE)
+def _check_plastic(result: dict) -> None:
+    """Elastic-plastic members: every one yields (plastic work > 0), the viscous ones dissipate,
+    the forces and residual overlaps are the CPU engine's bit for bit (the simulator does not fuse
+    multiply-adds), the energies and plastic work within the accumulated bound (the CPU sums
+    them in any order: energies.py's reassociated sums)."""
+    for name, res in result.items():
+        assert res["engine"].startswith("batched velocity Verlet on the GPU"), name
+        assert res["pulse_N"] > 1.0 and res["dissipated_J"] > 0, name
+        assert min(res["plastic_work_J"]) > 0, name
+        assert res["same_steps"] and res["same_nan"], name
+        for key in FORCES + ("residual_overlap",):
+            if key in res:
+                assert res[key] == 0.0, (name, key, res[key])
+        accumulated = max(REL, EPS * max(res["n_steps"]))
+        for key in ("kinetic_energy", "potential_energy", "dissipated_energy", "plastic_work"):
+            assert res[key] <= accumulated, (name, key, res[key])
+
+
+def _run_compare(*args: str) -> subprocess.CompletedProcess:
+    """tests/cuda_compare.py in a fresh process: under Numba's CUDA simulator (chosen when
+    numba.cuda is first imported), or, with arguments, without it (``ptx``)."""
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0" if args else "1")
+    return subprocess.run([sys.executable, str(HERE / "cuda_compare.py"), *args], capture_output=True, text=True,
+                          env=env, timeout=600, cwd=HERE)
+
+
+@pytest.fixture(scope="module")
+def simulated() -> dict:
+    """Every comparison of cuda_compare.py through the simulator, run once for this module."""
+    proc = _run_compare()
     assert proc.returncode == 0, proc.stderr[-3000:]
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_simulated_kernels_match_the_cpu_engine(simulated):
+    """Every feature through Numba's CUDA simulator, in a fresh process."""
+    result = simulated
     assert set(result["thread"]) == {"elastic_precompression_offsets_fixed_dt", "viscoelastic_misaligned",
                                      "dashpot_free_end_velocities"}
     assert set(result["warp"]) == {"warp_elastic_precompression_offsets", "warp_dashpot_misaligned"}
@@ -77,16 +106,55 @@ def test_simulated_kernels_match_the_cpu_engine():
     assert ml["launches"] >= 10 and ml["last"] == 30 and ml["forces_equal"] and ml["peaks_equal"]
 
 
+def test_simulated_elastoplastic_matches_the_cpu_engine(simulated):
+    """Thornton's elastic-plastic law on the CUDA engine (no longer refused): three members of a
+    3-bead chain struck at 1.5-2.5 m/s (plain law, adaptive step; viscous and misaligned; viscous
+    on a fixed step) on the thread-per-member kernel, and the viscous misaligned one on the
+    warp-per-member kernel, equal
+    the CPU batched engine's: forces, velocities, peaks, residual overlaps, energies, plastic work."""
+    assert set(simulated["plastic"]) == {"elastoplastic_misaligned_fixed_dt"}
+    assert set(simulated["plastic_warp"]) == {"warp_elastoplastic_misaligned"}
+    _check_plastic(simulated["plastic"])
+    _check_plastic(simulated["plastic_warp"])
+    # the pulse reached the wall in the longer run; the fixed-step member took 50 steps a sample
+    res = simulated["plastic"]["elastoplastic_misaligned_fixed_dt"]
+    assert res["n_steps"][2] == 1500 and res["min_peak_wall_N"] > 0.5
+
+
+def test_general_kernels_compile_to_ptx_for_h100():
+    """The elastic-plastic law's device function (the CPU kernel's own source) and the general
+    kernels that carry its state compile for a real GPU (sm_90), without one."""
+    proc = _run_compare("ptx")
+    if proc.returncode != 0:
+        if any(s in proc.stderr for s in ("nvrtc", "NVVM", "libnvvm", "DynamicLibNotFound", "CudaSupportError")):
+            pytest.skip("the CUDA compiler libraries are not installed (pip install 'hertzchain[gpu]')")
+        raise AssertionError(proc.stderr[-3000:])
+    res = json.loads(proc.stdout.strip().splitlines()[-1])
+    law = res["elastoplastic_force"]
+    # the law's five IEEE square roots and two divisions, no approximate arithmetic
+    assert law["ieee_sqrt"] == 5 and law["division"] == 2 and law["approximate"] == 0
+    # both kernels hold it (their own square roots and divisions besides); the warp kernel's barriers
+    assert res["thread"]["division"] >= 2 and res["warp"]["division"] >= 2 and res["warp"]["barriers"] > 0
+
+
 @pytest.mark.skipif(not GPU, reason="no usable CUDA GPU")
 def test_gpu_matches_the_cpu_engine():
     sys.path.insert(0, str(HERE))
-    from cuda_compare import compare
+    from cuda_compare import compare, plastic_cases
 
     for kernel in ("thread", "warp", "register"):
         result = compare(members=300, beads=30, kernel=kernel)
         assert len(result) == (2 if kernel == "register" else 3)
         _check(result)
         assert all(r["engine"].startswith("batched velocity Verlet on the GPU") for r in result.values())
+    for kernel in ("thread", "warp"):  # the elastic-plastic law: fused multiply-adds, the accumulated bound
+        for name, res in compare(kernel=kernel, which=plastic_cases()).items():
+            assert min(res["plastic_work_J"]) > 0 and res["same_steps"], name
+            accumulated = max(REL, EPS * max(res["n_steps"]))
+            for key in FORCES + ("residual_overlap", "kinetic_energy", "potential_energy", "dissipated_energy",
+                                 "plastic_work"):
+                if key in res:
+                    assert res[key] <= (REL if key in PEAKS else accumulated), (name, key, res[key])
 
 
 @pytest.mark.skipif(not GPU, reason="no usable CUDA GPU")

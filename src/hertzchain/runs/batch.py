@@ -309,7 +309,7 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         rtol = real(rtol, "run.rtol", low=0.0, open_low=True)
     engine_options: dict[str, Any] = {"integrator": integrator, "all_forces": max_force == "samples", "rtol": rtol}
     if device == "cuda" and not isinstance(models, Ensemble):
-        _cuda.refuse_elastoplastic([_law_code(m) for m in models])
+        _cuda.refuse_mixed_laws([_law_code(m) for m in models])
     ens = None
     if isinstance(models, Ensemble):
         ens = models

@@ -5,6 +5,8 @@ the batched engines and the scipy reference; arrays as laid out there (``layout.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -54,9 +56,7 @@ def potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres):
             d = rsum[j] - np.sqrt(dx * dx + de[j] * de[j])
         else:
             d = u[j] - u[j + 1] + d0[j]
-        x = d - dres[j]
-        if x > 0.0:
-            e += 0.4 * kres[j] * x * x * np.sqrt(x)
+        e += unloading_energy(d - dres[j], kres[j])
     for i in range(fext.shape[0]):
         e -= fext[i] * u[i]
     return e
@@ -72,15 +72,32 @@ def plastic_work(kappa, dyield, dmax, dres):
     """
     w = 0.0
     for j in range(kappa.shape[0]):
-        dm = dmax[j]
-        dy = dyield[j]
-        if dm > dy:
-            sy = np.sqrt(dy)
-            fy = kappa[j] * dy * sy
-            x = dm - dy
-            fmax = fy + 1.5 * kappa[j] * sy * x
-            w += 0.4 * fy * dy + fy * x + 0.75 * kappa[j] * sy * x * x - 0.4 * fmax * (dm - dres[j])
+        w += contact_plastic_work(kappa[j], dyield[j], dmax[j], dres[j])
     return w
+
+
+# The per-contact terms of the two sums above, plain Python with ``math``: their source is also
+# the CUDA engine's device functions (hertzchain.integrate.cuda.kernels), so both engines record
+# one definition of the elastic-plastic energies.
+
+@njit(cache=True, nogil=True, inline="always")
+def unloading_energy(x, kres):
+    """Energy [J] an elastic-plastic contact gives back along its unloading curve at x = delta -
+    dres [m]: (2/5) kres x^(5/2), 0 for x <= 0 (``kres`` [N/m^1.5])."""
+    return 0.4 * kres * x * x * math.sqrt(x) if x > 0.0 else 0.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def contact_plastic_work(kappa, dyield, dmax, dres):
+    """Plastic work [J] one contact has done (one term of :func:`plastic_work`): kappa
+    [N/m^1.5], yield overlap, largest overlap and residual overlap [m]."""
+    if dmax > dyield:
+        sy = math.sqrt(dyield)
+        fy = kappa * dyield * sy
+        x = dmax - dyield
+        fmax = fy + 1.5 * kappa * sy * x
+        return 0.4 * fy * dyield + fy * x + 0.75 * kappa * sy * x * x - 0.4 * fmax * (dmax - dres)
+    return 0.0
 
 
 @njit(cache=True, nogil=True, fastmath=_SUMS)

@@ -28,6 +28,7 @@ Probes are sampled inside the loop every ``stride`` steps (no Python call per st
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -149,24 +150,26 @@ def elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres):
     Parameters are per-contact scalars (overlap [m], rate [m/s], kappa [N/m^1.5], A [s], yield
     overlap [m], state); returns (force [N], its elastic-plastic part [N], dmax, dres, kres), the
     caller stores the state. Elastic contacts (dmax <= dyield) have dres = 0 and kres = kappa.
+    Plain Python with ``math``: its source is also the CUDA engine's device function
+    (:mod:`hertzchain.integrate.cuda.kernels`; numba.cuda takes math.sqrt, not np.sqrt).
     """
     if d > dmax:
         dmax = d
         if d > dyield:
-            sy = np.sqrt(dyield)
+            sy = math.sqrt(dyield)
             fep = kappa * sy * (dyield + 1.5 * (d - dyield))  # F_y + (3/2) kappa dyield^(1/2) (d - dyield)
-            sd = np.sqrt(d)
+            sd = math.sqrt(d)
             x = fep / (kappa * sd)  # d - dres: the unloading stiffness at d is Hertz's (3/2) kappa d^(1/2)
             dres = d - x
-            kres = kappa * sd / np.sqrt(x)
-            sx = np.sqrt(x)
+            kres = kappa * sd / math.sqrt(x)
+            sx = math.sqrt(x)
         else:
-            sx = np.sqrt(d)
+            sx = math.sqrt(d)
             fep = kappa * d * sx
     else:
         x = d - dres
         if x > DELTA_MIN:
-            sx = np.sqrt(x)
+            sx = math.sqrt(x)
             fep = kres * x * sx
         else:
             sx = 0.0

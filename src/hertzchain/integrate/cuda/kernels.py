@@ -6,9 +6,12 @@ through Numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1``). Compiled lazily (:f
 operations: ``verlet_kernel`` (one thread per member), ``warp_kernel`` (one warp per member, a
 lane per slot) and the register kernel for aligned elastic chains (a member's state on the chip);
 the per-contact and per-body device functions are shared, so they integrate with the very same
-arithmetic. Every per-slot array is (slot, member), as :func:`hertzchain.integrate.cuda.launch.run_packed`
-lays them out, so that the threads of a warp, which run neighbouring members, read neighbouring
-addresses (coalesced).
+arithmetic. The general kernels also run Thornton's elastic-plastic law: its device function is
+the CPU kernel's own source (``core.kernels.elastoplastic_force.py_func``, and the energies'
+per-contact terms likewise), its state (``dyield``, ``dmax``, ``dres``, ``kres``) four more
+(slot, member) arrays updated in place. Every per-slot array is (slot, member), as
+:func:`hertzchain.integrate.cuda.launch.run_packed` lays them out, so that the threads of a warp,
+which run neighbouring members, read neighbouring addresses (coalesced).
 
 Measured facts behind the choices (NVIDIA H100, 30-bead chains, fixed 5 ns step,
 benchmarks/ensemble.py): ``sqrt(0)`` takes CUDA's slow path, so overlaps below
@@ -26,7 +29,9 @@ import math
 from typing import Any
 
 from .device import _cuda, _simulated
-from ..core.kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
+from ..core import energies
+from ..core import kernels as core_kernels
+from ..core.kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 
 
 #: Threads (lanes) per member in the warp-per-member kernel: one warp, one slot per lane for
@@ -59,6 +64,12 @@ def _kernels() -> dict:
     # inlined by NVVM on a GPU (the simulator takes no such option)
     inline = {} if _simulated() else {"forceinline": True}
 
+    # Thornton's elastic-plastic law and its energies: the CPU kernels' own Python source compiled
+    # for the device (one definition of the law; plain math, which numba.cuda takes)
+    elastoplastic_force = cuda.jit(device=True, **inline)(core_kernels.elastoplastic_force.py_func)
+    unloading_energy = cuda.jit(device=True, **inline)(energies.unloading_energy.py_func)
+    contact_plastic_work = cuda.jit(device=True, **inline)(energies.contact_plastic_work.py_func)
+
     @cuda.jit(device=True, **inline)
     def hertz(kap, d):
         # kappa d^(3/2), 0 for d <= DELTA_MIN; sqrt of a dummy 1.0 there, not of 0 (CUDA's slow path)
@@ -81,9 +92,11 @@ def _kernels() -> dict:
         return u[j, m] - u[j + 1, m] + d0[j, m]
 
     @cuda.jit(device=True, **inline)
-    def contact_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, j, m, power):
-        """kernels.forces_general for contact j of member m: writes its axial force g[j + 1, m]
-        and returns ``power`` plus the contact's dissipated power [W] (the running sum)."""
+    def contact_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres, j, m, power):
+        """kernels.contact_general for contact j of member m: writes its axial force g[j + 1, m]
+        and returns ``power`` plus the contact's dissipated power [W] (the running sum). The
+        elastic-plastic law's state (dmax, dres, kres; (slot, member) like the rest, read only for
+        that law) is updated in place."""
         if de[j, m] != 0.0:
             dx = dx0[j, m] - (u[j, m] - u[j + 1, m])
             dist = math.sqrt(dx * dx + de[j, m] * de[j, m])
@@ -95,6 +108,16 @@ def _kernels() -> dict:
         if d < 0.0:
             g[j + 1, m] = 0.0
             return power
+        if law == LAW_ELASTOPLASTIC:  # before the Hertz square root, which this law does not use
+            if kappa[j, m] == 0.0:  # no contact (free end, padding)
+                g[j + 1, m] = 0.0
+                return power
+            rate = c * (v[j, m] - v[j + 1, m])
+            f, fep, dmax[j, m], dres[j, m], kres[j, m] = elastoplastic_force(
+                d if d > DELTA_MIN else 0.0, rate, kappa[j, m], damping[j, m], dyield[j, m], dmax[j, m], dres[j, m],
+                kres[j, m])
+            g[j + 1, m] = c * f
+            return power + (f - fep) * rate
         sd = 0.0
         if d > DELTA_MIN:
             sd = math.sqrt(d)
@@ -159,12 +182,29 @@ def _kernels() -> dict:
             u[i, m] += dt * v[i, m]
 
     @cuda.jit(device=True)
-    def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, n, m):
+    def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres, n, m):
         """kernels.forces_general for member m (returns the dissipated power [W])."""
         power = 0.0
         for j in range(n):
-            power = contact_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, j, m, power)
+            power = contact_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres, j, m,
+                                    power)
         return power
+
+    @cuda.jit(device=True, **inline)
+    def plastic_probes(row, u, kappa, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres, out_pe, out_wp, n, m):
+        """The elastic-plastic member m's probes at a sample (row ``row``), as kernels.verlet_run
+        takes them: the potential energy is what the unloading curves give back
+        (energies.potential_energy_plastic, written over the Hertz sum of ``sample``) and the
+        plastic work so far (energies.plastic_work)."""
+        pe = 0.0
+        w = 0.0
+        for j in range(n):
+            pe += unloading_energy(overlap(u, d0, de, dx0, rsum, j, m) - dres[j, m], kres[j, m])
+            w += contact_plastic_work(kappa[j, m], dyield[j, m], dmax[j, m], dres[j, m])
+        for i in range(n):
+            pe -= fext[i, m] * u[i, m]
+        out_pe[row, m] = pe
+        out_wp[row, m] = w
 
     @cuda.jit(device=True)
     def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, law,
@@ -227,9 +267,10 @@ def _kernels() -> dict:
 
     @cuda.jit(device=True, **inline)
     def sample(row, gen, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke, out_pe, out_ed,
-               out_v, record_v, acc, n, m):
+               out_v, record_v, acc, plastic, n, m):
         """The probes of member m at a sample time into row ``row`` (recorded forces, running
-        maxima, energies, velocities); returns False when the state is no longer finite."""
+        maxima, energies, velocities); returns False when the state is no longer finite. With
+        ``plastic`` (the elastic-plastic law) the potential energy is left to ``plastic_probes``."""
         for j in range(rec.shape[0]):
             out_f[row, j, m] = g[rec[j] + 1, m]
         for j in range(fmax.shape[0]):
@@ -241,19 +282,21 @@ def _kernels() -> dict:
         if gen:  # kernels.kinetic_energy and kernels.potential_energy
             for i in range(n):
                 ke += 0.5 * mass[i, m] * v[i, m] * v[i, m]
-            for j in range(n):
-                d = overlap(u, d0, de, dx0, rsum, j, m)
-                if d > 0.0:
-                    pe += 0.4 * kappa[j, m] * d * d * math.sqrt(d)
-            for i in range(n):
-                pe -= fext[i, m] * u[i, m]
+            if not plastic:
+                for j in range(n):
+                    d = overlap(u, d0, de, dx0, rsum, j, m)
+                    if d > 0.0:
+                        pe += 0.4 * kappa[j, m] * d * d * math.sqrt(d)
+                for i in range(n):
+                    pe -= fext[i, m] * u[i, m]
         else:  # kernels.energies_elastic
             for i in range(n):
                 ke += mass[i, m] * v[i, m] * v[i, m]
                 pe += 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
             ke = 0.5 * ke
         out_ke[row, m] = ke
-        out_pe[row, m] = pe
+        if not plastic:
+            out_pe[row, m] = pe
         out_ed[row, m] = acc[0, m]
         if record_v[m]:
             for i in range(out_v.shape[1]):
@@ -261,13 +304,14 @@ def _kernels() -> dict:
         return math.isfinite(ke) and math.isfinite(g[1, m])
 
     @cuda.jit
-    def verlet_kernel(u, v, a, g, vp, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
-                      wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
-                      out_pe, out_ed, out_v, record_v, fmax, peak, acc, status):
+    def verlet_kernel(u, v, a, g, vp, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax,
+                      dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start,
+                      k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, status):
         """kernels.verlet_run for member m = the thread's index, samples k_start..k_stop - 1.
 
-        Sample k is written at row k - k_start of out_f (rows, rec, M), out_ke/pe/ed (rows, M)
-        and out_v (rows, bodies, M).
+        Sample k is written at row k - k_start of out_f (rows, rec, M), out_ke/pe/ed/wp (rows, M)
+        and out_v (rows, bodies, M). The elastic-plastic state (dyield ... kres, (slot, member))
+        and ``out_wp`` are read and written for members of that law only.
         """
         m = cuda.grid(1)
         if m >= status.shape[0] or status[m] != 0:
@@ -297,7 +341,8 @@ def _kernels() -> dict:
                     for s in range(ns):
                         for i in range(n):
                             vp[i, m] = v[i, m] + half * a[i, m]
-                        p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, n, m)
+                        p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, dyield, dmax, dres,
+                                           kres, n, m)
                         acc[0, m] += half * (acc[1, m] + p)  # trapezoidal integral of the dissipated power
                         acc[1, m] = p
                         track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
@@ -317,8 +362,11 @@ def _kernels() -> dict:
                         track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
                 step += ns
             # --- probes, sampled on the device
+            if lw == LAW_ELASTOPLASTIC:
+                plastic_probes(k - k_start, u, kappa, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres, out_pe,
+                               out_wp, n, m)
             if not sample(k - k_start, gen, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke,
-                          out_pe, out_ed, out_v, record_v, acc, n, m):
+                          out_pe, out_ed, out_v, record_v, acc, lw == LAW_ELASTOPLASTIC, n, m):
                 acc[2, m] = step
                 status[m] = 1
                 return
@@ -326,9 +374,9 @@ def _kernels() -> dict:
 
 
     @cuda.jit
-    def warp_kernel(u, v, a, g, vp, sc, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general,
-                    wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke,
-                    out_pe, out_ed, out_v, record_v, fmax, peak, acc, status):
+    def warp_kernel(u, v, a, g, vp, sc, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax,
+                    dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start,
+                    k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, status):
         """verlet_kernel with one block of nl threads per member (m = the block's index).
 
         Lane l owns slots l, l + nl, ...: forces of its contacts, then (after a barrier) the
@@ -405,7 +453,8 @@ def _kernels() -> dict:
                     cuda.syncthreads()  # positions (and predicted velocities) of the neighbours are written
                     if gen:
                         for j in range(lane, n, nl):  # contact j's dissipated power into sc
-                            sc[j, m] = contact_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, j, m, 0.0)
+                            sc[j, m] = contact_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, dyield, dmax,
+                                                       dres, kres, j, m, 0.0)
                     else:
                         for j in range(lane, n, nl):
                             g[j + 1, m] = hertz(kappa[j, m], u[j, m] - u[j + 1, m] + d0[j, m])
@@ -436,7 +485,10 @@ def _kernels() -> dict:
                 if gen:
                     sc[i, m] = 0.5 * mass[i, m] * v[i, m] * v[i, m]
                     d = overlap(u, d0, de, dx0, rsum, i, m)
-                    vp[i, m] = 0.4 * kappa[i, m] * d * d * math.sqrt(d) if d > 0.0 else 0.0
+                    if lw == LAW_ELASTOPLASTIC:  # energies.potential_energy_plastic's term
+                        vp[i, m] = unloading_energy(d - dres[i, m], kres[i, m])
+                    else:
+                        vp[i, m] = 0.4 * kappa[i, m] * d * d * math.sqrt(d) if d > 0.0 else 0.0
                 else:
                     sc[i, m] = mass[i, m] * v[i, m] * v[i, m]
                     vp[i, m] = 0.4 * g[i + 1, m] * (u[i, m] - u[i + 1, m] + d0[i, m]) - fext[i, m] * u[i, m]
@@ -458,6 +510,11 @@ def _kernels() -> dict:
                 out_ke[row, m] = ke
                 out_pe[row, m] = pe
                 out_ed[row, m] = acc[0, m]
+                if lw == LAW_ELASTOPLASTIC:  # energies.plastic_work, in contact order
+                    w = 0.0
+                    for j in range(n):
+                        w += contact_plastic_work(kappa[j, m], dyield[j, m], dmax[j, m], dres[j, m])
+                    out_wp[row, m] = w
                 if not (math.isfinite(ke) and math.isfinite(g[1, m])):
                     status[m] = 1
             cuda.syncthreads()
@@ -572,7 +629,7 @@ def _register_kernel(p: int, pre: bool):
                 step += ns
             # --- probes, sampled on the device (verlet_kernel's, elastic branch)
             if not sample(k - k_start, False, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke,
-                          out_pe, out_ed, out_v, record_v, acc, p, m):
+                          out_pe, out_ed, out_v, record_v, acc, False, p, m):
                 status[m] = 1
                 break
         for j in range(8):

@@ -225,7 +225,7 @@ def lanes_kernel(p: int, lanes: int, pre: bool, chains: int = CHAINS_PER_BLOCK):
             step += ns
             if lane == 0 and live:  # the probes, on the state just written (every lane passed the barrier)
                 if not sample(k - k_start, False, u, v, g, mass, kappa, d0, d0, d0, d0, fext, rec, out_f, fmax, out_ke,
-                              out_pe, out_ed, out_v, record_v, acc, p, m):
+                              out_pe, out_ed, out_v, record_v, acc, False, p, m):
                     status[m] = 1
             cuda.syncthreads()
         if live:

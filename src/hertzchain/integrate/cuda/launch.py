@@ -9,9 +9,10 @@ Numba family as the CPU kernels, so it also runs on a CPU through Numba's CUDA s
 samples).
 
 What it integrates is exactly what the CPU batch engine integrates (paper eq. 1 with the elastic,
-viscoelastic or dashpot law, misaligned beads, precompression; the adaptive step of
+viscoelastic, dashpot or elastic-plastic law, misaligned beads, precompression; the adaptive step of
 :func:`kernels.required_stride` or a fixed one; sampled probes, running maximum forces, the wall
-peak tracker refined afterwards; the dissipated energy), in the same order of operations: one
+peak tracker refined afterwards; the dissipated energy; the elastic-plastic contacts' state,
+carried from launch to launch, and their plastic work), in the same order of operations: one
 member per thread for large batches, one warp per member (a lane per slot) below
 ``WARP_PER_MEMBER_BELOW`` members, where one thread per member would leave the GPU idle; and, for
 aligned elastic chains of up to ``REGISTER_MAX_SLOTS`` slots, whatever the batch size, the register
@@ -43,6 +44,7 @@ from .device import (AUTO_MIN_MEMBERS, DEVICES, _cuda, _simulated, check_device,
 from .generated import generated_kernel
 from .kernels import _kernels, _lanes, _register_kernel
 from ..core.generated import is_generated
+from ..core.kernels import LAW_ELASTOPLASTIC
 
 __all__ = ["ENGINE", "AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable", "use_gpu", "run_packed"]
 
@@ -75,29 +77,27 @@ USE_LANES_KERNEL = False
 LANES_MAX_SLOTS = 64
 
 
-def refuse_elastoplastic(laws) -> None:
-    """ConfigError naming ``contact.law`` when one of ``laws`` (kernel law codes) is the
-    elastic-plastic one (its per-contact state, largest overlap and unloading curve, is not carried
-    by the GPU kernels yet) or a law the CPU engines generate from its declaration.
+def refuse_mixed_laws(laws) -> None:
+    """ConfigError naming ``contact.law`` when ``laws`` (kernel law codes) mix a law the CPU
+    engines generate from its declaration (``hertzchain.laws``) with other laws: the CUDA engine
+    runs such a law with a kernel of its own, one per batch.
 
     Parameters
     ----------
     laws : array_like of int
         Law codes (``hertzchain.contact.LAW_CODES``) of the members.
     """
-    from ..core.kernels import LAW_ELASTOPLASTIC
-
     codes = np.asarray(laws).ravel()
     generated = [is_generated(c) for c in codes]
     if any(generated) and (not all(generated) or np.unique(codes).size > 1):
         raise ConfigError("contact.law", "the CUDA engine runs one law declared in hertzchain.laws (power, "
                           "hunt_crossley, a user's) per batch, not mixed with other laws; split the batch or use "
                           "device = 'cpu'")
-    if np.any(codes == LAW_ELASTOPLASTIC):
-        raise ConfigError("contact.law", "the elastoplastic law runs on the CPU only (its per-contact state is not "
-                          "carried by the GPU kernels); use device = 'cpu' (or 'auto', which picks the CPU for it)")
 
 
+#: The elastic-plastic law's per-contact state in the packed batch's flat buffers (dmax, dres, kres
+#: change during a run and are copied back after it, for the residual overlaps).
+_PLASTIC_STATE = ("dyield", "dmax", "dres", "kres")
 _SLOT_ARRAYS = ("mass", "inv_mass", "kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "dcap")
 
 
@@ -118,10 +118,10 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     SimulationDiverged
         When a member's state became non-finite.
     ConfigError
-        A member has the elastic-plastic law (``contact.law``), which the GPU kernels do not carry,
-        or a protected body or mass-in-mass beads (``wall.type``).
+        A law declared in ``hertzchain.laws`` mixed with other laws (``contact.law``), or a
+        protected body or mass-in-mass beads (``wall.type``).
     """
-    refuse_elastoplastic(pk.law)
+    refuse_mixed_laws(pk.law)
     if pk.ext_on is not None and np.any(pk.ext_on):
         raise ConfigError("wall.type", "the CUDA engine does not model a protected body or mass-in-mass beads; run "
                           "this batch on the CPU (device='cpu')")
@@ -179,14 +179,21 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     acc = cuda.to_device(np.ascontiguousarray(pk.acc[:, :8].T))
     status = cuda.to_device(np.zeros(nmem, dtype=np.int64))
     state = slots("dmax", p) if generated else None  # the generated law's per-contact state
+    # the elastic-plastic contacts' state (yield overlap, largest overlap, unloading curve), carried
+    # on the device from launch to launch; a (1, 1) stand-in the kernels never read in batches
+    # without such a member (the packed batch has empty state buffers then)
+    plastic = not generated and bool(np.any(pk.law == LAW_ELASTOPLASTIC))
+    stand_in = cuda.to_device(np.zeros((1, 1)))
+    ep = {k: slots(k, p) if plastic else stand_in for k in _PLASTIC_STATE}
 
     cost = float(np.sum(pk.interval / pk.plan_dt * (p + 1) * np.where(pk.general, 2, 1)))
     per_launch = max(1, min(ns - 1, int(LAUNCH_SLOT_STEPS // max(cost, 1.0)),
-                            int(LAUNCH_OUTPUT_BYTES // (8 * nmem * (nrec + 3 + (nb if record_v else 0))))))
+                            int(LAUNCH_OUTPUT_BYTES // (8 * nmem * (nrec + 3 + plastic + (nb if record_v else 0))))))
     out_f = cuda.device_array((per_launch, nrec, nmem))
     out_ke = cuda.device_array((per_launch, nmem))
     out_pe = cuda.device_array((per_launch, nmem))
     out_ed = cuda.device_array((per_launch, nmem))
+    out_wp = cuda.device_array((per_launch, nmem)) if plastic else stand_in
     out_v = cuda.device_array((per_launch if record_v else 1, nb, nmem))
     host_f = pk.out_f.reshape(nmem, ns, nrec)
     host_v = pk.out_v.reshape(nmem, ns if record_v else 1, nb)
@@ -194,8 +201,10 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     while k < ns:
         k_stop = min(ns, k + per_launch)
         rows = k_stop - k
-        tail = (float(pk.interval), ints["stride"], ints["n_sub"], ints["n_eval"], c_steps, ints["relax"], k, k_stop,
-                rec, out_f, out_ke, out_pe, out_ed, out_v, flags["record_v"], fmax, peak, acc, status)
+        probes = (float(pk.interval), ints["stride"], ints["n_sub"], ints["n_eval"], c_steps, ints["relax"], k,
+                  k_stop, rec, out_f, out_ke, out_pe, out_ed)
+        trackers = (out_v, flags["record_v"], fmax, peak, acc, status)
+        tail = probes + trackers
         if lanes:
             kernel[-(-nmem // cuda_lanes.chains_per_block()), tpb](
                 d["u"], d["v"], d["a"], d["g"], d["kappa"], d["inv_mass"], d["d0"], d["fext"], d["mass"],
@@ -213,13 +222,16 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
             launch = kernel[nmem, _lanes()] if warp else kernel[-(-nmem // THREADS_PER_BLOCK), THREADS_PER_BLOCK]
             launch(
                 d["u"], d["v"], d["a"], d["g"], d["vp"], *((d["sc"],) if warp else ()), d["mass"], d["inv_mass"],
-                d["kappa"], d["damping"], d["d0"], d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["law"],
-                flags["general"], ints["wall_slot"], *tail)
+                d["kappa"], d["damping"], d["d0"], d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ep["dyield"],
+                ep["dmax"], ep["dres"], ep["kres"], ints["law"], flags["general"], ints["wall_slot"], *probes,
+                out_wp, *trackers)
         # probes stay on the device for the whole launch; one copy per chunk
         host_f[:, k:k_stop, :] = out_f.copy_to_host()[:rows].transpose(2, 0, 1)
         pk.out_ke[:, k:k_stop] = out_ke.copy_to_host()[:rows].T
         pk.out_pe[:, k:k_stop] = out_pe.copy_to_host()[:rows].T
         pk.out_ed[:, k:k_stop] = out_ed.copy_to_host()[:rows].T
+        if plastic:
+            pk.out_wp[:, k:k_stop] = out_wp.copy_to_host()[:rows].T
         if record_v:
             host_v[:, k:k_stop, :] = out_v.copy_to_host()[:rows].transpose(2, 0, 1)
         check_members_finite(status.copy_to_host(), k_stop * pk.interval)
@@ -229,3 +241,6 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     pk.fmax.reshape(nmem, nc)[:] = fmax.copy_to_host().T
     pk.peak[:, :8] = peak.copy_to_host().T
     pk.acc[:, :8] = acc.copy_to_host().T
+    if plastic:  # the state at the end: the members' residual overlaps are read from it
+        for name in _PLASTIC_STATE[1:]:
+            pk.flat[name].reshape(nmem, width)[:, :p] = ep[name].copy_to_host().T
