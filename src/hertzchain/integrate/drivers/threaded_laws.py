@@ -5,8 +5,8 @@ hand-fused elastic steps of :mod:`hertzchain.integrate.drivers.threaded`; every 
 a thread function built here, once per law and process, from the law's one-contact function:
 
 - the built-in laws (elastic with offsets, Kuwabara-Kono, dashpot, their size-scaled forms,
-  Thornton's elastic-plastic law): :func:`contact_general`, the contact of
-  ``kernels.forces_general`` operation for operation;
+  Thornton's elastic-plastic law): :func:`hertzchain.integrate.core.kernels.contact_general`,
+  the contact ``kernels.forces_general`` itself loops over;
 - the laws declared in :mod:`hertzchain.laws` (power, Hunt-Crossley, a user's): the ``contact``
   that :func:`hertzchain.integrate.core.generated.law_kernels` builds from the law's ``force`` and
   ``state``, the contact of the generated single-thread loop.
@@ -44,7 +44,7 @@ from ..core.barrier import barrier
 from ..core.disk_cache import INTEGRATE, files_digest, on_disk
 from ..core.primitives import _track_peak, _viscous_force, open_block, running_max
 
-__all__ = ["law_thread_run", "contact_general"]
+__all__ = ["law_thread_run"]
 
 _CACHE: dict = {}
 
@@ -60,51 +60,6 @@ def _on_disk(dispatcher, *variant):
     (:func:`hertzchain.integrate.core.disk_cache.on_disk`): a new process or Dask worker loads it
     instead of compiling it (~7 CPU-s a law, issue 37)."""
     return on_disk(dispatcher, *variant, sources=files_digest(*(INTEGRATE / name for name in _COMPILED_IN)))
-
-
-@njit(nogil=True, inline="always")
-def contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyield, dmax, dres, kres):
-    """One contact of :func:`hertzchain.integrate.core.kernels.forces_general`, operation for operation (bodies at ``ui``, ``uj`` [m]
-    moving at ``vi``, ``vj`` [m/s], the contact's parameters and, for the elastic-plastic law, its
-    state); returns (axial force [N], dissipated power [W], dmax, dres, kres), the state unchanged
-    for the other laws: the built-in laws' contact in the threads (tests/test_threaded_laws.py
-    requires their runs to equal the one-thread loop's bit for bit). ``forces_general`` keeps its
-    own loop: calling this from it made the one-thread elastic-plastic loop ~30 % slower (it
-    stores the state of open contacts too)."""
-    if de != 0.0:
-        dx = dx0 - (ui - uj)
-        dist = np.sqrt(dx * dx + de * de)
-        d = rsum - dist
-        c = dx / dist
-    else:
-        d = ui - uj + d0
-        c = 1.0
-    # d == 0 is kept as a contact: at the impact instant (t = 0, striker just touching) the
-    # dashpot force is already gamma d(delta)/dt = gamma v0 (the law jumps at closure); taking
-    # 0 there instead made Verlet's first half kick miss an O(dt) impulse (first-order error).
-    # The elastic part and the Kuwabara-Kono term (~ delta^(1/2)) vanish at d == 0 anyway.
-    if d < 0.0:
-        return 0.0, 0.0, dmax, dres, kres
-    if d <= kernels.DELTA_MIN:
-        d = 0.0
-    if law == kernels.LAW_ELASTOPLASTIC:
-        if kappa == 0.0:  # no contact (free end, padding)
-            return 0.0, 0.0, dmax, dres, kres
-        rate = c * (vi - vj)
-        f, fep, dmax, dres, kres = kernels.elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres)
-        return c * f, (f - fep) * rate, dmax, dres, kres
-    sd = np.sqrt(d)
-    fel = kappa * d * sd
-    if law == kernels.LAW_ELASTIC:
-        return c * fel, 0.0, dmax, dres, kres
-    rate = c * (vi - vj)  # d(delta)/dt
-    if law == kernels.LAW_VISCOELASTIC:
-        f = fel + kappa * damping * sd * rate
-    else:
-        f = fel + damping * rate
-    f = max(f, 0.0)
-    # F_diss * d(delta)/dt >= 0: power lost to dissipation
-    return c * f, (f - fel) * rate, dmax, dres, kres
 
 
 def law_thread_run(code: int, aligned: bool):
@@ -139,10 +94,10 @@ def _builtin(law: int, aligned: bool):
             rate = vi - vj
             f, fel = _viscous_force(ui - uj + d0, rate, kappa, damping, law)
             return f, (f - fel) * rate, s0, s1, s2
-        if aligned:  # the offset branch folded away (computed, even untaken, it cost ~4x)
-            return contact_general(ui, uj, vi, vj, kappa, damping, d0, 0.0, 0.0, 0.0, law, dyield, s0, s1,
-                                           s2)
-        return contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyield, s0, s1, s2)
+        # the one-thread loop's own contact; on an aligned chain its offset branch is folded away
+        # (computed, even untaken, it cost ~4x)
+        return kernels.contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyield, s0, s1, s2,
+                                       aligned)
 
     @njit(nogil=True)
     def stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps, ext):
