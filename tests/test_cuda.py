@@ -72,8 +72,8 @@ def _check_plastic(result: dict) -> None:
 
 def _run_compare(*args: str) -> subprocess.CompletedProcess:
     """tests/cuda_compare.py in a fresh process: under Numba's CUDA simulator (chosen when
-    numba.cuda is first imported), or, with arguments, without it (``ptx``)."""
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0" if args else "1")
+    numba.cuda is first imported), but for ``ptx`` (compiled for a real GPU, without one)."""
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="0" if args == ("ptx",) else "1")
     return subprocess.run([sys.executable, str(HERE / "cuda_compare.py"), *args], capture_output=True, text=True,
                           env=env, timeout=600, cwd=HERE)
 
@@ -116,8 +116,19 @@ def test_simulated_elastoplastic_matches_the_cpu_engine(simulated):
     assert set(simulated["plastic_warp"]) == {"warp_elastoplastic_misaligned"}
     _check_plastic(simulated["plastic"])
     _check_plastic(simulated["plastic_warp"])
-    # the pulse reached the wall in the longer run; the fixed-step member took 50 steps a sample
-    res = simulated["plastic"]["elastoplastic_misaligned_fixed_dt"]
+    # the fixed-step member took 50 steps a sample (5 us)
+    assert simulated["plastic"]["elastoplastic_misaligned_fixed_dt"]["n_steps"][2] == 250
+
+
+@pytest.mark.slow
+def test_simulated_elastoplastic_matches_the_cpu_engine_until_the_wall():
+    """The same three members for 30 us (~170 s in the simulator): the pulse reaches the wall,
+    the contacts unload on their residual curves; still the CPU engine's numbers."""
+    proc = _run_compare("plastic_long")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])["plastic"]
+    _check_plastic(result)
+    res = result["elastoplastic_misaligned_fixed_dt"]
     assert res["n_steps"][2] == 1500 and res["min_peak_wall_N"] > 0.5
 
 
