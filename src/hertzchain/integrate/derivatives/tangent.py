@@ -28,12 +28,22 @@ from .tape import _open_block
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _kick(u, v, i, ai, dt, last):
+    """Body i's update after its acceleration ``ai`` (``kernels.verlet_run``'s step): the kick
+    v += dt a then the drift u += dt v, or in a block's ``last`` step only the closing half kick."""
+    if last:
+        v[i] += 0.5 * dt * ai
+    else:
+        v[i] += dt * ai
+        u[i] += dt * v[i]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, last, gw, gk):
     """``kernels.step_elastic`` (the same arithmetic), or with ``last`` ``kernels.final_step_elastic``
     (a block's last step: the closing half kick), writing also each contact's partials at the
     positions the forces are taken at: gw = dF/dw = (3/2) kappa delta^(1/2), gk = dF/dkappa =
     delta^(3/2)."""
-    half = 0.5 * dt
     fprev = 0.0
     for i in range(a.shape[0]):
         d = u[i] - u[i + 1] + d0[i]
@@ -45,11 +55,7 @@ def _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, last, gw, gk):
         g[i + 1] = f
         ai = (fprev - f + fext[i]) * inv_mass[i]
         a[i] = ai
-        if last:
-            v[i] += half * ai
-        else:
-            v[i] += dt * ai
-            u[i] += dt * v[i]
+        _kick(u, v, i, ai, dt, last)
         fprev = f
 
 
@@ -85,11 +91,7 @@ def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_m
         gp[7, j] = gr
     for i in range(n):
         a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-        if last:
-            v[i] += half * a[i]
-        else:
-            v[i] += dt * a[i]
-            u[i] += dt * v[i]
+        _kick(u, v, i, a[i], dt, last)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -108,11 +110,7 @@ def _aligned_step(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, last,
         g[i + 1] = f
         ai = (fprev - f + fext[i]) * inv_mass[i]
         a[i] = ai
-        if last:
-            v[i] += half * ai
-        else:
-            v[i] += dt * ai
-            u[i] += dt * v[i]
+        _kick(u, v, i, ai, dt, last)
         fprev = f
         vq = vq1
     i = n - 1
@@ -120,11 +118,7 @@ def _aligned_step(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, last,
     g[i + 1] = f
     ai = (fprev - f + fext[i]) * inv_mass[i]
     a[i] = ai
-    if last:
-        v[i] += half * ai
-    else:
-        v[i] += dt * ai
-        u[i] += dt * v[i]
+    _kick(u, v, i, ai, dt, last)
 
 
 @njit(cache=True, nogil=True, inline="always")
