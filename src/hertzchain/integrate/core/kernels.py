@@ -39,7 +39,7 @@ from numba import njit
 from .energies import (energies_elastic, kinetic_energy, plastic_work, potential_energy,  # noqa: F401
                        potential_energy_plastic)
 from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
-                        accelerations_extended, energies_extended, forces_linear)
+                        accelerations_extended, energies_extended, extended_bound, forces_linear)
 
 from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
 # the law codes, the overlap floor and the helpers the fused steps share (re-exported: kernels.DELTA_MIN & co.)
@@ -444,14 +444,9 @@ def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, 
             dt_ = dt_ if dt_ < dcap[j] else dcap[j]
             k = 1.5 * kappa[j] * np.sqrt(dt_) if dt_ > 0.0 else 0.0
         if ext_on:
-            k += ext[j, EXT_KLIN]
-            c = 0.0 if law == LAW_ELASTIC else (damping[j] if law == LAW_DASHPOT else (2.0 / 3.0) * damping[j] * k)
-            c += ext[j, EXT_CLIN]
-            om2 = 2.0 * (kprev + k + ext[j, EXT_KIN]) * inv_mass[j]
-            beta = 2.0 * (cprev + c) * inv_mass[j]
-            weff = max(weff, np.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta)
-            weff = max(weff, np.sqrt(2.0 * ext[j, EXT_KIN] * ext[j, EXT_IMIN]))
-            cprev = c
+            w, k, cprev = extended_bound(kprev, k, cprev, damping[j], law, ext[j, EXT_KLIN], ext[j, EXT_CLIN],
+                                         ext[j, EXT_KIN], ext[j, EXT_IMIN], inv_mass[j])
+            weff = max(weff, w)
         elif law == LAW_ELASTIC:
             w2 = max(w2, (kprev + k) * inv_mass[j])
         else:
