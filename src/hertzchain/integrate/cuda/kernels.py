@@ -261,6 +261,8 @@ def _kernels() -> dict:
     ext_fns = device_functions(cuda, inline, forces_general, track_peak)
     extended_bound, extended_block = ext_fns["extended_bound"], ext_fns["extended_block"]
     internal_accelerations, extended_probes = ext_fns["internal_accelerations"], ext_fns["extended_probes"]
+    linear_forces, linear_power, body_work = ext_fns["linear_forces"], ext_fns["linear_power"], ext_fns["body_work"]
+    extended_kick, extended_open, stride_row = ext_fns["extended_kick"], ext_fns["extended_open"], ext_fns["stride_row"]
 
     @cuda.jit(device=True, **inline)
     def adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, lw, ext, eon, n, m,
@@ -405,7 +407,8 @@ def _kernels() -> dict:
     @cuda.jit
     def warp_kernel(u, v, a, g, vp, sc, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax,
                     dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start,
-                    k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, status):
+                    k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, status, wa,
+                    ext, ext_on, body_slot, out_b):
         """verlet_kernel with one block of nl threads per member (m = the block's index).
 
         Lane l owns slots l, l + nl, ...: forces of its contacts, then (after a barrier) the
@@ -431,6 +434,11 @@ def _kernels() -> dict:
         r4 = acc[4, m]
         r5 = acc[5, m]
         step = acc[2, m]
+        eon = ext_on[m]
+        bs = body_slot[m]
+        if eon and lane == 0:
+            internal_accelerations(u, ext, wa, n, m)
+        cuda.syncthreads()
         for k in range(k_start, k_stop):
             for b in range(nsub):
                 if adaptive and ((k - 1) * nsub + b) % neval == 0:
@@ -445,7 +453,9 @@ def _kernels() -> dict:
                     w2 = 0.0  # elastic: max (k_left + k_right) / m; dissipative: max omega_eff
                     for j in range(lane, n, nl):
                         kprev = sc[j - 1, m] if j > 0 else 0.0
-                        if lw == LAW_ELASTIC:
+                        if eon:
+                            w2 = max(w2, stride_row(sc, damping, lw, ext, inv_mass, j, m))
+                        elif lw == LAW_ELASTIC:
                             w2 = max(w2, (kprev + sc[j, m]) * inv_mass[j, m])
                         else:
                             cprev = 0.0
@@ -460,7 +470,7 @@ def _kernels() -> dict:
                     w2 = 0.0
                     for i in range(nl):
                         w2 = max(w2, red[i])
-                    w = math.sqrt(2.0 * w2) if lw == LAW_ELASTIC else w2
+                    w = math.sqrt(2.0 * w2) if lw == LAW_ELASTIC and not eon else w2
                     req = max(1, int(math.ceil(block * c_steps[m] * w - 1e-9)))
                     ns, r4, r5 = adapt_stride(req, ns, relax[m], r4, r5)
                     if lane == 0:
@@ -472,8 +482,11 @@ def _kernels() -> dict:
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
                 for i in range(lane, n, nl):
-                    v[i, m] += half * a[i, m]
-                    u[i, m] += dt * v[i, m]
+                    if eon:
+                        extended_open(u, v, a, wa, ext, dt, half, i, m)
+                    else:
+                        v[i, m] += half * a[i, m]
+                        u[i, m] += dt * v[i, m]
                 for s in range(ns):
                     last = s == ns - 1
                     if gen:
@@ -484,6 +497,8 @@ def _kernels() -> dict:
                         for j in range(lane, n, nl):  # contact j's dissipated power into sc
                             sc[j, m] = contact_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, dyield, dmax,
                                                        dres, kres, j, m, 0.0)
+                            if eon:  # its power summed by lane 0 below, in forces_linear's order
+                                linear_forces(u, vp, d0, ext, g, j, m)
                     else:
                         for j in range(lane, n, nl):
                             g[j + 1, m] = hertz(kappa[j, m], u[j, m] - u[j + 1, m] + d0[j, m])
@@ -493,13 +508,20 @@ def _kernels() -> dict:
                             p = 0.0
                             for j in range(n):  # in contact order, as forces_general sums
                                 p += sc[j, m]
+                            if eon:
+                                p += linear_power(u, vp, d0, ext, n, m)
                             acc[0, m] += half * (acc[1, m] + p)
                             acc[1, m] = p
+                            if bs >= 0:
+                                body_work(g, vp, ext, bs, half, m)
                             track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
                         else:
                             track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
                     for i in range(lane, n, nl):
-                        kick_drift(u, v, a, g[i, m], g[i + 1, m], fext, inv_mass, dt, half, last, i, m)
+                        if eon:
+                            extended_kick(u, v, a, wa, g, fext, inv_mass, ext, dt, half, last, i, m)
+                        else:
+                            kick_drift(u, v, a, g[i, m], g[i + 1, m], fext, inv_mass, dt, half, last, i, m)
                     cuda.syncthreads()  # bodies moved before the next step's forces (and g is read)
                 step += ns
             # --- probes: per-slot energy terms into sc and vp, summed by lane 0 in slot order
@@ -544,7 +566,9 @@ def _kernels() -> dict:
                     for j in range(n):
                         w += contact_plastic_work(kappa[j, m], dyield[j, m], dmax[j, m], dres[j, m])
                     out_wp[row, m] = w
-                if not (math.isfinite(ke) and math.isfinite(g[1, m])):
+                if eon:
+                    extended_probes(row, u, v, a, d0, ext, bs, out_ke, out_pe, out_b, n, m)
+                if not (math.isfinite(out_ke[row, m]) and math.isfinite(g[1, m])):
                     status[m] = 1
             cuda.syncthreads()
             if status[m] != 0:

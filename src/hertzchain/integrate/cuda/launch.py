@@ -127,7 +127,7 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     nmem = pk.n_members
     p = int(pk.n_slots[0])
     generated = is_generated(int(pk.law[0]))  # a law run by the generated engines: its own kernel
-    # a protected body or mass-in-mass beads: the general thread-per-member kernel's extended block
+    # a protected body or mass-in-mass beads: the general kernels' extended steps (cuda.extension)
     extended = pk.ext_on is not None and bool(np.any(pk.ext_on))
     if extended and generated:
         raise ConfigError("contact.law", "the CUDA engine runs a law declared in hertzchain.laws (power, hunt_crossley, "
@@ -142,7 +142,7 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     lanes = lanes and not generated and not extended
     register = (not lanes and not generated and not extended and USE_REGISTER_KERNEL and p <= REGISTER_MAX_SLOTS
                 and not np.any(pk.general))
-    warp = not (register or lanes or extended) and nmem < WARP_PER_MEMBER_BELOW
+    warp = not (register or lanes) and nmem < WARP_PER_MEMBER_BELOW
     if lanes:
         pre = bool(np.any(pk.flat["d0"].reshape(nmem, width)[:, :p] != 0.0)
                    or np.any(pk.flat["fext"].reshape(nmem, width)[:, :p] != 0.0))
@@ -244,7 +244,7 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
                 d["u"], d["v"], d["a"], d["g"], d["vp"], *((d["sc"],) if warp else ()), d["mass"], d["inv_mass"],
                 d["kappa"], d["damping"], d["d0"], d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ep["dyield"],
                 ep["dmax"], ep["dres"], ep["kres"], ints["law"], flags["general"], ints["wall_slot"], *probes,
-                out_wp, *trackers, *(() if warp else ext_args + (out_b,)))
+                out_wp, *trackers, *ext_args, out_b)
         # probes stay on the device for the whole launch; one copy per chunk
         host_f[:, k:k_stop, :] = out_f.copy_to_host()[:rows].transpose(2, 0, 1)
         pk.out_ke[:, k:k_stop] = out_ke.copy_to_host()[:rows].T
