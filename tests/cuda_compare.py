@@ -235,14 +235,21 @@ def ptx() -> dict:
     dispatcher.get_current_device = lambda: pytypes.SimpleNamespace(compute_capability=(9, 0))
     f1, f2, f3 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]
     i1, b1, i8, f8 = types.int64[::1], types.boolean[::1], types.int64, types.float64
-    # (u, v, a, g, vp[, sc]), 10 parameters, the 4 elastic-plastic state arrays, then law ... status
+    # (u, v, a, g, vp[, sc]), 10 parameters, the 4 elastic-plastic state arrays, then law ... status, then
+    # the extension: wa, ext (column, slot, member), ext_on, body_slot, out_b
     tail = (f2,) * 10 + (f2,) * 4 + (i1, b1, i1, f8, i1, i1, i1, f1, i1, i8, i8, i1, f3, f2, f2, f2, f2, f3, b1, f2, f2,
-                                     f2, i1)
+                                     f2, i1, f2, f3, b1, i1, f3)
     from hertzchain.integrate.core.kernels import elastoplastic_force
+
+    from hertzchain.integrate.core.extension import extended_bound
 
     code, _ = cuda.compile_ptx(elastoplastic_force.py_func, (f8,) * 8, device=True, cc=(9, 0))
     out = {"elastoplastic_force": {"ieee_sqrt": code.count("sqrt.rn.f64"), "division": code.count("div.rn.f64"),
                                    "approximate": code.count(".approx."), "chars": len(code)}}
+    # the extension's step bound (core.extension's source, as the kernels compile it)
+    code, _ = cuda.compile_ptx(extended_bound.py_func, (f8, f8, f8, f8, i8, f8, f8, f8, f8, f8), device=True, cc=(9, 0))
+    out["extended_bound"] = {"ieee_sqrt": code.count("sqrt.rn.f64"), "approximate": code.count(".approx."),
+                             "chars": len(code)}
     for name, n_state in (("thread", 5), ("warp", 6)):
         code, _ = cuda.compile_ptx(_kernels()[name].py_func, (f2,) * n_state + tail, cc=(9, 0))
         out[name] = {"ieee_sqrt": code.count("sqrt.rn.f64"), "division": code.count("div.rn.f64"),
