@@ -9,7 +9,8 @@ the per-contact and per-body device functions are shared, so they integrate with
 arithmetic. The general kernels also run Thornton's elastic-plastic law: its device function is
 the CPU kernel's own source (``core.kernels.elastoplastic_force.py_func``, and the energies'
 per-contact terms likewise), its state (``dyield``, ``dmax``, ``dres``, ``kres``) four more
-(slot, member) arrays updated in place. Every per-slot array is (slot, member), as
+(slot, member) arrays updated in place; and a protected body and mass-in-mass beads, with the
+device pieces of :mod:`hertzchain.integrate.cuda.extension` (the CPU's law, the same source). Every per-slot array is (slot, member), as
 :func:`hertzchain.integrate.cuda.launch.run_packed` lays them out, so that the threads of a warp,
 which run neighbouring members, read neighbouring addresses (coalesced).
 

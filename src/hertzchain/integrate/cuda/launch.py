@@ -9,10 +9,12 @@ Numba family as the CPU kernels, so it also runs on a CPU through Numba's CUDA s
 samples).
 
 What it integrates is exactly what the CPU batch engine integrates (paper eq. 1 with the elastic,
-viscoelastic, dashpot or elastic-plastic law, misaligned beads, precompression; the adaptive step of
-:func:`kernels.required_stride` or a fixed one; sampled probes, running maximum forces, the wall
-peak tracker refined afterwards; the dissipated energy; the elastic-plastic contacts' state,
-carried from launch to launch, and their plastic work), in the same order of operations: one
+viscoelastic, dashpot or elastic-plastic law, misaligned beads, precompression, a protected body
+and mass-in-mass beads (the extension: :mod:`hertzchain.integrate.cuda.extension`); the adaptive
+step of :func:`kernels.required_stride` or a fixed one; sampled probes, running maximum forces, the
+wall peak tracker refined afterwards; the dissipated energy; the elastic-plastic contacts' state
+and the extension's internal masses and body work, carried from launch to launch, the plastic work
+and the protected body's record), in the same order of operations: one
 member per thread for large batches, one warp per member (a lane per slot) below
 ``WARP_PER_MEMBER_BELOW`` members, where one thread per member would leave the GPU idle; and, for
 aligned elastic chains of up to ``REGISTER_MAX_SLOTS`` slots, whatever the batch size, the register
