@@ -20,6 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import hertzchain as hc
+from hertzchain.errors import ConfigError
+from hertzchain.integrate.cuda import launch as hc_cuda
+from hertzchain.runs.batch import simulate_batch
+
 pytest.importorskip("numba.cuda", reason="the CUDA backend needs numba-cuda (the 'gpu' / 'test' extras)")
 
 HERE = Path(__file__).resolve().parent
@@ -93,3 +98,14 @@ def test_simulated_bodies_match_the_cpu_engine_on_longer_chains():
     (name, res), = _run("long")["thread"].items()
     _check(res, n_body=3)
     assert res["min_peak_wall_N"] > 100.0
+
+
+@pytest.mark.skipif(hc_cuda.gpu_usable() or hc_cuda._simulated(), reason="runs the batch where a GPU is usable")
+def test_device_cuda_takes_bodies_and_asks_only_for_a_gpu():
+    """A protected body with ``device="cuda"`` is no longer refused for its wall.type: without a
+    GPU the one error is the missing device."""
+    model = hc.Model(hc.Chain.uniform(1, 10e-3), hc.Striker(8e-3, 1.0),
+                     hc.Wall("body", mass=0.01, stiffness=2e6, damping=20.0))
+    with pytest.raises(ConfigError) as e:
+        simulate_batch([model, model], 2e-5, hc.Probes(1e-6), device="cuda")
+    assert e.value.field == "device"
