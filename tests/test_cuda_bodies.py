@@ -70,11 +70,12 @@ def _check(res: dict, n_body: int) -> None:
 
 
 def test_simulated_bodies_and_mass_in_mass_match_the_cpu_engine(simulated):
-    """One batch on the thread-per-member kernel: (a) a protected body on a mount spring and dashpot,
-    (b) mass-in-mass beads on a fixed step, (c) both with the Kuwabara-Kono law and with the
-    elastic-plastic one, (d) a plain member: forces, velocities, the bodies' records and peaks bit
-    for bit, energies within eps x steps, the energy balance kept, every body loaded (its face
-    force past its peak: > 100 N in every member), the plastic member yielded, the viscous ones
+    """One batch on the thread-per-member kernel: (a) a protected body on a mount spring and
+    dashpot (a bead off the axis), (b) mass-in-mass beads on a fixed step, (c) both with the
+    Kuwabara-Kono law and with the elastic-plastic one (under gravity), (d) a plain member:
+    forces, velocities, the bodies' records and peaks bit for bit, energies within eps x steps,
+    the energy balance kept, every body loaded (its face force past its peak: > 100 N in every
+    member), the plastic member yielded, the viscous ones
     dissipating. The run is cut into launches of ~4 samples: the internal masses' state and the
     bodies' work carried from launch to launch on the device, the internal accelerations
     recomputed at each launch's start as the CPU engine does at each chunk's, exactly."""
