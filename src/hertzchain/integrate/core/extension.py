@@ -17,7 +17,8 @@ arrays of :mod:`hertzchain.integrate.core.kernels`, an extension array ``ext`` o
 The stepping itself is ``kernels.step_extended``; the functions here are its forces, accelerations
 and energies, also used by ``verlet.initialise`` and the scipy reference. The law of the extension
 is written once, as scalar functions of one contact or one body (:func:`linear_force`,
-:func:`body_accelerations`, :func:`body_energies`, :func:`extended_bound`): the array loops here
+:func:`body_accelerations`, :func:`internal_acceleration`, :func:`body_energies`,
+:func:`extended_bound`): the array loops here
 and in ``kernels`` call them, and the CUDA engine compiles their Python source as device functions
 (:mod:`hertzchain.integrate.cuda.extension`), so both integrate the same arithmetic.
 """
@@ -31,7 +32,7 @@ from numba import njit
 from .primitives import LAW_DASHPOT, LAW_ELASTIC
 
 __all__ = ["EXT_KLIN", "EXT_CLIN", "EXT_KIN", "EXT_MIN", "EXT_IMIN", "EXT_W", "EXT_WV", "EXT_ACC", "EXT_COLUMNS",
-           "linear_force", "body_accelerations", "body_energies", "extended_bound",
+           "linear_force", "body_accelerations", "internal_acceleration", "body_energies", "extended_bound",
            "forces_linear", "accelerations_extended", "energies_extended"]
 
 #: Columns of the extension array ``ext`` (see the module docstring).
@@ -53,6 +54,14 @@ def body_accelerations(fl, fr, fext, inv_mass, k_in, w, u, inv_m_in):
     (a = (F_l - F_r + f_ext + k_in (w - u)) / m, the internal mass's k_in (u - w) / m_in) [m/s^2]."""
     s = k_in * (w - u)
     return (fl - fr + fext + s) * inv_mass, -s * inv_m_in
+
+
+@njit(cache=True, nogil=True, inline="always")
+def internal_acceleration(k_in, w, u, inv_m_in):
+    """Acceleration [m/s^2] of an internal mass (1/m_in = ``inv_m_in``) at ``w`` [m] on a spring
+    ``k_in`` [N/m] to its body at ``u`` [m]: k_in (u - w) / m_in, a function of the positions (the
+    state a run starts from; :func:`body_accelerations` gives it with the body's)."""
+    return k_in * (u - w) * inv_m_in
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -39,7 +39,8 @@ from numba import njit
 from .energies import (energies_elastic, kinetic_energy, plastic_work, potential_energy,  # noqa: F401
                        potential_energy_plastic)
 from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
-                        accelerations_extended, energies_extended, extended_bound, forces_linear)
+                        accelerations_extended, energies_extended, extended_bound, forces_linear,
+                        internal_acceleration)
 
 from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
 # the law codes, the overlap floor and the helpers the fused steps share (re-exported: kernels.DELTA_MIN & co.)
@@ -544,7 +545,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     ec = np.zeros(n)  # contact energies at a block's end (offset chains' fused steps, their probes)
     if ext_on:  # the internal masses' accelerations: a function of the positions, not state
         for i in range(n):
-            wa[i] = ext[i, EXT_KIN] * (u[i] - ext[i, EXT_W]) * ext[i, EXT_IMIN]
+            wa[i] = internal_acceleration(ext[i, EXT_KIN], ext[i, EXT_W], u[i], ext[i, EXT_IMIN])
     step = int(acc[2])
     lean = n >= LEAN_SLOTS  # long chain without precompression (d0 = fext = 0): step_elastic_lean
     aligned = True  # no offsets: the dissipative laws' fused steps (step_dissipative)

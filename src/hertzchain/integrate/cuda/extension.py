@@ -1,7 +1,8 @@
 """The CUDA engine's extension: a protected body's mount and mass-in-mass beads on the device.
 
 The law is the CPU's (:mod:`hertzchain.integrate.core.extension`): its per-contact and per-body
-scalar functions (``linear_force``, ``body_accelerations``, ``body_energies``, ``extended_bound``)
+scalar functions (``linear_force``, ``body_accelerations``, ``internal_acceleration``,
+``body_energies``, ``extended_bound``)
 are compiled from their Python source as device functions, and the pieces here lay them over the
 device layout, where the extension of member m is ``ext[column, slot, m]`` (the CPU's
 ``ext[slot, column]``, one member after another, with the member last so that a warp's threads
@@ -28,6 +29,7 @@ def device_functions(cuda: Any, inline: dict, forces_general: Any, track_peak: A
     body_accelerations = cuda.jit(device=True, **inline)(core_ext.body_accelerations.py_func)
     body_energies = cuda.jit(device=True, **inline)(core_ext.body_energies.py_func)
     extended_bound = cuda.jit(device=True, **inline)(core_ext.extended_bound.py_func)
+    internal_acceleration = cuda.jit(device=True, **inline)(core_ext.internal_acceleration.py_func)
 
     @cuda.jit(device=True, **inline)
     def stride_row(sc, damping, law, ext, inv_mass, j, m):
@@ -47,7 +49,7 @@ def device_functions(cuda: Any, inline: dict, forces_general: Any, track_peak: A
     def internal_accelerations(u, ext, wa, n, m):
         """The internal masses' accelerations of member m from its positions (verlet_run's start)."""
         for i in range(n):
-            wa[i, m] = ext[EXT_KIN, i, m] * (u[i, m] - ext[EXT_W, i, m]) * ext[EXT_IMIN, i, m]
+            wa[i, m] = internal_acceleration(ext[EXT_KIN, i, m], ext[EXT_W, i, m], u[i, m], ext[EXT_IMIN, i, m])
 
     @cuda.jit(device=True, **inline)
     def linear_forces(u, vp, d0, ext, g, j, m):
