@@ -249,6 +249,61 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax
     return power
 
 
+@njit(cache=True, nogil=True, inline="always")
+def plastic_pass(u, vp, g, pw, kappa, damping, d0, dyield, dmax, dres, kres):
+    """Every aligned contact's elastic-plastic force as :func:`contact_general` computes it, but
+    for the contacts loaded past both their largest overlap and the yield overlap (the only case
+    that moves a contact onto a new unloading curve), in one branch-free pass that LLVM
+    vectorises: the unloading curve kres (delta - dres)^(3/2) plus its damping term, which is
+    also, bit for bit, the Hertz force of a contact that never yielded (dres = 0, kres = kappa
+    exactly) and so of elastic loading; dmax = max(dmax, delta) but on yielding contacts.
+    Forces into g[j + 1], viscous powers into pw[j]. Returns the first and last index of the
+    yielding contacts (n, -1: none), whose force and state :func:`plastic_yield` redoes with the
+    state left as it was. Computing the yield branch in the pass too (two more square roots and
+    two divisions per contact) cost more than the pass: benchmarks/laws.py."""
+    n = kappa.shape[0]
+    lo = n
+    hi = -1
+    for j in range(n):
+        d = u[j] - u[j + 1] + d0[j]
+        dd = d if d > DELTA_MIN else 0.0
+        rate = vp[j] - vp[j + 1]
+        x = dd - dres[j]
+        x = x if x > DELTA_MIN else 0.0
+        sx = np.sqrt(x)
+        kr = kres[j]
+        fep = kr * x * sx
+        f = fep + damping[j] * kr * sx * rate
+        f = f if f > 0.0 else 0.0
+        on = (d >= 0.0) & (kappa[j] != 0.0)
+        g[j + 1] = f if on else 0.0
+        pw[j] = (f - fep) * rate if on else 0.0
+        dm = dmax[j]
+        up = on & (dd > dm)
+        yl = up & (dd > dyield[j])
+        dmax[j] = dd if up & ~yl else dm
+        # min and max of (j or a sentinel) as ternaries: LLVM vectorises these reductions, not
+        # "the last j where yl" (hi = j if yl else hi kept the pass scalar)
+        t = j if yl else n
+        lo = lo if lo < t else t
+        t = j if yl else -1
+        hi = hi if hi > t else t
+    return lo, hi
+
+
+@njit(cache=True, nogil=True, inline="always")
+def plastic_yield(u, vp, g, pw, kappa, damping, d0, de, dx0, rsum, dyield, dmax, dres, kres, lo, hi):
+    """The yielding contacts lo..hi that :func:`plastic_pass` left (its state unchanged there):
+    :func:`contact_general`'s force and new state for those loaded past dmax and dyield."""
+    for j in range(lo, hi + 1):
+        d = u[j] - u[j + 1] + d0[j]
+        dd = d if d > DELTA_MIN else 0.0
+        if d >= 0.0 and kappa[j] != 0.0 and dd > dmax[j] and dd > dyield[j]:
+            g[j + 1], pw[j], dmax[j], dres[j], kres[j] = contact_general(
+                u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j],
+                LAW_ELASTOPLASTIC, dyield[j], dmax[j], dres[j], kres[j], True)
+
+
 @njit(cache=True, nogil=True)
 def plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres, kres,
                   aligned, ns, dt, t0, wall_slot, peak, acc):
@@ -268,10 +323,9 @@ def plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, i
     predict(v, a, half, vp)
     for s in range(ns):
         if aligned:
-            for j in range(n):
-                g[j + 1], pw[j], dmax[j], dres[j], kres[j] = contact_general(
-                    u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j],
-                    LAW_ELASTOPLASTIC, dyield[j], dmax[j], dres[j], kres[j], True)
+            lo, hi = plastic_pass(u, vp, g, pw, kappa, damping, d0, dyield, dmax, dres, kres)
+            if hi >= 0:
+                plastic_yield(u, vp, g, pw, kappa, damping, d0, de, dx0, rsum, dyield, dmax, dres, kres, lo, hi)
         else:
             for j in range(n):
                 g[j + 1], pw[j], dmax[j], dres[j], kres[j] = contact_general(
