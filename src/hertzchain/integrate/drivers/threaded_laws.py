@@ -51,7 +51,7 @@ _CACHE: dict = {}
 #: The modules whose functions a built-in law's thread function compiles in (its on-disk cache
 #: key holds their text: an edit of any of them compiles it afresh).
 _COMPILED_IN = ("drivers/threaded_laws.py", "core/kernels.py", "core/primitives.py", "core/barrier.py",
-                "core/extension.py", "core/energies.py", "core/fused.py")
+                "core/extension.py", "core/energies.py", "core/fused.py", "core/plastic.py")
 
 
 def _on_disk(dispatcher, *variant):
