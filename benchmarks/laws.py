@@ -104,7 +104,7 @@ def _laws():
 
     return {"elastic": hc.Elastic(), "viscoelastic": hc.Viscoelastic(2e-6), "dashpot": hc.Dashpot(5.0),
             "elastoplastic": hc.Elastoplastic(), "power n=1.5": hc.PowerLaw(1.5),
-            "power n=2": hc.PowerLaw(2.0, 1e13), "power n=2.5": hc.PowerLaw(2.5, 1e16),
+            "power n=2": hc.PowerLaw(2.0, 1e13), "power n=2.5": hc.PowerLaw(2.5, 1e14),
             "hunt_crossley": hc.HuntCrossley(0.9)}
 
 
