@@ -4,10 +4,11 @@ One ``@njit(parallel=True)`` loop (Numba ``prange``) hands every member to the v
 :func:`hertzchain.integrate.core.kernels.verlet_run` on slices of the flat buffers of a
 :class:`~hertzchain.integrate.batch.buffers._Packed` (slices are views, so the kernel writes
 straight into the outputs), taken by the loop as three typed structures (:class:`Members`,
-:class:`FlatBuffers`, :class:`Records`) and handed to the kernel as its own. Velocity Verlet has no cross-member coupling and no reductions across
-members, so the thread that runs a member cannot change its result: every member's numbers are
-those of :func:`hertzchain.simulate` of it alone. :func:`_engine` runs the loop in chunks of
-samples (progress reports between them), one launch at a time.
+:class:`FlatBuffers`, :class:`Records`) and handed to the kernel as its own. Velocity Verlet
+has no cross-member coupling and no reductions across members, so the thread that runs a member
+cannot change its result: every member's numbers are those of :func:`hertzchain.simulate` of it
+alone. :func:`_engine` runs the loop in chunks of samples (progress reports between them), one
+launch at a time.
 """
 
 from __future__ import annotations
