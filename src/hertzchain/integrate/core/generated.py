@@ -11,9 +11,10 @@ law's ``force``/``state``/``energy``/``partials`` (Numba inlines the jitted clos
   as ``kernels.forces_general`` writes them (the same overlap geometry, misaligned pairs
   included, the same d == 0 convention), the law's state updated in place; returns the
   dissipated power (F - F(rate = 0)) d(delta)/dt [W];
-- ``run``: :func:`hertzchain.integrate.core.kernels.verlet_run` with the same arguments and the same
-  kick-drift-kick steps, adaptive step controller and probes (the law's per-contact state lives
-  in the ``dmax`` slots; ``kappa`` holds the law's stiffness k, ``damping`` its parameter p);
+- ``run``: :func:`hertzchain.integrate.core.kernels.verlet_run` with the same arguments (the typed
+  structures of :mod:`.structures`; no extension) and the same kick-drift-kick steps, adaptive
+  step controller and probes (the law's per-contact state lives in the ``dmax`` slots; ``kappa``
+  holds the law's stiffness k, ``damping`` its parameter p);
 - ``energy(u, kappa, damping, d0, de, dx0, rsum, fext)``: the stored energy minus the work of the
   external forces [J];
 - ``stride``: the adaptive step's bound (below).
@@ -319,9 +320,12 @@ def _build(force, update, stored, partials, inverse, dissipative, constants=(), 
         return max(1, int(np.ceil(block * c_steps * weff - 1e-9)))
 
     @njit(nogil=True)
-    def run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres,
-            law, general, wall_slot, interval, stride_, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f,
-            out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, ext, ext_on, body_slot, out_b):
+    def run(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
+        u, v, a, g, acc = state
+        mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
+        de, dx0, rsum, dcap, _, dmax, _, _ = contacts
+        rec, out_f, out_ke, out_pe, out_ed, _, out_v, record_v, _, _, fmax, peak, _ = probes
+        interval, stride_, n_sub, n_eval, c_steps, relax = control
         n = a.shape[0]
         if dmax.shape[0] < n:  # the law's state lives in dmax: the caller must give one slot per contact
             raise ValueError("generated law: the state array (dmax) is shorter than the contacts")

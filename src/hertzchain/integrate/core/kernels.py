@@ -374,10 +374,15 @@ def _adapt_stride(req, ns, relax, acc):
 
 
 @njit(cache=True, nogil=True)
-def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres,
-               law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f,
-               out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, ext, ext_on, body_slot, out_b):
+def verlet_run(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
     """Advance from sample ``k_start`` to ``k_stop`` (samples ``interval`` seconds apart) with velocity Verlet.
+
+    ``state`` (:class:`~.structures.VerletState`), ``chain`` (:class:`~.structures.ChainArrays`),
+    ``contacts`` (:class:`~.structures.ContactArrays`), ``extension``
+    (:class:`~.structures.Extension`), ``probes`` (:class:`~.structures.VerletProbes`, positions
+    not recorded) and ``control`` (:class:`~.structures.VerletControl`) carry the arrays and
+    numbers named below; ``law`` is the law's code, ``general`` whether the general force loop is
+    needed (``System.general``: dissipation, offsets, an extension).
 
     On entry and exit ``u, v, a, g`` hold positions, synchronised velocities, accelerations and
     forces at a sample time, so a run can be split into chunks (progress bars, checkpoints).
@@ -416,6 +421,12 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     Velocities used by the dissipative forces at t + dt are predicted as v(t + dt/2) + a(t) dt/2;
     the error is O(dt^2) per step, so the scheme stays second order.
     """
+    u, v, a, g, acc = state
+    mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
+    de, dx0, rsum, dcap, dyield, dmax, dres, kres = contacts
+    ext, ext_on, body_slot = extension
+    rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, _, _, fmax, peak, out_b = probes
+    interval, stride, n_sub, n_eval, c_steps, relax = control
     n = a.shape[0]
     nout = rec.shape[0]
     block = interval / n_sub
