@@ -28,7 +28,7 @@ __all__ = ["ThreadTeam", "COMPILED_IN", "kept_on_disk", "thread_start", "agree_s
 #: The files whose functions a thread function compiles in, besides its own module (its on-disk
 #: cache key holds their text: an edit of any of them compiles it afresh).
 COMPILED_IN = ("drivers/thread_blocks.py", "core/kernels.py", "core/primitives.py", "core/barrier.py",
-               "core/extension.py", "core/energies.py", "core/fused.py")
+               "core/extension.py", "core/energies.py", "core/fused.py", "core/plastic.py")
 
 
 def kept_on_disk(dispatcher, module: str, *variant):
