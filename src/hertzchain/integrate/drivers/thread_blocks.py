@@ -5,8 +5,9 @@ Both thread functions (:mod:`hertzchain.integrate.drivers.threaded`'s aligned el
 one :mod:`hertzchain.integrate.drivers.threaded_laws` builds from a law's contact) cut the chain
 into blocks of bodies, one per thread, agree on the adaptive step through a maximum over the
 blocks and record their own block at a sample, the energies as block sums added in block
-order; those parts are written once, here (inlined into each thread function, so that its loops
-compile as one body).
+order; those parts are written once, here: called once a sample or an evaluation of the step
+(compiled once, cached, called from both), but for :func:`move_body`, inlined into the loops
+over a block's bodies (so that they vectorise).
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ class ThreadTeam(NamedTuple):
     edacc: np.ndarray
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def thread_start(team, tid, acc, wall_slot, control):
     """Thread ``tid``'s block [s, e), whether it owns the wall's contact and has neighbours on its
     left and right, its accumulators (thread 0 keeps ``acc``, the others a copy: the same
@@ -73,7 +74,7 @@ def thread_start(team, tid, acc, wall_slot, control):
     return s, e, s <= wall_slot < e, tid > 0, tid < team.nthr - 1, my, control.interval / control.n_sub, ns, int(my[2])
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def agree_steps(team, tid, sense, req, ns, relax, my):
     """The adaptive step's evaluation across threads: block ``tid`` requires ``req`` steps per
     block (a bound over its contacts, computed after a barrier); the chain requires the largest
@@ -88,7 +89,7 @@ def agree_steps(team, tid, sense, req, ns, relax, my):
     return kernels._adapt_stride(req, ns, relax, my), sense
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def record_block(team, tid, k, s, e, u, v, g, probes):
     """Sample ``k`` of block ``tid`` = [s, e): its recorded contacts' forces, its contacts' running
     maximum forces and, when asked, its bodies' velocities and positions (positions stay put in a
@@ -123,7 +124,7 @@ def move_body(u, v, a, g, i, f, fprev, fext, inv_mass, dt, half, last):
         u[i] += dt * v[i]
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def end_sample(team, sense, ke, g):
     """A sample's last barrier (every thread has read the block sums before any writes the next
     sample's) and whether the state is still finite, from the summed kinetic energy ``ke`` and the
@@ -132,7 +133,7 @@ def end_sample(team, sense, ke, g):
     return sense, np.isfinite(ke) and np.isfinite(g[1])
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True)
 def column_sum(x, col):
     """x[0, col] + x[1, col] + ... in block order (the same sum on every thread)."""
     total = x[0, col]
