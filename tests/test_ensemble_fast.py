@@ -197,3 +197,28 @@ def test_record_pages_are_reused_only_once_their_arrays_are_gone():
     d[:] = 2.0
     assert not np.shares_memory(d, view) and not view.any()
     release_records()
+
+
+def test_quintic_bound_holds_over_the_step_and_skips_open_contacts():
+    """``quintic_at_most``: where it says the overlap's quintic Hermite stays at or below a level
+    (the probes then write 0 without interpolating), a dense evaluation of the interpolant never
+    exceeds it; an overlap that is clearly open over the step (negative, moving apart) is found so,
+    and one that closes inside the step is not."""
+    from hertzchain.integrate.drivers.rkn_kernels import quintic, quintic_at_most
+
+    rng = np.random.default_rng(7)
+    theta = np.linspace(0.0, 1.0, 2001)
+    found = 0
+    for _ in range(2000):
+        h = 10 ** rng.uniform(-9, -6)
+        y0, y1 = -(10 ** rng.uniform(-10, -6, 2))
+        s0, s1, c0, c1 = rng.normal(size=4) * np.array([1e-3, 1e-3, 1e3, 1e3]) * 10 ** rng.uniform(-3, 3, 4)
+        w = np.array(quintic(theta, h))
+        p = w.T @ np.array([y0, s0, c0, y1, s1, c1])
+        if quintic_at_most(y0, s0, c0, y1, s1, c1, h, 0.0):
+            found += 1
+            assert p.max() <= 0.0
+    assert found > 200
+    assert quintic_at_most(-1e-6, -1e-3, 0.0, -2e-6, -1e-3, 0.0, 1e-6, 0.0)  # open, moving apart
+    assert quintic_at_most(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-6, 0.0)  # at rest, untouched: exactly 0
+    assert not quintic_at_most(-1e-9, 1e-3, 0.0, 1e-9, 1e-3, 0.0, 2e-6, 0.0)  # closes inside the step

@@ -367,6 +367,24 @@ def quintic(theta, h):
 
 
 @njit(cache=True, nogil=True)
+def quintic_at_most(y0, s0, c0, y1, s1, c1, h, level):
+    """True when the :func:`quintic` interpolant through (y, y', y'') at both ends of a step of size
+    h stays at or below ``level`` over the whole step, with a margin (1e-9 of the data's size) that
+    no rounding of its evaluation crosses; when every datum is 0 it evaluates to exactly 0.
+
+    The weights of y0 and y1 are non-negative and sum to 1, and each other weight keeps one sign on
+    [0, 1]: theta (1 - theta)^3 (1 + 3 theta) h and -theta^3 (1 - theta) (4 - 3 theta) h, at most
+    16/81 h in size; (1/2) theta^2 (1 - theta)^3 h^2 and (1/2) theta^3 (1 - theta)^2 h^2, at most
+    54/3125 h^2. Hence p <= max(y0, y1) + (16/81) h (max(s0, 0) + max(-s1, 0))
+    + (54/3125) h^2 (max(c0, 0) + max(c1, 0))."""
+    hh = h * h
+    bound = (max(y0, y1) + 0.1976 * h * (max(s0, 0.0) + max(-s1, 0.0))
+             + 0.01729 * hh * (max(c0, 0.0) + max(c1, 0.0)))
+    scale = abs(y0) + abs(y1) + h * (abs(s0) + abs(s1)) + hh * (abs(c0) + abs(c1))
+    return bound + 1e-9 * scale <= level
+
+
+@njit(cache=True, nogil=True)
 def quintic_peak(f0, d0, e0, f1, d1, e1, h):
     """(value, offset in [0, h]) of the largest value of the quintic Hermite through (f, f', f'')
     at both ends, where its slope turns from d0 > 0 to d1 <= 0; else the larger end. Newton's
