@@ -222,3 +222,31 @@ def test_quintic_bound_holds_over_the_step_and_skips_open_contacts():
     assert quintic_at_most(-1e-6, -1e-3, 0.0, -2e-6, -1e-3, 0.0, 1e-6, 0.0)  # open, moving apart
     assert quintic_at_most(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-6, 0.0)  # at rest, untouched: exactly 0
     assert not quintic_at_most(-1e-9, 1e-3, 0.0, 1e-9, 1e-3, 0.0, 2e-6, 0.0)  # closes inside the step
+
+
+def test_fit_shortcuts_give_numpys_order_statistics_and_one_pass_momenta():
+    """The compiled fit's shortcuts for a record mostly at one value (a wall before its pulse):
+    the 10th percentile and the median are NumPy's exactly, whether or not the shortcut applies,
+    and the front and tail momenta of one pass are those of two separate trapezoid sums."""
+    from hertzchain.analysis.pulse_batch import _median, _momenta, _percentile_10
+
+    rng = np.random.default_rng(11)
+    for zeros in (0, 5, 50, 90, 99):
+        y = rng.uniform(0.1, 2.0, 200)
+        y[rng.permutation(200)[:2 * zeros]] = 0.0
+        assert _percentile_10(y) == np.percentile(y, 10)
+        assert _median(y) == np.median(y) and _median(y[:-1]) == np.median(y[:-1])
+    t = np.sort(rng.uniform(0.0, 1.0, 300))
+    f = rng.normal(size=300)
+    for split in (-1.0, t[0], t[7], 0.5 * (t[100] + t[101]), t[-1], 2.0):
+        front, tail = _momenta(t, f, 0.1, split)
+        k = np.searchsorted(t, split, side="right")
+        ref_total = float(np.sum(0.5 * ((f[:-1] - 0.1) + (f[1:] - 0.1)) * np.diff(t)))
+        if t[0] < split < t[-1]:
+            fs = np.interp(split, t, f - 0.1)
+            ref_front = float(np.sum(0.5 * ((f[:k - 1] - 0.1) + (f[1:k] - 0.1)) * np.diff(t[:k]))
+                              + 0.5 * ((f[k - 1] - 0.1) + fs) * (split - t[k - 1]))
+        else:
+            ref_front = 0.0 if split <= t[0] else ref_total
+        assert front == pytest.approx(ref_front, rel=1e-12, abs=1e-15)
+        assert front + tail == pytest.approx(ref_total, rel=1e-12)
