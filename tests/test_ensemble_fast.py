@@ -250,3 +250,33 @@ def test_fit_shortcuts_give_numpys_order_statistics_and_one_pass_momenta():
             ref_front = 0.0 if split <= t[0] else ref_total
         assert front == pytest.approx(ref_front, rel=1e-12, abs=1e-15)
         assert front + tail == pytest.approx(ref_total, rel=1e-12)
+
+
+@pytest.mark.parametrize("law", ["elastic", "viscoelastic", "dashpot"])
+def test_force_bound_holds_over_the_step(law):
+    """``force_bound``: the run's maxima search a step only where its bound passes the maximum so
+    far; no force the probes interpolate in the step (the law at the interpolated overlap and rate,
+    dense in theta) exceeds it, and it is close to the largest one for a loaded contact."""
+    from hertzchain.integrate.core.kernels import LAW_DASHPOT, LAW_VISCOELASTIC
+    from hertzchain.integrate.drivers import rkn_damped_kernels as rk
+    from hertzchain.integrate.drivers.rkn_kernels import force_bound
+
+    code = LAW_VISCOELASTIC if law == "viscoelastic" else LAW_DASHPOT
+    damping = {"elastic": 0.0, "viscoelastic": 2e-6, "dashpot": 5.0}[law]
+    kappa = np.array([1e10])
+    rng = np.random.default_rng(5)
+    theta = np.linspace(0.0, 1.0, 401)
+    ratios = []
+    for _ in range(300):
+        h = 10 ** rng.uniform(-8, -6)
+        ed = np.zeros((2, rk.ROWS, 1))
+        ed[:, rk.R_D, 0] = rng.uniform(-2e-7, 1e-6, 2)
+        ed[:, rk.R_R, 0] = rng.normal(size=2) * 1e-2
+        ed[:, rk.R_Q, 0] = rng.normal(size=2) * 1e4
+        f = max(rk._force_at(ed, 0, 1, 0, x, h, kappa, np.array([damping]), np.zeros(1), None, code) for x in theta)
+        bound = force_bound(*ed[0, rk.R_D:rk.R_Q + 1, 0], *ed[1, rk.R_D:rk.R_Q + 1, 0], h, kappa[0], damping,
+                            code == LAW_VISCOELASTIC)
+        assert f <= bound
+        if f > 0:
+            ratios.append(bound / f)
+    assert np.median(ratios) < 2.0  # a bound that skips most searches, not just any upper bound

@@ -69,7 +69,7 @@ from numba import njit
 
 from ..core import kernels
 from ..core.primitives import DELTA_MIN, LAW_VISCOELASTIC, _viscous_force
-from .rkn_kernels import hermite, quintic, quintic_at_most
+from .rkn_kernels import hermite, quintic, quintic_at_most, force_bound
 
 
 class DampedState(NamedTuple):
@@ -620,7 +620,10 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
             if not all_forces:  # the run's maxima up to the last sample (a last step may pass it)
                 for j in range(nc):
                     fj = ed[c, R_F, j] if t + h <= t_last else 0.0
-                    if ed[b, R_DF, j] > 0.0 and ed[c, R_DF, j] <= 0.0:
+                    # the search only where the step's force may pass the maximum so far
+                    if ed[b, R_DF, j] > 0.0 and ed[c, R_DF, j] <= 0.0 and fmax[j] < force_bound(
+                            ed[b, R_D, j], ed[b, R_R, j], ed[b, R_Q, j], ed[c, R_D, j], ed[c, R_R, j], ed[c, R_Q, j], h,
+                            kappa[j], damping[j], law == LAW_VISCOELASTIC):
                         fk, x = _peak_in_step(ed, b, c, j, h, kappa, damping, d0, off, law)
                         fj = fk if fk > fj and t + x * h <= t_last else fj
                     fmax[j] = fj if fj > fmax[j] else fmax[j]
