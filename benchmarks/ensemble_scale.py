@@ -11,13 +11,20 @@ diameter and 0.02 mm offset tolerances) with ``store = "metrics"``, run as a use
    --nthreads 1``; warmed by a small sweep first), against the local engine on the same members
    in the same conditions; the metrics of both are checked to be identical.
 
+The CPU time per member is the robust figure on a shared machine (the wall time carries whatever
+else runs on the cores). A sweep of one chunk runs first, so that the process's fixed cost
+(imports, loading the compiled kernels, planning: a few CPU-seconds) is separated from the
+marginal cost per member, which is what a million members multiply. ``--rtol`` sets the
+members' ``run.rtol`` (recorded as not the default) to measure the step tolerance's share.
+
     .venv/bin/python benchmarks/ensemble_scale.py                                  # 1e6 members (hours on 2 cores)
     .venv/bin/python benchmarks/ensemble_scale.py --members 100000 --dask-members 10000
 
 Prints the numbers and saves ``benchmarks/results/ensemble_scale.json`` with the machine's
 description and its load average before and after (the machine may be shared). When
 ``--members`` is below 1e6 the JSON and the printout also give the extrapolation to 1e6 members,
-labelled as such: the time scales with the members (chunks are independent), the peak memory
+labelled as such: the time scales with the members (chunks are independent; the marginal CPU
+time per member times 1e6 plus the fixed cost once, on the idle cores), the peak memory
 with the chunk (and, at the end, with the metrics table of every member).
 """
 
@@ -43,9 +50,11 @@ from _common import REPO, RESULTS, machine_info, save_json
 BIN = Path(sys.executable).parent
 
 
-def sweep_file(folder: Path, members: int, chunk_size: int) -> Path:
+def sweep_file(folder: Path, members: int, chunk_size: int, rtol: float | None = None) -> Path:
     data = tomllib.loads((REPO / "examples" / "tolerance_ensemble.toml").read_text())
     data["sweep"].update(n=members, chunk_size=chunk_size, store="metrics")
+    if rtol is not None:  # not the default: the step tolerance of every member's rkn4 run
+        data["base"]["run"]["rtol"] = rtol
     path = folder / f"ensemble_{members}.toml"
     path.write_text(tomli_w.dumps(data))
     return path
@@ -157,19 +166,38 @@ def main() -> int:
     ap.add_argument("--members", type=int, default=1_000_000, help="members of the local run (default 1e6)")
     ap.add_argument("--dask-members", type=int, default=10_000, help="members of the Dask comparison (0: none)")
     ap.add_argument("--chunk-size", type=int, default=500, help="members per chunk")
+    ap.add_argument("--rtol", type=float, default=None,
+                    help="run.rtol of the members (default: the config's, i.e. rkn4's default; a non-default "
+                         "value is recorded as such)")
     args = ap.parse_args()
     info = {"machine": machine_info(), "load_before": load(), "members": args.members, "chunk_size": args.chunk_size,
-            "ensemble": "examples/tolerance_ensemble.toml, store = 'metrics'"}
+            "ensemble": "examples/tolerance_ensemble.toml, store = 'metrics'"
+                        + ("" if args.rtol is None else f", run.rtol = {args.rtol:g} (NOT the default)")}
     with tempfile.TemporaryDirectory(prefix="ensemble_scale_") as tmp:
         folder = Path(tmp)
-        print(f"load average {info['load_before']}; {args.members} members, chunks of {args.chunk_size}", flush=True)
-        r = local_run(sweep_file(folder, args.members, args.chunk_size), folder / "local")
+        print(f"load average {info['load_before']}; {args.members} members, chunks of {args.chunk_size}"
+              + ("" if args.rtol is None else f"; run.rtol = {args.rtol:g} (not the default)"), flush=True)
+        # One chunk alone first: the process's fixed cost (imports, loading the compiled kernels,
+        # planning), so that the CPU time per member can be given without it (the marginal cost,
+        # what a million members multiply) and the extrapolation adds it once.
+        one = local_run(sweep_file(folder, args.chunk_size, args.chunk_size, args.rtol), folder / "one")
+        shutil.rmtree(folder / "one")
+        r = local_run(sweep_file(folder, args.members, args.chunk_size, args.rtol), folder / "local")
         shutil.rmtree(folder / "local")
+        extra = args.members - args.chunk_size
+        if extra > 0:
+            r["marginal_cpu_ms_per_member"] = 1e3 * (r["cpu_seconds"] - one["cpu_seconds"]) / extra
+            r["fixed_cpu_seconds"] = one["cpu_seconds"] - 1e-3 * r["marginal_cpu_ms_per_member"] * args.chunk_size
+        info["one_chunk"] = one
         info["local"] = r
         print(f"local engine: {r['seconds']:.0f} s, {r['members_per_s']:.1f} members/s "
               f"({r['cpu_ms_per_member']:.2f} CPU-ms per member, compilation included), peak RSS "
               f"{r['peak_rss_bytes'] / 2**20:.0f} MiB (estimate {r['estimate_peak_bytes'] / 2**20:.0f} MiB, ratio "
               f"{r['peak_over_estimate']:.2f}), {r['chunk_bytes_per_member']:.0f} bytes/member on disk", flush=True)
+        if "marginal_cpu_ms_per_member" in r:
+            print(f"  marginal {r['marginal_cpu_ms_per_member']:.2f} CPU-ms per member (against one chunk of "
+                  f"{args.chunk_size}: {one['cpu_seconds']:.1f} CPU-s), fixed cost {r['fixed_cpu_seconds']:.1f} CPU-s",
+                  flush=True)
         if args.members < 1_000_000:
             from hertzchain.sweep import load_sweep
             from hertzchain.sweep.runner import estimate_sweep
@@ -178,14 +206,17 @@ def main() -> int:
 
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the LongRunWarning of a sweep that is not run
-                est = estimate_sweep(load_sweep(sweep_file(folder, 1_000_000, args.chunk_size)))
+                est = estimate_sweep(load_sweep(sweep_file(folder, 1_000_000, args.chunk_size, args.rtol)))
             cores = len(os.sched_getaffinity(0))
+            per_member = r.get("marginal_cpu_ms_per_member", r["cpu_ms_per_member"])
+            fixed = r.get("fixed_cpu_seconds", 0.0)
             info["extrapolated_1e6"] = {
                 "note": f"EXTRAPOLATED from {args.members} members, not measured",
                 "seconds": 1_000_000 / r["members_per_s"],
                 # what the CPU time per member gives on this machine's cores when nothing else runs
                 # (the wall time above carries the load of whatever shares the cores)
-                "seconds_on_idle_cores": 1e-3 * r["cpu_ms_per_member"] * 1_000_000 / cores, "cores": cores,
+                # (the marginal CPU time per member times a million, plus the fixed cost once)
+                "seconds_on_idle_cores": (1e-3 * per_member * 1_000_000 + fixed) / cores, "cores": cores,
                 "estimate_peak_rss_bytes": est.peak_bytes,
                 "disk_bytes": 1_000_000 * r["chunk_bytes_per_member"]}
             x = info["extrapolated_1e6"]
