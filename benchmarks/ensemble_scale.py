@@ -14,7 +14,8 @@ diameter and 0.02 mm offset tolerances) with ``store = "metrics"``, run as a use
 The CPU time per member is the robust figure on a shared machine (the wall time carries whatever
 else runs on the cores). A sweep of one chunk runs first, so that the process's fixed cost
 (imports, loading the compiled kernels, planning: a few CPU-seconds) is separated from the
-marginal cost per member, which is what a million members multiply. ``--rtol`` sets the
+marginal cost per member, which is what a million members multiply; ``--stages`` members are then
+timed stage by stage in this process on one thread (steps, samples, fit). ``--rtol`` sets the
 members' ``run.rtol`` (recorded as not the default) to measure the step tolerance's share.
 
     .venv/bin/python benchmarks/ensemble_scale.py                                  # 1e6 members (hours on 2 cores)
@@ -157,6 +158,58 @@ def dask_comparison(folder: Path, members: int, chunk_size: int) -> dict:
             "metrics_identical": identical}
 
 
+def stages(members: int, rtol: float | None) -> dict:
+    """Where one batch's CPU time goes, in this process on one thread (CPU-ms per member, the best of
+    three): the batched rkn4 steps alone (samples 1/10 of the run apart), the steps with the
+    sweep's samples (the difference: interpolating the wall force and the energies at them), and
+    the compiled fit of the wall pulses, as a metrics-only chunk runs them."""
+    import warnings
+
+    import numba
+
+    from hertzchain import Probes
+    from hertzchain.analysis.pulse_batch import fit_pulses
+    from hertzchain.runs.batch import simulate_batch
+    from hertzchain.sweep import parse_sweep
+    from hertzchain.sweep.runner import F_M_REFINE
+    from hertzchain.sweep.schema import chunk_members
+
+    data = tomllib.loads((REPO / "examples" / "tolerance_ensemble.toml").read_text())
+    data["sweep"].update(n=members, chunk_size=members, store="metrics")
+    cfg = parse_sweep(data)
+    run = data["base"]["run"]
+    models, _ = chunk_members(cfg, list(range(members)))
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+
+    def best(fn) -> float:
+        fn()  # loads the compiled code
+        times = []
+        for _ in range(3):
+            c0 = time.process_time()
+            fn()
+            times.append(time.process_time() - c0)
+        return 1e3 * min(times) / members
+
+    def batch(interval: float):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return simulate_batch(models, run["duration"], Probes(sample_interval=interval, contacts=()),
+                                  integrator="auto", max_force="run", rtol=rtol)
+
+    try:
+        steps = best(lambda: batch(run["duration"] / 10))
+        sampled = best(lambda: batch(run["sample_interval"]))
+        ds = batch(run["sample_interval"])
+        t, wall = ds["time"].values, ds["wall_force"].values
+        fit = best(lambda: fit_pulses(t, wall, refine=F_M_REFINE))
+    finally:
+        numba.set_num_threads(threads)
+    return {"members": members, "threads": 1, "steps_per_member": float(ds["n_steps"].mean()),
+            "steps_cpu_ms": steps, "samples_cpu_ms": sampled - steps, "fit_cpu_ms": fit,
+            "note": "simulate_batch end to end (steps alone: samples 1/10 of the run apart); CPU-ms per member"}
+
+
 def load() -> list[float]:
     return list(os.getloadavg())
 
@@ -169,6 +222,8 @@ def main() -> int:
     ap.add_argument("--rtol", type=float, default=None,
                     help="run.rtol of the members (default: the config's, i.e. rkn4's default; a non-default "
                          "value is recorded as such)")
+    ap.add_argument("--stages", type=int, default=1000,
+                    help="members of the per-stage timing on one thread, in this process (0: none)")
     args = ap.parse_args()
     info = {"machine": machine_info(), "load_before": load(), "members": args.members, "chunk_size": args.chunk_size,
             "ensemble": "examples/tolerance_ensemble.toml, store = 'metrics'"
@@ -224,6 +279,11 @@ def main() -> int:
                   f"{x['seconds_on_idle_cores'] / 60:.0f} min from the CPU time on {cores} idle cores; peak RSS "
                   f"~{x['estimate_peak_rss_bytes'] / 2**20:.0f} MiB (the sweep's estimate), "
                   f"{x['disk_bytes'] / 2**20:.0f} MiB of chunks", flush=True)
+        if args.stages:
+            st = info["stages"] = stages(args.stages, args.rtol)
+            print(f"one batch of {st['members']} members on 1 thread, CPU-ms per member: steps "
+                  f"{st['steps_cpu_ms']:.2f} ({st['steps_per_member']:.0f} steps), samples {st['samples_cpu_ms']:.2f}, "
+                  f"fit {st['fit_cpu_ms']:.2f}", flush=True)
         if args.dask_members:
             d = dask_comparison(folder, args.dask_members, args.chunk_size)
             info["dask"] = d
