@@ -11,13 +11,21 @@ diameter and 0.02 mm offset tolerances) with ``store = "metrics"``, run as a use
    --nthreads 1``; warmed by a small sweep first), against the local engine on the same members
    in the same conditions; the metrics of both are checked to be identical.
 
+The CPU time per member is the robust figure on a shared machine (the wall time carries whatever
+else runs on the cores). A sweep of one chunk runs first, so that the process's fixed cost
+(imports, loading the compiled kernels, planning: a few CPU-seconds) is separated from the
+marginal cost per member, which is what a million members multiply; ``--stages`` members are then
+timed stage by stage in this process on one thread (steps, samples, fit). ``--rtol`` sets the
+members' ``run.rtol`` (recorded as not the default) to measure the step tolerance's share.
+
     .venv/bin/python benchmarks/ensemble_scale.py                                  # 1e6 members (hours on 2 cores)
     .venv/bin/python benchmarks/ensemble_scale.py --members 100000 --dask-members 10000
 
 Prints the numbers and saves ``benchmarks/results/ensemble_scale.json`` with the machine's
 description and its load average before and after (the machine may be shared). When
 ``--members`` is below 1e6 the JSON and the printout also give the extrapolation to 1e6 members,
-labelled as such: the time scales with the members (chunks are independent), the peak memory
+labelled as such: the time scales with the members (chunks are independent; the marginal CPU
+time per member times 1e6 plus the fixed cost once, on the idle cores), the peak memory
 with the chunk (and, at the end, with the metrics table of every member).
 """
 
@@ -43,9 +51,11 @@ from _common import REPO, RESULTS, machine_info, save_json
 BIN = Path(sys.executable).parent
 
 
-def sweep_file(folder: Path, members: int, chunk_size: int) -> Path:
+def sweep_file(folder: Path, members: int, chunk_size: int, rtol: float | None = None) -> Path:
     data = tomllib.loads((REPO / "examples" / "tolerance_ensemble.toml").read_text())
     data["sweep"].update(n=members, chunk_size=chunk_size, store="metrics")
+    if rtol is not None:  # not the default: the step tolerance of every member's rkn4 run
+        data["base"]["run"]["rtol"] = rtol
     path = folder / f"ensemble_{members}.toml"
     path.write_text(tomli_w.dumps(data))
     return path
@@ -148,6 +158,58 @@ def dask_comparison(folder: Path, members: int, chunk_size: int) -> dict:
             "metrics_identical": identical}
 
 
+def stages(members: int, rtol: float | None) -> dict:
+    """Where one batch's CPU time goes, in this process on one thread (CPU-ms per member, the best of
+    three): the batched rkn4 steps alone (samples 1/10 of the run apart), the steps with the
+    sweep's samples (the difference: interpolating the wall force and the energies at them), and
+    the compiled fit of the wall pulses, as a metrics-only chunk runs them."""
+    import warnings
+
+    import numba
+
+    from hertzchain import Probes
+    from hertzchain.analysis.pulse_batch import fit_pulses
+    from hertzchain.runs.batch import simulate_batch
+    from hertzchain.sweep import parse_sweep
+    from hertzchain.sweep.runner import F_M_REFINE
+    from hertzchain.sweep.schema import chunk_members
+
+    data = tomllib.loads((REPO / "examples" / "tolerance_ensemble.toml").read_text())
+    data["sweep"].update(n=members, chunk_size=members, store="metrics")
+    cfg = parse_sweep(data)
+    run = data["base"]["run"]
+    models, _ = chunk_members(cfg, list(range(members)))
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+
+    def best(fn) -> float:
+        fn()  # loads the compiled code
+        times = []
+        for _ in range(3):
+            c0 = time.process_time()
+            fn()
+            times.append(time.process_time() - c0)
+        return 1e3 * min(times) / members
+
+    def batch(interval: float):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return simulate_batch(models, run["duration"], Probes(sample_interval=interval, contacts=()),
+                                  integrator="auto", max_force="run", rtol=rtol)
+
+    try:
+        steps = best(lambda: batch(run["duration"] / 10))
+        sampled = best(lambda: batch(run["sample_interval"]))
+        ds = batch(run["sample_interval"])
+        t, wall = ds["time"].values, ds["wall_force"].values
+        fit = best(lambda: fit_pulses(t, wall, refine=F_M_REFINE))
+    finally:
+        numba.set_num_threads(threads)
+    return {"members": members, "threads": 1, "steps_per_member": float(ds["n_steps"].mean()),
+            "steps_cpu_ms": steps, "samples_cpu_ms": sampled - steps, "fit_cpu_ms": fit,
+            "note": "simulate_batch end to end (steps alone: samples 1/10 of the run apart); CPU-ms per member"}
+
+
 def load() -> list[float]:
     return list(os.getloadavg())
 
@@ -157,19 +219,40 @@ def main() -> int:
     ap.add_argument("--members", type=int, default=1_000_000, help="members of the local run (default 1e6)")
     ap.add_argument("--dask-members", type=int, default=10_000, help="members of the Dask comparison (0: none)")
     ap.add_argument("--chunk-size", type=int, default=500, help="members per chunk")
+    ap.add_argument("--rtol", type=float, default=None,
+                    help="run.rtol of the members (default: the config's, i.e. rkn4's default; a non-default "
+                         "value is recorded as such)")
+    ap.add_argument("--stages", type=int, default=1000,
+                    help="members of the per-stage timing on one thread, in this process (0: none)")
     args = ap.parse_args()
     info = {"machine": machine_info(), "load_before": load(), "members": args.members, "chunk_size": args.chunk_size,
-            "ensemble": "examples/tolerance_ensemble.toml, store = 'metrics'"}
+            "ensemble": "examples/tolerance_ensemble.toml, store = 'metrics'"
+                        + ("" if args.rtol is None else f", run.rtol = {args.rtol:g} (NOT the default)")}
     with tempfile.TemporaryDirectory(prefix="ensemble_scale_") as tmp:
         folder = Path(tmp)
-        print(f"load average {info['load_before']}; {args.members} members, chunks of {args.chunk_size}", flush=True)
-        r = local_run(sweep_file(folder, args.members, args.chunk_size), folder / "local")
+        print(f"load average {info['load_before']}; {args.members} members, chunks of {args.chunk_size}"
+              + ("" if args.rtol is None else f"; run.rtol = {args.rtol:g} (not the default)"), flush=True)
+        # One chunk alone first: the process's fixed cost (imports, loading the compiled kernels,
+        # planning), so that the CPU time per member can be given without it (the marginal cost,
+        # what a million members multiply) and the extrapolation adds it once.
+        one = local_run(sweep_file(folder, args.chunk_size, args.chunk_size, args.rtol), folder / "one")
+        shutil.rmtree(folder / "one")
+        r = local_run(sweep_file(folder, args.members, args.chunk_size, args.rtol), folder / "local")
         shutil.rmtree(folder / "local")
+        extra = args.members - args.chunk_size
+        if extra > 0:
+            r["marginal_cpu_ms_per_member"] = 1e3 * (r["cpu_seconds"] - one["cpu_seconds"]) / extra
+            r["fixed_cpu_seconds"] = one["cpu_seconds"] - 1e-3 * r["marginal_cpu_ms_per_member"] * args.chunk_size
+        info["one_chunk"] = one
         info["local"] = r
         print(f"local engine: {r['seconds']:.0f} s, {r['members_per_s']:.1f} members/s "
               f"({r['cpu_ms_per_member']:.2f} CPU-ms per member, compilation included), peak RSS "
               f"{r['peak_rss_bytes'] / 2**20:.0f} MiB (estimate {r['estimate_peak_bytes'] / 2**20:.0f} MiB, ratio "
               f"{r['peak_over_estimate']:.2f}), {r['chunk_bytes_per_member']:.0f} bytes/member on disk", flush=True)
+        if "marginal_cpu_ms_per_member" in r:
+            print(f"  marginal {r['marginal_cpu_ms_per_member']:.2f} CPU-ms per member (against one chunk of "
+                  f"{args.chunk_size}: {one['cpu_seconds']:.1f} CPU-s), fixed cost {r['fixed_cpu_seconds']:.1f} CPU-s",
+                  flush=True)
         if args.members < 1_000_000:
             from hertzchain.sweep import load_sweep
             from hertzchain.sweep.runner import estimate_sweep
@@ -178,14 +261,17 @@ def main() -> int:
 
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the LongRunWarning of a sweep that is not run
-                est = estimate_sweep(load_sweep(sweep_file(folder, 1_000_000, args.chunk_size)))
+                est = estimate_sweep(load_sweep(sweep_file(folder, 1_000_000, args.chunk_size, args.rtol)))
             cores = len(os.sched_getaffinity(0))
+            per_member = r.get("marginal_cpu_ms_per_member", r["cpu_ms_per_member"])
+            fixed = r.get("fixed_cpu_seconds", 0.0)
             info["extrapolated_1e6"] = {
                 "note": f"EXTRAPOLATED from {args.members} members, not measured",
                 "seconds": 1_000_000 / r["members_per_s"],
                 # what the CPU time per member gives on this machine's cores when nothing else runs
                 # (the wall time above carries the load of whatever shares the cores)
-                "seconds_on_idle_cores": 1e-3 * r["cpu_ms_per_member"] * 1_000_000 / cores, "cores": cores,
+                # (the marginal CPU time per member times a million, plus the fixed cost once)
+                "seconds_on_idle_cores": (1e-3 * per_member * 1_000_000 + fixed) / cores, "cores": cores,
                 "estimate_peak_rss_bytes": est.peak_bytes,
                 "disk_bytes": 1_000_000 * r["chunk_bytes_per_member"]}
             x = info["extrapolated_1e6"]
@@ -193,6 +279,11 @@ def main() -> int:
                   f"{x['seconds_on_idle_cores'] / 60:.0f} min from the CPU time on {cores} idle cores; peak RSS "
                   f"~{x['estimate_peak_rss_bytes'] / 2**20:.0f} MiB (the sweep's estimate), "
                   f"{x['disk_bytes'] / 2**20:.0f} MiB of chunks", flush=True)
+        if args.stages:
+            st = info["stages"] = stages(args.stages, args.rtol)
+            print(f"one batch of {st['members']} members on 1 thread, CPU-ms per member: steps "
+                  f"{st['steps_cpu_ms']:.2f} ({st['steps_per_member']:.0f} steps), samples {st['samples_cpu_ms']:.2f}, "
+                  f"fit {st['fit_cpu_ms']:.2f}", flush=True)
         if args.dask_members:
             d = dask_comparison(folder, args.dask_members, args.chunk_size)
             info["dask"] = d

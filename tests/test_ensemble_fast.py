@@ -197,3 +197,86 @@ def test_record_pages_are_reused_only_once_their_arrays_are_gone():
     d[:] = 2.0
     assert not np.shares_memory(d, view) and not view.any()
     release_records()
+
+
+def test_quintic_bound_holds_over_the_step_and_skips_open_contacts():
+    """``quintic_at_most``: where it says the overlap's quintic Hermite stays at or below a level
+    (the probes then write 0 without interpolating), a dense evaluation of the interpolant never
+    exceeds it; an overlap that is clearly open over the step (negative, moving apart) is found so,
+    and one that closes inside the step is not."""
+    from hertzchain.integrate.drivers.rkn_kernels import quintic, quintic_at_most
+
+    rng = np.random.default_rng(7)
+    theta = np.linspace(0.0, 1.0, 2001)
+    found = 0
+    for _ in range(2000):
+        h = 10 ** rng.uniform(-9, -6)
+        y0, y1 = -(10 ** rng.uniform(-10, -6, 2))
+        s0, s1, c0, c1 = rng.normal(size=4) * np.array([1e-3, 1e-3, 1e3, 1e3]) * 10 ** rng.uniform(-3, 3, 4)
+        w = np.array(quintic(theta, h))
+        p = w.T @ np.array([y0, s0, c0, y1, s1, c1])
+        if quintic_at_most(y0, s0, c0, y1, s1, c1, h, 0.0):
+            found += 1
+            assert p.max() <= 0.0
+    assert found > 200
+    assert quintic_at_most(-1e-6, -1e-3, 0.0, -2e-6, -1e-3, 0.0, 1e-6, 0.0)  # open, moving apart
+    assert quintic_at_most(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1e-6, 0.0)  # at rest, untouched: exactly 0
+    assert not quintic_at_most(-1e-9, 1e-3, 0.0, 1e-9, 1e-3, 0.0, 2e-6, 0.0)  # closes inside the step
+
+
+def test_fit_shortcuts_give_numpys_order_statistics_and_one_pass_momenta():
+    """The compiled fit's shortcuts for a record mostly at one value (a wall before its pulse):
+    the 10th percentile and the median are NumPy's exactly, whether or not the shortcut applies,
+    and the front and tail momenta of one pass are those of two separate trapezoid sums."""
+    from hertzchain.analysis.pulse_batch import _median, _momenta, _percentile_10
+
+    rng = np.random.default_rng(11)
+    for zeros in (0, 5, 50, 90, 99):
+        y = rng.uniform(0.1, 2.0, 200)
+        y[rng.permutation(200)[:2 * zeros]] = 0.0
+        assert _percentile_10(y) == np.percentile(y, 10)
+        assert _median(y) == np.median(y) and _median(y[:-1]) == np.median(y[:-1])
+    t = np.sort(rng.uniform(0.0, 1.0, 300))
+    f = rng.normal(size=300)
+    for split in (-1.0, t[0], t[7], 0.5 * (t[100] + t[101]), t[-1], 2.0):
+        front, tail = _momenta(t, f, 0.1, split)
+        k = np.searchsorted(t, split, side="right")
+        ref_total = float(np.sum(0.5 * ((f[:-1] - 0.1) + (f[1:] - 0.1)) * np.diff(t)))
+        if t[0] < split < t[-1]:
+            fs = np.interp(split, t, f - 0.1)
+            ref_front = float(np.sum(0.5 * ((f[:k - 1] - 0.1) + (f[1:k] - 0.1)) * np.diff(t[:k]))
+                              + 0.5 * ((f[k - 1] - 0.1) + fs) * (split - t[k - 1]))
+        else:
+            ref_front = 0.0 if split <= t[0] else ref_total
+        assert front == pytest.approx(ref_front, rel=1e-12, abs=1e-15)
+        assert front + tail == pytest.approx(ref_total, rel=1e-12)
+
+
+@pytest.mark.parametrize("law", ["elastic", "viscoelastic", "dashpot"])
+def test_force_bound_holds_over_the_step(law):
+    """``force_bound``: the run's maxima search a step only where its bound passes the maximum so
+    far; no force the probes interpolate in the step (the law at the interpolated overlap and rate,
+    dense in theta) exceeds it, and it is close to the largest one for a loaded contact."""
+    from hertzchain.integrate.core.kernels import LAW_DASHPOT, LAW_VISCOELASTIC
+    from hertzchain.integrate.drivers import rkn_damped_kernels as rk
+    from hertzchain.integrate.drivers.rkn_kernels import force_bound
+
+    code = LAW_VISCOELASTIC if law == "viscoelastic" else LAW_DASHPOT
+    damping = {"elastic": 0.0, "viscoelastic": 2e-6, "dashpot": 5.0}[law]
+    kappa = np.array([1e10])
+    rng = np.random.default_rng(5)
+    theta = np.linspace(0.0, 1.0, 401)
+    ratios = []
+    for _ in range(300):
+        h = 10 ** rng.uniform(-8, -6)
+        ed = np.zeros((2, rk.ROWS, 1))
+        ed[:, rk.R_D, 0] = rng.uniform(-2e-7, 1e-6, 2)
+        ed[:, rk.R_R, 0] = rng.normal(size=2) * 1e-2
+        ed[:, rk.R_Q, 0] = rng.normal(size=2) * 1e4
+        f = max(rk._force_at(ed, 0, 1, 0, x, h, kappa, np.array([damping]), np.zeros(1), None, code) for x in theta)
+        bound = force_bound(*ed[0, rk.R_D:rk.R_Q + 1, 0], *ed[1, rk.R_D:rk.R_Q + 1, 0], h, kappa[0], damping,
+                            code == LAW_VISCOELASTIC)
+        assert f <= bound
+        if f > 0:
+            ratios.append(bound / f)
+    assert np.median(ratios) < 2.0  # a bound that skips most searches, not just any upper bound

@@ -79,16 +79,45 @@ def _noise(f, block):
 
 
 @njit(cache=True)
+def _min_count(y):
+    """(smallest value of y, how many samples hold it): one pass, no copy."""
+    lo = y[0]
+    count = 0
+    for v in y:
+        if v < lo:
+            lo = v
+            count = 1
+        elif v == lo:
+            count += 1
+    return lo, count
+
+
+@njit(cache=True)
 def _percentile_10(y):
-    """``np.percentile(y, 10)`` (numpy's linear method) by a partial sort."""
+    """``np.percentile(y, 10)`` (numpy's linear method) by a partial sort; the smallest value when
+    more than the lowest 10 % (plus one) hold it (a wall's record before its pulse arrives: the
+    same number without the copy and the sort)."""
     q = 0.1 * (y.size - 1)
     k = int(math.floor(q))
+    lo, count = _min_count(y)
+    if count > k + 1:  # both order statistics the interpolation takes are the minimum
+        return lo
     part = np.partition(y, k)
     a = part[k]
     b = part[k + 1:].min() if k + 1 < y.size else a
     frac = q - k
     d = b - a
     return b - d * (1.0 - frac) if frac >= 0.5 else a + d * frac
+
+
+@njit(cache=True)
+def _median(y):
+    """``np.median(y)``; the smallest value, without the copy and the sort, when more than half
+    the samples hold it (then both middle order statistics are that value)."""
+    lo, count = _min_count(y)
+    if count > y.size // 2 + 1:
+        return lo
+    return np.median(y)
 
 
 @njit(cache=True)
@@ -251,17 +280,17 @@ def _fit_loading(t, y, p0, w_lo, w_hi, max_iter, refine, out):
 def _momenta(t, f, b, split):
     """``pulse.front_tail_momenta`` of f - b split at ``split`` [s]."""
     n = t.size
+    k = np.searchsorted(t, split, side="right") if t[0] < split < t[n - 1] else 0
     total = 0.0
-    for i in range(n - 1):
+    front = 0.0
+    for i in range(n - 1):  # one pass: the front's terms are the total's first k - 1, in the same order
         total += 0.5 * ((f[i] - b) + (f[i + 1] - b)) * (t[i + 1] - t[i])
+        if i == k - 2:
+            front = total
     if split <= t[0]:
         return 0.0, total
     if split >= t[n - 1]:
         return total, 0.0
-    k = np.searchsorted(t, split, side="right")
-    front = 0.0
-    for i in range(k - 1):
-        front += 0.5 * ((f[i] - b) + (f[i + 1] - b)) * (t[i + 1] - t[i])
     f_split = (f[k - 1] - b) + ((f[k] - b) - (f[k - 1] - b)) * (split - t[k - 1]) / (t[k] - t[k - 1])
     front += 0.5 * ((f[k - 1] - b) + f_split) * (split - t[k - 1])
     return front, total - front
@@ -303,7 +332,7 @@ def _fit_one(t, f, min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out):
         for k in range(t.size):
             if t[k] < value[1] - PRE_PULSE_GAP * value[2]:
                 count += 1
-        b_new = np.median(f[:count]) if count >= MIN_BASELINE_POINTS else 0.0  # t increases: the first ones
+        b_new = _median(f[:count]) if count >= MIN_BASELINE_POINTS else 0.0  # t increases: the first ones
         converged = abs(b_new - b) <= 1e-9 * value[0]
         b = b_new
         p0[:] = value

@@ -505,4 +505,13 @@ def same_layout(models: Sequence[Model]) -> bool:
     if len(models) == 0 or not all(isinstance(m, Model) for m in models):
         return False
     key = layout_key(models[0])
-    return key is not None and all(layout_key(m) == key for m in models)
+    if key is None:
+        return False
+    # once per distinct model: a tolerance ensemble's members are one nominal model, repeated
+    seen = {id(models[0])}
+    for m in models:
+        if id(m) not in seen:
+            seen.add(id(m))
+            if layout_key(m) != key:
+                return False
+    return True

@@ -355,6 +355,49 @@ def quintic(theta, h):
             (-4.0 * t3 + 7.0 * t4 - 3.0 * t5) * h, (0.5 * t3 - t4 + 0.5 * t5) * hh)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _quintic_bound(y0, s0, c0, y1, s1, c1, h):
+    """(an upper bound of the :func:`quintic` interpolant through (y, y', y'') at both ends of a
+    step of size h over the whole step, the size of its data: 1e-9 of it exceeds any rounding of
+    the interpolant's evaluation).
+
+    The weights of y0 and y1 are non-negative and sum to 1, and each other weight keeps one sign on
+    [0, 1]: theta (1 - theta)^3 (1 + 3 theta) h and -theta^3 (1 - theta) (4 - 3 theta) h, at most
+    16/81 h in size; (1/2) theta^2 (1 - theta)^3 h^2 and (1/2) theta^3 (1 - theta)^2 h^2, at most
+    54/3125 h^2. Hence p <= max(y0, y1) + (16/81) h (max(s0, 0) + max(-s1, 0))
+    + (54/3125) h^2 (max(c0, 0) + max(c1, 0))."""
+    hh = h * h
+    bound = (max(y0, y1) + 0.1976 * h * (max(s0, 0.0) + max(-s1, 0.0))
+             + 0.01729 * hh * (max(c0, 0.0) + max(c1, 0.0)))
+    return bound, abs(y0) + abs(y1) + h * (abs(s0) + abs(s1)) + hh * (abs(c0) + abs(c1))
+
+
+@njit(cache=True, nogil=True)
+def quintic_at_most(y0, s0, c0, y1, s1, c1, h, level):
+    """True when the :func:`quintic` interpolant through (y, y', y'') at both ends of a step of size
+    h stays at or below ``level`` over the whole step, with a margin that no rounding of its
+    evaluation crosses (:func:`_quintic_bound`); when every datum is 0 it evaluates to exactly 0."""
+    bound, scale = _quintic_bound(y0, s0, c0, y1, s1, c1, h)
+    return bound + 1e-9 * scale <= level
+
+
+@njit(cache=True, nogil=True)
+def force_bound(d0, r0, q0, d1, r1, q1, h, kappa, damping, kuwabara_kono):
+    """An upper bound [N] of a contact's force over a step, as the probes interpolate it (the law
+    at the overlap's :func:`quintic` through (delta, r, q) and the rate's :func:`hermite` through
+    (r, q) at both ends, clipped, times dx / d <= 1 for an offset pair): the law, which grows with
+    both, at their bounds. The rate's cubic weights of r0 and r1 are non-negative and sum to 1, the
+    others theta (1 - theta)^2 h and -theta^2 (1 - theta) h, at most 4/27 h in size. A margin of
+    1e-9 covers rounding: no interpolated force of the step exceeds it."""
+    dm, ds = _quintic_bound(d0, r0, q0, d1, r1, q1, h)
+    dm = max(dm + 1e-9 * ds, 0.0)
+    rm = max(r0, r1) + 0.1482 * h * (max(q0, 0.0) + max(-q1, 0.0))
+    rm = max(rm + 1e-9 * (abs(r0) + abs(r1) + h * (abs(q0) + abs(q1))), 0.0)
+    sd = np.sqrt(dm)
+    f = kappa * dm * sd + (kappa * damping * sd * rm if kuwabara_kono else damping * rm)
+    return f * (1.0 + 1e-9)
+
+
 @njit(cache=True, nogil=True)
 def quintic_peak(f0, d0, e0, f1, d1, e1, h):
     """(value, offset in [0, h]) of the largest value of the quintic Hermite through (f, f', f'')
