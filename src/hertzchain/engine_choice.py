@@ -8,7 +8,10 @@ tests/test_engine_choice.py):
   its default step control keeps the peak wall force within ~1e-8 of DOP853, better than the
   Verlet's ~1e-6, at a fraction of the steps), or Kuwabara-Kono's or the dashpot, plain or
   size-scaled, or beads offset from the axis (:mod:`hertzchain.integrate.drivers.rkn_damped`: within
-  ~4e-7 on the paper's chain 1).
+  ~4e-7 on the paper's chain 1), or the elastic-plastic law or a registry law (power, Hunt-Crossley,
+  a user's, with or without per-contact state: :mod:`hertzchain.integrate.drivers.rkn_laws`, the same
+  method and bound; within ~1e-7 of the Verlet at a 2 ns step on an elastic-plastic chain,
+  tests/test_rkn_laws.py).
   Otherwise, or when the call sets the Verlet's own accuracy (``steps_per_radian``), a fixed
   step ``dt`` or several threads, the compiled velocity ``"verlet"`` (peak wall force within ~1e-6).
 * threads: more than one only where the threaded engine runs the model (the Verlet on a chain of
@@ -146,8 +149,11 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
         elif isinstance(threads, int) and threads > 1:
             integrator, why = "verlet", "verlet: several threads asked for"
         else:
-            integrator, why = "rkn4", (f"rkn4: {'offset' if system.misaligned else 'aligned'} "
-                                       f"{'dissipative' if system.law else 'elastic'} chain")
+            from .laws import law_of_code
+
+            spec = law_of_code(system.law)
+            integrator, why = "rkn4", (f"rkn4: {'offset' if system.misaligned else 'aligned'} chain, "
+                                       f"{'dissipative' if spec.dissipative else 'conservative'} law {spec.name!r}")
     else:
         why = f"{integrator}: asked for"
     if isinstance(threads, str):  # "auto" (checked above)

@@ -24,6 +24,7 @@ from numba import njit
 
 from ...errors import SimulationDiverged
 from ...model import System
+from ..core.disk_cache import INTEGRATE, files_digest, function_files_digest, on_disk
 from ..core.energies import contact_plastic_work, unloading_energy
 from ..core.kernels import DELTA_MIN, elastoplastic_force
 from ..core.layout import pack
@@ -34,6 +35,9 @@ from .verlet import RawRun
 __all__ = ["run_rkn_laws", "law_run"]
 
 _BUILT: dict = {}
+#: The package's files compiled into these kernels (with the law's own: their on-disk cache key).
+_COMPILED_IN = ("drivers/rkn_state_kernels.py", "drivers/rkn_laws.py", "drivers/rkn_damped_kernels.py",
+                "drivers/rkn_kernels.py", "core/kernels.py", "core/primitives.py", "core/energies.py")
 
 
 def _generated_adapter(force, update, stored, dissipative: bool) -> rs.LawAdapter:
@@ -121,11 +125,18 @@ def law_run(code: int):
     key = (code, id(spec.force), id(spec.state), id(spec.energy), spec.dissipative, spec.plastic)
     if key not in _BUILT:
         if spec.plastic:
-            adapter = _PLASTIC
+            adapter, law_files = _PLASTIC, files_digest(INTEGRATE / "core/energies.py")
         else:
             adapter = _generated_adapter(compiled(spec.force), compiled(spec.state), compiled(spec.energy),
                                          bool(spec.dissipative))
-        _BUILT[key] = rs.build(adapter)
+            law_files = function_files_digest(spec.force, spec.state, spec.energy)
+        built = rs.build(adapter)
+        if law_files is not None:  # on disk under the text of everything compiled in (a law typed at
+            # the prompt: in memory only), as the generated Verlet loops (core/disk_cache.py)
+            sources = law_files + files_digest(*(INTEGRATE / name for name in _COMPILED_IN))
+            variant = ("rkn_laws", spec.name, spec.dissipative, spec.plastic)
+            built = tuple(on_disk(fn, *variant, i, sources=sources) for i, fn in enumerate(built))
+        _BUILT[key] = built
     return _BUILT[key]
 
 
@@ -149,7 +160,7 @@ def run_rkn_laws(system: System, duration: float, sample_interval: float, dt: fl
     """
     from ...laws import law_of_code
 
-    accel, end_data, set_modes, _, energies, run = law_run(system.law)
+    accel, end_data, set_modes, commit_all, energies, run = law_run(system.law)
     plastic = law_of_code(system.law).plastic
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
     nc = system.n_contacts
@@ -170,6 +181,8 @@ def run_rkn_laws(system: System, duration: float, sample_interval: float, dt: fl
     accel(u, v, w.kappa, w.damping, w.d0, off, w.fext, w.inv_mass, S, mode, a, pw, 0.0)
     end_data(u, v, a, w.kappa, w.damping, w.d0, off, w.fext, w.mass, S, mode, 0.0, ed, ends, 0)
     set_modes(ed, 0, w.kappa, w.damping, S, mode, 1e-8 * duration)
+    # the state of the contacts loaded at the start (touching ones take it as at their closing)
+    commit_all(u, v, w.kappa, w.damping, w.d0, off, S, mode, np.zeros(p), ed, 0)
     accel(u, v, w.kappa, w.damping, w.d0, off, w.fext, w.inv_mass, S, mode, a, pw, 0.0)
     end_data(u, v, a, w.kappa, w.damping, w.d0, off, w.fext, w.mass, S, mode, 0.0, ed, ends, 0)
     energies(u, w.kappa, w.damping, w.d0, off, w.fext, S, ends, 0)

@@ -502,12 +502,14 @@ def build(law: LawAdapter):
                     v[i] = vn[i]
                     a[i] = an[i]
                 steps += 1
+                # the wall's peak up to the run's end (h_max: its duration; a last step may pass it,
+                # the sample there counts below)
                 if ed[b, 1, ws] > 0.0 and ed[c, 1, ws] <= 0.0:
                     fk, x = peak_in_step(ed, b, c, ws, h, kappa, damping, off, Sp, int(mode[ws]))
-                    if fk > peak[0]:
+                    if fk > peak[0] and t + x * h <= h_max:
                         peak[0] = fk
                         peak[1] = t + x * h
-                if ed[c, 0, ws] > peak[0]:
+                if ed[c, 0, ws] > peak[0] and t + h <= h_max:
                     peak[0] = ed[c, 0, ws]
                     peak[1] = t + h
                 tp = t
@@ -525,6 +527,9 @@ def build(law: LawAdapter):
                 fmax[j] = f if f > fmax[j] else fmax[j]
             for r in range(nrec):
                 out_f[k, r] = fi[rec[r]]
+            if fi[ws] > peak[0]:
+                peak[0] = fi[ws]
+                peak[1] = tk
             w0, w0d, w1, w1d = hermite(theta, hl)
             ke = w0 * ends[b, E_KE] + w0d * ends[b, E_DKE] + w1 * ends[c, E_KE] + w1d * ends[c, E_DKE]
             out_ke[k] = ke
