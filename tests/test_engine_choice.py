@@ -166,6 +166,6 @@ def test_cli_verbose_names_the_engine(tmp_path, capsys):
     assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--set", "contact.law=dashpot",
                  "--set", "contact.gamma=10.0", "--verbose"]) == 0
     assert "engine: rkn4: aligned dissipative chain; 1 thread(s)" in " ".join(capsys.readouterr().out.split())
-    assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--set", "contact.law=elastoplastic",
-                 "--set", "run.integrator=rkn4"]) == 2
+    assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--set", "contact.law=hunt_crossley",
+                 "--set", "contact.restitution=0.8", "--set", "run.integrator=dop853"]) == 2
     assert "run.integrator" in capsys.readouterr().err

@@ -152,8 +152,8 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
             from .laws import law_of_code
 
             spec = law_of_code(system.law)
-            integrator, why = "rkn4", (f"rkn4: {'offset' if system.misaligned else 'aligned'} chain, "
-                                       f"{'dissipative' if spec.dissipative else 'conservative'} law {spec.name!r}")
+            integrator, why = "rkn4", (f"rkn4: {'offset' if system.misaligned else 'aligned'} "
+                                       f"{'dissipative' if spec.dissipative else 'elastic'} chain")
     else:
         why = f"{integrator}: asked for"
     if isinstance(threads, str):  # "auto" (checked above)
