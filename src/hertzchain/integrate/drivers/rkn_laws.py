@@ -124,6 +124,7 @@ def law_run(code: int):
     spec = law_of_code(code)
     key = (code, id(spec.force), id(spec.state), id(spec.energy), spec.dissipative, spec.plastic)
     if key not in _BUILT:
+        law_files: bytes | None
         if spec.plastic:
             adapter, law_files = _PLASTIC, files_digest(INTEGRATE / "core/energies.py")
         else:

@@ -62,9 +62,10 @@ __all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "
 EVENT_TOL = 1e-7
 #: Rows of a step end's per-contact data ``ed[c]``: force along the axis (clipped, on the
 #: branch), its time derivative, overlap, rate, d(rate)/dt, the gap beyond the law's opening
-#: overlap, elastic energy, dissipated power on the branch.
-R_F, R_DF, R_D, R_R, R_Q, R_GAP, R_E, R_P = 0, 1, 2, 3, 4, 5, 6, 7
-ROWS = 8
+#: overlap, elastic energy, dissipated power on the branch, then the unclipped force on the branch
+#: and its tangent stiffness dF/d delta and damping dF/d rate (0 off the loaded branch).
+R_F, R_DF, R_D, R_R, R_Q, R_GAP, R_E, R_P, R_FU, R_KT, R_CT = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10
+ROWS = 11
 #: Slot of ``ends[c]`` after the damped kernels' six: the law's other dissipated energy (the
 #: elastic-plastic law's plastic work [J]) at that end, from the committed state.
 E_W = ENDS
@@ -195,9 +196,14 @@ def build(law: LawAdapter):
             m = int(mode[i])
             f, fel, gap = branch_force(d, r, kappa[i], damping[i], S, i, m)
             df = 0.0
-            if f > 0.0 and (m & LOADED) != 0:
+            kt, ct = 0.0, 0.0
+            if (m & LOADED) != 0:
                 kt, ct = tangents(d, r, kappa[i], damping[i], S, i, m)
-                df = kt * r + ct * q
+                if f > 0.0:
+                    df = kt * r + ct * q
+            ed[c, 8, i] = f
+            ed[c, 9, i] = kt
+            ed[c, 10, i] = ct
             fc = f if f > 0.0 else 0.0
             ed[c, 0, i] = cc * fc
             ed[c, 1, i] = df
@@ -242,7 +248,7 @@ def build(law: LawAdapter):
             r = ed[c, 3, j]
             gap = ed[c, 5, j]
             im = inv_mass[j] + inv_mass[j + 1]
-            f, _, _ = branch_force(d, r, kappa[j], damping[j], S, j, m)
+            f = ed[c, 8, j]
             # the force a closing contact reaches in the step: the crossing error
             fx, _, _ = branch_force(d - (gap if gap > 0.0 else 0.0) + abs(r) * h, r, kappa[j], damping[j], S, j, m)
             e1, p1 = abs(fx) * im * h, 2.5
@@ -251,8 +257,8 @@ def build(law: LawAdapter):
                 es = abs(f) * im * h * y * y * y * y
                 if es < e1:
                     e1, p1 = es, 5.0
-            kt, ct = tangents(d, r, kappa[j], damping[j], S, j, m)
-            w2 = abs(kt) * im
+            w2 = abs(ed[c, 9, j]) * im
+            ct = ed[c, 10, j]
             cr = abs(ct) * im
             e3 = abs(f) * im * (w2 * w2 + cr * cr * cr * cr) * h5
             e = e1 + e3
