@@ -29,8 +29,8 @@ import numpy as np
 from numba import njit
 
 from ..core.extension import EXT_CLIN, EXT_KLIN
-from ..core.kernels import DELTA_MIN, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
-from .partials import contact_partials, elastoplastic_adjoint
+from ..core.kernels import DELTA_MIN, LAW_ELASTOPLASTIC
+from .partials import aligned_partials, contact_partials, elastoplastic_adjoint
 from .tape import _fused, replay_group
 
 #: Seeds on the state rather than on a force: a seed's contact number STATE_U + i (STATE_V + i)
@@ -66,6 +66,40 @@ def _clear_seeds(p, q, fb, seed_contact):
             fb[seed_contact[p]] = 0.0
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1):
+    """Fbar_j = seed_j + a'_{j+1} / m_{j+1} - a'_j / m_j (module docstring), a'_{s+1} formed where it
+    is read (a' + h/2 v'); ``ab1``, ``vb1``, ``im1`` are the arrays shifted by one slot."""
+    return fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, damped, loaded):
+    """The bodies' part of a step's adjoint (module docstring): 1/m_i and f_ext,i collect a'_{s+1,i}
+    times the net force and 1/m_i; u' takes the contacts' position adjoints ``wb``; with
+    ``damped`` the velocity adjoints ``rb`` enter vhbar and a'_s; then (u', v', a') become those of
+    step s. ``fs1``, ``wb1``, ``rb1`` are ``fs``, ``wb``, ``rb`` shifted by one slot. ``damped`` and
+    ``loaded`` (f_ext and its gradient kept) are constants at every call: after inlining, LLVM
+    drops the branch not taken."""
+    hh = 0.5 * h
+    for i in range(ab.shape[0]):
+        abi = ab[i] + hh * vb[i]
+        if loaded:
+            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
+            gfext[i] += abi * inv_mass[i]
+        else:
+            ginv[i] += abi * (fs[i] - fs1[i])
+        ub[i] += wb1[i] - wb[i]
+        if damped:
+            vpb = rb1[i] - rb[i]
+            vh = vb[i] + h * ub[i] + vpb
+            ab[i] = hh * (vh + vpb)
+        else:
+            vh = vb[i] + h * ub[i]
+            ab[i] = hh * vh
+        vb[i] = vh
+
+
 @njit(cache=True, nogil=True)
 def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
                    d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, ptr, grad, ext):
@@ -96,7 +130,7 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
             f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
                                                                    vpstore[sl, j + 1], kappa[j], damping[j], d0[j],
                                                                    de[j], dx0[j], rsum[j], law)
-            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
             if linear and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
                 # the mount's spring and dashpot (extension.forces_linear): k delta + c d(delta)/dt
                 dl = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
@@ -116,15 +150,7 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
             gde[j] += fbar * gdd
             gdx0[j] += fbar * gx
             grs[j] += fbar * gr
-        for i in range(n):
-            abi = ab[i] + hh * vb[i]
-            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
-            gfext[i] += abi * inv_mass[i]
-            ub[i] += wb1[i] - wb[i]
-            vpb = rb1[i] - rb[i]
-            vh = vb[i] + h * ub[i] + vpb
-            ab[i] = hh * (vh + vpb)
-            vb[i] = vh
+        _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
         _clear_seeds(p, q, fb, seed_contact)
         p = q
     return p
@@ -142,49 +168,21 @@ def _steps_dissipative(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, f
     gk, gdamp, gd0, gfext, ginv = grad[0], grad[1], grad[2], grad[6], grad[7]
     ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
     m = n - 1
-    visco = law == LAW_VISCOELASTIC
     for sl in range(nsteps - 1, -1, -1):
         h = hstore[sl]
         hh = 0.5 * h
         q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
         for j in range(m):
-            d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
-            dd = d if d > DELTA_MIN else 0.0
-            sd = np.sqrt(dd)
-            rate = vpstore[sl, j] - vpstore[sl, j + 1]
-            k = kappa[j]
-            c = damping[j]
-            if visco:
-                f = k * dd * sd + k * c * sd * rate
-                inv = 1.0 / sd if sd > 0.0 else 0.0
-                fd = k * (1.5 * sd + 0.5 * c * rate * inv) if sd > 0.0 else 0.0
-                fr = k * c * sd
-                fk = dd * sd + c * sd * rate
-                fa = k * sd * rate
-            else:
-                f = k * dd * sd + c * rate
-                fd = 1.5 * k * sd
-                fr = c
-                fk = dd * sd
-                fa = rate
-            on = d >= 0.0 and f > 0.0
-            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
-            fb_on = fbar if on else 0.0
-            fs1[j] = f if on else 0.0
-            wb1[j] = fb_on * fd
-            rb1[j] = fb_on * fr
-            gk[j] += fb_on * fk
-            gdamp[j] += fb_on * fa
-            gd0[j] += fb_on * fd
-        for i in range(n):
-            abi = ab[i] + hh * vb[i]
-            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
-            gfext[i] += abi * inv_mass[i]
-            ub[i] += wb1[i] - wb[i]
-            vpb = rb1[i] - rb[i]
-            vh = vb[i] + h * ub[i] + vpb
-            ab[i] = hh * (vh + vpb)
-            vb[i] = vh
+            f, fd, fr, fk, fa = aligned_partials(ustore[sl, j] - ustore[sl, j + 1] + d0[j],
+                                                 vpstore[sl, j] - vpstore[sl, j + 1], kappa[j], damping[j], law)
+            fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
+            fs1[j] = f
+            wb1[j] = fbar * fd
+            rb1[j] = fbar * fr
+            gk[j] += fbar * fk
+            gdamp[j] += fbar * fa
+            gd0[j] += fbar * fd
+        _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
         _clear_seeds(p, q, fb, seed_contact)
         p = q
     return p
@@ -210,7 +208,7 @@ def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, f
         hh = 0.5 * h
         q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
         for j in range(m):
-            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
             d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
             f = 0.0
             gw = 0.0
@@ -239,15 +237,7 @@ def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, f
             wb1[j] = gw
             rb1[j] = gv
             gd0[j] += gw
-        for i in range(n):
-            abi = ab[i] + hh * vb[i]
-            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
-            gfext[i] += abi * inv_mass[i]
-            ub[i] += wb1[i] - wb[i]
-            vpb = rb1[i] - rb[i]
-            vh = vb[i] + h * ub[i] + vpb
-            ab[i] = hh * (vh + vpb)
-            vb[i] = vh
+        _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
         _clear_seeds(p, q, fb, seed_contact)
         p = q
     return p
@@ -271,20 +261,13 @@ def _steps_static(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mas
             d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
             d = d if d > DELTA_MIN else 0.0
             sd = np.sqrt(d)
-            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
             fs1[j] = kappa[j] * d * sd
             gw = 1.5 * kappa[j] * sd
             wb1[j] = fbar * gw
             gk[j] += fbar * d * sd
             gd0[j] += fbar * gw
-        for i in range(n):
-            abi = ab[i] + hh * vb[i]
-            ginv[i] += abi * (fs[i] - fs1[i] + fext[i])
-            gfext[i] += abi * inv_mass[i]
-            ub[i] += wb1[i] - wb[i]
-            vh = vb[i] + h * ub[i]
-            ab[i] = hh * vh
-            vb[i] = vh
+        _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, fs, fs1, inv_mass, fext, ginv, gfext, False, True)
         _clear_seeds(p, q, fb, seed_contact)
         p = q
     return p
@@ -307,17 +290,11 @@ def _steps_plain(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mass
             d = ustore[sl, j] - ustore[sl, j + 1]
             d = d if d > DELTA_MIN else 0.0
             sd = np.sqrt(d)
-            fbar = fb[j] + im1[j] * (ab1[j] + hh * vb1[j]) - inv_mass[j] * (ab[j] + hh * vb[j])
+            fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
             fs1[j] = kappa[j] * d * sd
             wb1[j] = fbar * 1.5 * kappa[j] * sd
             gk[j] += fbar * d * sd
-        for i in range(n):
-            abi = ab[i] + hh * vb[i]
-            ginv[i] += abi * (fs[i] - fs1[i])
-            ub[i] += wb1[i] - wb[i]
-            vh = vb[i] + h * ub[i]
-            ab[i] = hh * vh
-            vb[i] = vh
+        _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, fs, fs1, inv_mass, fs, ginv, ginv, False, False)
         _clear_seeds(p, q, fb, seed_contact)
         p = q
     return p

@@ -6,7 +6,7 @@ declares them in the registry (:mod:`hertzchain.laws.builtin`, checked against c
 differences in tests/test_laws.py). Laws run by the generated engines (the power law,
 Hunt-Crossley, users' laws) are differentiated by :mod:`hertzchain.integrate.derivatives.law_derivatives`
 from their declarations alone; the fused aligned paths of the tangent and adjoint
-(``tangent._aligned_contact``, ``adjoint._steps_dissipative``) keep Kuwabara-Kono's and the
+(:func:`aligned_partials`, shared by the tangent and the adjoint) keep Kuwabara-Kono's and the
 dashpot's partials written out with selects, so that LLVM vectorises them. The forces and hence
 every taped value are bit for bit those of before the partials came from the registry; of the
 partials only Kuwabara-Kono's dF/d delta on the general path (offsets, a protected body) is
@@ -160,3 +160,31 @@ def elastoplastic_adjoint(d, rate, kappa, damping, dyield, dmax, dres, kres, fba
         return (f, fx, fb * damping * kres * sx, 0.0, fb * kres * sx * rate, 0.0, dresb - fx,
                 kresb + fb * (x * sx + damping * sx * rate))
     return f, 0.0, 0.0, 0.0, 0.0, 0.0, dresb, kresb
+
+
+@njit(cache=True, nogil=True, inline="always")
+def aligned_partials(d, rate, kappa, damping, law):
+    """The force of an aligned Kuwabara-Kono (``law == LAW_VISCOELASTIC``) or dashpot contact at
+    overlap ``d`` [m] and overlap rate ``rate`` [m/s] (``kernels._viscous_force``, the same
+    expressions: paper eq. 1 plus the damping term) with the partials of :func:`law_partials`:
+    (f, dF/dw, dF/drate, dF/dkappa, dF/ddamping), zero where the contact is open or the force
+    clipped; written with selects, so that LLVM vectorises the contact loops of the tangent
+    (``tangent._aligned_step``) and the adjoint (``adjoint._steps_dissipative``) that call it."""
+    dd = d if d > DELTA_MIN else 0.0
+    sd = np.sqrt(dd)
+    fel = kappa * dd * sd
+    if law == LAW_VISCOELASTIC:
+        f = fel + kappa * damping * sd * rate
+        isd = 1.0 / sd if sd > 0.0 else 0.0
+        fd = kappa * (1.5 * sd + 0.5 * damping * rate * isd)
+        fr = kappa * damping * sd
+        fk = dd * sd + damping * sd * rate
+        fa = kappa * sd * rate
+    else:  # dashpot
+        f = fel + damping * rate
+        fd = 1.5 * kappa * sd
+        fr = damping
+        fk = dd * sd
+        fa = rate
+    on = (d >= 0.0) & (f > 0.0)
+    return (f if on else 0.0), (fd if on else 0.0), (fr if on else 0.0), (fk if on else 0.0), (fa if on else 0.0)

@@ -23,13 +23,25 @@ from numba import njit
 from ..core import kernels
 from .adjoint import STATE_U, STATE_V
 from ..core.extension import EXT_CLIN, EXT_KLIN
-from .partials import contact_partials
+from .partials import aligned_partials, contact_partials
 from .tape import _open_block
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, gw, gk):
-    """``kernels.step_elastic`` (the same arithmetic), writing also each contact's partials at the
+def _kick(u, v, i, ai, dt, last):
+    """Body i's update after its acceleration ``ai`` (``kernels.verlet_run``'s step): the kick
+    v += dt a then the drift u += dt v, or in a block's ``last`` step only the closing half kick."""
+    if last:
+        v[i] += 0.5 * dt * ai
+    else:
+        v[i] += dt * ai
+        u[i] += dt * v[i]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, last, gw, gk):
+    """``kernels.step_elastic`` (the same arithmetic), or with ``last`` ``kernels.final_step_elastic``
+    (a block's last step: the closing half kick), writing also each contact's partials at the
     positions the forces are taken at: gw = dF/dw = (3/2) kappa delta^(1/2), gk = dF/dkappa =
     delta^(3/2)."""
     fprev = 0.0
@@ -43,26 +55,7 @@ def _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, gw, gk):
         g[i + 1] = f
         ai = (fprev - f + fext[i]) * inv_mass[i]
         a[i] = ai
-        v[i] += dt * ai
-        u[i] += dt * v[i]
-        fprev = f
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _elastic_last_step(u, v, a, g, kappa, d0, fext, inv_mass, half, gw, gk):
-    """``kernels.final_step_elastic`` (a block's last step: the closing half kick) with partials."""
-    fprev = 0.0
-    for i in range(a.shape[0]):
-        d = u[i] - u[i + 1] + d0[i]
-        d = d if d > kernels.DELTA_MIN else 0.0
-        sd = np.sqrt(d)
-        f = kappa[i] * d * sd
-        gw[i] = 1.5 * kappa[i] * sd
-        gk[i] = d * sd
-        g[i + 1] = f
-        ai = (fprev - f + fext[i]) * inv_mass[i]
-        a[i] = ai
-        v[i] += half * ai
+        _kick(u, v, i, ai, dt, last)
         fprev = f
 
 
@@ -98,36 +91,7 @@ def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_m
         gp[7, j] = gr
     for i in range(n):
         a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-        if last:
-            v[i] += half * a[i]
-        else:
-            v[i] += dt * a[i]
-            u[i] += dt * v[i]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _aligned_contact(d, rate, kappa, damping, law):
-    """``kernels._viscous_force`` (the same expressions) with the partials of
-    ``partials.law_partials``: (f, dF/dw, dF/drate, dF/dkappa, dF/ddamping), zero where the contact
-    is open or the force clipped; written with selects."""
-    dd = d if d > kernels.DELTA_MIN else 0.0
-    sd = np.sqrt(dd)
-    fel = kappa * dd * sd
-    if law == kernels.LAW_VISCOELASTIC:
-        f = fel + kappa * damping * sd * rate
-        isd = 1.0 / sd if sd > 0.0 else 0.0
-        fd = kappa * (1.5 * sd + 0.5 * damping * rate * isd)
-        fr = kappa * damping * sd
-        fk = dd * sd + damping * sd * rate
-        fa = kappa * sd * rate
-    else:  # dashpot
-        f = fel + damping * rate
-        fd = 1.5 * kappa * sd
-        fr = damping
-        fk = dd * sd
-        fa = rate
-    on = (d >= 0.0) & (f > 0.0)
-    return (f if on else 0.0), (fd if on else 0.0), (fr if on else 0.0), (fk if on else 0.0), (fa if on else 0.0)
+        _kick(u, v, i, a[i], dt, last)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -141,28 +105,20 @@ def _aligned_step(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, last,
     vq = v[0] + half * a[0]
     for i in range(n - 1):
         vq1 = v[i + 1] + half * a[i + 1]
-        f, gw[i], gv[i], gk[i], ga[i] = _aligned_contact(u[i] - u[i + 1] + d0[i], vq - vq1, kappa[i], damping[i],
+        f, gw[i], gv[i], gk[i], ga[i] = aligned_partials(u[i] - u[i + 1] + d0[i], vq - vq1, kappa[i], damping[i],
                                                          law)
         g[i + 1] = f
         ai = (fprev - f + fext[i]) * inv_mass[i]
         a[i] = ai
-        if last:
-            v[i] += half * ai
-        else:
-            v[i] += dt * ai
-            u[i] += dt * v[i]
+        _kick(u, v, i, ai, dt, last)
         fprev = f
         vq = vq1
     i = n - 1
-    f, _, _, _, _ = _aligned_contact(u[i] - u[i + 1] + d0[i], vq, kappa[i], damping[i], law)
+    f, _, _, _, _ = aligned_partials(u[i] - u[i + 1] + d0[i], vq, kappa[i], damping[i], law)
     g[i + 1] = f
     ai = (fprev - f + fext[i]) * inv_mass[i]
     a[i] = ai
-    if last:
-        v[i] += half * ai
-    else:
-        v[i] += dt * ai
-        u[i] += dt * v[i]
+    _kick(u, v, i, ai, dt, last)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -324,10 +280,8 @@ def _tangent_loop(general: bool, aligned: bool):
                     elif general:
                         _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt,
                                       s == ns - 1, gp, ext)
-                    elif s < ns - 1:
-                        _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, gw, gk)
                     else:
-                        _elastic_last_step(u, v, a, g, kappa, d0, fext, inv_mass, 0.5 * dt, gw, gk)
+                        _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, s == ns - 1, gw, gk)
                     if params:
                         _parameter_forces(gp, gw, gk, th, pf, general, aligned)
                     for dd in range(nd):
