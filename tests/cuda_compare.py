@@ -13,11 +13,15 @@ import warnings
 import numpy as np
 
 from hertzchain import Chain, Dashpot, Elastoplastic, Model, Probes, Striker, Viscoelastic, Wall
+from hertzchain.elements import Element
 from hertzchain.errors import ElasticLimitWarning
 from hertzchain.runs.batch import simulate_batch
 from hertzchain.integrate.batch.ensemble import Ensemble
 
 INTERVAL = 1e-6  # s
+#: The protected body's variables (runs.batch_results), compared where a batch has them.
+BODY = ("body_force", "body_displacement", "body_velocity", "body_acceleration", "body_energy", "peak_body_force",
+        "peak_body_acceleration", "peak_body_energy")
 
 
 def cases(members: int = 3, beads: int = 3) -> dict[str, tuple[Ensemble, Probes, list, float]]:
@@ -115,6 +119,30 @@ def plastic_cases(warp: bool = False, long: bool = False) -> dict[str, tuple[lis
                                                   3e-5 if long else 5e-6)}
 
 
+def body_cases(warp: bool = False, long: bool = False) -> dict[str, tuple[list, Probes, list, float]]:
+    """Protected bodies and mass-in-mass beads (the engine's extension) in one batch of models (set
+    up member by member) on a 1-bead chain struck at 0.7-1.5 m/s, 35 us (the body's face force has
+    peaked, ~30 us; ~10 s in the simulator): (a) a protected body on a mount spring and dashpot
+    (elastic law, adaptive step, a bead 0.2 mm off the axis); (b) mass-in-mass beads on a flat
+    wall, on a fixed step; (c) both, with the Kuwabara-Kono law, and with Thornton's elastic-plastic
+    law under gravity; (d) a plain member (no extension, in the same batch). ``long``: 3-bead chains for 80 us (the slow set); ``warp``: (c)
+    alone, 4 us (every barrier of the warp kernel costs milliseconds under the simulator)."""
+    n = 3 if long else 1
+    mim = Element("mim", resonator_fraction=0.3, resonator_frequency=40e3)
+    resonant = Chain(np.full(n, 10e-3), "AISI52100", None, mim)
+    body = Wall("body", mass=0.01, stiffness=2e6, damping=20.0)
+    offset = np.zeros(n)
+    offset[0] = 0.2e-3
+    both = Model(resonant, Striker(8e-3, 1.0), body, law=Viscoelastic(A=1e-6))
+    if warp:
+        return {"warp_mass_in_mass_body_viscoelastic": ([both], Probes(INTERVAL, velocities=True), [None], 4e-6)}
+    models = [Model(Chain(np.full(n, 10e-3), offsets=offset), Striker(8e-3, 1.0), body), Model(resonant, Striker(8e-3, 0.7)), both,
+              Model(resonant, Striker(8e-3, 1.5), body, law=Elastoplastic(1e-6), gravity=9.81),
+              Model(Chain.uniform(n, 10e-3), Striker(8e-3, 0.9))]
+    return {"bodies_mass_in_mass_laws": (models, Probes(INTERVAL, velocities=True), [None, 1e-8, None, None, None],
+                                         8e-5 if long else 3.5e-5)}
+
+
 def _rel(a: np.ndarray, b: np.ndarray) -> float:
     """Largest difference relative to the variable's largest magnitude in each member (NaN-aware)."""
     a = a.reshape(a.shape[0], -1)
@@ -149,11 +177,13 @@ def _compare(which: dict) -> dict:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ElasticLimitWarning)
             cpu = simulate_batch(ens, duration, probes, dt=dts, device="cpu")
-            gpu = simulate_batch(ens, duration, probes, dt=dts, device="cuda")
-        res = {"engine": gpu.attrs["engine"]}
+            launches: list = []
+            gpu = simulate_batch(ens, duration, probes, dt=dts, device="cuda",
+                                 progress=lambda d, t, reports=launches: reports.append(d))
+        res = {"engine": gpu.attrs["engine"], "launches": len(launches)}
         for v in ("peak_wall_force", "peak_wall_time", "contact_force", "wall_force", "sensor_force", "velocity",
                   "kinetic_energy", "potential_energy", "dissipated_energy", "max_contact_force", "plastic_work",
-                  "residual_overlap"):
+                  "residual_overlap", *BODY):
             if v in cpu:
                 res[v] = _rel(cpu[v].values, gpu[v].values)
         res["same_steps"] = bool(np.array_equal(cpu["n_steps"].values, gpu["n_steps"].values)
@@ -167,6 +197,12 @@ def _compare(which: dict) -> dict:
         res["dissipated_J"] = float(np.nanmax(cpu["dissipated_energy"].values))
         if "plastic_work" in cpu:  # every member yields: its plastic work at the end
             res["plastic_work_J"] = cpu["plastic_work"].values[:, -1].tolist()
+        if "peak_body_force" in cpu:  # the pulse loads the protected body
+            res["peak_body_N"] = np.nan_to_num(cpu["peak_body_force"].values).tolist()
+        # the GPU run's energy balance: kinetic + stored + dissipated (+ plastic work) against the start
+        total = sum(np.nan_to_num(gpu[v].values) for v in ("kinetic_energy", "potential_energy", "dissipated_energy",
+                                                           "plastic_work") if v in gpu)
+        res["energy_drift"] = float(np.max(np.abs(total - total[:, :1]) / np.abs(total[:, :1])))
         out[name] = res
     return out
 
@@ -203,14 +239,21 @@ def ptx() -> dict:
     dispatcher.get_current_device = lambda: pytypes.SimpleNamespace(compute_capability=(9, 0))
     f1, f2, f3 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]
     i1, b1, i8, f8 = types.int64[::1], types.boolean[::1], types.int64, types.float64
-    # (u, v, a, g, vp[, sc]), 10 parameters, the 4 elastic-plastic state arrays, then law ... status
+    # (u, v, a, g, vp[, sc]), 10 parameters, the 4 elastic-plastic state arrays, then law ... status, then
+    # the extension: wa, ext (column, slot, member), ext_on, body_slot, out_b
     tail = (f2,) * 10 + (f2,) * 4 + (i1, b1, i1, f8, i1, i1, i1, f1, i1, i8, i8, i1, f3, f2, f2, f2, f2, f3, b1, f2, f2,
-                                     f2, i1)
+                                     f2, i1, f2, f3, b1, i1, f3)
     from hertzchain.integrate.core.kernels import elastoplastic_force
+
+    from hertzchain.integrate.core.extension import extended_bound
 
     code, _ = cuda.compile_ptx(elastoplastic_force.py_func, (f8,) * 8, device=True, cc=(9, 0))
     out = {"elastoplastic_force": {"ieee_sqrt": code.count("sqrt.rn.f64"), "division": code.count("div.rn.f64"),
                                    "approximate": code.count(".approx."), "chars": len(code)}}
+    # the extension's step bound (core.extension's source, as the kernels compile it)
+    code, _ = cuda.compile_ptx(extended_bound.py_func, (f8, f8, f8, f8, i8, f8, f8, f8, f8, f8), device=True, cc=(9, 0))
+    out["extended_bound"] = {"ieee_sqrt": code.count("sqrt.rn.f64"), "approximate": code.count(".approx."),
+                             "chars": len(code)}
     for name, n_state in (("thread", 5), ("warp", 6)):
         code, _ = cuda.compile_ptx(_kernels()[name].py_func, (f2,) * n_state + tail, cc=(9, 0))
         out[name] = {"ieee_sqrt": code.count("sqrt.rn.f64"), "division": code.count("div.rn.f64"),
@@ -223,6 +266,14 @@ if __name__ == "__main__":
 
     if sys.argv[1:] == ["ptx"]:
         print(json.dumps(ptx()))
+        sys.exit()
+    if sys.argv[1:2] == ["bodies"]:
+        from hertzchain.integrate.cuda import launch as hc_cuda
+
+        long = sys.argv[2:] == ["long"]
+        hc_cuda.LAUNCH_OUTPUT_BYTES = 2000  # ~4 samples a launch: the extension's state carried across launches
+        print(json.dumps({"thread": compare(which=body_cases(long=long)),
+                          **({} if long else {"warp": compare(kernel="warp", which=body_cases(warp=True))})}))
         sys.exit()
     if sys.argv[1:] == ["plastic_long"]:
         print(json.dumps({"plastic": compare(which=plastic_cases(long=True))}))

@@ -134,7 +134,8 @@ def test_simulated_elastoplastic_matches_the_cpu_engine_until_the_wall():
 
 def test_general_kernels_compile_to_ptx_for_h100():
     """The elastic-plastic law's device function (the CPU kernel's own source) and the general
-    kernels that carry its state compile for a real GPU (sm_90), without one."""
+    kernels that carry its state and the extension (a protected body, mass-in-mass beads: their
+    arrays in the kernels' signatures) compile for a real GPU (sm_90), without one."""
     proc = _run_compare("ptx")
     if proc.returncode != 0:
         if any(s in proc.stderr for s in ("nvrtc", "NVVM", "libnvvm", "DynamicLibNotFound", "CudaSupportError")):
@@ -144,6 +145,8 @@ def test_general_kernels_compile_to_ptx_for_h100():
     law = res["elastoplastic_force"]
     # the law's five IEEE square roots and two divisions, no approximate arithmetic
     assert law["ieee_sqrt"] == 5 and law["division"] == 2 and law["approximate"] == 0
+    # the extension's step bound (core.extension's source): its two IEEE square roots, nothing approximate
+    assert res["extended_bound"]["ieee_sqrt"] == 2 and res["extended_bound"]["approximate"] == 0
     # both kernels hold it (their own square roots and divisions besides); the warp kernel's barriers
     assert res["thread"]["division"] >= 2 and res["warp"]["division"] >= 2 and res["warp"]["barriers"] > 0
 
@@ -151,7 +154,7 @@ def test_general_kernels_compile_to_ptx_for_h100():
 @pytest.mark.skipif(not GPU, reason="no usable CUDA GPU")
 def test_gpu_matches_the_cpu_engine():
     sys.path.insert(0, str(HERE))
-    from cuda_compare import compare, plastic_cases
+    from cuda_compare import BODY, body_cases, compare, plastic_cases
 
     for kernel in ("thread", "warp", "register"):
         result = compare(members=300, beads=30, kernel=kernel)
@@ -164,6 +167,14 @@ def test_gpu_matches_the_cpu_engine():
             accumulated = max(REL, EPS * max(res["n_steps"]))
             for key in FORCES + ("residual_overlap", "kinetic_energy", "potential_energy", "dissipated_energy",
                                  "plastic_work"):
+                if key in res:
+                    assert res[key] <= (REL if key in PEAKS else accumulated), (name, key, res[key])
+    # protected bodies and mass-in-mass beads (3-bead chains, 80 us), both general kernels
+    for kernel in ("thread", "warp"):
+        for name, res in compare(kernel=kernel, which=body_cases(long=True)).items():
+            assert res["same_steps"] and res["same_nan"] and max(res["peak_body_N"]) > 1.0, name
+            accumulated = max(REL, EPS * max(res["n_steps"]))
+            for key in FORCES + BODY + ("kinetic_energy", "potential_energy", "dissipated_energy", "plastic_work"):
                 if key in res:
                     assert res[key] <= (REL if key in PEAKS else accumulated), (name, key, res[key])
 
@@ -203,15 +214,15 @@ def test_device_choice_and_errors():
 def test_simulated_kernels_beyond_the_paper():
     """A flat striker of given mass, gravity, cylinders and given masses on the CUDA engine (set up
     member by member) under Numba's simulator: the CPU engine's numbers bit for bit (the simulator
-    does not fuse multiply-adds); a protected body is refused with a ConfigError naming wall.type
-    (a few minutes under the simulator: marked slow)."""
+    does not fuse multiply-adds) (a few minutes under the simulator: marked slow; protected bodies
+    and mass-in-mass beads: tests/test_cuda_bodies.py)."""
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
     proc = subprocess.run([sys.executable, str(HERE / "cuda_bodies.py")], capture_output=True, text=True, env=env,
                           timeout=1200, cwd=HERE)
     assert proc.returncode == 0, proc.stderr[-3000:]
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     assert result["engine"].startswith("batched velocity Verlet on the GPU")
-    assert result["pulse_N"] > 1.0 and result["refused"] == "wall.type"
+    assert result["pulse_N"] > 1.0
     for key in ("contact_force", "wall_force", "velocity", "peak_wall_force"):
         assert result[key] == 0.0, key
     for key in ("kinetic_energy", "potential_energy", "dissipated_energy"):

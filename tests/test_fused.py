@@ -17,6 +17,7 @@ import hertzchain as hc
 from hertzchain.integrate.core import fused as FU
 from hertzchain.integrate.core import kernels as K
 from hertzchain.integrate.core.layout import pack
+from hertzchain.integrate.core.primitives import open_block
 
 #: The documented bound on the dissipated power of the viscous laws (relative to its largest value).
 POWER_REL = 1e-14
@@ -165,3 +166,44 @@ def test_simulate_uses_the_fused_steps_for_misaligned_chains():
         total = ds.kinetic_energy.values + ds.potential_energy.values + ds.dissipated_energy.values
         assert np.abs(total - total[0]).max() < 1e-4 * total[0]
         assert ds.potential_energy.values.max() > 0.1 * total[0]  # the contacts stored energy
+
+
+@pytest.mark.parametrize("A", [0.0, 2e-6], ids=["plain", "damped"])
+def test_vectorised_plastic_pass_is_the_general_path(A):
+    """kernels.plastic_block's branch-free pass (the unloading curve for every contact, the yield
+    branch redone only for the contacts loaded past dmax and dyield) gives the general path's
+    positions, velocities, forces and elastic-plastic state bit for bit over a pulse that yields
+    contacts (a bead-sized striker at 3 m/s, well above the yield velocity) and separates them; the viscous power
+    within the documented bound."""
+    model = hc.Model(hc.Chain.from_diameters(np.r_[np.full(12, 26e-3), np.geomspace(26e-3, 14e-3, 9)]),
+                     hc.Striker(26e-3, 3.0), law=hc.Elastoplastic(A=A))
+    s = model.system()
+    runs = []
+    for vector in (False, True):
+        w, a, g, powers = _block_start(s)
+        p = w.n_slots
+        vp = np.zeros(p + 1)
+        if vector:
+            acc = np.zeros(8)
+            for k in range(powers.size // 100):  # blocks of 100 steps, the last one's closing half kick
+                if k > 0:
+                    open_block(w.u, w.v, a, 1e-8, 0.5e-8)
+                K.plastic_block(w.u, w.v, vp, a, g, np.zeros(p), w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
+                                w.inv_mass, w.dyield, w.dmax, w.dres, w.kres, True, 100, 1e-8, 0.0, 0, np.zeros(8), acc)
+                powers[k] = acc[1]
+        else:
+            for k in range(powers.size // 100):
+                if k > 0:
+                    open_block(w.u, w.v, a, 1e-8, 0.5e-8)
+                _general(w.u, w.v, a, g, vp, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.inv_mass,
+                         s.law, w.dyield, w.dmax, w.dres, w.kres, 1e-8, 100, powers[100 * k:100 * k + 100])
+                powers[k] = powers[100 * k + 99]
+        runs.append((w.u, w.v, a, g, w.dmax, w.dres, w.kres, powers[:powers.size // 100]))
+    general, vector = runs
+    for name, x, y in zip(("u", "v", "a", "g", "dmax", "dres", "kres"), general, vector):
+        assert np.array_equal(x, y), name
+    assert np.sum(general[4] > w.dyield) >= 5  # contacts yielded
+    assert np.max(general[3]) > 1.0
+    if A > 0.0:
+        assert np.max(general[-1]) > 0.0
+        assert np.abs(general[-1] - vector[-1]).max() <= POWER_REL * np.abs(general[-1]).max()

@@ -28,9 +28,12 @@ def damping_factor(e: float) -> float:
 
 @jit
 def force(d, rate, k, chi, vin):
-    """k d^(3/2) (1 + chi rate / v_in) [N]; the elastic part alone before the state is set."""
+    """k d^(3/2) (1 + chi rate / v_in) [N]; the elastic part alone before the state is set.
+    chi / v_in is one quotient, the same in the engines' second call at rate 0 (the elastic part
+    of the dissipated power), which the compiler then shares: one division a contact, not two."""
     fel = k * d * np.sqrt(d)
-    return fel + fel * chi * rate / vin if vin > 0.0 else fel
+    b = chi / vin if vin > 0.0 else 0.0
+    return fel + fel * b * rate
 
 
 @jit

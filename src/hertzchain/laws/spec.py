@@ -177,6 +177,12 @@ class LawSpec:
         Engine code (-1: assigned by :func:`register_law`).
     exponent : float or None
         The force's power of the overlap at zero rate when it is a fixed number (Hertz: 1.5).
+    constant_parameters : tuple of float
+        Values of the parameter for which the generated loops also compile the law with the
+        parameter as a constant, used on aligned chains whose contacts all have one of them: the
+        law's branches on its parameter fold and its arithmetic simplifies (the power law's
+        n = 3/2: d sqrt(d); n = 2, a cone: d**2 -> d d, no pow), where a run-time branch costs
+        every contact both sides once the loop is vectorised. Each value adds a loop to compile.
     extra : dict
         Anything else (``scaled``: a size-scaled built-in law).
     """
@@ -199,6 +205,7 @@ class LawSpec:
     code: int = -1
     #: the force's power of the overlap at zero rate (Hertz: 1.5) when it is a fixed number
     exponent: float | None = 1.5
+    constant_parameters: tuple[float, ...] = ()
     extra: dict = field(default_factory=dict)
 
     @property

@@ -315,8 +315,6 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         ens = models
     elif isinstance(models, Sequence) and same_layout(models) and _one_probes(probes, len(models)) is not None:
         ens = Ensemble.from_models(models)
-    if device == "cuda" and ens is None:
-        _refuse_extended(models)
     if ens is not None:
         if (one := _one_probes(probes, ens.n_members)) is None:
             raise ConfigError("probes", f"the {ens.n_members} members of an Ensemble share one Probes: give one, "
@@ -324,8 +322,8 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
         ds = _simulate_ensemble(ens, duration, one, dt, progress, n_threads,
                                 configs, device, steps_per_radian, engine_options)
     elif device == "cuda" and _one_layout(models) and _one_probes(probes, len(models)) is not None:
-        # beyond the paper's kind (a given striker, cylinders, gravity) but not extended: set up
-        # member by member, run on the GPU
+        # beyond the paper's kind (a given striker, cylinders, gravity, a protected body,
+        # mass-in-mass beads): set up member by member, run on the GPU
         _cuda.require_gpu()
         ds = _simulate_models(models, duration, probes, dt, progress, n_threads, configs, steps_per_radian,
                               engine=_cuda.run_packed)
@@ -340,15 +338,6 @@ def simulate_batch(models: Sequence[Model] | Ensemble, duration: float,
                               engine=lambda pk, progress: _engine(pk, progress, n_threads, **engine_options))
     warn_members_pulse_not_reached(ds)
     return ds
-
-
-def _refuse_extended(models) -> None:
-    """The CUDA engine has no protected body nor mass-in-mass beads: a ConfigError naming the field."""
-    for i, m in enumerate(models):
-        if isinstance(m, Model) and m.extended:
-            assert m.extension_field is not None  # (an extended model names its field)
-            raise ConfigError(m.extension_field, f"member {i}: the CUDA engine does not model a protected body or "
-                              "mass-in-mass beads; run this batch on the CPU (device='cpu')")
 
 
 def _one_layout(models) -> bool:

@@ -3,15 +3,18 @@
 One ``@njit(parallel=True)`` loop (Numba ``prange``) hands every member to the very same
 :func:`hertzchain.integrate.core.kernels.verlet_run` on slices of the flat buffers of a
 :class:`~hertzchain.integrate.batch.buffers._Packed` (slices are views, so the kernel writes
-straight into the outputs). Velocity Verlet has no cross-member coupling and no reductions across
-members, so the thread that runs a member cannot change its result: every member's numbers are
-those of :func:`hertzchain.simulate` of it alone. :func:`_engine` runs the loop in chunks of
-samples (progress reports between them), one launch at a time.
+straight into the outputs), taken by the loop as three typed structures (:class:`Members`,
+:class:`FlatBuffers`, :class:`Records`) and handed to the kernel as its own. Velocity Verlet
+has no cross-member coupling and no reductions across members, so the thread that runs a member
+cannot change its result: every member's numbers are those of :func:`hertzchain.simulate` of it
+alone. :func:`_engine` runs the loop in chunks of samples (progress reports between them), one
+launch at a time.
 """
 
 from __future__ import annotations
 
 import threading
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -20,6 +23,7 @@ from numba import njit, prange
 from ...errors import ConfigError
 from ...interrupts import check as check_interrupt
 from ..core import kernels
+from ..core.structures import ChainArrays, ContactArrays, Extension, VerletControl, VerletProbes, VerletState
 from .buffers import _Packed, check_members_finite
 from .rkn import rkn_engine, rkn_members
 from ..core.generated import is_generated, law_kernels
@@ -30,47 +34,148 @@ from ..core.generated import is_generated, law_kernels
 CHUNK_SLOT_STEPS = 2e8
 
 
+class Members(NamedTuple):
+    """Where each member lives in the flat buffers, and its parameters (one entry per member).
+
+    Member m owns the slots from ``off[m]`` of :class:`FlatBuffers` (``P + 1`` slots,
+    ``P = n_slots[m]``, rounded up to whole cache lines; see ``batch_buffers._outputs``): the
+    ``P``-sized arrays (mass, kappa, ...) use the first ``P``, ``u, v, g`` the first ``P + 1``
+    (layout of :mod:`hertzchain.integrate.core.kernels`). Its recorded contacts are
+    ``rec[rec_off[m]:rec_off[m+1]]``; its force samples the flat block ``out_f[f_off[m]:f_off[m+1]]``
+    seen as (K, n_rec); its running maximum forces ``fmax[fmax_off[m]:fmax_off[m+1]]``; its
+    velocities ``out_v[v_off[m]:v_off[m+1]]`` seen as (v_rows[m], nbody[m] = N + 1) (:class:`Records`).
+    An extended member's extension array is ``ext[ext_off[m]:ext_off[m + 1]]`` and a member with a
+    protected body records it in ``out_b[b_off[m]:b_off[m + 1]]`` seen as (K, 4). The rest are the
+    fields of :class:`~hertzchain.integrate.core.structures.VerletControl` and of the kernel's
+    other arguments, per member."""
+
+    off: np.ndarray
+    n_slots: np.ndarray
+    rec_off: np.ndarray
+    f_off: np.ndarray
+    v_off: np.ndarray
+    v_rows: np.ndarray
+    nbody: np.ndarray
+    fmax_off: np.ndarray
+    ext_off: np.ndarray
+    b_off: np.ndarray
+    law: np.ndarray
+    general: np.ndarray
+    wall_slot: np.ndarray
+    stride: np.ndarray
+    n_sub: np.ndarray
+    n_eval: np.ndarray
+    c_steps: np.ndarray
+    relax: np.ndarray
+    record_v: np.ndarray
+    ext_on: np.ndarray
+    body_slot: np.ndarray
+
+
+class FlatBuffers(NamedTuple):
+    """Every member's per-slot arrays one after another (``_Packed.flat``, :class:`Members`); the
+    elastic-plastic buffers (``dyield`` ... ``kres``) are empty in a batch without such a member:
+    their slices are then empty and never read; ``ext`` the extended members' extension arrays."""
+
+    u: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    g: np.ndarray
+    mass: np.ndarray
+    inv_mass: np.ndarray
+    kappa: np.ndarray
+    damping: np.ndarray
+    d0: np.ndarray
+    fext: np.ndarray
+    de: np.ndarray
+    dx0: np.ndarray
+    rsum: np.ndarray
+    dcap: np.ndarray
+    dyield: np.ndarray
+    dmax: np.ndarray
+    dres: np.ndarray
+    kres: np.ndarray
+    ext: np.ndarray
+
+
+class Records(NamedTuple):
+    """Every member's probes (flat or one row per member, :class:`Members`) and its wall-peak
+    tracker and accumulators (``peak[m]``, ``acc[m]``: ``kernels.verlet_run``'s)."""
+
+    rec: np.ndarray
+    out_f: np.ndarray
+    out_ke: np.ndarray
+    out_pe: np.ndarray
+    out_ed: np.ndarray
+    out_wp: np.ndarray
+    out_v: np.ndarray
+    fmax: np.ndarray
+    peak: np.ndarray
+    acc: np.ndarray
+    out_b: np.ndarray
+
+
+def batch_structures(pk: _Packed) -> tuple[Members, FlatBuffers, Records]:
+    """The packed batch as the member loops take it (views of its buffers)."""
+    f = pk.flat
+    members = Members(pk.off, pk.n_slots, pk.rec_off, pk.f_off, pk.v_off, pk.v_rows, pk.nb, pk.fmax_off,
+                      pk.ext_off, pk.b_off, pk.law, pk.general, pk.wall_slot, pk.stride, pk.n_sub, pk.n_eval,
+                      pk.c_steps, pk.relax, pk.record_v, pk.ext_on, pk.body_slot)
+    flat = FlatBuffers(f["u"], f["v"], f["a"], f["g"], f["mass"], f["inv_mass"], f["kappa"], f["damping"], f["d0"],
+                       f["fext"], f["de"], f["dx0"], f["rsum"], f["dcap"], f["dyield"], f["dmax"], f["dres"],
+                       f["kres"], pk.ext)
+    records = Records(pk.rec, pk.out_f, pk.out_ke, pk.out_pe, pk.out_ed, pk.out_wp, pk.out_v, pk.fmax, pk.peak,
+                      pk.acc, pk.out_b)
+    return members, flat, records
+
+
+@njit(cache=True, nogil=True)
+def _member(m, members, flat, records, interval):
+    """Member m's typed structures for the stepping loop: views of the flat buffers (slices are
+    views, so the loop writes straight into the outputs). A call, not inlined: inlined into the
+    parallel loop, Numba's array analysis of it failed (an assertion on the slices' shapes)."""
+    s = members.off[m]
+    p = members.n_slots[m]
+    r0 = members.rec_off[m]
+    r1 = members.rec_off[m + 1]
+    nk = records.out_ke.shape[1]
+    f = records.out_f[members.f_off[m]:members.f_off[m + 1]].reshape((nk, r1 - r0))
+    vv = records.out_v[members.v_off[m]:members.v_off[m + 1]].reshape((members.v_rows[m], members.nbody[m]))
+    b0 = members.b_off[m]
+    b1 = members.b_off[m + 1]
+    bb = records.out_b[b0:b1].reshape(((b1 - b0) // 4, 4))
+    state = VerletState(flat.u[s:s + p + 1], flat.v[s:s + p + 1], flat.a[s:s + p], flat.g[s:s + p + 1],
+                        records.acc[m])
+    chain = ChainArrays(flat.mass[s:s + p], flat.inv_mass[s:s + p], flat.kappa[s:s + p], flat.damping[s:s + p],
+                        flat.d0[s:s + p], flat.fext[s:s + p], members.wall_slot[m])
+    contacts = ContactArrays(flat.de[s:s + p], flat.dx0[s:s + p], flat.rsum[s:s + p], flat.dcap[s:s + p],
+                             flat.dyield[s:s + p], flat.dmax[s:s + p], flat.dres[s:s + p], flat.kres[s:s + p])
+    extension = Extension(flat.ext[members.ext_off[m]:members.ext_off[m + 1]], members.ext_on[m],
+                          members.body_slot[m])
+    probes = VerletProbes(records.rec[r0:r1], f, records.out_ke[m], records.out_pe[m], records.out_ed[m],
+                          records.out_wp[m], vv, members.record_v[m], vv[:0], False,
+                          records.fmax[members.fmax_off[m]:members.fmax_off[m + 1]], records.peak[m], bb)
+    control = VerletControl(interval, members.stride[m], members.n_sub[m], members.n_eval[m], members.c_steps[m],
+                            members.relax[m])
+    return state, chain, contacts, extension, probes, control
+
+
 @njit(parallel=True, cache=True)
-def _batch_kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap,
-                  dyield, dmax, dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax,
-                  k_start, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_wp, out_v, v_off, v_rows,
-                  nbody, record_v, fmax, fmax_off, peak, acc, ext, ext_off, ext_on, body_slot, out_b, b_off, status):
+def _batch_kernel(order, members, flat, records, interval, k_start, k_stop, status):
     """Advance every member from sample ``k_start`` to ``k_stop`` with :func:`kernels.verlet_run`.
 
-    Member m owns the slots from ``off[m]`` of the body/contact buffers (``P + 1`` slots,
-    ``P = n_slots[m]``, rounded up to whole cache lines; see ``batch_buffers._outputs``): the
-    ``P``-sized arrays (mass, kappa, ...) use the first ``P``, ``u, v, g`` the first ``P + 1`` (layout of
-    :mod:`hertzchain.integrate.core.kernels`). Its recorded contacts are ``rec[rec_off[m]:rec_off[m+1]]``;
-    its force samples the flat block ``out_f[f_off[m]:f_off[m+1]]`` seen as (K, n_rec); its
-    running maximum forces ``fmax[fmax_off[m]:fmax_off[m+1]]``; its velocities
-    ``out_v[v_off[m]:v_off[m+1]]`` seen as (v_rows[m], nbody[m] = N + 1). Members are visited in
-    the order ``order`` (most expensive first, so that dynamic scheduling does not leave one long
-    member for the end). ``status[m]`` is the kernel's return value; a member that diverged is
-    not advanced again. The elastic-plastic buffers (``dyield`` ... ``kres``, ``out_wp``) are
-    empty in a batch without such a member: their slices are then empty and never read. An
-    extended member's extension array is ``ext[ext_off[m]:ext_off[m + 1]]`` and a member with a
-    protected body records it in ``out_b[b_off[m]:b_off[m + 1]]`` seen as (K, 4).
+    Members (:class:`Members`, :class:`FlatBuffers`, :class:`Records`) are visited in the order
+    ``order`` (most expensive first, so that dynamic scheduling does not leave one long member
+    for the end). ``status[m]`` is the kernel's return value; a member that diverged is not
+    advanced again.
     """
-    nk = out_ke.shape[1]
     for i in prange(order.shape[0]):
         m = order[i]
         if status[m] != 0:
             continue
-        s = off[m]
-        p = n_slots[m]
-        r0 = rec_off[m]
-        r1 = rec_off[m + 1]
-        f = out_f[f_off[m]:f_off[m + 1]].reshape((nk, r1 - r0))
-        vv = out_v[v_off[m]:v_off[m + 1]].reshape((v_rows[m], nbody[m]))
-        bb = out_b[b_off[m]:b_off[m + 1]].reshape(((b_off[m + 1] - b_off[m]) // 4, 4))
-        status[m] = kernels.verlet_run(u[s:s + p + 1], v[s:s + p + 1], a[s:s + p], g[s:s + p + 1], mass[s:s + p],
-                                       inv_mass[s:s + p], kappa[s:s + p], damping[s:s + p], d0[s:s + p],
-                                       de[s:s + p], dx0[s:s + p], rsum[s:s + p], fext[s:s + p], dcap[s:s + p],
-                                       dyield[s:s + p], dmax[s:s + p], dres[s:s + p], kres[s:s + p],
-                                       law[m], general[m], wall_slot[m], interval, stride[m], n_sub[m], n_eval[m],
-                                       c_steps[m], relax[m], k_start, k_stop, rec[r0:r1], f, out_ke[m], out_pe[m],
-                                       out_ed[m], out_wp[m], vv, record_v[m], fmax[fmax_off[m]:fmax_off[m + 1]],
-                                       peak[m], acc[m], ext[ext_off[m]:ext_off[m + 1]], ext_on[m], body_slot[m], bb)
+        state, chain, contacts, extension, probes, control = _member(m, members, flat, records, interval)
+        status[m] = kernels.verlet_run(state, chain, contacts, extension, probes, control, members.law[m],
+                                       members.general[m], k_start, k_stop)
 
 
 _GENERATED: dict = {}
@@ -83,30 +188,14 @@ def _generated_batch_kernel(code: int):
         run = law_kernels(code)[1]
 
         @njit(parallel=True)
-        def kernel(order, off, n_slots, u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap,
-                   dyield, dmax, dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax,
-                   k_start, k_stop, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, out_wp, out_v, v_off, v_rows,
-                   nbody, record_v, fmax, fmax_off, peak, acc, ext, ext_off, ext_on, body_slot, out_b, b_off, status):
-            nk = out_ke.shape[1]
+        def kernel(order, members, flat, records, interval, k_start, k_stop, status):
             for i in prange(order.shape[0]):
                 m = order[i]
                 if status[m] != 0:
                     continue
-                s = off[m]
-                p = n_slots[m]
-                r0 = rec_off[m]
-                r1 = rec_off[m + 1]
-                f = out_f[f_off[m]:f_off[m + 1]].reshape((nk, r1 - r0))
-                vv = out_v[v_off[m]:v_off[m + 1]].reshape((v_rows[m], nbody[m]))
-                bb = out_b[b_off[m]:b_off[m + 1]].reshape(((b_off[m + 1] - b_off[m]) // 4, 4))
-                status[m] = run(u[s:s + p + 1], v[s:s + p + 1], a[s:s + p], g[s:s + p + 1], mass[s:s + p],
-                                               inv_mass[s:s + p], kappa[s:s + p], damping[s:s + p], d0[s:s + p],
-                                               de[s:s + p], dx0[s:s + p], rsum[s:s + p], fext[s:s + p], dcap[s:s + p],
-                                               dyield[s:s + p], dmax[s:s + p], dres[s:s + p], kres[s:s + p],
-                                               law[m], general[m], wall_slot[m], interval, stride[m], n_sub[m], n_eval[m],
-                                               c_steps[m], relax[m], k_start, k_stop, rec[r0:r1], f, out_ke[m], out_pe[m],
-                                               out_ed[m], out_wp[m], vv, record_v[m], fmax[fmax_off[m]:fmax_off[m + 1]],
-                                               peak[m], acc[m], ext[ext_off[m]:ext_off[m + 1]], ext_on[m], body_slot[m], bb)
+                state, chain, contacts, extension, probes, control = _member(m, members, flat, records, interval)
+                status[m] = run(state, chain, contacts, extension, probes, control, members.law[m],
+                                members.general[m], k_start, k_stop)
 
         _GENERATED[code] = kernel
     return _GENERATED[code]
@@ -163,7 +252,7 @@ def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_fo
     groups = [(_batch_kernel, order[~generated])] if not generated.all() else []
     groups += [(_generated_batch_kernel(int(c)), order[pk.law[order] == c]) for c in np.unique(pk.law[order[generated]])]
     samples_per_call = max(1, int(CHUNK_SLOT_STEPS * max(1, n_threads or numba.get_num_threads()) // cost.sum()))
-    flat = pk.flat
+    structures = batch_structures(pk)
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_call)
@@ -175,15 +264,8 @@ def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_fo
                 # Chunk size 1: members are handed out one at a time (dynamic scheduling), since
                 # their costs differ; the default static split would wait for the slowest block.
                 with numba.parallel_chunksize(1):
-                    for kernel, members in groups:
-                        kernel(members, pk.off, pk.n_slots, flat["u"], flat["v"], flat["a"], flat["g"], flat["mass"],
-                               flat["inv_mass"], flat["kappa"], flat["damping"], flat["d0"], flat["de"],
-                               flat["dx0"], flat["rsum"], flat["fext"], flat["dcap"], flat["dyield"],
-                               flat["dmax"], flat["dres"], flat["kres"], pk.law, pk.general,
-                               pk.wall_slot, interval, pk.stride, pk.n_sub, pk.n_eval, pk.c_steps, pk.relax, k,
-                               k_stop, pk.rec, pk.rec_off, pk.out_f, pk.f_off, pk.out_ke, pk.out_pe, pk.out_ed,
-                               pk.out_wp, pk.out_v, pk.v_off, pk.v_rows, pk.nb, pk.record_v, pk.fmax, pk.fmax_off, pk.peak,
-                               pk.acc, pk.ext, pk.ext_off, pk.ext_on, pk.body_slot, pk.out_b, pk.b_off, status)
+                    for kernel, subset in groups:
+                        kernel(subset, *structures, interval, k, k_stop, status)
             finally:
                 numba.set_num_threads(previous)
         check_members_finite(status, k_stop * interval)

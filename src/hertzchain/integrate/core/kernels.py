@@ -28,7 +28,6 @@ Probes are sampled inside the loop every ``stride`` steps (no Python call per st
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -39,9 +38,12 @@ from numba import njit
 from .energies import (energies_elastic, kinetic_energy, plastic_work, potential_energy,  # noqa: F401
                        potential_energy_plastic)
 from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
-                        accelerations_extended, energies_extended, forces_linear)
+                        accelerations_extended, energies_extended, extended_bound, forces_linear,
+                        internal_acceleration)
 
 from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
+# the general path's contact and the elastic-plastic law (re-exported: kernels.elastoplastic_force & co.)
+from .plastic import contact_general, elastoplastic_force, plastic_block  # noqa: F401
 # the law codes, the overlap floor and the helpers the fused steps share (re-exported: kernels.DELTA_MIN & co.)
 from .primitives import (DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC,  # noqa: F401
                          _track_peak, _viscous_force, kick, predict, total)
@@ -134,94 +136,6 @@ def final_step_elastic(u, v, a, g, kappa, d0, fext, inv_mass, half):
         fprev = f
 
 
-@njit(cache=True, nogil=True, inline="always")
-def elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres):
-    """Thornton's elastic-plastic contact force at overlap ``d`` >= 0 and its new state.
-
-    Loading past the largest overlap so far (d > dmax): Hertz, kappa d^(3/2), up to the yield
-    overlap dyield, then the line F_y + (3/2) kappa dyield^(1/2) (d - dyield) (slope pi p_y R*);
-    the state moves to the unloading curve through (d, F): residual overlap
-    dres = d - F / (kappa d^(1/2)) and stiffness kres = kappa (d / (d - dres))^(1/2) (Hertz with
-    Thornton's enlarged radius R_p, see ``contact.thornton_unloading``). Otherwise (unloading or
-    reloading below dmax): kres (d - dres)^(3/2), zero below dres. A viscous term
-    damping kres (d - dres)^(1/2) d(delta)/dt is added (Kuwabara-Kono with the present elastic
-    stiffness; ``damping`` = A [s], 0 for the plain law) and the sum is clipped at zero.
-
-    Parameters are per-contact scalars (overlap [m], rate [m/s], kappa [N/m^1.5], A [s], yield
-    overlap [m], state); returns (force [N], its elastic-plastic part [N], dmax, dres, kres), the
-    caller stores the state. Elastic contacts (dmax <= dyield) have dres = 0 and kres = kappa.
-    Plain Python with ``math``: its source is also the CUDA engine's device function
-    (:mod:`hertzchain.integrate.cuda.kernels`; numba.cuda takes math.sqrt, not np.sqrt).
-    """
-    if d > dmax:
-        dmax = d
-        if d > dyield:
-            sy = math.sqrt(dyield)
-            fep = kappa * sy * (dyield + 1.5 * (d - dyield))  # F_y + (3/2) kappa dyield^(1/2) (d - dyield)
-            sd = math.sqrt(d)
-            x = fep / (kappa * sd)  # d - dres: the unloading stiffness at d is Hertz's (3/2) kappa d^(1/2)
-            dres = d - x
-            kres = kappa * sd / math.sqrt(x)
-            sx = math.sqrt(x)
-        else:
-            sx = math.sqrt(d)
-            fep = kappa * d * sx
-    else:
-        x = d - dres
-        if x > DELTA_MIN:
-            sx = math.sqrt(x)
-            fep = kres * x * sx
-        else:
-            sx = 0.0
-            fep = 0.0
-    f = fep + damping * kres * sx * rate
-    f = f if f > 0.0 else 0.0
-    return f, fep, dmax, dres, kres
-
-
-@njit(cache=True, nogil=True, inline="always")
-def contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyield, dmax, dres, kres, aligned):
-    """One contact of :func:`forces_general` (its body: bodies at ``ui``, ``uj`` [m] moving at
-    ``vi``, ``vj`` [m/s], the contact's parameters and elastic-plastic state): (axial force [N],
-    dissipated power [W], new dmax, dres, kres). With ``aligned`` (a constant in the caller: no
-    offsets in the chain) the geometry branch is compiled out, with the same numbers for aligned
-    pairs. Scalars in and out: inlined with the arrays as arguments, each call counted the
-    arrays' references (~50 ns a contact)."""
-    if not aligned and de != 0.0:
-        dx = dx0 - (ui - uj)
-        dist = np.sqrt(dx * dx + de * de)
-        d = rsum - dist
-        c = dx / dist
-    else:
-        d = ui - uj + d0
-        c = 1.0
-    # d == 0 is kept as a contact: at the impact instant (t = 0, striker just touching) the
-    # dashpot force is already gamma d(delta)/dt = gamma v0 (the law jumps at closure); taking
-    # 0 there instead made Verlet's first half kick miss an O(dt) impulse (first-order error).
-    # The elastic part and the Kuwabara-Kono term (~ delta^(1/2)) vanish at d == 0 anyway.
-    if d < 0.0:
-        return 0.0, 0.0, dmax, dres, kres
-    if d <= DELTA_MIN:
-        d = 0.0
-    if law == LAW_ELASTOPLASTIC:
-        if kappa == 0.0:  # no contact (free end, padding)
-            return 0.0, 0.0, dmax, dres, kres
-        rate = c * (vi - vj)
-        f, fep, dmax, dres, kres = elastoplastic_force(d, rate, kappa, damping, dyield, dmax, dres, kres)
-        return c * f, (f - fep) * rate, dmax, dres, kres
-    sd = np.sqrt(d)
-    fel = kappa * d * sd
-    if law == LAW_ELASTIC:
-        return c * fel, 0.0, dmax, dres, kres
-    rate = c * (vi - vj)  # d(delta)/dt
-    if law == LAW_VISCOELASTIC:
-        f = fel + kappa * damping * sd * rate
-    else:
-        f = fel + damping * rate
-    f = max(f, 0.0)
-    return c * f, (f - fel) * rate, dmax, dres, kres  # F_diss * d(delta)/dt >= 0: power lost to dissipation
-
-
 @njit(cache=True, nogil=True)
 def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres):
     """Axial contact forces with dissipation and/or misalignment; returns the dissipated power [W].
@@ -247,41 +161,6 @@ def forces_general(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax
                                                    dx0[j], rsum[j], law, 0.0, 0.0, 0.0, 0.0, False)
         power += p
     return power
-
-
-@njit(cache=True, nogil=True)
-def plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres, kres,
-                  aligned, ns, dt, t0, wall_slot, peak, acc):
-    """The ``ns`` steps of a block of :func:`verlet_run` for the elastic-plastic law (its opening
-    half kick and drift done by the caller): every contact's force (:func:`contact_general`,
-    inlined, without the geometry branch when ``aligned``) at the predicted velocities ``vp``
-    (P + 1 slots, vp[P] = 0), their powers in ``pw`` summed by
-    :func:`~hertzchain.integrate.core.primitives.total` (the dissipated energy's trapezoidal integral
-    in acc[0:2]), the wall peak, then the kick (:func:`~hertzchain.integrate.core.primitives.kick`),
-    which leaves the next step's predictions in ``vp``. The numbers of forces_general and the
-    update loops, but for the last bits of the dissipated energy (the power summed in another
-    order). One function for the block: a call of forces_general per step cost as much as its
-    pass on short chains, and the power summed in contact order (a chain of dependent additions)
-    set the pace of the step."""
-    half = 0.5 * dt
-    n = a.shape[0]
-    predict(v, a, half, vp)
-    for s in range(ns):
-        if aligned:
-            for j in range(n):
-                g[j + 1], pw[j], dmax[j], dres[j], kres[j] = contact_general(
-                    u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j],
-                    LAW_ELASTOPLASTIC, dyield[j], dmax[j], dres[j], kres[j], True)
-        else:
-            for j in range(n):
-                g[j + 1], pw[j], dmax[j], dres[j], kres[j] = contact_general(
-                    u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j],
-                    LAW_ELASTOPLASTIC, dyield[j], dmax[j], dres[j], kres[j], False)
-        p = total(pw)
-        acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
-        acc[1] = p
-        _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
-        kick(u, v, vp, a, g, fext, inv_mass, dt, half, s == ns - 1)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -444,14 +323,9 @@ def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, 
             dt_ = dt_ if dt_ < dcap[j] else dcap[j]
             k = 1.5 * kappa[j] * np.sqrt(dt_) if dt_ > 0.0 else 0.0
         if ext_on:
-            k += ext[j, EXT_KLIN]
-            c = 0.0 if law == LAW_ELASTIC else (damping[j] if law == LAW_DASHPOT else (2.0 / 3.0) * damping[j] * k)
-            c += ext[j, EXT_CLIN]
-            om2 = 2.0 * (kprev + k + ext[j, EXT_KIN]) * inv_mass[j]
-            beta = 2.0 * (cprev + c) * inv_mass[j]
-            weff = max(weff, np.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta)
-            weff = max(weff, np.sqrt(2.0 * ext[j, EXT_KIN] * ext[j, EXT_IMIN]))
-            cprev = c
+            w, k, cprev = extended_bound(kprev, k, cprev, damping[j], law, ext[j, EXT_KLIN], ext[j, EXT_CLIN],
+                                         ext[j, EXT_KIN], ext[j, EXT_IMIN], inv_mass[j])
+            weff = max(weff, w)
         elif law == LAW_ELASTIC:
             w2 = max(w2, (kprev + k) * inv_mass[j])
         else:
@@ -496,10 +370,15 @@ def _adapt_stride(req, ns, relax, acc):
 
 
 @njit(cache=True, nogil=True)
-def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres,
-               law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f,
-               out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, ext, ext_on, body_slot, out_b):
+def verlet_run(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
     """Advance from sample ``k_start`` to ``k_stop`` (samples ``interval`` seconds apart) with velocity Verlet.
+
+    ``state`` (:class:`~.structures.VerletState`), ``chain`` (:class:`~.structures.ChainArrays`),
+    ``contacts`` (:class:`~.structures.ContactArrays`), ``extension``
+    (:class:`~.structures.Extension`), ``probes`` (:class:`~.structures.VerletProbes`, positions
+    not recorded) and ``control`` (:class:`~.structures.VerletControl`) carry the arrays and
+    numbers named below; ``law`` is the law's code, ``general`` whether the general force loop is
+    needed (``System.general``: dissipation, offsets, an extension).
 
     On entry and exit ``u, v, a, g`` hold positions, synchronised velocities, accelerations and
     forces at a sample time, so a run can be split into chunks (progress bars, checkpoints).
@@ -538,6 +417,12 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     Velocities used by the dissipative forces at t + dt are predicted as v(t + dt/2) + a(t) dt/2;
     the error is O(dt^2) per step, so the scheme stays second order.
     """
+    u, v, a, g, acc = state
+    mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
+    de, dx0, rsum, dcap, dyield, dmax, dres, kres = contacts
+    ext, ext_on, body_slot = extension
+    rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, _, _, fmax, peak, out_b = probes
+    interval, stride, n_sub, n_eval, c_steps, relax = control
     n = a.shape[0]
     nout = rec.shape[0]
     block = interval / n_sub
@@ -549,7 +434,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
     ec = np.zeros(n)  # contact energies at a block's end (offset chains' fused steps, their probes)
     if ext_on:  # the internal masses' accelerations: a function of the positions, not state
         for i in range(n):
-            wa[i] = ext[i, EXT_KIN] * (u[i] - ext[i, EXT_W]) * ext[i, EXT_IMIN]
+            wa[i] = internal_acceleration(ext[i, EXT_KIN], ext[i, EXT_W], u[i], ext[i, EXT_IMIN])
     step = int(acc[2])
     lean = n >= LEAN_SLOTS  # long chain without precompression (d0 = fext = 0): step_elastic_lean
     aligned = True  # no offsets: the dissipative laws' fused steps (step_dissipative)
@@ -651,7 +536,7 @@ def verlet_run(u, v, a, g, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fe
 
 def flush_stale_cache(*kernels_using: Any) -> None:
     """Drop the on-disk cache of these compiled functions when this module (or ``extension.py``,
-    ``energies.py``, ``primitives.py`` or ``fused.py``, whose functions it compiles in) is newer
+    ``energies.py``, ``primitives.py``, ``fused.py`` or ``plastic.py``, whose functions it compiles in) is newer
     than it.
 
     Numba's cache only checks the source file of the cached function itself, not of the
@@ -666,7 +551,7 @@ def flush_stale_cache(*kernels_using: Any) -> None:
     """
     # what the kernels compile in
     sources = [Path(__file__).with_name(name) for name in ("kernels.py", "extension.py", "energies.py",
-                                                            "primitives.py", "fused.py")]
+                                                            "primitives.py", "fused.py", "plastic.py")]
     newest = max(p.stat().st_mtime for p in sources)
     for fn in kernels_using:
         try:
@@ -677,7 +562,7 @@ def flush_stale_cache(*kernels_using: Any) -> None:
             pass
 
 
-# The stepping loop compiles the functions of extension.py, primitives.py and fused.py into itself:
+# The stepping loop compiles the functions of extension.py, primitives.py, fused.py and plastic.py into itself:
 # an edit there must recompile it too (Numba's cache only checks the file of the function it caches).
 flush_stale_cache(step_extended, dissipative_block, plastic_block, offset_elastic_block, offset_dissipative_block,
                   verlet_run)

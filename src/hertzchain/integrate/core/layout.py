@@ -9,6 +9,7 @@ import numpy as np
 from ...model import System
 from .extension import EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_MIN
 from .kernels import LAW_ELASTOPLASTIC
+from .structures import ChainArrays, ContactArrays, Extension
 
 #: Slot counts are rounded up to a multiple of this, so that the vector loops (8 doubles with
 #: AVX-512) run without a scalar remainder; it lifts a 30-bead chain from ~4.9e8 to ~6.7e8
@@ -40,6 +41,18 @@ class Packed:
     wall_slot: int
     ext: np.ndarray          # (P, EXT_COLUMNS) extension (kernels.EXT_*), (0, EXT_COLUMNS) when not extended
     body_slot: int           # N + 1 with a protected body, else -1
+
+    def chain(self) -> ChainArrays:
+        """The chain's arrays as the compiled runs take them (views, not copies)."""
+        return ChainArrays(self.mass, self.inv_mass, self.kappa, self.damping, self.d0, self.fext, self.wall_slot)
+
+    def contacts(self) -> ContactArrays:
+        """The contacts' geometry, overlap bounds and state as the Verlet runs take them (views)."""
+        return ContactArrays(self.de, self.dx0, self.rsum, self.dcap, self.dyield, self.dmax, self.dres, self.kres)
+
+    def extension(self) -> Extension:
+        """The extension as the Verlet runs take it (on when ``ext`` has rows: an extended system)."""
+        return Extension(self.ext, self.ext.shape[0] > 0, self.body_slot)
 
 
 def _pad(x: np.ndarray, n: int) -> np.ndarray:

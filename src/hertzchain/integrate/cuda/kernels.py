@@ -9,7 +9,8 @@ the per-contact and per-body device functions are shared, so they integrate with
 arithmetic. The general kernels also run Thornton's elastic-plastic law: its device function is
 the CPU kernel's own source (``core.kernels.elastoplastic_force.py_func``, and the energies'
 per-contact terms likewise), its state (``dyield``, ``dmax``, ``dres``, ``kres``) four more
-(slot, member) arrays updated in place. Every per-slot array is (slot, member), as
+(slot, member) arrays updated in place; and a protected body and mass-in-mass beads, with the
+device pieces of :mod:`hertzchain.integrate.cuda.extension` (the CPU's law, the same source). Every per-slot array is (slot, member), as
 :func:`hertzchain.integrate.cuda.launch.run_packed` lays them out, so that the threads of a warp,
 which run neighbouring members, read neighbouring addresses (coalesced).
 
@@ -29,8 +30,10 @@ import math
 from typing import Any
 
 from .device import _cuda, _simulated
+from .extension import device_functions
 from ..core import energies
 from ..core import kernels as core_kernels
+from ..core.extension import EXT_CLIN, EXT_IMIN, EXT_KIN, EXT_KLIN
 from ..core.kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 
 
@@ -208,8 +211,8 @@ def _kernels() -> dict:
 
     @cuda.jit(device=True)
     def required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, law,
-                        n, m):
-        """kernels.required_stride for member m."""
+                        ext, eon, n, m):
+        """kernels.required_stride for member m (``eon``: with its extension ``ext``)."""
         kprev = 0.0
         cprev = 0.0
         w2 = 0.0
@@ -217,13 +220,18 @@ def _kernels() -> dict:
         hh = 0.5 * horizon * horizon
         for j in range(n):
             k = tangent_stiffness(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, hh, j, m)
-            if law == LAW_ELASTIC:
+            if eon:
+                w, k, cprev = extended_bound(kprev, k, cprev, damping[j, m], law, ext[EXT_KLIN, j, m],
+                                             ext[EXT_CLIN, j, m], ext[EXT_KIN, j, m], ext[EXT_IMIN, j, m],
+                                             inv_mass[j, m])
+                weff = max(weff, w)
+            elif law == LAW_ELASTIC:
                 w2 = max(w2, (kprev + k) * inv_mass[j, m])
             else:
                 w, cprev = damped_bound(kprev, k, cprev, damping[j, m], inv_mass[j, m], law)
                 weff = max(weff, w)
             kprev = k
-        w = math.sqrt(2.0 * w2) if law == LAW_ELASTIC else weff
+        w = math.sqrt(2.0 * w2) if law == LAW_ELASTIC and not eon else weff
         return max(1, int(math.ceil(block * c_steps * w - 1e-9)))
 
     @cuda.jit(device=True, **inline)
@@ -250,13 +258,20 @@ def _kernels() -> dict:
             peak[4, m] = 0.0
         peak[5, m] = fw
 
+    # a protected body and mass-in-mass beads: core.extension's law, compiled from its source
+    ext_fns = device_functions(cuda, inline, forces_general, track_peak)
+    extended_bound, extended_block = ext_fns["extended_bound"], ext_fns["extended_block"]
+    internal_accelerations, extended_probes = ext_fns["internal_accelerations"], ext_fns["extended_probes"]
+    linear_forces, linear_power, body_work = ext_fns["linear_forces"], ext_fns["linear_power"], ext_fns["body_work"]
+    extended_kick, extended_open, stride_row = ext_fns["extended_kick"], ext_fns["extended_open"], ext_fns["stride_row"]
+
     @cuda.jit(device=True, **inline)
-    def adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, lw, n, m, ns,
-              relax, acc):
+    def adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping, lw, ext, eon, n, m,
+              ns, relax, acc):
         """The adaptive step's evaluation for member m (kernels.required_stride, then
         kernels._adapt_stride on acc[3:8]): returns the new steps per block."""
         req = required_stride(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, horizon, block, c_steps, damping,
-                              lw, n, m)
+                              lw, ext, eon, n, m)
         ns, r4, r5 = adapt_stride(req, ns, relax, acc[4, m], acc[5, m])
         acc[4, m] = r4
         acc[5, m] = r5
@@ -306,12 +321,16 @@ def _kernels() -> dict:
     @cuda.jit
     def verlet_kernel(u, v, a, g, vp, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax,
                       dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start,
-                      k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, status):
+                      k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, status, wa,
+                      ext, ext_on, body_slot, out_b):
         """kernels.verlet_run for member m = the thread's index, samples k_start..k_stop - 1.
 
         Sample k is written at row k - k_start of out_f (rows, rec, M), out_ke/pe/ed/wp (rows, M)
         and out_v (rows, bodies, M). The elastic-plastic state (dyield ... kres, (slot, member))
-        and ``out_wp`` are read and written for members of that law only.
+        and ``out_wp`` are read and written for members of that law only. A member with the
+        extension (``ext_on``: a protected body, mass-in-mass beads) steps with its
+        ``ext[column, slot, m]`` (cuda.extension) and its internal masses' accelerations ``wa``
+        (slot, member); one with a protected body (``body_slot`` >= 0) records it in out_b (rows, 4, M).
         """
         m = cuda.grid(1)
         if m >= status.shape[0] or status[m] != 0:
@@ -326,14 +345,23 @@ def _kernels() -> dict:
         adaptive = stride[m] == 0
         ns = stride[m] if not adaptive else int(acc[3, m])
         step = acc[2, m]
+        eon = ext_on[m]
+        bs = body_slot[m]
+        if eon:  # the internal masses' accelerations: a function of the positions, not state
+            internal_accelerations(u, ext, wa, n, m)
         for k in range(k_start, k_stop):
             for b in range(nsub):
                 if adaptive and ((k - 1) * nsub + b) % neval == 0:
                     ns = adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block, c_steps[m],
-                               damping, lw, n, m, ns, relax[m], acc)
+                               damping, lw, ext, eon, n, m, ns, relax[m], acc)
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
+                if eon:  # kernels.step_extended
+                    extended_block(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, lw, dyield,
+                                   dmax, dres, kres, ext, bs, ws, t0, dt, ns, peak, acc, n, m)
+                    step += ns
+                    continue
                 for i in range(n):
                     v[i, m] += half * a[i, m]
                     u[i, m] += dt * v[i, m]
@@ -365,8 +393,12 @@ def _kernels() -> dict:
             if lw == LAW_ELASTOPLASTIC:
                 plastic_probes(k - k_start, u, kappa, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres, out_pe,
                                out_wp, n, m)
-            if not sample(k - k_start, gen, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke,
-                          out_pe, out_ed, out_v, record_v, acc, lw == LAW_ELASTOPLASTIC, n, m):
+            ok = sample(k - k_start, gen, u, v, g, mass, kappa, d0, de, dx0, rsum, fext, rec, out_f, fmax, out_ke,
+                        out_pe, out_ed, out_v, record_v, acc, lw == LAW_ELASTOPLASTIC, n, m)
+            if eon:
+                extended_probes(k - k_start, u, v, a, d0, ext, bs, out_ke, out_pe, out_b, n, m)
+                ok = ok and math.isfinite(out_ke[k - k_start, m])
+            if not ok:
                 acc[2, m] = step
                 status[m] = 1
                 return
@@ -376,7 +408,8 @@ def _kernels() -> dict:
     @cuda.jit
     def warp_kernel(u, v, a, g, vp, sc, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax,
                     dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start,
-                    k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, status):
+                    k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, status, wa,
+                    ext, ext_on, body_slot, out_b):
         """verlet_kernel with one block of nl threads per member (m = the block's index).
 
         Lane l owns slots l, l + nl, ...: forces of its contacts, then (after a barrier) the
@@ -402,6 +435,11 @@ def _kernels() -> dict:
         r4 = acc[4, m]
         r5 = acc[5, m]
         step = acc[2, m]
+        eon = ext_on[m]
+        bs = body_slot[m]
+        if eon and lane == 0:
+            internal_accelerations(u, ext, wa, n, m)
+        cuda.syncthreads()
         for k in range(k_start, k_stop):
             for b in range(nsub):
                 if adaptive and ((k - 1) * nsub + b) % neval == 0:
@@ -416,7 +454,9 @@ def _kernels() -> dict:
                     w2 = 0.0  # elastic: max (k_left + k_right) / m; dissipative: max omega_eff
                     for j in range(lane, n, nl):
                         kprev = sc[j - 1, m] if j > 0 else 0.0
-                        if lw == LAW_ELASTIC:
+                        if eon:
+                            w2 = max(w2, stride_row(sc, damping, lw, ext, inv_mass, j, m))
+                        elif lw == LAW_ELASTIC:
                             w2 = max(w2, (kprev + sc[j, m]) * inv_mass[j, m])
                         else:
                             cprev = 0.0
@@ -431,7 +471,7 @@ def _kernels() -> dict:
                     w2 = 0.0
                     for i in range(nl):
                         w2 = max(w2, red[i])
-                    w = math.sqrt(2.0 * w2) if lw == LAW_ELASTIC else w2
+                    w = math.sqrt(2.0 * w2) if lw == LAW_ELASTIC and not eon else w2
                     req = max(1, int(math.ceil(block * c_steps[m] * w - 1e-9)))
                     ns, r4, r5 = adapt_stride(req, ns, relax[m], r4, r5)
                     if lane == 0:
@@ -443,8 +483,11 @@ def _kernels() -> dict:
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
                 for i in range(lane, n, nl):
-                    v[i, m] += half * a[i, m]
-                    u[i, m] += dt * v[i, m]
+                    if eon:
+                        extended_open(u, v, a, wa, ext, dt, half, i, m)
+                    else:
+                        v[i, m] += half * a[i, m]
+                        u[i, m] += dt * v[i, m]
                 for s in range(ns):
                     last = s == ns - 1
                     if gen:
@@ -455,6 +498,8 @@ def _kernels() -> dict:
                         for j in range(lane, n, nl):  # contact j's dissipated power into sc
                             sc[j, m] = contact_general(u, vp, kappa, damping, d0, de, dx0, rsum, lw, g, dyield, dmax,
                                                        dres, kres, j, m, 0.0)
+                            if eon:  # its power summed by lane 0 below, in forces_linear's order
+                                linear_forces(u, vp, d0, ext, g, j, m)
                     else:
                         for j in range(lane, n, nl):
                             g[j + 1, m] = hertz(kappa[j, m], u[j, m] - u[j + 1, m] + d0[j, m])
@@ -464,13 +509,20 @@ def _kernels() -> dict:
                             p = 0.0
                             for j in range(n):  # in contact order, as forces_general sums
                                 p += sc[j, m]
+                            if eon:
+                                p += linear_power(u, vp, d0, ext, n, m)
                             acc[0, m] += half * (acc[1, m] + p)
                             acc[1, m] = p
+                            if bs >= 0:
+                                body_work(g, vp, ext, bs, half, m)
                             track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
                         else:
                             track_peak(g[ws, m], t0 + block if last else t0 + (s + 1) * dt, dt, peak, m)
                     for i in range(lane, n, nl):
-                        kick_drift(u, v, a, g[i, m], g[i + 1, m], fext, inv_mass, dt, half, last, i, m)
+                        if eon:
+                            extended_kick(u, v, a, wa, g, fext, inv_mass, ext, dt, half, last, i, m)
+                        else:
+                            kick_drift(u, v, a, g[i, m], g[i + 1, m], fext, inv_mass, dt, half, last, i, m)
                     cuda.syncthreads()  # bodies moved before the next step's forces (and g is read)
                 step += ns
             # --- probes: per-slot energy terms into sc and vp, summed by lane 0 in slot order
@@ -515,7 +567,9 @@ def _kernels() -> dict:
                     for j in range(n):
                         w += contact_plastic_work(kappa[j, m], dyield[j, m], dmax[j, m], dres[j, m])
                     out_wp[row, m] = w
-                if not (math.isfinite(ke) and math.isfinite(g[1, m])):
+                if eon:
+                    extended_probes(row, u, v, a, d0, ext, bs, out_ke, out_pe, out_b, n, m)
+                if not (math.isfinite(out_ke[row, m]) and math.isfinite(g[1, m])):
                     status[m] = 1
             cuda.syncthreads()
             if status[m] != 0:
@@ -582,6 +636,7 @@ def _register_kernel(p: int, pre: bool):
         ul = cuda.local.array(p1, float64)
         vl = cuda.local.array(p, float64)
         pk = cuda.local.array((8, 1), float64)  # the member's peak tracker, a per-thread copy
+        no_ext = cuda.local.array((1, 1, 1), float64)  # the extension required_stride takes, never read here
         for j in range(8):
             pk[j, 0] = peak[j, m]
         ul[p] = u[p, m]  # the far end (wall) never moves
@@ -596,7 +651,7 @@ def _register_kernel(p: int, pre: bool):
             for b in range(nsub):
                 if adaptive and ((k - 1) * nsub + b) % neval == 0:
                     ns = adapt(u, v, a, kappa, d0, de, dx0, rsum, dcap, inv_mass, neval * block, block, c_steps[m],
-                               damping, LAW_ELASTIC, p, m, ns, relax[m], acc)
+                               damping, LAW_ELASTIC, no_ext, False, p, m, ns, relax[m], acc)
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block

@@ -9,10 +9,12 @@ Numba family as the CPU kernels, so it also runs on a CPU through Numba's CUDA s
 samples).
 
 What it integrates is exactly what the CPU batch engine integrates (paper eq. 1 with the elastic,
-viscoelastic, dashpot or elastic-plastic law, misaligned beads, precompression; the adaptive step of
-:func:`kernels.required_stride` or a fixed one; sampled probes, running maximum forces, the wall
-peak tracker refined afterwards; the dissipated energy; the elastic-plastic contacts' state,
-carried from launch to launch, and their plastic work), in the same order of operations: one
+viscoelastic, dashpot or elastic-plastic law, misaligned beads, precompression, a protected body
+and mass-in-mass beads (the extension: :mod:`hertzchain.integrate.cuda.extension`); the adaptive
+step of :func:`kernels.required_stride` or a fixed one; sampled probes, running maximum forces, the
+wall peak tracker refined afterwards; the dissipated energy; the elastic-plastic contacts' state
+and the extension's internal masses and body work, carried from launch to launch, the plastic work
+and the protected body's record), in the same order of operations: one
 member per thread for large batches, one warp per member (a lane per slot) below
 ``WARP_PER_MEMBER_BELOW`` members, where one thread per member would leave the GPU idle; and, for
 aligned elastic chains of up to ``REGISTER_MAX_SLOTS`` slots, whatever the batch size, the register
@@ -44,6 +46,7 @@ from .device import (AUTO_MIN_MEMBERS, DEVICES, _cuda, _simulated, check_device,
 from .generated import generated_kernel
 from .kernels import _kernels, _lanes, _register_kernel
 from ..core.generated import is_generated
+from ..core.extension import EXT_COLUMNS
 from ..core.kernels import LAW_ELASTOPLASTIC
 
 __all__ = ["ENGINE", "AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable", "use_gpu", "run_packed"]
@@ -118,25 +121,29 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     SimulationDiverged
         When a member's state became non-finite.
     ConfigError
-        A law declared in ``hertzchain.laws`` mixed with other laws (``contact.law``), or a
-        protected body or mass-in-mass beads (``wall.type``).
+        A law declared in ``hertzchain.laws`` mixed with other laws, or with a protected body or
+        mass-in-mass beads (``contact.law``).
     """
     refuse_mixed_laws(pk.law)
-    if pk.ext_on is not None and np.any(pk.ext_on):
-        raise ConfigError("wall.type", "the CUDA engine does not model a protected body or mass-in-mass beads; run "
-                          "this batch on the CPU (device='cpu')")
     cuda = _cuda()
     nmem = pk.n_members
     p = int(pk.n_slots[0])
     generated = is_generated(int(pk.law[0]))  # a law run by the generated engines: its own kernel
+    # a protected body or mass-in-mass beads: the general kernels' extended steps (cuda.extension)
+    extended = pk.ext_on is not None and bool(np.any(pk.ext_on))
+    if extended and generated:
+        raise ConfigError("contact.law", "the CUDA engine runs a law declared in hertzchain.laws (power, hunt_crossley, "
+                          "a user's) without a protected body or mass-in-mass beads; use a built-in law or "
+                          "device='cpu'")
     width = int(pk.off[1])
     # aligned elastic members of a short chain: the register kernel (positions and velocities on
     # the chip), else one warp per member for small batches, one thread per member for large ones
     stride0 = int(pk.stride[0])
     lanes = (USE_LANES_KERNEL and not np.any(pk.general) and stride0 > 0 and np.all(pk.stride == stride0)
              and np.all(pk.n_sub == 1) and p % cuda_lanes.lanes() == 0 and p <= LANES_MAX_SLOTS)
-    lanes = lanes and not generated
-    register = not lanes and not generated and USE_REGISTER_KERNEL and p <= REGISTER_MAX_SLOTS and not np.any(pk.general)
+    lanes = lanes and not generated and not extended
+    register = (not lanes and not generated and not extended and USE_REGISTER_KERNEL and p <= REGISTER_MAX_SLOTS
+                and not np.any(pk.general))
     warp = not (register or lanes) and nmem < WARP_PER_MEMBER_BELOW
     if lanes:
         pre = bool(np.any(pk.flat["d0"].reshape(nmem, width)[:, :p] != 0.0)
@@ -185,16 +192,31 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     plastic = not generated and bool(np.any(pk.law == LAW_ELASTOPLASTIC))
     stand_in = cuda.to_device(np.zeros((1, 1)))
     ep = {k: slots(k, p) if plastic else stand_in for k in _PLASTIC_STATE}
+    # the extension (core.layout.extension's columns) as (column, slot, member), its internal
+    # masses' accelerations, the protected bodies' records; stand-ins without an extended member
+    ext_on = np.ascontiguousarray(pk.ext_on if extended else np.zeros(nmem), dtype=np.bool_)
+    with_body = np.flatnonzero(pk.body_slot >= 0) if extended else np.zeros(0, dtype=np.int64)
+    stand_in3 = cuda.to_device(np.zeros((1, 1, 1)))
+    ext = stand_in3
+    if extended:
+        host_ext = np.zeros((EXT_COLUMNS, p, nmem))
+        host_ext[:, :, ext_on] = pk.ext.reshape(-1, p, EXT_COLUMNS).transpose(2, 1, 0)
+        ext = cuda.to_device(host_ext)
+    wa = cuda.to_device(np.zeros((p, nmem))) if extended else stand_in
+    ext_args = (wa, ext, cuda.to_device(ext_on),
+                cuda.to_device(np.ascontiguousarray(pk.body_slot if extended else np.full(nmem, -1), dtype=np.int64)))
 
     cost = float(np.sum(pk.interval / pk.plan_dt * (p + 1) * np.where(pk.general, 2, 1)))
     per_launch = max(1, min(ns - 1, int(LAUNCH_SLOT_STEPS // max(cost, 1.0)),
-                            int(LAUNCH_OUTPUT_BYTES // (8 * nmem * (nrec + 3 + plastic + (nb if record_v else 0))))))
+                            int(LAUNCH_OUTPUT_BYTES // (8 * nmem * (nrec + 3 + plastic + (nb if record_v else 0)
+                                                                 + (4 if with_body.size else 0))))))
     out_f = cuda.device_array((per_launch, nrec, nmem))
     out_ke = cuda.device_array((per_launch, nmem))
     out_pe = cuda.device_array((per_launch, nmem))
     out_ed = cuda.device_array((per_launch, nmem))
     out_wp = cuda.device_array((per_launch, nmem)) if plastic else stand_in
     out_v = cuda.device_array((per_launch if record_v else 1, nb, nmem))
+    out_b = cuda.device_array((per_launch, 4, nmem)) if with_body.size else stand_in3
     host_f = pk.out_f.reshape(nmem, ns, nrec)
     host_v = pk.out_v.reshape(nmem, ns if record_v else 1, nb)
     k = 1
@@ -224,7 +246,7 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
                 d["u"], d["v"], d["a"], d["g"], d["vp"], *((d["sc"],) if warp else ()), d["mass"], d["inv_mass"],
                 d["kappa"], d["damping"], d["d0"], d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ep["dyield"],
                 ep["dmax"], ep["dres"], ep["kres"], ints["law"], flags["general"], ints["wall_slot"], *probes,
-                out_wp, *trackers)
+                out_wp, *trackers, *ext_args, out_b)
         # probes stay on the device for the whole launch; one copy per chunk
         host_f[:, k:k_stop, :] = out_f.copy_to_host()[:rows].transpose(2, 0, 1)
         pk.out_ke[:, k:k_stop] = out_ke.copy_to_host()[:rows].T
@@ -234,6 +256,9 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
             pk.out_wp[:, k:k_stop] = out_wp.copy_to_host()[:rows].T
         if record_v:
             host_v[:, k:k_stop, :] = out_v.copy_to_host()[:rows].transpose(2, 0, 1)
+        if with_body.size:  # the bodies' records, member after member (buffers._member_body)
+            pk.out_b.reshape(with_body.size, ns, 4)[:, k:k_stop, :] = \
+                out_b.copy_to_host()[:rows][:, :, with_body].transpose(2, 0, 1)
         check_members_finite(status.copy_to_host(), k_stop * pk.interval)
         k = k_stop
         if progress is not None:
@@ -241,6 +266,8 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     pk.fmax.reshape(nmem, nc)[:] = fmax.copy_to_host().T
     pk.peak[:, :8] = peak.copy_to_host().T
     pk.acc[:, :8] = acc.copy_to_host().T
+    if extended:  # the internal masses' state and the bodies' work at the end, as the CPU engine leaves them
+        pk.ext[:] = ext.copy_to_host()[:, :, ext_on].transpose(2, 1, 0).reshape(-1, EXT_COLUMNS)
     if plastic:  # the state at the end: the members' residual overlaps are read from it
         for name in _PLASTIC_STATE[1:]:
             pk.flat[name].reshape(nmem, width)[:, :p] = ep[name].copy_to_host().T

@@ -50,6 +50,7 @@ from numba import njit
 
 from ..core import kernels
 from ..core.kernels import DELTA_MIN
+from ..core.structures import ChainArrays  # noqa: F401 (the runs' chain, shared with the Verlet runs)
 
 #: Blanes & Moan SRKN_6^b kick (b) and drift (a) coefficients (order 4).
 B1, A1 = 0.0829844064174052, 0.245298957184271
@@ -77,18 +78,6 @@ E_KE, E_DKE, E_PE, E_DPE = 0, 1, 2, 3
 
 # The compiled runs of both fourth-order paths take these typed structures (Numba compiles a
 # NamedTuple's fields as one typed argument), not dozens of positional arrays.
-
-class ChainArrays(NamedTuple):
-    """The chain as the runs read it: padded per-slot arrays (``layout.pack``) and the wall's slot."""
-
-    mass: np.ndarray       # [kg]
-    inv_mass: np.ndarray   # [1/kg]
-    kappa: np.ndarray      # Hertz constants [N/m^1.5]
-    damping: np.ndarray    # the law's damping (A [s] or gamma [kg/s]; unused by the elastic run)
-    d0: np.ndarray         # static overlaps [m]
-    fext: np.ndarray       # external forces [N]
-    wall_slot: int         # contact N (the wall's), also where the peak is tracked
-
 
 class ProbeBuffers(NamedTuple):
     """What a run records: the contacts ``rec``, one row per sample of their forces ``out_f``

@@ -45,11 +45,15 @@ from ...errors import ConfigError, SimulationDiverged
 from ...model import System
 from ..core import kernels
 from ..core.barrier import barrier, new_barrier
+from ..core.extension import EXT_COLUMNS
 from ..core.kernels import DELTA_MIN, LEAN_SLOTS
 from ..core.layout import PAD, pack
-from ..core.primitives import open_block, running_max
+from ..core.primitives import open_block
+from ..core.structures import VerletState
+from .thread_blocks import (ThreadTeam, agree_steps, column_sum, end_sample, kept_on_disk, move_body, record_block,
+                            thread_start)
 from .threaded_laws import law_thread_run
-from .verlet import RawRun, _dt_used, initialise, refine_peak, step_plan
+from .verlet import RawRun, _dt_used, initialise_run, new_probes, raw_run, step_plan
 
 __all__ = ["run_verlet_threaded", "split", "MIN_SLOTS_PER_THREAD", "CHUNK_BEAD_STEPS", "CONTENDED", "PROBE_EVERY"]
 
@@ -90,32 +94,32 @@ def _hertz(kappa, d):
     return kappa * d * np.sqrt(d)
 
 
-@njit(cache=True, nogil=True)
-def _segment_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, fprev, gr):
-    """``kernels.step_elastic`` on one block's bodies, given as views that start at its first body
-    (``u``, ``v``, ``g`` one slot longer): ``fprev`` the force of the contact on its left (computed
-    from the left neighbour's published position), ``gr`` the right neighbour's published
-    position (read instead of u[-1], which the neighbour may be moving). Views from 0, so that the
-    indices are known to be non-negative: with an index range from the block's first slot, Numba
-    wrapped every access for negative indices and LLVM left the loop scalar (1.7x slower)."""
-    n = inv_mass.shape[0]
-    for i in range(n - 1):
-        d = u[i] - u[i + 1] + d0[i]
-        d = d if d > DELTA_MIN else 0.0
-        f = kappa[i] * d * np.sqrt(d)
-        g[i + 1] = f
-        ai = (fprev - f + fext[i]) * inv_mass[i]
-        a[i] = ai
-        v[i] += dt * ai
-        u[i] += dt * v[i]
-        fprev = f
-    i = n - 1
-    f = _hertz(kappa[i], u[i] - gr + d0[i])
-    g[i + 1] = f
-    ai = (fprev - f + fext[i]) * inv_mass[i]
-    a[i] = ai
-    v[i] += dt * ai
-    u[i] += dt * v[i]
+def _elastic_segment(last: bool):
+    """``kernels.step_elastic`` (``last`` False: kick and drift by ``h``, the step) or
+    ``kernels.final_step_elastic`` (``last``: the closing half kick, ``h`` the half step) on one
+    block's bodies, given as views that start at its first body (``u``, ``v``, ``g`` one slot
+    longer): ``fprev`` the force of the contact on its left (computed from the left neighbour's
+    published position), ``gr`` the right neighbour's published position (read instead of u[-1],
+    which the neighbour may be moving). ``last`` is a constant of the compiled loop (no branch in
+    it). Views from 0, so that the indices are known to be non-negative: with an index range from
+    the block's first slot, Numba wrapped every access for negative indices and LLVM left the loop
+    scalar (1.7x slower)."""
+
+    @njit(nogil=True)
+    def segment(u, v, a, g, kappa, d0, fext, inv_mass, h, fprev, gr):
+        n = inv_mass.shape[0]
+        for i in range(n - 1):
+            f = kernels.contact_force(u, kappa, d0, i)
+            move_body(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], h, h, last)
+            fprev = f
+        i = n - 1
+        move_body(u, v, a, g, i, _hertz(kappa[i], u[i] - gr + d0[i]), fprev, fext[i], inv_mass[i], h, h, last)
+
+    return segment
+
+
+_segment_step = _elastic_segment(False)
+_segment_final = _elastic_segment(True)
 
 
 @njit(cache=True, nogil=True)
@@ -123,9 +127,7 @@ def _segment_lean(u, v, kappa, inv_mass, dt, fprev, gr):
     """``kernels.step_elastic_lean`` on one block's bodies (see :func:`_segment_step`)."""
     n = inv_mass.shape[0]
     for i in range(n - 1):
-        d = u[i] - u[i + 1]
-        d = d if d > DELTA_MIN else 0.0
-        f = kappa[i] * d * np.sqrt(d)
+        f = _hertz(kappa[i], u[i] - u[i + 1])
         v[i] += dt * ((fprev - f) * inv_mass[i])
         u[i] += dt * v[i]
         fprev = f
@@ -133,27 +135,6 @@ def _segment_lean(u, v, kappa, inv_mass, dt, fprev, gr):
     f = _hertz(kappa[i], u[i] - gr)
     v[i] += dt * ((fprev - f) * inv_mass[i])
     u[i] += dt * v[i]
-
-
-@njit(cache=True, nogil=True)
-def _segment_final(u, v, a, g, kappa, d0, fext, inv_mass, half, fprev, gr):
-    """``kernels.final_step_elastic`` on one block's bodies (see :func:`_segment_step`)."""
-    n = inv_mass.shape[0]
-    for i in range(n - 1):
-        d = u[i] - u[i + 1] + d0[i]
-        d = d if d > DELTA_MIN else 0.0
-        f = kappa[i] * d * np.sqrt(d)
-        g[i + 1] = f
-        ai = (fprev - f + fext[i]) * inv_mass[i]
-        a[i] = ai
-        v[i] += half * ai
-        fprev = f
-    i = n - 1
-    f = _hertz(kappa[i], u[i] - gr + d0[i])
-    g[i + 1] = f
-    ai = (fprev - f + fext[i]) * inv_mass[i]
-    a[i] = ai
-    v[i] += half * ai
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -166,33 +147,31 @@ def _publish(pub, par, tid, u, s, e):
     return par
 
 
-@njit(cache=True, nogil=True)
-def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, mass, inv_mass, kappa, damping, d0,
-                de, dx0, rsum, fext, dcap, wall_slot, lean, interval, stride, n_sub, n_eval, c_steps, relax, k_start,
-                k_stop, rec, out_f, out_ke, out_pe, out_ed, out_v, record_v, out_u, record_u, fmax, peak, acc, ext):
+def _thread_run(tid, team, state, chain, contacts, probes, control, k_start, k_stop):
     """Thread ``tid``'s share of ``kernels.verlet_run`` (aligned elastic chain) from sample
-    ``k_start`` to ``k_stop``: bodies [bounds[tid], bounds[tid + 1]), recorded contacts
-    rec[rbounds[tid]:rbounds[tid + 1]]. ``pub`` (2, nthr, 2): the first and last position of each
-    block, by parity (:func:`_publish`); ``part`` (nthr,) int64 and ``energy`` (nthr, 2): each
-    block's required steps and energy sums. Thread 0 keeps ``acc`` and writes the energies (the
-    others keep a copy of ``acc``: the same numbers). Every thread sums the blocks' energies in
-    the same order, so all stop together when the state is not finite. Returns 1 then, else 0.
+    ``k_start`` to ``k_stop``: its block of :class:`~.thread_blocks.ThreadTeam` ``team``, whose
+    ``pub`` (2, nthr, 2) holds the first and last position of each block, by parity
+    (:func:`_publish`), ``energy`` (nthr, 2) the blocks' energy sums; the other structures are
+    ``verlet_run``'s. Thread 0 keeps ``acc`` and writes the energies (the others keep a copy of
+    ``acc``: the same numbers). Every thread sums the blocks' energies in the same order, so all
+    stop together when the state is not finite. Returns 1 then, else 0.
     """
-    s = bounds[tid]
-    e = bounds[tid + 1]
-    nc = fmax.shape[0]
-    ws = wall_slot
-    owns_wall = s <= ws < e
-    left = tid > 0
-    right = tid < nthr - 1
-    my = acc if tid == 0 else acc.copy()
+    u, v, a, g, acc = state
+    mass, inv_mass, kappa, damping, d0, fext, ws = chain
+    de, dx0, rsum, dcap, _, _, _, _ = contacts
+    out_ke, out_pe, out_ed, peak = probes.out_ke, probes.out_pe, probes.out_ed, probes.peak
+    interval, stride, n_sub, n_eval, c_steps, relax = control
+    nthr, bar, pub, energy = team.nthr, team.bar, team.pub, team.energy
+    s, e, owns_wall, left, right, my, block, ns, step = thread_start(team, tid, acc, ws, control)
+    adaptive = stride == 0
+    # long chain without precompression: kernels.step_elastic_lean's segments (verlet_run's choice)
+    lean = a.shape[0] >= LEAN_SLOTS
+    for i in range(a.shape[0]):
+        lean = lean and d0[i] == 0.0 and fext[i] == 0.0
+    no_ext = np.zeros((0, EXT_COLUMNS))
     sense = 0
     par = 0
-    block = interval / n_sub
-    adaptive = stride == 0
-    ns = stride if not adaptive else int(my[3])
-    step = int(my[2])
-    j0 = s - 1 if s > 0 else 0
+    j0 = s - 1 if left else 0
     kl = kappa[j0]  # the contact on the block's left (its force: kernels.step_elastic's arithmetic)
     dl = d0[j0]
     for k in range(k_start, k_stop):
@@ -202,15 +181,10 @@ def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, 
                 # bodies of an increasing function: the largest of the blocks' values (each block
                 # with its left contact) is the chain's
                 sense = barrier(bar, nthr, sense)
-                part[tid] = kernels.required_stride(u[j0:e + 1], v[j0:e + 1], a[j0:e + 1], kappa[j0:e], d0[j0:e],
-                                                    de[j0:e], dx0[j0:e], rsum[j0:e], dcap[j0:e],
-                                                    inv_mass[j0:e + 1], n_eval * block, block, c_steps,
-                                                    damping[j0:e], 0, ext, False)
-                sense = barrier(bar, nthr, sense)
-                req = part[0]
-                for t in range(1, nthr):
-                    req = part[t] if part[t] > req else req
-                ns = kernels._adapt_stride(req, ns, relax, my)
+                req = kernels.required_stride(u[j0:e + 1], v[j0:e + 1], a[j0:e + 1], kappa[j0:e], d0[j0:e], de[j0:e],
+                                              dx0[j0:e], rsum[j0:e], dcap[j0:e], inv_mass[j0:e + 1], n_eval * block,
+                                              block, c_steps, damping[j0:e], 0, no_ext, False)
+                ns, sense = agree_steps(team, tid, sense, req, ns, relax, my)
             dt = block / ns
             half = 0.5 * dt
             t0 = (k - 1) * interval + b * block
@@ -240,43 +214,28 @@ def _thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, u, v, a, g, 
             if owns_wall:
                 kernels._track_peak(g[ws + 1], t0 + block, dt, peak)
             step += ns
-        # --- probes: each thread its own contacts and bodies (positions stay put in the last
-        # step, so the neighbour's first position is final), the energies as block sums
-        for r in range(rbounds[tid], rbounds[tid + 1]):
-            out_f[k, r] = g[rec[r] + 1]
-        m = min(e, nc)
-        if m > s:
-            running_max(fmax[s:m], g[s + 1:m + 1])
+        # --- probes: each thread its own contacts and bodies, the energies as block sums
+        record_block(team, tid, k, s, e, u, v, g, probes)
         ke, pe = kernels.energies_elastic(u[s:e + 1], v[s:e + 1], g[s:e + 1], mass[s:e], d0[s:e], fext[s:e])
         energy[tid, 0] = ke
         energy[tid, 1] = pe
-        if record_v:
-            m = min(e, out_v.shape[1])
-            out_v[k, s:m] = v[s:m]
-        if record_u:
-            m = min(e, out_u.shape[1])
-            out_u[k, s:m] = u[s:m]
         sense = barrier(bar, nthr, sense)
-        ke = energy[0, 0]
-        pe = energy[0, 1]
-        for t in range(1, nthr):
-            ke += energy[t, 0]
-            pe += energy[t, 1]
+        ke = column_sum(energy, 0)
+        pe = column_sum(energy, 1)
         if tid == 0:
             out_ke[k] = ke
             out_pe[k] = pe
             out_ed[k] = my[0]
-        # every thread read the sums before any writes the next sample's
-        sense = barrier(bar, nthr, sense)
-        if not np.isfinite(ke) or not np.isfinite(g[1]):
+        sense, finite = end_sample(team, sense, ke, g)
+        if not finite:
             my[2] = step
             return 1
     my[2] = step
     return 0
 
 
-# _thread_run compiles the kernels' functions into itself: an edit of kernels.py must recompile it
-kernels.flush_stale_cache(_thread_run)
+# _thread_run compiles in the functions of other files: its on-disk cache is keyed on their text too
+_thread_run = kept_on_disk(njit(nogil=True)(_thread_run), "drivers/threaded.py", "elastic")
 
 
 class _Layout:
@@ -375,58 +334,30 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
                           f"not {what}; use run.threads = 1 or 'auto' for this model")
     plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
-    nc = system.n_contacts
-    nb = system.n_beads + 1
     w = pack(system)
     p = w.n_slots
     nthr = max(1, min(int(threads), p // MIN_SLOTS_PER_THREAD))
-    u, v = w.u, w.v
-    g = np.zeros(p + 1)
-    a = np.zeros(p)
-    rec = np.arange(nc) if contacts is None else np.asarray(contacts, dtype=np.int64)
-    out_f = np.empty((n_samples, rec.size))
-    out_ke = np.empty(n_samples)
-    out_pe = np.empty(n_samples)
-    out_ed = np.empty(n_samples)
-    plastic = system.law == kernels.LAW_ELASTOPLASTIC
-    out_wp = np.empty(n_samples if plastic else 1)
-    out_v = np.empty((n_samples if record_velocities else 1, nb))
-    out_u = np.empty((n_samples if record_positions else 1, nb))
-    fmax = np.empty(nc)
-    peak = np.empty(8)
-    acc = np.zeros(8)
-    initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc,
-               out_wp)
-    out_u[0] = u[:nb]
-    steps = (sample_interval, plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax)
+    state = VerletState(w.u, w.v, np.zeros(p), np.zeros(p + 1), np.zeros(8))
+    acc = state.acc
+    probes = new_probes(system, n_samples, contacts, record_velocities, record_positions)
+    initialise_run(system, w, state, probes)
     general = system.general
-    if general:  # every other law, offsets: the thread function built from the law's contact
-        run = law_thread_run(system.law, not system.misaligned)
-        arrays: tuple = (u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
-                         w.dyield, w.dmax, w.dres, w.kres, w.wall_slot, *steps)
-        tail: tuple = (rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_velocities, out_u, record_positions,
-                       fmax, peak, acc, w.ext)
-    else:
-        run = _thread_run
-        lean = bool(p >= LEAN_SLOTS and not np.any(w.d0) and not np.any(w.fext))
-        arrays = (u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
-                  w.wall_slot, lean, *steps)
-        tail = (rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, out_u, record_positions, fmax, peak, acc,
-                w.ext)
-    layouts = {n: _Layout(p, n, rec, general) for n in {nthr, 1}}
+    # every other law, offsets: the thread function built from the law's contact
+    run = law_thread_run(system.law, not system.misaligned) if general else _thread_run
+    structures = (state, w.chain(), w.contacts(), probes, plan.control(sample_interval))
+    layouts = {n: _Layout(p, n, probes.rec, general) for n in {nthr, 1}}
     layouts[nthr].edacc[0, 1] = acc[1]  # the dissipated power at t = 0 (the trapezoid's first point), on block 0
 
     def call(n: int, k0: int, k1: int) -> tuple[int, float]:
         """Samples k0..k1 on n threads: the status and the least CPU time [s] a thread got."""
         lay = layouts[n]
-        head = (lay.pub, lay.part, lay.energy, lay.edacc) if general else (lay.pub, lay.part, lay.energy)
-        args = (n, lay.bounds, lay.rbounds, new_barrier(), *head, *arrays, k0, k1, *tail)
+        team = ThreadTeam(n, lay.bounds, lay.rbounds, new_barrier(), lay.pub, lay.part, lay.energy, lay.edacc)
         cpu = np.zeros(n)
         status = np.zeros(n, dtype=np.int64)
 
         def one(t: int) -> None:
             c0 = time.thread_time()
-            status[t] = run(t, *args)
+            status[t] = run(t, team, *structures, k0, k1)
             cpu[t] = time.thread_time() - c0
 
         workers = [threading.Thread(target=one, args=(t,), daemon=True) for t in range(1, n)]
@@ -462,12 +393,4 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
         k = k_stop
         if progress is not None:
             progress(k - 1, n_samples - 1)
-    fpk, t_pk = refine_peak(peak)
-    dt_min, dt_max = _dt_used(plan, acc, sample_interval)
-    return RawRun(time=np.arange(n_samples) * sample_interval, contact_force=out_f, kinetic_energy=out_ke,
-                  potential_energy=out_pe, dissipated_energy=out_ed, velocity=out_v if record_velocities else None,
-                  max_force=fmax, peak_wall_force=fpk, peak_wall_time=t_pk, dt=dt_min, integrator="verlet",
-                  n_steps=int(acc[2]), contacts=rec, dt_max=dt_max, adaptive=plan.adaptive,
-                  displacement=out_u if record_positions else None, plastic_work=out_wp if plastic else None,
-                  residual_overlap=w.dres[:nc].copy() if plastic else None,
-                  max_overlap=w.dmax[:nc].copy() if plastic else None)
+    return raw_run(system, w, plan, probes, acc, sample_interval)

@@ -41,25 +41,19 @@ from numba import njit
 
 from ..core import kernels
 from ..core.barrier import barrier
-from ..core.disk_cache import INTEGRATE, files_digest, on_disk
-from ..core.primitives import _track_peak, _viscous_force, open_block, running_max
+from ..core.extension import EXT_COLUMNS
+from ..core.primitives import _track_peak, _viscous_force, open_block
+from .thread_blocks import agree_steps, column_sum, end_sample, kept_on_disk, move_body, record_block, thread_start
 
 __all__ = ["law_thread_run"]
 
 _CACHE: dict = {}
 
-#: The modules whose functions a built-in law's thread function compiles in (its on-disk cache
-#: key holds their text: an edit of any of them compiles it afresh).
-_COMPILED_IN = ("drivers/threaded_laws.py", "core/kernels.py", "core/primitives.py", "core/barrier.py",
-                "core/extension.py", "core/energies.py", "core/fused.py")
-
 
 def _on_disk(dispatcher, *variant):
     """``dispatcher``, a closure built here over this package's functions only, cached on disk
-    under ``variant`` (the law and geometry it was built for) and the text of :data:`_COMPILED_IN`
-    (:func:`hertzchain.integrate.core.disk_cache.on_disk`): a new process or Dask worker loads it
-    instead of compiling it (~7 CPU-s a law, issue 37)."""
-    return on_disk(dispatcher, *variant, sources=files_digest(*(INTEGRATE / name for name in _COMPILED_IN)))
+    under ``variant`` (the law and geometry it was built for): :func:`.thread_blocks.kept_on_disk`."""
+    return kept_on_disk(dispatcher, "drivers/threaded_laws.py", *variant)
 
 
 def law_thread_run(code: int, aligned: bool):
@@ -152,20 +146,6 @@ def _publish(pub, par, tid, u, v, a, s, e, half):
     return par
 
 
-@njit(nogil=True, inline="always")
-def _move(u, v, a, g, i, f, fprev, fext, inv_mass, dt, half, last):
-    """Contact i's force into g, body i's acceleration, then its kick and drift (or, ``last``, the
-    closing half kick): the general path's update loops, one body."""
-    g[i + 1] = f
-    ai = (fprev - f + fext) * inv_mass
-    a[i] = ai
-    if last:
-        v[i] += half * ai
-    else:
-        v[i] += dt * ai
-        u[i] += dt * v[i]
-
-
 def _segment(contact, stateful, fused, last):
     """One step over a block's bodies: ``last`` (a constant, so that the loop has no branch on it
     and vectorises where the contact allows) the block's closing half kick, else kick and drift."""
@@ -190,7 +170,7 @@ def _segment(contact, stateful, fused, last):
                 dres[i] = x1
                 kres[i] = x2
             power += p
-            _move(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
+            move_body(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
             fprev = f
             vq = vq1
         i = n - 1
@@ -200,7 +180,7 @@ def _segment(contact, stateful, fused, last):
             dmax[i] = x0
             dres[i] = x1
             kres[i] = x2
-        _move(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
+        move_body(u, v, a, g, i, f, fprev, fext[i], inv_mass[i], dt, half, last)
         return power + p
 
     return segment
@@ -221,32 +201,26 @@ def _build(contact, stride, energies, stateful, plastic, fused, variant):
     half_kick = kept(_segment(contact, stateful, fused, True), "half_kick")
 
     @njit(nogil=True)
-    def thread_run(tid, nthr, bounds, rbounds, bar, pub, part, energy, edacc, u, v, a, g, mass, inv_mass, kappa,
-                   damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres, wall_slot, interval, stride_,
-                   n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp,
-                   out_v, record_v, out_u, record_u, fmax, peak, acc, ext):
+    def thread_run(tid, team, state, chain, contacts, probes, control, k_start, k_stop):
         """Thread ``tid``'s share of the single-thread general loop from sample ``k_start`` to
-        ``k_stop``: bodies and contacts [bounds[tid], bounds[tid + 1]), recorded contacts
-        rec[rbounds[tid]:rbounds[tid + 1]]. ``pub`` (2, nthr, 4): first and last position and
-        predicted velocity of each block, by parity; ``part`` (nthr,) the blocks' required steps;
-        ``energy`` (nthr, 3) their kinetic, potential energies and plastic work; ``edacc``
-        (nthr, 2) their dissipated energy and last dissipated power (kept from call to call).
-        Thread 0 keeps ``acc`` (the others a copy: the same numbers). Returns 1 when the state is
-        not finite (every thread sees the same sums), else 0."""
-        s = bounds[tid]
-        e = bounds[tid + 1]
-        nc = fmax.shape[0]
-        ws = wall_slot
-        owns_wall = s <= ws < e
-        left = tid > 0
-        right = tid < nthr - 1
-        my = acc if tid == 0 else acc.copy()
+        ``k_stop``: bodies and contacts of its block of :class:`~.thread_blocks.ThreadTeam`
+        ``team``, whose ``pub`` (2, nthr, 4) holds the first and last position and predicted
+        velocity of each block, by parity, ``energy`` (nthr, 3) the blocks' kinetic, potential
+        energies and plastic work, ``edacc`` (nthr, 2) their dissipated energy and last
+        dissipated power (kept from call to call); the other structures are
+        ``kernels.verlet_run``'s. Thread 0 keeps ``acc`` (the others a copy: the same numbers).
+        Returns 1 when the state is not finite (every thread sees the same sums), else 0."""
+        u, v, a, g, acc = state
+        mass, inv_mass, kappa, damping, d0, fext, ws = chain
+        de, dx0, rsum, dcap, dyield, dmax, dres, kres = contacts
+        out_ke, out_pe, out_ed, out_wp, peak = probes.out_ke, probes.out_pe, probes.out_ed, probes.out_wp, probes.peak
+        interval, stride_, n_sub, n_eval, c_steps, relax = control
+        nthr, bar, pub, energy, edacc = team.nthr, team.bar, team.pub, team.energy, team.edacc
+        s, e, owns_wall, left, right, my, block, ns, step = thread_start(team, tid, acc, ws, control)
+        adaptive = stride_ == 0
+        no_ext = np.zeros((0, EXT_COLUMNS))
         sense = 0
         par = 0
-        block = interval / n_sub
-        adaptive = stride_ == 0
-        ns = stride_ if not adaptive else int(my[3])
-        step = int(my[2])
         j0 = s - 1 if left else 0
         # the contact on the block's left: its parameters and a private copy of its owner's state
         kl, cl, d0l, del_, dxl, rl, dyl = kappa[j0], damping[j0], d0[j0], de[j0], dx0[j0], rsum[j0], dyield[j0]
@@ -259,14 +233,10 @@ def _build(contact, stride, energies, stateful, plastic, fused, variant):
                     # a maximum over bodies of a bound from their contacts: the largest of the
                     # blocks' values (each with its left contact) is the chain's
                     sense = barrier(bar, nthr, sense)
-                    part[tid] = stride(u[j0:e + 1], v[j0:e + 1], a[j0:e + 1], kappa[j0:e], damping[j0:e], d0[j0:e],
-                                       de[j0:e], dx0[j0:e], rsum[j0:e], dcap[j0:e], dmax[j0:e], inv_mass[j0:e + 1],
-                                       n_eval * block, block, c_steps, ext)
-                    sense = barrier(bar, nthr, sense)
-                    req = part[0]
-                    for t in range(1, nthr):
-                        req = part[t] if part[t] > req else req
-                    ns = kernels._adapt_stride(req, ns, relax, my)
+                    req = stride(u[j0:e + 1], v[j0:e + 1], a[j0:e + 1], kappa[j0:e], damping[j0:e], d0[j0:e],
+                                 de[j0:e], dx0[j0:e], rsum[j0:e], dcap[j0:e], dmax[j0:e], inv_mass[j0:e + 1],
+                                 n_eval * block, block, c_steps, no_ext)
+                    ns, sense = agree_steps(team, tid, sense, req, ns, relax, my)
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
@@ -302,36 +272,19 @@ def _build(contact, stride, energies, stateful, plastic, fused, variant):
                         par = _publish(pub, par, tid, u, v, a, s, e, half)
                         sense = barrier(bar, nthr, sense)
                 step += ns
-            # --- probes: each thread its own contacts and bodies (positions stay put in a block's
-            # last step, so the right neighbour's first position is final), energies as block sums
-            for r in range(rbounds[tid], rbounds[tid + 1]):
-                out_f[k, r] = g[rec[r] + 1]
-            m = min(e, nc)
-            if m > s:
-                running_max(fmax[s:m], g[s + 1:m + 1])
+            # --- probes: each thread its own contacts and bodies, energies as block sums
+            record_block(team, tid, k, s, e, u, v, g, probes)
             energy[tid, 0], energy[tid, 1], energy[tid, 2] = energies(
                 u[s:e + 1], v[s:e], g[s:e + 1], mass[s:e], kappa[s:e], damping[s:e], d0[s:e], de[s:e], dx0[s:e], rsum[s:e],
                 fext[s:e], dyield[s:e], dmax[s:e], dres[s:e], kres[s:e])
             edacc[tid, 0] = ed
             edacc[tid, 1] = pprev
-            if record_v:
-                m = min(e, out_v.shape[1])
-                out_v[k, s:m] = v[s:m]
-            if record_u:
-                m = min(e, out_u.shape[1])
-                out_u[k, s:m] = u[s:m]
             sense = barrier(bar, nthr, sense)
-            ke = energy[0, 0]
-            pe = energy[0, 1]
-            wp = energy[0, 2]
-            edk = edacc[0, 0]
-            pk = edacc[0, 1]
-            for t in range(1, nthr):
-                ke += energy[t, 0]
-                pe += energy[t, 1]
-                wp += energy[t, 2]
-                edk += edacc[t, 0]
-                pk += edacc[t, 1]
+            ke = column_sum(energy, 0)
+            pe = column_sum(energy, 1)
+            wp = column_sum(energy, 2)
+            edk = column_sum(edacc, 0)
+            pk = column_sum(edacc, 1)
             if tid == 0:
                 out_ke[k] = ke
                 out_pe[k] = pe
@@ -340,9 +293,8 @@ def _build(contact, stride, energies, stateful, plastic, fused, variant):
                     out_wp[k] = wp
                 my[0] = edk
                 my[1] = pk
-            # every thread read the sums before any writes the next sample's
-            sense = barrier(bar, nthr, sense)
-            if not np.isfinite(ke) or not np.isfinite(g[1]):
+            sense, finite = end_sample(team, sense, ke, g)
+            if not finite:
                 my[2] = step
                 return 1
         my[2] = step

@@ -13,9 +13,10 @@ from ...model import System
 from ..core import kernels
 from ..core.generated import is_generated, law_kernels, run_kernel
 from ..core.layout import Packed, pack
+from ..core.structures import VerletControl, VerletProbes, VerletState
 
-__all__ = ["auto_time_step", "check_time_step", "run_verlet", "RawRun", "StepPlan", "step_plan",
-           "STEPS_PER_RADIAN", "ADAPTIVE_STEPS_PER_RADIAN"]
+__all__ = ["auto_time_step", "check_time_step", "run_verlet", "RawRun", "StepPlan", "step_plan", "new_probes",
+           "initialise_run", "raw_run", "STEPS_PER_RADIAN", "ADAPTIVE_STEPS_PER_RADIAN"]
 
 #: Fixed automatic step (:func:`auto_time_step`): dt = 1 / (STEPS_PER_RADIAN * omega_max), with
 #: omega_max the whole run's bound (System.max_frequency).
@@ -121,6 +122,11 @@ class StepPlan:
     @property
     def adaptive(self) -> bool:
         return self.stride == 0
+
+    def control(self, interval: float) -> VerletControl:
+        """The plan as the compiled runs take it, for samples ``interval`` [s] apart."""
+        return VerletControl(float(interval), int(self.stride), int(self.n_sub), int(self.n_eval),
+                             float(self.c_steps), int(self.relax))
 
 
 def step_plan(system: System, sample_interval: float, dt: float | None,
@@ -228,68 +234,82 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     """
     plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
-    nc = system.n_contacts
     nb = system.n_beads + 1
     w = pack(system)
-    u, v = w.u, w.v
-    g = np.zeros(w.n_slots + 1)
-    a = np.zeros(w.n_slots)
-    rec = np.arange(nc) if contacts is None else np.asarray(contacts, dtype=np.int64)
-    out_f = np.empty((n_samples, rec.size))
-    out_ke = np.empty(n_samples)
-    out_pe = np.empty(n_samples)
-    out_ed = np.empty(n_samples)
-    plastic = system.law == kernels.LAW_ELASTOPLASTIC
-    out_wp = np.empty(n_samples if plastic else 1)
-    out_v = np.empty((n_samples if record_velocities else 1, nb))
-    out_b = np.empty((n_samples if system.body else 0, 4))
-    fmax = np.empty(nc)
-    peak = np.empty(8)
-    acc = np.zeros(8)
-    initialise(system, w, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, out_v, record_velocities, fmax, peak, acc,
-               out_wp, out_b=out_b)
+    state = VerletState(w.u, w.v, np.zeros(w.n_slots), np.zeros(w.n_slots + 1), np.zeros(8))
+    probes = new_probes(system, n_samples, contacts, record_velocities, record_positions)
+    initialise_run(system, w, state, probes)
 
     samples_per_chunk = 1 if record_positions else max(1, round(chunk_steps * plan.dt / sample_interval))
-    out_u = np.empty((n_samples, nb)) if record_positions else None
-    if out_u is not None:
-        out_u[0] = u[:nb]
     report_every = max(1, round(chunk_steps * plan.dt / sample_interval))
     reported = 1
     if progress is not None:
         progress(0, n_samples - 1)  # the checks passed and the work starts
     k = 1
     stepper = run_kernel(system.law)  # kernels.verlet_run, or the loop generated from the law
+    chain, contacts_, extension, control = w.chain(), w.contacts(), w.extension(), plan.control(sample_interval)
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_chunk)
-        status = stepper(u, v, a, g, w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
-                                    w.rsum, w.fext, w.dcap, w.dyield, w.dmax, w.dres, w.kres, system.law,
-                                    system.general, w.wall_slot, sample_interval, plan.stride, plan.n_sub,
-                                    plan.n_eval, plan.c_steps, plan.relax, k, k_stop, rec, out_f, out_ke, out_pe,
-                                    out_ed, out_wp, out_v, record_velocities, fmax, peak, acc, w.ext, system.extended,
-                                    w.body_slot, out_b)
+        status = stepper(state, chain, contacts_, extension, probes, control, system.law, system.general, k, k_stop)
         if status != 0:
-            used = _dt_used(plan, acc, sample_interval)[0]
+            used = _dt_used(plan, state.acc, sample_interval)[0]
             advice = (f"with run.dt = {dt:.3g} s; use a smaller run.dt (or leave it out for the automatic step)"
                       if dt is not None else f"with the automatic step (down to {used:.3g} s); check the inputs "
                       "(contact law parameters, masses, velocities) and report the case")
             raise SimulationDiverged(f"the integration diverged (non-finite state) before "
                                      f"t = {k_stop * sample_interval:.4g} s {advice}")
-        if out_u is not None:
-            out_u[k] = u[:nb]
+        if record_positions:
+            probes.out_u[k] = w.u[:nb]
         k = k_stop
         if progress is not None and (k - reported >= report_every or k == n_samples):
             reported = k
             progress(k - 1, n_samples - 1)
+    return raw_run(system, w, plan, probes, state.acc, sample_interval)
 
-    fpk, t_pk = refine_peak(peak)
+
+def new_probes(system: System, n_samples: int, contacts: np.ndarray | None, record_velocities: bool,
+               record_positions: bool) -> VerletProbes:
+    """The probes of a run of ``n_samples`` samples (uninitialised): the forces of the contacts
+    ``contacts`` (all when None), velocities and positions of bodies 0..N when asked, the plastic
+    work of the elastic-plastic law, the record of a protected body."""
+    nc = system.n_contacts
+    nb = system.n_beads + 1
+    rec = np.arange(nc) if contacts is None else np.asarray(contacts, dtype=np.int64)
+    plastic = system.law == kernels.LAW_ELASTOPLASTIC
+    return VerletProbes(rec=rec, out_f=np.empty((n_samples, rec.size)), out_ke=np.empty(n_samples),
+                        out_pe=np.empty(n_samples), out_ed=np.empty(n_samples),
+                        out_wp=np.empty(n_samples if plastic else 1),
+                        out_v=np.empty((n_samples if record_velocities else 1, nb)), record_v=bool(record_velocities),
+                        out_u=np.empty((n_samples if record_positions else 1, nb)), record_u=bool(record_positions),
+                        fmax=np.empty(nc), peak=np.empty(8), out_b=np.empty((n_samples if system.body else 0, 4)))
+
+
+def initialise_run(system: System, w: Packed, state: VerletState, probes: VerletProbes) -> None:
+    """:func:`initialise` of a run's structures (sample 0 of the positions too, when recorded)."""
+    u, v, a, g, acc = state
+    initialise(system, w, u, v, g, a, probes.rec, probes.out_f, probes.out_ke, probes.out_pe, probes.out_ed,
+               probes.out_v, probes.record_v, probes.fmax, probes.peak, acc, probes.out_wp, out_b=probes.out_b)
+    if probes.record_u:
+        probes.out_u[0] = u[: probes.out_u.shape[1]]
+
+
+def raw_run(system: System, w: Packed, plan: StepPlan, probes: VerletProbes, acc: np.ndarray,
+            sample_interval: float) -> RawRun:
+    """The :class:`RawRun` of a finished run: its probes, the refined wall peak, the steps used, the
+    elastic-plastic law's final state."""
+    nc = system.n_contacts
+    plastic = system.law == kernels.LAW_ELASTOPLASTIC
+    fpk, t_pk = refine_peak(probes.peak)
     dt_min, dt_max = _dt_used(plan, acc, sample_interval)
-    time = np.arange(n_samples) * sample_interval
-    return RawRun(time=time, contact_force=out_f, kinetic_energy=out_ke, potential_energy=out_pe,
-                  dissipated_energy=out_ed, velocity=out_v if record_velocities else None, max_force=fmax,
-                  peak_wall_force=fpk, peak_wall_time=t_pk, dt=dt_min, integrator="verlet",
-                  n_steps=int(acc[2]), contacts=rec, dt_max=dt_max, adaptive=plan.adaptive, displacement=out_u,
-                  plastic_work=out_wp if plastic else None, residual_overlap=w.dres[:nc].copy() if plastic else None,
-                  max_overlap=w.dmax[:nc].copy() if plastic else None, body=out_b if system.body else None)
+    return RawRun(time=np.arange(probes.out_ke.size) * sample_interval, contact_force=probes.out_f,
+                  kinetic_energy=probes.out_ke, potential_energy=probes.out_pe, dissipated_energy=probes.out_ed,
+                  velocity=probes.out_v if probes.record_v else None, max_force=probes.fmax, peak_wall_force=fpk,
+                  peak_wall_time=t_pk, dt=dt_min, integrator="verlet", n_steps=int(acc[2]), contacts=probes.rec,
+                  dt_max=dt_max, adaptive=plan.adaptive, displacement=probes.out_u if probes.record_u else None,
+                  plastic_work=probes.out_wp if plastic else None,
+                  residual_overlap=w.dres[:nc].copy() if plastic else None,
+                  max_overlap=w.dmax[:nc].copy() if plastic else None,
+                  body=probes.out_b if system.body else None)
 
 
 def _dt_used(plan: StepPlan, acc: np.ndarray, sample_interval: float) -> tuple[float, float]:
