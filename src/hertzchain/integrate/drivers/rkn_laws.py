@@ -119,7 +119,7 @@ def law_run(code: int):
     """The compiled kernels (:func:`rkn_state_kernels.build`) of the law of engine code ``code``,
     built once per law definition and process."""
     from ...laws import law_of_code
-    from ...laws.spec import compiled
+    from ...laws.spec import FIRST_USER_CODE, compiled
 
     spec = law_of_code(code)
     key = (code, id(spec.force), id(spec.state), id(spec.energy), spec.dissipative, spec.plastic)
@@ -130,7 +130,10 @@ def law_run(code: int):
         else:
             adapter = _generated_adapter(compiled(spec.force), compiled(spec.state), compiled(spec.energy),
                                          bool(spec.dissipative))
-            law_files = function_files_digest(spec.force, spec.state, spec.energy)
+            # a user's law (its module may be one runpy made, not importable where Numba reloads
+            # a cached closure): compiled in memory only
+            law_files = (function_files_digest(spec.force, spec.state, spec.energy)
+                         if spec.code < FIRST_USER_CODE else None)
         built = rs.build(adapter)
         if law_files is not None:  # on disk under the text of everything compiled in (a law typed at
             # the prompt: in memory only), as the generated Verlet loops (core/disk_cache.py)
