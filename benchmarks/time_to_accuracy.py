@@ -167,6 +167,45 @@ def defaults_vs_dop853(repeat: int, repeat_scipy: int) -> dict:
     return out
 
 
+def per_law(repeat: int) -> dict:
+    """``--laws``: every built-in law on chain 1 (8 mm striker at 0.2 m/s, flat wall, 3 ms), the
+    default call ``hc.simulate(model, duration)``: its integrator, steps, best-of-``repeat`` time
+    and the error of its peak wall force against the same integrator at rtol 1e-10 (the Verlet at a
+    2 ns step where auto picks the Verlet; rkn4's agreement
+    with DOP853 and the Verlet on every law: tests/test_rkn*.py; DOP853 at rtol 1e-12 takes minutes
+    a law on a loaded machine), and the time over the elastic law's. Timings interleaved."""
+    import hertzchain as hc
+
+    base = chain1_dashpot_model()
+    laws = {"elastic": hc.Elastic(), "viscoelastic": hc.Viscoelastic(A=2e-6), "dashpot": hc.Dashpot(gamma=8.0),
+            "elastoplastic": hc.Elastoplastic(), "power": hc.PowerLaw(1.5), "power_n2": hc.PowerLaw(2.0, 1e13),
+            "hunt_crossley": hc.HuntCrossley(0.9)}
+    models = {name: hc.Model(base.chain, base.striker, base.wall, law=law) for name, law in laws.items()}
+    models["dashpot_scaled"] = base
+    models["viscoelastic_scaled"] = chain1_dashpot_model("viscoelastic_scaled")
+    duration = 3.0e-3
+    out = {}
+    for name, model in models.items():
+        ds = hc.simulate(model, duration)  # warm
+        if ds.attrs["integrator_used"] == "rkn4":
+            ref, how = hc.simulate(model, duration, integrator="rkn4", rtol=1e-10), "rkn4 rtol 1e-10"
+        else:  # auto's Verlet (elastic-plastic chains): the Verlet at a 2 ns step
+            ref, how = hc.simulate(model, duration, integrator="verlet", dt=2e-9), "verlet dt 2 ns"
+        fr = float(ref.attrs["peak_wall_force"])
+        out[name] = {"integrator_used": ds.attrs["integrator_used"], "n_steps": int(ds.attrs["n_steps"]),
+                     "reference": how, "reference_peak_wall_force": fr,
+                     "rel_error": abs(float(ds.attrs["peak_wall_force"]) / fr - 1), "times_s": []}
+    for _ in range(repeat):
+        for name, model in models.items():
+            t0 = time.perf_counter()
+            hc.simulate(model, duration)
+            out[name]["times_s"].append(time.perf_counter() - t0)
+    for c in out.values():
+        c["time_s"] = min(c["times_s"])
+        c["time_over_elastic"] = c["time_s"] / min(out["elastic"]["times_s"])
+    return out
+
+
 def overhead(repeat: int) -> dict:
     """simulate() minus its kernel, for both integrators, and the pieces of it."""
     import hertzchain as hc
@@ -213,11 +252,23 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--quick", action="store_true", help="fewer repetitions")
     ap.add_argument("--defaults-only", action="store_true",
                     help="only the defaults against DOP853 (elastic and dashpot_scaled chain 1, section 3)")
+    ap.add_argument("--laws", action="store_true",
+                    help="only every built-in law's default call on chain 1 against the elastic law's")
     args = ap.parse_args(argv)
     quiet()
     repeat, repeat_scipy = (5, 1) if args.quick else (21, 3)
     info = machine_info()
     print(f"time to accuracy — {info['cpu_model']}, load {info['load_average_at_start']}, {info['date_utc']}")
+    if args.laws:
+        res = {"benchmark": "time_to_accuracy (every law)", "quick": args.quick, "machine": info,
+               "per_law": per_law(repeat)}
+        res["load_average_at_end"] = list(os.getloadavg())
+        rows = [[name, c["integrator_used"], c["n_steps"], f"{c['rel_error']:.1e}", f"{c['time_s'] * 1e3:.2f}",
+                 f"{c['time_over_elastic']:.2f}", c["reference"]] for name, c in res["per_law"].items()]
+        print(table(rows, ("law", "integrator", "steps", "error", "ms", "x elastic", "reference")))
+        save_json(res, args.json)
+        print(f"\nsaved {args.json}")
+        return res
 
     if args.defaults_only:
         res = {"benchmark": "time_to_accuracy (defaults only)", "quick": args.quick, "machine": info,

@@ -21,7 +21,8 @@ MODEL_KINDS = {  # model kind -> the integrator "auto" picks
     "elastic, free end": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, hc.Wall("none")), "rkn4"),
     "precompressed elastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, precompression=1.0), "rkn4"),
     "elastic under gravity": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, gravity=9.81), "rkn4"),
-    "power law": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.PowerLaw(2.0, 2e9)), "verlet"),
+    "power law": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.PowerLaw(2.0, 2e9)), "rkn4"),
+    "hunt_crossley": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.HuntCrossley(0.8)), "rkn4"),
     "dashpot": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Dashpot(gamma=20.0)), "rkn4"),
     "viscoelastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Viscoelastic(A=4e-6)), "rkn4"),
     "elastoplastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Elastoplastic()), "verlet"),
@@ -84,8 +85,8 @@ def test_auto_threads_only_for_long_chains_with_free_cores():
     # too short, not the Verlet, or a model the threaded engine does not run: one thread
     assert choose_engine(short, "verlet", cores=16, load=0.0).threads == 1
     assert choose_engine(long_chain, cores=16, load=0.0).threads == 1  # auto picks rkn4: one thread
-    # every contact law and offsets: the Verlet's threaded engine runs them (auto picks the Verlet
-    # for the elastic-plastic and registry laws, rkn4 on one thread for the others)
+    # every contact law and offsets: the Verlet's threaded engine runs them (auto picks rkn4, on
+    # one thread, for every law but the elastic-plastic one)
     chain = hc.Chain.uniform(4 * BEADS_PER_THREAD, 5e-3)
     for law in (hc.Dashpot(gamma=1.0), hc.Viscoelastic(A=1e-6), hc.Elastoplastic(), hc.PowerLaw(1.7, 1e9),
                 hc.HuntCrossley(0.8)):
@@ -94,8 +95,11 @@ def test_auto_threads_only_for_long_chains_with_free_cores():
         assert choose_engine(diss, "verlet", cores=2, load=2.2).threads == 1  # shared cores
         auto = choose_engine(diss, cores=16, load=0.0)
         assert auto.threads == (4 if auto.integrator == "verlet" else 1)
-    for law in (hc.Elastoplastic(), hc.PowerLaw(1.7, 1e9), hc.HuntCrossley(0.8)):
-        assert choose_engine(hc.Model(chain, STRIKER, law=law).system(), cores=16, load=0.0).threads == 4
+    for law in (hc.PowerLaw(1.7, 1e9), hc.HuntCrossley(0.8)):
+        auto = choose_engine(hc.Model(chain, STRIKER, law=law).system(), cores=16, load=0.0)
+        assert (auto.integrator, auto.threads) == ("rkn4", 1)
+    # the elastic-plastic chain: the Verlet (rkn4 on request), threads where cores are free
+    assert choose_engine(hc.Model(chain, STRIKER, law=hc.Elastoplastic()).system(), cores=16, load=0.0).threads == 4
     offsets = hc.Model(chain.with_offsets({3: 1e-5}), STRIKER).system()
     assert choose_engine(offsets, "verlet", cores=2, load=0.0).threads == 2
     body = hc.Model(chain, STRIKER, hc.Wall("body", mass=1.0, stiffness=1e6)).system()
@@ -164,6 +168,6 @@ def test_cli_verbose_names_the_engine(tmp_path, capsys):
     assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--set", "contact.law=dashpot",
                  "--set", "contact.gamma=10.0", "--verbose"]) == 0
     assert "engine: rkn4: aligned dissipative chain; 1 thread(s)" in " ".join(capsys.readouterr().out.split())
-    assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--set", "contact.law=elastoplastic",
-                 "--set", "run.integrator=rkn4"]) == 2
+    assert main(["run", str(cfg), "--out", str(tmp_path / "r.nc"), "--set", "contact.law=hunt_crossley",
+                 "--set", "contact.restitution=0.8", "--set", "run.integrator=dop853"]) == 2
     assert "run.integrator" in capsys.readouterr().err

@@ -46,8 +46,10 @@ def test_a_refusal_suggests_exactly_the_integrators_that_run(name):
             assert _run(model, other).sizes["time"] == 51
 
 
-def test_elastoplastic_rkn4_refusal_suggests_verlet_only():
+def test_elastoplastic_dop853_refusal_suggests_verlet_and_rkn4():
     with pytest.raises(hc.ConfigError) as refused:
-        _run(MODELS["elastoplastic"], "rkn4")
-    assert str(refused.value).endswith("use integrator 'auto' (the default) or 'verlet'")
+        _run(MODELS["elastoplastic"], "dop853")
+    assert str(refused.value).endswith("use integrator 'auto' (the default) or 'verlet' or 'rkn4'")
+    with pytest.raises(hc.ConfigError, match="protected body"):
+        _run(MODELS["body"], "rkn4")
     assert accepted_integrators(MODELS["viscoelastic"].system()) == ["verlet", "rkn4", "dop853", "rk45"]

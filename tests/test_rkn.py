@@ -146,10 +146,9 @@ def test_fixed_step(chain1):
 
 
 def test_refuses_the_elastoplastic_law_bodies_and_bad_rtol():
-    """Kuwabara-Kono, the dashpot and offsets run (tests/test_rkn_dissipative.py); the elastic-plastic
-    law and a protected body are refused naming run.integrator."""
-    for model in (hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), law=hc.Elastoplastic()),
-                  hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), hc.Wall("body", mass=0.5, stiffness=1e6))):
+    """Kuwabara-Kono, the dashpot and offsets run (tests/test_rkn_dissipative.py), the elastic-plastic
+    and registry laws too (tests/test_rkn_laws.py); a protected body is refused naming run.integrator."""
+    for model in (hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2), hc.Wall("body", mass=0.5, stiffness=1e6)),):
         with pytest.raises(hc.ConfigError, match="run.integrator"):
             hc.simulate(model, 1e-4, integrator="rkn4")
     model = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2))

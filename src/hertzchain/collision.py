@@ -157,9 +157,8 @@ def restitution(velocity: float, law, diameter_a: float, material_a: str | Mater
     sphere b (``diameter_b``, ``material_b``) at rest, or, with ``diameter_b=None``, an immovable
     flat of ``material_b`` (a sphere-on-flat Hertz contact, 1/R' = 0 in paper eq. 1). The
     collision is integrated until the bodies have parted, with the engine ``integrator = "auto"``
-    picks for the law (the fourth-order ``rkn4`` for the elastic law, Kuwabara-Kono and the
-    dashpot: the kernels a chain of that law runs on, so that nothing else compiles; the compiled
-    Verlet, adaptive step, for the others); e = (v_b' - v_a') / v (sphere) or -v_a' / v (flat).
+    picks for the law (the fourth-order ``rkn4``, for every law: the kernels a chain of that law
+    runs on, so that nothing else compiles); e = (v_b' - v_a') / v (sphere) or -v_a' / v (flat).
 
     Parameters
     ----------

@@ -56,12 +56,12 @@ from .contact import (Dashpot, Elastic, ScaledDashpot, ScaledViscoelastic, Sized
                       hertz_constant)
 from .errors import ConfigError
 from .integrate.drivers.refusals import why_not
-from .integrate.drivers.rkn import DAMPED_EPS, RKN_RTOL
+from .integrate.drivers.rkn import DAMPED_EPS, RKN_RTOL, run_rkn
 from .integrate.drivers.rkn_damped import run_rkn_damped
 from .integrate.drivers.verlet import run_verlet
 from .materials import Material, get_material
 from .model import Model, Striker, Wall
-from .laws import get_law, law_names
+from .laws import get_law, law_names, law_of_code
 
 __all__ = ["EpsMeasurement", "refine_peaks", "fit_geometric_decay", "measure_eps", "calibrate_law",
            "DEFAULT_BEADS", "DEFAULT_TRAILING_BEADS"]
@@ -179,11 +179,14 @@ def _duration_estimate(chain: Chain, striker: Striker, last: int) -> float:
 
 def _run_peaks(model: Model, contacts: np.ndarray, duration: float, sample_interval: float):
     system = model.system()
-    if why_not("rkn4", system) is None:
+    spec = law_of_code(system.law)
+    if why_not("rkn4", system) is None and not (spec.generated or spec.plastic):
         # rkn4's default accuracy (rkn.run_rkn's local error bound), on its y'' = f(y, y') method
         # for every law, the elastic baseline too: the kernels the calibrated run will use
         eps = RKN_RTOL * DAMPED_EPS * float(np.max(np.abs(system.v0)))
         raw = run_rkn_damped(system, duration, sample_interval, None, eps, False, contacts, None, 200_000, False)
+    elif why_not("rkn4", system) is None:  # a registry or elastic-plastic law: rkn4 on its own functions
+        raw = run_rkn(system, duration, sample_interval, contacts=contacts)
     else:
         raw = run_verlet(system, duration, sample_interval, contacts=contacts)
     t_pk, f_pk = refine_peaks(raw.time, raw.contact_force)

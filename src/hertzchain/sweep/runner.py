@@ -551,9 +551,14 @@ def _batch_integrator(run_cfg, model, dt) -> str:
     if run.integrator not in ("auto", "rkn4") or run.verlet_steps_per_radian is not None or dt is not None:
         return "verlet"
     # the single run's choice (the registry's answer: the laws rkn4 integrates), but for aligned
-    # elastic chains, whose symplectic rkn4 has no batched engine
+    # elastic chains, whose symplectic rkn4 has no batched engine, and the elastic-plastic and
+    # registry laws, whose rkn4 (drivers/rkn_laws.py) is not batched either
+    from ..laws import law_of_code
+
     system = model.system()
-    if choose_engine(system, "auto", 1).integrator != "rkn4" or not (system.law or system.misaligned):
+    spec = law_of_code(system.law)
+    if (choose_engine(system, "auto", 1).integrator != "rkn4" or not (system.law or system.misaligned)
+            or spec.generated or spec.plastic):
         return "verlet"
     return "rkn4"
 

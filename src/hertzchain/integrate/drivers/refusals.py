@@ -7,8 +7,9 @@ Each check returns why the integrator does not integrate the model (None: it doe
 - ``verlet``: every model;
 - ``rkn4`` (:mod:`hertzchain.integrate.drivers.rkn`): chains (paper eq. 1, with or without
   precompression, aligned or with beads offset from the axis) with the elastic law, Kuwabara-Kono's
-  or the dashpot (and their size-scaled forms: :mod:`hertzchain.integrate.drivers.rkn_damped`); no
-  protected body nor mass-in-mass beads, nor the elastic-plastic or generated laws;
+  or the dashpot (and their size-scaled forms: :mod:`hertzchain.integrate.drivers.rkn_damped`), the
+  elastic-plastic law and every registry law, with or without per-contact state
+  (:mod:`hertzchain.integrate.drivers.rkn_laws`); no protected body nor mass-in-mass beads;
 - ``dop853``, ``rk45`` (:mod:`hertzchain.integrate.drivers.reference`, ``scipy.integrate.solve_ivp``):
   every law without a per-contact history, which a right-hand side evaluated at trial points cannot
   carry: not the elastic-plastic law (the largest overlap) nor a registry law with state
@@ -28,14 +29,8 @@ INTEGRATORS = ("verlet", "rkn4", "dop853", "rk45")
 
 
 def _rkn4(system) -> str | None:
-    from ...laws import law_of_code
-
-    spec = law_of_code(system.law)
     if system.extended:
         return "'rkn4' integrates chains of beads; this model has a protected body or mass-in-mass beads"
-    if spec.generated or spec.plastic:
-        return (f"'rkn4' integrates the elastic, Kuwabara-Kono and dashpot laws; this model's contact.law is "
-                f"{spec.name!r}")
     return None
 
 

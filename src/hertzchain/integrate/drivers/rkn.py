@@ -5,8 +5,10 @@ with a step control that follows contacts as they close and open, and probes int
 steps, so the step is not tied to the sample interval. It integrates aligned elastic chains
 (paper eq. 1, with or without precompression); Kuwabara-Kono's law, the dashpot (plain or
 size-scaled) and beads offset from the axis go to :mod:`hertzchain.integrate.drivers.rkn_damped` (the
-classical RKN for y'' = f(y, y')); protected bodies, mass-in-mass beads, the elastic-plastic law
-and the generated laws stay with the velocity Verlet. Accuracy: ``rtol``, the local velocity error allowed per step relative to the
+classical RKN for y'' = f(y, y')), the elastic-plastic law and the registry's generated laws (power,
+Hunt-Crossley, a user's) to :mod:`hertzchain.integrate.drivers.rkn_laws` (the same method with the
+law's own functions and its per-contact state); protected bodies and mass-in-mass beads stay with
+the velocity Verlet. Accuracy: ``rtol``, the local velocity error allowed per step relative to the
 striker speed (default 1e-6 gives a peak wall force within ~1e-8 of DOP853 at rtol 1e-12 on the
 paper's chains; benchmarks/time_to_accuracy.py).
 """
@@ -87,6 +89,17 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
         raise ConfigError("run.rtol", f"must be a positive relative tolerance, got {rtol!r}")
     if dt is not None:
         check_time_step(system, dt)
+    from ...laws import law_of_code
+
+    spec = law_of_code(system.law)
+    if spec.generated or spec.plastic:
+        # a registry law or one with per-contact state: the law's own functions on the method for
+        # y'' = f(y, y'), the state frozen over a step's stages
+        from .rkn_laws import run_rkn_laws
+
+        v_ref = float(np.max(np.abs(system.v0)))
+        return run_rkn_laws(system, duration, sample_interval, dt, rtol * DAMPED_EPS * (v_ref if v_ref > 0 else 1.0),
+                            record_velocities, contacts, progress, chunk_steps, record_positions)
     if system.law in (LAW_VISCOELASTIC, LAW_DASHPOT) or (system.law == LAW_ELASTIC and system.misaligned):
         # Kuwabara-Kono, the dashpot or offsets: the method for y'' = f(y, y')
         from .rkn_damped import run_rkn_damped

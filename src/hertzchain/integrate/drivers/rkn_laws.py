@@ -1,0 +1,241 @@
+"""Driver of ``"rkn4"`` on the laws with per-contact state and the registry's generated laws
+(:mod:`hertzchain.integrate.drivers.rkn_state_kernels`).
+
+``simulate(model, integrator="rkn4")`` (and ``"auto"``, which picks it) on a chain with the
+elastic-plastic law (Thornton; the state: each contact's largest overlap and the unloading curve
+it implies) or a law of the registry run by the generated engines (the power law, Hunt-Crossley
+whose state is the approach speed at touch, any user's law with or without state): the classical
+fourth-order RKN of the damped laws with the law's own scalar functions (its force, state update
+and energy from the registry; the elastic-plastic law's ``kernels.elastoplastic_force`` and
+``energies``), the state frozen over a step's stages and committed when the step is accepted,
+every change of a contact's branch (closing, clip, state growing or not, yield) landed on.
+Fourth order on smooth stretches; ``eps`` is the local velocity error per step [m/s]
+(``rkn.DAMPED_EPS`` rtol times the striker speed, as the damped laws'). Accuracy measured in
+tests/test_rkn_laws.py and benchmarks/time_to_accuracy.py.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+from numba import njit
+
+from ...errors import SimulationDiverged
+from ...model import System
+from ..core.disk_cache import INTEGRATE, files_digest, function_files_digest, on_disk
+from ..core.energies import contact_plastic_work, unloading_energy
+from ..core.kernels import DELTA_MIN, elastoplastic_force
+from ..core.layout import pack
+from . import rkn_state_kernels as rs
+from .rkn_kernels import ChainArrays, ProbeBuffers, StepControl
+from .verlet import RawRun
+
+__all__ = ["run_rkn_laws", "law_run"]
+
+_BUILT: dict = {}
+#: The package's files compiled into these kernels (with the law's own: their on-disk cache key).
+_COMPILED_IN = ("drivers/rkn_state_kernels.py", "drivers/rkn_laws.py", "drivers/rkn_damped_kernels.py",
+                "drivers/rkn_kernels.py", "core/kernels.py", "core/primitives.py", "core/energies.py")
+
+
+def _generated_adapter(force, update, stored, dissipative: bool) -> rs.LawAdapter:
+    """A registry law's functions (``force(d, rate, k, p, s)``, ``state``, ``energy``) as the
+    kernels take them; its state (one number per contact) in row 0 of ``S``."""
+
+    @njit(nogil=True, inline="always")
+    def lforce(d, r, k, p, S, j, grow):
+        s = update(d, r, k, p, S[0, j]) if grow else S[0, j]
+        if d < 0.0:
+            return 0.0, 0.0, d
+        dd = d if d > DELTA_MIN else 0.0
+        f = force(dd, r, k, p, s)
+        if not dissipative:  # a compile-time constant (generated.py's rule): F does not depend on the rate
+            return f, f, d
+        return f, force(dd, 0.0, k, p, s), d
+
+    @njit(nogil=True, inline="always")
+    def commit(d, r, k, p, S, j):
+        S[0, j] = update(d, r, k, p, S[0, j])
+
+    @njit(nogil=True, inline="always")
+    def key(d, r, k, p, S, j):
+        return update(d, r, k, p, S[0, j])
+
+    @njit(nogil=True, inline="always")
+    def regime(d, r, k, p, S, j):
+        return 0
+
+    @njit(nogil=True, inline="always")
+    def energy(d, k, p, S, j):
+        return stored(d, k, p) if d > 0.0 else 0.0
+
+    @njit(nogil=True, inline="always")
+    def work(k, p, S, j):
+        return 0.0
+
+    return rs.LawAdapter(lforce, commit, key, regime, energy, work)
+
+
+# Thornton's elastic-plastic law, its state in rows (yield overlap, dmax, dres, kres) of S
+@njit(nogil=True, inline="always")
+def _ep_force(d, r, k, p, S, j, grow):
+    f, fep, _, _, _ = elastoplastic_force(d, r, k, p, S[0, j], S[1, j], S[2, j], S[3, j])
+    return f, fep, d - S[2, j]
+
+
+@njit(nogil=True, inline="always")
+def _ep_commit(d, r, k, p, S, j):
+    _, _, S[1, j], S[2, j], S[3, j] = elastoplastic_force(d if d > 0.0 else 0.0, r, k, p, S[0, j], S[1, j], S[2, j],
+                                                          S[3, j])
+
+
+@njit(nogil=True, inline="always")
+def _ep_key(d, r, k, p, S, j):
+    return d if d > S[1, j] else S[1, j]
+
+
+@njit(nogil=True, inline="always")
+def _ep_regime(d, r, k, p, S, j):
+    """1 past the yield overlap (the loading curve's straight part)."""
+    return 1 if _ep_key(d, r, k, p, S, j) > S[0, j] else 0
+
+
+@njit(nogil=True, inline="always")
+def _ep_stored(d, k, p, S, j):
+    return unloading_energy(d - S[2, j], S[3, j])
+
+
+@njit(nogil=True, inline="always")
+def _ep_work(k, p, S, j):
+    return contact_plastic_work(k, S[0, j], S[1, j], S[2, j])
+
+
+_PLASTIC = rs.LawAdapter(_ep_force, _ep_commit, _ep_key, _ep_regime, _ep_stored, _ep_work)
+
+
+def law_run(code: int):
+    """The compiled kernels (:func:`rkn_state_kernels.build`) of the law of engine code ``code``,
+    built once per law definition and process."""
+    from ...laws import law_of_code
+    from ...laws.spec import FIRST_USER_CODE, compiled
+
+    spec = law_of_code(code)
+    key = (code, id(spec.force), id(spec.state), id(spec.energy), spec.dissipative, spec.plastic)
+    if key not in _BUILT:
+        law_files: bytes | None
+        if spec.plastic:
+            adapter, law_files = _PLASTIC, files_digest(INTEGRATE / "core/energies.py")
+        else:
+            adapter = _generated_adapter(compiled(spec.force), compiled(spec.state), compiled(spec.energy),
+                                         bool(spec.dissipative))
+            # a user's law (its module may be one runpy made, not importable where Numba reloads
+            # a cached closure): compiled in memory only
+            law_files = (function_files_digest(spec.force, spec.state, spec.energy)
+                         if spec.code < FIRST_USER_CODE else None)
+        built = rs.build(adapter)
+        if law_files is not None:  # on disk under the text of everything compiled in (a law typed at
+            # the prompt: in memory only), as the generated Verlet loops (core/disk_cache.py)
+            sources = law_files + files_digest(*(INTEGRATE / name for name in _COMPILED_IN))
+            variant = ("rkn_laws", spec.name, spec.dissipative, spec.plastic)
+            built = tuple(on_disk(fn, *variant, i, sources=sources) for i, fn in enumerate(built))
+        _BUILT[key] = built
+    return _BUILT[key]
+
+
+def _state_rows(system: System, w) -> np.ndarray:
+    """The law's per-contact state ``S`` (rows as the adapter reads them) at the start."""
+    from ...laws import law_of_code
+
+    if law_of_code(system.law).plastic:
+        return np.ascontiguousarray(np.stack([w.dyield, w.dmax, w.dres, w.kres]))
+    return w.dmax.reshape(1, -1).copy()  # the generated engines' state slot, 0 at the start
+
+
+def run_rkn_laws(system: System, duration: float, sample_interval: float, dt: float | None, eps: float,
+                 record_velocities: bool, contacts: np.ndarray | None, progress: Callable[[int, int], None] | None,
+                 chunk_steps: int, record_positions: bool) -> RawRun:
+    """Integrate ``system`` (a stateful or generated law, module docstring) for ``duration`` [s].
+
+    Called by :func:`hertzchain.integrate.drivers.rkn.run_rkn`, which checked the model and the
+    options; parameters and result as :func:`hertzchain.integrate.drivers.rkn_damped.run_rkn_damped`'s,
+    with the elastic-plastic law's plastic work, residual and largest overlaps.
+    """
+    from ...laws import law_of_code
+
+    accel, end_data, set_modes, commit_all, energies, run = law_run(system.law)
+    plastic = law_of_code(system.law).plastic
+    n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
+    nc = system.n_contacts
+    nb = system.n_beads + 1
+    w = pack(system)
+    p = w.n_slots
+    u, v = w.u, w.v
+    a, an, un, vn, us, vs = (np.zeros(p + 1) for _ in range(6))
+    k2, k3, k4, up, vp, ap = (np.zeros(p) for _ in range(6))
+    S = _state_rows(system, w)
+    Sp = S.copy()
+    ed = np.zeros((2, rs.ROWS, p))
+    ends = np.zeros((2, rs.ENDS + 1))
+    pw = np.zeros(p)
+    mode = np.full(p, float(rs.LOADED))
+    off = np.ascontiguousarray(np.stack([w.de, w.dx0, w.rsum])) if system.misaligned else None
+    # a = f(u, v) on the loaded branches, then every contact on the branch its state gives
+    accel(u, v, w.kappa, w.damping, w.d0, off, w.fext, w.inv_mass, S, mode, a, pw, 0.0)
+    end_data(u, v, a, w.kappa, w.damping, w.d0, off, w.fext, w.mass, S, mode, 0.0, ed, ends, 0)
+    set_modes(ed, 0, w.kappa, w.damping, S, mode, 1e-8 * duration)
+    # the state of the contacts loaded at the start (touching ones take it as at their closing)
+    commit_all(u, v, w.kappa, w.damping, w.d0, off, S, mode, np.zeros(p), ed, 0)
+    accel(u, v, w.kappa, w.damping, w.d0, off, w.fext, w.inv_mass, S, mode, a, pw, 0.0)
+    end_data(u, v, a, w.kappa, w.damping, w.d0, off, w.fext, w.mass, S, mode, 0.0, ed, ends, 0)
+    energies(u, w.kappa, w.damping, w.d0, off, w.fext, S, ends, 0)
+    last = mode.copy()
+    rec = np.arange(nc) if contacts is None else np.asarray(contacts, dtype=np.int64)
+    out_f = np.empty((n_samples, rec.size))
+    out_ke = np.empty(n_samples)
+    out_pe = np.empty(n_samples)
+    out_d = np.empty(n_samples)
+    out_w = np.empty(n_samples)
+    out_v = np.empty((n_samples if record_velocities else 1, nb))
+    out_u = np.empty((n_samples if record_positions else 1, nb))
+    f0 = ed[0, 0, :nc].copy()
+    out_f[0] = f0[rec]
+    out_ke[0] = ends[0, rs.E_KE]
+    out_pe[0] = ends[0, rs.E_PE]
+    out_d[0] = 0.0
+    out_w[0] = ends[0, rs.E_W]
+    out_v[0] = v[:nb]
+    out_u[0] = u[:nb]
+    fmax = f0.copy()
+    peak = np.array([f0[system.n_beads] if system.has_wall else 0.0, 0.0])
+    acc = np.array([0.0, 0.0, 0.0, 0.0, np.inf, 0.0, 0.0])
+
+    per_call = max(1, round(chunk_steps * 1e-6 / sample_interval))
+    state = rs.StateRun(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, S, Sp, up, vp, ap, ed, ends)
+    chain = ChainArrays(w.mass, w.inv_mass, w.kappa, w.damping, w.d0, w.fext, system.n_beads)
+    probes = ProbeBuffers(rec, out_f, out_ke, out_pe, out_d, out_v, bool(record_velocities), out_u,
+                          bool(record_positions), fmax, peak)
+    control = StepControl(float(sample_interval), 0.0 if dt is None else float(dt), float(eps), float(duration))
+    if progress is not None:
+        progress(0, n_samples - 1)
+    k = 1
+    while k < n_samples:
+        k_stop = min(n_samples, k + per_call)
+        status = run(state, chain, off, probes, control, k, k_stop, acc, out_w)
+        if status != 0:
+            raise SimulationDiverged(f"the integration diverged (non-finite state) before t = "
+                                     f"{k_stop * sample_interval:.4g} s with integrator 'rkn4'; "
+                                     + ("use a smaller run.dt" if dt is not None else
+                                        "check the inputs (masses, velocities) and report the case"))
+        k = k_stop
+        if progress is not None:
+            progress(k - 1, n_samples - 1)
+    return RawRun(time=np.arange(n_samples) * sample_interval, contact_force=out_f, kinetic_energy=out_ke,
+                  potential_energy=out_pe, dissipated_energy=out_d,
+                  velocity=out_v if record_velocities else None, max_force=fmax, peak_wall_force=float(peak[0]),
+                  peak_wall_time=float(peak[1]), dt=float(acc[rs.A_HMIN]), integrator="rkn4",
+                  n_steps=int(acc[rs.A_STEPS]), contacts=rec, dt_max=float(acc[rs.A_HMAX]), adaptive=dt is None,
+                  displacement=out_u if record_positions else None, plastic_work=out_w if plastic else None,
+                  residual_overlap=S[2, :nc].copy() if plastic else None,
+                  max_overlap=S[1, :nc].copy() if plastic else None)

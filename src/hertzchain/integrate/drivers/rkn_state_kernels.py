@@ -1,0 +1,561 @@
+"""Kernels of ``"rkn4"`` generated from a contact law's own scalar functions, per-contact state
+included: the registry's generated laws (the power law, Hunt-Crossley, a user's law) and
+Thornton's elastic-plastic law (:mod:`hertzchain.integrate.drivers.rkn_laws` builds the law's
+*adapter* and :func:`build` the run from it; nothing here knows a law).
+
+Method: the classical fourth-order Runge-Kutta-Nystrom method for y'' = f(y, y') of
+:mod:`hertzchain.integrate.drivers.rkn_damped_kernels` (the same stages, the same dissipated-energy
+quadrature with the stages' weights, the same cubic/quintic Hermite probes), with the law's force
+from its adapter. Per-contact state (the largest overlap of the elastic-plastic law, the approach
+speed of Hunt-Crossley) is **frozen during a step and committed when the step is accepted**: a
+stage takes the state the law's update gives at the stage's own overlap and rate from the
+committed one (on a step where the state grows: max(history, stage overlap), i.e. the loading
+branch) or the committed state as it is (where it does not grow), and the accepted step's end
+commits the update at the end. A contact that closes commits its state at the closing instant
+(Hunt-Crossley's approach speed is the rate at touch).
+
+Every contact is on a *branch* for the whole step, an integer: bit 0 loaded (carries a force,
+``_state`` of the damped kernels: open below the law's opening overlap, clipped where the force
+is not positive), bit 1 its state grows (the law's update, evaluated an instant ahead along the
+trajectory, exceeds the present state: a max-type history while it increases), bit 2 the law's
+``regime`` (a piece of a piecewise law: the elastic-plastic law past its yield overlap). Each
+change of branch is a non-smooth instant of the force (a jump of the force or of one of its
+first two time derivatives); a step that would straddle one is redone to end on it (bisection of
+the branch along the step's interpolants of overlap and rate, to :data:`EVENT_TOL` of the
+step), so every step integrates a smooth force and the method keeps its fourth order on smooth
+stretches; the committed state at a step's end is the state at the event.
+
+Order and error bound: with every event landed, the local velocity error of a step is
+O(h^5) (fourth order) as for the damped laws; the step control bounds per loaded contact
+
+    e_j(h) = |F_j| m_j^-1 h min(y^4, F(gap + |r| h) / |F_j|) + |F_j| m_j^-1 (omega_j^4 + c_j^4) h^5,
+    y = |r| h / gap,
+
+(gap: the overlap beyond the law's opening point; omega_j^2 = k_t m_j^-1, c_j = c_t m_j^-1 with
+the tangent stiffness k_t = dF/d delta and damping c_t = dF/d rate by central differences of the
+law's force): the first term is the smooth fourth-order error of a force ~ gap^n, taken no
+larger than the error of a step that starts at the contact's closing (the force the contact
+reaches in it, times h), the second the fourth-order error of a force that changes at the
+contact's frequency and damping rate. This is the damped kernels' Hertz bound written with the
+law's own force, so the global error of a run is O(eps) with the same constant (``eps``: the local
+velocity error per step, rtol times the striker speed times ``rkn.DAMPED_EPS``). A branch change
+inside :data:`EVENT_TOL` of a step's end is taken in the step: an error of the size of the jump in
+the force's (first or second) derivative times (EVENT_TOL h)^2 h, below eps for every law here.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from ..core.primitives import DELTA_MIN
+from .rkn_damped_kernels import (A_H, A_HMAX, A_HMIN, A_HREF, A_STEPS, A_T, A_TPREV, E_D, E_DD, E_DKE, E_DPE, E_KE,
+                                 E_PE, ENDS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line)
+from .rkn_kernels import hermite, quintic
+
+__all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "GROWS", "REGIME"]
+
+#: An event inside a step closer than this fraction of the step to one of its ends is taken in
+#: the step (the bisection of a branch along the step resolves 2^-40 of it).
+EVENT_TOL = 1e-7
+#: Rows of a step end's per-contact data ``ed[c]``: force along the axis (clipped, on the
+#: branch), its time derivative, overlap, rate, d(rate)/dt, the gap beyond the law's opening
+#: overlap, elastic energy, dissipated power on the branch, then the unclipped force on the branch
+#: and its tangent stiffness dF/d delta and damping dF/d rate (0 off the loaded branch).
+R_F, R_DF, R_D, R_R, R_Q, R_GAP, R_E, R_P, R_FU, R_KT, R_CT = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10
+ROWS = 11
+#: Slot of ``ends[c]`` after the damped kernels' six: the law's other dissipated energy (the
+#: elastic-plastic law's plastic work [J]) at that end, from the committed state.
+E_W = ENDS
+#: Bits of a contact's branch.
+LOADED, GROWS, REGIME = 1, 2, 4
+
+
+class LawAdapter(NamedTuple):
+    """A law's scalar functions for :func:`build` (all ``numba.njit``; ``S`` the (rows, P) state,
+    ``j`` the contact; k [N/m^n] and p the contact's stiffness and parameter):
+
+    - ``force(d, r, k, p, S, j, grow)``: (F [N] unclipped, its part at zero rate [N], gap [m]) at
+      overlap d and rate r, with the committed state (``grow`` False) or the update at (d, r)
+      (``grow`` True); F is 0 where the contact is open (gap < 0);
+    - ``commit(d, r, k, p, S, j)``: store the update at (d, r);
+    - ``key(d, r, k, p, S, j)``: a scalar of the state the update at (d, r) gives (increasing as
+      the state grows);
+    - ``regime(d, r, k, p, S, j)``: the piece of a piecewise law (0 for a smooth one);
+    - ``stored(d, k, p, S, j)``: elastic energy [J] with the committed state;
+    - ``work(k, p, S, j)``: energy the state holds as dissipated (plastic work [J]; 0)."""
+
+    force: object
+    commit: object
+    key: object
+    regime: object
+    stored: object
+    work: object
+
+
+class StateRun(NamedTuple):
+    """The run's state (u, v, a = f(u, v)), new and stage state, stages, the stage-weighted
+    dissipated power ``pw``, branches of this step ``mode`` and the last ``last``, the law's
+    state ``S`` and its copy at the step's start ``Sp``, the step's start (up, vp, ap) and end data
+    ``ed``, ``ends`` of the last two step ends."""
+
+    u: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    un: np.ndarray
+    vn: np.ndarray
+    an: np.ndarray
+    us: np.ndarray
+    vs: np.ndarray
+    k2: np.ndarray
+    k3: np.ndarray
+    k4: np.ndarray
+    pw: np.ndarray
+    mode: np.ndarray
+    last: np.ndarray
+    S: np.ndarray
+    Sp: np.ndarray
+    up: np.ndarray
+    vp: np.ndarray
+    ap: np.ndarray
+    ed: np.ndarray
+    ends: np.ndarray
+
+
+def build(law: LawAdapter):
+    """The compiled (``accelerations``, ``end_data``, ``set_modes``, ``run``) of ``law`` (module
+    docstring); ``run(state, chain, off, probes, control, k_start, k_stop, acc, out_w)`` advances
+    as :func:`hertzchain.integrate.drivers.rkn_damped_kernels.damped_run` does (its arguments and
+    accumulators), ``out_w`` receiving the plastic work at the samples."""
+    lforce, lcommit, lkey, lregime, lstored, lwork = law
+
+    @njit(nogil=True, inline="always")
+    def branch_force(d, r, k, p, S, j, m):
+        """(F on branch m, its zero-rate part, gap)."""
+        if k == 0.0:
+            return 0.0, 0.0, -1.0
+        fu, fel, gap = lforce(d, r, k, p, S, j, (m & GROWS) != 0)
+        if (m & LOADED) == 0:
+            return 0.0, fel if gap >= 0.0 else 0.0, gap
+        if gap < 0.0:  # the loaded branch extended below the opening as at it
+            fu, fel, _ = lforce(d - gap, r, k, p, S, j, (m & GROWS) != 0)
+        return fu, fel, gap
+
+    @njit(nogil=True)
+    def branch_at(d, r, q, k, p, S, j, tau):
+        """The branch a contact's state (d, r, q = d(rate)/dt) puts it on (module docstring)."""
+        if k == 0.0:
+            return 0
+        fu, _, gap = lforce(d, r, k, p, S, j, True)
+        m = 0
+        if gap >= 0.0 and (fu > 0.0 or (gap <= DELTA_MIN and r > 0.0)):
+            m |= LOADED
+        if lkey(d + r * tau, r + q * tau, k, p, S, j) > lkey(d, r, k, p, S, j):
+            m |= GROWS
+        if lregime(d, r, k, p, S, j) != 0:
+            m |= REGIME
+        return m
+
+    @njit(nogil=True)
+    def accel(us, vs, kappa, damping, d0, off, fext, inv_mass, S, mode, out, pw, weight):
+        """a = f(us, vs) on the branches ``mode``; adds ``weight`` times each contact's dissipated
+        power (F - F_el) r to ``pw``."""
+        fprev = 0.0
+        for i in range(inv_mass.shape[0]):
+            d, cc, r, _ = _line(us[i] - us[i + 1], vs[i] - vs[i + 1], d0, off, i)
+            f, fel, _ = branch_force(d, r, kappa[i], damping[i], S, i, int(mode[i]))
+            pw[i] += weight * ((f - fel) * r)
+            f *= cc
+            out[i] = (fprev - f + fext[i]) * inv_mass[i]
+            fprev = f
+
+    @njit(nogil=True)
+    def tangents(d, r, k, p, S, j, m):
+        """(dF/d delta, dF/d rate) on branch m by central differences of the law's force."""
+        hd = 1e-7 * (abs(d) + 1e-12)
+        hr = 1e-7 * (abs(r) + 1e-6)
+        kt = (branch_force(d + hd, r, k, p, S, j, m)[0] - branch_force(d - hd, r, k, p, S, j, m)[0]) / (2.0 * hd)
+        ct = (branch_force(d, r + hr, k, p, S, j, m)[0] - branch_force(d, r - hr, k, p, S, j, m)[0]) / (2.0 * hr)
+        return kt, ct
+
+    @njit(nogil=True, error_model="numpy")
+    def end_data(u, v, a, kappa, damping, d0, off, fext, mass, S, mode, dis, ed, ends, c):
+        """Per contact into ``ed[c]`` (rows R_*) on the branches ``mode`` (with the state ``S``),
+        the energies and their rates into ``ends[c]`` (``rkn_damped_kernels.end_data``'s)."""
+        ke = 0.0
+        dke = 0.0
+        pe = 0.0
+        dpe = 0.0
+        dd = 0.0
+        for i in range(mass.shape[0]):
+            dv = v[i] - v[i + 1]
+            d, cc, r, kk = _line(u[i] - u[i + 1], dv, d0, off, i)
+            q = cc * (a[i] - a[i + 1]) - kk * dv * dv
+            m = int(mode[i])
+            f, fel, gap = branch_force(d, r, kappa[i], damping[i], S, i, m)
+            df = 0.0
+            kt, ct = 0.0, 0.0
+            if (m & LOADED) != 0:
+                kt, ct = tangents(d, r, kappa[i], damping[i], S, i, m)
+                if f > 0.0:
+                    df = kt * r + ct * q
+            ed[c, 8, i] = f
+            ed[c, 9, i] = kt
+            ed[c, 10, i] = ct
+            fc = f if f > 0.0 else 0.0
+            ed[c, 0, i] = cc * fc
+            ed[c, 1, i] = df
+            ed[c, 2, i] = d
+            ed[c, 3, i] = r
+            ed[c, 4, i] = q
+            ed[c, 5, i] = gap
+            el = lstored(d, kappa[i], damping[i], S, i) if kappa[i] != 0.0 else 0.0
+            ed[c, 6, i] = el
+            pb = (f - fel) * r
+            ed[c, 7, i] = pb
+            mv = mass[i] * v[i]
+            ke += mv * v[i]
+            dke += mv * a[i]
+            pe += el - fext[i] * u[i]
+            dpe += fel * r - fext[i] * v[i]
+            dd += pb
+        ends[c, E_KE] = 0.5 * ke
+        ends[c, E_DKE] = dke
+        ends[c, E_PE] = pe
+        ends[c, E_DPE] = dpe
+        ends[c, E_D] = dis
+        ends[c, E_DD] = dd
+
+    @njit(nogil=True)
+    def set_modes(ed, b, kappa, damping, S, mode, tau):
+        """Every contact's branch from its state at ``ed[b]``."""
+        for j in range(kappa.shape[0]):
+            mode[j] = branch_at(ed[b, 2, j], ed[b, 3, j], ed[b, 4, j], kappa[j], damping[j], S, j, tau)
+
+    @njit(nogil=True, error_model="numpy")
+    def max_error(ed, c, kappa, damping, inv_mass, S, mode, h):
+        """(max_j e_j(h) over the loaded contacts (module docstring), its local exponent)."""
+        emax = 0.0
+        pmax = 5.0
+        h5 = h * h * h * h * h
+        for j in range(kappa.shape[0]):
+            m = int(mode[j])
+            if (m & LOADED) == 0:
+                continue
+            d = ed[c, 2, j]
+            r = ed[c, 3, j]
+            gap = ed[c, 5, j]
+            im = inv_mass[j] + inv_mass[j + 1]
+            f = ed[c, 8, j]
+            # the force a closing contact reaches in the step: the crossing error
+            fx, _, _ = branch_force(d - (gap if gap > 0.0 else 0.0) + abs(r) * h, r, kappa[j], damping[j], S, j, m)
+            e1, p1 = abs(fx) * im * h, 2.5
+            if gap > DELTA_MIN:
+                y = abs(r) * h / gap
+                es = abs(f) * im * h * y * y * y * y
+                if es < e1:
+                    e1, p1 = es, 5.0
+            w2 = abs(ed[c, 9, j]) * im
+            ct = ed[c, 10, j]
+            cr = abs(ct) * im
+            e3 = abs(f) * im * (w2 * w2 + cr * cr * cr * cr) * h5
+            e = e1 + e3
+            if e > emax:
+                emax = e
+                pmax = (e1 * p1 + 5.0 * e3) / e
+        return emax, pmax
+
+    @njit(nogil=True, error_model="numpy")
+    def next_step(ed, c, kappa, damping, inv_mass, S, mode, eps, h_ref, h_max):
+        """The largest h with max_j e_j(h) <= eps, at most MAX_GROWTH h_ref and h_max, within the
+        stability bound (omega + damping rate) h <= MAX_RHO_H (tangents at twice the overlap a
+        step ahead reaches: a Gershgorin bound)."""
+        w = 0.0
+        cw = 0.0
+        for j in range(kappa.shape[0]):
+            m = int(mode[j])
+            if (m & LOADED) == 0:
+                continue
+            r = ed[c, 3, j]
+            d = ed[c, 2, j] + 2.0 * h_ref * (r if r > 0.0 else 0.0)
+            im = inv_mass[j] if inv_mass[j] > inv_mass[j + 1] else inv_mass[j + 1]
+            kt, ct = tangents(d, r, kappa[j], damping[j], S, j, m)
+            w = max(w, abs(kt) * im)
+            cw = max(cw, abs(ct) * im)
+        h = h_max
+        if h_ref > 0.0 and MAX_GROWTH * h_ref < h:
+            h = MAX_GROWTH * h_ref
+        rho = 2.0 * np.sqrt(w) + 4.0 * cw
+        if rho > 0.0 and MAX_RHO_H / rho < h:
+            h = MAX_RHO_H / rho
+        e, p = max_error(ed, c, kappa, damping, inv_mass, S, mode, h)
+        if e <= eps:
+            return h
+        for _ in range(8):
+            h *= (eps / e) ** (1.0 / p)
+            e, p = max_error(ed, c, kappa, damping, inv_mass, S, mode, h)
+            if e <= eps * 1.0001:
+                return h
+        return h * (eps / e) ** (1.0 / 1.5)
+
+    @njit(nogil=True, inline="always")
+    def path(ed, b, c, j, theta, h):
+        """(delta, rate, d(rate)/dt) of contact j at theta of the step: quintic, cubic, linear."""
+        q0, q1, q2, q3, q4, q5 = quintic(theta, h)
+        w0, w1, w2, w3 = hermite(theta, h)
+        d = q0 * ed[b, 2, j] + q1 * ed[b, 3, j] + q2 * ed[b, 4, j] + q3 * ed[c, 2, j] + q4 * ed[c, 3, j] + q5 * ed[c, 4, j]
+        r = w0 * ed[b, 3, j] + w1 * ed[b, 4, j] + w2 * ed[c, 3, j] + w3 * ed[c, 4, j]
+        return d, r, (1.0 - theta) * ed[b, 4, j] + theta * ed[c, 4, j]
+
+    @njit(nogil=True, error_model="numpy")
+    def event_inside(ed, b, c, h, kappa, damping, S, mode):
+        """Earliest theta in (EVENT_TOL, 1 - EVENT_TOL) where a contact leaves its branch (its
+        branch at the end differs; bisection along :func:`path`); 2 when one left it at the step's
+        start (``mode`` switched there: restart); -1 when none inside."""
+        best = 2.0
+        switched = False
+        tau = 1e-8 * h
+        for j in range(kappa.shape[0]):
+            m = int(mode[j])
+            if branch_at(ed[c, 2, j], ed[c, 3, j], ed[c, 4, j], kappa[j], damping[j], S, j, tau) == m:
+                continue
+            lo, hi = 0.0, 1.0
+            for _ in range(40):
+                x = 0.5 * (lo + hi)
+                d, r, q = path(ed, b, c, j, x, h)
+                if branch_at(d, r, q, kappa[j], damping[j], S, j, tau) == m:
+                    lo = x
+                else:
+                    hi = x
+            if hi <= EVENT_TOL:
+                d, r, q = path(ed, b, c, j, hi, h)
+                mode[j] = branch_at(d, r, q, kappa[j], damping[j], S, j, tau)
+                switched = True
+            best = hi if hi < best else best
+        if switched:
+            return 2.0
+        if EVENT_TOL < best < 1.0 - EVENT_TOL:
+            return best
+        return -1.0
+
+    @njit(nogil=True)
+    def force_at(ed, b, c, j, theta, h, kappa, damping, off, S, m):
+        """Contact j's force along the axis at theta of the step, on branch m (clipped)."""
+        d, r, _ = path(ed, b, c, j, theta, h)
+        f, _, _ = branch_force(d, r, kappa[j], damping[j], S, j, m)
+        f = f if f > 0.0 else 0.0
+        if off is not None:
+            de = off[0, j]
+            if de != 0.0:
+                dist = off[2, j] - d
+                x = dist * dist - de * de
+                f *= np.sqrt(x if x > 0.0 else 0.0) / dist
+        return f
+
+    @njit(nogil=True)
+    def peak_in_step(ed, b, c, j, h, kappa, damping, off, S, m):
+        """(largest interpolated force of contact j in the step, its theta): golden section."""
+        g = 0.6180339887498949
+        lo, hi = 0.0, 1.0
+        x1 = hi - g * (hi - lo)
+        x2 = lo + g * (hi - lo)
+        f1 = force_at(ed, b, c, j, x1, h, kappa, damping, off, S, m)
+        f2 = force_at(ed, b, c, j, x2, h, kappa, damping, off, S, m)
+        for _ in range(60):
+            if f1 < f2:
+                lo = x1
+                x1, f1 = x2, f2
+                x2 = lo + g * (hi - lo)
+                f2 = force_at(ed, b, c, j, x2, h, kappa, damping, off, S, m)
+            else:
+                hi = x2
+                x2, f2 = x1, f1
+                x1 = hi - g * (hi - lo)
+                f1 = force_at(ed, b, c, j, x1, h, kappa, damping, off, S, m)
+            if hi - lo < 1e-12:
+                break
+        x = 0.5 * (lo + hi)
+        return force_at(ed, b, c, j, x, h, kappa, damping, off, S, m), x
+
+    @njit(nogil=True, error_model="numpy")
+    def step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, off, fext, inv_mass, S, h, ed, b):
+        """One classical RKN step (``rkn_damped_kernels.step``) on the branches ``mode``."""
+        n = inv_mass.shape[0]
+        hh = 0.5 * h
+        h8 = 0.125 * h * h
+        for i in range(n):
+            us[i] = u[i] + hh * v[i] + h8 * a[i]
+            vs[i] = v[i] + hh * a[i]
+            pw[i] = ed[b, 7, i]
+        accel(us, vs, kappa, damping, d0, off, fext, inv_mass, S, mode, k2, pw, 2.0)
+        for i in range(n):
+            vs[i] = v[i] + hh * k2[i]
+        accel(us, vs, kappa, damping, d0, off, fext, inv_mass, S, mode, k3, pw, 2.0)
+        h2 = 0.5 * h * h
+        for i in range(n):
+            us[i] = u[i] + h * v[i] + h2 * k3[i]
+            vs[i] = v[i] + h * k3[i]
+        accel(us, vs, kappa, damping, d0, off, fext, inv_mass, S, mode, k4, pw, 1.0)
+        h6 = h / 6.0
+        hh6 = h * h6
+        for i in range(n):
+            un[i] = u[i] + h * v[i] + hh6 * (a[i] + k2[i] + k3[i])
+            vn[i] = v[i] + h6 * (a[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+        accel(un, vn, kappa, damping, d0, off, fext, inv_mass, S, mode, an, pw, 0.0)
+
+    @njit(nogil=True)
+    def commit_all(u, v, kappa, damping, d0, off, S, mode, last, ed, b):
+        """Commit every contact's state at the state (u, v); a contact that closes (loaded now,
+        not in the last step) takes it at its closing (gap 0)."""
+        for j in range(kappa.shape[0]):
+            if kappa[j] == 0.0:
+                continue
+            d, _, r, _ = _line(u[j] - u[j + 1], v[j] - v[j + 1], d0, off, j)
+            m = int(mode[j])
+            gap = ed[b, 5, j]
+            if (m & LOADED) != 0 and (int(last[j]) & LOADED) == 0 and gap < 0.0:
+                d -= gap
+            lcommit(d, r, kappa[j], damping[j], S, j)
+
+    @njit(nogil=True)
+    def energies(u, kappa, damping, d0, off, fext, S, ends, c):
+        """The stored energy (minus the work of f_ext) and the law's other dissipated energy
+        (plastic work) at the end ``c`` from the committed state ``S``."""
+        w = 0.0
+        pe = 0.0
+        for j in range(kappa.shape[0]):
+            if kappa[j] != 0.0:
+                d, _, _, _ = _line(u[j] - u[j + 1], 0.0, d0, off, j)
+                pe += lstored(d, kappa[j], damping[j], S, j)
+                w += lwork(kappa[j], damping[j], S, j)
+            pe -= fext[j] * u[j]
+        ends[c, E_PE] = pe
+        ends[c, E_W] = w
+
+    @njit(nogil=True, error_model="numpy")
+    def run(state, chain, off, probes, control, k_start, k_stop, acc, out_w):
+        u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, S, Sp, up, vp, ap, ed, ends = state
+        mass, inv_mass, kappa, damping, d0, fext, ws = chain
+        rec, out_f, out_ke, out_pe, out_d, out_v, record_v, out_u, record_u, fmax, peak = probes
+        interval, h_fixed, eps, h_max = control
+        n = mass.shape[0]
+        nc = fmax.shape[0]
+        nrec = rec.shape[0]
+        t = acc[A_T]
+        tp = acc[A_TPREV]
+        hl = acc[A_H]
+        href = acc[A_HREF]
+        steps = int(acc[A_STEPS])
+        fi = np.zeros(nc)
+        for k in range(k_start, k_stop):
+            tk = k * interval
+            while t < tk:
+                b = steps % 2
+                c = 1 - b
+                hguess = h_fixed if h_fixed > 0.0 else (href if href > 0.0 else h_max)
+                set_modes(ed, b, kappa, damping, S, mode, 1e-8 * hguess)
+                changed = False
+                for j in range(nc):
+                    if mode[j] != last[j]:
+                        changed = True
+                if changed:  # a branch changed at the last step's end: its state and f(u, v) on it
+                    commit_all(u, v, kappa, damping, d0, off, S, mode, last, ed, b)
+                    accel(u, v, kappa, damping, d0, off, fext, inv_mass, S, mode, a, pw, 0.0)
+                    end_data(u, v, a, kappa, damping, d0, off, fext, mass, S, mode, ends[b, E_D], ed, ends, b)
+                if h_fixed > 0.0:
+                    h = h_fixed
+                else:
+                    h = next_step(ed, b, kappa, damping, inv_mass, S, mode, eps, href, h_max)
+                    href = h
+                Sp[:, :] = S
+                for redo in range(MAX_REDO + 1):
+                    step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, off, fext, inv_mass,
+                         S, h, ed, b)
+                    end_data(un, vn, an, kappa, damping, d0, off, fext, mass, S, mode, 0.0, ed, ends, c)
+                    if h_fixed > 0.0 or redo == MAX_REDO:
+                        break
+                    x = event_inside(ed, b, c, h, kappa, damping, S, mode)
+                    if x < 0.0:
+                        break
+                    if x > 1.0:  # a branch switched at the start: its state, f(u, v) and the step afresh
+                        commit_all(u, v, kappa, damping, d0, off, S, mode, last, ed, b)
+                        accel(u, v, kappa, damping, d0, off, fext, inv_mass, S, mode, a, pw, 0.0)
+                        end_data(u, v, a, kappa, damping, d0, off, fext, mass, S, mode, ends[b, E_D], ed, ends, b)
+                        Sp[:, :] = S
+                        hm = next_step(ed, b, kappa, damping, inv_mass, S, mode, eps, href, h_max)
+                        h = hm if hm < h else h
+                    else:
+                        h *= x
+                # dissipated energy: the stages' quadrature on loaded contacts, the fall of the
+                # elastic energy of the others (rkn_damped_kernels.step_dissipation)
+                dis = 0.0
+                for j in range(nc):
+                    dis += h / 6.0 * pw[j] if (int(mode[j]) & LOADED) != 0 else ed[b, 6, j] - ed[c, 6, j]
+                ends[c, E_D] = ends[b, E_D] + dis
+                for j in range(nc):
+                    last[j] = mode[j]
+                commit_all(un, vn, kappa, damping, d0, off, S, mode, last, ed, c)
+                energies(un, kappa, damping, d0, off, fext, S, ends, c)
+                if record_v or record_u:
+                    for i in range(n):
+                        up[i] = u[i]
+                        vp[i] = v[i]
+                        ap[i] = a[i]
+                for i in range(n):
+                    u[i] = un[i]
+                    v[i] = vn[i]
+                    a[i] = an[i]
+                steps += 1
+                # the wall's peak up to the run's end (h_max: its duration; a last step may pass it,
+                # the sample there counts below)
+                if ed[b, 1, ws] > 0.0 and ed[c, 1, ws] <= 0.0:
+                    fk, x = peak_in_step(ed, b, c, ws, h, kappa, damping, off, Sp, int(mode[ws]))
+                    if fk > peak[0] and t + x * h <= h_max:
+                        peak[0] = fk
+                        peak[1] = t + x * h
+                if ed[c, 0, ws] > peak[0] and t + h <= h_max:
+                    peak[0] = ed[c, 0, ws]
+                    peak[1] = t + h
+                tp = t
+                t += h
+                hl = h
+                acc[A_HMIN] = h if h < acc[A_HMIN] else acc[A_HMIN]
+                acc[A_HMAX] = h if h > acc[A_HMAX] else acc[A_HMAX]
+            # --- probes at tk, between the steps' ends tp < tk <= t (the step's branches and state)
+            c = steps % 2
+            b = 1 - c
+            theta = (tk - tp) / hl
+            for j in range(nc):
+                f = force_at(ed, b, c, j, theta, hl, kappa, damping, off, Sp, int(last[j]))
+                fi[j] = f
+                fmax[j] = f if f > fmax[j] else fmax[j]
+            for r in range(nrec):
+                out_f[k, r] = fi[rec[r]]
+            if fi[ws] > peak[0]:
+                peak[0] = fi[ws]
+                peak[1] = tk
+            w0, w0d, w1, w1d = hermite(theta, hl)
+            ke = w0 * ends[b, E_KE] + w0d * ends[b, E_DKE] + w1 * ends[c, E_KE] + w1d * ends[c, E_DKE]
+            out_ke[k] = ke
+            # stored + plastic work has the rate sum F_el r: interpolated together, the work linearly
+            wk = (1.0 - theta) * ends[b, E_W] + theta * ends[c, E_W]
+            out_pe[k] = (w0 * (ends[b, E_PE] + ends[b, E_W]) + w0d * ends[b, E_DPE]
+                         + w1 * (ends[c, E_PE] + ends[c, E_W]) + w1d * ends[c, E_DPE]) - wk
+            out_w[k] = wk
+            out_d[k] = w0 * ends[b, E_D] + w0d * ends[b, E_DD] + w1 * ends[c, E_D] + w1d * ends[c, E_DD]
+            if record_v:
+                for i in range(out_v.shape[1]):
+                    out_v[k, i] = w0 * vp[i] + w0d * ap[i] + w1 * v[i] + w1d * a[i]
+            if record_u:
+                q0, q0d, q0dd, q1, q1d, q1dd = quintic(theta, hl)
+                for i in range(out_u.shape[1]):
+                    out_u[k, i] = q0 * up[i] + q0d * vp[i] + q0dd * ap[i] + q1 * u[i] + q1d * v[i] + q1dd * a[i]
+            if not np.isfinite(ke) or not np.isfinite(ed[c, 0, 0]):
+                acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS], acc[A_HREF] = t, tp, hl, steps, href
+                return 1
+        acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS], acc[A_HREF] = t, tp, hl, steps, href
+        return 0
+
+    return accel, end_data, set_modes, commit_all, energies, run
