@@ -39,13 +39,13 @@ def test_power_law_at_three_halves_equals_the_elastic_law_under_dop853():
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_power_law_auto_within_documented_accuracy_of_dop853(seed):
-    """The Verlet (auto's choice for a registry law) against DOP853 rtol 1e-12 on the same forces:
-    the peak wall force within the documented 1e-5 of the laws the Verlet runs (docs/guide/running.rst;
-    measured 6e-8 and 3e-7); DOP853 keeps the energy (no damping)."""
+    """rkn4 (auto's choice for a registry law without state) against DOP853 rtol 1e-12 on the same
+    forces: the peak wall force within the documented 1e-5 (docs/guide/running.rst); DOP853 keeps
+    the energy (no damping)."""
     model = _random_model(seed, hc.PowerLaw(1.7, 2e11))
     auto = _quiet(hc.simulate, model, "auto", PROBES)
     ref = _quiet(hc.simulate, model, "auto", PROBES, integrator="dop853", rtol=1e-12)
-    assert auto.attrs["integrator_used"] == "verlet"
+    assert auto.attrs["integrator_used"] == "rkn4"
     f, fr = auto.attrs["peak_wall_force"], ref.attrs["peak_wall_force"]
     assert fr > 1.0
     assert abs(f / fr - 1) < 1e-5

@@ -10,9 +10,10 @@ tests/test_engine_choice.py):
   size-scaled, or beads offset from the axis (:mod:`hertzchain.integrate.drivers.rkn_damped`: within
   ~4e-7 on the paper's chain 1). A registry law (power, Hunt-Crossley, a user's, with or without
   per-contact state: :mod:`hertzchain.integrate.drivers.rkn_laws`, the same method and bound,
-  tests/test_rkn_laws.py) runs on ``rkn4`` when asked for; ``auto`` keeps the Verlet for it, measured
-  faster on chain 1. The elastic-plastic law likewise, but ``auto`` takes ``rkn4`` for a two-body
-  collision: on chains its event landing is not yet fast enough.
+  tests/test_rkn_laws.py): ``auto`` takes ``rkn4`` for one without per-contact state (the power
+  law; at n = 3/2 the elastic law's own engine) and keeps the Verlet, measured faster on chain 1,
+  for one with state (Hunt-Crossley). The elastic-plastic law runs on ``rkn4`` when asked for, and
+  ``auto`` takes it for a two-body collision only: on chains its event landing is not yet fast enough.
   Otherwise, or when the call sets the Verlet's own accuracy (``steps_per_radian``), a fixed
   step ``dt`` or several threads, the compiled velocity ``"verlet"`` (peak wall force within ~1e-6).
 * threads: more than one only where the threaded engine runs the model (the Verlet on a chain of
@@ -149,12 +150,13 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
             # rkn4 integrates it (integrator="rkn4"), but on long elastic-plastic chains its event
             # landing was measured to take minutes where the Verlet takes a second: not yet auto's
             integrator, why = "verlet", "verlet: an elastic-plastic chain (rkn4 on request)"
-        elif law_of_code(system.law).generated:
-            # rkn4 integrates a registry law (integrator="rkn4"), but through the law's scalar
-            # functions and finite-difference slopes it was measured slower than the Verlet on chain 1
-            # (power n = 3/2: 24 ms against 12 ms, Hunt-Crossley 27 against 16, the Verlet also the
-            # more accurate there): not yet auto's
-            integrator, why = "verlet", "verlet: a registry law (rkn4 on request)"
+        elif law_of_code(system.law).generated and law_of_code(system.law).state_size:
+            # rkn4 integrates a registry law with per-contact state (integrator="rkn4"), but its
+            # frozen-state stages and branch checks made it slower than the Verlet on chain 1
+            # (Hunt-Crossley: 27 ms against 16, the Verlet also closer to a tight reference);
+            # stateless registry laws take rkn4 (the power law at n = 2: 33 ms against the Verlet's
+            # 58; at n = 3/2, the elastic law, the elastic law's own rkn4: 2.8 ms against 12.5)
+            integrator, why = "verlet", "verlet: a registry law with per-contact state (rkn4 on request)"
         elif steps_per_radian is not None:
             integrator, why = "verlet", "verlet: its steps_per_radian is set"
         elif dt is not None:

@@ -5,12 +5,12 @@ Built-in laws register in :mod:`hertzchain.laws.builtin`; a user's law registers
 name: it asks its spec (``spec_of(law).dissipative``, ``.plastic``, ``.calibrated`` ...).
 """
 
-from .spec import (FIRST_GENERATED_CODE, LawSpec, Param, get_law, is_conservative, is_plastic, jit, law_names,
-                   law_of_code, register_law, spec_of)
+from .spec import (FIRST_GENERATED_CODE, LawSpec, Param, get_law, hertz_equivalent, is_conservative, is_plastic, jit,
+                   law_names, law_of_code, register_law, spec_of)
 from . import builtin  # noqa: E402,F401  (registers the built-in laws; spec.py itself imports none of them)
 
 __all__ = ["LawSpec", "Param", "register_law", "get_law", "law_names", "law_of_code", "spec_of",
-           "FIRST_GENERATED_CODE", "is_conservative", "is_plastic", "jit", "PowerLaw", "HuntCrossley", "load_law_file"]
+           "FIRST_GENERATED_CODE", "hertz_equivalent", "is_conservative", "is_plastic", "jit", "PowerLaw", "HuntCrossley", "load_law_file"]
 
 
 def __getattr__(name):

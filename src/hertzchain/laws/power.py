@@ -73,7 +73,7 @@ class PowerLaw:
 
 SPEC = register_law(LawSpec(
     name="power", title="power law F = k delta^n", force=force, state=state, energy=energy, partials=partials,
-    overlap_at_energy=overlap_at_energy, exponent=None, constant_parameters=(1.5, 2.0), code=4, make=lambda p, chain=None: PowerLaw(**p),
+    overlap_at_energy=overlap_at_energy, exponent=None, constant_parameters=(1.5, 2.0), hertz_parameter=1.5, code=4, make=lambda p, chain=None: PowerLaw(**p),
     params=(Param("exponent", "-", "n, the power of the overlap", 1.0, 10.0),
             Param("stiffness", "N/m^n", "k (default: the pair's Hertz constant)", 0.0, 1e30, open_low=True,
                   optional=True))))

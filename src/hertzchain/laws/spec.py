@@ -183,6 +183,11 @@ class LawSpec:
         law's branches on its parameter fold and its arithmetic simplifies (the power law's
         n = 3/2: d sqrt(d); n = 2, a cone: d**2 -> d d, no pow), where a run-time branch costs
         every contact both sides once the loop is vectorised. Each value adds a loop to compile.
+    hertz_parameter : float or None
+        The parameter at which the law is the elastic law, F = k delta^(3/2) (paper eq. 1) with the
+        contact's own k, without state or dissipation (the power law: n = 3/2); None: no such value.
+        A chain whose every contact has it is run by the elastic law's own fourth-order engine
+        (:func:`hertz_equivalent`), so that it gives the elastic run's numbers there too.
     extra : dict
         Anything else (``scaled``: a size-scaled built-in law).
     """
@@ -206,6 +211,7 @@ class LawSpec:
     #: the force's power of the overlap at zero rate (Hertz: 1.5) when it is a fixed number
     exponent: float | None = 1.5
     constant_parameters: tuple[float, ...] = ()
+    hertz_parameter: float | None = None
     extra: dict = field(default_factory=dict)
 
     @property
@@ -294,6 +300,18 @@ def get_law(name: str) -> LawSpec:
 def law_names() -> tuple[str, ...]:
     """Names of every registered law, built-in ones first."""
     return tuple(_REGISTRY)
+
+
+def hertz_equivalent(system) -> bool:
+    """True where ``system`` (a :class:`hertzchain.model.System`) runs a registry law at its
+    :attr:`LawSpec.hertz_parameter` on every contact: the elastic law F = kappa_j delta^(3/2)
+    (paper eq. 1) in another name (the power law at n = 3/2), which the elastic law's own engines
+    may run."""
+    spec = law_of_code(system.law)
+    if not spec.generated or spec.hertz_parameter is None or spec.state_size:
+        return False
+    loaded = system.kappa > 0
+    return bool((system.damping[loaded] == spec.hertz_parameter).all())
 
 
 def law_of_code(code: int) -> LawSpec:

@@ -15,6 +15,7 @@ paper's chains; benchmarks/time_to_accuracy.py).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Callable
 
@@ -89,8 +90,13 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
         raise ConfigError("run.rtol", f"must be a positive relative tolerance, got {rtol!r}")
     if dt is not None:
         check_time_step(system, dt)
-    from ...laws import law_of_code
+    from ...laws import hertz_equivalent, law_of_code
 
+    if hertz_equivalent(system):
+        # a registry law that is the elastic law on every contact (the power law at n = 3/2, its k
+        # each pair's or its own: F = k delta^(3/2), paper eq. 1): the elastic law's engine, so that
+        # the run is the elastic run (issue 33's contract), not the classical method's approximation
+        system = dataclasses.replace(system, law=LAW_ELASTIC, damping=np.zeros_like(system.damping))
     spec = law_of_code(system.law)
     if spec.generated or spec.plastic:
         # a registry law or one with per-contact state: the law's own functions on the method for
