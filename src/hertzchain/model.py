@@ -551,13 +551,6 @@ class Model:
         return self.wall.is_body or any(el.resonator_fraction > 0 for el in self.chain.elements)
 
     @property
-    def extension_field(self) -> str | None:
-        """The config field that makes the model extended (``"wall.type"``, ``"chain.elements"``), or None."""
-        if self.wall.is_body:
-            return "wall.type"
-        return "chain.elements" if self.extended else None
-
-    @property
     def plain(self) -> bool:
         """True for the paper's kind of model (sphere striker, spheres, a flat wall or a free end, no
         gravity): its arrays are computed by the array set-up of ensembles too."""
