@@ -60,6 +60,14 @@ __all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "
 #: An event inside a step closer than this fraction of the step to one of its ends is taken in
 #: the step (the bisection of a branch along the step resolves 2^-40 of it).
 EVENT_TOL = 1e-7
+#: A change of branch is landed on only where the contact's force at the step's end (on either
+#: branch) times m^-1 h, the most a step's velocities can be off by taking the change inside it,
+#: exceeds this fraction of ``eps``: the numerical precursor ahead of a pulse (overlaps ~1e-80 m,
+#: forces ~1e-110 N) crosses zero in nearly every step, and landing on each crossing cost
+#: thousands of redone steps on chain 1 for nothing a result can see. The state such a step
+#: commits is the law's update at the step's end (a max-type state that peaked inside it, at
+#: such forces, is overtaken by the pulse's: Hunt-Crossley's approach speed, the largest overlap).
+EVENT_EPS = 1e-3
 #: Rows of a step end's per-contact data ``ed[c]``: force along the axis (clipped, on the
 #: branch), its time derivative, overlap, rate, d(rate)/dt, the gap beyond the law's opening
 #: overlap, elastic energy, dissipated power on the branch, then the unclipped force on the branch
@@ -85,7 +93,11 @@ class LawAdapter(NamedTuple):
       the state grows);
     - ``regime(d, r, k, p, S, j)``: the piece of a piecewise law (0 for a smooth one);
     - ``stored(d, k, p, S, j)``: elastic energy [J] with the committed state;
-    - ``work(k, p, S, j)``: energy the state holds as dissipated (plastic work [J]; 0)."""
+    - ``work(k, p, S, j)``: energy the state holds as dissipated (plastic work [J]; 0);
+    - ``tangent(d, r, k, p, S, j, grow)``: (dF/d delta [N/m], dF/d rate [N s/m], gap [m]) of the
+      unclipped force as ``force`` takes it (with ``grow``, through the state's update: the
+      derivative along the branch), from the law's analytic partials; None: central differences
+      of ``force`` (a law with state that declares no ``state_partials``)."""
 
     force: object
     commit: object
@@ -93,6 +105,7 @@ class LawAdapter(NamedTuple):
     regime: object
     stored: object
     work: object
+    tangent: object = None
 
 
 class StateRun(NamedTuple):
@@ -129,7 +142,7 @@ def build(law: LawAdapter):
     docstring); ``run(state, chain, off, probes, control, k_start, k_stop, acc, out_w)`` advances
     as :func:`hertzchain.integrate.drivers.rkn_damped_kernels.damped_run` does (its arguments and
     accumulators), ``out_w`` receiving the plastic work at the samples."""
-    lforce, lcommit, lkey, lregime, lstored, lwork = law
+    lforce, lcommit, lkey, lregime, lstored, lwork, ltangent = law
 
     @njit(nogil=True, inline="always")
     def branch_force(d, r, k, p, S, j, m):
@@ -171,14 +184,28 @@ def build(law: LawAdapter):
             out[i] = (fprev - f + fext[i]) * inv_mass[i]
             fprev = f
 
-    @njit(nogil=True)
-    def tangents(d, r, k, p, S, j, m):
-        """(dF/d delta, dF/d rate) on branch m by central differences of the law's force."""
-        hd = 1e-7 * (abs(d) + 1e-12)
-        hr = 1e-7 * (abs(r) + 1e-6)
-        kt = (branch_force(d + hd, r, k, p, S, j, m)[0] - branch_force(d - hd, r, k, p, S, j, m)[0]) / (2.0 * hd)
-        ct = (branch_force(d, r + hr, k, p, S, j, m)[0] - branch_force(d, r - hr, k, p, S, j, m)[0]) / (2.0 * hr)
-        return kt, ct
+    if ltangent is None:
+        @njit(nogil=True)
+        def tangents(d, r, k, p, S, j, m):
+            """(dF/d delta, dF/d rate) on branch m by central differences of the law's force."""
+            hd = 1e-7 * (abs(d) + 1e-12)
+            hr = 1e-7 * (abs(r) + 1e-6)
+            kt = (branch_force(d + hd, r, k, p, S, j, m)[0] - branch_force(d - hd, r, k, p, S, j, m)[0]) / (2.0 * hd)
+            ct = (branch_force(d, r + hr, k, p, S, j, m)[0] - branch_force(d, r - hr, k, p, S, j, m)[0]) / (2.0 * hr)
+            return kt, ct
+    else:
+        @njit(nogil=True, inline="always")
+        def tangents(d, r, k, p, S, j, m):
+            """(dF/d delta, dF/d rate) on the loaded branch m from the law's partials (below the
+            opening the branch is the force at the opening: no delta-derivative)."""
+            if k == 0.0:
+                return 0.0, 0.0
+            grow = (m & GROWS) != 0
+            kt, ct, gap = ltangent(d, r, k, p, S, j, grow)
+            if gap < 0.0:
+                _, ct, _ = ltangent(d - gap, r, k, p, S, j, grow)
+                kt = 0.0
+            return kt, ct
 
     @njit(nogil=True, error_model="numpy")
     def end_data(u, v, a, kappa, damping, d0, off, fext, mass, S, mode, dis, ed, ends, c):
@@ -310,16 +337,24 @@ def build(law: LawAdapter):
         return d, r, (1.0 - theta) * ed[b, 4, j] + theta * ed[c, 4, j]
 
     @njit(nogil=True, error_model="numpy")
-    def event_inside(ed, b, c, h, kappa, damping, S, mode):
+    def event_inside(ed, b, c, h, kappa, damping, inv_mass, S, mode, eps):
         """Earliest theta in (EVENT_TOL, 1 - EVENT_TOL) where a contact leaves its branch (its
         branch at the end differs; bisection along :func:`path`); 2 when one left it at the step's
-        start (``mode`` switched there: restart); -1 when none inside."""
+        start (``mode`` switched there: restart); -1 when none inside. A change where the
+        contact's force on either branch at the step's end is below EVENT_EPS eps / (m^-1 h) is
+        not landed on (:data:`EVENT_EPS`)."""
         best = 2.0
         switched = False
         tau = 1e-8 * h
         for j in range(kappa.shape[0]):
             m = int(mode[j])
-            if branch_at(ed[c, 2, j], ed[c, 3, j], ed[c, 4, j], kappa[j], damping[j], S, j, tau) == m:
+            d1, r1 = ed[c, 2, j], ed[c, 3, j]
+            mn = branch_at(d1, r1, ed[c, 4, j], kappa[j], damping[j], S, j, tau)
+            if mn == m:
+                continue
+            fa = abs(branch_force(d1, r1, kappa[j], damping[j], S, j, mn)[0])
+            fb = abs(branch_force(d1, r1, kappa[j], damping[j], S, j, m)[0])
+            if (fa if fa > fb else fb) * (inv_mass[j] + inv_mass[j + 1]) * h <= EVENT_EPS * eps:
                 continue
             lo, hi = 0.0, 1.0
             for _ in range(40):
@@ -476,7 +511,7 @@ def build(law: LawAdapter):
                     end_data(un, vn, an, kappa, damping, d0, off, fext, mass, S, mode, 0.0, ed, ends, c)
                     if h_fixed > 0.0 or redo == MAX_REDO:
                         break
-                    x = event_inside(ed, b, c, h, kappa, damping, S, mode)
+                    x = event_inside(ed, b, c, h, kappa, damping, inv_mass, S, mode, eps)
                     if x < 0.0:
                         break
                     if x > 1.0:  # a branch switched at the start: its state, f(u, v) and the step afresh
