@@ -40,13 +40,42 @@ _COMPILED_IN = ("drivers/rkn_state_kernels.py", "drivers/rkn_laws.py", "drivers/
                 "drivers/rkn_kernels.py", "core/kernels.py", "core/primitives.py", "core/energies.py")
 
 
+def _fixed(fn, value: float):
+    """``fn(d, rate, k, p, s)`` with p = ``value``, a compile-time constant."""
+    p = float(value)
+
+    @njit(nogil=True, inline="always")
+    def fixed(d, r, k, _p, s):
+        return fn(d, r, k, p, s)
+
+    return fixed
+
+
+def _fixed_energy(fn, value: float):
+    """``fn(d, k, p)`` with p = ``value``, a compile-time constant."""
+    p = float(value)
+
+    @njit(nogil=True, inline="always")
+    def fixed(d, k, _p):
+        return fn(d, k, p)
+
+    return fixed
+
+
 def _generated_adapter(force, update, stored, dissipative: bool, partials, state_partials,
-                       stateful: bool) -> rs.LawAdapter:
+                       stateful: bool, constant: float | None = None) -> rs.LawAdapter:
     """A registry law's functions (``force(d, rate, k, p, s)``, ``state``, ``energy``,
     ``partials``, ``state_partials``) as the kernels take them; its state (one number per
     contact) in row 0 of ``S``. The slopes come from the law's partials (through the state's
     update by the chain rule on a growing branch); a law with state that declares no
-    ``state_partials`` gets the kernels' central differences."""
+    ``state_partials`` gets the kernels' central differences. With ``constant`` (one of the law's
+    ``constant_parameters``, every contact's parameter) the functions take it as a compile-time
+    constant: the law's branches on it fold and its arithmetic simplifies (the power law at n = 2:
+    d d, not pow), as in the generated Verlet loops (``core/generated.py``)."""
+    if constant is not None:
+        force, update, partials = (_fixed(fn, constant) for fn in (force, update, partials))
+        state_partials = None if state_partials is None else _fixed(state_partials, constant)
+        stored = _fixed_energy(stored, constant)
 
     @njit(nogil=True, inline="always")
     def lforce(d, r, k, p, S, j, grow):
@@ -100,7 +129,7 @@ def _generated_adapter(force, update, stored, dissipative: bool, partials, state
             fd, fr, _, _ = partials(d if d > DELTA_MIN else 0.0, r, k, p, S[0, j])
             return fd, fr, d
 
-    return rs.LawAdapter(lforce, commit, key, regime, energy, work, tangent)
+    return rs.LawAdapter(lforce, commit, key, regime, energy, work, tangent, stored_state=False)
 
 
 # Thornton's elastic-plastic law, its state in rows (yield overlap, dmax, dres, kres) of S
@@ -167,14 +196,15 @@ def _ep_tangent(d, r, k, p, S, j, grow):
 _PLASTIC = rs.LawAdapter(_ep_force, _ep_commit, _ep_key, _ep_regime, _ep_stored, _ep_work, _ep_tangent)
 
 
-def law_run(code: int):
-    """The compiled kernels (:func:`rkn_state_kernels.build`) of the law of engine code ``code``,
-    built once per law definition and process."""
+def law_run(code: int, constant: float | None = None):
+    """The compiled kernels (:func:`rkn_state_kernels.build`) of the law of engine code ``code``
+    (with its parameter the compile-time ``constant``, one of its ``constant_parameters``, when
+    given), built once per law definition, constant and process."""
     from ...laws import law_of_code
     from ...laws.spec import FIRST_USER_CODE, compiled
 
     spec = law_of_code(code)
-    key = (code, id(spec.force), id(spec.state), id(spec.energy), spec.dissipative, spec.plastic)
+    key = (code, id(spec.force), id(spec.state), id(spec.energy), spec.dissipative, spec.plastic, constant)
     if key not in _BUILT:
         law_files: bytes | None
         if spec.plastic:
@@ -183,7 +213,7 @@ def law_run(code: int):
             adapter = _generated_adapter(compiled(spec.force), compiled(spec.state), compiled(spec.energy),
                                          bool(spec.dissipative), compiled(spec.partials),
                                          None if spec.state_partials is None else compiled(spec.state_partials),
-                                         bool(spec.state_size))
+                                         bool(spec.state_size), constant)
             # a user's law (its module may be one runpy made, not importable where Numba reloads
             # a cached closure): compiled in memory only
             law_files = (function_files_digest(spec.force, spec.state, spec.energy)
@@ -192,7 +222,7 @@ def law_run(code: int):
         if law_files is not None:  # on disk under the text of everything compiled in (a law typed at
             # the prompt: in memory only), as the generated Verlet loops (core/disk_cache.py)
             sources = law_files + files_digest(*(INTEGRATE / name for name in _COMPILED_IN))
-            variant = ("rkn_laws", spec.name, spec.dissipative, spec.plastic)
+            variant = ("rkn_laws", spec.name, spec.dissipative, spec.plastic, constant)
             built = tuple(on_disk(fn, *variant, i, sources=sources) for i, fn in enumerate(built))
         _BUILT[key] = built
     return _BUILT[key]
@@ -218,12 +248,17 @@ def run_rkn_laws(system: System, duration: float, sample_interval: float, dt: fl
     """
     from ...laws import law_of_code
 
-    accel, end_data, set_modes, commit_all, energies, run = law_run(system.law)
-    plastic = law_of_code(system.law).plastic
+    spec = law_of_code(system.law)
+    plastic = spec.plastic
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
     nc = system.n_contacts
     nb = system.n_beads + 1
     w = pack(system)
+    # every contact's parameter one of the law's constants: the kernels with it compiled in
+    params = set(w.damping[w.kappa != 0.0].tolist())
+    constant = params.pop() if len(params) == 1 and not plastic else None
+    accel, end_data, set_modes, commit_all, energies, run = law_run(
+        system.law, constant if constant in spec.constant_parameters else None)
     p = w.n_slots
     u, v = w.u, w.v
     a, an, un, vn, us, vs = (np.zeros(p + 1) for _ in range(6))

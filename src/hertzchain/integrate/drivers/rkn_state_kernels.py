@@ -97,7 +97,9 @@ class LawAdapter(NamedTuple):
     - ``tangent(d, r, k, p, S, j, grow)``: (dF/d delta [N/m], dF/d rate [N s/m], gap [m]) of the
       unclipped force as ``force`` takes it (with ``grow``, through the state's update: the
       derivative along the branch), from the law's analytic partials; None: central differences
-      of ``force`` (a law with state that declares no ``state_partials``)."""
+      of ``force`` (a law with state that declares no ``state_partials``);
+    - ``stored_state``: whether ``stored`` or ``work`` read the state (else the stored energy at a
+      step's end is :func:`end_data`'s, not recomputed after the state's commit)."""
 
     force: object
     commit: object
@@ -106,6 +108,7 @@ class LawAdapter(NamedTuple):
     stored: object
     work: object
     tangent: object = None
+    stored_state: bool = True
 
 
 class StateRun(NamedTuple):
@@ -142,7 +145,7 @@ def build(law: LawAdapter):
     docstring); ``run(state, chain, off, probes, control, k_start, k_stop, acc, out_w)`` advances
     as :func:`hertzchain.integrate.drivers.rkn_damped_kernels.damped_run` does (its arguments and
     accumulators), ``out_w`` receiving the plastic work at the samples."""
-    lforce, lcommit, lkey, lregime, lstored, lwork, ltangent = law
+    lforce, lcommit, lkey, lregime, lstored, lwork, ltangent, stored_state = law
 
     @njit(nogil=True, inline="always")
     def branch_force(d, r, k, p, S, j, m):
@@ -328,13 +331,18 @@ def build(law: LawAdapter):
         return h * (eps / e) ** (1.0 / 1.5)
 
     @njit(nogil=True, inline="always")
-    def path(ed, b, c, j, theta, h):
-        """(delta, rate, d(rate)/dt) of contact j at theta of the step: quintic, cubic, linear."""
-        q0, q1, q2, q3, q4, q5 = quintic(theta, h)
-        w0, w1, w2, w3 = hermite(theta, h)
-        d = q0 * ed[b, 2, j] + q1 * ed[b, 3, j] + q2 * ed[b, 4, j] + q3 * ed[c, 2, j] + q4 * ed[c, 3, j] + q5 * ed[c, 4, j]
-        r = w0 * ed[b, 3, j] + w1 * ed[b, 4, j] + w2 * ed[c, 3, j] + w3 * ed[c, 4, j]
+    def path_w(ed, b, c, j, qw, hw, theta):
+        """(delta, rate, d(rate)/dt) of contact j from the step's interpolation weights (``qw``
+        :func:`quintic`'s, ``hw`` :func:`hermite`'s at theta): quintic, cubic, linear."""
+        d = (qw[0] * ed[b, 2, j] + qw[1] * ed[b, 3, j] + qw[2] * ed[b, 4, j] + qw[3] * ed[c, 2, j]
+             + qw[4] * ed[c, 3, j] + qw[5] * ed[c, 4, j])
+        r = hw[0] * ed[b, 3, j] + hw[1] * ed[b, 4, j] + hw[2] * ed[c, 3, j] + hw[3] * ed[c, 4, j]
         return d, r, (1.0 - theta) * ed[b, 4, j] + theta * ed[c, 4, j]
+
+    @njit(nogil=True, inline="always")
+    def path(ed, b, c, j, theta, h):
+        """(delta, rate, d(rate)/dt) of contact j at theta of the step (:func:`path_w`)."""
+        return path_w(ed, b, c, j, quintic(theta, h), hermite(theta, h), theta)
 
     @njit(nogil=True, error_model="numpy")
     def event_inside(ed, b, c, h, kappa, damping, inv_mass, S, mode, eps):
@@ -375,10 +383,13 @@ def build(law: LawAdapter):
             return best
         return -1.0
 
-    @njit(nogil=True)
-    def force_at(ed, b, c, j, theta, h, kappa, damping, off, S, m):
-        """Contact j's force along the axis at theta of the step, on branch m (clipped)."""
-        d, r, _ = path(ed, b, c, j, theta, h)
+    @njit(nogil=True, inline="always")
+    def force_w(ed, b, c, j, qw, hw, theta, kappa, damping, off, S, m):
+        """Contact j's force along the axis on branch m (clipped) from the step's interpolation
+        weights at theta (:func:`path_w`); 0 off the loaded branch (as :func:`branch_force`)."""
+        if (m & LOADED) == 0:
+            return 0.0
+        d, r, _ = path_w(ed, b, c, j, qw, hw, theta)
         f, _, _ = branch_force(d, r, kappa[j], damping[j], S, j, m)
         f = f if f > 0.0 else 0.0
         if off is not None:
@@ -388,6 +399,11 @@ def build(law: LawAdapter):
                 x = dist * dist - de * de
                 f *= np.sqrt(x if x > 0.0 else 0.0) / dist
         return f
+
+    @njit(nogil=True)
+    def force_at(ed, b, c, j, theta, h, kappa, damping, off, S, m):
+        """Contact j's force along the axis at theta of the step, on branch m (clipped)."""
+        return force_w(ed, b, c, j, quintic(theta, h), hermite(theta, h), theta, kappa, damping, off, S, m)
 
     @njit(nogil=True)
     def peak_in_step(ed, b, c, j, h, kappa, damping, off, S, m):
@@ -532,7 +548,8 @@ def build(law: LawAdapter):
                 for j in range(nc):
                     last[j] = mode[j]
                 commit_all(un, vn, kappa, damping, d0, off, S, mode, last, ed, c)
-                energies(un, kappa, damping, d0, off, fext, S, ends, c)
+                if stored_state:
+                    energies(un, kappa, damping, d0, off, fext, S, ends, c)
                 if record_v or record_u:
                     for i in range(n):
                         up[i] = u[i]
@@ -562,8 +579,10 @@ def build(law: LawAdapter):
             c = steps % 2
             b = 1 - c
             theta = (tk - tp) / hl
+            qw = quintic(theta, hl)
+            hw = hermite(theta, hl)
             for j in range(nc):
-                f = force_at(ed, b, c, j, theta, hl, kappa, damping, off, Sp, int(last[j]))
+                f = force_w(ed, b, c, j, qw, hw, theta, kappa, damping, off, Sp, int(last[j]))
                 fi[j] = f
                 fmax[j] = f if f > fmax[j] else fmax[j]
             for r in range(nrec):
