@@ -157,6 +157,30 @@ def test_auto_within_documented_accuracy_of_dop853(seed, law, rel):
     assert abs(f / fr - 1) < rel
 
 
+# Registry laws and the elastic-plastic law (rkn4 with the law's own slopes, every branch change
+# landed on): the same 1e-6, against DOP853 where it runs the law (the stateless power law) and
+# against the Verlet at a 1 ns step (its error ~1e-9 here) where DOP853 cannot carry the state.
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("law, v, reference", [(hc.PowerLaw(2.0, 1e13), 0.2, "dop853"),
+                                               (hc.HuntCrossley(0.8), 0.2, "verlet"),
+                                               (hc.Elastoplastic(), 1.0, "verlet")],
+                         ids=["power", "hunt_crossley", "elastoplastic"])
+def test_auto_on_registry_and_plastic_laws_within_documented_accuracy(seed, law, v, reference):
+    rng = np.random.default_rng(seed)
+    model = hc.Model(_random_chain(rng), hc.Striker(float(rng.uniform(6e-3, 12e-3)), v * float(rng.uniform(0.5, 1.5))),
+                     law=law)
+    probes = hc.Probes(sample_interval=1e-6, contacts=())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        auto = hc.simulate(model, "auto", probes)
+        ref = (hc.simulate(model, "auto", probes, integrator="dop853", rtol=1e-12) if reference == "dop853" else
+               hc.simulate(model, "auto", probes, integrator="verlet", dt=1e-9))
+    assert auto.attrs["integrator_used"] == "rkn4"
+    f, fr = auto.attrs["peak_wall_force"], ref.attrs["peak_wall_force"]
+    assert fr > 1.0
+    assert abs(f / fr - 1) < 1e-6
+
+
 def test_cli_verbose_names_the_engine(tmp_path, capsys):
     from hertzchain.cli.main import main
 
