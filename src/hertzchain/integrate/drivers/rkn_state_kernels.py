@@ -32,8 +32,9 @@ O(h^5) (fourth order) as for the damped laws; the step control bounds per loaded
     y = |r| h / gap,
 
 (gap: the overlap beyond the law's opening point; omega_j^2 = k_t m_j^-1, c_j = c_t m_j^-1 with
-the tangent stiffness k_t = dF/d delta and damping c_t = dF/d rate by central differences of the
-law's force): the first term is the smooth fourth-order error of a force ~ gap^n, taken no
+the tangent stiffness k_t = dF/d delta and damping c_t = dF/d rate from the adapter's
+``tangent``, the law's analytic partials; central differences of its force where it has none):
+the first term is the smooth fourth-order error of a force ~ gap^n, taken no
 larger than the error of a step that starts at the contact's closing (the force the contact
 reaches in it, times h), the second the fourth-order error of a force that changes at the
 contact's frequency and damping rate. This is the damped kernels' Hertz bound written with the
