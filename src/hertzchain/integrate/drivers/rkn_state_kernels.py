@@ -54,7 +54,7 @@ from numba import njit
 from ..core.primitives import DELTA_MIN
 from .rkn_damped_kernels import (A_H, A_HMAX, A_HMIN, A_HREF, A_STEPS, A_T, A_TPREV, E_D, E_DD, E_DKE, E_DPE, E_KE,
                                  E_PE, ENDS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line)
-from .rkn_kernels import hermite, quintic
+from .rkn_kernels import hermite, quintic, quintic_at_most
 
 __all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "GROWS", "REGIME"]
 
@@ -501,6 +501,8 @@ def build(law: LawAdapter):
         href = acc[A_HREF]
         steps = int(acc[A_STEPS])
         fi = np.zeros(nc)
+        shut = np.zeros(nc, dtype=np.bool_)  # contacts whose force is 0 over the whole step
+        seen = -1  # the step they were found for
         for k in range(k_start, k_stop):
             tk = k * interval
             while t < tk:
@@ -579,11 +581,24 @@ def build(law: LawAdapter):
             # --- probes at tk, between the steps' ends tp < tk <= t (the step's branches and state)
             c = steps % 2
             b = 1 - c
+            # a new step: the contacts whose force stays 0 over it, without interpolating (the same
+            # numbers): off their loaded branch, or overlapped at most DELTA_MIN (the law's force at
+            # zero overlap, 0 at the step's two rates: Hunt-Crossley, the power law; the precursor
+            # ahead of a pulse) over the whole step (rkn_kernels.quintic_at_most)
+            if steps != seen:
+                seen = steps
+                for j in range(nc):
+                    m = int(last[j])
+                    shut[j] = (m & LOADED) == 0 or (
+                        quintic_at_most(ed[b, 2, j], ed[b, 3, j], ed[b, 4, j], ed[c, 2, j], ed[c, 3, j], ed[c, 4, j],
+                                        hl, DELTA_MIN)
+                        and branch_force(DELTA_MIN, ed[b, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0
+                        and branch_force(DELTA_MIN, ed[c, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0)
             theta = (tk - tp) / hl
             qw = quintic(theta, hl)
             hw = hermite(theta, hl)
             for j in range(nc):
-                f = force_w(ed, b, c, j, qw, hw, theta, kappa, damping, off, Sp, int(last[j]))
+                f = 0.0 if shut[j] else force_w(ed, b, c, j, qw, hw, theta, kappa, damping, off, Sp, int(last[j]))
                 fi[j] = f
                 fmax[j] = f if f > fmax[j] else fmax[j]
             for r in range(nrec):
