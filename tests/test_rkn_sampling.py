@@ -46,3 +46,21 @@ def test_steps_holding_more_samples_than_a_block(chain1):
     np.testing.assert_allclose(fine.kinetic_energy[::100], coarse.kinetic_energy, rtol=1e-12, atol=0)
     assert np.all(fine.max_force >= coarse.max_force)  # the finer record samples more of each pulse
     np.testing.assert_allclose(fine.max_force, coarse.max_force, rtol=1e-3)
+
+
+def test_model_text_is_built_once_and_follows_the_model():
+    """The result's ``model`` attribute is the model's description, cached per model: a changed
+    model (dataclasses.replace) describes itself anew."""
+    import dataclasses
+    import json
+    import warnings
+
+    model = hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.2), hc.Wall("flat"))
+    assert model.describe_text() == json.dumps(model.describe())
+    assert model.describe_text() is model.describe_text()
+    other = dataclasses.replace(model, precompression=2.0)
+    assert json.loads(other.describe_text())["precompression"] == 2.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ds = hc.simulate(other, 1e-4)
+    assert ds.attrs["model"] == json.dumps(other.describe())
