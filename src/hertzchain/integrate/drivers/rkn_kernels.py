@@ -456,11 +456,12 @@ def quintic_curvatures(theta, h):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _quintic_coefficients(ed, b, c, h, coef):
+def _quintic_coefficients(ed, b, c, h, coef, lo, hi):
     """coef[m, j] such that sum_m coef[m, j] theta^m is :func:`quintic`'s interpolant of contact
-    j's force over the step from end data ``ed[b]`` to ``ed[c]`` (theta = (t - t_b) / h)."""
+    j's force over the step from end data ``ed[b]`` to ``ed[c]`` (theta = (t - t_b) / h), for
+    the contacts lo <= j < hi."""
     hh = h * h
-    for j in range(coef.shape[1]):
+    for j in range(lo, hi):
         f0 = ed[b, R_F, j]
         d0 = h * ed[b, R_DF, j]
         e0 = 0.5 * hh * ed[b, R_DDF, j]
@@ -566,9 +567,6 @@ def rkn_run(state, scratch, chain, probes, control, k_start, k_stop, acc):
         c = steps % 2
         b = 1 - c
         if ncross < 0:
-            # the step's quintic of every contact's force in powers of theta (evaluated by Horner
-            # at each sample: fewer operations than the six weights)
-            _quintic_coefficients(ed, b, c, hl, coef)
             # contacts whose force is not smooth over the step: open at one end, or closer to
             # opening (or to their closing) than one step at either end, where the Taylor terms
             # of the force (whose second derivative grows as delta^(-1/2)) do not hold
@@ -583,6 +581,9 @@ def rkn_run(state, scratch, chain, probes, control, k_start, k_stop, acc):
                 if ca != cb or (ca and da < abs(ed[b, R_R, j]) * hl) or (cb and db < abs(ed[c, R_R, j]) * hl):
                     cross[ncross] = j
                     ncross += 1
+            # the step's quintic of every loaded contact's force in powers of theta (evaluated by
+            # Horner at each sample: fewer operations than the six weights)
+            _quintic_coefficients(ed, b, c, hl, coef, lo, hi)
         kb = k + 1
         while kb < k_stop and kb - k < sb and kb * interval <= t:
             kb += 1
