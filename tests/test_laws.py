@@ -139,8 +139,6 @@ def test_engines_without_the_generated_laws_refuse_naming_the_field():
     with pytest.raises(ConfigError, match="contact.law"):  # the GPU runs one generated law per batch
         hc.simulate_batch([model, elastic], duration=1e-4, device="cuda")
     assert hc.simulate(model, 1e-4, integrator="rkn4").attrs["integrator_used"] == "rkn4"  # rkn4 takes it
-    with pytest.raises(ConfigError, match="striker.shape"):
-        hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2, shape="flat"), law=hc.PowerLaw(2.0, 1e9)).system()
 
 
 def test_user_law_from_python_and_by_name_in_a_config():
