@@ -189,12 +189,10 @@ def _prepare(cfg):
 
 
 def _refuse_unknown_models(cfg, model) -> None:
-    """Refuse, naming the field, what the derivative engines do not cover yet: gravity, elements
-    (cylinders, mass-in-mass beads). (Striker faces, flat or curved, and a protected body's flat
-    or spherical face are differentiated: :mod:`~hertzchain.gradients.setup`.)"""
-    if getattr(model, "gravity", 0.0):
-        raise ConfigError("chain.gravity" if cfg.chain.gravity is not None else "chain.tilt_deg",
-                          "gradients do not differentiate gravity's static state yet")
+    """Refuse, naming the field, what the derivative engines do not cover yet: elements
+    (cylinders, mass-in-mass beads). (Striker faces, flat or curved, a protected body's flat or
+    spherical face, gravity and static loads, whose static state the set-up derivatives carry,
+    are differentiated: :mod:`~hertzchain.gradients.setup`.)"""
     if not getattr(model.chain, "plain", True):
         raise ConfigError("chain.elements", "gradients cover chains of spheres; elements (cylinders, mass-in-mass "
                           "beads) are not differentiated yet")

@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from ..config.build import chain_gravity
 from ..errors import ConfigError
 from ..laws import get_law
 
@@ -236,20 +237,30 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     mount_k = read("wall.stiffness", w.stiffness) if body else zero
     mount_c = read("wall.damping", w.damping) if body else zero
     mount_d0 = zero.astype(complex)
-    if f0[0, 0].real > 0 and spec.generated:
-        d0[:, 1:] = _static_overlaps(spec, f0, kappa[:, 1:], damping[:, 1:])
-        fext[:, 1:2] = f0
-    elif f0[0, 0].real > 0:
-        d0[:, 1:] = (f0 / kappa[:, 1:]) ** (2.0 / 3.0)
-        fext[:, 1:2] = f0
-        if plastic:  # statically loaded along Thornton's loading curve (Model.system)
-            f_y = fy[:, 1:] * ratio**3
-            with np.errstate(invalid="ignore", divide="ignore"):
-                dy = (f_y / kappa[:, 1:]) ** (2.0 / 3.0)
-                line = dy + (f0 - f_y) / (1.5 * kappa[:, 1:] * np.sqrt(dy))
-            d0[:, 1:] = np.where(f0.real > f_y.real, line, d0[:, 1:])
-        if body:  # the mount carries the static load (bodies.extend)
-            mount_d0 = f0 / mount_k
+    # The static state (Model.system, bodies.extend): weights along the chain (gravity, a constant
+    # of the config), the precompression push on bead 1 and the loads; contact j holds bodies 0..j
+    g = chain_gravity(cfg.chain)
+    if g > 0:
+        fext[:, :n + 1] = mass * g  # the striker rests on bead 1
+        if body:
+            fext[:, n + 1:] = body_mass * g
+    fext[:, 1:2] += f0
+    for bead, force in zip(*((cfg.load.beads, cfg.load.forces) if cfg.load is not None else ((), ()))):
+        fext[:, bead] += force
+    held = np.cumsum(fext, axis=1)
+    if spec.generated:
+        d0 = _static_overlaps(spec, held[:, :n + 1], kappa, damping)
+    else:
+        loaded = (held[0, :n + 1].real > 0) & (kappa[0].real > 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d0 = np.where(loaded, (held[:, :n + 1] / np.where(loaded, kappa, 1.0)) ** (2.0 / 3.0), 0.0)
+            if plastic:  # statically loaded along Thornton's loading curve past its F_y (Model.system)
+                f_y = fy * ratio**3
+                dy = (f_y / np.where(loaded, kappa, 1.0)) ** (2.0 / 3.0)
+                line = dy + (held[:, :n + 1] - f_y) / (1.5 * kappa * np.sqrt(dy))
+                d0 = np.where(loaded & (held[0, :n + 1].real > f_y[0].real), line, d0)
+    if body and held[0, n + 1].real > 0:  # the mount carries the static load (bodies.extend)
+        mount_d0 = held[:, n + 1:] / mount_k
     de = np.diff(np.concatenate([zero, offsets, zero], axis=1), axis=1)
     de[:, n] = 0.0
     rr = np.concatenate([r, zero], axis=1)
@@ -298,21 +309,21 @@ def _registry_law(cfg, read: _Reader, kappa, inv_mass) -> tuple[np.ndarray, np.n
         np.broadcast_to(damping, (read.rows, kappa.shape[1])).copy()
 
 
-def _static_overlaps(spec, f0, kappa, damping) -> np.ndarray:
-    """A registry law's overlap under the static force ``f0`` at every contact (rows, n) complex:
-    the real part by root finding (``laws.solve.static_overlap``, as ``Model.system``), the
-    complex step's part by the implicit function theorem on F(delta, 0, k, p) = f0:
-    delta' = (f0' - dF/dk k' - dF/dp p') / (dF/d delta), with the law's declared partials."""
+def _static_overlaps(spec, held, kappa, damping) -> np.ndarray:
+    """A registry law's overlap under the static forces ``held`` (rows, n) at every contact (rows, n)
+    complex: the real part by root finding (``laws.solve.static_overlap``, as ``Model.system``),
+    the complex step's part by the implicit function theorem on F(delta, 0, k, p) = S:
+    delta' = (S' - dF/dk k' - dF/dp p') / (dF/d delta), with the law's declared partials."""
     from ..laws.solve import static_overlap
 
     out = np.zeros(kappa.shape, dtype=complex)
     for j in range(kappa.shape[1]):
-        k, p, f = kappa[0, j].real, damping[0, j].real, f0[0, 0].real
-        if not k > 0:
+        k, p, f = kappa[0, j].real, damping[0, j].real, held[0, j].real
+        if not (k > 0 and f > 0):
             continue
         d = static_overlap(spec, f, k, p)
         fd, _, fk, fp = spec.partials(d, 0.0, k, p, 0.0)
-        out[:, j] = d + 1j * (f0[:, 0].imag - fk * kappa[:, j].imag - fp * damping[:, j].imag) / fd
+        out[:, j] = d + 1j * (held[:, j].imag - fk * kappa[:, j].imag - fp * damping[:, j].imag) / fd
     return out
 
 
@@ -490,7 +501,7 @@ def _supported(path: str) -> str:
 #: so an entry e of a shared row belongs to the one item of its colour within e - 2 .. e + 2
 #: (Curtis, Powell & Reid, J. Inst. Math. Appl. 13 (1974) 117: a sparse Jacobian's columns
 #: compressed by colouring). The rows: one per scalar variable, COLOURS per list, and one per
-#: item whose influence is not local (:func:`_own_rows`).
+#: item whose influence is not local (:func:`_own_rows`; every diameter under gravity).
 COLOURS = 5
 
 
@@ -509,13 +520,17 @@ def _plan(cfg, paths: list[str]) -> tuple[dict[str, int], dict[int, np.ndarray]]
     """Rows of the complex step: {path: row}, and for every shared row the items it holds (a
     boolean mask over item numbers); a row of its own is absent from the second."""
     own = _own_rows(cfg)
+    # under gravity a bead's size sets its weight, which every contact between it and the wall holds:
+    # its diameter moves the static overlaps of all of them (rows of their own, N^2 memory)
+    heavy = chain_gravity(cfg.chain) > 0
     rows: dict[str, int] = {}
     # number rows: scalars and own items first, then one row per (list, colour)
     n = 0
     groups: dict[tuple[str, int], list[tuple[str, int]]] = {}
     for path in paths:
         head, _, rest = path.partition("[")
-        if head in _LISTS and rest.endswith("]") and rest[:-1].isdigit() and path not in own:
+        if head in _LISTS and rest.endswith("]") and rest[:-1].isdigit() and path not in own \
+                and not (heavy and head == "chain.diameters_mm"):
             k = int(rest[:-1])
             groups.setdefault((head, k % COLOURS), []).append((path, k))
         else:
