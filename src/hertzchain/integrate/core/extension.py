@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from .primitives import LAW_DASHPOT, LAW_ELASTIC, _track_peak
@@ -36,7 +37,7 @@ from .primitives import LAW_DASHPOT, LAW_ELASTIC, _track_peak
 __all__ = ["EXT_KLIN", "EXT_CLIN", "EXT_KIN", "EXT_MIN", "EXT_IMIN", "EXT_W", "EXT_WV", "EXT_ACC", "EXT_COLUMNS",
            "linear_force", "body_accelerations", "internal_acceleration", "body_energies", "extended_bound",
            "forces_linear", "accelerations_extended", "energies_extended", "extended_steps", "extension_stride",
-           "sample_extension"]
+           "sample_extension", "close_sample"]
 
 #: Columns of the extension array ``ext`` (see the module docstring).
 EXT_KLIN, EXT_CLIN, EXT_KIN, EXT_MIN, EXT_IMIN, EXT_W, EXT_WV, EXT_ACC = range(8)
@@ -202,3 +203,29 @@ def extended_steps(forces):
                     v[i] += half * a[i]
                     ext[i, EXT_WV] += half * wa[i]
     return step_extended
+
+
+@njit(cache=True, nogil=True, inline="always")
+def close_sample(k, ke, pe, u, v, a, g, d0, extension, probes, acc, step):
+    """The end of sample ``k`` that every Verlet loop shares (``kernels.verlet_run`` and a registry
+    law's generated run): the extension's energies added to the kinetic ``ke`` and potential ``pe``
+    energies [J] and its body recorded (``extension``: :class:`~.structures.Extension`), then the
+    energies, the dissipated energy acc[0] and the velocities (when recorded) written to ``probes``
+    (:class:`~.structures.VerletProbes`). Returns 1 when the state (the energy, the first contact's
+    force g[1]) is no longer finite (acc[2] then holds ``step``, the steps taken), else 0."""
+    ext, ext_on, body_slot = extension
+    _, _, out_ke, out_pe, out_ed, _, out_v, record_v, _, _, _, _, out_b = probes
+    if ext_on:
+        ke_in, pe_lin = sample_extension(k, u, v, a, d0, ext, body_slot, out_b)
+        ke += ke_in
+        pe += pe_lin
+    out_ke[k] = ke
+    out_pe[k] = pe
+    out_ed[k] = acc[0]
+    if record_v:
+        for i in range(out_v.shape[1]):
+            out_v[k, i] = v[i]
+    if not np.isfinite(ke) or not np.isfinite(g[1]):
+        acc[2] = step
+        return 1
+    return 0

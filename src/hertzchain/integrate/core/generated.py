@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from .disk_cache import INTEGRATE, files_digest, function_files_digest, on_disk
-from .extension import EXT_IMIN, EXT_KIN, EXT_W, extended_steps, extension_stride, internal_acceleration, sample_extension
+from .extension import EXT_IMIN, EXT_KIN, EXT_W, close_sample, extended_steps, extension_stride, internal_acceleration
 from .kernels import DELTA_MIN, _adapt_stride, kinetic_energy
 from .primitives import _track_peak, kick, open_block, predict, total
 
@@ -333,7 +333,7 @@ def _build(force, update, stored, partials, inverse, dissipative, constants=(), 
         mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
         de, dx0, rsum, dcap, _, dmax, _, _ = contacts
         ext, ext_on, body_slot = extension
-        rec, out_f, out_ke, out_pe, out_ed, _, out_v, record_v, _, _, fmax, peak, out_b = probes
+        rec, out_f, _, _, _, _, _, _, _, _, fmax, peak, _ = probes
         interval, stride_, n_sub, n_eval, c_steps, relax = control
         n = a.shape[0]
         if dmax.shape[0] < n:  # the law's state lives in dmax: the caller must give one slot per contact
@@ -379,18 +379,7 @@ def _build(force, update, stored, partials, inverse, dissipative, constants=(), 
                 fmax[j] = x if x > fmax[j] else fmax[j]
             ke = kinetic_energy(v, mass)
             pe = energy(u, kappa, damping, d0, de, dx0, rsum, fext)
-            if ext_on:
-                ke_in, pe_lin = sample_extension(k, u, v, a, d0, ext, body_slot, out_b)
-                ke += ke_in
-                pe += pe_lin
-            out_ke[k] = ke
-            out_pe[k] = pe
-            out_ed[k] = acc[0]
-            if record_v:
-                for i in range(out_v.shape[1]):
-                    out_v[k, i] = v[i]
-            if not np.isfinite(ke) or not np.isfinite(g[1]):
-                acc[2] = step
+            if close_sample(k, ke, pe, u, v, a, g, d0, extension, probes, acc, step):
                 return 1
         acc[2] = step
         return 0

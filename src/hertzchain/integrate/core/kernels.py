@@ -39,7 +39,7 @@ from .energies import (energies_elastic, kinetic_energy, plastic_work, potential
                        potential_energy_plastic)
 from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
                         accelerations_extended, energies_extended, extended_bound, extended_steps, forces_linear,
-                        internal_acceleration, sample_extension)
+                        close_sample, internal_acceleration)
 
 from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
 # the general path's contact and the elastic-plastic law (re-exported: kernels.elastoplastic_force & co.)
@@ -384,7 +384,7 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
     mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
     de, dx0, rsum, dcap, dyield, dmax, dres, kres = contacts
     ext, ext_on, body_slot = extension
-    rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, _, _, fmax, peak, out_b = probes
+    rec, out_f, _, _, _, out_wp, _, _, _, _, fmax, peak, _ = probes
     interval, stride, n_sub, n_eval, c_steps, relax = control
     n = a.shape[0]
     nout = rec.shape[0]
@@ -475,18 +475,7 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
             pe = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
         else:
             ke, pe = energies_elastic(u, v, g, mass, d0, fext)
-        if ext_on:
-            ke_in, pe_lin = sample_extension(k, u, v, a, d0, ext, body_slot, out_b)
-            ke += ke_in
-            pe += pe_lin
-        out_ke[k] = ke
-        out_pe[k] = pe
-        out_ed[k] = acc[0]
-        if record_v:
-            for i in range(out_v.shape[1]):
-                out_v[k, i] = v[i]
-        if not np.isfinite(ke) or not np.isfinite(g[1]):
-            acc[2] = step
+        if close_sample(k, ke, pe, u, v, a, g, d0, extension, probes, acc, step):
             return 1
     acc[2] = step
     return 0

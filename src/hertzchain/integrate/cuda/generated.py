@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .device import _cuda, _simulated
+from .device import _cuda, _simulated, peak_tracker
 from .extension import device_functions
 from ..core.generated import bisection
 from ..core.extension import EXT_CLIN, EXT_IMIN, EXT_KIN, EXT_KLIN
@@ -106,20 +106,7 @@ def generated_kernel(code: int):
             cprev = c
         return max(1, int(math.ceil(block * c_steps * weff - 1e-9)))
 
-    @cuda.jit(device=True, **inline)
-    def track_peak(fw, t, dt, peak, m):
-        """kernels._track_peak for member m (peak is (8, M))."""
-        if fw > peak[0, m]:
-            peak[0, m] = fw
-            peak[1, m] = t
-            peak[2, m] = peak[5, m]
-            peak[6, m] = dt
-            peak[4, m] = 1.0
-        elif peak[4, m] != 0.0:
-            peak[3, m] = fw
-            peak[7, m] = dt
-            peak[4, m] = 0.0
-        peak[5, m] = fw
+    track_peak = peak_tracker(cuda, inline)
 
     @cuda.jit(device=True, **inline)
     def law_forces(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres, n, m):
