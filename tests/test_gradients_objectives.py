@@ -130,3 +130,19 @@ def test_gravity_and_loads_static_state_matches_differences(law):
     flat = sensitivity(_with(cfg, chain={"gravity": 0.0}, load={"forces": [0.0]}), ["materials.mysteel.density"])
     assert abs(flat.gradient["materials.mysteel.density"] - s.gradient["materials.mysteel.density"]) > \
         1e-3 * abs(s.gradient["materials.mysteel.density"])
+
+
+def test_cylinders_and_given_masses_match_differences():
+    """Bead 3 a crossed cylinder (elliptical Hertz contacts with its neighbours: the ellipse's
+    parameter by the implicit function theorem, gradients.faces), bead 5 a cylinder along the
+    chain (its flat ends: sphere-on-flat contacts) and bead 7 of a given mass: the gradient by their
+    diameters, the striker's and the material against central differences of whole runs."""
+    cfg = _with(BASE, chain={"elements": ["sphere", "sphere", "rod", "sphere", "peg", "sphere", "heavy", "sphere"]},
+                elements={"rod": {"shape": "cylinder", "orientation": "crossed", "length_mm": 25.0},
+                          "peg": {"shape": "cylinder", "orientation": "aligned", "length_mm": 12.0},
+                          "heavy": {"mass": 0.02}})
+    paths = ["striker.velocity", "chain.diameters_mm[1]", "chain.diameters_mm[2]", "chain.diameters_mm[4]",
+             "chain.diameters_mm[6]", "materials.mysteel.young", "materials.mysteel.density"]
+    s = sensitivity(cfg, paths)
+    assert s.value == pytest.approx(hc.run_config(cfg).attrs["peak_wall_force"], rel=1e-12)
+    tg.assert_matches(s, cfg, paths, rel=1e-6, tol=1e-5)

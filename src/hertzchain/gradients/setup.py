@@ -43,6 +43,7 @@ import numpy as np
 from ..config.build import chain_gravity
 from ..errors import ConfigError
 from ..laws import get_law
+from .faces import element_contacts, element_masses
 
 __all__ = ["SetupDerivatives", "setup_derivatives", "ARRAYS", "expand_paths"]
 
@@ -166,6 +167,16 @@ def _diameters(cfg, read: _Reader) -> tuple[np.ndarray, list[str], np.ndarray]:
     return d, [_material(m).name for m in mats], offsets
 
 
+def _elements(cfg):
+    """The beads' elements when any is not a plain sphere (None: a chain of spheres)."""
+    if not cfg.chain.elements:
+        return None
+    from ..config import build_model
+
+    elements = build_model(cfg).chain.elements
+    return None if all(el.plain for el in elements) else elements
+
+
 def _weaker(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """np.fmin of yield stresses (NaN: none given), keeping the complex part of the one chosen."""
     return np.where(np.isnan(a.real), b, np.where(np.isnan(b.real), a, np.where(a.real <= b.real, a, b)))
@@ -176,6 +187,7 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     d, mats, offsets = _diameters(cfg, read)
     n = d.shape[1]
     s = cfg.striker
+    wall_curvature: Any = None  # no wall (else its face's curvature, below)
     names = [_material(s.material or mats[0]).name] + mats
     props = {name: _theta(_material(name), read) for name in dict.fromkeys(names)}
     theta, rho, sigma = (np.concatenate([props[m][k] for m in names], axis=1) for k in range(3))
@@ -185,20 +197,26 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
         mass[:, :1] = read("striker.mass", s.mass)
     else:
         mass[:, :1] = read("striker.mass", mass[0, 0].real) + 1j * mass[:, :1].imag
+    elements = _elements(cfg)
+    if elements is not None:  # a given mass, a cylinder's (gradients.faces)
+        element_masses(elements, mass, rho, phi)
     r = phi / 2.0
     inv_r = 1.0 / r[:, :-1] + 1.0 / r[:, 1:]
+    striker_curvature: Any = 1.0 / r[:, 0]  # the striker's face: its sphere, a flat or a curved face
     if s.shape == "flat":  # a flat face meets bead 1 sphere-on-flat: 1/R' = 0 (paper eq. 1)
         inv_r[:, :1] = 1.0 / r[:, 1:2]
+        striker_curvature = 0.0 * r[:, 0]
     elif s.radius_of_curvature_mm is not None:  # a curved face of its own radius
         face = read("striker.radius_of_curvature_mm", s.radius_of_curvature_mm) * 1e-3
         inv_r[:, :1] = 1.0 / face + 1.0 / r[:, 1:2]
+        striker_curvature = 1.0 / face[:, 0]
     t_sum = theta[:, :-1] + theta[:, 1:]
     s_min = _weaker(sigma[:, :-1], sigma[:, 1:])
     if cfg.wall.type != "none":
         wall = _material(cfg.wall.material or mats[-1]).name
         wt, _, ws = props[wall] if wall in props else _theta(_material(wall), read)
         # 1/R of the wall's face: a flat (the wall's cap, a body's flat face), or a body's spherical face
-        wall_curvature: Any = 0.0
+        wall_curvature = 0.0
         if cfg.wall.type == "body" and cfg.wall.shape == "sphere":
             wall_curvature = 1.0 / (read("wall.radius_of_curvature_mm", cfg.wall.radius_of_curvature_mm) * 1e-3)
         inv_r = np.concatenate([inv_r, 1.0 / r[:, -1:] + wall_curvature], axis=1)
@@ -212,6 +230,13 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     with np.errstate(invalid="ignore"):
         # (pi sigma_Y)^3 (3 R* / (4 E*))^2, 3 R* / (4 E*) = R* (theta + theta')
         fy[:, :m] = np.where(np.isnan(s_min.real), np.inf, (math.pi * s_min) ** 3 * (t_sum / inv_r) ** 2)
+    if elements is not None:  # the elliptical Hertz contacts of cylinders (gradients.faces)
+        wall_face = None
+        if wall_curvature is not None:  # a constant 0 (flat) or the body's face, (rows, 1)
+            wc = np.asarray(wall_curvature, dtype=complex)
+            wall_face = (wc[:, 0] if wc.ndim == 2 else wc + 0j * r[:, 0],) * 2
+        element_contacts(elements, n, phi, (striker_curvature, striker_curvature), wall_face, t_sum, s_min, kappa,
+                         fy)
     inv_mass = np.zeros((rows, n + 2), dtype=complex)
     inv_mass[:, :n + 1] = 1.0 / mass
     w = cfg.wall
