@@ -217,9 +217,6 @@ def check_law(system: System, tangent: bool = False) -> None:
             raise ConfigError("contact.law", "the tangent model (forward mode: trace_sensitivity, the fit's exact "
                               "Jacobian) does not differentiate the 'elastoplastic' law yet; sensitivity() does "
                               "(reverse mode)")
-        if system.misaligned:
-            raise ConfigError("chain.offsets_mm", "gradients of the 'elastoplastic' law cover aligned chains; "
-                              "offsets are not differentiated with it yet")
 
     if getattr(system, "res_k", None) is not None:
         raise ConfigError("chain.elements", "gradients do not differentiate mass-in-mass beads yet; they cover "
