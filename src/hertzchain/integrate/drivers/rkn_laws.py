@@ -129,7 +129,8 @@ def _generated_adapter(force, update, stored, dissipative: bool, partials, state
             fd, fr, _, _ = partials(d if d > DELTA_MIN else 0.0, r, k, p, S[0, j])
             return fd, fr, d
 
-    return rs.LawAdapter(lforce, commit, key, regime, energy, work, tangent, stored_state=False)
+    return rs.LawAdapter(lforce, commit, key, regime, energy, work, tangent, stored_state=False,
+                         lossless=not dissipative)
 
 
 # Thornton's elastic-plastic law, its state in rows (yield overlap, dmax, dres, kres) of S

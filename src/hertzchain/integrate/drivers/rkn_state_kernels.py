@@ -100,7 +100,10 @@ class LawAdapter(NamedTuple):
       derivative along the branch), from the law's analytic partials; None: central differences
       of ``force`` (a law with state that declares no ``state_partials``);
     - ``stored_state``: whether ``stored`` or ``work`` read the state (else the stored energy at a
-      step's end is :func:`end_data`'s, not recomputed after the state's commit)."""
+      step's end is :func:`end_data`'s, not recomputed after the state's commit);
+    - ``lossless``: the law dissipates nothing (its force does not depend on the rate): the
+      dissipated energy stays 0, not the fall of a contact's elastic energy over a step off its
+      loaded branch (which a closing not landed on, :data:`EVENT_EPS`, would make ~-1e-27 J)."""
 
     force: object
     commit: object
@@ -110,6 +113,7 @@ class LawAdapter(NamedTuple):
     work: object
     tangent: object = None
     stored_state: bool = True
+    lossless: bool = False
 
 
 class StateRun(NamedTuple):
@@ -146,7 +150,7 @@ def build(law: LawAdapter):
     docstring); ``run(state, chain, off, probes, control, k_start, k_stop, acc, out_w)`` advances
     as :func:`hertzchain.integrate.drivers.rkn_damped_kernels.damped_run` does (its arguments and
     accumulators), ``out_w`` receiving the plastic work at the samples."""
-    lforce, lcommit, lkey, lregime, lstored, lwork, ltangent, stored_state = law
+    lforce, lcommit, lkey, lregime, lstored, lwork, ltangent, stored_state, lossless = law
 
     @njit(nogil=True, inline="always")
     def branch_force(d, r, k, p, S, j, m):
@@ -244,7 +248,7 @@ def build(law: LawAdapter):
             ed[c, 5, i] = gap
             el = lstored(d, kappa[i], damping[i], S, i) if kappa[i] != 0.0 else 0.0
             ed[c, 6, i] = el
-            pb = (f - fel) * r
+            pb = 0.0 if lossless else (f - fel) * r
             ed[c, 7, i] = pb
             mv = mass[i] * v[i]
             ke += mv * v[i]
@@ -545,8 +549,9 @@ def build(law: LawAdapter):
                 # dissipated energy: the stages' quadrature on loaded contacts, the fall of the
                 # elastic energy of the others (rkn_damped_kernels.step_dissipation)
                 dis = 0.0
-                for j in range(nc):
-                    dis += h / 6.0 * pw[j] if (int(mode[j]) & LOADED) != 0 else ed[b, 6, j] - ed[c, 6, j]
+                if not lossless:
+                    for j in range(nc):
+                        dis += h / 6.0 * pw[j] if (int(mode[j]) & LOADED) != 0 else ed[b, 6, j] - ed[c, 6, j]
                 ends[c, E_D] = ends[b, E_D] + dis
                 for j in range(nc):
                     last[j] = mode[j]
