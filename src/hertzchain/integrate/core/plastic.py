@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .primitives import DELTA_MIN, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC, _track_peak, kick, predict, total
+from .primitives import DELTA_MIN, FORCE_MIN, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC, _track_peak, kick, predict, total
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -103,7 +103,7 @@ def contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyie
         f = fel + kappa * damping * sd * rate
     else:
         f = fel + damping * rate
-    f = max(f, 0.0)
+    f = f if f > FORCE_MIN else 0.0  # as primitives.damped_force
     return c * f, (f - fel) * rate, dmax, dres, kres  # F_diss * d(delta)/dt >= 0: power lost to dissipation
 
 
