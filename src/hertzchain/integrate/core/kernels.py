@@ -43,7 +43,8 @@ from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_K
 
 from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
 # the general path's contact and the elastic-plastic law (re-exported: kernels.elastoplastic_force & co.)
-from .plastic import contact_general, elastoplastic_force, plastic_block  # noqa: F401
+from .plastic import (CHECKPOINT_MIN_COLUMNS, CHECKPOINT_ROWS, contact_general, elastoplastic_force,  # noqa: F401
+                      plastic_block)
 # the law codes, the overlap floor and the helpers the fused steps share (re-exported: kernels.DELTA_MIN & co.)
 from .primitives import (DELTA_MIN, FORCE_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC,  # noqa: F401
                          LAW_VISCOELASTIC, _track_peak, _viscous_force, damped_force, damping_constants, kick, predict,
@@ -499,6 +500,8 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
     vp = np.zeros_like(v)
     wa = np.zeros(n)
     pw = np.zeros(n)  # the contacts' dissipated powers (plastic_block)
+    # plastic_block's checkpoint (its fused steps are tried again in each chunk)
+    ck = np.zeros((CHECKPOINT_ROWS, max(n + 1, CHECKPOINT_MIN_COLUMNS)) if law == LAW_ELASTOPLASTIC else (1, 1))
     ec = np.zeros(n)  # contact energies at a block's end (offset chains' fused steps, their probes)
     if ext_on:  # the internal masses' accelerations: a function of the positions, not state
         for i in range(n):
@@ -550,7 +553,7 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
                                          dt, t0, wall_slot, peak, acc)
             elif general:
                 plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres,
-                              kres, aligned, ns, dt, t0, wall_slot, peak, acc)
+                              kres, aligned, ns, dt, t0, wall_slot, peak, acc, ck)
             else:
                 if lean:
                     for s in range(ns - 1):
