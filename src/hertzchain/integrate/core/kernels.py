@@ -638,8 +638,8 @@ def flush_stale_cache(*kernels_using: Any) -> None:
             pass
 
 
-# The stepping loop compiles the functions of extension.py, primitives.py, fused.py and plastic.py into itself:
+# The stepping loop (and forces_general: plastic.contact_general, primitives.FORCE_MIN) compiles the functions of
+# extension.py, primitives.py, fused.py and plastic.py into itself:
 # an edit there must recompile it too (Numba's cache only checks the file of the function it caches).
-flush_stale_cache(step_extended, dissipative_block, _kk_block, _kk_block_unloaded, _dashpot_block,
-                  _dashpot_block_unloaded, plastic_block, offset_elastic_block, offset_dissipative_block,
-                  verlet_run)
+flush_stale_cache(forces_general, step_extended, dissipative_block, _kk_block, _kk_block_unloaded, _dashpot_block,
+                  _dashpot_block_unloaded, plastic_block, offset_elastic_block, offset_dissipative_block, verlet_run)

@@ -23,9 +23,11 @@ DELTA_MIN = 1e-30
 #: DELTA_MIN). A dashpot pushes at zero overlap (gamma d(delta)/dt, the d == 0 convention of
 #: ``plastic.contact_general``), so in an uncompressed chain its precursor ran ahead of the pulse
 #: through touching beads, decaying into subnormal velocities and forces (~1e-320): 300 beads,
-#: 1.2 instead of 0.9 ns per bead-step (benchmarks/laws.py). Forces of 1e-35 N change no bead's
-#: motion above ~1e-40 m/s.
-FORCE_MIN = 1e-35
+#: 1.2 instead of 0.9 ns per bead-step (benchmarks/laws.py). At 1e-100 N the precursor's
+#: velocities (~1e-110 m/s) and the products of the dissipated power (~1e-210 W) stay normal
+#: floats, and every Hertz force is above it (kappa DELTA_MIN^(3/2) = kappa 1e-45 N), so that
+#: A = 0 and gamma = 0 still give the elastic law's forces bit for bit.
+FORCE_MIN = 1e-100
 
 
 @njit(cache=True, nogil=True, inline="always")
