@@ -640,9 +640,6 @@ class Model:
                      yield_pressure_ratio=getattr(self.law, "pressure_ratio", 1.0))
         if self.plain:
             return System(**parts)
-        if spec.generated and self.drive is None and self.striker is not None:  # the driven loop takes any law
-            raise ConfigError(_not_plain_field(self), f"contact.law = {spec.name!r} runs spherical strikers and beads, "
-                              "a flat wall or a free end, without gravity; this model has more")
         from .bodies import extend  # the striker's face, elements, the protected body, gravity
 
         return System(**extend(self, parts))
@@ -675,15 +672,3 @@ class Model:
             out["drive"] = self.drive.describe()
         return out
 
-
-def _not_plain_field(model: "Model") -> str:
-    """The config field that makes ``model`` more than the plain kind (for a law that runs plain models only)."""
-    if model.striker is None:
-        return "striker"
-    if not model.striker.plain:
-        return "striker.shape"
-    if model.wall.is_body:
-        return "wall.type"
-    if model.gravity:
-        return "chain.gravity"
-    return "chain.elements"
