@@ -191,17 +191,20 @@ def plastic_step(u, v, vp, a, g, pw, kappa, damping, d0, fext, inv_mass, dyield,
         sx = np.sqrt(x)
         kr = kres[i]
         fep = kr * x * sx
-        on = (d >= 0.0) & (kappa[i] != 0.0)
         if viscous:
+            on = (d >= 0.0) & (kappa[i] != 0.0)
             rate = vp[i] - vp[i + 1]
             f = fep + damping[i] * kr * sx * rate
             f = f if f > 0.0 else 0.0
             f = f if on else 0.0
             pw[i] = (f - fep) * rate if on else 0.0
         else:
-            f = fep if on else 0.0
+            # plastic_pass's select on ``on`` left out: an open contact (d < 0: dd = 0, x <= 0 -> 0)
+            # and a slot without contact (kres = kappa = 0) already give fep = +0
+            f = fep
         dm = dmax[i]
-        up = on & (dd > dm)
+        # d >= 0 is implied by dd > dm >= 0
+        up = (kappa[i] != 0.0) & (dd > dm)
         hits += 1 if up & (dd > dyield[i]) else 0
         dmax[i] = dd if up else dm
         g[i + 1] = f
