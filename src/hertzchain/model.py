@@ -10,6 +10,7 @@ moves; with no wall its contact has kappa = 0). Contact j joins bodies j and j +
 
 from __future__ import annotations
 
+import json
 import math
 import numbers
 from dataclasses import dataclass, field
@@ -643,6 +644,12 @@ class Model:
         from .bodies import extend  # the striker's face, elements, the protected body, gravity
 
         return System(**extend(self, parts))
+
+    def describe_text(self) -> str:
+        """``json.dumps(self.describe())`` (results' ``model`` attribute), built once per model as :meth:`system`."""
+        if (text := self.__dict__.get("_describe_text")) is None:
+            object.__setattr__(self, "_describe_text", text := json.dumps(self.describe()))  # not a field
+        return text
 
     def describe(self) -> dict:
         """Plain-data description of the model (stored in result attributes)."""
