@@ -93,8 +93,9 @@ def test_dashpot_precursor_stops_at_the_force_floor():
     assert not np.any((v != 0.0) & (np.abs(v) < TINY))
     assert np.count_nonzero(f[-1]) > 20  # a precursor ran ahead of the pulse, down to the floor
     short = hc.Model(hc.Chain.uniform(20, 26e-3), hc.Striker(8e-3, 0.2), hc.Wall("flat"), law=hc.Dashpot(5.0))
-    ds = hc.simulate(short, 4e-4, dt=2e-8)
-    ref = hc.simulate(short, 4e-4, integrator="dop853", rtol=1e-11)
+    ds = hc.simulate(short, 2e-3, dt=2e-8)
+    ref = hc.simulate(short, 2e-3, integrator="dop853", rtol=1e-11)
+    assert ref.attrs["peak_wall_force"] > 1.0  # the pulse reached the wall
     assert ds.attrs["peak_wall_force"] == pytest.approx(ref.attrs["peak_wall_force"], rel=1e-5)
     total = ds.kinetic_energy.values + ds.potential_energy.values + ds.dissipated_energy.values
     assert np.abs(total - total[0]).max() < 1e-5 * total[0]
