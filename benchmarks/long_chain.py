@@ -23,7 +23,7 @@ Hunt-Crossley) on one chain of ``--beads`` beads (default 1e5), the striker at 0
 for the elastic-plastic law, whose contacts then yield), saved to
 ``results/long_chain_laws.json``. Each row checks the forces and steps bit for bit. Runs of
 >= 2 s (several compiled calls of ~0.2-0.4 s), so that the run's own fallback to one thread on
-shared cores (``threaded._Pace``) can act: each row records how many calls ran on how many
+shared cores (``threaded.Pace``) can act: each row records how many calls ran on how many
 threads, and the CPU time of the threaded loop on one block against the one-thread loop (the
 per-thread cost, little changed by other work on the cores).
 
@@ -169,14 +169,14 @@ def main_laws(args) -> dict:
     from hertzchain.integrate.drivers import threaded
 
     calls: list[int] = []
-    record = threaded._Pace.record
+    record = threaded.Pace.record
 
     def spy(self, n, *rest):  # the thread count of every compiled call of a run asked for several
         if self.threads > 1:
             calls.append(n)
         record(self, n, *rest)
 
-    threaded._Pace.record = spy
+    threaded.Pace.record = spy
     rows = []
     for name, model in law_models(args.beads).items():
         calls.clear()

@@ -1,0 +1,116 @@
+"""The fourth-order integrator ``"rkn4"`` on several cores: a long aligned elastic chain cut into
+blocks of bodies, one thread each (:mod:`hertzchain.integrate.drivers.rkn_threaded_kernels`).
+
+``simulate(model, threads=T)`` (and ``threads="auto"`` on long chains, :mod:`hertzchain.engine_choice`)
+with the ``rkn4`` path of an aligned elastic chain (paper eq. 1; the power law at n = 3/2 too):
+:func:`hertzchain.integrate.drivers.rkn.run_rkn` advances its state with :func:`threaded_advance`
+instead of ``rkn_kernels.rkn_run``. Positions, velocities, forces, the step sequence (so the
+number of steps and the smallest and largest step) are bit for bit those of one thread; the
+energies are block sums (relative difference ~1e-15 sqrt(N); tests/test_rkn_threaded.py bounds
+it, and the probes, by 1e-12).
+
+Cost: a step of 1e5 beads is ~1 ms on one core (six force evaluations) against eight barriers
+of ~0.1-1 us each on an idle machine, so the split pays from ~1e4 beads. Shared cores: as the
+threaded Verlet (:class:`hertzchain.integrate.drivers.threaded.Pace`), a chunk in which a thread
+got less than ``CONTENDED`` of the wall time as CPU time is followed by one on one thread (the
+same thread function over one block, the same numbers), and the faster keeps running.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable
+
+import numpy as np
+
+from .rkn_kernels import A_STEPS
+from .rkn_threaded_kernels import RknTeam, rkn_thread_run
+from .threaded import MIN_SLOTS_PER_THREAD, Pace, split
+from ..core.barrier import new_barrier
+
+__all__ = ["threaded_advance", "RKN_CHUNK_BEAD_STEPS"]
+
+#: Work (slots x steps) of one compiled call on the threads (~0.1-0.3 s on one core), so that the
+#: pace between one and several threads is measured often.
+RKN_CHUNK_BEAD_STEPS = 2e7
+
+
+def threaded_advance(threads: int, n_slots: int, rec: np.ndarray, ends: np.ndarray) -> Callable[..., int]:
+    """A replacement for ``rkn_kernels.rkn_run`` (same arguments and status) that runs on up to
+    ``threads`` threads.
+
+    Parameters
+    ----------
+    threads : int
+        Threads asked for (fewer on a short chain: at least ``MIN_SLOTS_PER_THREAD`` slots each).
+    n_slots : int
+        Slots of the packed chain.
+    rec : numpy.ndarray
+        The recorded contacts, ascending.
+    ends : numpy.ndarray
+        (2, 4) the energies and rates at the run's start (``rkn_kernels.end_data``, row 0).
+
+    Returns
+    -------
+    callable
+        ``advance(state, scratch, chain, probes, control, k_start, k_stop, acc) -> status``.
+    """
+    nthr = max(1, min(int(threads), n_slots // MIN_SLOTS_PER_THREAD))
+    teams: dict[int, RknTeam] = {}
+    for n in {nthr, 1}:
+        bounds = split(n_slots, n)
+        teams[n] = RknTeam(n, bounds, np.searchsorted(rec, bounds).astype(np.int64), new_barrier(),
+                           np.zeros((2, n, 2)), np.zeros((n, 3)), np.zeros((n, 2, 4)))
+    teams[nthr].energy[0] = ends  # the start's energies on the first block (the others' 0: the same sums)
+    pace = Pace(nthr)
+    used = [nthr]
+    per_call = [1]  # samples per compiled call, sized from the steps the last one took
+
+    def call(n: int, args: tuple, k0: int, k1: int, acc: np.ndarray) -> tuple[int, float]:
+        """Samples k0..k1 - 1 on n threads: the status and the least CPU time [s] a thread got."""
+        team = teams[n]._replace(bar=new_barrier())
+        cpu = np.zeros(n)
+        status = np.zeros(n, dtype=np.int64)
+
+        def one(t: int) -> None:
+            c0 = time.thread_time()
+            status[t] = rkn_thread_run(t, team, *args, k0, k1, acc)
+            cpu[t] = time.thread_time() - c0
+
+        workers = [threading.Thread(target=one, args=(t,), daemon=True) for t in range(1, n)]
+        for th in workers:
+            th.start()
+        one(0)
+        for th in workers:
+            th.join()
+        return int(status.max()), float(cpu.min())
+
+    compiled = [False]
+
+    def advance(state, scratch, chain, probes, control, k_start: int, k_stop: int, acc: np.ndarray) -> int:
+        args = (state, scratch, chain, probes, control)
+        if not compiled[0]:  # compiles (no sample), so that the first chunk's pace is the run's
+            call(nthr, args, k_start, k_start, acc)
+            compiled[0] = True
+        k = k_start
+        while k < k_stop:
+            n = pace.next()
+            if n != used[0]:  # the blocks' energies, gathered on the new layout's first block
+                teams[n].energy[:] = 0.0
+                teams[n].energy[0] = teams[used[0]].energy.sum(axis=0)
+                used[0] = n
+            k1 = min(k_stop, k + per_call[0])
+            steps0, wall0 = acc[A_STEPS], time.perf_counter()
+            status, cpu = call(n, args, k, k1, acc)
+            steps = acc[A_STEPS] - steps0
+            pace.record(n, steps * n_slots, time.perf_counter() - wall0, cpu)
+            if status != 0:
+                return status
+            # next call ~RKN_CHUNK_BEAD_STEPS of work (at most doubling)
+            per_sample = max(steps, 1.0) / (k1 - k)
+            per_call[0] = max(1, min(2 * per_call[0], int(RKN_CHUNK_BEAD_STEPS / (n_slots * per_sample))))
+            k = k1
+        return 0
+
+    return advance
