@@ -13,7 +13,8 @@ Cost: a step of 1e5 beads is ~1 ms on one core (six force evaluations) against e
 of ~0.1-1 us each on an idle machine, so the split pays from ~1e4 beads. Shared cores: as the
 threaded Verlet (:class:`hertzchain.integrate.drivers.threaded.Pace`), a chunk in which a thread
 got less than ``CONTENDED`` of the wall time as CPU time is followed by one on one thread (the
-same thread function over one block, the same numbers), and the faster keeps running.
+one-thread engine ``rkn_kernels.rkn_run`` on the same state: the same numbers), and the faster
+keeps running.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Callable
 
 import numpy as np
 
+from . import rkn_kernels as rk
 from .rkn_kernels import A_STEPS
 from .rkn_threaded_kernels import RknTeam, rkn_thread_run
 from .threaded import MIN_SLOTS_PER_THREAD, Pace, split
@@ -57,28 +59,26 @@ def threaded_advance(threads: int, n_slots: int, rec: np.ndarray, ends: np.ndarr
         ``advance(state, scratch, chain, probes, control, k_start, k_stop, acc) -> status``.
     """
     nthr = max(1, min(int(threads), n_slots // MIN_SLOTS_PER_THREAD))
-    teams: dict[int, RknTeam] = {}
-    for n in {nthr, 1}:
-        bounds = split(n_slots, n)
-        teams[n] = RknTeam(n, bounds, np.searchsorted(rec, bounds).astype(np.int64), new_barrier(),
-                           np.zeros((2, n, 2)), np.zeros((n, 3)), np.zeros((n, 2, 4)))
-    teams[nthr].energy[0] = ends  # the start's energies on the first block (the others' 0: the same sums)
+    bounds = split(n_slots, nthr)
+    team = RknTeam(nthr, bounds, np.searchsorted(rec, bounds).astype(np.int64), new_barrier(),
+                   np.zeros((2, nthr, 2)), np.zeros((nthr, 3)), np.zeros((nthr, 2, 4)))
+    team.energy[0] = ends  # the start's energies on the first block (the others' 0: the same sums)
     pace = Pace(nthr)
     used = [nthr]
     per_call = [1]  # samples per compiled call, sized from the steps the last one took
 
-    def call(n: int, args: tuple, k0: int, k1: int, acc: np.ndarray) -> tuple[int, float]:
-        """Samples k0..k1 - 1 on n threads: the status and the least CPU time [s] a thread got."""
-        team = teams[n]._replace(bar=new_barrier())
-        cpu = np.zeros(n)
-        status = np.zeros(n, dtype=np.int64)
+    def call(args: tuple, k0: int, k1: int, acc: np.ndarray) -> tuple[int, float]:
+        """Samples k0..k1 - 1 on the threads: the status and the least CPU time [s] a thread got."""
+        fresh = team._replace(bar=new_barrier())
+        cpu = np.zeros(nthr)
+        status = np.zeros(nthr, dtype=np.int64)
 
         def one(t: int) -> None:
             c0 = time.thread_time()
-            status[t] = rkn_thread_run(t, team, *args, k0, k1, acc)
+            status[t] = rkn_thread_run(t, fresh, *args, k0, k1, acc)
             cpu[t] = time.thread_time() - c0
 
-        workers = [threading.Thread(target=one, args=(t,), daemon=True) for t in range(1, n)]
+        workers = [threading.Thread(target=one, args=(t,), daemon=True) for t in range(1, nthr)]
         for th in workers:
             th.start()
         one(0)
@@ -90,19 +90,25 @@ def threaded_advance(threads: int, n_slots: int, rec: np.ndarray, ends: np.ndarr
 
     def advance(state, scratch, chain, probes, control, k_start: int, k_stop: int, acc: np.ndarray) -> int:
         args = (state, scratch, chain, probes, control)
-        if not compiled[0]:  # compiles (no sample), so that the first chunk's pace is the run's
-            call(nthr, args, k_start, k_start, acc)
+        if not compiled[0] and nthr > 1:  # compiles (no sample), so that the first chunk's pace is the run's
+            call(args, k_start, k_start, acc)
             compiled[0] = True
         k = k_start
         while k < k_stop:
             n = pace.next()
-            if n != used[0]:  # the blocks' energies, gathered on the new layout's first block
-                teams[n].energy[:] = 0.0
-                teams[n].energy[0] = teams[used[0]].energy.sum(axis=0)
+            if n != used[0]:  # the energies at the last two step ends, as the next engine keeps them
+                if n == 1:
+                    state.ends[:] = team.energy.sum(axis=0)  # block order, as the threads sum them
+                else:
+                    team.energy[:] = 0.0
+                    team.energy[0] = state.ends
                 used[0] = n
             k1 = min(k_stop, k + per_call[0])
-            steps0, wall0 = acc[A_STEPS], time.perf_counter()
-            status, cpu = call(n, args, k, k1, acc)
+            steps0, wall0, cpu0 = acc[A_STEPS], time.perf_counter(), time.thread_time()
+            if n == 1:  # one thread: the one-thread engine itself (the same state, bit for bit)
+                status, cpu = rk.rkn_run(*args, k, k1, acc), time.thread_time() - cpu0
+            else:
+                status, cpu = call(args, k, k1, acc)
             steps = acc[A_STEPS] - steps0
             pace.record(n, steps * n_slots, time.perf_counter() - wall0, cpu)
             if status != 0:

@@ -55,34 +55,13 @@ class RknTeam(NamedTuple):
     energy: np.ndarray
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _max4(x, s, e):
-    """Largest of x[s:e] (e - s a multiple of 4, elements >= 0), as ``rkn_kernels._max4``, without
-    a view (a view's reference count is an atomic shared by the threads)."""
-    x0 = 0.0
-    x1 = 0.0
-    x2 = 0.0
-    x3 = 0.0
-    for j in range(s, e, 4):
-        a = x[j]
-        b = x[j + 1]
-        c = x[j + 2]
-        f = x[j + 3]
-        x0 = a if a > x0 else x0
-        x1 = b if b > x1 else x1
-        x2 = c if c > x2 else x2
-        x3 = f if f > x3 else x3
-    x0 = x1 if x1 > x0 else x0
-    x2 = x3 if x3 > x2 else x2
-    return x2 if x2 > x0 else x0
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
-def _block_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, s, e, sx, sw, st, sc):
-    """``rkn_kernels.next_step``'s per-contact bounds over contacts [s, e), the same expressions:
-    (max h_j^-10, max of the stability term)."""
+def _block_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc):
+    """``rkn_kernels.next_step``'s per-contact bounds, the same expressions, over the contacts of
+    ``kappa`` (views from the block's first: module docstring): (max h_j^-10, max of the
+    stability term)."""
     inv_eps = 1.0 / eps
-    for j in range(s, e):
+    for j in range(kappa.shape[0]):
         d = u[j] - u[j + 1] + d0[j]
         r = v[j] - v[j + 1]
         ad = abs(d)
@@ -105,18 +84,18 @@ def _block_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, s, e, sx, sw, st, sc):
         ar = abs(r)
         st[j] = ar / ad if d * r < 0.0 else 0.0
         sc[j] = ki2 * r2 * ar
-    return _max4(sx, s, e), _max4(sw, s, e)
+    return rk._max4(sx), rk._max4(sw)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _block_landing(h, s, e, st, sc):
-    """``rkn_kernels.next_step``'s landing bound over contacts [s, e) for the step h."""
+def _block_landing(h, st, sc):
+    """``rkn_kernels.next_step``'s landing bound over the block's contacts (views) for the step h."""
     h5 = h * h * h * h * h
     inv_h = 1.0 / h
-    for j in range(s, e):
+    for j in range(st.shape[0]):
         y = st[j]
         st[j] = y if (y > inv_h and y * LAND_FLOOR < inv_h and sc[j] * h5 > LAND_ERROR) else 0.0
-    return _max4(st, s, e)
+    return rk._max4(st)
 
 
 @njit(cache=True, nogil=True)
@@ -124,7 +103,8 @@ def _agree_step(team, tid, sense, u, v, kappa, d0, inv_mass, eps, hl, h_max, s, 
     """``rkn_kernels.next_step`` across the threads (module docstring): (h, sense)."""
     sx, sw, st, sc = scratch.sx, scratch.sw, scratch.st, scratch.sc
     part = team.part
-    xb, wb = _block_bounds(u, v, kappa, d0, inv_mass, eps, hl, s, e, sx, sw, st, sc)
+    xb, wb = _block_bounds(u[s:], v[s:], kappa[s:e], d0[s:e], inv_mass[s:], eps, hl, sx[s:e], sw[s:e], st[s:e],
+                           sc[s:e])
     part[tid, 0] = xb
     part[tid, 1] = wb
     sense = barrier(team.bar, team.nthr, sense)
@@ -142,7 +122,7 @@ def _agree_step(team, tid, sense, u, v, kappa, d0, inv_mass, eps, hl, h_max, s, 
     if x > 0.0:
         hx = x ** -0.1
         h = hx if hx < h else h
-    part[tid, 2] = _block_landing(h, s, e, st, sc)
+    part[tid, 2] = _block_landing(h, st[s:e], sc[s:e])
     sense = barrier(team.bar, team.nthr, sense)
     y = 0.0
     for t in range(team.nthr):
@@ -181,32 +161,36 @@ def _edges(team, tid, par, u, kappa, d0, s, e):
 def _stage(team, tid, par, u, v, kappa, d0, fext, inv_mass, kick, drift, s, e):
     """``rkn_kernels._stage`` over bodies [s, e)."""
     fprev, ur = _edges(team, tid, par, u, kappa, d0, s, e)
-    for i in range(s, e - 1):
-        d = u[i] - u[i + 1] + d0[i]
-        d = d if d > DELTA_MIN else 0.0
-        f = kappa[i] * d * np.sqrt(d)
-        v[i] += kick * ((fprev - f + fext[i]) * inv_mass[i])
-        u[i] += drift * v[i]
-        fprev = f
+    fprev = _stage_from(u[s:e], v[s:e], kappa[s:e], d0[s:e], fext[s:e], inv_mass[s:e], kick, drift, fprev)
     i = e - 1
     f = _hertz(kappa[i], u[i] - ur + d0[i])
     v[i] += kick * ((fprev - f + fext[i]) * inv_mass[i])
     u[i] += drift * v[i]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _stage_from(u, v, kappa, d0, fext, inv_mass, kick, drift, fprev):
+    """``rkn_kernels._stage``'s loop over the bodies of the views but the last (indexed from 0:
+    a loop from a block's first slot would check every index for wraparound and not vectorise);
+    returns the force of the contact on the last one's left."""
+    for i in range(inv_mass.shape[0] - 1):
+        d = u[i] - u[i + 1] + d0[i]
+        d = d if d > DELTA_MIN else 0.0
+        f = kappa[i] * d * np.sqrt(d)
+        v[i] += kick * ((fprev - f + fext[i]) * inv_mass[i])
+        u[i] += drift * v[i]
+        fprev = f
+    return fprev
+
+
 @njit(cache=True, nogil=True)
 def _closing(team, tid, par, u, v, a, g, sq, kappa, d0, fext, inv_mass, kick, s, e):
     """``rkn_kernels._closing`` over bodies [s, e)."""
     fprev, ur = _edges(team, tid, par, u, kappa, d0, s, e)
-    for i in range(s, e - 1):
-        fprev = _closing_body(u, v, a, g, sq, kappa, d0, fext, inv_mass, kick, i, u[i + 1], fprev)
-    _closing_body(u, v, a, g, sq, kappa, d0, fext, inv_mass, kick, e - 1, ur, fprev)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _closing_body(u, v, a, g, sq, kappa, d0, fext, inv_mass, kick, i, un, fprev):
-    """Body i of ``rkn_kernels._closing`` (``un`` the next body's position); returns its contact's force."""
-    d = u[i] - un + d0[i]
+    fprev = _closing_from(u[s:e], v[s:e], a[s:e], g[s + 1:e + 1], sq[s:e], kappa[s:e], d0[s:e], fext[s:e],
+                          inv_mass[s:e], kick, fprev)
+    i = e - 1
+    d = u[i] - ur + d0[i]
     d = d if d > DELTA_MIN else 0.0
     sqd = np.sqrt(d)
     f = kappa[i] * d * sqd
@@ -215,30 +199,48 @@ def _closing_body(u, v, a, g, sq, kappa, d0, fext, inv_mass, kick, i, un, fprev)
     ai = (fprev - f + fext[i]) * inv_mass[i]
     a[i] = ai
     v[i] += kick * ai
-    return f
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _closing_from(u, v, a, g, sq, kappa, d0, fext, inv_mass, kick, fprev):
+    """``rkn_kernels._closing``'s loop over the bodies of the views but the last (``g`` from
+    contact s, not shifted); returns the force of the contact on the last one's left."""
+    for i in range(inv_mass.shape[0] - 1):
+        d = u[i] - u[i + 1] + d0[i]
+        d = d if d > DELTA_MIN else 0.0
+        sqd = np.sqrt(d)
+        f = kappa[i] * d * sqd
+        g[i] = f
+        sq[i] = sqd
+        ai = (fprev - f + fext[i]) * inv_mass[i]
+        a[i] = ai
+        v[i] += kick * ai
+        fprev = f
+    return fprev
 
 
 @njit(cache=True, nogil=True, fastmath={"reassoc"}, error_model="numpy")
-def _end_data(u, v, a, g, sq, kappa, d0, fext, mass, ed, energy, c, s, e):
-    """``rkn_kernels.end_data`` over contacts [s, e), the block's energies into ``energy[c]``."""
+def _end_data(u, v, a, g, sq, kappa, d0, fext, mass, ed, energy, c):
+    """``rkn_kernels.end_data`` over the views' contacts (``ed`` the (ROWS, n) rows of the block,
+    ``g`` from contact s, not shifted), the block's energies into ``energy[c]``."""
     ke = 0.0
     dke = 0.0
     pe = 0.0
     dpe = 0.0
-    for i in range(s, e):
+    for i in range(mass.shape[0]):
         d = u[i] - u[i + 1] + d0[i]
         r = v[i] - v[i + 1]
         q = a[i] - a[i + 1]
-        f = g[i + 1]
+        f = g[i]
         si = sq[i]
         k = 1.5 * kappa[i]
-        ed[c, R_F, i] = f
-        ed[c, R_DF, i] = k * si * r
+        ed[R_F, i] = f
+        ed[R_DF, i] = k * si * r
         x = k * (0.5 * r * r / si + si * q)
-        ed[c, R_DDF, i] = x if si > 0.0 else 0.0
-        ed[c, R_D, i] = d
-        ed[c, R_R, i] = r
-        ed[c, R_Q, i] = q
+        ed[R_DDF, i] = x if si > 0.0 else 0.0
+        ed[R_D, i] = d
+        ed[R_R, i] = r
+        ed[R_Q, i] = q
         mv = mass[i] * v[i]
         ke += mv * v[i]
         dke += mv * a[i]
@@ -251,13 +253,53 @@ def _end_data(u, v, a, g, sq, kappa, d0, fext, mass, ed, energy, c, s, e):
 
 
 @njit(cache=True, nogil=True)
-def _step(team, tid, sense, u, v, a, g, sq, kappa, d0, fext, inv_mass, h, s, e):
-    """One SRKN_6^b step of size h over the block (``rkn_kernels.step``); returns the sense."""
-    c = rk.B1 * h
-    d = rk.A1 * h
-    for i in range(s, e):
+def _sample_setup(edb, edc, h, coef, fi, cross):
+    """``rkn_run``'s set-up of a step's samples over the block (views from its first contact:
+    indices from 0): the force quintics' coefficients (``rkn_kernels._quintic_coefficients``),
+    0 into ``fi`` for the contacts loaded at neither end, the crossing contacts into ``cross``.
+    Returns (lo, hi, ncross): the loaded contacts lie in [lo, hi)."""
+    hh = h * h
+    for j in range(coef.shape[1]):
+        f0 = edb[R_F, j]
+        d0 = h * edb[R_DF, j]
+        e0 = 0.5 * hh * edb[R_DDF, j]
+        f1 = edc[R_F, j]
+        d1 = h * edc[R_DF, j]
+        e1 = 0.5 * hh * edc[R_DDF, j]
+        coef[0, j] = f0
+        coef[1, j] = d0
+        coef[2, j] = e0
+        coef[3, j] = 10.0 * (f1 - f0) - 6.0 * d0 - 4.0 * d1 - 3.0 * e0 + e1
+        coef[4, j] = 15.0 * (f0 - f1) + 8.0 * d0 + 7.0 * d1 + 3.0 * e0 - 2.0 * e1
+        coef[5, j] = 6.0 * (f1 - f0) - 3.0 * d0 - 3.0 * d1 - e0 + e1
+    ncross = 0
+    lo, hi = fi.shape[0], 0
+    for j in range(fi.shape[0]):
+        da, db = edb[R_D, j], edc[R_D, j]
+        ca, cb = da > DELTA_MIN, db > DELTA_MIN
+        if ca or cb:
+            lo = j if j < lo else lo
+            hi = j + 1
+        else:
+            fi[j] = 0.0
+        if ca != cb or (ca and da < abs(edb[R_R, j]) * h) or (cb and db < abs(edc[R_R, j]) * h):
+            cross[ncross] = j
+            ncross += 1
+    return lo, hi, ncross
+
+
+@njit(cache=True, nogil=True)
+def _open(u, v, a, c, d):
+    """The opening kick v += c a and drift u += d v of ``rkn_kernels.step`` over the views."""
+    for i in range(u.shape[0]):
         v[i] += c * a[i]
         u[i] += d * v[i]
+
+
+@njit(cache=True, nogil=True)
+def _step(team, tid, sense, u, v, a, g, sq, kappa, d0, fext, inv_mass, h, s, e):
+    """One SRKN_6^b step of size h over the block (``rkn_kernels.step``); returns the sense."""
+    _open(u[s:e], v[s:e], a[s:e], rk.B1 * h, rk.A1 * h)
     kicks = (rk.B2, rk.B3, rk.B4, rk.B3, rk.B2)
     drifts = (rk.A2, rk.A3, rk.A3, rk.A2, rk.A1)
     par = 0
@@ -313,7 +355,8 @@ def rkn_thread_run(tid, team, state, scratch, chain, probes, control, k_start, k
             sense = _step(team, tid, sense, u, v, a, g, sq, kappa, d0, fext, inv_mass, h, s, e)
             steps += 1
             c = steps % 2
-            _end_data(u, v, a, g, sq, kappa, d0, fext, mass, ed, energy, c, s, e)
+            _end_data(u[s:], v[s:], a[s:], g[s + 1:], sq[s:e], kappa[s:e], d0[s:e], fext[s:e], mass[s:e], ed[c, :, s:e],
+                      energy, c)
             b = 1 - c
             if owns_wall:
                 dk, x = rk.quintic_peak(ed[b, R_D, ws], ed[b, R_R, ws], ed[b, R_Q, ws], ed[c, R_D, ws],
@@ -333,33 +376,9 @@ def rkn_thread_run(tid, team, state, scratch, chain, probes, control, k_start, k
         c = steps % 2
         b = 1 - c
         if ncross < 0:
-            hh = hl * hl
-            for j in range(s, ce):
-                f0 = ed[b, R_F, j]
-                dd0 = hl * ed[b, R_DF, j]
-                e0 = 0.5 * hh * ed[b, R_DDF, j]
-                f1 = ed[c, R_F, j]
-                dd1 = hl * ed[c, R_DF, j]
-                e1 = 0.5 * hh * ed[c, R_DDF, j]
-                coef[0, j] = f0
-                coef[1, j] = dd0
-                coef[2, j] = e0
-                coef[3, j] = 10.0 * (f1 - f0) - 6.0 * dd0 - 4.0 * dd1 - 3.0 * e0 + e1
-                coef[4, j] = 15.0 * (f0 - f1) + 8.0 * dd0 + 7.0 * dd1 + 3.0 * e0 - 2.0 * e1
-                coef[5, j] = 6.0 * (f1 - f0) - 3.0 * dd0 - 3.0 * dd1 - e0 + e1
-            ncross = 0
-            lo, hi = ce, s
-            for j in range(s, ce):
-                da, db = ed[b, R_D, j], ed[c, R_D, j]
-                ca, cb = da > DELTA_MIN, db > DELTA_MIN
-                if ca or cb:
-                    lo = j if j < lo else lo
-                    hi = j + 1
-                else:
-                    fi[j] = 0.0
-                if ca != cb or (ca and da < abs(ed[b, R_R, j]) * hl) or (cb and db < abs(ed[c, R_R, j]) * hl):
-                    cross[s + ncross] = j
-                    ncross += 1
+            lo, hi, ncross = _sample_setup(ed[b, :, s:ce], ed[c, :, s:ce], hl, coef[:, s:ce], fi[s:ce], cross[s:ce])
+            lo += s
+            hi += s
         theta = (tk - tp) / hl
         for j in range(lo, hi):
             f = coef[0, j] + theta * (coef[1, j] + theta * (coef[2, j] + theta * (
@@ -368,7 +387,7 @@ def rkn_thread_run(tid, team, state, scratch, chain, probes, control, k_start, k
         if ncross > 0:
             q0, q0d, q0dd, q1, q1d, q1dd = rk.quintic(theta, hl)
             for m in range(ncross):
-                j = cross[s + m]
+                j = s + cross[s + m]
                 d = (q0 * ed[b, R_D, j] + q0d * ed[b, R_R, j] + q0dd * ed[b, R_Q, j] + q1 * ed[c, R_D, j]
                      + q1d * ed[c, R_R, j] + q1dd * ed[c, R_Q, j])
                 fi[j] = kappa[j] * d * np.sqrt(d) if d > DELTA_MIN else 0.0
