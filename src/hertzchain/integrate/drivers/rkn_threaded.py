@@ -14,7 +14,8 @@ of ~0.1-1 us each on an idle machine, so the split pays from ~1e4 beads. Shared 
 threaded Verlet (:class:`hertzchain.integrate.drivers.threaded.Pace`), a chunk in which a thread
 got less than ``CONTENDED`` of the wall time as CPU time is followed by one on one thread (the
 one-thread engine ``rkn_kernels.rkn_run`` on the same state: the same numbers), and the faster
-keeps running.
+keeps running; the verdict carries over to the process's next run of the same chain size (its
+first chunks would otherwise pay for the threads again).
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ __all__ = ["threaded_advance", "RKN_CHUNK_BEAD_STEPS"]
 #: Work (slots x steps) of one compiled call on the threads (~0.1-0.3 s on one core), so that the
 #: pace between one and several threads is measured often.
 RKN_CHUNK_BEAD_STEPS = 2e7
+
+_PACES: dict[tuple[int, int], Pace] = {}
 
 
 def threaded_advance(threads: int, n_slots: int, rec: np.ndarray, ends: np.ndarray) -> Callable[..., int]:
@@ -63,7 +66,9 @@ def threaded_advance(threads: int, n_slots: int, rec: np.ndarray, ends: np.ndarr
     team = RknTeam(nthr, bounds, np.searchsorted(rec, bounds).astype(np.int64), new_barrier(),
                    np.zeros((2, nthr, 2)), np.zeros((nthr, 3)), np.zeros((nthr, 2, 4)))
     team.energy[0] = ends  # the start's energies on the first block (the others' 0: the same sums)
-    pace = Pace(nthr)
+    # one pace per chain size and thread count for the process: a run on cores that the last run
+    # found shared starts on the engine that was faster there, and times the other as Pace does
+    pace = _PACES.setdefault((n_slots, nthr), Pace(nthr))
     used = [nthr]
     per_call = [1]  # samples per compiled call, sized from the steps the last one took
 
