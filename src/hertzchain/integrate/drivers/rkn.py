@@ -157,7 +157,7 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
     probes = rk.ProbeBuffers(rec, out_f, out_ke, out_pe, out_ke, out_v, bool(record_velocities), out_u,
                              bool(record_positions), fmax, peak)
     control = rk.StepControl(float(sample_interval), 0.0 if dt is None else float(dt), float(eps), float(duration))
-    advance = rk.rkn_run
+    advance: Callable[..., int] = rk.rkn_run
     if threads > 1:
         from .rkn_threaded import threaded_advance
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -72,7 +72,7 @@ def threaded_advance(threads: int, n_slots: int, rec: np.ndarray, ends: np.ndarr
     used = [nthr]
     per_call = [1]  # samples per compiled call, sized from the steps the last one took
 
-    def call(args: tuple, k0: int, k1: int, acc: np.ndarray) -> tuple[int, float]:
+    def call(args: tuple[Any, Any, Any, Any, Any], k0: int, k1: int, acc: np.ndarray) -> tuple[int, float]:
         """Samples k0..k1 - 1 on the threads: the status and the least CPU time [s] a thread got."""
         fresh = team._replace(bar=new_barrier())
         cpu = np.zeros(nthr)
@@ -80,7 +80,8 @@ def threaded_advance(threads: int, n_slots: int, rec: np.ndarray, ends: np.ndarr
 
         def one(t: int) -> None:
             c0 = time.thread_time()
-            status[t] = rkn_thread_run(t, fresh, *args, k0, k1, acc)
+            state, scratch, chain, probes, control = args
+            status[t] = rkn_thread_run(t, fresh, state, scratch, chain, probes, control, k0, k1, acc)
             cpu[t] = time.thread_time() - c0
 
         workers = [threading.Thread(target=one, args=(t,), daemon=True) for t in range(1, nthr)]
