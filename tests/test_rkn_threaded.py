@@ -31,9 +31,10 @@ def _same(one, many) -> None:
 
 @pytest.mark.parametrize("case", ["taper", "precompressed", "fixed_dt", "free_end", "switching"])
 def test_pulse_through_blocks_and_wall_peak(case, monkeypatch):
-    """A 60-bead chain cut into 3 blocks of ~24 slots (the minimum lowered for the test): the pulse
-    crosses both block edges and is reflected by the wall, whose peak the last block tracks;
-    ``switching``: every chunk alternates between 3 threads and one (the fallback on shared cores)."""
+    """A 24-bead chain cut into 2 blocks of 16 and 8 slots (the minimum lowered for the test): the
+    pulse crosses the block edge and is reflected by the wall, whose peak the last block tracks;
+    every chunk on the threads, or (``switching``) alternately on the threads and on one (the
+    fallback on shared cores). Short runs: on shared cores every barrier may wait for a slice."""
     monkeypatch.setattr(rkn_threaded, "MIN_SLOTS_PER_THREAD", 8)
     monkeypatch.setattr(rkn_threaded, "RKN_CHUNK_BEAD_STEPS", 2e3)  # many chunks
     calls = []
@@ -43,22 +44,22 @@ def test_pulse_through_blocks_and_wall_peak(case, monkeypatch):
         return calls[-1]
 
     monkeypatch.setattr(threaded.Pace, "next", pace)
-    d = np.concatenate([np.full(40, 10e-3), np.geomspace(10e-3, 5e-3, 20)])
+    d = np.concatenate([np.full(16, 10e-3), np.geomspace(10e-3, 5e-3, 8)])
     pre = 5.0 if case == "precompressed" else 0.0
     model = hc.Model(hc.Chain.from_diameters(d), hc.Striker(8e-3, 0.3),
                      hc.Wall("none" if case == "free_end" else "flat"), precompression=pre)
     s = model.system()
-    dt = 2e-8 if case == "fixed_dt" else None
-    kw = dict(dt=dt, record_velocities=True, record_positions=True)
+    dt = 2e-7 if case == "fixed_dt" else None
+    kw = dict(dt=dt, record_velocities=True, record_positions=True, rtol=1e-5)
     duration = hc.auto_duration(model)
     one = run_rkn(s, duration, 1e-6, **kw)
-    many = run_rkn(s, duration, 1e-6, threads=3, **kw)
+    many = run_rkn(s, duration, 1e-6, threads=2, **kw)
     _same(one, many)
     # the pulse reached the end (the wall's contact, or the last bead's free end)
     assert one.max_force[-1 if case != "free_end" else -2] > 0.1 * one.max_force[1]
     if case != "free_end":
         assert one.peak_wall_force > 0.0
-    assert set(calls) == ({1, 3} if case == "switching" else {3})
+    assert set(calls) == ({1, 2} if case == "switching" else {2})
 
 
 def test_auto_threads_on_the_rkn4_path():
