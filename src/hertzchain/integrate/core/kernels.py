@@ -38,8 +38,8 @@ from numba import njit
 from .energies import (energies_elastic, kinetic_energy, plastic_work, potential_energy,  # noqa: F401
                        potential_energy_plastic)
 from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
-                        accelerations_extended, energies_extended, extended_bound, forces_linear,
-                        internal_acceleration)
+                        accelerations_extended, energies_extended, extended_bound, extended_steps, forces_linear,
+                        close_sample, internal_acceleration)
 
 from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
 # the general path's contact and the elastic-plastic law (re-exported: kernels.elastoplastic_force & co.)
@@ -226,46 +226,9 @@ def accelerations(g, fext, inv_mass, a):
         a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
 
 
-@njit(cache=True, nogil=True)
-def step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dyield, dmax, dres,
-                  kres, ext, body_slot, wall_slot, t0, dt, ns, peak, acc):
-    """One block of ``ns`` steps of the general path with the extension (see :func:`verlet_run`).
-
-    The same kick-drift-kick as the general path, the internal masses (``ext``) stepped with the
-    beads; the mount's dashpot uses the predicted velocities, as the dissipative contacts do, and
-    its power joins the dissipated energy. With a protected body (``body_slot`` >= 0) the power
-    F_N v_body that contact N delivers to it is integrated (trapezoidal) into ext[0, EXT_ACC].
-    """
-    n = a.shape[0]
-    half = 0.5 * dt
-    for i in range(n):
-        v[i] += half * a[i]
-        u[i] += dt * v[i]
-        ext[i, EXT_WV] += half * wa[i]
-        ext[i, EXT_W] += dt * ext[i, EXT_WV]
-    for s in range(ns):
-        for i in range(n):
-            vp[i] = v[i] + half * a[i]
-        p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
-        p += forces_linear(u, vp, d0, ext, g)
-        acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
-        acc[1] = p
-        if body_slot >= 0:
-            pb = g[body_slot] * vp[body_slot]  # contact N (g[N + 1]) pushing body N + 1
-            ext[0, EXT_ACC] += half * (ext[1, EXT_ACC] + pb)
-            ext[1, EXT_ACC] = pb
-        _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
-        accelerations_extended(u, g, fext, inv_mass, ext, a, wa)
-        if s < ns - 1:
-            for i in range(n):
-                v[i] += dt * a[i]
-                u[i] += dt * v[i]
-                ext[i, EXT_WV] += dt * wa[i]
-                ext[i, EXT_W] += dt * ext[i, EXT_WV]
-        else:
-            for i in range(n):
-                v[i] += half * a[i]
-                ext[i, EXT_WV] += half * wa[i]
+#: One block of ``ns`` steps of the general path with the extension (see :func:`verlet_run` and
+#: :func:`~.extension.extended_steps`, which writes it once for every law's force pass).
+step_extended = extended_steps(forces_general)
 
 
 @njit(cache=True, nogil=True)
@@ -421,7 +384,7 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
     mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
     de, dx0, rsum, dcap, dyield, dmax, dres, kres = contacts
     ext, ext_on, body_slot = extension
-    rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, _, _, fmax, peak, out_b = probes
+    rec, out_f, _, _, _, out_wp, _, _, _, _, fmax, peak, _ = probes
     interval, stride, n_sub, n_eval, c_steps, relax = control
     n = a.shape[0]
     nout = rec.shape[0]
@@ -512,23 +475,7 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
             pe = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
         else:
             ke, pe = energies_elastic(u, v, g, mass, d0, fext)
-        if ext_on:
-            ke_in, pe_lin = energies_extended(u, d0, ext)
-            ke += ke_in
-            pe += pe_lin
-            if body_slot >= 0:
-                out_b[k, 0] = u[body_slot]
-                out_b[k, 1] = v[body_slot]
-                out_b[k, 2] = a[body_slot]
-                out_b[k, 3] = ext[0, EXT_ACC]
-        out_ke[k] = ke
-        out_pe[k] = pe
-        out_ed[k] = acc[0]
-        if record_v:
-            for i in range(out_v.shape[1]):
-                out_v[k, i] = v[i]
-        if not np.isfinite(ke) or not np.isfinite(g[1]):
-            acc[2] = step
+        if close_sample(k, ke, pe, u, v, a, g, d0, extension, probes, acc, step):
             return 1
     acc[2] = step
     return 0
@@ -564,5 +511,5 @@ def flush_stale_cache(*kernels_using: Any) -> None:
 
 # The stepping loop compiles the functions of extension.py, primitives.py, fused.py and plastic.py into itself:
 # an edit there must recompile it too (Numba's cache only checks the file of the function it caches).
-flush_stale_cache(step_extended, dissipative_block, plastic_block, offset_elastic_block, offset_dissipative_block,
+flush_stale_cache(dissipative_block, plastic_block, offset_elastic_block, offset_dissipative_block,
                   verlet_run)

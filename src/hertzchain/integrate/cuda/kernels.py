@@ -29,7 +29,7 @@ import functools
 import math
 from typing import Any
 
-from .device import _cuda, _simulated
+from .device import _cuda, _simulated, peak_tracker
 from .extension import device_functions
 from ..core import energies
 from ..core import kernels as core_kernels
@@ -243,20 +243,7 @@ def _kernels() -> dict:
         beta = 2.0 * (cprev + c) * inv_m
         return math.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta, c
 
-    @cuda.jit(device=True, **inline)
-    def track_peak(fw, t, dt, peak, m):
-        """kernels._track_peak for member m (peak is (8, M))."""
-        if fw > peak[0, m]:
-            peak[0, m] = fw
-            peak[1, m] = t
-            peak[2, m] = peak[5, m]
-            peak[6, m] = dt
-            peak[4, m] = 1.0
-        elif peak[4, m] != 0.0:
-            peak[3, m] = fw
-            peak[7, m] = dt
-            peak[4, m] = 0.0
-        peak[5, m] = fw
+    track_peak = peak_tracker(cuda, inline)
 
     # a protected body and mass-in-mass beads: core.extension's law, compiled from its source
     ext_fns = device_functions(cuda, inline, forces_general, track_peak)

@@ -319,7 +319,8 @@ def rkn_thread_run(tid, team, state, scratch, chain, probes, control, k_start, k
     contacts are listed in ``cross[s:]``. Returns 0, or 1 when the state became non-finite (on
     every thread: the test reads the summed energy and the first contact's force)."""
     u, v, a, g, sq, ed, _ = state  # the energies' end data: per block in team.energy
-    up, vp, ap, fi, cross, coef, sx, sw, st, sc = scratch
+    up, vp, ap, fis, _, cross, coef, _, _, _, _ = scratch
+    fi = fis[:, 0]  # the sampled forces (rkn_run's first sample column: one sample at a time here)
     mass, inv_mass, kappa, _, d0, fext, ws = chain
     rec, out_f, out_ke, out_pe, _, out_v, record_v, out_u, record_u, fmax, peak = probes
     interval, h_fixed, eps, h_max = control
