@@ -34,7 +34,7 @@ from .extension import device_functions
 from ..core import energies
 from ..core import kernels as core_kernels
 from ..core.extension import EXT_CLIN, EXT_IMIN, EXT_KIN, EXT_KLIN
-from ..core.kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
+from ..core.kernels import DELTA_MIN, FORCE_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 
 
 #: Threads (lanes) per member in the warp-per-member kernel: one warp, one slot per lane for
@@ -135,7 +135,7 @@ def _kernels() -> dict:
             f = fel + kappa[j, m] * damping[j, m] * sd * rate
         else:
             f = fel + damping[j, m] * rate
-        f = max(f, 0.0)
+        f = f if f > FORCE_MIN else 0.0  # the CPU engines' floor (primitives.FORCE_MIN)
         g[j + 1, m] = c * f
         return power + (f - fel) * rate
 
