@@ -253,13 +253,24 @@ def _end_data(u, v, a, g, sq, kappa, d0, fext, mass, ed, energy, c):
 
 
 @njit(cache=True, nogil=True)
-def _sample_setup(edb, edc, h, coef, fi, cross):
+def _sample_setup(edb, edc, h, coef, cross):
     """``rkn_run``'s set-up of a step's samples over the block (views from its first contact:
-    indices from 0): the force quintics' coefficients (``rkn_kernels._quintic_coefficients``),
-    0 into ``fi`` for the contacts loaded at neither end, the crossing contacts into ``cross``.
-    Returns (lo, hi, ncross): the loaded contacts lie in [lo, hi)."""
+    indices from 0): the crossing contacts into ``cross``, then the force quintics'
+    coefficients (``rkn_kernels._quintic_coefficients``) of the loaded ones. Returns (lo, hi,
+    ncross): the contacts loaded at either end lie in [lo, hi) (the others' force is 0)."""
+    ncross = 0
+    lo, hi = cross.shape[0], 0
+    for j in range(cross.shape[0]):
+        da, db = edb[R_D, j], edc[R_D, j]
+        ca, cb = da > DELTA_MIN, db > DELTA_MIN
+        if ca or cb:
+            lo = j if j < lo else lo
+            hi = j + 1
+        if ca != cb or (ca and da < abs(edb[R_R, j]) * h) or (cb and db < abs(edc[R_R, j]) * h):
+            cross[ncross] = j
+            ncross += 1
     hh = h * h
-    for j in range(coef.shape[1]):
+    for j in range(lo, hi):
         f0 = edb[R_F, j]
         d0 = h * edb[R_DF, j]
         e0 = 0.5 * hh * edb[R_DDF, j]
@@ -272,19 +283,6 @@ def _sample_setup(edb, edc, h, coef, fi, cross):
         coef[3, j] = 10.0 * (f1 - f0) - 6.0 * d0 - 4.0 * d1 - 3.0 * e0 + e1
         coef[4, j] = 15.0 * (f0 - f1) + 8.0 * d0 + 7.0 * d1 + 3.0 * e0 - 2.0 * e1
         coef[5, j] = 6.0 * (f1 - f0) - 3.0 * d0 - 3.0 * d1 - e0 + e1
-    ncross = 0
-    lo, hi = fi.shape[0], 0
-    for j in range(fi.shape[0]):
-        da, db = edb[R_D, j], edc[R_D, j]
-        ca, cb = da > DELTA_MIN, db > DELTA_MIN
-        if ca or cb:
-            lo = j if j < lo else lo
-            hi = j + 1
-        else:
-            fi[j] = 0.0
-        if ca != cb or (ca and da < abs(edb[R_R, j]) * h) or (cb and db < abs(edc[R_R, j]) * h):
-            cross[ncross] = j
-            ncross += 1
     return lo, hi, ncross
 
 
@@ -377,7 +375,7 @@ def rkn_thread_run(tid, team, state, scratch, chain, probes, control, k_start, k
         c = steps % 2
         b = 1 - c
         if ncross < 0:
-            lo, hi, ncross = _sample_setup(ed[b, :, s:ce], ed[c, :, s:ce], hl, coef[:, s:ce], fi[s:ce], cross[s:ce])
+            lo, hi, ncross = _sample_setup(ed[b, :, s:ce], ed[c, :, s:ce], hl, coef[:, s:ce], cross[s:ce])
             lo += s
             hi += s
         theta = (tk - tp) / hl
@@ -396,7 +394,8 @@ def rkn_thread_run(tid, team, state, scratch, chain, probes, control, k_start, k
             f = fi[j]
             fmax[j] = f if f > fmax[j] else fmax[j]
         for r in range(team.rbounds[tid], team.rbounds[tid + 1]):
-            out_f[k, r] = fi[rec[r]]
+            j = rec[r]
+            out_f[k, r] = fi[j] if lo <= j < hi else 0.0
         w0, w0d, w1, w1d = rk.hermite(theta, hl)
         eb = team.energy
         ke = 0.0
