@@ -22,10 +22,12 @@ MODEL_KINDS = {  # model kind -> the integrator "auto" picks
     "precompressed elastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, precompression=1.0), "rkn4"),
     "elastic under gravity": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, gravity=9.81), "rkn4"),
     "power law": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.PowerLaw(2.0, 2e9)), "rkn4"),
-    "hunt_crossley": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.HuntCrossley(0.8)), "verlet"),
+    "hunt_crossley": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.HuntCrossley(0.8)), "rkn4"),
     "dashpot": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Dashpot(gamma=20.0)), "rkn4"),
     "viscoelastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Viscoelastic(A=4e-6)), "rkn4"),
-    "elastoplastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Elastoplastic()), "verlet"),
+    "elastoplastic": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, law=hc.Elastoplastic()), "rkn4"),
+    "offset elastoplastic": (hc.Model(hc.Chain.uniform(6, 20e-3).with_offsets({3: 1e-4}), STRIKER,
+                                      law=hc.Elastoplastic()), "rkn4"),
     "offset dashpot": (hc.Model(hc.Chain.uniform(6, 20e-3).with_offsets({3: 1e-4}), STRIKER,
                                 law=hc.Dashpot(gamma=20.0)), "rkn4"),
     "dashpot, protected body": (hc.Model(hc.Chain.uniform(6, 20e-3), STRIKER, hc.Wall("body", mass=1.0, stiffness=1e6),
@@ -90,8 +92,7 @@ def test_auto_threads_only_for_long_chains_with_free_cores():
     # auto picks rkn4, whose threads run aligned elastic chains (hertzchain.integrate.drivers.rkn_threaded)
     auto = choose_engine(long_chain, cores=16, load=0.0)
     assert (auto.integrator, auto.threads) == ("rkn4", 4)
-    # every contact law and offsets: the Verlet's threaded engine runs them (auto picks rkn4, on
-    # one thread, for the hand-written laws but the elastic-plastic one)
+    # every contact law and offsets: the Verlet's threaded engine runs them (auto picks rkn4)
     chain = hc.Chain.uniform(4 * BEADS_PER_THREAD, 5e-3)
     for law in (hc.Dashpot(gamma=1.0), hc.Viscoelastic(A=1e-6), hc.Elastoplastic(), hc.PowerLaw(1.7, 1e9),
                 hc.HuntCrossley(0.8)):
@@ -100,12 +101,10 @@ def test_auto_threads_only_for_long_chains_with_free_cores():
         assert choose_engine(diss, "verlet", cores=2, load=2.2).threads == 1  # shared cores
         auto = choose_engine(diss, cores=16, load=0.0)
         assert auto.threads == (4 if auto.integrator == "verlet" else 1)
-    # registry laws: rkn4 without per-contact state, the Verlet (rkn4 on request) with it
-    for law, engine in ((hc.PowerLaw(1.7, 1e9), ("rkn4", 1)), (hc.HuntCrossley(0.8), ("verlet", 4))):
+    # registry laws, with or without per-contact state, and the elastic-plastic law: rkn4
+    for law in (hc.PowerLaw(1.7, 1e9), hc.HuntCrossley(0.8), hc.Elastoplastic()):
         auto = choose_engine(hc.Model(chain, STRIKER, law=law).system(), cores=16, load=0.0)
-        assert (auto.integrator, auto.threads) == engine
-    # the elastic-plastic chain: the Verlet (rkn4 on request), threads where cores are free
-    assert choose_engine(hc.Model(chain, STRIKER, law=hc.Elastoplastic()).system(), cores=16, load=0.0).threads == 4
+        assert auto.integrator == "rkn4"
     offsets = hc.Model(chain.with_offsets({3: 1e-5}), STRIKER).system()
     assert choose_engine(offsets, "verlet", cores=2, load=0.0).threads == 2
     body = hc.Model(chain, STRIKER, hc.Wall("body", mass=1.0, stiffness=1e6)).system()
@@ -161,6 +160,30 @@ def test_auto_within_documented_accuracy_of_dop853(seed, law, rel):
     f, fr = auto.attrs["peak_wall_force"], ref.attrs["peak_wall_force"]
     assert fr > 1.0
     assert abs(f / fr - 1) < rel
+
+
+# Registry laws and the elastic-plastic law (rkn4 with the law's own slopes, every branch change
+# landed on): the same 1e-6, against DOP853 where it runs the law (the stateless power law) and
+# against the Verlet at a 1 ns step (its error ~1e-9 here) where DOP853 cannot carry the state.
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("law, v, reference", [(hc.PowerLaw(2.0, 1e13), 0.2, "dop853"),
+                                               (hc.HuntCrossley(0.8), 0.2, "verlet"),
+                                               (hc.Elastoplastic(), 1.0, "verlet")],
+                         ids=["power", "hunt_crossley", "elastoplastic"])
+def test_auto_on_registry_and_plastic_laws_within_documented_accuracy(seed, law, v, reference):
+    rng = np.random.default_rng(seed)
+    model = hc.Model(_random_chain(rng), hc.Striker(float(rng.uniform(6e-3, 12e-3)), v * float(rng.uniform(0.5, 1.5))),
+                     law=law)
+    probes = hc.Probes(sample_interval=1e-6, contacts=())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        auto = hc.simulate(model, "auto", probes)
+        ref = (hc.simulate(model, "auto", probes, integrator="dop853", rtol=1e-12) if reference == "dop853" else
+               hc.simulate(model, "auto", probes, integrator="verlet", dt=1e-9))
+    assert auto.attrs["integrator_used"] == "rkn4"
+    f, fr = auto.attrs["peak_wall_force"], ref.attrs["peak_wall_force"]
+    assert fr > 1.0
+    assert abs(f / fr - 1) < 1e-6
 
 
 def test_cli_verbose_names_the_engine(tmp_path, capsys):

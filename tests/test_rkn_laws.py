@@ -135,3 +135,20 @@ def test_chain1_converges_with_order_4(chain1, name):
         errors.append(float(np.abs(run.velocity - ref.velocity).max()) / v)
         assert errors[-1] < rtol  # the global error follows rtol (measured 0.03 ... 0.2 rtol)
     assert 3.5 < _order(steps, errors) < 5.7
+
+
+@pytest.mark.parametrize("law", [hc.Dashpot(gamma=8.0), hc.HuntCrossley(0.7)], ids=["damped", "registry"])
+def test_peak_wall_force_is_the_run_s_own_when_it_ends_on_the_rise(law):
+    """A run that ends while the wall force still rises (both rkn4 kernels: the damped laws' and the
+    registry laws'): its peak is the force at its last sample, at its end, never a value the last
+    step (which may pass the end) reached after it."""
+    model = hc.Model(CHAIN5, hc.Striker(8e-3, 0.2), law=law)
+    probes = hc.Probes(sample_interval=1e-6)
+    full = _quiet(hc.simulate, model, 4e-4, probes, integrator="rkn4")
+    t_peak = float(full.attrs["peak_wall_time"])
+    duration = round(0.97 * t_peak * 1e6) * 1e-6  # on the rise, a sample at the end
+    cut = _quiet(hc.simulate, model, duration, probes, integrator="rkn4")
+    wall = cut["wall_force"].values
+    assert 0 < wall[-2] < wall[-1] < float(full.attrs["peak_wall_force"])
+    assert float(cut.attrs["peak_wall_time"]) <= duration * (1 + 1e-12)
+    assert float(cut.attrs["peak_wall_force"]) == pytest.approx(wall[-1], rel=1e-9, abs=0)

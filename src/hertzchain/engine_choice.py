@@ -8,12 +8,10 @@ tests/test_engine_choice.py):
   its default step control keeps the peak wall force within ~1e-8 of DOP853, better than the
   Verlet's ~1e-6, at a fraction of the steps), or Kuwabara-Kono's or the dashpot, plain or
   size-scaled, or beads offset from the axis (:mod:`hertzchain.integrate.drivers.rkn_damped`: within
-  ~4e-7 on the paper's chain 1). A registry law (power, Hunt-Crossley, a user's, with or without
-  per-contact state: :mod:`hertzchain.integrate.drivers.rkn_laws`, the same method and bound,
-  tests/test_rkn_laws.py): ``auto`` takes ``rkn4`` for one without per-contact state (the power
-  law; at n = 3/2 the elastic law's own engine) and keeps the Verlet, measured faster on chain 1,
-  for one with state (Hunt-Crossley). The elastic-plastic law runs on ``rkn4`` when asked for, and
-  ``auto`` takes it for a two-body collision only: on chains its event landing is not yet fast enough.
+  ~4e-7 on the paper's chain 1), a registry law (power, Hunt-Crossley, a user's, with or without
+  per-contact state) or the elastic-plastic law (:mod:`hertzchain.integrate.drivers.rkn_laws`: the
+  same method and bound with the law's own analytic slopes, every change of a contact's branch
+  landed on; tests/test_rkn_laws.py; at n = 3/2 the power law is the elastic law's own engine).
   Otherwise, or when the call sets the Verlet's own accuracy (``steps_per_radian``), a fixed
   step ``dt`` or several threads that ``rkn4`` does not run, the compiled velocity ``"verlet"`` (peak wall force within ~1e-6).
 * threads: more than one only where a threaded engine runs the model (the Verlet on a chain of
@@ -173,22 +171,9 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
     if integrator != "auto":
         refuse(integrator, system)  # suggesting only the integrators that take the model
     if integrator == "auto":
-        from .laws import law_of_code
-
         refusal = why_not("rkn4", system)
         if refusal is not None:
             integrator, why = "verlet", f"verlet: {refusal}"
-        elif law_of_code(system.law).plastic and system.n_beads > 1:
-            # rkn4 integrates it (integrator="rkn4"), but on long elastic-plastic chains its event
-            # landing was measured to take minutes where the Verlet takes a second: not yet auto's
-            integrator, why = "verlet", "verlet: an elastic-plastic chain (rkn4 on request)"
-        elif law_of_code(system.law).generated and law_of_code(system.law).state_size:
-            # rkn4 integrates a registry law with per-contact state (integrator="rkn4"), but its
-            # frozen-state stages and branch checks made it slower than the Verlet on chain 1
-            # (Hunt-Crossley: 27 ms against 16, the Verlet also closer to a tight reference);
-            # stateless registry laws take rkn4 (the power law at n = 2: 33 ms against the Verlet's
-            # 58; at n = 3/2, the elastic law, the elastic law's own rkn4: 2.8 ms against 12.5)
-            integrator, why = "verlet", "verlet: a registry law with per-contact state (rkn4 on request)"
         elif steps_per_radian is not None:
             integrator, why = "verlet", "verlet: its steps_per_radian is set"
         elif dt is not None:
@@ -199,8 +184,10 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
             from .laws import law_of_code
 
             spec = law_of_code(system.law)
-            integrator, why = "rkn4", (f"rkn4: {'offset' if system.misaligned else 'aligned'} "
-                                       f"{'dissipative' if spec.dissipative else 'elastic'} chain")
+            kind = "elastic-plastic" if spec.plastic else "dissipative" if spec.dissipative else "elastic"
+            state = " with per-contact state" if spec.state_size else ""
+            integrator, why = "rkn4", (f"rkn4: {'offset' if system.misaligned else 'aligned'} {kind} chain"
+                                       f"{' (registry law' + state + ')' if spec.generated else ''}")
     else:
         why = f"{integrator}: asked for"
     if isinstance(threads, str):  # "auto" (checked above)

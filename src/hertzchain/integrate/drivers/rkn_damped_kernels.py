@@ -535,8 +535,9 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
     (:func:`event_inside`). Probes as the module docstring says: forces of every contact into
     ``fi`` (their running maxima into ``fmax``), the contacts ``rec`` into row k of ``out_f``,
     energies into ``out_ke``, ``out_pe``, ``out_d``, velocities and positions of bodies 0..N when
-    asked. ``peak`` = [largest wall force, its time]. ``acc`` = [time, previous step's start,
-    last step, steps, smallest step, largest step, last step the error bound chose].
+    asked. ``peak`` = [largest wall force up to ``h_max`` (the run's duration), its time].
+    ``acc`` = [time, previous step's start, last step, steps, smallest step, largest step, last
+    step the error bound chose].
     A contact whose overlap's interpolant stays where its force is 0 over a step
     (:func:`~.rkn_kernels.quintic_at_most`) is given 0 at that step's samples without interpolating:
     the same numbers, ahead of a pulse at a fraction of the cost.
@@ -607,14 +608,16 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
                 v[i] = vn[i]
                 a[i] = an[i]
             steps += 1
+            # the wall's peak up to the run's end (h_max, its duration: a last step may pass it;
+            # the samples up to it count below)
             dw0 = ed[b, R_DF, ws]
             dw1 = ed[c, R_DF, ws]
             if dw0 > 0.0 and dw1 <= 0.0:
                 fk, x = _peak_in_step(ed, b, c, ws, h, kappa, damping, d0, off, law)
-                if fk > peak[0]:
+                if fk > peak[0] and t + x * h <= h_max:
                     peak[0] = fk
                     peak[1] = t + x * h
-            if ed[c, R_F, ws] > peak[0]:
+            if ed[c, R_F, ws] > peak[0] and t + h <= h_max:
                 peak[0] = ed[c, R_F, ws]
                 peak[1] = t + h
             if not all_forces:  # the run's maxima up to the last sample (a last step may pass it)
@@ -652,6 +655,9 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
                 fmax[j] = f if f > fmax[j] else fmax[j]
             for r in range(nrec):
                 out_f[k, r] = fi[rec[r]]
+            if ws < nc and fi[ws] > peak[0]:
+                peak[0] = fi[ws]
+                peak[1] = tk
         else:
             for r in range(nrec):
                 j = rec[r]

@@ -40,9 +40,42 @@ _COMPILED_IN = ("drivers/rkn_state_kernels.py", "drivers/rkn_laws.py", "drivers/
                 "drivers/rkn_kernels.py", "core/kernels.py", "core/primitives.py", "core/energies.py")
 
 
-def _generated_adapter(force, update, stored, dissipative: bool) -> rs.LawAdapter:
-    """A registry law's functions (``force(d, rate, k, p, s)``, ``state``, ``energy``) as the
-    kernels take them; its state (one number per contact) in row 0 of ``S``."""
+def _fixed(fn, value: float):
+    """``fn(d, rate, k, p, s)`` with p = ``value``, a compile-time constant."""
+    p = float(value)
+
+    @njit(nogil=True, inline="always")
+    def fixed(d, r, k, _p, s):
+        return fn(d, r, k, p, s)
+
+    return fixed
+
+
+def _fixed_energy(fn, value: float):
+    """``fn(d, k, p)`` with p = ``value``, a compile-time constant."""
+    p = float(value)
+
+    @njit(nogil=True, inline="always")
+    def fixed(d, k, _p):
+        return fn(d, k, p)
+
+    return fixed
+
+
+def _generated_adapter(force, update, stored, dissipative: bool, partials, state_partials,
+                       stateful: bool, constant: float | None = None) -> rs.LawAdapter:
+    """A registry law's functions (``force(d, rate, k, p, s)``, ``state``, ``energy``,
+    ``partials``, ``state_partials``) as the kernels take them; its state (one number per
+    contact) in row 0 of ``S``. The slopes come from the law's partials (through the state's
+    update by the chain rule on a growing branch); a law with state that declares no
+    ``state_partials`` gets the kernels' central differences. With ``constant`` (one of the law's
+    ``constant_parameters``, every contact's parameter) the functions take it as a compile-time
+    constant: the law's branches on it fold and its arithmetic simplifies (the power law at n = 2:
+    d d, not pow), as in the generated Verlet loops (``core/generated.py``)."""
+    if constant is not None:
+        force, update, partials = (_fixed(fn, constant) for fn in (force, update, partials))
+        state_partials = None if state_partials is None else _fixed(state_partials, constant)
+        stored = _fixed_energy(stored, constant)
 
     @njit(nogil=True, inline="always")
     def lforce(d, r, k, p, S, j, grow):
@@ -75,7 +108,29 @@ def _generated_adapter(force, update, stored, dissipative: bool) -> rs.LawAdapte
     def work(k, p, S, j):
         return 0.0
 
-    return rs.LawAdapter(lforce, commit, key, regime, energy, work)
+    if stateful and state_partials is None:
+        tangent = None  # the kernels' central differences
+    elif stateful:
+        @njit(nogil=True, inline="always")
+        def tangent(d, r, k, p, S, j, grow):
+            s = S[0, j]
+            dd = d if d > DELTA_MIN else 0.0
+            if not grow:  # the force at the committed state
+                fd, fr, _, _ = partials(dd, r, k, p, s)
+                return fd, fr, d
+            sn = update(d, r, k, p, s)
+            fd, fr, _, _ = partials(dd, r, k, p, sn)
+            fs = state_partials(dd, r, k, p, sn)[0]  # dF/ds at the updated state
+            _, sd, sr, _, _, _ = state_partials(d, r, k, p, s)  # ds'/d delta, ds'/d rate of the update
+            return fd + fs * sd, fr + fs * sr, d
+    else:
+        @njit(nogil=True, inline="always")
+        def tangent(d, r, k, p, S, j, grow):
+            fd, fr, _, _ = partials(d if d > DELTA_MIN else 0.0, r, k, p, S[0, j])
+            return fd, fr, d
+
+    return rs.LawAdapter(lforce, commit, key, regime, energy, work, tangent, stored_state=False,
+                         lossless=not dissipative)
 
 
 # Thornton's elastic-plastic law, its state in rows (yield overlap, dmax, dres, kres) of S
@@ -93,7 +148,10 @@ def _ep_commit(d, r, k, p, S, j):
 
 @njit(nogil=True, inline="always")
 def _ep_key(d, r, k, p, S, j):
-    return d if d > S[1, j] else S[1, j]
+    """The largest overlap, once past the yield overlap (below it loading and unloading are the
+    same Hertz curve: the state's growth is no event there)."""
+    m = d if d > S[1, j] else S[1, j]
+    return m if m > S[0, j] else S[0, j]
 
 
 @njit(nogil=True, inline="always")
@@ -112,24 +170,51 @@ def _ep_work(k, p, S, j):
     return contact_plastic_work(k, S[0, j], S[1, j], S[2, j])
 
 
-_PLASTIC = rs.LawAdapter(_ep_force, _ep_commit, _ep_key, _ep_regime, _ep_stored, _ep_work)
+@njit(nogil=True, inline="always")
+def _ep_tangent(d, r, k, p, S, j, grow):
+    """(dF/d delta, dF/d rate, gap) of :func:`_ep_force` (``kernels.elastoplastic_force``
+    unclipped, differentiated by hand): loading past the largest overlap (Hertz, then the yield
+    line of slope (3/2) kappa dyield^(1/2), the damping term kappa A d^(1/2) r on the unloading
+    curve through the point), else the unloading curve kres x^(3/2) + A kres x^(1/2) r,
+    x = d - dres."""
+    dy, dmax, dres, kres = S[0, j], S[1, j], S[2, j], S[3, j]
+    if d > dmax:
+        sd = math.sqrt(d)
+        if d > dy:  # kres x^(1/2) on the new curve is kappa d^(1/2)
+            kd = 1.5 * k * math.sqrt(dy)
+            kr = k * sd
+        else:
+            kd = 1.5 * k * sd
+            kr = kres * sd
+        return kd + (0.5 * p * kr * r / d if d > DELTA_MIN else 0.0), p * kr, d - dres
+    x = d - dres
+    if x <= DELTA_MIN:
+        return 0.0, 0.0, x
+    sx = math.sqrt(x)
+    return 1.5 * kres * sx + 0.5 * p * kres * r / sx, p * kres * sx, x
 
 
-def law_run(code: int):
-    """The compiled kernels (:func:`rkn_state_kernels.build`) of the law of engine code ``code``,
-    built once per law definition and process."""
+_PLASTIC = rs.LawAdapter(_ep_force, _ep_commit, _ep_key, _ep_regime, _ep_stored, _ep_work, _ep_tangent)
+
+
+def law_run(code: int, constant: float | None = None):
+    """The compiled kernels (:func:`rkn_state_kernels.build`) of the law of engine code ``code``
+    (with its parameter the compile-time ``constant``, one of its ``constant_parameters``, when
+    given), built once per law definition, constant and process."""
     from ...laws import law_of_code
     from ...laws.spec import FIRST_USER_CODE, compiled
 
     spec = law_of_code(code)
-    key = (code, id(spec.force), id(spec.state), id(spec.energy), spec.dissipative, spec.plastic)
+    key = (code, id(spec.force), id(spec.state), id(spec.energy), spec.dissipative, spec.plastic, constant)
     if key not in _BUILT:
         law_files: bytes | None
         if spec.plastic:
             adapter, law_files = _PLASTIC, files_digest(INTEGRATE / "core/energies.py")
         else:
             adapter = _generated_adapter(compiled(spec.force), compiled(spec.state), compiled(spec.energy),
-                                         bool(spec.dissipative))
+                                         bool(spec.dissipative), compiled(spec.partials),
+                                         None if spec.state_partials is None else compiled(spec.state_partials),
+                                         bool(spec.state_size), constant)
             # a user's law (its module may be one runpy made, not importable where Numba reloads
             # a cached closure): compiled in memory only
             law_files = (function_files_digest(spec.force, spec.state, spec.energy)
@@ -138,7 +223,7 @@ def law_run(code: int):
         if law_files is not None:  # on disk under the text of everything compiled in (a law typed at
             # the prompt: in memory only), as the generated Verlet loops (core/disk_cache.py)
             sources = law_files + files_digest(*(INTEGRATE / name for name in _COMPILED_IN))
-            variant = ("rkn_laws", spec.name, spec.dissipative, spec.plastic)
+            variant = ("rkn_laws", spec.name, spec.dissipative, spec.plastic, constant)
             built = tuple(on_disk(fn, *variant, i, sources=sources) for i, fn in enumerate(built))
         _BUILT[key] = built
     return _BUILT[key]
@@ -164,12 +249,17 @@ def run_rkn_laws(system: System, duration: float, sample_interval: float, dt: fl
     """
     from ...laws import law_of_code
 
-    accel, end_data, set_modes, commit_all, energies, run = law_run(system.law)
-    plastic = law_of_code(system.law).plastic
+    spec = law_of_code(system.law)
+    plastic = spec.plastic
     n_samples = int(math.floor(duration / sample_interval + 1e-9)) + 1
     nc = system.n_contacts
     nb = system.n_beads + 1
     w = pack(system)
+    # every contact's parameter one of the law's constants: the kernels with it compiled in
+    params = set(w.damping[w.kappa != 0.0].tolist())
+    constant = params.pop() if len(params) == 1 and not plastic else None
+    accel, end_data, set_modes, commit_all, energies, run = law_run(
+        system.law, constant if constant in spec.constant_parameters else None)
     p = w.n_slots
     u, v = w.u, w.v
     a, an, un, vn, us, vs = (np.zeros(p + 1) for _ in range(6))

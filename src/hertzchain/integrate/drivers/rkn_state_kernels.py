@@ -32,8 +32,9 @@ O(h^5) (fourth order) as for the damped laws; the step control bounds per loaded
     y = |r| h / gap,
 
 (gap: the overlap beyond the law's opening point; omega_j^2 = k_t m_j^-1, c_j = c_t m_j^-1 with
-the tangent stiffness k_t = dF/d delta and damping c_t = dF/d rate by central differences of the
-law's force): the first term is the smooth fourth-order error of a force ~ gap^n, taken no
+the tangent stiffness k_t = dF/d delta and damping c_t = dF/d rate from the adapter's
+``tangent``, the law's analytic partials; central differences of its force where it has none):
+the first term is the smooth fourth-order error of a force ~ gap^n, taken no
 larger than the error of a step that starts at the contact's closing (the force the contact
 reaches in it, times h), the second the fourth-order error of a force that changes at the
 contact's frequency and damping rate. This is the damped kernels' Hertz bound written with the
@@ -53,13 +54,21 @@ from numba import njit
 from ..core.primitives import DELTA_MIN
 from .rkn_damped_kernels import (A_H, A_HMAX, A_HMIN, A_HREF, A_STEPS, A_T, A_TPREV, E_D, E_DD, E_DKE, E_DPE, E_KE,
                                  E_PE, ENDS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line)
-from .rkn_kernels import hermite, quintic
+from .rkn_kernels import hermite, quintic, quintic_at_most
 
 __all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "GROWS", "REGIME"]
 
 #: An event inside a step closer than this fraction of the step to one of its ends is taken in
 #: the step (the bisection of a branch along the step resolves 2^-40 of it).
 EVENT_TOL = 1e-7
+#: A change of branch is landed on only where the contact's force at the step's end (on either
+#: branch) times m^-1 h, the most a step's velocities can be off by taking the change inside it,
+#: exceeds this fraction of ``eps``: the numerical precursor ahead of a pulse (overlaps ~1e-80 m,
+#: forces ~1e-110 N) crosses zero in nearly every step, and landing on each crossing cost
+#: thousands of redone steps on chain 1 for nothing a result can see. The state such a step
+#: commits is the law's update at the step's end (a max-type state that peaked inside it, at
+#: such forces, is overtaken by the pulse's: Hunt-Crossley's approach speed, the largest overlap).
+EVENT_EPS = 1e-3
 #: Rows of a step end's per-contact data ``ed[c]``: force along the axis (clipped, on the
 #: branch), its time derivative, overlap, rate, d(rate)/dt, the gap beyond the law's opening
 #: overlap, elastic energy, dissipated power on the branch, then the unclipped force on the branch
@@ -85,7 +94,16 @@ class LawAdapter(NamedTuple):
       the state grows);
     - ``regime(d, r, k, p, S, j)``: the piece of a piecewise law (0 for a smooth one);
     - ``stored(d, k, p, S, j)``: elastic energy [J] with the committed state;
-    - ``work(k, p, S, j)``: energy the state holds as dissipated (plastic work [J]; 0)."""
+    - ``work(k, p, S, j)``: energy the state holds as dissipated (plastic work [J]; 0);
+    - ``tangent(d, r, k, p, S, j, grow)``: (dF/d delta [N/m], dF/d rate [N s/m], gap [m]) of the
+      unclipped force as ``force`` takes it (with ``grow``, through the state's update: the
+      derivative along the branch), from the law's analytic partials; None: central differences
+      of ``force`` (a law with state that declares no ``state_partials``);
+    - ``stored_state``: whether ``stored`` or ``work`` read the state (else the stored energy at a
+      step's end is :func:`end_data`'s, not recomputed after the state's commit);
+    - ``lossless``: the law dissipates nothing (its force does not depend on the rate): the
+      dissipated energy stays 0, not the fall of a contact's elastic energy over a step off its
+      loaded branch (which a closing not landed on, :data:`EVENT_EPS`, would make ~-1e-27 J)."""
 
     force: object
     commit: object
@@ -93,6 +111,9 @@ class LawAdapter(NamedTuple):
     regime: object
     stored: object
     work: object
+    tangent: object = None
+    stored_state: bool = True
+    lossless: bool = False
 
 
 class StateRun(NamedTuple):
@@ -129,7 +150,7 @@ def build(law: LawAdapter):
     docstring); ``run(state, chain, off, probes, control, k_start, k_stop, acc, out_w)`` advances
     as :func:`hertzchain.integrate.drivers.rkn_damped_kernels.damped_run` does (its arguments and
     accumulators), ``out_w`` receiving the plastic work at the samples."""
-    lforce, lcommit, lkey, lregime, lstored, lwork = law
+    lforce, lcommit, lkey, lregime, lstored, lwork, ltangent, stored_state, lossless = law
 
     @njit(nogil=True, inline="always")
     def branch_force(d, r, k, p, S, j, m):
@@ -171,14 +192,28 @@ def build(law: LawAdapter):
             out[i] = (fprev - f + fext[i]) * inv_mass[i]
             fprev = f
 
-    @njit(nogil=True)
-    def tangents(d, r, k, p, S, j, m):
-        """(dF/d delta, dF/d rate) on branch m by central differences of the law's force."""
-        hd = 1e-7 * (abs(d) + 1e-12)
-        hr = 1e-7 * (abs(r) + 1e-6)
-        kt = (branch_force(d + hd, r, k, p, S, j, m)[0] - branch_force(d - hd, r, k, p, S, j, m)[0]) / (2.0 * hd)
-        ct = (branch_force(d, r + hr, k, p, S, j, m)[0] - branch_force(d, r - hr, k, p, S, j, m)[0]) / (2.0 * hr)
-        return kt, ct
+    if ltangent is None:
+        @njit(nogil=True)
+        def tangents(d, r, k, p, S, j, m):
+            """(dF/d delta, dF/d rate) on branch m by central differences of the law's force."""
+            hd = 1e-7 * (abs(d) + 1e-12)
+            hr = 1e-7 * (abs(r) + 1e-6)
+            kt = (branch_force(d + hd, r, k, p, S, j, m)[0] - branch_force(d - hd, r, k, p, S, j, m)[0]) / (2.0 * hd)
+            ct = (branch_force(d, r + hr, k, p, S, j, m)[0] - branch_force(d, r - hr, k, p, S, j, m)[0]) / (2.0 * hr)
+            return kt, ct
+    else:
+        @njit(nogil=True, inline="always")
+        def tangents(d, r, k, p, S, j, m):
+            """(dF/d delta, dF/d rate) on the loaded branch m from the law's partials (below the
+            opening the branch is the force at the opening: no delta-derivative)."""
+            if k == 0.0:
+                return 0.0, 0.0
+            grow = (m & GROWS) != 0
+            kt, ct, gap = ltangent(d, r, k, p, S, j, grow)
+            if gap < 0.0:
+                _, ct, _ = ltangent(d - gap, r, k, p, S, j, grow)
+                kt = 0.0
+            return kt, ct
 
     @njit(nogil=True, error_model="numpy")
     def end_data(u, v, a, kappa, damping, d0, off, fext, mass, S, mode, dis, ed, ends, c):
@@ -213,7 +248,7 @@ def build(law: LawAdapter):
             ed[c, 5, i] = gap
             el = lstored(d, kappa[i], damping[i], S, i) if kappa[i] != 0.0 else 0.0
             ed[c, 6, i] = el
-            pb = (f - fel) * r
+            pb = 0.0 if lossless else (f - fel) * r
             ed[c, 7, i] = pb
             mv = mass[i] * v[i]
             ke += mv * v[i]
@@ -301,25 +336,38 @@ def build(law: LawAdapter):
         return h * (eps / e) ** (1.0 / 1.5)
 
     @njit(nogil=True, inline="always")
-    def path(ed, b, c, j, theta, h):
-        """(delta, rate, d(rate)/dt) of contact j at theta of the step: quintic, cubic, linear."""
-        q0, q1, q2, q3, q4, q5 = quintic(theta, h)
-        w0, w1, w2, w3 = hermite(theta, h)
-        d = q0 * ed[b, 2, j] + q1 * ed[b, 3, j] + q2 * ed[b, 4, j] + q3 * ed[c, 2, j] + q4 * ed[c, 3, j] + q5 * ed[c, 4, j]
-        r = w0 * ed[b, 3, j] + w1 * ed[b, 4, j] + w2 * ed[c, 3, j] + w3 * ed[c, 4, j]
+    def path_w(ed, b, c, j, qw, hw, theta):
+        """(delta, rate, d(rate)/dt) of contact j from the step's interpolation weights (``qw``
+        :func:`quintic`'s, ``hw`` :func:`hermite`'s at theta): quintic, cubic, linear."""
+        d = (qw[0] * ed[b, 2, j] + qw[1] * ed[b, 3, j] + qw[2] * ed[b, 4, j] + qw[3] * ed[c, 2, j]
+             + qw[4] * ed[c, 3, j] + qw[5] * ed[c, 4, j])
+        r = hw[0] * ed[b, 3, j] + hw[1] * ed[b, 4, j] + hw[2] * ed[c, 3, j] + hw[3] * ed[c, 4, j]
         return d, r, (1.0 - theta) * ed[b, 4, j] + theta * ed[c, 4, j]
 
+    @njit(nogil=True, inline="always")
+    def path(ed, b, c, j, theta, h):
+        """(delta, rate, d(rate)/dt) of contact j at theta of the step (:func:`path_w`)."""
+        return path_w(ed, b, c, j, quintic(theta, h), hermite(theta, h), theta)
+
     @njit(nogil=True, error_model="numpy")
-    def event_inside(ed, b, c, h, kappa, damping, S, mode):
+    def event_inside(ed, b, c, h, kappa, damping, inv_mass, S, mode, eps):
         """Earliest theta in (EVENT_TOL, 1 - EVENT_TOL) where a contact leaves its branch (its
         branch at the end differs; bisection along :func:`path`); 2 when one left it at the step's
-        start (``mode`` switched there: restart); -1 when none inside."""
+        start (``mode`` switched there: restart); -1 when none inside. A change where the
+        contact's force on either branch at the step's end is below EVENT_EPS eps / (m^-1 h) is
+        not landed on (:data:`EVENT_EPS`)."""
         best = 2.0
         switched = False
         tau = 1e-8 * h
         for j in range(kappa.shape[0]):
             m = int(mode[j])
-            if branch_at(ed[c, 2, j], ed[c, 3, j], ed[c, 4, j], kappa[j], damping[j], S, j, tau) == m:
+            d1, r1 = ed[c, 2, j], ed[c, 3, j]
+            mn = branch_at(d1, r1, ed[c, 4, j], kappa[j], damping[j], S, j, tau)
+            if mn == m:
+                continue
+            fa = abs(branch_force(d1, r1, kappa[j], damping[j], S, j, mn)[0])
+            fb = abs(branch_force(d1, r1, kappa[j], damping[j], S, j, m)[0])
+            if (fa if fa > fb else fb) * (inv_mass[j] + inv_mass[j + 1]) * h <= EVENT_EPS * eps:
                 continue
             lo, hi = 0.0, 1.0
             for _ in range(40):
@@ -340,10 +388,13 @@ def build(law: LawAdapter):
             return best
         return -1.0
 
-    @njit(nogil=True)
-    def force_at(ed, b, c, j, theta, h, kappa, damping, off, S, m):
-        """Contact j's force along the axis at theta of the step, on branch m (clipped)."""
-        d, r, _ = path(ed, b, c, j, theta, h)
+    @njit(nogil=True, inline="always")
+    def force_w(ed, b, c, j, qw, hw, theta, kappa, damping, off, S, m):
+        """Contact j's force along the axis on branch m (clipped) from the step's interpolation
+        weights at theta (:func:`path_w`); 0 off the loaded branch (as :func:`branch_force`)."""
+        if (m & LOADED) == 0:
+            return 0.0
+        d, r, _ = path_w(ed, b, c, j, qw, hw, theta)
         f, _, _ = branch_force(d, r, kappa[j], damping[j], S, j, m)
         f = f if f > 0.0 else 0.0
         if off is not None:
@@ -353,6 +404,11 @@ def build(law: LawAdapter):
                 x = dist * dist - de * de
                 f *= np.sqrt(x if x > 0.0 else 0.0) / dist
         return f
+
+    @njit(nogil=True)
+    def force_at(ed, b, c, j, theta, h, kappa, damping, off, S, m):
+        """Contact j's force along the axis at theta of the step, on branch m (clipped)."""
+        return force_w(ed, b, c, j, quintic(theta, h), hermite(theta, h), theta, kappa, damping, off, S, m)
 
     @njit(nogil=True)
     def peak_in_step(ed, b, c, j, h, kappa, damping, off, S, m):
@@ -449,6 +505,8 @@ def build(law: LawAdapter):
         href = acc[A_HREF]
         steps = int(acc[A_STEPS])
         fi = np.zeros(nc)
+        shut = np.zeros(nc, dtype=np.bool_)  # contacts whose force is 0 over the whole step
+        seen = -1  # the step they were found for
         for k in range(k_start, k_stop):
             tk = k * interval
             while t < tk:
@@ -476,7 +534,7 @@ def build(law: LawAdapter):
                     end_data(un, vn, an, kappa, damping, d0, off, fext, mass, S, mode, 0.0, ed, ends, c)
                     if h_fixed > 0.0 or redo == MAX_REDO:
                         break
-                    x = event_inside(ed, b, c, h, kappa, damping, S, mode)
+                    x = event_inside(ed, b, c, h, kappa, damping, inv_mass, S, mode, eps)
                     if x < 0.0:
                         break
                     if x > 1.0:  # a branch switched at the start: its state, f(u, v) and the step afresh
@@ -491,13 +549,15 @@ def build(law: LawAdapter):
                 # dissipated energy: the stages' quadrature on loaded contacts, the fall of the
                 # elastic energy of the others (rkn_damped_kernels.step_dissipation)
                 dis = 0.0
-                for j in range(nc):
-                    dis += h / 6.0 * pw[j] if (int(mode[j]) & LOADED) != 0 else ed[b, 6, j] - ed[c, 6, j]
+                if not lossless:
+                    for j in range(nc):
+                        dis += h / 6.0 * pw[j] if (int(mode[j]) & LOADED) != 0 else ed[b, 6, j] - ed[c, 6, j]
                 ends[c, E_D] = ends[b, E_D] + dis
                 for j in range(nc):
                     last[j] = mode[j]
                 commit_all(un, vn, kappa, damping, d0, off, S, mode, last, ed, c)
-                energies(un, kappa, damping, d0, off, fext, S, ends, c)
+                if stored_state:
+                    energies(un, kappa, damping, d0, off, fext, S, ends, c)
                 if record_v or record_u:
                     for i in range(n):
                         up[i] = u[i]
@@ -526,9 +586,24 @@ def build(law: LawAdapter):
             # --- probes at tk, between the steps' ends tp < tk <= t (the step's branches and state)
             c = steps % 2
             b = 1 - c
+            # a new step: the contacts whose force stays 0 over it, without interpolating (the same
+            # numbers): off their loaded branch, or overlapped at most DELTA_MIN (the law's force at
+            # zero overlap, 0 at the step's two rates: Hunt-Crossley, the power law; the precursor
+            # ahead of a pulse) over the whole step (rkn_kernels.quintic_at_most)
+            if steps != seen:
+                seen = steps
+                for j in range(nc):
+                    m = int(last[j])
+                    shut[j] = (m & LOADED) == 0 or (
+                        quintic_at_most(ed[b, 2, j], ed[b, 3, j], ed[b, 4, j], ed[c, 2, j], ed[c, 3, j], ed[c, 4, j],
+                                        hl, DELTA_MIN)
+                        and branch_force(DELTA_MIN, ed[b, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0
+                        and branch_force(DELTA_MIN, ed[c, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0)
             theta = (tk - tp) / hl
+            qw = quintic(theta, hl)
+            hw = hermite(theta, hl)
             for j in range(nc):
-                f = force_at(ed, b, c, j, theta, hl, kappa, damping, off, Sp, int(last[j]))
+                f = 0.0 if shut[j] else force_w(ed, b, c, j, qw, hw, theta, kappa, damping, off, Sp, int(last[j]))
                 fi[j] = f
                 fmax[j] = f if f > fmax[j] else fmax[j]
             for r in range(nrec):
