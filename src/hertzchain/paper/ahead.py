@@ -80,7 +80,7 @@ def _compiling() -> bool:
     without a usable cache folder."""
     from numba.core import config
 
-    return not config.DISABLE_JIT
+    return not getattr(config, "DISABLE_JIT", False)  # (set by Numba from the environment at import)
 
 
 def _usable_cores() -> int:
