@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/laws.py [--json PATH] [--quick] [--before PATH]
+    python benchmarks/laws.py [--json PATH] [--quick] [--before PATH] [--laws elastic,dashpot,...]
 
 For every law (the built-in ones, the power law at n = 3/2 and n = 2, the values its generated
 loop compiles as constants, and at n = 2.5, read per contact; Hunt-Crossley), on the
@@ -162,7 +162,16 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--json", type=Path, default=RESULTS / "laws.json", help="where to save the results")
     ap.add_argument("--quick", action="store_true", help="fewer repetitions")
     ap.add_argument("--before", type=Path, help="an earlier run's JSON whose engine times the rows add")
+    ap.add_argument("--laws", help="comma-separated labels of the laws to measure (default: all; the elastic "
+                    "law is always measured, the others' ratios are to it)")
     args = ap.parse_args(argv)
+    laws = _laws()
+    if args.laws:
+        wanted = {"elastic", *(x.strip() for x in args.laws.split(","))}
+        unknown = wanted - set(laws)
+        if unknown:
+            ap.error(f"--laws: unknown {sorted(unknown)}; known: {', '.join(laws)}")
+        laws = {k: v for k, v in laws.items() if k in wanted}
     before = {}
     if args.before is not None:
         old = json.loads(args.before.read_text())
@@ -173,7 +182,7 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"per-law cost — {info['cpu_model']}, load {info['load_average_at_start']}, {info['date_utc']}")
     rows = []
     for chain_name, chain in (("chain1", hc.paper_chain("chain1")), ("uniform300", hc.Chain.uniform(300, 26e-3))):
-        for label, law in _laws().items():
+        for label, law in laws.items():
             rows.append(measure(chain_name, chain, label, law, repeat))
         elastic = next(r for r in rows if r["chain"] == chain_name and r["law"] == "elastic")
         for r in rows:

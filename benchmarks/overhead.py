@@ -92,10 +92,10 @@ def batch_ratio(members: int, repeat: int) -> dict:
     engine = batch._engine
     spent = [0.0]
 
-    def timed(*args):
+    def timed(*args, **kwargs):  # the engine's options (integrator, ...) passed on
         t = time.process_time()
         try:
-            return engine(*args)
+            return engine(*args, **kwargs)
         finally:
             spent[0] += time.process_time() - t
 

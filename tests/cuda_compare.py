@@ -254,6 +254,16 @@ def ptx() -> dict:
     code, _ = cuda.compile_ptx(extended_bound.py_func, (f8, f8, f8, f8, i8, f8, f8, f8, f8, f8), device=True, cc=(9, 0))
     out["extended_bound"] = {"ieee_sqrt": code.count("sqrt.rn.f64"), "approximate": code.count(".approx."),
                              "chars": len(code)}
+    # a registry law's kernel (the power law's, generated from its Python source), the extension's
+    # arguments included: (u, v, a, g, vp, state), 10 parameters, wall_slot ... status, wa ... out_b
+    import hertzchain as hc
+    from hertzchain.integrate.cuda.generated import generated_kernel
+    from hertzchain.laws import get_law
+
+    hc.PowerLaw(2.0, 1e9)  # (registered on import; the name gives its engine code)
+    gen = (f2,) * 16 + (i1, f8, i1, i1, i1, f1, i1, i8, i8, i1, f3, f2, f2, f2, f3, b1, f2, f2, f2, i1, f2, f3, b1, i1, f3)
+    code, _ = cuda.compile_ptx(generated_kernel(get_law("power").code).py_func, gen, cc=(9, 0))
+    out["generated_power"] = {"ieee_sqrt": code.count("sqrt.rn.f64"), "chars": len(code)}
     for name, n_state in (("thread", 5), ("warp", 6)):
         code, _ = cuda.compile_ptx(_kernels()[name].py_func, (f2,) * n_state + tail, cc=(9, 0))
         out[name] = {"ieee_sqrt": code.count("sqrt.rn.f64"), "division": code.count("div.rn.f64"),

@@ -1,4 +1,5 @@
-"""CPU engine vs CUDA engine for the laws run by the generated engines (power, Hunt-Crossley).
+"""CPU engine vs CUDA engine for the laws run by the generated engines (power, Hunt-Crossley), on
+chains against a flat wall, a protected body and of mass-in-mass beads.
 
 Run under Numba's CUDA simulator by tests/test_laws.py (``NUMBA_ENABLE_CUDASIM=1 python
 tests/cuda_laws.py``); prints, per law, the largest force difference relative to the largest
@@ -15,8 +16,9 @@ import numpy as np
 import hertzchain as hc
 
 
-def compare(law) -> dict:
-    models = [hc.Model(hc.Chain.uniform(3, 10e-3), hc.Striker(8e-3, v), law=law) for v in (0.2, 0.3)]
+def compare(law, wall=None, chain=None) -> dict:
+    chain = hc.Chain.uniform(3, 10e-3) if chain is None else chain
+    models = [hc.Model(chain, hc.Striker(8e-3, v), *(() if wall is None else (wall,)), law=law) for v in (0.2, 0.3)]
     out = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -28,8 +30,18 @@ def compare(law) -> dict:
     out["energy"] = max(float(np.max(np.abs(gpu[k].values - cpu[k].values))) / e0
                         for k in ("kinetic_energy", "potential_energy", "dissipated_energy"))
     out["peak_force"] = float(np.max(f))
+    if wall is not None:  # the protected body's record
+        out["body"] = float(np.max(np.abs(gpu.body_displacement.values - cpu.body_displacement.values))
+                            / np.max(np.abs(cpu.body_displacement.values)))
     return out
 
 
 if __name__ == "__main__":
-    print(json.dumps({"power": compare(hc.PowerLaw(2.0, 1e13)), "hunt_crossley": compare(hc.HuntCrossley(0.8))}))
+    from hertzchain.elements import Element
+
+    body = hc.Wall("body", mass=0.02, stiffness=1e6, damping=5.0)
+    mim = hc.Chain(np.full(3, 10e-3), "AISI52100", None, Element("mim", resonator_fraction=0.3,
+                                                                 resonator_frequency=20e3))
+    print(json.dumps({"power": compare(hc.PowerLaw(2.0, 1e13)), "hunt_crossley": compare(hc.HuntCrossley(0.8)),
+                      "hunt_crossley, protected body": compare(hc.HuntCrossley(0.8), wall=body),
+                      "power, mass-in-mass": compare(hc.PowerLaw(2.0, 1e13), chain=mim)}))

@@ -281,3 +281,19 @@ def test_body_and_gravity_with_the_elastoplastic_law():
     e = (ds.kinetic_energy + ds.potential_energy + ds.dissipated_energy + ds.plastic_work).values
     assert ds.attrs["plastic_work"] > 1e-3 * e[0]
     assert np.max(np.abs(e - e[0])) < 1e-6 * e[0]
+
+
+def test_static_state_past_yield_is_the_same_with_a_body_or_a_wall():
+    """Precompression past the elastic limit at a limiting pressure other than Thornton's 1.5 sigma_Y:
+    the static overlaps follow the loading line from F_y = F_Y (p_y / 1.5 sigma_Y)^3, whether the
+    chain ends on a flat wall (the plain set-up) or on a protected body (the extended one)."""
+    soft = hc.Material("soft", 7800.0, 2.0e11, 0.3, 2e8)
+    chain = hc.Chain(np.full(4, 10e-3), soft)
+    law = hc.Elastoplastic(limiting_pressure_factor=1.2)
+    wall = hc.Model(chain, hc.Striker(8e-3, 0.2, material=soft), hc.Wall("flat", material=soft), law=law,
+                    precompression=50.0).system()
+    body = hc.Model(chain, hc.Striker(8e-3, 0.2, material=soft), hc.Wall("body", mass=1.0, stiffness=1e7,
+                                                                             material=soft),
+                    law=law, precompression=50.0).system()
+    assert 50.0 > wall.yield_force[1] * law.pressure_ratio ** 3  # past yield: the loading line
+    np.testing.assert_allclose(body.d0[1:], wall.d0[1:], rtol=1e-12)

@@ -168,13 +168,16 @@ def test_simulate_uses_the_fused_steps_for_misaligned_chains():
         assert ds.potential_energy.values.max() > 0.1 * total[0]  # the contacts stored energy
 
 
+@pytest.mark.parametrize("fused_first", [True, False], ids=["fused-first", "two-pass"])
 @pytest.mark.parametrize("A", [0.0, 2e-6], ids=["plain", "damped"])
-def test_vectorised_plastic_pass_is_the_general_path(A):
+def test_vectorised_plastic_pass_is_the_general_path(A, fused_first):
     """kernels.plastic_block's branch-free pass (the unloading curve for every contact, the yield
     branch redone only for the contacts loaded past dmax and dyield) gives the general path's
     positions, velocities, forces and elastic-plastic state bit for bit over a pulse that yields
     contacts (a bead-sized striker at 3 m/s, well above the yield velocity) and separates them; the viscous power
-    within the documented bound."""
+    within the documented bound. So do its fused steps (plastic.plastic_step, tried first on a block
+    after one without yield, ``fused_first``), with the blocks in which a contact yields stepped
+    again from the checkpoint: both cases happen in the run (else every block takes the two passes)."""
     model = hc.Model(hc.Chain.from_diameters(np.r_[np.full(12, 26e-3), np.geomspace(26e-3, 14e-3, 9)]),
                      hc.Striker(26e-3, 3.0), law=hc.Elastoplastic(A=A))
     s = model.system()
@@ -185,12 +188,21 @@ def test_vectorised_plastic_pass_is_the_general_path(A):
         vp = np.zeros(p + 1)
         if vector:
             acc = np.zeros(8)
+            ck = np.zeros((K.CHECKPOINT_ROWS, max(p + 1, K.CHECKPOINT_MIN_COLUMNS)))
+            outcomes = set()
             for k in range(powers.size // 100):  # blocks of 100 steps, the last one's closing half kick
                 if k > 0:
                     open_block(w.u, w.v, a, 1e-8, 0.5e-8)
+                if not fused_first:
+                    ck[4, 10] = 1.0  # as after a block with a yielding contact: the two passes
+                tried = ck[4, 10] == 0.0
                 K.plastic_block(w.u, w.v, vp, a, g, np.zeros(p), w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
-                                w.inv_mass, w.dyield, w.dmax, w.dres, w.kres, True, 100, 1e-8, 0.0, 0, np.zeros(8), acc)
+                                w.inv_mass, w.dyield, w.dmax, w.dres, w.kres, True, 100, 1e-8, 0.0, 0, np.zeros(8), acc,
+                                ck)
+                outcomes.add((tried, ck[4, 10] == 0.0))
                 powers[k] = acc[1]
+            if fused_first:
+                assert {(True, True), (True, False)} <= outcomes  # fused blocks, and fused blocks stepped again
         else:
             for k in range(powers.size // 100):
                 if k > 0:

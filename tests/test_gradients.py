@@ -267,8 +267,6 @@ def test_refusals_name_the_field():
         sensitivity(_with(BASE, contact={"law": "viscoelastic", "eps": 0.98}), ["striker.velocity"])
     with pytest.raises(ConfigError, match="run.integrator"):
         sensitivity(_with(BASE, run={"integrator": "dop853"}), ["striker.velocity"])
-    with pytest.raises(ConfigError, match="chain.gravity"):
-        sensitivity(_with(BASE, chain={"gravity": 9.81}), ["striker.velocity"])
     with pytest.raises(ConfigError, match="track"):
         sensitivity(_with(BASE, track={"spring": 10.0}), ["striker.velocity"])
     with pytest.raises(ConfigError, match="wall"):

@@ -108,3 +108,58 @@ def test_body_objectives_need_a_body():
     # a chain that stays elastic does no plastic work: refused, not a gradient of zeros
     with pytest.raises(ConfigError, match="yield overlap"):
         sensitivity(_with(BASE, contact={"law": "elastoplastic"}), ["striker.velocity"], "plastic_work")
+
+
+@pytest.mark.parametrize("law", [{}, pytest.param({"law": "dashpot", "gamma": 20.0}, marks=pytest.mark.slow),
+                                 pytest.param({"law": "power", "exponent": 1.8, "stiffness": 6e11},
+                                              marks=pytest.mark.slow)])
+def test_gravity_and_loads_static_state_matches_differences(law):
+    """A column standing on the wall under gravity (plus a load on one bead), struck from above: the
+    static state (every contact's overlap under the weights it holds, paper eq. 1 inverted, or the
+    law's static force) moves with the masses, sizes and stiffnesses, and the gradient carries it
+    (against central differences of whole runs). Strong gravity (2000 m/s^2) makes the static
+    overlaps matter for the peak."""
+    cfg = _with(BASE, chain={"gravity": 2000.0}, load={"beads": [3], "forces": [2.0]}, contact=law,
+                run={"duration": 1.2e-3})
+    paths = ["striker.velocity", "striker.diameter_mm", "chain.diameters_mm[0]", "chain.diameters_mm[5]",
+             "materials.mysteel.density"]
+    s = sensitivity(cfg, paths)
+    assert s.value == pytest.approx(hc.run_config(cfg).attrs["peak_wall_force"], rel=1e-12)
+    tg.assert_matches(s, cfg, paths, rel=1e-6, tol=1e-5)
+    # the static state is what the gradient adds: without it the density's derivative changes
+    flat = sensitivity(_with(cfg, chain={"gravity": 0.0}, load={"forces": [0.0]}), ["materials.mysteel.density"])
+    assert abs(flat.gradient["materials.mysteel.density"] - s.gradient["materials.mysteel.density"]) > \
+        1e-3 * abs(s.gradient["materials.mysteel.density"])
+
+
+def test_cylinders_and_given_masses_match_differences():
+    """Bead 3 a crossed cylinder (elliptical Hertz contacts with its neighbours: the ellipse's
+    parameter by the implicit function theorem, gradients.faces), bead 5 a cylinder along the
+    chain (its flat ends: sphere-on-flat contacts) and bead 7 of a given mass: the gradient by their
+    diameters, the striker's and the material against central differences of whole runs."""
+    cfg = _with(BASE, chain={"elements": ["sphere", "sphere", "rod", "sphere", "peg", "sphere", "heavy", "sphere"]},
+                elements={"rod": {"shape": "cylinder", "orientation": "crossed", "length_mm": 25.0},
+                          "peg": {"shape": "cylinder", "orientation": "aligned", "length_mm": 12.0},
+                          "heavy": {"mass": 0.02}})
+    paths = ["striker.velocity", "chain.diameters_mm[1]", "chain.diameters_mm[2]", "chain.diameters_mm[4]",
+             "chain.diameters_mm[6]", "materials.mysteel.young", "materials.mysteel.density"]
+    s = sensitivity(cfg, paths)
+    assert s.value == pytest.approx(hc.run_config(cfg).attrs["peak_wall_force"], rel=1e-12)
+    tg.assert_matches(s, cfg, paths, rel=1e-6, tol=1e-5)
+
+
+@pytest.mark.parametrize("objective", ["peak_wall_force", "plastic_work"])
+def test_elastoplastic_offset_chain_matches_differences(objective):
+    """Offset beads with Thornton's law: each yielding contact's overlap and force direction come
+    from the offsets' geometry (partials.plastic_contact_adjoint), its state carried back through
+    the reverse sweep; against central differences of whole runs, offsets among the variables."""
+    cfg = _with(BASE, materials=SOFT, contact={"law": "elastoplastic", "A": 1e-6},
+                chain={"offsets_mm": [0.0, 0.4, -0.3, 0.5, 0.0, -0.2, 0.3, 0.0]})
+    paths = ["striker.velocity", "chain.diameters_mm[2]", "materials.mysteel.yield_stress"]
+    offsets = ["chain.offsets_mm[1]", "chain.offsets_mm[3]"]
+    s = sensitivity(cfg, paths + offsets, objective)
+    tg.assert_matches(s, cfg, paths, objective, rel=1e-6, tol=1e-5)
+    # The peak barely moves with an offset (~1e-4 N/mm on ~10 N): differences 1e-6 wide sink in the
+    # runs' rounding (the viscoelastic law's, differentiated by the general path, scatter as much),
+    # so they are taken 1e-4 wide, where their truncation error is ~1e-5.
+    tg.assert_matches(s, cfg, offsets, objective, rel=1e-4, tol=1e-4)

@@ -12,9 +12,9 @@ and ``[contact] law = "tsuji"``, ``parameters = {eta = 300.0}``; in Python, impo
 file once (``runpy.run_path``), then ``hertzchain.Model(..., law=Tsuji(300.0))``.
 """
 
+import math
 from dataclasses import dataclass
 
-import numpy as np
 from numba import njit
 
 import hertzchain as hc
@@ -23,7 +23,7 @@ import hertzchain as hc
 @njit
 def force(d, rate, k, eta, s):
     """kappa d^(3/2) + eta d^(1/4) rate [N]."""
-    return k * d * np.sqrt(d) + eta * np.sqrt(np.sqrt(d)) * rate
+    return k * d * math.sqrt(d) + eta * math.sqrt(math.sqrt(d)) * rate
 
 
 @njit
@@ -34,15 +34,15 @@ def state(d, rate, k, eta, s):
 @njit
 def energy(d, k, eta):
     """The elastic part's stored energy (2/5) kappa d^(5/2) [J]."""
-    return 0.4 * k * d * d * np.sqrt(d)
+    return 0.4 * k * d * d * math.sqrt(d)
 
 
 @njit
 def partials(d, rate, k, eta, s):
     """(dF/d delta, dF/d rate, dF/d kappa, dF/d eta)."""
-    q = np.sqrt(np.sqrt(d))
-    ddd = 1.5 * k * np.sqrt(d) + (0.25 * eta * rate * q / d if d > 0.0 else 0.0)
-    return ddd, eta * q, d * np.sqrt(d), q * rate
+    q = math.sqrt(math.sqrt(d))
+    ddd = 1.5 * k * math.sqrt(d) + (0.25 * eta * rate * q / d if d > 0.0 else 0.0)
+    return ddd, eta * q, d * math.sqrt(d), q * rate
 
 
 @dataclass(frozen=True)

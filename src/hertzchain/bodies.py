@@ -182,7 +182,8 @@ def extend(model, parts: dict) -> dict:
         fext[0], fext[1] = model.precompression, fext[1] - model.precompression
     held = held_forces(fext, kappa, n)
     # loaded past F_Y (elastic-plastic): along Thornton's loading line F_y + (3/2) kappa delta_y^(1/2) (delta - delta_y)
-    d0 = static_overlaps(held[: n + 1], kappa, fy if spec.plastic else None)
+    # (Thornton's F_y at the law's limiting pressure: p_y^3, as Model.system and the engines' yield overlap)
+    d0 = static_overlaps(held[: n + 1], kappa, fy * getattr(law, "pressure_ratio", 1.0) ** 3 if spec.plastic else None)
     if spec.generated:  # where the law's force at rest is the held force (laws/solve.py)
         from .laws.solve import static_overlap
 

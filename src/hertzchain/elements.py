@@ -49,7 +49,7 @@ from .errors import ConfigError
 from .materials import Material
 
 __all__ = ["Element", "SPHERE", "Face", "face_of", "contact_constants", "relative_curvatures",
-           "elliptic_hertz"]
+           "elliptic_hertz", "ellipse_parameter", "curvature_ratio", "shape_factors"]
 
 
 @dataclass(frozen=True)
@@ -224,6 +224,47 @@ def relative_curvatures(f1: Face, f2: Face) -> tuple[float, float]:
     return 0.5 * (s - diff), 0.5 * (s + diff)
 
 
+def ellipse_parameter(ratio: float) -> float:
+    """m = e^2 of the contact ellipse whose relative curvatures have B / A = ``ratio`` >= 1 (module
+    docstring: the root of B/A = (3 R_F / R_D - 1) / (1 - m), R_F, R_D Carlson's integrals at
+    (0, 1 - m, 1)); 0 for a circle."""
+    from scipy.optimize import brentq
+
+    if not ratio > 1.0:
+        return 0.0
+
+    def excess(m: float) -> float:
+        return float(curvature_ratio(m)) - ratio
+
+    # B/A grows from 1 (m = 0) without bound (m -> 1), roughly as (a/b)^(3/2) (Greenwood 1985)
+    return 0.0 if excess(0.0) >= 0.0 else brentq(excess, 0.0, 1.0 - 1e-16, xtol=1e-17, rtol=1e-15, maxiter=500)
+
+
+def curvature_ratio(m):
+    """B / A of the contact ellipse of parameter m = e^2 (float or complex: an analytic function).
+
+    Carlson's forms K = R_F(0, 1 - m, 1) and K - E = (m / 3) R_D(0, 1 - m, 1) turn Johnson's
+    expression (module docstring) into one without the cancellation of K - E at small e:
+    B/A = (3 R_F / R_D - 1) / (1 - m)."""
+    from scipy.special import elliprd, elliprf
+
+    return (3.0 * elliprf(0.0, 1.0 - m, 1.0) / elliprd(0.0, 1.0 - m, 1.0) - 1.0) / (1.0 - m)
+
+
+def shape_factors(m, a_curv):
+    """:func:`elliptic_hertz`'s (c, p) from the ellipse's parameter m = e^2 and A [1/m], in NumPy
+    arithmetic (so complex numbers too: the sensitivity's complex step through the set-up)."""
+    import numpy as np
+    from scipy.special import elliprd, elliprf
+
+    rf, rd = elliprf(0.0, 1.0 - m, 1.0), elliprd(0.0, 1.0 - m, 1.0)
+    # kappa / E* = (2 pi / 3) sqrt(R_D / 3) / (sqrt(A) R_F^(3/2)); the mean pressure P / (pi a b)
+    # with a^2 = delta (K - E) / (A e^2 K), b = a sqrt(1 - e^2)
+    c = 2.0 * math.pi / 3.0 * np.sqrt(rd / 3.0) / (np.sqrt(a_curv) * rf**1.5)
+    p = 3.0 * a_curv * rf / (math.pi * np.sqrt(1.0 - m) * rd)
+    return c, p
+
+
 def elliptic_hertz(a_curv: float, b_curv: float) -> tuple[float, float]:
     """Shape factors of an elliptical Hertz contact: (kappa / E*, mean-pressure factor).
 
@@ -238,30 +279,8 @@ def elliptic_hertz(a_curv: float, b_curv: float) -> tuple[float, float]:
         ``c`` [m^(1/2)] with kappa = E* c (module docstring), and ``p`` [1/m] with the mean
         contact pressure P / (pi a b) = p kappa delta^(1/2) (for the elastic limit).
     """
-    from scipy.optimize import brentq
-    from scipy.special import elliprd, elliprf
-
-    # Carlson's forms K = R_F(0, 1 - m, 1) and K - E = (m / 3) R_D(0, 1 - m, 1) (m = e^2) turn
-    # the expressions above into ones without the cancellation of K - E at small e:
-    # B/A = (3 R_F / R_D - 1) / (1 - m), kappa / E* = (2 pi / 3) sqrt(R_D / 3) / (sqrt(A) R_F^(3/2)).
-    def parts(m: float) -> tuple[float, float]:
-        return float(elliprf(0.0, 1.0 - m, 1.0)), float(elliprd(0.0, 1.0 - m, 1.0))
-
-    ratio = b_curv / a_curv
-    m = 0.0
-    if ratio > 1.0:
-        def excess(m: float) -> float:
-            rf, rd = parts(m)
-            return (3.0 * rf / rd - 1.0) / (1.0 - m) - ratio
-
-        # B/A grows from 1 (m = 0) without bound (m -> 1), roughly as (a/b)^(3/2) (Greenwood 1985)
-        hi = 1.0 - 1e-16
-        m = 0.0 if excess(0.0) >= 0.0 else brentq(excess, 0.0, hi, xtol=1e-17, rtol=1e-15, maxiter=500)
-    rf, rd = parts(m)
-    c = 2.0 * math.pi / 3.0 * math.sqrt(rd / 3.0) / (math.sqrt(a_curv) * rf**1.5)
-    # mean pressure P / (pi a b) with a^2 = delta (K - E) / (A e^2 K), b = a sqrt(1 - e^2)
-    p = 3.0 * a_curv * rf / (math.pi * math.sqrt(1.0 - m) * rd)
-    return c, p
+    c, p = shape_factors(ellipse_parameter(b_curv / a_curv), a_curv)
+    return float(c), float(p)
 
 
 def contact_constants(f1: Face, f2: Face, field: str) -> tuple[float, float]:

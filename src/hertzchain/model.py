@@ -10,6 +10,7 @@ moves; with no wall its contact has kappa = 0). Contact j joins bodies j and j +
 
 from __future__ import annotations
 
+import json
 import math
 import numbers
 from dataclasses import dataclass, field
@@ -640,12 +641,15 @@ class Model:
                      yield_pressure_ratio=getattr(self.law, "pressure_ratio", 1.0))
         if self.plain:
             return System(**parts)
-        if spec.generated and self.drive is None and self.striker is not None:  # the driven loop takes any law
-            raise ConfigError(_not_plain_field(self), f"contact.law = {spec.name!r} runs spherical strikers and beads, "
-                              "a flat wall or a free end, without gravity; this model has more")
         from .bodies import extend  # the striker's face, elements, the protected body, gravity
 
         return System(**extend(self, parts))
+
+    def describe_text(self) -> str:
+        """``json.dumps(self.describe())`` (results' ``model`` attribute), built once per model as :meth:`system`."""
+        if (text := self.__dict__.get("_describe_text")) is None:
+            object.__setattr__(self, "_describe_text", text := json.dumps(self.describe()))  # not a field
+        return text
 
     def describe(self) -> dict:
         """Plain-data description of the model (stored in result attributes)."""
@@ -675,15 +679,3 @@ class Model:
             out["drive"] = self.drive.describe()
         return out
 
-
-def _not_plain_field(model: "Model") -> str:
-    """The config field that makes ``model`` more than the plain kind (for a law that runs plain models only)."""
-    if model.striker is None:
-        return "striker"
-    if not model.striker.plain:
-        return "striker.shape"
-    if model.wall.is_body:
-        return "wall.type"
-    if model.gravity:
-        return "chain.gravity"
-    return "chain.elements"

@@ -146,7 +146,7 @@ def run_fields(raw: RawRun, model: Model, probes: Probes, *, duration: float, co
 
     ratio = raw.max_force / system.yield_force[:nc]
     over = np.flatnonzero(ratio > 1.0).tolist()
-    model_text = json.dumps(model.describe())
+    model_text = model.describe_text()
     attrs = {
         "title": "hertzchain simulation",
         "hertzchain_version": __version__,

@@ -189,15 +189,13 @@ def _prepare(cfg):
 
 
 def _refuse_unknown_models(cfg, model) -> None:
-    """Refuse, naming the field, what the derivative engines do not cover yet: gravity, elements
-    (cylinders, mass-in-mass beads). (Striker faces, flat or curved, and a protected body's flat
-    or spherical face are differentiated: :mod:`~hertzchain.gradients.setup`.)"""
-    if getattr(model, "gravity", 0.0):
-        raise ConfigError("chain.gravity" if cfg.chain.gravity is not None else "chain.tilt_deg",
-                          "gradients do not differentiate gravity's static state yet")
-    if not getattr(model.chain, "plain", True):
-        raise ConfigError("chain.elements", "gradients cover chains of spheres; elements (cylinders, mass-in-mass "
-                          "beads) are not differentiated yet")
+    """Refuse, naming the field, what the derivative engines do not cover yet: mass-in-mass beads.
+    (Striker faces, flat or curved, a protected body's flat or spherical face, cylinders and beads
+    of a given mass, gravity and static loads are differentiated: :mod:`~hertzchain.gradients.setup`,
+    :mod:`~hertzchain.gradients.faces`.)"""
+    if any(el.resonator_fraction > 0 for el in getattr(model.chain, "elements", ())):
+        raise ConfigError("chain.elements", "gradients cover beads without an internal mass; mass-in-mass beads "
+                          "are not differentiated yet")
 
 
 def _parameter_gradient(sd, engine: dict[str, np.ndarray], direct: dict[str, np.ndarray]) -> dict[str, float]:

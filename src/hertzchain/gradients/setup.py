@@ -40,8 +40,10 @@ from typing import Any
 
 import numpy as np
 
+from ..config.build import chain_gravity
 from ..errors import ConfigError
 from ..laws import get_law
+from .faces import element_contacts, element_masses
 
 __all__ = ["SetupDerivatives", "setup_derivatives", "ARRAYS", "expand_paths"]
 
@@ -165,6 +167,16 @@ def _diameters(cfg, read: _Reader) -> tuple[np.ndarray, list[str], np.ndarray]:
     return d, [_material(m).name for m in mats], offsets
 
 
+def _elements(cfg):
+    """The beads' elements when any is not a plain sphere (None: a chain of spheres)."""
+    if not cfg.chain.elements:
+        return None
+    from ..config import build_model
+
+    elements = build_model(cfg).chain.elements
+    return None if all(el.plain for el in elements) else elements
+
+
 def _weaker(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """np.fmin of yield stresses (NaN: none given), keeping the complex part of the one chosen."""
     return np.where(np.isnan(a.real), b, np.where(np.isnan(b.real), a, np.where(a.real <= b.real, a, b)))
@@ -175,6 +187,7 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     d, mats, offsets = _diameters(cfg, read)
     n = d.shape[1]
     s = cfg.striker
+    wall_curvature: Any = None  # no wall (else its face's curvature, below)
     names = [_material(s.material or mats[0]).name] + mats
     props = {name: _theta(_material(name), read) for name in dict.fromkeys(names)}
     theta, rho, sigma = (np.concatenate([props[m][k] for m in names], axis=1) for k in range(3))
@@ -184,20 +197,26 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
         mass[:, :1] = read("striker.mass", s.mass)
     else:
         mass[:, :1] = read("striker.mass", mass[0, 0].real) + 1j * mass[:, :1].imag
+    elements = _elements(cfg)
+    if elements is not None:  # a given mass, a cylinder's (gradients.faces)
+        element_masses(elements, mass, rho, phi)
     r = phi / 2.0
     inv_r = 1.0 / r[:, :-1] + 1.0 / r[:, 1:]
+    striker_curvature: Any = 1.0 / r[:, 0]  # the striker's face: its sphere, a flat or a curved face
     if s.shape == "flat":  # a flat face meets bead 1 sphere-on-flat: 1/R' = 0 (paper eq. 1)
         inv_r[:, :1] = 1.0 / r[:, 1:2]
+        striker_curvature = 0.0 * r[:, 0]
     elif s.radius_of_curvature_mm is not None:  # a curved face of its own radius
         face = read("striker.radius_of_curvature_mm", s.radius_of_curvature_mm) * 1e-3
         inv_r[:, :1] = 1.0 / face + 1.0 / r[:, 1:2]
+        striker_curvature = 1.0 / face[:, 0]
     t_sum = theta[:, :-1] + theta[:, 1:]
     s_min = _weaker(sigma[:, :-1], sigma[:, 1:])
     if cfg.wall.type != "none":
         wall = _material(cfg.wall.material or mats[-1]).name
         wt, _, ws = props[wall] if wall in props else _theta(_material(wall), read)
         # 1/R of the wall's face: a flat (the wall's cap, a body's flat face), or a body's spherical face
-        wall_curvature: Any = 0.0
+        wall_curvature = 0.0
         if cfg.wall.type == "body" and cfg.wall.shape == "sphere":
             wall_curvature = 1.0 / (read("wall.radius_of_curvature_mm", cfg.wall.radius_of_curvature_mm) * 1e-3)
         inv_r = np.concatenate([inv_r, 1.0 / r[:, -1:] + wall_curvature], axis=1)
@@ -211,6 +230,13 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     with np.errstate(invalid="ignore"):
         # (pi sigma_Y)^3 (3 R* / (4 E*))^2, 3 R* / (4 E*) = R* (theta + theta')
         fy[:, :m] = np.where(np.isnan(s_min.real), np.inf, (math.pi * s_min) ** 3 * (t_sum / inv_r) ** 2)
+    if elements is not None:  # the elliptical Hertz contacts of cylinders (gradients.faces)
+        wall_face = None
+        if wall_curvature is not None:  # a constant 0 (flat) or the body's face, (rows, 1)
+            wc = np.asarray(wall_curvature, dtype=complex)
+            wall_face = (wc[:, 0] if wc.ndim == 2 else wc + 0j * r[:, 0],) * 2
+        element_contacts(elements, n, phi, (striker_curvature, striker_curvature), wall_face, t_sum, s_min, kappa,
+                         fy)
     inv_mass = np.zeros((rows, n + 2), dtype=complex)
     inv_mass[:, :n + 1] = 1.0 / mass
     w = cfg.wall
@@ -236,20 +262,30 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     mount_k = read("wall.stiffness", w.stiffness) if body else zero
     mount_c = read("wall.damping", w.damping) if body else zero
     mount_d0 = zero.astype(complex)
-    if f0[0, 0].real > 0 and spec.generated:
-        d0[:, 1:] = _static_overlaps(spec, f0, kappa[:, 1:], damping[:, 1:])
-        fext[:, 1:2] = f0
-    elif f0[0, 0].real > 0:
-        d0[:, 1:] = (f0 / kappa[:, 1:]) ** (2.0 / 3.0)
-        fext[:, 1:2] = f0
-        if plastic:  # statically loaded along Thornton's loading curve (Model.system)
-            f_y = fy[:, 1:] * ratio**3
-            with np.errstate(invalid="ignore", divide="ignore"):
-                dy = (f_y / kappa[:, 1:]) ** (2.0 / 3.0)
-                line = dy + (f0 - f_y) / (1.5 * kappa[:, 1:] * np.sqrt(dy))
-            d0[:, 1:] = np.where(f0.real > f_y.real, line, d0[:, 1:])
-        if body:  # the mount carries the static load (bodies.extend)
-            mount_d0 = f0 / mount_k
+    # The static state (Model.system, bodies.extend): weights along the chain (gravity, a constant
+    # of the config), the precompression push on bead 1 and the loads; contact j holds bodies 0..j
+    g = chain_gravity(cfg.chain)
+    if g > 0:
+        fext[:, :n + 1] = mass * g  # the striker rests on bead 1
+        if body:
+            fext[:, n + 1:] = body_mass * g
+    fext[:, 1:2] += f0
+    for bead, force in zip(*((cfg.load.beads, cfg.load.forces) if cfg.load is not None else ((), ()))):
+        fext[:, bead] += force
+    held = np.cumsum(fext, axis=1)
+    if spec.generated:
+        d0 = _static_overlaps(spec, held[:, :n + 1], kappa, damping)
+    else:
+        loaded = (held[0, :n + 1].real > 0) & (kappa[0].real > 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d0 = np.where(loaded, (held[:, :n + 1] / np.where(loaded, kappa, 1.0)) ** (2.0 / 3.0), 0.0)
+            if plastic:  # statically loaded along Thornton's loading curve past its F_y (Model.system)
+                f_y = fy * ratio**3
+                dy = (f_y / np.where(loaded, kappa, 1.0)) ** (2.0 / 3.0)
+                line = dy + (held[:, :n + 1] - f_y) / (1.5 * kappa * np.sqrt(dy))
+                d0 = np.where(loaded & (held[0, :n + 1].real > f_y[0].real), line, d0)
+    if body and held[0, n + 1].real > 0:  # the mount carries the static load (bodies.extend)
+        mount_d0 = held[:, n + 1:] / mount_k
     de = np.diff(np.concatenate([zero, offsets, zero], axis=1), axis=1)
     de[:, n] = 0.0
     rr = np.concatenate([r, zero], axis=1)
@@ -298,21 +334,21 @@ def _registry_law(cfg, read: _Reader, kappa, inv_mass) -> tuple[np.ndarray, np.n
         np.broadcast_to(damping, (read.rows, kappa.shape[1])).copy()
 
 
-def _static_overlaps(spec, f0, kappa, damping) -> np.ndarray:
-    """A registry law's overlap under the static force ``f0`` at every contact (rows, n) complex:
-    the real part by root finding (``laws.solve.static_overlap``, as ``Model.system``), the
-    complex step's part by the implicit function theorem on F(delta, 0, k, p) = f0:
-    delta' = (f0' - dF/dk k' - dF/dp p') / (dF/d delta), with the law's declared partials."""
+def _static_overlaps(spec, held, kappa, damping) -> np.ndarray:
+    """A registry law's overlap under the static forces ``held`` (rows, n) at every contact (rows, n)
+    complex: the real part by root finding (``laws.solve.static_overlap``, as ``Model.system``),
+    the complex step's part by the implicit function theorem on F(delta, 0, k, p) = S:
+    delta' = (S' - dF/dk k' - dF/dp p') / (dF/d delta), with the law's declared partials."""
     from ..laws.solve import static_overlap
 
     out = np.zeros(kappa.shape, dtype=complex)
     for j in range(kappa.shape[1]):
-        k, p, f = kappa[0, j].real, damping[0, j].real, f0[0, 0].real
-        if not k > 0:
+        k, p, f = kappa[0, j].real, damping[0, j].real, held[0, j].real
+        if not (k > 0 and f > 0):
             continue
         d = static_overlap(spec, f, k, p)
         fd, _, fk, fp = spec.partials(d, 0.0, k, p, 0.0)
-        out[:, j] = d + 1j * (f0[:, 0].imag - fk * kappa[:, j].imag - fp * damping[:, j].imag) / fd
+        out[:, j] = d + 1j * (held[:, j].imag - fk * kappa[:, j].imag - fp * damping[:, j].imag) / fd
     return out
 
 
@@ -490,7 +526,7 @@ def _supported(path: str) -> str:
 #: so an entry e of a shared row belongs to the one item of its colour within e - 2 .. e + 2
 #: (Curtis, Powell & Reid, J. Inst. Math. Appl. 13 (1974) 117: a sparse Jacobian's columns
 #: compressed by colouring). The rows: one per scalar variable, COLOURS per list, and one per
-#: item whose influence is not local (:func:`_own_rows`).
+#: item whose influence is not local (:func:`_own_rows`; every diameter under gravity).
 COLOURS = 5
 
 
@@ -509,13 +545,17 @@ def _plan(cfg, paths: list[str]) -> tuple[dict[str, int], dict[int, np.ndarray]]
     """Rows of the complex step: {path: row}, and for every shared row the items it holds (a
     boolean mask over item numbers); a row of its own is absent from the second."""
     own = _own_rows(cfg)
+    # under gravity a bead's size sets its weight, which every contact between it and the wall holds:
+    # its diameter moves the static overlaps of all of them (rows of their own, N^2 memory)
+    heavy = chain_gravity(cfg.chain) > 0
     rows: dict[str, int] = {}
     # number rows: scalars and own items first, then one row per (list, colour)
     n = 0
     groups: dict[tuple[str, int], list[tuple[str, int]]] = {}
     for path in paths:
         head, _, rest = path.partition("[")
-        if head in _LISTS and rest.endswith("]") and rest[:-1].isdigit() and path not in own:
+        if head in _LISTS and rest.endswith("]") and rest[:-1].isdigit() and path not in own \
+                and not (heavy and head == "chain.diameters_mm"):
             k = int(rest[:-1])
             groups.setdefault((head, k % COLOURS), []).append((path, k))
         else:

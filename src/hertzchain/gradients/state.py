@@ -225,28 +225,48 @@ def plastic_work(tape) -> Reading:
         grads.append(_plastic_work(*z).imag / STEP)
     g_kappa, g_dy, g_dm, g_dres = grads
     # the step where each yielded contact's overlap reached its final d_max (first time: the law
-    # updates d_max when an overlap exceeds it)
+    # updates d_max when an overlap exceeds it), and the overlap's partials there (offset beads:
+    # d = R_j + R_{j+1} - dist, as plastic.contact_general computes it)
     dmax = w.dmax[yielded]
     found = np.full(yielded.size, -2, dtype=np.int64)
-    u0 = tape.u0
-    start = u0[yielded] - u0[yielded + 1] + w.d0[yielded]
-    found[start == dmax] = -1
-    for first, u, _, _ in D.replay_groups(tape, tape.n_steps - 1):
-        delta = u[:, yielded] - u[:, yielded + 1] + w.d0[yielded]
+    partials = np.zeros((5, yielded.size))  # d(delta)/d: w = u_j - u_{j+1}, d0, de, dx0, rsum
+    de, dx0, rsum, d0 = w.de[yielded], w.dx0[yielded], w.rsum[yielded], w.d0[yielded]
+    offset = de != 0.0
+
+    def overlap(wj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dx = dx0 - wj
+        dist = np.sqrt(dx * dx + de * de)
+        return np.where(offset, rsum - dist, wj + d0), np.where(offset, dx / dist, 1.0)
+
+    def reached(first: int, wj: np.ndarray) -> None:
+        delta, c = overlap(wj)
         hit = (delta == dmax) & (found == -2)
         rows = np.argmax(hit, axis=0)
         new = hit[rows, np.arange(yielded.size)]
         found[new] = first + rows[new]
+        c = c[rows, np.arange(yielded.size)]
+        dist = np.sqrt((dx0 - wj[rows, np.arange(yielded.size)]) ** 2 + de * de)
+        partials[:, new] = np.array([c, np.where(offset, 0.0, 1.0), np.where(offset, -de / dist, 0.0),
+                                     np.where(offset, -c, 0.0), np.where(offset, 1.0, 0.0)])[:, new]
+
+    u0 = tape.u0
+    reached(-1, (u0[yielded] - u0[yielded + 1])[None, :])
+    for first, u, _, _ in D.replay_groups(tape, tape.n_steps - 1):
+        reached(first, u[:, yielded] - u[:, yielded + 1])
     if np.any(found == -2):
         raise RuntimeError("the largest overlaps of the replayed run differ from the taped run's")
     size = sy.kappa.size
-    d_kappa, d_dyield, d_d0, final = (np.zeros(size) for _ in range(4))
-    d_kappa[yielded], d_dyield[yielded], d_d0[yielded], final[yielded] = g_kappa, g_dy, g_dm, g_dres
+    d_kappa, d_dyield, final = (np.zeros(size) for _ in range(3))
+    d_kappa[yielded], d_dyield[yielded], final[yielded] = g_kappa, g_dy, g_dres
+    direct = {"kappa": d_kappa, "dyield": d_dyield}
+    for k, name in enumerate(("d0", "de", "dx0", "rsum"), start=1):
+        direct[name] = np.zeros(size)
+        direct[name][yielded] = g_dm * partials[k]
+    seed = g_dm * partials[0]
     arrays = (np.concatenate([found, found]),
               np.concatenate([D.state_seed(0) + yielded, D.state_seed(0) + yielded + 1]),
-              np.concatenate([g_dm, -g_dm]))
-    return Reading(value, arrays=arrays, direct={"kappa": d_kappa, "dyield": d_dyield, "d0": d_d0},
-                   final_dres=final)
+              np.concatenate([seed, -seed]))
+    return Reading(value, arrays=arrays, direct=direct, final_dres=final)
 
 
 def residual_overlap_max(tape) -> Reading:

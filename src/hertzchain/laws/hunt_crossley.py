@@ -14,9 +14,8 @@ touching at rest in a chain, the largest closing speed the pulse brings), 0 when
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-
-import numpy as np
 
 from .spec import LawSpec, Param, jit, register_law
 
@@ -31,7 +30,7 @@ def force(d, rate, k, chi, vin):
     """k d^(3/2) (1 + chi rate / v_in) [N]; the elastic part alone before the state is set.
     chi / v_in is one quotient, the same in the engines' second call at rate 0 (the elastic part
     of the dissipated power), which the compiler then shares: one division a contact, not two."""
-    fel = k * d * np.sqrt(d)
+    fel = k * d * math.sqrt(d)
     b = chi / vin if vin > 0.0 else 0.0
     return fel + fel * b * rate
 
@@ -46,7 +45,7 @@ def state(d, rate, k, chi, vin):
 
 @jit
 def energy(d, k, chi):
-    return 0.4 * k * d * d * np.sqrt(d)
+    return 0.4 * k * d * d * math.sqrt(d)
 
 
 @jit
@@ -57,7 +56,7 @@ def overlap_at_energy(e, k, chi):
 @jit
 def partials(d, rate, k, chi, vin):
     """(dF/d delta, dF/d rate, dF/dk, dF/d chi) at fixed v_in."""
-    sd = np.sqrt(d)
+    sd = math.sqrt(d)
     b = chi / vin if vin > 0.0 else 0.0
     return 1.5 * k * sd * (1.0 + b * rate), k * d * sd * b, d * sd * (1.0 + b * rate), \
         (k * d * sd * rate / vin if vin > 0.0 else 0.0)
@@ -67,7 +66,7 @@ def partials(d, rate, k, chi, vin):
 def state_partials(d, rate, k, chi, vin):
     """(dF/d v_in at v_in, then d v_in'/d(delta, rate, k, chi, v_in)): v_in' is the rate where it
     exceeds v_in, else v_in (0 while open)."""
-    fs = -k * d * np.sqrt(d) * chi * rate / (vin * vin) if vin > 0.0 else 0.0
+    fs = -k * d * math.sqrt(d) * chi * rate / (vin * vin) if vin > 0.0 else 0.0
     if d < 0.0:
         return fs, 0.0, 0.0, 0.0, 0.0, 0.0
     if rate > vin:

@@ -2,6 +2,7 @@
 Without a stiffness, k is the pair's Hertz constant (paper eq. 1) and n = 3/2 is the elastic law,
 with its arithmetic (k delta sqrt(delta)): the runs agree to rounding."""
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,7 +14,7 @@ from .spec import LawSpec, Param, jit, register_law
 @jit
 def force(d, rate, k, n, s):
     """F = k d^n [N] at overlap d >= 0 [m]."""
-    return k * d * np.sqrt(d) if n == 1.5 else k * d**n
+    return k * d * math.sqrt(d) if n == 1.5 else k * d**n
 
 
 state = jit(lambda d, rate, k, n, s: s)  # no per-contact state
@@ -22,7 +23,7 @@ state = jit(lambda d, rate, k, n, s: s)  # no per-contact state
 @jit
 def energy(d, k, n):
     """Stored energy k d^(n+1) / (n+1) [J]."""
-    return 0.4 * k * d * d * np.sqrt(d) if n == 1.5 else k * d ** (n + 1.0) / (n + 1.0)
+    return 0.4 * k * d * d * math.sqrt(d) if n == 1.5 else k * d ** (n + 1.0) / (n + 1.0)
 
 
 @jit
@@ -36,8 +37,8 @@ def partials(d, rate, k, n, s):
     """(dF/d delta, dF/d rate, dF/dk, dF/dn)."""
     if d <= 0.0:
         return (k if n == 1.0 else 0.0), 0.0, 0.0, 0.0
-    dn = d * np.sqrt(d) if n == 1.5 else d**n
-    return (1.5 * k * np.sqrt(d) if n == 1.5 else n * k * dn / d), 0.0, dn, k * dn * np.log(d)
+    dn = d * math.sqrt(d) if n == 1.5 else d**n
+    return (1.5 * k * math.sqrt(d) if n == 1.5 else n * k * dn / d), 0.0, dn, k * dn * math.log(d)
 
 
 @dataclass(frozen=True)

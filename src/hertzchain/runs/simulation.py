@@ -234,7 +234,7 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
         extra["duration_mode"] = "auto"
     ds = build_dataset(raw, model, probes, duration=duration, config=config, system=system, extra_attrs=extra)
     check_after_run(ds, model, system, dt=dt, integrator=engine, rtol=rtol, stacklevel=3)
-    warn_elastic_limit(ds, stacklevel=3)
+    warn_elastic_limit(ds, stacklevel=3, law=model.law.name)
     if mode == "auto" and "wall_force" in ds and ds.attrs["peak_wall_time"] > 0.8 * duration:
         warnings.warn(DurationWarning(
             f"the automatic duration ({duration * 1e3:.3g} ms) may cut the wall pulse (its peak comes at "
@@ -309,7 +309,7 @@ def _law_name(ds) -> str | None:
         return None
 
 
-def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> None:
+def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2, law: str | None = None) -> None:
     """Warn (ElasticLimitWarning, :func:`elastic_limit_message`) when the result records forces
     past the elastic limit of an elastic or viscous law (the elastoplastic law models the yield).
 
@@ -321,8 +321,10 @@ def warn_elastic_limit(ds: xr.Dataset, where: str = "", stacklevel: int = 2) -> 
         Prefix naming the run in the message.
     stacklevel : int
         Passed on to :func:`warnings.warn`.
+    law : str or None
+        The contact law's name when the caller has it (else read from the ``model`` attribute).
     """
-    if not ds.attrs.get("elastic_limit_exceeded", 1) or is_plastic(_law_name(ds)):
+    if not ds.attrs.get("elastic_limit_exceeded", 1) or is_plastic(law or _law_name(ds)):
         return  # the elastoplastic law models the yield: nothing to warn about
     msg = elastic_limit_message(ds, where)
     if msg:

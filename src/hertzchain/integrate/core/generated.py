@@ -12,7 +12,9 @@ law's ``force``/``state``/``energy``/``partials`` (Numba inlines the jitted clos
   included, the same d == 0 convention), the law's state updated in place; returns the
   dissipated power (F - F(rate = 0)) d(delta)/dt [W];
 - ``run``: :func:`hertzchain.integrate.core.kernels.verlet_run` with the same arguments (the typed
-  structures of :mod:`.structures`; no extension) and the same kick-drift-kick steps, adaptive
+  structures of :mod:`.structures`, a protected body's and mass-in-mass beads' extension
+  included: :func:`~.extension.extended_steps` around the law's force pass, its bound
+  :func:`~.extension.extension_stride` added to the law's) and the same kick-drift-kick steps, adaptive
   step controller and probes (the law's per-contact state lives in the ``dmax`` slots; ``kappa``
   holds the law's stiffness k, ``damping`` its parameter p);
 - ``energy(u, kappa, damping, d0, de, dx0, rsum, fext)``: the stored energy minus the work of the
@@ -21,8 +23,6 @@ law's ``force``/``state``/``energy``/``partials`` (Numba inlines the jitted clos
 
 The step's accuracy bound uses the law's partials: tangent stiffness dF/d delta and damping
 dF/d rate at an upper estimate of each overlap, as ``kernels.required_stride`` does for Hertz.
-Models with a protected body or mass-in-mass beads are refused (``wall.type``, elements) before
-they reach here.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 
 from .disk_cache import INTEGRATE, files_digest, function_files_digest, on_disk
+from .extension import EXT_IMIN, EXT_KIN, EXT_W, close_sample, extended_steps, extension_stride, internal_acceleration
 from .kernels import DELTA_MIN, _adapt_stride, kinetic_energy
 from .primitives import _track_peak, kick, open_block, predict, total
 
@@ -319,12 +320,20 @@ def _build(force, update, stored, partials, inverse, dissipative, constants=(), 
             cprev = c
         return max(1, int(np.ceil(block * c_steps * weff - 1e-9)))
 
+    @njit(nogil=True, inline="always")
+    def law_forces(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres):
+        """``forces`` in ``kernels.forces_general``'s signature (the law's state lives in ``dmax``)."""
+        return forces(u, v, kappa, damping, d0, de, dx0, rsum, g, dmax)
+
+    ext_block = extended_steps(law_forces)
+
     @njit(nogil=True)
     def run(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
         u, v, a, g, acc = state
         mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
         de, dx0, rsum, dcap, _, dmax, _, _ = contacts
-        rec, out_f, out_ke, out_pe, out_ed, _, out_v, record_v, _, _, fmax, peak, _ = probes
+        ext, ext_on, body_slot = extension
+        rec, out_f, _, _, _, _, _, _, _, _, fmax, peak, _ = probes
         interval, stride_, n_sub, n_eval, c_steps, relax = control
         n = a.shape[0]
         if dmax.shape[0] < n:  # the law's state lives in dmax: the caller must give one slot per contact
@@ -338,16 +347,27 @@ def _build(force, update, stored, partials, inverse, dissipative, constants=(), 
         aligned = True
         for i in range(n):
             aligned = aligned and de[i] == 0.0
+        wa = np.zeros(n)
+        if ext_on:  # the internal masses' accelerations: a function of the positions, not state
+            for i in range(n):
+                wa[i] = internal_acceleration(ext[i, EXT_KIN], ext[i, EXT_W], u[i], ext[i, EXT_IMIN])
         step = int(acc[2])
         for k in range(k_start, k_stop):
             for b in range(n_sub):
                 if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
                     req = stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, dmax, inv_mass, n_eval * block,
                                  block, c_steps)
+                    if ext_on:
+                        req += extension_stride(ext, inv_mass, block, c_steps)
                     ns = _adapt_stride(req, ns, relax, acc)
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
+                if ext_on:
+                    ext_block(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dmax, dmax,
+                              dmax, dmax, ext, body_slot, wall_slot, t0, dt, ns, peak, acc)
+                    step += ns
+                    continue
                 open_block(u, v, a, dt, half)
                 law_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dmax, aligned, ns, dt,
                           t0, wall_slot, peak, acc)
@@ -358,14 +378,8 @@ def _build(force, update, stored, partials, inverse, dissipative, constants=(), 
                 x = g[j + 1]
                 fmax[j] = x if x > fmax[j] else fmax[j]
             ke = kinetic_energy(v, mass)
-            out_ke[k] = ke
-            out_pe[k] = energy(u, kappa, damping, d0, de, dx0, rsum, fext)
-            out_ed[k] = acc[0]
-            if record_v:
-                for i in range(out_v.shape[1]):
-                    out_v[k, i] = v[i]
-            if not np.isfinite(ke) or not np.isfinite(g[1]):
-                acc[2] = step
+            pe = energy(u, kappa, damping, d0, de, dx0, rsum, fext)
+            if close_sample(k, ke, pe, u, v, a, g, d0, extension, probes, acc, step):
                 return 1
         acc[2] = step
         return 0

@@ -38,15 +38,17 @@ from numba import njit
 from .energies import (energies_elastic, kinetic_energy, plastic_work, potential_energy,  # noqa: F401
                        potential_energy_plastic)
 from .extension import (EXT_ACC, EXT_CLIN, EXT_COLUMNS, EXT_IMIN, EXT_KIN, EXT_KLIN, EXT_W, EXT_WV,  # noqa: F401
-                        accelerations_extended, energies_extended, extended_bound, forces_linear,
-                        internal_acceleration)
+                        accelerations_extended, energies_extended, extended_bound, extended_steps, forces_linear,
+                        close_sample, internal_acceleration)
 
 from .fused import energies_offset, offset_dissipative_block, offset_elastic_block
 # the general path's contact and the elastic-plastic law (re-exported: kernels.elastoplastic_force & co.)
-from .plastic import contact_general, elastoplastic_force, plastic_block  # noqa: F401
+from .plastic import (CHECKPOINT_MIN_COLUMNS, CHECKPOINT_ROWS, contact_general, elastoplastic_force,  # noqa: F401
+                      plastic_block)
 # the law codes, the overlap floor and the helpers the fused steps share (re-exported: kernels.DELTA_MIN & co.)
-from .primitives import (DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC,  # noqa: F401
-                         _track_peak, _viscous_force, kick, predict, total)
+from .primitives import (DELTA_MIN, FORCE_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC,  # noqa: F401
+                         LAW_VISCOELASTIC, _track_peak, _viscous_force, damped_force, damping_constants, kick, predict,
+                         total)
 
 
 @njit(cache=True, nogil=True)
@@ -199,24 +201,91 @@ def step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt
     return power
 
 
-@njit(cache=True, nogil=True, fastmath={"reassoc"})
-def dissipative_block(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak, acc):
-    """The ``ns`` steps of a block of :func:`verlet_run` for an aligned viscoelastic or dashpot
-    chain (:func:`step_dissipative`, ``vp`` its P + 1 predicted velocities), with the dissipated
-    energy's trapezoidal integral in acc[0:2] and the wall peak; a function of its own, called
-    once per block (inlined into verlet_run's large body, LLVM left the fused loop scalar), whose
-    power sum may be reassociated: in contact order it held the loop scalar (~1.8x slower); the
-    forces, positions and velocities do not depend on it (tests/test_fused.py)."""
+@njit(cache=True, nogil=True, inline="always")
+def step_damped(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, visco, unloaded, dt, half, last):
+    """:func:`step_dissipative` as the engine runs it: the same numbers, with the law's damping as
+    the per-contact constants ``c`` (:func:`~.primitives.damping_constants`), the law
+    (``visco``: Kuwabara-Kono, else the dashpot) and ``unloaded`` (every d0 and f_ext zero: the
+    additions of zeros left out, as :func:`step_elastic_lean` does) compile-time constants of
+    the caller: four to six floating-point operations fewer per contact than the general step's
+    ~28, on a loop whose pace they set (300 beads: ~1.2 -> ~0.85 ns per bead-step with
+    FORCE_MIN; benchmarks/laws.py). Adding a zero changes no number but the sign of a zero."""
+    power = 0.0
+    fprev = 0.0
+    for i in range(a.shape[0]):
+        rate = vp[i] - vp[i + 1]
+        d = u[i] - u[i + 1] if unloaded else u[i] - u[i + 1] + d0[i]
+        f, fel = damped_force(d, rate, kappa[i], c[i], visco)
+        power += (f - fel) * rate
+        g[i + 1] = f
+        ai = (fprev - f) * inv_mass[i] if unloaded else (fprev - f + fext[i]) * inv_mass[i]
+        a[i] = ai
+        if last:
+            v[i] += half * ai
+        else:
+            vi = v[i] + dt * ai
+            v[i] = vi
+            vp[i] = vi + half * ai
+            u[i] += dt * vi
+        fprev = f
+    return power
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _damped_steps(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, visco, unloaded, ns, dt, t0, wall_slot, peak, acc):
+    """The ``ns`` steps of :func:`dissipative_block` (``visco`` and ``unloaded`` constants)."""
     half = 0.5 * dt
     predict(v, a, half, vp)
     for s in range(ns):
         if s < ns - 1:
-            p = step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, False)
+            p = step_damped(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, visco, unloaded, dt, half, False)
         else:
-            p = step_dissipative(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, dt, half, True)
+            p = step_damped(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, visco, unloaded, dt, half, True)
         acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
         acc[1] = p
         _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
+
+
+# One compiled block per law and loading (constants folded into the loop, no branch in it): a
+# single block branching between the four loops inside its step loop was ~1.4x slower on chain 1.
+@njit(cache=True, nogil=True, fastmath={"reassoc"})
+def _kk_block(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, ns, dt, t0, wall_slot, peak, acc):
+    _damped_steps(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, True, False, ns, dt, t0, wall_slot, peak, acc)
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc"})
+def _kk_block_unloaded(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, ns, dt, t0, wall_slot, peak, acc):
+    _damped_steps(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, True, True, ns, dt, t0, wall_slot, peak, acc)
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc"})
+def _dashpot_block(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, ns, dt, t0, wall_slot, peak, acc):
+    _damped_steps(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, False, False, ns, dt, t0, wall_slot, peak, acc)
+
+
+@njit(cache=True, nogil=True, fastmath={"reassoc"})
+def _dashpot_block_unloaded(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, ns, dt, t0, wall_slot, peak, acc):
+    _damped_steps(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, False, True, ns, dt, t0, wall_slot, peak, acc)
+
+
+@njit(cache=True, nogil=True)
+def dissipative_block(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, law, unloaded, ns, dt, t0, wall_slot, peak,
+                      acc):
+    """The ``ns`` steps of a block of :func:`verlet_run` for an aligned viscoelastic or dashpot
+    chain (:func:`step_damped`, ``vp`` its P + 1 predicted velocities, ``c`` the damping constants
+    of :func:`~.primitives.damping_constants`, ``unloaded``: every d0 and f_ext zero), with the
+    dissipated energy's trapezoidal integral in acc[0:2] and the wall peak; functions of their own,
+    called once per block (inlined into verlet_run's large body, LLVM left the fused loop scalar),
+    whose power sum may be reassociated: in contact order it held the loop scalar (~1.8x slower);
+    the forces, positions and velocities do not depend on it (tests/test_fused.py)."""
+    if law == LAW_VISCOELASTIC and unloaded:
+        _kk_block_unloaded(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, ns, dt, t0, wall_slot, peak, acc)
+    elif law == LAW_VISCOELASTIC:
+        _kk_block(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, ns, dt, t0, wall_slot, peak, acc)
+    elif unloaded:
+        _dashpot_block_unloaded(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, ns, dt, t0, wall_slot, peak, acc)
+    else:
+        _dashpot_block(u, v, vp, a, g, kappa, c, d0, fext, inv_mass, ns, dt, t0, wall_slot, peak, acc)
 
 
 @njit(cache=True, nogil=True)
@@ -226,46 +295,9 @@ def accelerations(g, fext, inv_mass, a):
         a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
 
 
-@njit(cache=True, nogil=True)
-def step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dyield, dmax, dres,
-                  kres, ext, body_slot, wall_slot, t0, dt, ns, peak, acc):
-    """One block of ``ns`` steps of the general path with the extension (see :func:`verlet_run`).
-
-    The same kick-drift-kick as the general path, the internal masses (``ext``) stepped with the
-    beads; the mount's dashpot uses the predicted velocities, as the dissipative contacts do, and
-    its power joins the dissipated energy. With a protected body (``body_slot`` >= 0) the power
-    F_N v_body that contact N delivers to it is integrated (trapezoidal) into ext[0, EXT_ACC].
-    """
-    n = a.shape[0]
-    half = 0.5 * dt
-    for i in range(n):
-        v[i] += half * a[i]
-        u[i] += dt * v[i]
-        ext[i, EXT_WV] += half * wa[i]
-        ext[i, EXT_W] += dt * ext[i, EXT_WV]
-    for s in range(ns):
-        for i in range(n):
-            vp[i] = v[i] + half * a[i]
-        p = forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres)
-        p += forces_linear(u, vp, d0, ext, g)
-        acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
-        acc[1] = p
-        if body_slot >= 0:
-            pb = g[body_slot] * vp[body_slot]  # contact N (g[N + 1]) pushing body N + 1
-            ext[0, EXT_ACC] += half * (ext[1, EXT_ACC] + pb)
-            ext[1, EXT_ACC] = pb
-        _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
-        accelerations_extended(u, g, fext, inv_mass, ext, a, wa)
-        if s < ns - 1:
-            for i in range(n):
-                v[i] += dt * a[i]
-                u[i] += dt * v[i]
-                ext[i, EXT_WV] += dt * wa[i]
-                ext[i, EXT_W] += dt * ext[i, EXT_WV]
-        else:
-            for i in range(n):
-                v[i] += half * a[i]
-                ext[i, EXT_WV] += half * wa[i]
+#: One block of ``ns`` steps of the general path with the extension (see :func:`verlet_run` and
+#: :func:`~.extension.extended_steps`, which writes it once for every law's force pass).
+step_extended = extended_steps(forces_general)
 
 
 @njit(cache=True, nogil=True)
@@ -421,7 +453,7 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
     mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
     de, dx0, rsum, dcap, dyield, dmax, dres, kres = contacts
     ext, ext_on, body_slot = extension
-    rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, _, _, fmax, peak, out_b = probes
+    rec, out_f, _, _, _, out_wp, _, _, _, _, fmax, peak, _ = probes
     interval, stride, n_sub, n_eval, c_steps, relax = control
     n = a.shape[0]
     nout = rec.shape[0]
@@ -431,16 +463,23 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
     vp = np.zeros_like(v)
     wa = np.zeros(n)
     pw = np.zeros(n)  # the contacts' dissipated powers (plastic_block)
+    # plastic_block's checkpoint (its fused steps are tried again in each chunk)
+    ck = np.zeros((CHECKPOINT_ROWS, max(n + 1, CHECKPOINT_MIN_COLUMNS)) if law == LAW_ELASTOPLASTIC else (1, 1))
     ec = np.zeros(n)  # contact energies at a block's end (offset chains' fused steps, their probes)
     if ext_on:  # the internal masses' accelerations: a function of the positions, not state
         for i in range(n):
             wa[i] = internal_acceleration(ext[i, EXT_KIN], ext[i, EXT_W], u[i], ext[i, EXT_IMIN])
     step = int(acc[2])
     lean = n >= LEAN_SLOTS  # long chain without precompression (d0 = fext = 0): step_elastic_lean
-    aligned = True  # no offsets: the dissipative laws' fused steps (step_dissipative)
+    aligned = True  # no offsets: the dissipative laws' fused steps (step_damped)
+    unloaded = True  # no precompression, no external force
     for i in range(n):
-        lean = lean and d0[i] == 0.0 and fext[i] == 0.0
+        unloaded = unloaded and d0[i] == 0.0 and fext[i] == 0.0
         aligned = aligned and de[i] == 0.0
+    lean = lean and unloaded
+    cd = np.zeros(n)  # the viscous laws' damping constants (step_damped)
+    if general and law != LAW_ELASTIC and law != LAW_ELASTOPLASTIC:
+        damping_constants(kappa, damping, law, cd)
     # Recorded contacts r0, r0 + 1, ... (the default: all of them) are copied as one slice.
     contiguous = nout > 0
     for j in range(1, nout):
@@ -464,11 +503,10 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
                 v[i] += half * a[i]
                 u[i] += dt * v[i]
             if general and aligned and law != LAW_ELASTOPLASTIC:
-                # aligned viscous chains: one fused pass per step, the same numbers as below (the
-                # elastic-plastic law branches per contact; its two passes below beat one fused
-                # scalar pass: benchmarks/dissipative.py)
-                dissipative_block(u, v, vp, a, g, kappa, damping, d0, fext, inv_mass, law, ns, dt, t0, wall_slot, peak,
-                                  acc)
+                # aligned viscous chains: one fused pass per step, the same numbers as the general
+                # path (the elastic-plastic law's fused steps, while no contact yields: plastic_block)
+                dissipative_block(u, v, vp, a, g, kappa, cd, d0, fext, inv_mass, law, unloaded, ns, dt, t0, wall_slot,
+                                  peak, acc)
             elif general and law == LAW_ELASTIC:  # offsets: the fused steps of fused.py, the same numbers
                 offset_elastic_block(u, v, a, g, ec, kappa, d0, de, dx0, rsum, fext, inv_mass, ns, dt, t0, wall_slot,
                                      peak)
@@ -477,7 +515,7 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
                                          dt, t0, wall_slot, peak, acc)
             elif general:
                 plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres,
-                              kres, aligned, ns, dt, t0, wall_slot, peak, acc)
+                              kres, aligned, ns, dt, t0, wall_slot, peak, acc, ck)
             else:
                 if lean:
                     for s in range(ns - 1):
@@ -512,23 +550,7 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
             pe = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
         else:
             ke, pe = energies_elastic(u, v, g, mass, d0, fext)
-        if ext_on:
-            ke_in, pe_lin = energies_extended(u, d0, ext)
-            ke += ke_in
-            pe += pe_lin
-            if body_slot >= 0:
-                out_b[k, 0] = u[body_slot]
-                out_b[k, 1] = v[body_slot]
-                out_b[k, 2] = a[body_slot]
-                out_b[k, 3] = ext[0, EXT_ACC]
-        out_ke[k] = ke
-        out_pe[k] = pe
-        out_ed[k] = acc[0]
-        if record_v:
-            for i in range(out_v.shape[1]):
-                out_v[k, i] = v[i]
-        if not np.isfinite(ke) or not np.isfinite(g[1]):
-            acc[2] = step
+        if close_sample(k, ke, pe, u, v, a, g, d0, extension, probes, acc, step):
             return 1
     acc[2] = step
     return 0
@@ -562,7 +584,8 @@ def flush_stale_cache(*kernels_using: Any) -> None:
             pass
 
 
-# The stepping loop compiles the functions of extension.py, primitives.py, fused.py and plastic.py into itself:
+# The stepping loop (and forces_general: plastic.contact_general, primitives.FORCE_MIN) compiles the functions of
+# extension.py, primitives.py, fused.py and plastic.py into itself:
 # an edit there must recompile it too (Numba's cache only checks the file of the function it caches).
-flush_stale_cache(step_extended, dissipative_block, plastic_block, offset_elastic_block, offset_dissipative_block,
-                  verlet_run)
+flush_stale_cache(forces_general, dissipative_block, _kk_block, _kk_block_unloaded, _dashpot_block,
+                  _dashpot_block_unloaded, plastic_block, offset_elastic_block, offset_dissipative_block, verlet_run)

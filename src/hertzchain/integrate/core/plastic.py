@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .primitives import DELTA_MIN, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC, _track_peak, kick, predict, total
+from .primitives import DELTA_MIN, FORCE_MIN, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC, _track_peak, kick, predict, total
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -103,7 +103,7 @@ def contact_general(ui, uj, vi, vj, kappa, damping, d0, de, dx0, rsum, law, dyie
         f = fel + kappa * damping * sd * rate
     else:
         f = fel + damping * rate
-    f = max(f, 0.0)
+    f = f if f > FORCE_MIN else 0.0  # as primitives.damped_force
     return c * f, (f - fel) * rate, dmax, dres, kres  # F_diss * d(delta)/dt >= 0: power lost to dissipation
 
 
@@ -165,9 +165,115 @@ def plastic_yield(u, vp, g, pw, kappa, damping, d0, de, dx0, rsum, dyield, dmax,
                 LAW_ELASTOPLASTIC, dyield[j], dmax[j], dres[j], kres[j], True)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def plastic_step(u, v, vp, a, g, pw, kappa, damping, d0, fext, inv_mass, dyield, dmax, dres, kres, viscous, dt, half,
+                 last):
+    """One step of an aligned elastic-plastic chain in one pass, right when no contact yields in it
+    (as ``kernels.step_elastic`` fuses the elastic step): each contact's force as
+    :func:`plastic_pass` computes it (the unloading curve, which is the Hertz force of a contact
+    that never yielded; dmax = max(dmax, delta)), then the kick of the body on its left
+    (:func:`~.primitives.kick`'s numbers, the left contact's force carried in ``fprev``).
+    Iteration i reads u[i + 1] before iteration i + 1 writes it. Without a viscous term
+    (``viscous`` False, a compile-time constant) there is no power and the predictions ``vp``
+    are neither read nor written (only a viscous term reads them).
+
+    Returns the number of contacts loaded past both their largest overlap and their yield overlap
+    (:func:`plastic_pass`'s yielding contacts): where it is not 0 the step is wrong and
+    :func:`plastic_block` redoes the block (an integer sum in the loop costs nothing; a test
+    pass before the step, or copies of the state in it, cost 40-70 % of the step)."""
+    fprev = 0.0
+    hits = 0
+    for i in range(a.shape[0]):
+        d = u[i] - u[i + 1] + d0[i]
+        dd = d if d > DELTA_MIN else 0.0
+        x = dd - dres[i]
+        x = x if x > DELTA_MIN else 0.0
+        sx = np.sqrt(x)
+        kr = kres[i]
+        fep = kr * x * sx
+        if viscous:
+            on = (d >= 0.0) & (kappa[i] != 0.0)
+            rate = vp[i] - vp[i + 1]
+            f = fep + damping[i] * kr * sx * rate
+            f = f if f > 0.0 else 0.0
+            f = f if on else 0.0
+            pw[i] = (f - fep) * rate if on else 0.0
+        else:
+            # plastic_pass's select on ``on`` left out: an open contact (d < 0: dd = 0, x <= 0 -> 0)
+            # and a slot without contact (kres = kappa = 0) already give fep = +0
+            f = fep
+        dm = dmax[i]
+        # d >= 0 is implied by dd > dm >= 0
+        up = (kappa[i] != 0.0) & (dd > dm)
+        hits += 1 if up & (dd > dyield[i]) else 0
+        dmax[i] = dd if up else dm
+        g[i + 1] = f
+        ai = (fprev - f + fext[i]) * inv_mass[i]
+        a[i] = ai
+        if last:
+            v[i] += half * ai
+        else:
+            vi = v[i] + dt * ai
+            v[i] = vi
+            if viscous:
+                vp[i] = vi + half * ai
+            u[i] += dt * vi
+        fprev = f
+    return hits
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _fused_steps(u, v, vp, a, g, pw, kappa, damping, d0, fext, inv_mass, dyield, dmax, dres, kres, viscous, ns, dt,
+                 t0, wall_slot, peak, acc):
+    """The ``ns`` steps of a block by :func:`plastic_step` (``viscous`` a constant), stopping at
+    the first step in which a contact yields; returns whether one did."""
+    half = 0.5 * dt
+    for s in range(ns):
+        if s < ns - 1:
+            hits = plastic_step(u, v, vp, a, g, pw, kappa, damping, d0, fext, inv_mass, dyield, dmax, dres, kres,
+                                viscous, dt, half, False)
+        else:
+            hits = plastic_step(u, v, vp, a, g, pw, kappa, damping, d0, fext, inv_mass, dyield, dmax, dres, kres,
+                                viscous, dt, half, True)
+        if hits > 0:
+            return True
+        p = total(pw) if viscous else 0.0
+        acc[0] += half * (acc[1] + p)  # trapezoidal integral of the dissipated power
+        acc[1] = p
+        _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
+    return False
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _checkpoint(u, v, a, dmax, peak, acc, ck, save):
+    """Copy the state a block changes (positions, velocities, accelerations, dmax, the wall-peak
+    tracker, the dissipated energy's accumulators) into ``ck`` (``save``) or back from it."""
+    n = a.shape[0]
+    if save:
+        ck[0, :n + 1] = u[:n + 1]
+        ck[1, :n + 1] = v[:n + 1]
+        ck[2, :n] = a
+        ck[3, :n] = dmax[:n]
+        ck[4, :8] = peak[:8]
+        ck[4, 8:10] = acc[:2]
+    else:
+        u[:n + 1] = ck[0, :n + 1]
+        v[:n + 1] = ck[1, :n + 1]
+        a[:] = ck[2, :n]
+        dmax[:n] = ck[3, :n]
+        peak[:8] = ck[4, :8]
+        acc[:2] = ck[4, 8:10]
+
+
+#: Rows and columns beyond the chain's slots of :func:`plastic_block`'s scratch ``ck``: 5 rows,
+#: max(P + 1, 11) columns; ck[4, 10] is 1 while the last block had a yielding contact.
+CHECKPOINT_ROWS = 5
+CHECKPOINT_MIN_COLUMNS = 11
+
+
 @njit(cache=True, nogil=True)
 def plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres, kres,
-                  aligned, ns, dt, t0, wall_slot, peak, acc):
+                  aligned, ns, dt, t0, wall_slot, peak, acc, ck):
     """The ``ns`` steps of a block of :func:`verlet_run` for the elastic-plastic law (its opening
     half kick and drift done by the caller): every contact's force (:func:`contact_general`,
     inlined, without the geometry branch when ``aligned``) at the predicted velocities ``vp``
@@ -178,13 +284,33 @@ def plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, i
     update loops, but for the last bits of the dissipated energy (the power summed in another
     order). One function for the block: a call of forces_general per step cost as much as its
     pass on short chains, and the power summed in contact order (a chain of dependent additions)
-    set the pace of the step."""
+    set the pace of the step.
+
+    An aligned chain whose previous block had no yielding contact (ck[4, 10] == 0) first tries
+    the block in fused steps (:func:`plastic_step`: one pass per step, 300 beads ~1.5 -> ~0.9 ns
+    per bead-step, benchmarks/laws.py) from a checkpoint of its state in ``ck``; at the first
+    step in which a contact yields, the state goes back to the checkpoint and the block is
+    stepped as below (two passes, the yielding contacts' fix-up :func:`plastic_yield`), as are
+    the blocks after it until one has no yield: the same numbers either way."""
     half = 0.5 * dt
     n = a.shape[0]
-    predict(v, a, half, vp)
     viscous = False
     for j in range(n):
         viscous = viscous or damping[j] != 0.0
+    if aligned and ck[4, 10] == 0.0:
+        _checkpoint(u, v, a, dmax, peak, acc, ck, True)
+        predict(v, a, half, vp)
+        if viscous:
+            again = _fused_steps(u, v, vp, a, g, pw, kappa, damping, d0, fext, inv_mass, dyield, dmax, dres, kres,
+                                 True, ns, dt, t0, wall_slot, peak, acc)
+        else:
+            again = _fused_steps(u, v, vp, a, g, pw, kappa, damping, d0, fext, inv_mass, dyield, dmax, dres, kres,
+                                 False, ns, dt, t0, wall_slot, peak, acc)
+        if not again:
+            return
+        _checkpoint(u, v, a, dmax, peak, acc, ck, False)
+    predict(v, a, half, vp)
+    yielded = False
     for s in range(ns):
         if aligned:
             if viscous:
@@ -192,6 +318,7 @@ def plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, i
             else:
                 lo, hi = plastic_pass(u, vp, g, pw, kappa, damping, d0, dyield, dmax, dres, kres, False)
             if hi >= 0:
+                yielded = True
                 plastic_yield(u, vp, g, pw, kappa, damping, d0, de, dx0, rsum, dyield, dmax, dres, kres, lo, hi)
         else:
             for j in range(n):
@@ -203,3 +330,4 @@ def plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, i
         acc[1] = p
         _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
         kick(u, v, vp, a, g, fext, inv_mass, dt, half, s == ns - 1)
+    ck[4, 10] = 1.0 if yielded else 0.0

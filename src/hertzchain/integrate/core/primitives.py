@@ -19,17 +19,54 @@ LAW_ELASTIC, LAW_VISCOELASTIC, LAW_DASHPOT, LAW_ELASTOPLASTIC = 0, 1, 2, 3
 DELTA_MIN = 1e-30
 
 
+#: Viscous contact forces at or below this [N] count as zero (the dissipative laws' counterpart of
+#: DELTA_MIN). A dashpot pushes at zero overlap (gamma d(delta)/dt, the d == 0 convention of
+#: ``plastic.contact_general``), so in an uncompressed chain its precursor ran ahead of the pulse
+#: through touching beads, decaying into subnormal velocities and forces (~1e-320): 300 beads,
+#: 1.2 instead of 0.9 ns per bead-step (benchmarks/laws.py). At 1e-100 N the precursor's
+#: velocities (~1e-110 m/s) and the products of the dissipated power (~1e-210 W) stay normal
+#: floats, and every Hertz force is above it (kappa DELTA_MIN^(3/2) = kappa 1e-45 N), so that
+#: A = 0 and gamma = 0 still give the elastic law's forces bit for bit.
+FORCE_MIN = 1e-100
+
+
 @njit(cache=True, nogil=True, inline="always")
-def _viscous_force(d, rate, kappa, damping, law):
-    """``kernels.forces_general``'s viscoelastic or dashpot force at overlap d and rate (along the
-    line of centres); returns (force, elastic part). Open contacts give 0 through selects
-    (vectorised)."""
+def damped_force(d, rate, kappa, c, visco):
+    """The viscoelastic (``visco``) or dashpot force at overlap d [m] and rate [m/s] (along the line
+    of centres), with the law's damping as a per-contact constant ``c``: kappa A [N s/m^1.5]
+    (Kuwabara-Kono, F = kappa delta^(3/2) + kappa A delta^(1/2) d(delta)/dt) or gamma [N s/m]
+    (dashpot); returns (force, elastic part). Forces at or below FORCE_MIN and open contacts give
+    0 through selects (vectorised). ``c`` = kappa A computed once (:func:`damping_constants`)
+    is the product that kappa A delta^(1/2) rate evaluates first: the same numbers, one
+    multiplication less per contact and step. An open Kuwabara-Kono contact (d < 0) has
+    delta^(1/2) = 0 and so F = +-0, which the floor already selects to 0: only the dashpot, whose
+    rate term pushes at any overlap, needs the select on d."""
     dd = d if d > DELTA_MIN else 0.0
     sd = np.sqrt(dd)
     fel = kappa * dd * sd
-    f = fel + kappa * damping * sd * rate if law == LAW_VISCOELASTIC else fel + damping * rate
-    f = f if f > 0.0 else 0.0
-    return (f if d >= 0.0 else 0.0), fel
+    if visco:
+        f = fel + c * sd * rate
+        return (f if f > FORCE_MIN else 0.0), fel
+    f = fel + c * rate
+    return (f if (f > FORCE_MIN) & (d >= 0.0) else 0.0), fel
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _viscous_force(d, rate, kappa, damping, law):
+    """``kernels.forces_general``'s viscoelastic or dashpot force at overlap d and rate (along the
+    line of centres), ``damping`` the law's parameter (A or gamma); returns (force, elastic part):
+    :func:`damped_force`."""
+    visco = law == LAW_VISCOELASTIC
+    return damped_force(d, rate, kappa, kappa * damping if visco else damping, visco)
+
+
+@njit(cache=True, nogil=True)
+def damping_constants(kappa, damping, law, c):
+    """c_j = kappa_j A_j (Kuwabara-Kono) or gamma_j (dashpot), the per-contact constant of
+    :func:`damped_force`, written into ``c``."""
+    visco = law == LAW_VISCOELASTIC
+    for j in range(kappa.shape[0]):
+        c[j] = kappa[j] * damping[j] if visco else damping[j]
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -14,7 +14,7 @@ import numpy as np
 
 from ...errors import ConfigError
 
-__all__ = ["AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable", "require_gpu", "use_gpu"]
+__all__ = ["AUTO_MIN_MEMBERS", "DEVICES", "check_device", "gpu_usable", "peak_tracker", "require_gpu", "use_gpu"]
 
 
 #: ``device="auto"`` uses the GPU from this many members. Smaller batches stay on the CPU: a GPU
@@ -105,3 +105,23 @@ def use_gpu(device: str, n_members: int) -> bool:
         require_gpu()
         return True
     return device == "auto" and n_members >= AUTO_MIN_MEMBERS and gpu_usable()
+
+
+def peak_tracker(cuda, inline: dict):
+    """The device function ``track_peak(fw, t, dt, peak, m)``: ``kernels._track_peak`` for member m
+    (``peak`` is (8, M)), compiled with ``cuda`` (numba.cuda or the simulator's module) and the
+    kernels' device options ``inline``; shared by the built-in laws' kernels and the generated ones."""
+    @cuda.jit(device=True, **inline)
+    def track_peak(fw, t, dt, peak, m):
+        if fw > peak[0, m]:
+            peak[0, m] = fw
+            peak[1, m] = t
+            peak[2, m] = peak[5, m]
+            peak[6, m] = dt
+            peak[4, m] = 1.0
+        elif peak[4, m] != 0.0:
+            peak[3, m] = fw
+            peak[7, m] = dt
+            peak[4, m] = 0.0
+        peak[5, m] = fw
+    return track_peak

@@ -4,7 +4,10 @@ One thread per member, arrays (slot, member) as in :mod:`.cuda_kernels`; the law
 functions are compiled from the same Python source as its CPU functions (``spec.force.py_func``
 ...), so the GPU and the CPU evaluate one definition. The steps, adaptive step controller and
 probes are those of ``generated.law_kernels``'s ``run``; the law's state is one (slot, member)
-array. Checked in Numba's CUDA simulator against the CPU engine (tests/test_laws_cuda.py).
+array. A member with a protected body or mass-in-mass beads steps with the extension's block
+(:mod:`.extension`, around this law's force pass, as the CPU's generated run does), its step
+bound the law's plus the extension's (``core.extension.extension_stride``). Checked in Numba's
+CUDA simulator against the CPU engine (tests/cuda_laws.py).
 """
 
 from __future__ import annotations
@@ -12,9 +15,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .device import _cuda
+from .device import _cuda, _simulated, peak_tracker
+from .extension import device_functions
 from ..core.generated import bisection
-from ..core.kernels import DELTA_MIN
+from ..core.extension import EXT_CLIN, EXT_IMIN, EXT_KIN, EXT_KLIN
+from ..core.kernels import DELTA_MIN, LAW_ELASTIC
 
 _CACHE: dict = {}
 cuda: Any = None  # numba.cuda (a module global, as cuda_kernels: the simulator swaps it)
@@ -30,6 +35,7 @@ def generated_kernel(code: int):
         return _CACHE[code]
     cuda = _cuda()
     dev = cuda.jit(device=True)
+    inline = {} if _simulated() else {"forceinline": True}
     # (Numba dispatchers: their Python functions, compiled again for the device)
     functions: tuple[Any, ...] = (spec.force, spec.state, spec.energy, spec.partials, spec.overlap_at_energy)
     force, update, stored, partials = (dev(f.py_func) for f in functions[:4])
@@ -100,10 +106,33 @@ def generated_kernel(code: int):
             cprev = c
         return max(1, int(math.ceil(block * c_steps * weff - 1e-9)))
 
+    track_peak = peak_tracker(cuda, inline)
+
+    @cuda.jit(device=True, **inline)
+    def law_forces(u, v, kappa, damping, d0, de, dx0, rsum, law, g, dyield, dmax, dres, kres, n, m):
+        """``forces`` in the built-in laws' signature (the extension's block calls it; the state in dmax)."""
+        return forces(u, v, kappa, damping, d0, de, dx0, rsum, g, dmax, n, m)
+
+    ext_fns = device_functions(cuda, inline, law_forces, track_peak)
+    extended_block, extended_probes = ext_fns["extended_block"], ext_fns["extended_probes"]
+    internal_accelerations, extended_bound = ext_fns["internal_accelerations"], ext_fns["extended_bound"]
+
+    @dev
+    def extension_stride(ext, inv_mass, block, c_steps, n, m):
+        """core.extension.extension_stride for member m."""
+        weff = 0.0
+        kprev = 0.0
+        cprev = 0.0
+        for i in range(n):
+            w, kprev, cprev = extended_bound(kprev, 0.0, cprev, 0.0, LAW_ELASTIC, ext[EXT_KLIN, i, m], ext[EXT_CLIN, i, m],
+                                             ext[EXT_KIN, i, m], ext[EXT_IMIN, i, m], inv_mass[i, m])
+            weff = max(weff, w)
+        return int(math.ceil(block * c_steps * weff - 1e-9))
+
     @cuda.jit
     def kernel(u, v, a, g, vp, state, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, wall_slot,
                interval, stride, n_sub, n_eval, c_steps, relax, k_start, k_stop, rec, out_f, out_ke, out_pe, out_ed,
-               out_v, record_v, fmax, peak, acc, status):
+               out_v, record_v, fmax, peak, acc, status, wa, ext, ext_on, body_slot, out_b):
         m = cuda.grid(1)
         if m >= status.shape[0] or status[m] != 0:
             return
@@ -114,11 +143,17 @@ def generated_kernel(code: int):
         adaptive = stride[m] == 0
         ns = stride[m] if not adaptive else int(acc[3, m])
         step = acc[2, m]
+        eon = ext_on[m]
+        bs = body_slot[m]
+        if eon:  # the internal masses' accelerations: a function of the positions, not state
+            internal_accelerations(u, ext, wa, n, m)
         for k in range(k_start, k_stop):
             for b in range(nsub):
                 if adaptive and ((k - 1) * nsub + b) % n_eval[m] == 0:
                     req = stride_of(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass,
                                     n_eval[m] * block, block, c_steps[m], n, m)
+                    if eon:
+                        req += extension_stride(ext, inv_mass, block, c_steps[m], n, m)
                     # kernels._adapt_stride on acc[3:8]
                     if req > ns:
                         ns = req
@@ -140,6 +175,11 @@ def generated_kernel(code: int):
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
+                if eon:
+                    extended_block(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, 0, state,
+                                   state, state, state, ext, bs, ws, t0, dt, ns, peak, acc, n, m)
+                    step += ns
+                    continue
                 for i in range(n):
                     v[i, m] += half * a[i, m]
                     u[i, m] += dt * v[i, m]
@@ -149,18 +189,7 @@ def generated_kernel(code: int):
                     p = forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, n, m)
                     acc[0, m] += half * (acc[1, m] + p)
                     acc[1, m] = p
-                    fw = g[ws, m]  # kernels._track_peak
-                    if fw > peak[0, m]:
-                        peak[0, m] = fw
-                        peak[1, m] = t0 + (s + 1) * dt
-                        peak[2, m] = peak[5, m]
-                        peak[6, m] = dt
-                        peak[4, m] = 1.0
-                    elif peak[4, m] != 0.0:
-                        peak[3, m] = fw
-                        peak[7, m] = dt
-                        peak[4, m] = 0.0
-                    peak[5, m] = fw
+                    track_peak(g[ws, m], t0 + (s + 1) * dt, dt, peak, m)
                     last = s == ns - 1
                     for i in range(n):
                         a[i, m] = (g[i, m] - g[i + 1, m] + fext[i, m]) * inv_mass[i, m]
@@ -190,6 +219,8 @@ def generated_kernel(code: int):
                 pe -= fext[i, m] * u[i, m]
             out_ke[row, m] = ke
             out_pe[row, m] = pe
+            if eon:
+                extended_probes(row, u, v, a, d0, ext, bs, out_ke, out_pe, out_b, n, m)
             out_ed[row, m] = acc[0, m]
             if record_v[m]:
                 for i in range(out_v.shape[1]):

@@ -29,12 +29,12 @@ import functools
 import math
 from typing import Any
 
-from .device import _cuda, _simulated
+from .device import _cuda, _simulated, peak_tracker
 from .extension import device_functions
 from ..core import energies
 from ..core import kernels as core_kernels
 from ..core.extension import EXT_CLIN, EXT_IMIN, EXT_KIN, EXT_KLIN
-from ..core.kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
+from ..core.kernels import DELTA_MIN, FORCE_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_ELASTOPLASTIC, LAW_VISCOELASTIC
 
 
 #: Threads (lanes) per member in the warp-per-member kernel: one warp, one slot per lane for
@@ -135,7 +135,7 @@ def _kernels() -> dict:
             f = fel + kappa[j, m] * damping[j, m] * sd * rate
         else:
             f = fel + damping[j, m] * rate
-        f = max(f, 0.0)
+        f = f if f > FORCE_MIN else 0.0  # the CPU engines' floor (primitives.FORCE_MIN)
         g[j + 1, m] = c * f
         return power + (f - fel) * rate
 
@@ -243,20 +243,7 @@ def _kernels() -> dict:
         beta = 2.0 * (cprev + c) * inv_m
         return math.sqrt(om2 + 0.25 * beta * beta) + 0.5 * beta, c
 
-    @cuda.jit(device=True, **inline)
-    def track_peak(fw, t, dt, peak, m):
-        """kernels._track_peak for member m (peak is (8, M))."""
-        if fw > peak[0, m]:
-            peak[0, m] = fw
-            peak[1, m] = t
-            peak[2, m] = peak[5, m]
-            peak[6, m] = dt
-            peak[4, m] = 1.0
-        elif peak[4, m] != 0.0:
-            peak[3, m] = fw
-            peak[7, m] = dt
-            peak[4, m] = 0.0
-        peak[5, m] = fw
+    track_peak = peak_tracker(cuda, inline)
 
     # a protected body and mass-in-mass beads: core.extension's law, compiled from its source
     ext_fns = device_functions(cuda, inline, forces_general, track_peak)

@@ -131,10 +131,6 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
     generated = is_generated(int(pk.law[0]))  # a law run by the generated engines: its own kernel
     # a protected body or mass-in-mass beads: the general kernels' extended steps (cuda.extension)
     extended = pk.ext_on is not None and bool(np.any(pk.ext_on))
-    if extended and generated:
-        raise ConfigError("contact.law", "the CUDA engine runs a law declared in hertzchain.laws (power, hunt_crossley, "
-                          "a user's) without a protected body or mass-in-mass beads; use a built-in law or "
-                          "device='cpu'")
     width = int(pk.off[1])
     # aligned elastic members of a short chain: the register kernel (positions and velocities on
     # the chip), else one warp per member for small batches, one thread per member for large ones
@@ -235,7 +231,7 @@ def run_packed(pk, progress: Callable[[int, int], None] | None = None) -> None:
         elif generated:
             kernel[-(-nmem // THREADS_PER_BLOCK), THREADS_PER_BLOCK](
                 d["u"], d["v"], d["a"], d["g"], d["vp"], state, d["mass"], d["inv_mass"], d["kappa"], d["damping"],
-                d["d0"], d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["wall_slot"], *tail)
+                d["d0"], d["de"], d["dx0"], d["rsum"], d["fext"], d["dcap"], ints["wall_slot"], *tail, *ext_args, out_b)
         elif register:
             kernel[-(-nmem // tpb), tpb](
                 d["u"], d["v"], d["a"], d["g"], d["mass"], d["inv_mass"], d["kappa"], d["damping"], d["d0"], d["de"],

@@ -30,7 +30,7 @@ from numba import njit
 
 from ..core.extension import EXT_CLIN, EXT_KLIN
 from ..core.kernels import DELTA_MIN, LAW_ELASTOPLASTIC
-from .partials import aligned_partials, contact_partials, elastoplastic_adjoint
+from .partials import aligned_partials, contact_partials, plastic_contact_adjoint
 from .tape import _fused, replay_group
 
 #: Seeds on the state rather than on a force: a seed's contact number STATE_U + i (STATE_V + i)
@@ -190,16 +190,16 @@ def _steps_dissipative(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, f
 
 @njit(cache=True, nogil=True)
 def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, fb, fs, wb, rb, sb, inv_mass, kappa,
-                   damping, d0, fext, dyield, seed_step, seed_contact, seed_w, ptr, grad, ext):
-    """:func:`_steps_general` for the elastic-plastic law on an aligned chain
-    (:func:`partials.elastoplastic_adjoint`): ``pstore`` holds the state (dmax, dres, kres) each
+                   damping, d0, de, dx0, rsum, fext, dyield, seed_step, seed_contact, seed_w, ptr, grad, ext):
+    """:func:`_steps_general` for the elastic-plastic law, offset beads included
+    (:func:`partials.plastic_contact_adjoint`): ``pstore`` holds the state (dmax, dres, kres) each
     step started from, ``sb`` (2, P) the adjoints of the state (dres, kres) after the step being
     differentiated, carried backwards from step to step (and group to group). ``grad`` row 10
     receives the yield overlaps' gradient."""
     n = ab.shape[0]
     p = ptr
-    gk, gdamp, gd0, gfext, ginv, gdy = grad[0], grad[1], grad[2], grad[6], grad[7], grad[10]
-    gkl, gcl = grad[8], grad[9]
+    gk, gdamp, gd0, gde, gdx0, grs, gfext, ginv = grad[0], grad[1], grad[2], grad[3], grad[4], grad[5], grad[6], grad[7]
+    gdy, gkl, gcl = grad[10], grad[8], grad[9]
     ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
     m = n - 1
     linear = ext.shape[0] > 0
@@ -209,34 +209,29 @@ def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, f
         q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
         for j in range(m):
             fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
-            d = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
-            f = 0.0
-            gw = 0.0
-            gv = 0.0
-            if d >= 0.0 and kappa[j] != 0.0:
-                rate = vpstore[sl, j] - vpstore[sl, j + 1]
-                dd = d if d > DELTA_MIN else 0.0
-                f, dbar, rbar, kbar, abar, dybar, sb[0, j], sb[1, j] = elastoplastic_adjoint(
-                    dd, rate, kappa[j], damping[j], dyield[j], pstore[0, sl, j], pstore[1, sl, j], pstore[2, sl, j],
-                    fbar, sb[0, j], sb[1, j])
-                if d > DELTA_MIN:
-                    gw = dbar
-                gv = rbar
-                gk[j] += kbar
-                gdamp[j] += abar
-                gdy[j] += dybar
+            f, gw, gv, kbar, abar, g0, gdd, gx, gr, dybar, sb[0, j], sb[1, j] = plastic_contact_adjoint(
+                ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j], vpstore[sl, j + 1], kappa[j], damping[j], d0[j], de[j],
+                dx0[j], rsum[j], dyield[j], pstore[0, sl, j], pstore[1, sl, j], pstore[2, sl, j], fbar, sb[0, j],
+                sb[1, j])
+            gk[j] += kbar
+            gdamp[j] += abar
+            gdy[j] += dybar
+            gd0[j] += g0
+            gde[j] += gdd
+            gdx0[j] += gx
+            grs[j] += gr
             if linear and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
                 dl = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
                 rl = vpstore[sl, j] - vpstore[sl, j + 1]
                 f += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
                 gw += fbar * ext[j, EXT_KLIN]
                 gv += fbar * ext[j, EXT_CLIN]
+                gd0[j] += fbar * ext[j, EXT_KLIN]
                 gkl[j] += fbar * dl
                 gcl[j] += fbar * rl
             fs1[j] = f
             wb1[j] = gw
             rb1[j] = gv
-            gd0[j] += gw
         _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
         _clear_seeds(p, q, fb, seed_contact)
         p = q
@@ -316,19 +311,17 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
     plastic = general and law == LAW_ELASTOPLASTIC
     for j in range(n - 1):
         fbar = fb[j] + inv_mass[j + 1] * ab[j + 1] - inv_mass[j] * ab[j]
-        if plastic:  # aligned only (differentiate.check_law), as _steps_plastic
-            d = u0[j] - u0[j + 1] + d0[j]
-            f, wbar, rbar, kresb = 0.0, 0.0, 0.0, sb[1, j]
-            if d >= 0.0 and kappa[j] != 0.0:
-                f, dbar, rbar, kbar, abar, dybar, _, kresb = elastoplastic_adjoint(
-                    d if d > DELTA_MIN else 0.0, v0[j] - v0[j + 1], kappa[j], damping[j], dyield[j], 0.0, 0.0,
-                    kappa[j], fbar, sb[0, j], sb[1, j])
-                wbar = dbar if d > DELTA_MIN else 0.0
-                grad[0, j] += kbar
-                grad[1, j] += abar
-                grad[10, j] += dybar
-            grad[0, j] += kresb  # the stiffness the state starts from is kappa
-            grad[2, j] += wbar
+        if plastic:  # as _steps_plastic, from the state (0, 0, kappa)
+            f, wbar, rbar, kbar, abar, g0, gdd, gx, gr, dybar, _, kresb = plastic_contact_adjoint(
+                u0[j], u0[j + 1], v0[j], v0[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j], dyield[j],
+                0.0, 0.0, kappa[j], fbar, sb[0, j], sb[1, j])
+            grad[0, j] += kbar + kresb  # the stiffness the state starts from is kappa
+            grad[1, j] += abar
+            grad[2, j] += g0
+            grad[3, j] += gdd
+            grad[4, j] += gx
+            grad[5, j] += gr
+            grad[10, j] += dybar
         else:
             f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(u0[j], u0[j + 1], v0[j], v0[j + 1], kappa[j],
                                                                    damping[j], d0[j], de[j], dx0[j], rsum[j],
@@ -409,8 +402,8 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
                             kres, ext, ext.shape[0] > 0)
         if plastic:
             p = _steps_plastic(rows, ustore, vpstore, hstore, pstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, sb,
-                               inv_mass, kappa, damping, d0, fext, dyield, seed_step, seed_contact, seed_w, p, grad,
-                               ext)
+                               inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, seed_step, seed_contact,
+                               seed_w, p, grad, ext)
         elif fused:
             p = _steps_dissipative(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass,
                                    kappa, damping, d0, fext, law, seed_step, seed_contact, seed_w, p, grad)

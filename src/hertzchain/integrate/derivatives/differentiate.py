@@ -204,7 +204,12 @@ def check_law(system: System, tangent: bool = False) -> None:
     """
     from ...contact import LAW_CODES
 
-    if is_generated(system.law):  # a registry law (plain models only): its partials (and its state's)
+    if is_generated(system.law):  # a registry law: its partials (and its state's)
+        if system.extended:  # the taped loops of law_derivatives step chains of beads without the extension
+            field = "wall.type" if system.body else "chain.elements"
+            raise ConfigError(field, "gradients of a law declared in hertzchain.laws (power, hunt_crossley, a "
+                              "user's) cover chains without a protected body or mass-in-mass beads yet; the "
+                              "built-in laws are differentiated with a protected body")
         law_engines(system.law)
         return
     if system.law == kernels.LAW_ELASTOPLASTIC:
@@ -212,9 +217,6 @@ def check_law(system: System, tangent: bool = False) -> None:
             raise ConfigError("contact.law", "the tangent model (forward mode: trace_sensitivity, the fit's exact "
                               "Jacobian) does not differentiate the 'elastoplastic' law yet; sensitivity() does "
                               "(reverse mode)")
-        if system.misaligned:
-            raise ConfigError("chain.offsets_mm", "gradients of the 'elastoplastic' law cover aligned chains; "
-                              "offsets are not differentiated with it yet")
 
     if getattr(system, "res_k", None) is not None:
         raise ConfigError("chain.elements", "gradients do not differentiate mass-in-mass beads yet; they cover "

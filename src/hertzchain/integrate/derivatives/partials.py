@@ -115,6 +115,45 @@ def contact_partials(uj, uj1, vj, vj1, kappa, damping, d0, de, dx0, rsum, law):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def plastic_contact_adjoint(uj, uj1, vj, vj1, kappa, damping, d0, de, dx0, rsum, dyield, dmax, dres, kres, fbar,
+                            dresb, kresb):
+    """Reverse-mode derivative of one elastic-plastic contact as ``plastic.contact_general`` computes
+    it, the geometry of offset beads included (d = R_j + R_{j+1} - dist, c = dx / dist, axial force
+    c f(d, c v_rel): :func:`contact_partials`'s geometry around :func:`elastoplastic_adjoint`).
+
+    Given the adjoint ``fbar`` of the axial force and those of the state out (``dresb``,
+    ``kresb``), returns (F, w_bar, vrel_bar, kappa_bar, damping_bar, d0_bar, de_bar, dx0_bar,
+    rsum_bar, dyield_bar, dresb in, kresb in), w = u_j - u_{j+1}, vrel = v_j - v_{j+1}; an open
+    contact (d < 0, kappa = 0) has none and carries the state's adjoints through."""
+    if de != 0.0:
+        dx = dx0 - (uj - uj1)
+        dist = np.sqrt(dx * dx + de * de)
+        d = rsum - dist
+        c = dx / dist
+    else:
+        dx = 0.0
+        dist = 1.0
+        d = uj - uj1 + d0
+        c = 1.0
+    if d < 0.0 or kappa == 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, dresb, kresb
+    live = d > DELTA_MIN  # below it the engine takes d = 0: no derivative by d
+    vrel = vj - vj1
+    f, dbar, rbar, kbar, abar, dybar, dresb, kresb = elastoplastic_adjoint(
+        d if live else 0.0, c * vrel, kappa, damping, dyield, dmax, dres, kres, c * fbar, dresb, kresb)
+    dbar = dbar if live else 0.0
+    if de == 0.0:
+        return f, dbar, rbar, kbar, abar, dbar, 0.0, 0.0, 0.0, dybar, dresb, kresb
+    # misaligned: dd/dw = c, dc/dw = -de^2 / dist^3, dd/dde = -de / dist, dc/dde = -dx de / dist^3
+    inv3 = 1.0 / (dist * dist * dist)
+    cbar = fbar * f + rbar * vrel  # F = c f and rate = c vrel
+    dc_dw = -de * de * inv3
+    gw = dbar * c + cbar * dc_dw
+    gde = -dbar * de / dist - cbar * dx * de * inv3
+    return c * f, gw, rbar * c, kbar, abar, 0.0, gde, -gw, dbar, dybar, dresb, kresb
+
+
+@njit(cache=True, nogil=True, inline="always")
 def elastoplastic_adjoint(d, rate, kappa, damping, dyield, dmax, dres, kres, fbar, dresb, kresb):
     """Reverse-mode derivative of one call of ``kernels.elastoplastic_force`` (Thornton's law).
 

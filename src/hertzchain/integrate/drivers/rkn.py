@@ -141,7 +141,8 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
     fmax = f0.copy()
     peak = np.array([g[system.n_beads + 1], 0.0])
     acc = np.array([0.0, 0.0, 0.0, 0.0, np.inf, 0.0])
-    scratch = rk.RknScratch(np.zeros(p), np.zeros(p), np.zeros(p), np.zeros(nc), np.zeros(nc, dtype=np.int64),
+    scratch = rk.RknScratch(np.zeros(p), np.zeros(p), np.zeros(p), np.zeros((nc, rk.SAMPLE_BLOCK)),
+                            np.zeros(rk.SAMPLE_BLOCK), np.zeros(nc, dtype=np.int64),
                             np.zeros((6, nc)), np.zeros(p), np.zeros(p), np.zeros(p), np.zeros(p))
     v_ref = float(np.max(np.abs(system.v0)))
     eps = rtol * (v_ref if v_ref > 0 else 1.0)

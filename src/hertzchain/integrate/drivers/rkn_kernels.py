@@ -122,13 +122,15 @@ class RknState(NamedTuple):
 
 class RknScratch(NamedTuple):
     """Work arrays of the elastic run: the step's start (up, vp, ap) when recorded, the sampled
-    forces ``fi``, the crossing contacts ``cross``, the force quintics ``coef`` and the step
+    forces ``fi`` (contacts x up to ``SAMPLE_BLOCK`` samples of one step) at the samples' ``th``
+    (theta, their fractions of the step), the crossing contacts ``cross``, the force quintics ``coef`` and the step
     control's (sx, sw, st, sc)."""
 
     up: np.ndarray
     vp: np.ndarray
     ap: np.ndarray
     fi: np.ndarray
+    th: np.ndarray
     cross: np.ndarray
     coef: np.ndarray
     sx: np.ndarray
@@ -454,11 +456,12 @@ def quintic_curvatures(theta, h):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _quintic_coefficients(ed, b, c, h, coef):
+def _quintic_coefficients(ed, b, c, h, coef, lo, hi):
     """coef[m, j] such that sum_m coef[m, j] theta^m is :func:`quintic`'s interpolant of contact
-    j's force over the step from end data ``ed[b]`` to ``ed[c]`` (theta = (t - t_b) / h)."""
+    j's force over the step from end data ``ed[b]`` to ``ed[c]`` (theta = (t - t_b) / h), for
+    the contacts lo <= j < hi."""
     hh = h * h
-    for j in range(coef.shape[1]):
+    for j in range(lo, hi):
         f0 = ed[b, R_F, j]
         d0 = h * ed[b, R_DF, j]
         e0 = 0.5 * hh * ed[b, R_DDF, j]
@@ -471,6 +474,12 @@ def _quintic_coefficients(ed, b, c, h, coef):
         coef[3, j] = 10.0 * (f1 - f0) - 6.0 * d0 - 4.0 * d1 - 3.0 * e0 + e1
         coef[4, j] = 15.0 * (f0 - f1) + 8.0 * d0 + 7.0 * d1 + 3.0 * e0 - 2.0 * e1
         coef[5, j] = 6.0 * (f1 - f0) - 3.0 * d0 - 3.0 * d1 - e0 + e1
+
+
+#: Samples of one step evaluated together (:func:`rkn_run`): the force quintics are evaluated one
+#: contact at a time over a step's samples (~20 of them at the default 100 ns on the paper's
+#: chains), a loop LLVM vectorises, where a loop over the few contacts a pulse loads is not.
+SAMPLE_BLOCK = 32
 
 
 #: Slots of the run's accumulator ``acc`` (see :func:`rkn_run`).
@@ -496,8 +505,11 @@ def rkn_run(state, scratch, chain, probes, control, k_start, k_stop, acc):
     the quintic Hermite through its value and first and second time derivatives at the step's
     ends (:func:`quintic`); where a contact opens or closes inside the step (listed in ``cross``)
     (or is within one step of doing so) the force is not smooth, and it is kappa delta^(3/2) of the
-    quintic of its overlap instead (the overlap is smooth there). Forces go into ``fi`` (never below zero: a Hertz contact does
-    not pull; their running maxima into ``fmax``), the contacts ``rec`` into row k of ``out_f``;
+    quintic of its overlap instead (the overlap is smooth there). The samples of a step are taken
+    together, up to SAMPLE_BLOCK at a time, each force quintic over them in one vectorised loop
+    (every sample's value is the one a sample alone gives, bit for bit). Forces go into ``fi``
+    (never below zero: a Hertz contact does not pull; their running maxima into ``fmax``), the
+    contacts ``rec`` into row k of ``out_f``;
     the energies (cubic Hermite, :func:`hermite`) into ``out_ke``, ``out_pe``; velocities (cubic)
     and positions (quintic) of bodies 0..N when asked. ``peak`` = [largest wall force, its time]:
     from the quintic of the wall contact's overlap on every step where it turns down
@@ -505,7 +517,7 @@ def rkn_run(state, scratch, chain, probes, control, k_start, k_stop, acc):
     step, largest step]. Returns 0, or 1 when the state became non-finite.
     """
     u, v, a, g, sq, ed, ends = state
-    up, vp, ap, fi, cross, coef, sx, sw, st, sc = scratch
+    up, vp, ap, fi, th, cross, coef, sx, sw, st, sc = scratch
     mass, inv_mass, kappa, _, d0, fext, wall_slot = chain
     rec, out_f, out_ke, out_pe, _, out_v, record_v, out_u, record_u, fmax, peak = probes
     interval, h_fixed, eps, h_max = control
@@ -523,7 +535,9 @@ def rkn_run(state, scratch, chain, probes, control, k_start, k_stop, acc):
     # exactly), and samples evaluate this range only (a pulse loads a stretch of the chain: most
     # of a long chain is open or at rest); a range, not a list, keeps the loops vectorised
     lo, hi = 0, nc
-    for k in range(k_start, k_stop):
+    sb = fi.shape[1]
+    k = k_start
+    while k < k_stop:
         tk = k * interval
         while t < tk:
             if record_v or record_u:
@@ -549,13 +563,10 @@ def rkn_run(state, scratch, chain, probes, control, k_start, k_stop, acc):
             ncross = -1
             acc[A_HMIN] = h if h < acc[A_HMIN] else acc[A_HMIN]
             acc[A_HMAX] = h if h > acc[A_HMAX] else acc[A_HMAX]
-        # --- probes at tk, between the steps' ends tp < tk <= t
+        # --- probes at samples k..kb-1 (at most sb of them), all between the steps' ends tp < tk <= t
         c = steps % 2
         b = 1 - c
         if ncross < 0:
-            # the step's quintic of every contact's force in powers of theta (evaluated by Horner
-            # at each sample: fewer operations than the six weights)
-            _quintic_coefficients(ed, b, c, hl, coef)
             # contacts whose force is not smooth over the step: open at one end, or closer to
             # opening (or to their closing) than one step at either end, where the Taylor terms
             # of the force (whose second derivative grows as delta^(-1/2)) do not hold
@@ -567,49 +578,61 @@ def rkn_run(state, scratch, chain, probes, control, k_start, k_stop, acc):
                 if ca or cb:
                     lo = j if j < lo else lo
                     hi = j + 1
-                else:
-                    fi[j] = 0.0
                 if ca != cb or (ca and da < abs(ed[b, R_R, j]) * hl) or (cb and db < abs(ed[c, R_R, j]) * hl):
                     cross[ncross] = j
                     ncross += 1
-        theta = (tk - tp) / hl
-        if ncross == 0:
-            for j in range(lo, hi):
-                f = coef[0, j] + theta * (coef[1, j] + theta * (coef[2, j] + theta * (
-                    coef[3, j] + theta * (coef[4, j] + theta * coef[5, j]))))
-                f = f if f > 0.0 else 0.0
-                fi[j] = f
-                fmax[j] = f if f > fmax[j] else fmax[j]
-        else:
-            for j in range(lo, hi):
-                f = coef[0, j] + theta * (coef[1, j] + theta * (coef[2, j] + theta * (
-                    coef[3, j] + theta * (coef[4, j] + theta * coef[5, j]))))
-                fi[j] = f if f > 0.0 else 0.0
-            q0, q0d, q0dd, q1, q1d, q1dd = quintic(theta, hl)
-            for m in range(ncross):
-                j = cross[m]
-                d = (q0 * ed[b, R_D, j] + q0d * ed[b, R_R, j] + q0dd * ed[b, R_Q, j] + q1 * ed[c, R_D, j]
-                     + q1d * ed[c, R_R, j] + q1dd * ed[c, R_Q, j])
-                fi[j] = kappa[j] * d * np.sqrt(d) if d > DELTA_MIN else 0.0
-            for j in range(lo, hi):
-                f = fi[j]
-                fmax[j] = f if f > fmax[j] else fmax[j]
-        for r in range(nrec):
-            out_f[k, r] = fi[rec[r]]
-        w0, w0d, w1, w1d = hermite(theta, hl)
-        ke = w0 * ends[b, E_KE] + w0d * ends[b, E_DKE] + w1 * ends[c, E_KE] + w1d * ends[c, E_DKE]
-        out_ke[k] = ke
-        out_pe[k] = w0 * ends[b, E_PE] + w0d * ends[b, E_DPE] + w1 * ends[c, E_PE] + w1d * ends[c, E_DPE]
-        if record_v:
-            for i in range(out_v.shape[1]):
-                out_v[k, i] = w0 * vp[i] + w0d * ap[i] + w1 * v[i] + w1d * a[i]
-        if record_u:
-            q0, q0d, q0dd, q1, q1d, q1dd = quintic(theta, hl)
-            for i in range(out_u.shape[1]):
-                out_u[k, i] = q0 * up[i] + q0d * vp[i] + q0dd * ap[i] + q1 * u[i] + q1d * v[i] + q1dd * a[i]
-        if not np.isfinite(ke) or not np.isfinite(g[1]):
-            acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS] = t, tp, hl, steps
-            return 1
+            # the step's quintic of every loaded contact's force in powers of theta (evaluated by
+            # Horner at each sample: fewer operations than the six weights)
+            _quintic_coefficients(ed, b, c, hl, coef, lo, hi)
+        kb = k + 1
+        while kb < k_stop and kb - k < sb and kb * interval <= t:
+            kb += 1
+        nb = kb - k
+        for m in range(nb):
+            th[m] = ((k + m) * interval - tp) / hl
+        # the force quintics at the samples, one contact at a time, vectorised over the samples
+        # (a pulse loads a few contacts at once: a loop over them is too short to vectorise); fi[j, m]
+        # is contact j at sample k + m for lo <= j < hi, the contacts loaded at either end
+        for j in range(lo, hi):
+            c0, c1, c2, c3, c4, c5 = coef[0, j], coef[1, j], coef[2, j], coef[3, j], coef[4, j], coef[5, j]
+            for m in range(nb):
+                x = th[m]
+                f = c0 + x * (c1 + x * (c2 + x * (c3 + x * (c4 + x * c5))))
+                fi[j, m] = f if f > 0.0 else 0.0
+        if ncross > 0:
+            for m in range(nb):
+                q0, q0d, q0dd, q1, q1d, q1dd = quintic(th[m], hl)
+                for r in range(ncross):
+                    j = cross[r]
+                    d = (q0 * ed[b, R_D, j] + q0d * ed[b, R_R, j] + q0dd * ed[b, R_Q, j] + q1 * ed[c, R_D, j]
+                         + q1d * ed[c, R_R, j] + q1dd * ed[c, R_Q, j])
+                    fi[j, m] = kappa[j] * d * np.sqrt(d) if d > DELTA_MIN else 0.0
+        for j in range(lo, hi):
+            fm = fmax[j]
+            for m in range(nb):
+                f = fi[j, m]
+                fm = f if f > fm else fm
+            fmax[j] = fm
+        for m in range(nb):
+            kk = k + m
+            for r in range(nrec):
+                j = rec[r]
+                out_f[kk, r] = fi[j, m] if lo <= j < hi else 0.0
+            w0, w0d, w1, w1d = hermite(th[m], hl)
+            ke = w0 * ends[b, E_KE] + w0d * ends[b, E_DKE] + w1 * ends[c, E_KE] + w1d * ends[c, E_DKE]
+            out_ke[kk] = ke
+            out_pe[kk] = w0 * ends[b, E_PE] + w0d * ends[b, E_DPE] + w1 * ends[c, E_PE] + w1d * ends[c, E_DPE]
+            if record_v:
+                for i in range(out_v.shape[1]):
+                    out_v[kk, i] = w0 * vp[i] + w0d * ap[i] + w1 * v[i] + w1d * a[i]
+            if record_u:
+                q0, q0d, q0dd, q1, q1d, q1dd = quintic(th[m], hl)
+                for i in range(out_u.shape[1]):
+                    out_u[kk, i] = q0 * up[i] + q0d * vp[i] + q0dd * ap[i] + q1 * u[i] + q1d * v[i] + q1dd * a[i]
+            if not np.isfinite(ke) or not np.isfinite(g[1]):
+                acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS] = t, tp, hl, steps
+                return 1
+        k = kb
     acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS] = t, tp, hl, steps
     return 0
 
