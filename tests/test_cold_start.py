@@ -40,7 +40,10 @@ def test_calibrated_chain1_compiles_only_the_engine_it_runs():
     assert seen["integrator"] == "rkn4"
     assert 0.95 < seen["e"] < 0.97  # the size-scaled dashpot: a steel-like bounce (docs: e ~ 0.96 at 0.2 m/s)
     engine = [m for m in seen["modules"] if m.startswith("hertzchain.")]
-    assert engine == ["hertzchain.integrate.drivers.rkn_damped_kernels"]
+    # the damped engine, and (typed only where it compiles, not when it loads from the cache) the
+    # interpolation helpers of rkn_kernels it calls: no Verlet kernel, cold or warm
+    assert engine in (["hertzchain.integrate.drivers.rkn_damped_kernels"],
+                      ["hertzchain.integrate.drivers.rkn_damped_kernels", "hertzchain.integrate.drivers.rkn_kernels"])
 
 
 def test_calibration_on_rkn4_matches_the_verlet():
