@@ -4,7 +4,7 @@ Usage::
 
     python benchmarks/long_chain.py [--json PATH] [--quick] [--threads T]
     python benchmarks/long_chain.py --laws [--json PATH] [--threads T] [--beads N]
-    python benchmarks/long_chain.py --defaults [--json PATH] [--threads T] [--beads N]
+    python benchmarks/long_chain.py --defaults [--json PATH] [--threads T] [--beads N] [--law NAME]
 
 Uniform chains of 26 mm AISI 52100 beads (1e4, 1e5 and, without ``--quick``, 1e6), the paper's
 striker at 0.5 m/s, flat wall, the automatic (adaptive) step, probes of the striker and wall
@@ -23,14 +23,18 @@ Hunt-Crossley) on one chain of ``--beads`` beads (default 1e5), the striker at 0
 for the elastic-plastic law, whose contacts then yield), saved to
 ``results/long_chain_laws.json``. Each row checks the forces and steps bit for bit. Runs of
 >= 2 s (several compiled calls of ~0.2-0.4 s), so that the run's own fallback to one thread on
-shared cores (``threaded._Pace``) can act: each row records how many calls ran on how many
+shared cores (``threaded.Pace``) can act: each row records how many calls ran on how many
 threads, and the CPU time of the threaded loop on one block against the one-thread loop (the
 per-thread cost, little changed by other work on the cores).
 
 ``--defaults``: what a user gets without options. For every law of ``--laws``, the default call
 ``hc.simulate(model, DEFAULTS_DURATION)`` (integrator and threads "auto") against the Verlet on one
-thread and on T threads, alternated, best of 3, with the default probes; the integrator auto chose
-and the ratios in one run, saved to ``results/long_chain_defaults.json``.
+thread and on T threads, and the default integrator on T threads against one (``threads=T`` and
+``threads=1``: ``rkn4``'s threads, :mod:`hertzchain.integrate.drivers.rkn_threaded`, on aligned elastic
+chains; the Verlet's for the laws rkn4 runs on one thread), alternated, best of 3, with the default
+probes; the integrator auto chose, the ratios in one run, the threaded calls' count on 1 and T
+threads (the fallback on shared cores) and the forces' difference from one thread, saved to
+``results/long_chain_defaults.json``. ``--law NAME`` (repeatable) runs only those laws.
 """
 
 from __future__ import annotations
@@ -126,6 +130,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--laws", action="store_true", help="every built-in contact law on one chain (--beads)")
     ap.add_argument("--beads", type=int, default=100_000, help="beads of the --laws / --defaults chain")
     ap.add_argument("--defaults", action="store_true", help="the default call against the Verlet on 1 and T threads")
+    ap.add_argument("--law", action="append", help="--defaults: only this law (repeatable; default: every law)")
     args = ap.parse_args(argv)
     quiet()
     if args.laws:
@@ -169,14 +174,14 @@ def main_laws(args) -> dict:
     from hertzchain.integrate.drivers import threaded
 
     calls: list[int] = []
-    record = threaded._Pace.record
+    record = threaded.Pace.record
 
     def spy(self, n, *rest):  # the thread count of every compiled call of a run asked for several
         if self.threads > 1:
             calls.append(n)
         record(self, n, *rest)
 
-    threaded._Pace.record = spy
+    threaded.Pace.record = spy
     rows = []
     for name, model in law_models(args.beads).items():
         calls.clear()
@@ -214,35 +219,77 @@ def main_defaults(args) -> dict:
     info = machine_info()
     print(f"one chain of {args.beads:,} beads, the default call against the Verlet on 1 and {args.threads} threads "
           f"— {info['cpu_model']}, {info['usable_cores']} usable cores, load {info['load_average_at_start']}")
+    many = f"default, {args.threads} threads"
     calls = {"default": {}, "verlet, 1 thread": {"integrator": "verlet", "threads": 1},
-             f"verlet, {args.threads} threads": {"integrator": "verlet", "threads": args.threads}}
+             f"verlet, {args.threads} threads": {"integrator": "verlet", "threads": args.threads},
+             "default, 1 thread": {"threads": 1}, many: {"threads": args.threads}}
+    from hertzchain.integrate.drivers import threaded
+
+    paced: list[int] = []
+    record = threaded.Pace.record
+
+    def spy(self, n, *rest):  # the thread count of every compiled call of a run asked for several
+        if self.threads > 1:
+            paced.append(n)
+        record(self, n, *rest)
+
+    threaded.Pace.record = spy
     rows = []
     for name, model in law_models(args.beads).items():
+        if args.law and name not in args.law:
+            continue
         for kw in calls.values():
             hc.simulate(model, 2 * SAMPLE, **kw)  # compile
         best = dict.fromkeys(calls, np.inf)
         attrs = {}
         load = [os.getloadavg()[0]]
+        forces = {}
+        calls_by_threads: dict[str, int] = {}
         for _ in range(3):
             for label, kw in calls.items():
+                paced.clear()
                 t0 = time.perf_counter()
                 ds = hc.simulate(model, DEFAULTS_DURATION, **kw)
                 best[label] = min(best[label], time.perf_counter() - t0)
                 attrs[label] = (ds.attrs.get("integrator_used"), int(ds.attrs.get("threads_used", 1)))
+                forces[label] = ds.contact_force.values
+                if label == many:
+                    for n in paced:
+                        calls_by_threads[str(n)] = calls_by_threads.get(str(n), 0) + 1
         load.append(os.getloadavg()[0])
+        one, two = forces["default, 1 thread"], forces[many]
         row = {"law": name, "seconds": best, "engines": attrs, "load_average_1min": load,
                "default_over_verlet_threads": best[list(calls)[2]] / best["default"],
-               "default_over_verlet_1": best["verlet, 1 thread"] / best["default"]}
+               "default_over_verlet_1": best["verlet, 1 thread"] / best["default"],
+               # the default integrator on T threads against one (rkn4's threads: aligned elastic
+               # chains; for the other laws "auto" with T threads takes the Verlet), the calls its
+               # runs made on 1 and T threads (the fallback on shared cores), its forces' largest
+               # difference from one thread's relative to the largest force
+               "default_threads_speedup": best["default, 1 thread"] / best[many],
+               "default_threads_calls_by_threads": calls_by_threads,
+               "default_threads_force_rel_diff": float(np.abs(one - two).max() / max(np.abs(one).max(), 1e-300))}
         rows.append(row)
         print(f"  {name}: default {best['default']:.3f} s ({attrs['default'][0]}, {attrs['default'][1]} thread(s)); "
               f"verlet 1 thread {best['verlet, 1 thread']:.3f} s; verlet {args.threads} threads "
-              f"{best[list(calls)[2]]:.3f} s (load {load[-1]:.1f})", flush=True)
+              f"{best[list(calls)[2]]:.3f} s; default on {args.threads} threads "
+              f"({attrs[many][0]}) {row['default_threads_speedup']:.2f}x one (load {load[-1]:.1f})", flush=True)
     res = {"benchmark": "long_chain_defaults", "machine": info, "n_beads": args.beads, "duration_s": DEFAULTS_DURATION,
-           "rows": rows, "load_average_at_end": list(os.getloadavg())}
-    print(table([(r["law"], r["engines"]["default"][0], f"{r['seconds']['default']:.3f}",
-                  f"{r['default_over_verlet_1']:.2f}", f"{r['default_over_verlet_threads']:.2f}") for r in rows],
-                ("law", "default engine", "default [s]", "verlet 1 thread / default",
-                 f"verlet {args.threads} threads / default")))
+           "rows": rows, "load_average_at_end": list(os.getloadavg()),
+           "clean": bool(max(max(r["load_average_1min"]) for r in rows) < 0.5),
+           "targets": {"default_threads_speedup_on_2_idle_cores": TARGET_SPEEDUP,
+                       "met": bool(all(r["default_threads_speedup"] >= TARGET_SPEEDUP for r in rows)
+                                   and args.threads == 2)}}
+    print(table([(r["law"], r["engines"]["default"][0], f"{r['engines']['default'][1]}", f"{r['seconds']['default']:.3f}",
+                  f"{r['default_over_verlet_1']:.2f}", f"{r['default_over_verlet_threads']:.2f}",
+                  f"{r['engines'][many][0]}", f"{r['default_threads_speedup']:.2f}",
+                  " ".join(f"{k}:{v}" for k, v in r["default_threads_calls_by_threads"].items()),
+                  f"{r['default_threads_force_rel_diff']:.1e}") for r in rows],
+                ("law", "default engine", "threads", "default [s]", "verlet 1 thread / default",
+                 f"verlet {args.threads} threads / default", f"{args.threads}-thread engine",
+                 f"default {args.threads} threads / 1", "calls on n threads", "force diff")))
+    if not res["clean"]:
+        print(f"load average up to {max(max(r['load_average_1min']) for r in rows):.1f}: the cores were shared, not a "
+              f"clean measurement of the threads (target: >= {TARGET_SPEEDUP}x on 2 idle cores)")
     save_json(res, json_path)
     print(f"saved {json_path}")
     return res

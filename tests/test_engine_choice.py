@@ -48,7 +48,10 @@ def test_auto_keeps_the_verlet_where_its_settings_are_given():
     s = ELASTIC.system()
     assert choose_engine(s, steps_per_radian=800.0, cores=2, load=0.0).integrator == "verlet"
     assert choose_engine(s, dt=1e-8, cores=2, load=0.0).integrator == "verlet"
-    assert choose_engine(s, threads=2, cores=2, load=0.0).integrator == "verlet"
+    # several threads: rkn4 where its threads run the model (aligned elastic), else the Verlet
+    assert choose_engine(s, threads=2, cores=2, load=0.0).integrator == "rkn4"
+    dashpot = MODEL_KINDS["dashpot"][0].system()
+    assert choose_engine(dashpot, threads=2, cores=2, load=0.0).integrator == "verlet"
 
 
 def test_explicit_values_are_kept_and_checked():
@@ -84,7 +87,9 @@ def test_auto_threads_only_for_long_chains_with_free_cores():
     assert choose_engine(long_chain, "verlet", cores=1, load=0.0).threads == 1
     # too short, not the Verlet, or a model the threaded engine does not run: one thread
     assert choose_engine(short, "verlet", cores=16, load=0.0).threads == 1
-    assert choose_engine(long_chain, cores=16, load=0.0).threads == 1  # auto picks rkn4: one thread
+    # auto picks rkn4, whose threads run aligned elastic chains (hertzchain.integrate.drivers.rkn_threaded)
+    auto = choose_engine(long_chain, cores=16, load=0.0)
+    assert (auto.integrator, auto.threads) == ("rkn4", 4)
     # every contact law and offsets: the Verlet's threaded engine runs them (auto picks rkn4, on
     # one thread, for the hand-written laws but the elastic-plastic one)
     chain = hc.Chain.uniform(4 * BEADS_PER_THREAD, 5e-3)

@@ -72,7 +72,7 @@ def test_simulate_threads_option():
     model = hc.Model(hc.Chain.uniform(3000, 20e-3), hc.Striker(8e-3, 0.3))
     probes = hc.Probes(contacts=(0, 1000, 2000))
     one = hc.simulate(model, 3e-5, probes, integrator="verlet")
-    two = hc.simulate(model, 3e-5, probes, threads=2)
+    two = hc.simulate(model, 3e-5, probes, integrator="verlet", threads=2)
     assert np.array_equal(one.contact_force.values, two.contact_force.values)
     assert one.attrs["n_steps"] == two.attrs["n_steps"]
     e1, e2 = one.kinetic_energy.values, two.kinetic_energy.values
@@ -87,8 +87,10 @@ def test_refusals():
     with pytest.raises(hc.ConfigError, match="run.threads"):
         threaded.run_verlet_threaded(body.system(), 1e-4, 1e-6, 2)
     elastic = hc.Model(hc.Chain.uniform(5, 10e-3), hc.Striker(8e-3, 0.2))
+    with pytest.raises(hc.ConfigError, match="run.threads"):  # rkn4's threads: aligned elastic chains
+        hc.simulate(hc.Model(elastic.chain, elastic.striker, law=hc.Dashpot(20.0)), 1e-4, integrator="rkn4", threads=2)
     with pytest.raises(hc.ConfigError, match="run.threads"):
-        hc.simulate(elastic, 1e-4, integrator="rkn4", threads=2)
+        hc.simulate(elastic, 1e-4, integrator="dop853", threads=2)
     with pytest.raises(hc.ConfigError, match="run.threads"):
         hc.simulate(elastic, 1e-4, threads=0)
 

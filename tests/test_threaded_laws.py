@@ -135,7 +135,7 @@ def test_mass_in_mass_beads_are_refused_naming_the_field():
 
 @pytest.mark.parametrize("name", ["elastic", "hunt_crossley"])
 def test_a_run_that_changes_its_thread_count_is_the_one_thread_run(name, monkeypatch):
-    """The fallback to one thread on shared cores (``threaded._Pace``), forced to switch between 3
+    """The fallback to one thread on shared cores (``threaded.Pace``), forced to switch between 3
     threads and 1 from chunk to chunk: forces and steps are still those of one thread bit for bit,
     the blocks' dissipated energy carried across the switches."""
     monkeypatch.setattr(threaded, "MIN_SLOTS_PER_THREAD", 8)
@@ -146,13 +146,13 @@ def test_a_run_that_changes_its_thread_count_is_the_one_thread_run(name, monkeyp
         counts.append(3 if self.chunk % 3 else 1)
         return counts[-1]
 
-    monkeypatch.setattr(threaded._Pace, "next", alternate)
+    monkeypatch.setattr(threaded.Pace, "next", alternate)
     _compare(_model(name, offsets=False))
     assert {1, 3} <= set(counts) and len(counts) > 10
 
 
 def test_the_pace_keeps_the_threads_unless_they_were_descheduled():
-    pace = threaded._Pace(2)
+    pace = threaded.Pace(2)
     assert pace.next() == 2
     pace.record(2, 1e9, 1.0, 0.99)  # not descheduled: the threads stay
     assert [pace.next() for _ in range(3)] == [2, 2, 2]
@@ -163,4 +163,4 @@ def test_the_pace_keeps_the_threads_unless_they_were_descheduled():
     for _ in range(threaded.PROBE_EVERY):
         pace.record(1, 2e9, 1.0, 1.0)
     assert pace.next() == 2  # ... and the threads are timed again later
-    assert threaded._Pace(1).next() == 1
+    assert threaded.Pace(1).next() == 1

@@ -15,10 +15,11 @@ tests/test_engine_choice.py):
   for one with state (Hunt-Crossley). The elastic-plastic law runs on ``rkn4`` when asked for, and
   ``auto`` takes it for a two-body collision only: on chains its event landing is not yet fast enough.
   Otherwise, or when the call sets the Verlet's own accuracy (``steps_per_radian``), a fixed
-  step ``dt`` or several threads, the compiled velocity ``"verlet"`` (peak wall force within ~1e-6).
-* threads: more than one only where the threaded engine runs the model (the Verlet on a chain of
+  step ``dt`` or several threads that ``rkn4`` does not run, the compiled velocity ``"verlet"`` (peak wall force within ~1e-6).
+* threads: more than one only where a threaded engine runs the model (the Verlet on a chain of
   beads, every contact law, offsets too; not a protected body nor mass-in-mass beads,
-  :mod:`hertzchain.integrate.drivers.threaded`), the chain is long enough for a per-step barrier to pay
+  :mod:`hertzchain.integrate.drivers.threaded`; ``rkn4`` on an aligned elastic chain,
+  :mod:`hertzchain.integrate.drivers.rkn_threaded`; its other paths run one thread), the chain is long enough for a per-step barrier to pay
   (:data:`AUTO_THREADS_MIN_BEADS` beads, :data:`BEADS_PER_THREAD` per thread) and cores are free:
   the cores this process may run on (``os.sched_getaffinity``) less the one-minute load average
   beyond this process's own (a barrier that waits for a scheduler slice makes a shared core
@@ -36,7 +37,7 @@ from .errors import ConfigError
 # the refusals' checks: plain Python, no compiled kernel imported
 from .integrate.drivers.refusals import INTEGRATORS as NAMED, refuse, why_not
 
-__all__ = ["EngineChoice", "choose_engine", "free_cores", "INTEGRATORS",
+__all__ = ["EngineChoice", "choose_engine", "free_cores", "rkn4_threads_refusal", "INTEGRATORS",
            "AUTO_THREADS_MIN_BEADS", "BEADS_PER_THREAD"]
 
 #: Values of ``run.integrator``: "auto" and the integrators it picks from.
@@ -87,11 +88,42 @@ def free_cores() -> tuple[int, float]:
     return max(1, cores), load
 
 
+def rkn4_threads_refusal(system) -> str | None:
+    """Why ``rkn4`` runs ``system`` on one thread only (None: it splits it,
+    :mod:`hertzchain.integrate.drivers.rkn_threaded`): its threads run aligned elastic chains (the
+    power law at n = 3/2 too, the elastic law it is), not its dissipative, offset or law paths.
+
+    Parameters
+    ----------
+    system : hertzchain.model.System
+        The model's arrays.
+
+    Returns
+    -------
+    str or None
+        What the model has that the threaded ``rkn4`` does not run, in a few words.
+    """
+    from .laws import hertz_equivalent, law_of_code
+
+    spec = law_of_code(system.law)
+    if system.extended:
+        return "a protected body or mass-in-mass beads"
+    if system.misaligned:
+        return "beads offset from the axis"
+    if not hertz_equivalent(system) and (spec.generated or spec.dissipative or spec.plastic):
+        return "a contact law other than the elastic one"
+    return None
+
+
 def _auto_threads(system, integrator: str, cores: int, load: float) -> tuple[int, str]:
     """``threads = "auto"`` (module docstring): the count and why."""
     n = system.n_beads
-    if integrator != "verlet":
-        return 1, "the threaded engine runs the Verlet"
+    if integrator == "rkn4":
+        refusal = rkn4_threads_refusal(system)
+        if refusal is not None:
+            return 1, f"the threaded rkn4 runs aligned elastic chains, not {refusal}"
+    elif integrator != "verlet":
+        return 1, "the threaded engines run the Verlet and rkn4"
     if system.extended:
         return 1, "the threaded engine runs no protected body or mass-in-mass beads"
     if n < AUTO_THREADS_MIN_BEADS:
@@ -161,8 +193,8 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
             integrator, why = "verlet", "verlet: its steps_per_radian is set"
         elif dt is not None:
             integrator, why = "verlet", "verlet: a fixed dt is set"
-        elif isinstance(threads, int) and threads > 1:
-            integrator, why = "verlet", "verlet: several threads asked for"
+        elif isinstance(threads, int) and threads > 1 and rkn4_threads_refusal(system) is not None:
+            integrator, why = "verlet", "verlet: several threads asked for (rkn4 runs them on aligned elastic chains)"
         else:
             from .laws import law_of_code
 
@@ -178,8 +210,12 @@ def choose_engine(system, integrator: str = "auto", threads: int | str = "auto",
             load = machine_load if load is None else load
         threads, twhy = _auto_threads(system, integrator, cores, load)
     else:
-        if threads > 1 and integrator != "verlet":
-            raise ConfigError("run.threads", f"several threads run the integrator 'verlet', not {integrator!r}")
+        if threads > 1 and integrator == "rkn4" and rkn4_threads_refusal(system) is not None:
+            raise ConfigError("run.threads", f"several threads run the integrator 'rkn4' on aligned elastic chains, "
+                              f"not on {rkn4_threads_refusal(system)}; use integrator 'verlet' (every law) or "
+                              "run.threads = 1 or 'auto'")
+        if threads > 1 and integrator not in ("verlet", "rkn4"):
+            raise ConfigError("run.threads", f"several threads run the integrators 'verlet' and 'rkn4', not {integrator!r}")
         if threads > 1 and system.extended:
             what = "a protected body (wall.type = 'body')" if system.body else "mass-in-mass beads (chain.elements)"
             raise ConfigError("run.threads", f"several threads run chains of beads (every contact law, offsets too), "

@@ -277,10 +277,10 @@ class RunSection(_Section):
         """``steps_per_radian`` where the config sets it, else None (integrator 'auto' may pick 'rkn4')."""
         return self.steps_per_radian if "steps_per_radian" in self.model_fields_set else None
     threads: int | Literal["auto"] = Field(
-        default="auto", description="'auto' (several only for a long chain on the Verlet with cores free; "
-                                    "hertzchain.engine_choice), or threads sharing one long chain (Verlet, every "
-                                    "contact law, offsets too, no protected body or mass-in-mass beads; pays from "
-                                    "~1e4 beads)")
+        default="auto", description="'auto' (several only for a long chain on the Verlet, or on rkn4 with the "
+                                    "elastic law, with cores free; hertzchain.engine_choice), or threads sharing one "
+                                    "long chain (Verlet: every contact law, offsets too, no protected body or "
+                                    "mass-in-mass beads; rkn4: aligned elastic chains; pays from ~1e4 beads)")
 
     @field_validator("threads", mode="before")
     @classmethod

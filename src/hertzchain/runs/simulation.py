@@ -205,7 +205,7 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
     engine, threads = choice.integrator, choice.threads
     check_before_run(model, system, duration, probes, dt=dt, integrator=engine)  # before any allocation
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
-    if threads > 1:
+    if threads > 1 and engine == "verlet":
         from ..integrate.drivers.threaded import run_verlet_threaded
 
         raw = run_verlet_threaded(system, duration, probes.sample_interval, threads, dt=dt,
@@ -222,7 +222,7 @@ def simulate(model: Model, duration: float | str = "auto", probes: Probes | None
 
         rtol = RKN_RTOL if rtol is None else rtol
         raw = run_rkn(system, duration, probes.sample_interval, dt=dt, rtol=rtol, record_velocities=probes.velocities,
-                      contacts=rec, progress=progress, record_positions=probes.positions)
+                      contacts=rec, progress=progress, record_positions=probes.positions, threads=threads)
     else:
         rtol = SCIPY_RTOL if rtol is None else rtol
         from ..integrate.drivers.reference import run_reference  # scipy.integrate: loaded only for these

@@ -55,7 +55,7 @@ def check_rkn(system: System) -> None:
 def run_rkn(system: System, duration: float, sample_interval: float, dt: float | None = None,
             rtol: float = RKN_RTOL, record_velocities: bool = False, contacts: np.ndarray | None = None,
             progress: Callable[[int, int], None] | None = None, chunk_steps: int = 200_000,
-            record_positions: bool = False) -> RawRun:
+            record_positions: bool = False, threads: int = 1) -> RawRun:
     """Integrate ``system`` for ``duration`` [s] with the fourth-order composition (module docstring).
 
     Parameters
@@ -79,6 +79,9 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
         ``progress(done, total)`` in samples, between chunks of about ``chunk_steps`` steps.
     chunk_steps : int
         Steps per compiled call (about).
+    threads : int
+        Threads sharing an aligned elastic chain (:mod:`hertzchain.integrate.drivers.rkn_threaded`:
+        the same numbers but for the energies' rounding); the other paths run on one.
 
     Returns
     -------
@@ -155,12 +158,17 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
     probes = rk.ProbeBuffers(rec, out_f, out_ke, out_pe, out_ke, out_v, bool(record_velocities), out_u,
                              bool(record_positions), fmax, peak)
     control = rk.StepControl(float(sample_interval), 0.0 if dt is None else float(dt), float(eps), float(duration))
+    advance: Callable[..., int] = rk.rkn_run
+    if threads > 1:
+        from .rkn_threaded import threaded_advance
+
+        advance = threaded_advance(threads, p, rec, ends)
     if progress is not None:
         progress(0, n_samples - 1)
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + per_call)
-        status = rk.rkn_run(state, scratch, chain, probes, control, k, k_stop, acc)
+        status = advance(state, scratch, chain, probes, control, k, k_stop, acc)
         if status != 0:
             raise SimulationDiverged(f"the integration diverged (non-finite state) before t = "
                                      f"{k_stop * sample_interval:.4g} s with integrator 'rkn4'; "

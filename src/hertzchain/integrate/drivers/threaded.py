@@ -24,7 +24,7 @@ split pays from ~1e4 beads (benchmarks/long_chain.py measures the speed-up at 1e
 
 Shared cores: a barrier spins a bounded number of times, then yields its core (:mod:`barrier`),
 but a descheduled thread still holds the others at the next barrier until its next time slice.
-The run watches for it (:class:`_Pace`): when a thread got less than CONTENDED of a chunk's
+The run watches for it (:class:`Pace`): when a thread got less than CONTENDED of a chunk's
 wall time as CPU time, the next chunk runs on one thread (the same thread function over one block:
 the same forces bit for bit), and the faster of the two keeps running, the slower timed again
 every PROBE_EVERY chunks. Only the block sums (energies, dissipated energy, plastic work) depend on
@@ -55,14 +55,14 @@ from .thread_blocks import (ThreadTeam, agree_steps, column_sum, end_sample, kep
 from .threaded_laws import law_thread_run
 from .verlet import RawRun, _dt_used, initialise_run, new_probes, raw_run, step_plan
 
-__all__ = ["run_verlet_threaded", "split", "MIN_SLOTS_PER_THREAD", "CHUNK_BEAD_STEPS", "CONTENDED", "PROBE_EVERY"]
+__all__ = ["run_verlet_threaded", "split", "Pace", "MIN_SLOTS_PER_THREAD", "CHUNK_BEAD_STEPS", "CONTENDED", "PROBE_EVERY"]
 
 #: A thread gets at least this many slots (fewer threads for shorter chains).
 MIN_SLOTS_PER_THREAD = 512
 #: Work (slots x steps) per compiled call between two progress reports (~0.2 s on one core).
 CHUNK_BEAD_STEPS = 3e8
 #: Threads one of which ran less than this fraction of a chunk's wall time were descheduled
-#: (cores shared with other work): one thread is timed on a chunk (``_Pace``).
+#: (cores shared with other work): one thread is timed on a chunk (``Pace``).
 CONTENDED = 0.9
 #: ... at most once every this many chunks; a slower thread count is timed again as often.
 PROBE_EVERY = 16
@@ -252,7 +252,7 @@ class _Layout:
         self.edacc = np.zeros((n, 2))
 
 
-class _Pace:
+class Pace:
     """How many threads run the next compiled call (chunk): the threads asked for, unless one
     thread was timed faster.
 
@@ -369,7 +369,7 @@ def run_verlet_threaded(system: System, duration: float, sample_interval: float,
         return int(status[0]), float(cpu.min())
 
     call(nthr, 1, 1)  # compiles (no sample), so that the first chunk's pace is the run's
-    pace = _Pace(nthr)
+    pace = Pace(nthr)
     per_call = max(1, round(CHUNK_BEAD_STEPS * plan.dt / (p * sample_interval)))
     if progress is not None:
         progress(0, n_samples - 1)
