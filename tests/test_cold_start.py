@@ -14,6 +14,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[1]
 
 SCRIPT = """
@@ -38,7 +40,10 @@ def test_calibrated_chain1_compiles_only_the_engine_it_runs():
     assert seen["integrator"] == "rkn4"
     assert 0.95 < seen["e"] < 0.97  # the size-scaled dashpot: a steel-like bounce (docs: e ~ 0.96 at 0.2 m/s)
     engine = [m for m in seen["modules"] if m.startswith("hertzchain.")]
-    assert engine == ["hertzchain.integrate.drivers.rkn_damped_kernels"]
+    # the damped engine, and (typed only where it compiles, not when it loads from the cache) the
+    # interpolation helpers of rkn_kernels it calls: no Verlet kernel, cold or warm
+    assert engine in (["hertzchain.integrate.drivers.rkn_damped_kernels"],
+                      ["hertzchain.integrate.drivers.rkn_damped_kernels", "hertzchain.integrate.drivers.rkn_kernels"])
 
 
 def test_calibration_on_rkn4_matches_the_verlet():
@@ -186,3 +191,39 @@ def test_the_cache_key_follows_the_law_files_text(tmp_path):
     namespace: dict = {}
     exec("def typed(d):\n    return d\n", namespace)
     assert disk_cache.function_files_digest(namespace["typed"]) is None
+
+
+AHEAD = """
+import gc, json, warnings
+warnings.simplefilter("ignore")
+from numba.core.registry import CPUDispatcher
+from hertzchain.contact import Dashpot
+from hertzchain.paper import fidelity
+from hertzchain.paper.ahead import CompileAhead
+from hertzchain.paper.protocol import Settings
+settings = Settings()
+ahead = CompileAhead(settings, kinds=("lateral",))
+forked = ahead._proc is not None
+ahead.wait("lateral")
+ahead.close()
+fidelity.warm_lateral(settings, Dashpot(2.0))
+stats = {d.py_func.__qualname__: [sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values())]
+         for d in gc.get_objects() if isinstance(d, CPUDispatcher) and d.signatures
+         and d.py_func.__module__ == "hertzchain.integrate.drivers.lateral"}
+print(json.dumps({"forked": forked, "stats": stats}))
+"""
+
+
+def test_a_kind_compiled_ahead_is_loaded_not_compiled(tmp_path):
+    """reproduce's fork (paper/ahead.py) compiles a model kind into Numba's cache while the
+    reproduction runs others: in a fresh installation (an empty cache), once ``wait`` returns, the
+    kind's run in this process loads every kernel of its engine and compiles none."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path),
+           "PYTHONPATH": os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, "-c", AHEAD], capture_output=True, text=True, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    seen = json.loads(proc.stdout.strip().splitlines()[-1])
+    if not seen["forked"]:  # one usable core or no fork: nothing compiled ahead, by design
+        pytest.skip("no second core or no fork here")
+    assert seen["stats"]["lateral_run"] == [1, 0]
+    assert all(misses == 0 for _, misses in seen["stats"].values()), seen["stats"]

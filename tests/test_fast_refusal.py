@@ -50,6 +50,34 @@ def test_bad_config_is_refused_before_any_kernel_is_imported(tmp_path, override,
     assert not out.exists()
 
 
+@pytest.mark.parametrize("overrides, field", [
+    (("probes.sensors=[99]",), "probes.sensors[0]"),
+    (("probes.contacts=[31]",), "probes.contacts[0]"),
+    (("run.sample_interval=0.01",), "run.sample_interval"),
+    (("chain.precompression=1e9",), "chain.precompression"),
+    (("run.duration=50",), "run.duration"),  # 207 GiB of records
+    (("run.integrator=dop853", "run.threads=2"), "run.threads"),
+    (("track.friction=0.1", "run.threads=2"), "run.threads"),
+])
+def test_a_run_is_refused_before_its_law_is_calibrated(tmp_path, overrides, field):
+    """What the run refuses once the model is built (the probes against the chain, the engine the
+    options ask for, the static overlaps, the memory of the records, the lateral path's options)
+    is refused before the calibration of chain 1's law: its runs compile (or load) the law's
+    engine, ~8 CPU-s in a fresh installation. No compiled function is typed, from the cache or
+    not (the calibration's would be)."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")])}
+    out = tmp_path / "x.nc"
+    sets = [a for o in overrides for a in ("--set", o)]
+    proc = subprocess.run([sys.executable, "-c", SCRIPT, "run", str(REPO / "examples" / "chain1.toml"), *sets,
+                           "--out", str(out)], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+    seen = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert seen["rc"] == 2, proc.stderr
+    assert f"{field}:" in proc.stderr and "Traceback" not in proc.stderr
+    assert seen["compiled"] == []
+    assert "hertzchain.integrate.drivers.rkn_damped" not in seen["integrate"]  # the calibration's driver
+    assert not out.exists()
+
+
 def test_bad_value_in_a_config_file_is_refused_before_any_kernel_is_imported(tmp_path):
     """The same for a bad value written in the file (not an override): named with its file field."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")])}

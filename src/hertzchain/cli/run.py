@@ -24,7 +24,8 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
     parquet by the suffix of --out, as hertzchain export writes them)."""
     import warnings
 
-    from ..config import apply_instruments, build_instruments, build_model, build_probes, load_config, simulate_config
+    from ..config import (apply_instruments, build_instruments, build_model, build_probes, load_config, preflight_run,
+                          simulate_config)
     from ..errors import ConfigError, DurationWarning, ElasticLimitWarning, LongRunWarning
     from ..exporting import check_format, export
     from ..fileio import check_not_input, check_writable
@@ -44,12 +45,14 @@ def run(config: Path, out: Path, overrides: tuple[str, ...], quiet: bool, verbos
     # Before any work: a FIFO, a link or a device as --out, or a folder that cannot be written
     # (under a file, read-only, not ours), refused now rather than after the whole simulation.
     check_writable(out)
+    probes = build_probes(cfg)
+    build_instruments(cfg)  # fail on bad instrument settings before a long run
+    # a calibrated law's runs compile its engine (~8 CPU-s in a fresh installation): the run's checks
+    # come first, on the model with the law's parameter still 0
+    model = build_model(cfg, preflight=lambda provisional: preflight_run(cfg, provisional, probes))
     # xarray (~0.5 s to import) only once the config is valid: a bad one is refused at once
     from ..result import save
     from ..runs.simulation import auto_duration
-    model = build_model(cfg)
-    probes = build_probes(cfg)
-    build_instruments(cfg)  # fail on bad instrument settings before a long run
     # The pre-flight, before any work: memory refused past what is available, and a projected time
     # past a few minutes shown now (LongRunWarning), naming what to change (run.dt, run.duration).
     from ..checks import check_resources, estimate_resources, run_time_hint

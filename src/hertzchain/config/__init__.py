@@ -35,7 +35,7 @@ from __future__ import annotations
 # Every name below stays importable from hertzchain.config, where the rest of the package and
 # users import it; __all__ lists the documented API.
 from .build import (MAX_SCOPE_SAMPLES, apply_instruments, build_chain, build_instruments, build_model, build_probes,
-                    build_track, chain_of, chain_parts, run_config, simulate_config)
+                    build_track, chain_of, chain_parts, preflight_run, run_config, simulate_config)
 from .loading import apply_overrides, load_config, parse_path, read_toml, set_path
 from .schema import (BOUNDS, ChainConfig, ContactConfig, InstrumentChannel, InstrumentConfig, MaterialConfig,
                      ProbesConfig, RunConfig, RunSection, StrikerConfig, Substitution, TaperBlock, TrackConfig,

@@ -186,7 +186,7 @@ def _offsets_key(cfg: RunConfig) -> str:
     return "chain.offsets_fraction" if cfg.chain.offsets_fraction is not None else "chain.offsets_mm"
 
 
-def build_model(cfg: RunConfig, chain=None):
+def build_model(cfg: RunConfig, chain=None, preflight=None):
     """The :class:`~hertzchain.model.Model` of a config (calibrating the law when ``eps`` is given).
 
     Parameters
@@ -197,6 +197,11 @@ def build_model(cfg: RunConfig, chain=None):
     chain : Chain, optional
         The chain of ``cfg.chain`` when it was built already (:func:`chain_parts`: a design
         search builds it to check the geometry before it runs the candidate); else built here.
+    preflight : callable, optional
+        ``preflight(model)``, called before a calibration with the model whose law is not
+        calibrated yet (its parameter 0, the same law otherwise): the caller's checks of the run
+        (:func:`preflight_run`) refuse a bad config before the calibration, whose runs compile the
+        law's engine in a fresh installation (~8 CPU-s).
 
     Returns
     -------
@@ -228,22 +233,80 @@ def build_model(cfg: RunConfig, chain=None):
         assert cfg.chain.uniform is not None  # zero beads: chain.uniform.n = 0 (an empty list is refused)
         ref = Chain.uniform(1, cfg.chain.uniform.diameter_mm * 1e-3, cfg.chain.material)
     spec = get_law(k.law)
-    if k.eps is not None and spec.calibrated:
-        from ..dissipation import calibrate_law
-
-        law: Any = calibrate_law(k.law, k.eps, chain=ref, striker=striker)
-    else:  # the law's own constructor from its declared parameters (hertzchain.laws)
-        assert spec.make is not None  # every registered law has its maker (laws.spec.attach_maker)
-        law = spec.make(k.law_parameters(), ref)
     loads = () if cfg.load is None else tuple(zip(cfg.load.beads, cfg.load.forces))
     drive = None
     if cfg.drive is not None:
         from ..crystal.drive import Drive
 
         drive = Drive(**{k: v for k, v in cfg.drive.model_dump().items() if v is not None})
-    with _as_written("chain.offsets", _offsets_key(cfg)):
-        return Model(chain, striker, wall, law, precompression=cfg.chain.precompression, gravity=chain_gravity(cfg.chain),
-                     loads=loads, drive=drive)
+
+    def model(law) -> Model:
+        with _as_written("chain.offsets", _offsets_key(cfg)):
+            return Model(chain, striker, wall, law, precompression=cfg.chain.precompression,
+                         gravity=chain_gravity(cfg.chain), loads=loads, drive=drive)
+
+    assert spec.make is not None  # every registered law has its maker (laws.spec.attach_maker)
+    if k.eps is not None and spec.calibrated:
+        # the model's own checks, and the caller's, before the calibration's runs (and its imports)
+        provisional = model(spec.make({p: 0.0 if p == spec.calibrated else None for p in spec.param_names}, ref))
+        if preflight is not None:
+            preflight(provisional)
+        from ..dissipation import calibrate_law
+
+        law: Any = calibrate_law(k.law, k.eps, chain=ref, striker=striker)
+    else:  # the law's own constructor from its declared parameters (hertzchain.laws)
+        law = spec.make(k.law_parameters(), ref)
+    return model(law)
+
+
+def preflight_run(cfg: RunConfig, model, probes) -> None:
+    """The checks a run of ``cfg`` makes before it allocates or compiles anything, on ``model``
+    (its law's parameter may be provisional: :func:`build_model`'s ``preflight``): the run's
+    duration and probes against the chain, the engine the options ask for (or the lateral path's
+    refusals with ``[track]``), the static overlaps and the memory of the records. A law's damping
+    only raises the frequencies the step follows, so a refusal on the provisional model holds for
+    the calibrated one; the time a run is projected to take is said once, for the calibrated model
+    (LongRunWarning ignored here)."""
+    import warnings
+
+    from ..checks import check_before_run
+    from ..errors import LongRunWarning
+
+    duration = cfg.run.duration
+    if duration == "auto":
+        from ..runs.simulation import auto_duration
+
+        duration = auto_duration(model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LongRunWarning)
+        if cfg.track is not None:
+            from ..runs.track import check_lateral
+
+            check_track_options(cfg)
+            check_lateral(model, duration, probes, integrator="verlet" if cfg.run.integrator == "auto"
+                          else cfg.run.integrator, dt=cfg.run.dt)
+            return
+        from ..engine_choice import choose_engine
+
+        if probes.sample_interval > duration:  # (as simulate says it)
+            raise ConfigError("run.sample_interval",
+                              f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
+        probes.validate(model.chain.n_beads, model.wall.present)
+        system = model.system()
+        choice = choose_engine(system, cfg.run.integrator, cfg.run.threads,
+                               steps_per_radian=cfg.run.verlet_steps_per_radian, dt=cfg.run.dt)
+        check_before_run(model, system, duration, probes, dt=cfg.run.dt, integrator=choice.integrator)
+
+
+def check_track_options(cfg: RunConfig) -> None:
+    """Refuse the run options the lateral (2D) path of ``[track]`` does not take (ConfigError)."""
+    if cfg.drive is not None:
+        raise ConfigError("drive", "a driven chain runs on the 1D engine; [track] (the lateral path) takes no drive")
+    if cfg.run.threads not in (1, "auto"):
+        raise ConfigError("run.threads", "the lateral (2D) path of [track] runs on one thread: leave it out")
+    if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:
+        raise ConfigError("run.steps_per_radian", "is a setting of the 1D engine's adaptive step; the lateral "
+                          "(2D) path of [track] has its own: leave it out")
 
 
 def chain_gravity(c: ChainConfig) -> float:
@@ -347,13 +410,7 @@ def simulate_config(cfg: RunConfig, model=None, probes=None, progress=None):
         return simulate(model, cfg.run.duration, probes, integrator=cfg.run.integrator, dt=cfg.run.dt,
                         rtol=cfg.run.rtol, progress=progress, config=config,
                         steps_per_radian=cfg.run.verlet_steps_per_radian, threads=cfg.run.threads)
-    if cfg.drive is not None:
-        raise ConfigError("drive", "a driven chain runs on the 1D engine; [track] (the lateral path) takes no drive")
-    if cfg.run.threads not in (1, "auto"):
-        raise ConfigError("run.threads", "the lateral (2D) path of [track] runs on one thread: leave it out")
-    if cfg.run.steps_per_radian != RunSection.model_fields["steps_per_radian"].default:
-        raise ConfigError("run.steps_per_radian", "is a setting of the 1D engine's adaptive step; the lateral "
-                          "(2D) path of [track] has its own: leave it out")
+    check_track_options(cfg)
     from ..runs.simulation import SCIPY_RTOL, auto_duration
     from ..runs.track import simulate_lateral
 

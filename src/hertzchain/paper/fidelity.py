@@ -49,7 +49,7 @@ from .values import PAPER
 from ..laws import is_conservative
 
 __all__ = ["LAW_VARIANTS", "RESTITUTION_SPEEDS", "TRACKS", "TAIL_WINDOW_S", "LawVariants", "law_numbers",
-           "run_lateral_misalignment", "misalignment_numbers", "tail_oscillation", "fig_laws", "fig3_lateral",
+           "run_lateral_misalignment", "warm_lateral", "misalignment_numbers", "tail_oscillation", "fig_laws", "fig3_lateral",
            "count_variant_runs"]
 
 #: Contact-law variants of the chain studies (the run's own law is one of them or is added).
@@ -293,6 +293,14 @@ def law_numbers(variants: dict[str, dict], settings: protocol.Settings) -> dict:
 LATERAL_FRACTIONS = (0.05, 0.10)
 
 
+def warm_lateral(settings: protocol.Settings, law) -> None:
+    """A short two-dimensional run of three beads of chain 2, the second offset, under ``law``: it
+    compiles (or loads from Numba's cache) every kernel of :func:`run_lateral_misalignment`'s runs."""
+    full = paper_chain("chain2", settings.material)
+    warm = Model(full.truncated(3).with_offsets({2: 1e-3}), settings.striker(), Wall("none"), law)
+    simulate_lateral(warm, TRACKS["lateral"], 1e-5, Probes(1e-6))  # free end: no wall pulse to wait for
+
+
 def run_lateral_misalignment(settings: protocol.Settings, beads=protocol.MISALIGNED_BEADS,
                              fractions=LATERAL_FRACTIONS,
                              progress: Callable[[str], None] | None = None) -> tuple[dict, dict]:
@@ -312,9 +320,7 @@ def run_lateral_misalignment(settings: protocol.Settings, beads=protocol.MISALIG
     law = protocol.contact_law(settings, full)
     out: dict = {}
     probes = Probes(settings.sample_interval, contacts=(full.n_beads,))
-    # warm the compiled 2D kernels so that the cost below is the run's, not the compiler's
-    warm = Model(full.truncated(3).with_offsets({2: 1e-3}), settings.striker(), Wall("none"), law)
-    simulate_lateral(warm, TRACKS["lateral"], 1e-5, Probes(1e-6))  # free end: no wall pulse to wait for
+    warm_lateral(settings, law)  # so that the cost below is the run's, not the compiler's
     seconds, bead_steps = 0.0, 0
     for label, track in TRACKS.items():
         for b in beads:

@@ -16,6 +16,7 @@ from ..interrupts import forked_worker_init
 from .. import __version__, theory
 from ..result import save as _save
 from . import fidelity, protocol
+from .ahead import CompileAhead
 from .claims import build_claims
 from .inputs import SUB_TAGS, check_laws, check_settings, expected_traces
 from .protocol import ChainStudy, Settings
@@ -546,28 +547,40 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     tick = progress or (lambda msg: None)
-    studies = {name: protocol.run_chain_study(name, settings, tick) for name in ("chain1", "chain2")}
-    mis = protocol.run_misalignment(settings)
-    for _ in range(6):
-        tick("Fig. 3a-b: misaligned beads")
-    subs = protocol.run_substitutions(settings)
-    for _ in range(3):
-        tick("Fig. 3c: substitutions")
-    ratio = protocol.run_wall_chain_ratio(settings)
-    tick("wall/chain ratio")
-    # where the model and the paper disagree: other contact laws (paper/fidelity.py), started now in
-    # a forked process and shared with this one once its own runs are done; the fork inherits the
-    # kernels compiled so far (the run's law's and, by the elastic ratio run, the elastic ones), so
-    # that a cold run compiles none of them twice
-    variants = fidelity.LawVariants(settings)
+    # the engines of the later model kinds (offset beads, the elastic ratio, lateral freedom) are
+    # compiled by a forked process while this one calibrates the law and runs the aligned chains on
+    # its engine (paper/ahead.py); each kind's runs wait for theirs and load them from the cache
+    ahead = CompileAhead(settings)
+    variants = None
     try:
+        studies = {name: protocol.run_chain_study(name, settings, tick) for name in ("chain1", "chain2")}
+        ahead.go()
+        ahead.wait("elastic")
+        ratio = protocol.run_wall_chain_ratio(settings)
+        tick("wall/chain ratio")
+        # where the model and the paper disagree: other contact laws (paper/fidelity.py), started now
+        # in a forked process and shared with this one once its own runs are done; the fork inherits
+        # the kernels compiled or loaded so far (the run's law's and the elastic ones), so that a cold
+        # run compiles none of them twice. The speed check (recalibrations on the loaded engine) runs
+        # beside it and beside the offset engine's compilation.
+        variants = fidelity.LawVariants(settings)
         speed = protocol.run_speed_check(settings)
         for _ in range(10):
             tick("two-speed check")
+        subs = protocol.run_substitutions(settings)
+        for _ in range(3):
+            tick("Fig. 3c: substitutions")
+        ahead.wait("offset")
+        mis = protocol.run_misalignment(settings)
+        for _ in range(6):
+            tick("Fig. 3a-b: misaligned beads")
+        ahead.wait("lateral")
         lateral, cost = fidelity.run_lateral_misalignment(settings, progress=tick)
         law_rows = variants.finish(studies, tick)
     finally:
-        variants.cancel()
+        ahead.close()
+        if variants is not None:
+            variants.cancel()
     t_sim = time.perf_counter() - t0
 
     def save_data() -> None:

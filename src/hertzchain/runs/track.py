@@ -30,7 +30,7 @@ from ..laws import spec_of
 if TYPE_CHECKING:  # the compiled 2D path (Numba) loads only when a lateral run is made
     from ..integrate.drivers.lateral import LateralArrays
 
-__all__ = ["Track", "simulate_lateral", "lateral_arrays"]
+__all__ = ["Track", "simulate_lateral", "check_lateral", "lateral_arrays"]
 
 
 @dataclass(frozen=True)
@@ -126,6 +126,35 @@ _LATERAL_VARIABLES = {
 }
 
 
+def check_lateral(model: Model, duration: float, probes: Probes, *, integrator: str = "verlet",
+                  dt: float | None = None):
+    """What :func:`simulate_lateral` refuses (ConfigError naming the field) before it allocates or
+    compiles anything: the duration and probes, a model the lateral path does not take, the
+    integrator, and the 1D run's checks (static overlaps, memory). Returns ``model.system()``."""
+    if not (math.isfinite(duration) and duration > 0):
+        raise ConfigError("run.duration", f"must be a positive time in s, got {duration!r}")
+    if probes.sample_interval > duration:
+        raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
+    if model.precompression > 0:
+        raise ConfigError("chain.precompression", "is not supported with lateral freedom")
+    if spec_of(model.law).generated:
+        raise ConfigError("contact.law", f"law {model.law.name!r} runs on the axial engines only; run it without [track]")
+    if spec_of(model.law).plastic:
+        raise ConfigError("contact.law", "the elastoplastic law is not supported with lateral freedom (its "
+                          "per-contact history is carried by the axial engine only); run it without [track]")
+    if not model.plain:
+        field_name = ("wall.type" if model.wall.is_body else "chain.gravity" if model.gravity else
+                      "chain.elements" if not model.chain.plain else "striker")
+        raise ConfigError(field_name, "lateral freedom ([track]) models spheres hit by a sphere against a flat or "
+                          "a free end, without gravity along the chain; this model is for the 1D engine only")
+    system = model.system()
+    probes.validate(model.chain.n_beads, model.wall.present)
+    if integrator not in ("verlet", "dop853"):
+        raise ConfigError("run.integrator", f"must be 'verlet' or 'dop853' with lateral freedom, got {integrator!r}")
+    check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # the 1D run's checks
+    return system
+
+
 def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes | None = None, *,
                      integrator: str = "verlet", dt: float | None = None,
                      rtol: float = 1e-12, config: dict | None = None) -> xr.Dataset:
@@ -176,29 +205,9 @@ def simulate_lateral(model: Model, track: Track, duration: float, probes: Probes
         When a recorded contact force passes the contact's elastic limit (paper Sec. II).
     """
     probes = probes or Probes()
-    if not (math.isfinite(duration) and duration > 0):
-        raise ConfigError("run.duration", f"must be a positive time in s, got {duration!r}")
-    if probes.sample_interval > duration:
-        raise ConfigError("run.sample_interval", f"({probes.sample_interval:g} s) is longer than run.duration ({duration:g} s)")
-    if model.precompression > 0:
-        raise ConfigError("chain.precompression", "is not supported with lateral freedom")
-    if spec_of(model.law).generated:
-        raise ConfigError("contact.law", f"law {model.law.name!r} runs on the axial engines only; run it without [track]")
-    if spec_of(model.law).plastic:
-        raise ConfigError("contact.law", "the elastoplastic law is not supported with lateral freedom (its "
-                          "per-contact history is carried by the axial engine only); run it without [track]")
-    if not model.plain:
-        field_name = ("wall.type" if model.wall.is_body else "chain.gravity" if model.gravity else
-                      "chain.elements" if not model.chain.plain else "striker")
-        raise ConfigError(field_name, "lateral freedom ([track]) models spheres hit by a sphere against a flat or "
-                          "a free end, without gravity along the chain; this model is for the 1D engine only")
-    system = model.system()
-    probes.validate(model.chain.n_beads, model.wall.present)
-    if integrator not in ("verlet", "dop853"):
-        raise ConfigError("run.integrator", f"must be 'verlet' or 'dop853' with lateral freedom, got {integrator!r}")
+    system = check_lateral(model, duration, probes, integrator=integrator, dt=dt)
     from ..integrate.drivers.lateral import LateralRun, run_lateral, run_lateral_reference
 
-    check_before_run(model, system, duration, probes, dt=dt, integrator=integrator)  # the 1D run's checks
     rec = probes.recorded_contacts(model.chain.n_beads, model.wall.present)
     lat = lateral_arrays(model, track)
     if integrator == "verlet":

@@ -37,7 +37,7 @@ from ...errors import SimulationDiverged
 from ...model import System
 from ..core import kernels
 from ..core.layout import pack
-from .verlet import RawRun, _dt_used, initialise, refine_peak, step_plan
+from .verlet import RawRun, _dt_used, refine_peak, step_plan
 
 __all__ = ["LateralArrays", "LateralRun", "forces_2d", "run_lateral", "run_lateral_reference"]
 
@@ -322,18 +322,24 @@ def run_lateral(system: System, lateral: LateralArrays, duration: float, sample_
     fmax = np.empty(nc)
     peak = np.empty(8)
     acc = np.zeros(10)
-    dummy_v = np.empty((1, nb))
-    # t = 0: the 1D initialisation (every pair touches along its line of centres, so no contact
-    # pushes yet and the transverse forces vanish; bodies rest on their rest lines)
-    initialise(system, pk, u, v, g, a, rec, out_f, out_ke, out_pe, out_ed, dummy_v, False, fmax, peak, acc[:8])
-    # ... then the forces at t = 0 on the 2D geometry (a dashpot already pushes at closure)
+    # t = 0 (bodies on their rest lines, at rest but the striker; every pair touches along its
+    # line of centres, so only a dashpot pushes yet): the forces on the 2D geometry, sample 0, and the
+    # wall-peak tracker and accumulators as verlet.initialise starts them (peak: the wall force and
+    # its neighbours; acc[1]: the dissipated power, acc[7]: the smallest ns so far). Not
+    # verlet.initialise itself: it computes the 1D forces with kernels.forces_general, whose
+    # compilation (~1 CPU-s with the 1D energy) a cold lateral run would add for numbers it overwrites.
     acc[1] = forces_2d(u, v, y, w, pk.kappa, pk.damping, pk.d0, pk.dx0, pk.rsum, flat, system.law, g, gy)
+    acc[7] = np.inf
     acc[9] = _track_forces(y, w, stiffness, friction, rest, float(lateral.slip_velocity), fy)
     kernels.accelerations(g, pk.fext, pk.inv_mass, a)
     kernels.accelerations(gy, fy, pk.inv_mass, ay)
+    fw0 = g[pk.wall_slot + 1]
+    peak[:] = (fw0, 0.0, 0.0, 0.0, 0.0, fw0, 0.0, 0.0)
     out_f[0] = g[rec + 1]
     fmax[:] = g[1:nc + 1]
+    out_ke[0] = kernels.kinetic_energy(v, pk.mass)
     out_pe[0] = _potential_2d(u, y, pk.kappa, pk.d0, pk.dx0, pk.rsum, flat, stiffness, rest, p)
+    out_ed[0] = 0.0
     out_y[0] = y[:nb]
     out_p[0] = (float(np.dot(pk.mass, v[:p])), 0.0)
     samples_per_chunk = max(1, round(chunk_steps * plan.dt / sample_interval))

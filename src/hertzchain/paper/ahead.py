@@ -1,0 +1,157 @@
+"""Compile ahead: the engines a cold reproduction needs later, compiled on the second core.
+
+A reproduction in a fresh installation (an empty Numba cache) compiled every engine in its own
+process, one after another, as each model kind came up: the calibrated law's engine (the aligned
+chains), the same engine's offset specialisation (Fig. 3a-b), the elastic law's engine (the
+wall/chain ratio) and the two-dimensional engine (Fig. 3 with lateral freedom), ~20 CPU-s while
+the second core idled. :class:`CompileAhead` forks a process that makes a short run of each kind
+the reproduction runs later (its kernels then lie in Numba's on-disk cache) while this one
+calibrates and runs the aligned chains; :meth:`CompileAhead.wait` holds the reproduction before its
+first run of a kind until the fork has compiled it, so that the run loads the kernels instead of
+compiling them a second time. The results are those of a run that compiled its own kernels: the
+cache holds the code the same compilation gives.
+
+Numba's cache index is not safe against two processes adding *different* signatures of one
+function at the same time (each may give its entry the same data file), so the fork compiles the
+offset specialisation of the calibrated law's engine, which shares its functions with the aligned
+one, only once this process has compiled that (:meth:`CompileAhead.go`); the two-dimensional
+and the elastic engines share no compiled function with it and start at once.
+
+With one usable core, no ``fork``, or Numba's compilation switched off, nothing is forked and every ``wait`` returns at once: each run compiles what it needs, as before.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import warnings
+from ..chain import Chain, paper_chain
+from ..interrupts import forked_worker_init
+from ..model import Model, Wall
+from ..probes import Probes
+from .protocol import Settings
+
+__all__ = ["CompileAhead", "KINDS"]
+
+#: The model kinds compiled ahead, in the order the fork compiles them: those sharing no compiled
+#: function with the calibrated law's aligned engine first (they start at once), then the offset one.
+KINDS = ("lateral", "elastic", "offset")
+
+#: Simulated time of each short run [s]: a few steps, enough to reach every kernel of the run.
+_SHORT = 2e-6
+
+
+def _placeholder_law(settings: Settings):
+    """A law of the reproduction's kind for the short runs, not calibrated (a calibration would
+    compile the aligned engine a second time, beside this process's): the engines take the law as
+    a code and per-contact arrays, so every dissipative law compiles the same specialisation."""
+    from ..contact import Dashpot, Elastic
+
+    return Elastic() if settings.elastic else Dashpot(1.0)
+
+
+def _short_run(settings: Settings, kind: str) -> None:
+    """One short run of ``kind`` (:data:`KINDS`) with the reproduction's engine choices and probes."""
+    from ..runs.simulation import simulate
+
+    striker = settings.striker()
+    chain2 = paper_chain("chain2", settings.material)
+    if kind == "lateral":
+        from . import fidelity
+
+        fidelity.warm_lateral(settings, _placeholder_law(settings))
+        return
+    if kind == "elastic":  # the wall/chain ratio's (protocol.run_wall_chain_ratio)
+        from ..contact import Elastic
+
+        model = Model(Chain.uniform(3, chain2.diameters[0], settings.material), striker, Wall("flat"), Elastic())
+        probes = Probes(settings.sample_interval / 4, contacts=(1, 3))
+    else:  # an offset bead (protocol.run_misalignment)
+        model = Model(chain2.truncated(3).with_offsets({2: 1e-3}), striker, Wall("flat"), _placeholder_law(settings))
+        probes = Probes(settings.sample_interval, contacts=(3,))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        simulate(model, _SHORT, probes)
+
+
+def _compiling() -> bool:
+    """Whether Numba compiles at all (not under NUMBA_DISABLE_JIT, where nothing is to be gained).
+    Its on-disk cache needs no check: the engines' ``cache=True`` functions cannot be defined
+    without a usable cache folder."""
+    from numba.core import config
+
+    return not getattr(config, "DISABLE_JIT", False)  # (set by Numba from the environment at import)
+
+
+def _usable_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+class CompileAhead:
+    """The fork compiling :data:`KINDS` (module docstring); make it before the first calibration.
+
+    Parameters
+    ----------
+    settings : Settings
+        The reproduction's settings (its law's kind, striker, material and sampling).
+    kinds : tuple of str
+        The kinds to compile ahead (default :data:`KINDS`; the elastic one is left out when the
+        reproduction's own law is elastic: this process compiles it first).
+    """
+
+    def __init__(self, settings: Settings, kinds: tuple[str, ...] | None = None) -> None:
+        self.kinds = tuple(k for k in (kinds or KINDS) if not (k == "elastic" and settings.elastic))
+        self._ready: set[str] = set()
+        self._proc = None
+        if not self.kinds or _usable_cores() < 2 or "fork" not in multiprocessing.get_all_start_methods() \
+                or not _compiling():
+            return
+        ctx = multiprocessing.get_context("fork")
+        self._go = ctx.Event()
+        self._reader, writer = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=self._forked, args=(settings, writer), daemon=True)
+        self._proc.start()
+        writer.close()
+
+    def _forked(self, settings: Settings, writer) -> None:
+        forked_worker_init()
+        try:
+            for kind in self.kinds:
+                if kind == "offset":
+                    self._go.wait()
+                try:
+                    _short_run(settings, kind)
+                except Exception:  # noqa: BLE001 - the reproduction's own run compiles it and reports any error
+                    pass
+                writer.send(kind)
+        finally:
+            writer.close()
+
+    def go(self) -> None:
+        """Say that this process compiled the calibrated law's aligned engine: the fork may now
+        compile its offset specialisation (module docstring)."""
+        if self._proc is not None:
+            self._go.set()
+
+    def wait(self, kind: str) -> None:
+        """Return once ``kind`` is compiled (at once when nothing was forked or the fork ended)."""
+        if kind not in self.kinds:
+            return
+        self.go()  # (an offset run before the aligned ones: nothing left to protect)
+        while self._proc is not None and kind not in self._ready:
+            try:
+                self._ready.add(self._reader.recv())
+            except EOFError:  # the fork ended (or died): the runs compile what is left
+                self.close()
+
+    def close(self) -> None:
+        """Stop the fork (at the end, or after a failure)."""
+        if self._proc is not None:
+            if self._proc.is_alive():
+                self._proc.terminate()
+            self._proc.join()
+            self._reader.close()
+            self._proc = None
