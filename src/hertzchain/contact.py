@@ -180,25 +180,46 @@ def collision_time_scale(mu, kappa):
     return (mu / kappa) ** 0.4
 
 
-def _check_scaled(field: str, value: float, unit: str, diameter: float) -> None:
-    """The checks of a size-scaled law: parameter ``value`` >= 0 (named ``field``, in ``unit``)
-    and a positive reference diameter [m]."""
-    if not (math.isfinite(value) and value >= 0):
-        raise ConfigError(field, f"must be a finite number >= 0 ({unit}), got {value!r}")
-    if not (math.isfinite(diameter) and diameter > 0):
-        raise ConfigError("contact.diameter", f"must be a positive reference diameter (m), got {diameter!r}")
+class _ReferencePair:
+    """What the size-scaled laws share: their parameter (the field ``_field`` names, with its unit),
+    checked with the reference pair's diameter [m] on construction, and the reference pair of
+    beads (``diameter``, ``material``) their per-contact values are scaled from."""
 
+    _field: tuple[str, str]
+    diameter: float
+    material: Material | str
 
-def _reference_pair(diameter: float, material: Material) -> tuple[float, float]:
-    """Reduced mass m / 2 [kg] and Hertz constant [N/m^1.5] (paper eq. 1) of two beads of
-    ``diameter`` [m] and ``material``: the reference pair of a size-scaled law."""
-    r = diameter / 2
-    mu = 0.5 * material.density * math.pi * diameter**3 / 6.0
-    return mu, hertz_constant(r, r, material, material)
+    def __post_init__(self) -> None:
+        name, unit = self._field
+        value = real(getattr(self, name), f"contact.{name}", unit=unit)
+        if not (math.isfinite(value) and value >= 0):
+            raise ConfigError(f"contact.{name}", f"must be a finite number >= 0 ({unit}), got {value!r}")
+        if not (math.isfinite(self.diameter) and self.diameter > 0):
+            raise ConfigError("contact.diameter", f"must be a positive reference diameter (m), got {self.diameter!r}")
+        object.__setattr__(self, name, value)
+        object.__setattr__(self, "material", get_material(self.material))
+
+    @property
+    def parameter(self) -> float:
+        return float(getattr(self, self._field[0]))
+
+    def reference(self) -> tuple[float, float]:
+        """Reduced mass [kg] and Hertz constant [N/m^1.5] of two reference beads.
+
+        Returns
+        -------
+        tuple of float
+            (mu_ref = m / 2, kappa_ref of paper eq. 1 for two beads of the reference diameter and
+            material).
+        """
+        assert isinstance(self.material, Material)  # (__post_init__)
+        r = self.diameter / 2
+        mu = 0.5 * self.material.density * math.pi * self.diameter**3 / 6.0
+        return mu, hertz_constant(r, r, self.material, self.material)
 
 
 @dataclass(frozen=True)
-class ScaledViscoelastic:
+class ScaledViscoelastic(_ReferencePair):
     """Kuwabara-Kono contact whose time constant follows each contact's collision time.
 
     F_j = kappa_j (delta^(3/2) + A_j delta^(1/2) d(delta)/dt), clipped at zero, with
@@ -225,15 +246,7 @@ class ScaledViscoelastic:
     diameter: float
     material: Material | str = "AISI52100"
     name = "viscoelastic_scaled"
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "A", real(self.A, "contact.A", unit="s"))
-        _check_scaled("contact.A", self.A, "s", self.diameter)
-        object.__setattr__(self, "material", get_material(self.material))
-
-    @property
-    def parameter(self) -> float:
-        return self.A
+    _field = ("A", "s")
 
     def reference_time_scale(self) -> float:
         """Collision time scale of two reference beads.
@@ -244,8 +257,7 @@ class ScaledViscoelastic:
             (mu / kappa)^(2/5) with mu = m / 2 and kappa of paper eq. 1 for two beads of the
             reference diameter and material.
         """
-        assert isinstance(self.material, Material)  # (__post_init__)
-        return collision_time_scale(*_reference_pair(self.diameter, self.material))
+        return collision_time_scale(*self.reference())
 
     @property
     def size_exponent(self) -> float:
@@ -310,7 +322,7 @@ class SizedViscoelastic(ScaledViscoelastic):
 
 
 @dataclass(frozen=True)
-class ScaledDashpot:
+class ScaledDashpot(_ReferencePair):
     """Hertz contact with a linear dashpot whose coefficient follows each contact pair.
 
     F_j = kappa_j delta^(3/2) + gamma_j d(delta)/dt, clipped at zero, with
@@ -339,26 +351,7 @@ class ScaledDashpot:
     diameter: float
     material: Material | str = "AISI52100"
     name = "dashpot_scaled"
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "gamma", real(self.gamma, "contact.gamma", unit="N s/m"))
-        _check_scaled("contact.gamma", self.gamma, "N s/m", self.diameter)
-        object.__setattr__(self, "material", get_material(self.material))
-
-    @property
-    def parameter(self) -> float:
-        return self.gamma
-
-    def reference(self) -> tuple[float, float]:
-        """Reduced mass [kg] and Hertz constant [N/m^1.5] of two reference beads.
-
-        Returns
-        -------
-        tuple of float
-            (mu_ref = m / 2, kappa_ref of paper eq. 1).
-        """
-        assert isinstance(self.material, Material)  # (__post_init__)
-        return _reference_pair(self.diameter, self.material)
+    _field = ("gamma", "N s/m")
 
     def contact_damping(self, mu, kappa):
         """Per-contact coefficients gamma_j = gamma (kappa_j / kappa_ref)^(2/5) (mu_j / mu_ref)^(3/5).

@@ -376,7 +376,7 @@ def _damping(cfg, read: _Reader, kappa, inv_mass, d, mats) -> np.ndarray:
             return np.where(on, a, 0.0)
     else:
         a = read("contact.gamma", k.gamma)
-    # size-scaled laws: the reference is two beads like bead 1 (contact._reference_pair)
+    # size-scaled laws: the reference is two beads like bead 1 (the laws' reference(): contact._ReferencePair)
     nc = kappa.shape[1]
     mu = 1.0 / (inv_mass[:, :nc] + inv_mass[:, 1:nc + 1])
     theta, rho, _ = _theta(_material(mats[0]), read)

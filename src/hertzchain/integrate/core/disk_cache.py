@@ -67,11 +67,22 @@ def on_disk(dispatcher, *variant, sources: bytes):
     ``sources`` (a digest of every file compiled into it), and return it. Where Numba's caching API
     has moved, the closure stays cached in memory only."""
     try:
-        from numba.core.caching import FunctionCache
+        from numba.core.caching import FunctionCache, IndexDataCacheFile
 
         key = hashlib.sha256(repr(variant).encode() + sources).hexdigest()
 
         class StableKey(FunctionCache):
+            def __init__(self, py_func):
+                super().__init__(py_func)
+                # One index and data file per key, not one per closure: Numba reads, extends and
+                # writes back a function's index without a lock and names a new entry's data file
+                # by the first free number, so two processes (test workers, Dask workers) compiling
+                # two variants of one closure at once both wrote ".1.nbc", and one of them could
+                # then load the other's code (a run that never ended, in CI).
+                self._cache_file = IndexDataCacheFile(cache_path=self._cache_path,
+                                                      filename_base=f"{self._impl.filename_base}-{key[:16]}",
+                                                      source_stamp=self._impl.locator.get_source_stamp())
+
             def _index_key(self, sig, codegen):
                 return (sig, codegen.magic_tuple(), (key,))
 
