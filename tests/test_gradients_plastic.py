@@ -65,6 +65,3 @@ def test_plastic_refusals_name_the_field():
         sensitivity(PLASTIC, ["striker.velocity"], mode="tangent")
     with pytest.raises(ConfigError, match="contact.law"):
         trace_sensitivity(PLASTIC, ["striker.velocity"])
-    with pytest.raises(ConfigError, match="chain.offsets_mm"):
-        sensitivity(_with(PLASTIC, chain={"offsets_mm": [0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}),
-                    ["striker.velocity"])
