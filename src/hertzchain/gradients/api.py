@@ -341,7 +341,7 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
     if use_tangent:
         dirs = {name: np.array([sd.dense(p, name) for p in paths]) for name in D.PARAMETERS}
         _, _, _, dj = D.tangents(system, dirs, duration, cfg.run.sample_interval, dt=cfg.run.dt,
-                                 steps_per_radian=cfg.run.steps_per_radian, seeds=seeds)
+                                 steps_per_radian=cfg.run.steps_per_radian, seeds=seeds, final_dres=reading.final_dres)
         grad = {p: float(dj[i]) + sd.dot(p, reading.direct) for i, p in enumerate(paths)}
     else:
         grad = _parameter_gradient(sd, D.gradient(tape, seeds, reading.final_dres), reading.direct)

@@ -164,15 +164,19 @@ def _samples(duration: float, sample_interval: float) -> int:
     return int(math.floor(duration / sample_interval + 1e-9)) + 1
 
 
-#: Hand-written laws the derivative engines differentiate (engine codes); the tangent model
-#: (forward mode) does not differentiate the elastic-plastic law (3): the adjoint does. Every
-#: law run by the generated engines is differentiated by both (:mod:`.law_derivatives`).
+#: Hand-written laws the derivative engines differentiate (engine codes), both the adjoint and the
+#: tangent model; every law run by the generated engines too (:mod:`.law_derivatives`).
 LAWS = frozenset({0, 1, 2, 3})
+#: Laws whose few-variable sensitivities ``mode="auto"`` gives to the tangent model: the
+#: elastic-plastic law (3) goes to the adjoint, whose sweep costs less than the tangent's three
+#: reverse-mode partials per contact and step (:func:`tangent.tangent_run`); ``mode="tangent"``
+#: takes it too.
 TANGENT_LAWS = frozenset({0, 1, 2})
 
 
 def tangent_covers(law: int) -> bool:
-    """Whether the tangent model (forward mode) differentiates the law of engine code ``law``."""
+    """Whether ``mode="auto"`` gives few-variable sensitivities of engine code ``law`` to the tangent
+    model (forward mode; every law it differentiates, :data:`LAWS`, can be asked for by name)."""
     return law in TANGENT_LAWS or is_generated(law)
 
 
@@ -192,15 +196,13 @@ def _step_arrays(system: System) -> int:
     return 3 if is_generated(system.law) else 2 if system.general else 1
 
 
-def check_law(system: System, tangent: bool = False) -> None:
+def check_law(system: System) -> None:
     """Refuse (ConfigError naming the field) a law or model the engines do not differentiate.
 
     Parameters
     ----------
     system : System
         The model's arrays.
-    tangent : bool
-        For the tangent model (which leaves the elastic-plastic law to the adjoint).
     """
     from ...contact import LAW_CODES
 
@@ -212,12 +214,6 @@ def check_law(system: System, tangent: bool = False) -> None:
                               "built-in laws are differentiated with a protected body")
         law_engines(system.law)
         return
-    if system.law == kernels.LAW_ELASTOPLASTIC:
-        if tangent:
-            raise ConfigError("contact.law", "the tangent model (forward mode: trace_sensitivity, the fit's exact "
-                              "Jacobian) does not differentiate the 'elastoplastic' law yet; sensitivity() does "
-                              "(reverse mode)")
-
     if getattr(system, "res_k", None) is not None:
         raise ConfigError("chain.elements", "gradients do not differentiate mass-in-mass beads yet; they cover "
                           "chains of plain beads against a flat wall, a protected body or a free end")
@@ -587,7 +583,8 @@ def _pad_rows(system: System, directions: dict[str, np.ndarray], n_dirs: int, n_
 
 def tangents(system: System, directions: dict[str, np.ndarray], duration: float, sample_interval: float,
              dt: float | None = None, steps_per_radian: float | None = None, contacts=None,
-             seeds: Seeds | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+             seeds: Seeds | None = None, final_dres: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Directional derivatives of the recorded forces (and of a seeded scalar) by the tangent model.
 
     Parameters
@@ -605,6 +602,9 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
         Contacts recorded (default: the wall contact, or contact 0 without a wall).
     seeds : Seeds, optional
         Partials of a scalar result on the step forces (as for :func:`gradient`).
+    final_dres : numpy.ndarray, optional
+        As for :func:`gradient`: the partials of the scalar on the elastic-plastic law's residual
+        overlaps at the end of the run [per m].
 
     Returns
     -------
@@ -612,7 +612,7 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
         Contacts recorded (C,), forces (K, C) [N], their derivatives (D, K, C) [N per unit of
         the direction] and the seeded scalar's directional derivatives (D,).
     """
-    check_law(system, tangent=True)
+    check_law(system)
     plan = step_plan(system, sample_interval, dt, steps_per_radian)
     n_samples = _samples(duration, sample_interval)
     w = pack(system)
@@ -643,7 +643,9 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
         status = _tangent.tangent_run(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
                                       w.fext, w.dcap, system.law, system.general, w.wall_slot, sample_interval,
                                       plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, acc,
-                                      th, v0t, rec, out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj, w.ext)
+                                      th, v0t, rec, out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj, w.ext,
+                                      (w.dyield, w.dmax, w.dres, w.kres),
+                                      np.zeros(0) if final_dres is None else np.asarray(final_dres, dtype=float))
     if status != 0:
         raise SimulationDiverged("the integration diverged (non-finite state); check the inputs")
     return rec, out_f, out_ft, dj

@@ -43,6 +43,7 @@ from numba import njit
 
 from ...laws import law_of_code
 from ...laws.spec import compiled
+from ..core.extension import EXT_CLIN, EXT_KLIN, linear_force
 from ..core.kernels import DELTA_MIN, LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC, elastoplastic_force
 
 
@@ -80,22 +81,41 @@ def law_partials(law, d, sd, rate, kappa, damping):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def contact_geometry(uj, uj1, d0, de, dx0, rsum):
+    """(overlap d [m], direction cosine c = dx / dist, axial gap dx [m], centre distance dist [m]) of
+    a contact whose beads sit at ``uj``, ``uj1`` [m], as ``kernels.forces_general`` takes them: aligned
+    (``de`` = 0: d = u_j - u_{j+1} + d0, c = 1, dist = 1 as a placeholder) or misaligned (d = R_j +
+    R_{j+1} - sqrt(dx^2 + de^2), dx = dx0 - (u_j - u_{j+1}); docs/conventions.rst)."""
+    if de != 0.0:
+        dx = dx0 - (uj - uj1)
+        dist = np.sqrt(dx * dx + de * de)
+        return rsum - dist, dx / dist, dx, dist
+    return uj - uj1 + d0, 1.0, 0.0, 1.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def mount_partials(ext, j, uj, uj1, vj, vj1, d0):
+    """Contact slot j's linear spring and dashpot in ``ext`` (a protected body's mount,
+    ``extension.linear_force``, in parallel with the contact law) at overlap w + d0 closing at
+    vrel: (force [N], dF/dw = dF/dd0 = k [N/m], dF/dvrel = c [N s/m], dF/dk = the overlap [m],
+    dF/dc = the rate [m/s]); zeros where the slot has none (or ``ext`` is empty)."""
+    if ext.shape[0] == 0 or (ext[j, EXT_KLIN] == 0.0 and ext[j, EXT_CLIN] == 0.0):
+        return 0.0, 0.0, 0.0, 0.0, 0.0
+    k = ext[j, EXT_KLIN]
+    c = ext[j, EXT_CLIN]
+    dl = uj - uj1 + d0
+    rl = vj - vj1
+    return linear_force(k, c, dl, rl)[0], k, c, dl, rl
+
+
+@njit(cache=True, nogil=True, inline="always")
 def contact_partials(uj, uj1, vj, vj1, kappa, damping, d0, de, dx0, rsum, law):
     """Axial force F of one contact and its partials, as ``kernels.forces_general`` computes F.
 
     Returns (F, dF/dw, dF/dvrel, dF/dkappa, dF/ddamping, dF/dd0, dF/dde, dF/ddx0, dF/drsum) with
     w = u_j - u_{j+1} and vrel = v_j - v_{j+1} (the velocities the force sees).
     """
-    if de != 0.0:
-        dx = dx0 - (uj - uj1)
-        dist = np.sqrt(dx * dx + de * de)
-        d = rsum - dist
-        c = dx / dist
-    else:
-        dx = 0.0
-        dist = 1.0
-        d = uj - uj1 + d0
-        c = 1.0
+    d, c, dx, dist = contact_geometry(uj, uj1, d0, de, dx0, rsum)
     if d < 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     if d <= DELTA_MIN:
@@ -125,16 +145,7 @@ def plastic_contact_adjoint(uj, uj1, vj, vj1, kappa, damping, d0, de, dx0, rsum,
     ``kresb``), returns (F, w_bar, vrel_bar, kappa_bar, damping_bar, d0_bar, de_bar, dx0_bar,
     rsum_bar, dyield_bar, dresb in, kresb in), w = u_j - u_{j+1}, vrel = v_j - v_{j+1}; an open
     contact (d < 0, kappa = 0) has none and carries the state's adjoints through."""
-    if de != 0.0:
-        dx = dx0 - (uj - uj1)
-        dist = np.sqrt(dx * dx + de * de)
-        d = rsum - dist
-        c = dx / dist
-    else:
-        dx = 0.0
-        dist = 1.0
-        d = uj - uj1 + d0
-        c = 1.0
+    d, c, dx, dist = contact_geometry(uj, uj1, d0, de, dx0, rsum)
     if d < 0.0 or kappa == 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, dresb, kresb
     live = d > DELTA_MIN  # below it the engine takes d = 0: no derivative by d

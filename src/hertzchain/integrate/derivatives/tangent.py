@@ -22,8 +22,8 @@ from numba import njit
 
 from ..core import kernels
 from .adjoint import STATE_U, STATE_V
-from ..core.extension import EXT_CLIN, EXT_KLIN
-from .partials import aligned_partials, contact_partials
+from ..core.extension import forces_linear
+from .partials import aligned_partials, contact_partials, mount_partials, plastic_contact_adjoint
 from .tape import _open_block
 
 
@@ -71,16 +71,13 @@ def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_m
     for j in range(n - 1):
         fj, gw, gv, gk, ga, g0, gdd, gx, gr = contact_partials(u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j],
                                                                d0[j], de[j], dx0[j], rsum[j], law)
+        if ext.shape[0] > 0:
+            fl, kl, cl, gp[8, j], gp[9, j] = mount_partials(ext, j, u[j], u[j + 1], vp[j], vp[j + 1], d0[j])
+            fj += fl
+            gw += kl
+            g0 += kl
+            gv += cl
         g[j + 1] = fj
-        if ext.shape[0] > 0 and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
-            dl = u[j] - u[j + 1] + d0[j]
-            rl = vp[j] - vp[j + 1]
-            g[j + 1] += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
-            gw += ext[j, EXT_KLIN]
-            g0 += ext[j, EXT_KLIN]
-            gv += ext[j, EXT_CLIN]
-            gp[8, j] = dl
-            gp[9, j] = rl
         gp[0, j] = gw
         gp[1, j] = gv
         gp[2, j] = gk
@@ -122,6 +119,73 @@ def _aligned_step(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, last,
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _plastic_partials(u, vv, kappa, damping, d0, de, dx0, rsum, dyield, dmax, dres, kres, ext, gp, jac):
+    """Every elastic-plastic contact's Jacobian at positions ``u`` and velocities ``vv``, from the
+    state (dmax, dres, kres) a step starts from, into ``jac`` (3, 11, P): rows the force, the
+    residual overlap and the unloading stiffness after the step; columns w, vrel, kappa, damping,
+    d0, de, dx0, rsum, dyield, then the residual overlap and stiffness before. Each row is
+    :func:`partials.plastic_contact_adjoint` (the law's reverse-mode derivative, the one the
+    adjoint takes) seeded with that output's unit vector: the derivative is written once and read
+    both ways. The mount's spring and dashpot (``ext``) join the force's row, their own partials
+    ``gp`` rows 8, 9."""
+    for j in range(kappa.shape[0] - 1):
+        for r in range(3):
+            out = plastic_contact_adjoint(u[j], u[j + 1], vv[j], vv[j + 1], kappa[j], damping[j], d0[j], de[j],
+                                          dx0[j], rsum[j], dyield[j], dmax[j], dres[j], kres[j],
+                                          1.0 if r == 0 else 0.0, 1.0 if r == 1 else 0.0, 1.0 if r == 2 else 0.0)
+            for c in range(11):
+                jac[r, c, j] = out[c + 1]
+        if ext.shape[0] > 0:
+            _, kl, cl, gp[8, j], gp[9, j] = mount_partials(ext, j, u[j], u[j + 1], vv[j], vv[j + 1], d0[j])
+            jac[0, 0, j] += kl
+            jac[0, 4, j] += kl
+            jac[0, 1, j] += cl
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _plastic_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dt, last, gp, ext, state, jac):
+    """One step of ``tape._general_block`` for the elastic-plastic law (``kernels.forces_general``
+    and the mount's ``forces_linear``: the same numbers, the state ``state`` = (dyield, dmax, dres,
+    kres) carried in place), its contacts' Jacobians taken first, at the state the step starts from
+    (:func:`_plastic_partials`)."""
+    dyield, dmax, dres, kres = state
+    n = a.shape[0]
+    half = 0.5 * dt
+    for i in range(n):
+        vp[i] = v[i] + half * a[i]
+    _plastic_partials(u, vp, kappa, damping, d0, de, dx0, rsum, dyield, dmax, dres, kres, ext, gp, jac)
+    kernels.forces_general(u, vp, kappa, damping, d0, de, dx0, rsum, kernels.LAW_ELASTOPLASTIC, g, dyield, dmax, dres,
+                           kres)
+    if ext.shape[0] > 0:
+        forces_linear(u, vp, d0, ext, g)
+    for i in range(n):
+        a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+        _kick(u, v, i, a[i], dt, last)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _plastic_tangents(jac, st, th, gp, ut, vpt, ft, o, dd, n):
+    """Direction dd's force tangents F'_j and state tangents (``st``: residual overlap', stiffness',
+    updated in place) of every elastic-plastic contact: the step's Jacobian ``jac``
+    (:func:`_plastic_partials`) times (w', vrel', the parameters' tangents, the state's), plus the
+    mount's spring and dashpot (``gp`` rows 8, 9)."""
+    for j in range(n - 1):
+        x0 = ut[o + j] - ut[o + j + 1]
+        x1 = vpt[j] - vpt[j + 1]
+        sr = st[0, o + j]
+        sk = st[1, o + j]
+        for r in range(3):
+            y = (jac[r, 0, j] * x0 + jac[r, 1, j] * x1 + jac[r, 2, j] * th[0, dd, j] + jac[r, 3, j] * th[1, dd, j]
+                 + jac[r, 4, j] * th[2, dd, j] + jac[r, 5, j] * th[3, dd, j] + jac[r, 6, j] * th[4, dd, j]
+                 + jac[r, 7, j] * th[5, dd, j] + jac[r, 8, j] * th[10, dd, j] + jac[r, 9, j] * sr
+                 + jac[r, 10, j] * sk)
+            if r == 0:
+                ft[o + j + 1] = y + gp[8, j] * th[8, dd, j] + gp[9, j] * th[9, dd, j]
+            else:
+                st[r - 1, o + j] = y
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _parameter_forces(gp, gw, gk, th, pf, general, aligned):
     """pf[dd (P + 1) + j] = sum over parameters of dF_j/dtheta theta'_j along direction dd (a step's):
     all rows (general), kappa, damping and d0 (aligned dissipative: dF/dd0 = dF/dw, in ``gw``), or
@@ -144,10 +208,11 @@ def _parameter_forces(gp, gw, gk, th, pf, general, aligned):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fext, h):
+def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fext, h, plastic, jac, st, th, gp):
     """One step of direction ``dd`` (the step's partials dF/dw in ``gw``, dF/dvrel in ``gv``, its
     parameter forces in ``pf``, its primal forces in ``g``; ``thf``, ``thm`` the tangents of f_ext
-    and 1/m). Every per-direction array is flat (direction dd at offset dd (P + 1)) and indexed
+    and 1/m; with ``plastic`` the elastic-plastic contacts' Jacobians ``jac`` and state tangents
+    ``st``, :func:`_plastic_tangents`). Every per-direction array is flat (direction dd at offset dd (P + 1)) and indexed
     rather than cut into views: a view costs two atomic reference counts, more than a short loop."""
     n = inv_mass.shape[0]
     o = dd * (n + 1)
@@ -157,8 +222,11 @@ def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fe
         ut[o + i] += h * vh
         vpt[i] = vh + hh * at[o + i]
         vt[o + i] = vh
-    for j in range(n - 1):  # gv = 0 for the elastic law: one loop, no branch
-        ft[o + j + 1] = gw[j] * (ut[o + j] - ut[o + j + 1]) + gv[j] * (vpt[j] - vpt[j + 1]) + pf[o + j]
+    if plastic:  # a constant at every call: the branch not taken is dropped
+        _plastic_tangents(jac, st, th, gp, ut, vpt, ft, o, dd, n)
+    else:
+        for j in range(n - 1):  # gv = 0 for the elastic law: one loop, no branch
+            ft[o + j + 1] = gw[j] * (ut[o + j] - ut[o + j + 1]) + gv[j] * (vpt[j] - vpt[j + 1]) + pf[o + j]
     for i in range(n):
         at[o + i] = inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i]) + thm[o + i] * (g[i] - g[i + 1] + fext[i])
         vt[o + i] += hh * at[o + i]
@@ -183,19 +251,24 @@ def _seeded(step, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj):
     return p
 
 
-def _tangent_loop(general: bool, aligned: bool):
+def _tangent_loop(general: bool, aligned: bool, plastic: bool = False):
     """The tangent run, compiled on its own for the aligned elastic steps, the aligned dissipative
-    ones and the general ones (one function holding them all made LLVM's code for the elastic
-    steps ~1.6x slower): ``general`` and ``aligned`` are constants of the closure, and Numba
-    prunes the branches not taken."""
+    ones, the general ones and the elastic-plastic law's (one function holding them all made
+    LLVM's code for the elastic steps ~1.6x slower): ``general``, ``aligned`` and ``plastic`` are
+    constants of the closure, and Numba prunes the branches not taken."""
 
     @njit(cache=True, nogil=True)
     def run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, interval, stride, n_sub, n_eval,
-            c_steps, relax, n_samples, acc, th, v0t, rec, out_f, out_ft, seed_step, seed_contact, seed_w, dj, ext):
+            c_steps, relax, n_samples, acc, th, v0t, rec, out_f, out_ft, seed_step, seed_contact, seed_w, dj, ext,
+            state, fdres):
         """The primal run from t = 0 (state as ``verlet.initialise`` leaves it) with D tangents.
 
-        ``th`` (10, D, P): parameter tangents, rows kappa, damping, d0, de, dx0, rsum, fext, inv_mass,
-        the linear spring and dashpot of every contact (``ext``: a protected body's mount);
+        ``th`` (11, D, P): parameter tangents, rows kappa, damping, d0, de, dx0, rsum, fext, inv_mass,
+        the linear spring and dashpot of every contact (``ext``: a protected body's mount), the
+        elastic-plastic law's yield overlaps; ``state``: that law's (dyield, dmax, dres, kres), as
+        ``verlet.initialise`` leaves it (the state before t = 0 is (0, 0, kappa)), carried in place
+        with its tangents; ``fdres`` the seeds dJ/d(residual overlap at the end) of a result that
+        reads it (the plastic work: dj += fdres . dres');
         ``v0t`` (D, P): tangent of the initial velocities. Records, at every sample k, the primal
         forces ``out_f[k]`` and tangent forces ``out_ft[:, k]`` of the contacts ``rec``; accumulates
         dj[dd] += seed_w F'^(seed_step)_(seed_contact) (seeds sorted by step; step -1: t = 0).
@@ -231,8 +304,16 @@ def _tangent_loop(general: bool, aligned: bool):
                 thf[dd * (n + 1) + i] = th[6, dd, i]
                 thm[dd * (n + 1) + i] = th[7, dd, i]
         p = 0
+        jac = np.zeros((3, 11, n) if plastic else (1, 1, 1))  # the elastic-plastic contacts' Jacobians
+        st = np.zeros((2, nd * (n + 1) if plastic else 1))  # and their state's tangents (dres', kres')
+        if plastic:  # t = 0: from the state (0, 0, kappa), the stiffness's tangent kappa's
+            _plastic_partials(u, v, kappa, damping, d0, de, dx0, rsum, state[0], np.zeros(n), np.zeros(n), kappa, ext,
+                              gp, jac)
+            for dd in range(nd):
+                for j in range(n):
+                    st[1, dd * (n + 1) + j] = th[0, dd, j]
         # t = 0: a_0 from F(u_0, v_0) (the aligned elastic law reads no velocity)
-        for j in range(n - 1):
+        for j in range(n - 1 if not plastic else 0):
             fj, gw0, gv0, gk0, ga0, g00, gdd0, gx0, gr0 = contact_partials(u[j], u[j + 1], v[j], v[j + 1], kappa[j],
                                                                            damping[j], d0[j], de[j], dx0[j], rsum[j], lw)
             gp[0, j] = gw0
@@ -243,18 +324,20 @@ def _tangent_loop(general: bool, aligned: bool):
             gp[5, j] = gdd0
             gp[6, j] = gx0
             gp[7, j] = gr0
-            if ext_on and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):  # the mount at t = 0
-                gp[0, j] += ext[j, EXT_KLIN]
-                gp[4, j] += ext[j, EXT_KLIN]
-                gp[1, j] += ext[j, EXT_CLIN]
-                gp[8, j] = u[j] - u[j + 1] + d0[j]
-                gp[9, j] = v[j] - v[j + 1]
+            if ext_on:  # the mount at t = 0
+                _, kl, cl, gp[8, j], gp[9, j] = mount_partials(ext, j, u[j], u[j + 1], v[j], v[j + 1], d0[j])
+                gp[0, j] += kl
+                gp[4, j] += kl
+                gp[1, j] += cl
         _parameter_forces(gp, gw, gk, th, pf, True, False)
         for dd in range(nd):
             o = dd * (n + 1)
             for i in range(n):
                 vt[o + i] = v0t[dd, i]
-            for j in range(n - 1):
+                vpt[i] = vt[o + i]
+            if plastic:
+                _plastic_tangents(jac, st, th, gp, ut, vpt, ft, o, dd, n)
+            for j in range(n - 1 if not plastic else 0):
                 ft[o + j + 1] = gw[j] * (ut[o + j] - ut[o + j + 1]) + gv[j] * (vt[o + j] - vt[o + j + 1]) + pf[o + j]
             for i in range(n):
                 at[o + i] = inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i]) + thm[o + i] * (g[i] - g[i + 1] + fext[i])
@@ -274,7 +357,10 @@ def _tangent_loop(general: bool, aligned: bool):
                 for s in range(ns):
                     # the primal step (forces at u_{s+1}, partials there), then the tangents' step s;
                     # ``general`` is a constant of the closure: the branch not taken is not compiled
-                    if general and aligned:
+                    if plastic:
+                        _plastic_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dt,
+                                      s == ns - 1, gp, ext, state, jac)
+                    elif general and aligned:
                         _aligned_step(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, s == ns - 1, gw, gv, gk,
                                       ga)
                     elif general:
@@ -282,10 +368,11 @@ def _tangent_loop(general: bool, aligned: bool):
                                       s == ns - 1, gp, ext)
                     else:
                         _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, s == ns - 1, gw, gk)
-                    if params:
+                    if params and not plastic:
                         _parameter_forces(gp, gw, gk, th, pf, general, aligned)
                     for dd in range(nd):
-                        _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fext, dt)
+                        _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fext, dt, plastic,
+                                      jac, st, th, gp)
                     p = _seeded(step + s, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)
                 step += ns
             for r in range(rec.shape[0]):
@@ -294,28 +381,36 @@ def _tangent_loop(general: bool, aligned: bool):
                     out_ft[dd, k, r] = ft[dd * (n + 1) + rec[r] + 1]
             if not np.isfinite(g[1]) or not np.isfinite(v[0]):
                 return 1
+        if plastic:  # a result reading the final residual overlaps
+            for dd in range(nd):
+                for j in range(min(fdres.shape[0], n)):
+                    dj[dd] += fdres[j] * st[0, dd * (n + 1) + j]
         return 0
 
     return run
 
 
-#: The tangent runs: aligned elastic, aligned dissipative (Kuwabara-Kono, dashpot), general (offsets).
+#: The tangent runs: aligned elastic, aligned dissipative (Kuwabara-Kono, dashpot), general (offsets),
+#: elastic-plastic.
 _TANGENT_RUNS = {"elastic": _tangent_loop(False, True), "aligned": _tangent_loop(True, True),
-                 "general": _tangent_loop(True, False)}
+                 "general": _tangent_loop(True, False), "plastic": _tangent_loop(True, False, True)}
 
 
 def tangent_run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law, general, wall_slot,
                 interval, stride, n_sub, n_eval, c_steps, relax, n_samples, acc, th, v0t, rec, out_f, out_ft,
-                seed_step, seed_contact, seed_w, dj, ext):
+                seed_step, seed_contact, seed_w, dj, ext, state, fdres):
     """The primal run from t = 0 (state as ``verlet.initialise`` leaves it) with D tangents (see the
     loop's docstring above); ``general``, the law, the offsets and the extension ``ext`` (a
     protected body's mount) choose the compiled run."""
     if not general:
         kind = "elastic"
+    elif law == kernels.LAW_ELASTOPLASTIC:
+        kind = "plastic"
     elif law in (kernels.LAW_VISCOELASTIC, kernels.LAW_DASHPOT) and not np.any(de) and ext.shape[0] == 0:
         kind = "aligned"
     else:
         kind = "general"
     return _TANGENT_RUNS[kind](u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, law,
                                              interval, stride, n_sub, n_eval, c_steps, relax, n_samples, acc, th, v0t,
-                                             rec, out_f, out_ft, seed_step, seed_contact, seed_w, dj, ext)
+                                             rec, out_f, out_ft, seed_step, seed_contact, seed_w, dj, ext, state,
+                                             fdres)
