@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 import hertzchain as hc
-from hertzchain.errors import ConfigError
 from hertzchain.gradients import sensitivity, trace_sensitivity
 
 from test_gradients import BASE, _with, assert_matches
@@ -60,8 +59,36 @@ def test_precompression_past_yield():
     assert_matches(s, cfg, ["materials.mysteel.yield_stress"], rel=1e-7, tol=1e-3)
 
 
-def test_plastic_refusals_name_the_field():
-    with pytest.raises(ConfigError, match="contact.law"):
-        sensitivity(PLASTIC, ["striker.velocity"], mode="tangent")
-    with pytest.raises(ConfigError, match="contact.law"):
-        trace_sensitivity(PLASTIC, ["striker.velocity"])
+@pytest.mark.parametrize("objective", ["peak_wall_force", "plastic_work"])
+def test_tangent_equals_adjoint(objective):
+    """Forward mode (each contact's Jacobian from the law's reverse-mode partials, the state's
+    tangents carried step to step) and the reverse sweep are two differentiations of the same
+    steps: equal to rounding, a result read from the final state (the plastic work) included."""
+    paths = ["striker.velocity", "contact.A", "materials.mysteel.yield_stress", "chain.diameters_mm[5]"]
+    a = sensitivity(PLASTIC, paths, objective)
+    t = sensitivity(PLASTIC, paths, objective, mode="tangent")
+    assert (a.mode, t.mode) == ("adjoint", "tangent") and t.value == a.value
+    for p in paths:
+        assert t.gradient[p] == pytest.approx(a.gradient[p], rel=1e-10), p
+
+
+@pytest.mark.slow  # ~35 s: five whole runs and the trace's tangent compiled
+def test_trace_matches_finite_differences():
+    """d(wall force at every sample)/d(field) of a yielding chain by the tangent model against
+    central differences of the whole trace (the samples where the force is above 1 % of its peak)."""
+    paths = ["striker.velocity", "materials.mysteel.yield_stress"]
+    tr = trace_sensitivity(PLASTIC, paths)
+    for i, p in enumerate(paths):
+        x = hc.parse_config(PLASTIC)
+        base = float(x.striker.velocity if p == "striker.velocity" else 2e8)
+        h = 1e-6 * base
+        traces = []
+        for sign in (1, -1):
+            cfg = _with(PLASTIC, striker={"velocity": base + sign * h}) if p == "striker.velocity" else \
+                _with(PLASTIC, materials={"mysteel": {**MAT["mysteel"], "yield_stress": base + sign * h}})
+            traces.append(hc.run_config(cfg)["wall_force"].values)
+        fd = (traces[0] - traces[1]) / (2 * h)
+        live = np.abs(tr.value) > 0.01 * np.abs(tr.value).max()
+        assert np.all(tr.value[live] == pytest.approx(hc.run_config(PLASTIC)["wall_force"].values[live], rel=1e-12))
+        scale = np.abs(fd[live]).max()
+        assert np.abs(tr.jacobian[i][live] - fd[live]).max() < 1e-5 * scale, p

@@ -206,17 +206,12 @@ def check_law(system: System) -> None:
     """
     from ...contact import LAW_CODES
 
-    if is_generated(system.law):  # a registry law: its partials (and its state's)
-        if system.extended:  # the taped loops of law_derivatives step chains of beads without the extension
-            field = "wall.type" if system.body else "chain.elements"
-            raise ConfigError(field, "gradients of a law declared in hertzchain.laws (power, hunt_crossley, a "
-                              "user's) cover chains without a protected body or mass-in-mass beads yet; the "
-                              "built-in laws are differentiated with a protected body")
-        law_engines(system.law)
-        return
     if getattr(system, "res_k", None) is not None:
         raise ConfigError("chain.elements", "gradients do not differentiate mass-in-mass beads yet; they cover "
                           "chains of plain beads against a flat wall, a protected body or a free end")
+    if is_generated(system.law):  # a registry law: its partials (and its state's), a protected body's mount
+        law_engines(system.law)
+        return
     if system.law not in LAWS:
         name = next((k for k, v in LAW_CODES.items() if v == system.law), str(system.law))
         raise ConfigError("contact.law", f"gradients do not differentiate the '{name}' law yet; they cover "
@@ -544,7 +539,7 @@ def gradient(tape: Tape, seeds: Seeds, final_dres: np.ndarray | None = None) -> 
                      seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield, sb)
     elif generated is not None:
         generated[4](tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
-                     seeds.step, seeds.contact, seeds.weight, seeds.step.size, grad, sb[0])
+                     seeds.step, seeds.contact, seeds.weight, seeds.step.size, grad, sb[0], w.ext)
     elif n_blocks:
         _adjoint.reverse_sweep(tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab,
                                w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general,
@@ -638,7 +633,7 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
         status = law_engines(system.law)[2](u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
                                             w.fext, w.dcap, w.dmax, sample_interval, plan.stride, plan.n_sub,
                                             plan.n_eval, plan.c_steps, plan.relax, n_samples, acc, th, v0t, rec, out_f,
-                                            out_ft, seeds.step, seeds.contact, seeds.weight, dj)
+                                            out_ft, seeds.step, seeds.contact, seeds.weight, dj, w.ext)
     else:
         status = _tangent.tangent_run(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
                                       w.fext, w.dcap, system.law, system.general, w.wall_slot, sample_interval,

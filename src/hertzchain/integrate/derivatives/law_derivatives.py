@@ -29,14 +29,17 @@ import numpy as np
 from numba import njit
 
 from .adjoint import _clear_seeds, _take_seeds
+from ..core.extension import extension_stride, forces_linear
 from ..core.kernels import DELTA_MIN, _adapt_stride
 from ..core.primitives import _track_peak
+from .partials import mount_partials
 from .tangent import _seeded
 from .tape import _open_block
 
 #: Rows of a contact's partials (of F, and of the new state): w, v, then the System parameters in
-#: the order of the gradient rows (kappa, damping, d0, de, dx0, rsum), then the state before.
-ROWS = 9
+#: the order of the gradient rows (kappa, damping, d0, de, dx0, rsum), then the state before, then
+#: a protected body's mount (its spring k and dashpot c, on contact N + 1: ``extension.linear_force``).
+ROWS = 11
 _CACHE: dict = {}
 
 
@@ -132,6 +135,36 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
         cf[j, 8] = c * fs * ss
         return c * f
 
+    @njit(nogil=True, inline="always")
+    def partials_ext(uj, uj1, vj, vj1, k, p, d0, de, dx0, rsum, s, cf, ch, j, ext):
+        """:func:`contact_partials` with the mount's spring and dashpot of contact slot j in ``ext``
+        (empty: none), in parallel with the law as the generated run adds them
+        (``extension.forces_linear``): the axial force and its partials, columns 9, 10 by k and c."""
+        f = contact_partials(uj, uj1, vj, vj1, k, p, d0, de, dx0, rsum, s, cf, ch, j)
+        if ext.shape[0] > 0:
+            fl, kl, cl, cf[j, 9], cf[j, 10] = mount_partials(ext, j, uj, uj1, vj, vj1, d0)
+            cf[j, 0] += kl
+            cf[j, 4] += kl
+            cf[j, 1] += cl
+            f += fl
+        return f
+
+    @njit(nogil=True, inline="always")
+    def step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, ext, ext_on):
+        """A step's forces as the generated run takes them: the law's, then the mount's."""
+        gforces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state)
+        if ext_on:
+            forces_linear(u, vp, d0, ext, g)
+
+    @njit(nogil=True, inline="always")
+    def step_stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps, ext,
+                    ext_on):
+        """The steps per block the generated run takes: the law's bound, plus the mount's."""
+        req = gstride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps)
+        if ext_on:
+            req += extension_stride(ext, inv_mass, block, c_steps)
+        return req
+
     @njit(nogil=True)
     def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres, law,
                      general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, n_samples, rec, out_f, fmax,
@@ -149,8 +182,8 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             for b in range(n_sub):
                 bi = (k - 1) * n_sub + b
                 if adaptive and bi % n_eval == 0:
-                    req = gstride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, dmax, inv_mass, n_eval * block,
-                                  block, c_steps)
+                    req = step_stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, dmax, inv_mass, n_eval * block,
+                                      block, c_steps, ext, ext_on)
                     ns = _adapt_stride(req, ns, relax, acc)
                 if bi % group == 0:
                     c = bi // group
@@ -167,7 +200,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + half * a[i]
-                    gforces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax)
+                    step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax, ext, ext_on)
                     before = peak[0]
                     _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
                     if g[wall_slot + 1] > before:
@@ -214,7 +247,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                     vpstore[s0 + s, i] = vp[i]
                     pstore[0, s0 + s, i] = dmax[i]
                 hstore[s0 + s] = dt
-                gforces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax)
+                step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax, ext, ext_on)
                 _kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1)
             s0 += ns
         return s0
@@ -222,12 +255,13 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
     @njit(nogil=True)
     def tangent_run(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, state, interval, stride, n_sub,
                     n_eval, c_steps, relax, n_samples, acc, th, v0t, rec, out_f, out_ft, seed_step, seed_contact,
-                    seed_w, dj):
+                    seed_w, dj, ext):
         """``tangent.tangent_run`` for the generated law (``state``: the law's state after t = 0, as
         ``verlet.initialise`` leaves it; the state before t = 0 is zero): the generated run with D
         tangents, the state's among them."""
         n = a.shape[0]
         nd = th.shape[1]
+        ext_on = ext.shape[0] > 0
         block = interval / n_sub
         adaptive = stride == 0
         ns = stride if not adaptive else int(acc[3])
@@ -243,8 +277,8 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 thf[dd * (n + 1) + i] = th[6, dd, i]
                 thm[dd * (n + 1) + i] = th[7, dd, i]
         for j in range(n - 1):  # t = 0: F(u_0, v_0) from the state 0
-            contact_partials(u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j], 0.0,
-                             cf, ch, j)
+            partials_ext(u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j], 0.0, cf,
+                         ch, j, ext)
         _parameter_forces(cf, ch, th, pf, ph)
         for dd in range(nd):
             o = dd * (n + 1)
@@ -262,8 +296,8 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             for b in range(n_sub):
                 bi = (k - 1) * n_sub + b
                 if adaptive and bi % n_eval == 0:
-                    req = gstride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, n_eval * block,
-                                  block, c_steps)
+                    req = step_stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass,
+                                      n_eval * block, block, c_steps, ext, ext_on)
                     ns = _adapt_stride(req, ns, relax, acc)
                 dt = block / ns
                 hh = 0.5 * dt
@@ -272,9 +306,9 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                     for i in range(n):
                         vp[i] = v[i] + hh * a[i]
                     for j in range(n - 1):  # partials at the state before the step, then the step
-                        contact_partials(u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j],
-                                         rsum[j], state[j], cf, ch, j)
-                    gforces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state)
+                        partials_ext(u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j],
+                                     rsum[j], state[j], cf, ch, j, ext)
+                    step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, ext, ext_on)
                     _kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1)
                     _parameter_forces(cf, ch, th, pf, ph)
                     for dd in range(nd):
@@ -301,7 +335,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
 
     @njit(nogil=True)
     def steps(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, sb, fb, fs, wb, rb, inv_mass, kappa,
-              damping, d0, de, dx0, rsum, fext, seed_step, seed_contact, seed_w, ptr, grad, cf, ch):
+              damping, d0, de, dx0, rsum, fext, seed_step, seed_contact, seed_w, ptr, grad, cf, ch, ext):
         """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse (``adjoint._steps_general`` with
         the law's partials; ``sb`` the adjoints of the state after the step, carried backwards)."""
         n = ab.shape[0]
@@ -311,8 +345,8 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             hh = 0.5 * h
             q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
             for j in range(n - 1):
-                f = contact_partials(ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j], vpstore[sl, j + 1], kappa[j],
-                                     damping[j], d0[j], de[j], dx0[j], rsum[j], pstore[0, sl, j], cf, ch, j)
+                f = partials_ext(ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j], vpstore[sl, j + 1], kappa[j],
+                                 damping[j], d0[j], de[j], dx0[j], rsum[j], pstore[0, sl, j], cf, ch, j, ext)
                 fbar = fb[j] + inv_mass[j + 1] * (ab[j + 1] + hh * vb[j + 1]) - inv_mass[j] * (ab[j] + hh * vb[j])
                 _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad)
             for i in range(n):
@@ -330,7 +364,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
 
     @njit(nogil=True)
     def initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, seed_step, seed_contact,
-                seed_w, ptr, grad, sb):
+                seed_w, ptr, grad, sb, ext):
         """``adjoint._adjoint_initial`` for the generated law: the forces at t = 0 from the state 0."""
         n = ab.shape[0]
         fb = np.zeros(n)
@@ -339,8 +373,8 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
         cf = np.zeros((n, ROWS))
         ch = np.zeros((n, ROWS))
         for j in range(n - 1):
-            f = contact_partials(u0[j], u0[j + 1], v0[j], v0[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j],
-                                 rsum[j], 0.0, cf, ch, j)
+            f = partials_ext(u0[j], u0[j + 1], v0[j], v0[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j],
+                             rsum[j], 0.0, cf, ch, j, ext)
             fbar = fb[j] + inv_mass[j + 1] * ab[j + 1] - inv_mass[j] * ab[j]
             _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad)
         for i in range(n):
@@ -375,12 +409,13 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             b0 = gi * group
             b1 = min(b0 + group, n_blocks)
             rows = replay_group(ckpt[gi], u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
-                                wall_slot, ns_log, b0, b1, block, stores, dyield, state, state, state, ext, False)
+                                wall_slot, ns_log, b0, b1, block, stores, dyield, state, state, state, ext,
+                                ext.shape[0] > 0)
             p = steps(rows, stores[0], stores[1], stores[2], stores[3], starts[gi], ub, vb, ab, sbar, fb, fs, wb, rb,
                       inv_mass, kappa, damping, d0, de, dx0, rsum, fext, seed_step, seed_contact, seed_w, p, grad, cf,
-                      ch)
+                      ch, ext)
         return initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, seed_step, seed_contact,
-                       seed_w, p, grad, sbar)
+                       seed_w, p, grad, sbar, ext)
 
     return tape_forward, replay_group, tangent_run, reverse_sweep, initial
 
@@ -403,7 +438,8 @@ def _kick(u, v, a, g, fext, inv_mass, dt, last):
 @njit(nogil=True, inline="always")
 def _parameter_forces(cf, ch, th, pf, ph):
     """pf[dd (P + 1) + j] = sum over the System parameters of dF_j/dtheta theta'_j along direction
-    dd (rows kappa .. rsum of ``th``), ph the same for the new state."""
+    dd (rows kappa .. rsum of ``th``, and the mount's k and c, rows 8, 9), ph the same for the new
+    state (which the mount does not move)."""
     nd = th.shape[1]
     n = th.shape[2]
     for dd in range(nd):
@@ -414,7 +450,7 @@ def _parameter_forces(cf, ch, th, pf, ph):
             for r in range(6):
                 x += cf[j, r + 2] * th[r, dd, j]
                 y += ch[j, r + 2] * th[r, dd, j]
-            pf[o + j] = x
+            pf[o + j] = x + cf[j, 9] * th[8, dd, j] + cf[j, 10] * th[9, dd, j]
             ph[o + j] = y
 
 
@@ -432,11 +468,14 @@ def _contact_tangents(cf, ch, ut, vpt, ft, st, pf, ph, o, n):
 @njit(nogil=True, inline="always")
 def _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad):
     """Contact j's adjoint: ``fbar`` on its force and ``sb[j]`` on its new state to those of w, the
-    relative velocity, the parameters (``grad`` rows 0-5) and the state before (into ``sb[j]``)."""
+    relative velocity, the parameters (``grad`` rows 0-5; the mount's k and c, rows 8, 9) and the
+    state before (into ``sb[j]``)."""
     sbar = sb[j]
     fs[j + 1] = f
     wb[j + 1] = fbar * cf[j, 0] + sbar * ch[j, 0]
     rb[j + 1] = fbar * cf[j, 1] + sbar * ch[j, 1]
     for r in range(6):
         grad[r, j] += fbar * cf[j, r + 2] + sbar * ch[j, r + 2]
+    grad[8, j] += fbar * cf[j, 9]
+    grad[9, j] += fbar * cf[j, 10]
     sb[j] = fbar * cf[j, 8] + sbar * ch[j, 8]
