@@ -177,7 +177,6 @@ def _prepare(cfg):
         raise ConfigError("run.integrator", f"gradients differentiate the Verlet engine's steps; got "
                           f"'{cfg.run.integrator}': use 'auto' (the default) or 'verlet'")
     model = build_model(cfg)
-    _refuse_unknown_models(cfg, model)
     system = model.system()
     D.check_law(system)
     duration = auto_duration(model) if cfg.run.duration == "auto" else float(cfg.run.duration)
@@ -186,16 +185,6 @@ def _prepare(cfg):
     probes = Probes(sample_interval=cfg.run.sample_interval, contacts=(system.n_beads,) if system.has_wall else ())
     check_before_run(model, system, duration, probes, dt=cfg.run.dt, integrator="verlet")
     return model, system, duration
-
-
-def _refuse_unknown_models(cfg, model) -> None:
-    """Refuse, naming the field, what the derivative engines do not cover yet: mass-in-mass beads.
-    (Striker faces, flat or curved, a protected body's flat or spherical face, cylinders and beads
-    of a given mass, gravity and static loads are differentiated: :mod:`~hertzchain.gradients.setup`,
-    :mod:`~hertzchain.gradients.faces`.)"""
-    if any(el.resonator_fraction > 0 for el in getattr(model.chain, "elements", ())):
-        raise ConfigError("chain.elements", "gradients cover beads without an internal mass; mass-in-mass beads "
-                          "are not differentiated yet")
 
 
 def _parameter_gradient(sd, engine: dict[str, np.ndarray], direct: dict[str, np.ndarray]) -> dict[str, float]:

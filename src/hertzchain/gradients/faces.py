@@ -39,6 +39,19 @@ def element_masses(elements, mass: np.ndarray, rho: np.ndarray, phi: np.ndarray)
             mass[:, b] = rho[:, b] * math.pi * phi[:, b] ** 2 * length / 4.0
 
 
+def element_resonators(elements, mass: np.ndarray, res_k: np.ndarray, res_inv_mass: np.ndarray) -> None:
+    """Mass-in-mass beads (``Element.resonator``, ``bodies.extend``), in place: of a bead's whole
+    mass m (``mass``, rows, N + 1) the internal mass f m rides on a spring f m (2 pi nu)^2 (into
+    ``res_k`` and ``res_inv_mass`` = 1 / (f m)), and ``mass`` keeps the shell's (1 - f) m."""
+    for i, el in enumerate(elements):
+        if el.resonator_fraction > 0:
+            b = i + 1
+            m_in = el.resonator_fraction * mass[:, b]
+            res_k[:, b] = m_in * (2.0 * math.pi * el.resonator_frequency) ** 2
+            res_inv_mass[:, b] = 1.0 / m_in
+            mass[:, b] = mass[:, b] - m_in
+
+
 def _face(el, phi) -> tuple[Any, Any, float]:
     """(k1, k2, angle) of a bead's face: elements.face_of in complex arithmetic."""
     k = 2.0 / phi

@@ -43,7 +43,7 @@ import numpy as np
 from ..config.build import chain_gravity
 from ..errors import ConfigError
 from ..laws import get_law
-from .faces import element_contacts, element_masses
+from .faces import element_contacts, element_masses, element_resonators
 
 __all__ = ["SetupDerivatives", "setup_derivatives", "ARRAYS", "expand_paths"]
 
@@ -51,7 +51,7 @@ __all__ = ["SetupDerivatives", "setup_derivatives", "ARRAYS", "expand_paths"]
 #: the elastic limits the results may read directly), the beads' diameters and offsets [m], and
 #: a protected body's mount (spring [N/m], dashpot [N s/m], deflection at rest [m]; (1,) each).
 ARRAYS = ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mass", "yield_force",
-          "diameter", "offset", "mount_k", "mount_c", "mount_d0", "dyield")
+          "diameter", "offset", "mount_k", "mount_c", "mount_d0", "dyield", "res_k", "res_inv_mass")
 #: The complex step (any h far below the value's own scale works: no subtraction is made).
 STEP = 1e-30
 
@@ -198,8 +198,11 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     else:
         mass[:, :1] = read("striker.mass", mass[0, 0].real) + 1j * mass[:, :1].imag
     elements = _elements(cfg)
+    res_k = np.zeros((read.rows, n + 2), dtype=complex)  # mass-in-mass beads' internal springs
+    res_inv_mass = np.zeros((read.rows, n + 2), dtype=complex)  # and inverse internal masses
     if elements is not None:  # a given mass, a cylinder's (gradients.faces)
         element_masses(elements, mass, rho, phi)
+        element_resonators(elements, mass, res_k, res_inv_mass)
     r = phi / 2.0
     inv_r = 1.0 / r[:, :-1] + 1.0 / r[:, 1:]
     striker_curvature: Any = 1.0 / r[:, 0]  # the striker's face: its sphere, a flat or a curved face
@@ -296,7 +299,7 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     return {"kappa": kappa, "damping": damping, "d0": d0, "de": de, "dx0": dx0, "rsum": rsum, "fext": fext,
             "inv_mass": inv_mass, "v0": v0, "mass": np.concatenate([mass, body_mass], axis=1),
             "yield_force": fy, "diameter": d, "offset": offsets, "mount_k": mount_k + 0j, "mount_c": mount_c + 0j,
-            "mount_d0": mount_d0, "dyield": dyield}
+            "mount_d0": mount_d0, "dyield": dyield, "res_k": res_k, "res_inv_mass": res_inv_mass}
 
 
 def _registry_law(cfg, read: _Reader, kappa, inv_mass) -> tuple[np.ndarray, np.ndarray]:
@@ -645,11 +648,24 @@ def _split(out: dict, members: list[str], mask: np.ndarray, nz: np.ndarray, val:
             out[f"{head}[{int(o[0])}]"][name] = (idx, v)
 
 
+def _resonators(system, name: str) -> np.ndarray:
+    """The System's internal springs (``res_k``) or inverse internal masses (``res_inv_mass``: 1/res_m,
+    0 where a body has none), zeros without mass-in-mass beads."""
+    size = system.mass.size
+    if system.res_k is None:
+        return np.zeros(size)
+    if name == "res_k":
+        return np.asarray(system.res_k, dtype=float)
+    m = np.asarray(system.res_m, dtype=float)
+    return np.where(m > 0, 1.0 / np.where(m > 0, m, 1.0), 0.0)
+
+
 def _check_against(values: dict[str, np.ndarray], system) -> None:
     """Refuse a config whose System this module does not reproduce (a set-up it does not know)."""
     for name in ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mass", "yield_force",
-                 "mount_k", "mount_c", "mount_d0", "dyield"):
-        ref = system.yield_overlap() if name == "dyield" else getattr(system, name, 0.0)
+                 "mount_k", "mount_c", "mount_d0", "dyield", "res_k", "res_inv_mass"):
+        ref = system.yield_overlap() if name == "dyield" else _resonators(system, name) if name.startswith("res_") \
+            else getattr(system, name, 0.0)
         ref = np.atleast_1d(np.asarray(ref, dtype=float))
         mine = values[name]
         if ref.shape != mine.shape or not np.allclose(mine, ref, rtol=1e-12, atol=0.0, equal_nan=True):

@@ -21,6 +21,12 @@ unloading stiffness, ``kernels.elastoplastic_force``) that a step's forces updat
 carries the adjoints of that state backwards too, from step to step and group to group, and
 ends them in kappa (the stiffness every contact starts with). Its checkpoints and replays keep
 the state as well: memory 6 P doubles per checkpoint, and 5 P per step of the group replayed.
+
+Mass-in-mass beads: body i's internal mass (position w, on a spring k_in, 1/m_in) is stepped by the
+same kick-drift-kick, s_i = k_in (w_{s+1} - u_{s+1}) joining the body's net force and -s_i / m_in
+being the internal mass's acceleration; :func:`inner_back` carries its adjoints (w', wv', wa')
+backwards like the body's (no dashpot: no predicted velocity), and collects the gradients of
+k_in (row 11) and 1/m_in (row 12).
 """
 
 from __future__ import annotations
@@ -28,10 +34,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..core.extension import EXT_CLIN, EXT_KLIN
+from ..core.extension import EXT_CLIN, EXT_IMIN, EXT_KIN, EXT_KLIN
 from ..core.kernels import DELTA_MIN, LAW_ELASTOPLASTIC
 from .partials import aligned_partials, contact_partials, plastic_contact_adjoint
-from .tape import _fused, replay_group
+from .tape import _fused, has_inner, replay_group
 
 #: Seeds on the state rather than on a force: a seed's contact number STATE_U + i (STATE_V + i)
 #: is the position (velocity) of slot i after the step (``differentiate.Seeds``).
@@ -100,13 +106,43 @@ def _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv,
         vb[i] = vh
 
 
+@njit(cache=True, nogil=True, inline="always")
+def inner_back(h, ustore, wstore, sl, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad):
+    """The internal masses' part of a step's adjoint (module docstring), before the bodies' own
+    (:func:`_bodies_back`, which then reads the u' this adds): with a'_{s+1} = a' + h/2 v' and
+    wa'_{s+1} = wa' + h/2 wv' (formed here), the spring's s' = a'_{s+1} / m - wa'_{s+1} / m_in goes to
+    u' (-k_in s'), w' (+k_in s') and k_in (s' (w - u)); 1/m and 1/m_in collect a'_{s+1} s and
+    -wa'_{s+1} s; then (w', wv', wa') become those of the step before. ``ustore[sl]`` and
+    ``wstore[sl]`` hold the positions the step's forces were taken at (h = 0: the state at t = 0,
+    whose accelerations are a function of the positions only)."""
+    hh = 0.5 * h
+    for i in range(ab.shape[0]):
+        k = ext[i, EXT_KIN]
+        if k == 0.0:
+            continue
+        x = wstore[sl, i] - ustore[sl, i]
+        sp = k * x
+        abi = ab[i] + hh * vb[i]
+        wabi = wab[i] + hh * wvb[i]
+        sbar = abi * inv_mass[i] - wabi * ext[i, EXT_IMIN]
+        grad[7, i] += abi * sp
+        grad[11, i] += sbar * x
+        grad[12, i] -= wabi * sp
+        ub[i] -= k * sbar
+        wub[i] += k * sbar
+        wvh = wvb[i] + h * wub[i]
+        wab[i] = hh * wvh
+        wvb[i] = wvh
+
+
 @njit(cache=True, nogil=True)
 def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
-                   d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, ptr, grad, ext):
+                   d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, ptr, grad, ext, inn):
     """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse, general forces; returns the seed pointer.
 
     ``grad`` rows: kappa, damping, d0, de, dx0, rsum, fext, inv_mass, then the linear spring and
-    dashpot of every contact (``ext``: a protected body's mount; an empty ``ext`` has none).
+    dashpot of every contact (``ext``: a protected body's mount; an empty ``ext`` has none); with
+    mass-in-mass beads, ``inn`` = (wstore, wub, wvb, wab, inner) (:func:`inner_back`).
     Seeds are sorted by step; ``ptr`` is one past the last seed not consumed yet. ``fb`` (zero on
     entry and exit) receives a step's seeds; ``fs, wb, rb`` are scratch (size P + 1, slot 0 zero).
     The loops read shifted views (``x1[j]`` for x[j + 1], made once) so that LLVM vectorises them,
@@ -119,6 +155,7 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
     p = ptr
     gk, gdamp, gd0, gde, gdx0, grs, gfext, ginv = grad[0], grad[1], grad[2], grad[3], grad[4], grad[5], grad[6], grad[7]
     gkl, gcl = grad[8], grad[9]
+    wstore, wub, wvb, wab, inner = inn
     ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
     m = n - 1
     linear = ext.shape[0] > 0
@@ -150,6 +187,8 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
             gde[j] += fbar * gdd
             gdx0[j] += fbar * gx
             grs[j] += fbar * gr
+        if inner:
+            inner_back(h, ustore, wstore, sl, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
         _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
         _clear_seeds(p, q, fb, seed_contact)
         p = q
@@ -190,7 +229,7 @@ def _steps_dissipative(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, f
 
 @njit(cache=True, nogil=True)
 def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, fb, fs, wb, rb, sb, inv_mass, kappa,
-                   damping, d0, de, dx0, rsum, fext, dyield, seed_step, seed_contact, seed_w, ptr, grad, ext):
+                   damping, d0, de, dx0, rsum, fext, dyield, seed_step, seed_contact, seed_w, ptr, grad, ext, inn):
     """:func:`_steps_general` for the elastic-plastic law, offset beads included
     (:func:`partials.plastic_contact_adjoint`): ``pstore`` holds the state (dmax, dres, kres) each
     step started from, ``sb`` (2, P) the adjoints of the state (dres, kres) after the step being
@@ -200,6 +239,7 @@ def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, f
     p = ptr
     gk, gdamp, gd0, gde, gdx0, grs, gfext, ginv = grad[0], grad[1], grad[2], grad[3], grad[4], grad[5], grad[6], grad[7]
     gdy, gkl, gcl = grad[10], grad[8], grad[9]
+    wstore, wub, wvb, wab, inner = inn
     ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
     m = n - 1
     linear = ext.shape[0] > 0
@@ -232,6 +272,8 @@ def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, f
             fs1[j] = f
             wb1[j] = gw
             rb1[j] = gv
+        if inner:
+            inner_back(h, ustore, wstore, sl, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
         _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
         _clear_seeds(p, q, fb, seed_contact)
         p = q
@@ -297,11 +339,12 @@ def _steps_plain(nsteps, ustore, hstore, step0, ub, vb, ab, fb, fs, wb, inv_mass
 
 @njit(cache=True, nogil=True)
 def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
-                     seed_step, seed_contact, seed_w, ptr, grad, ext, dyield, sb):
+                     seed_step, seed_contact, seed_w, ptr, grad, ext, dyield, sb, inn):
     """The state at t = 0: a_0 = (F(u_0, v_0)_{i-1} - F(u_0, v_0)_i + f_ext,i) / m_i (seeds of step -1).
 
     The elastic-plastic law's forces at t = 0 start its state from (0, 0, kappa) (``layout.pack``):
-    ``sb`` holds the adjoints of the state they leave, and the stiffness's flows into kappa's."""
+    ``sb`` holds the adjoints of the state they leave, and the stiffness's flows into kappa's.
+    ``inn`` = (w0, wub, wvb, wab, inner): the internal masses' positions at t = 0 (1, P) and adjoints."""
     n = ab.shape[0]
     fb = np.zeros(n)
     p = _take_seeds(-1, ptr, fb, ub, vb, seed_step, seed_contact, seed_w)
@@ -346,6 +389,9 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
         fs[j + 1] = f
         wb[j + 1] = wbar
         rb[j + 1] = rbar
+    w0, wub, wvb, wab, inner = inn
+    if inner:
+        inner_back(0.0, u0.reshape((1, u0.shape[0])), w0, 0, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
     for i in range(n):
         grad[6, i] += ab[i] * inv_mass[i]
         grad[7, i] += ab[i] * (fs[i] - fs[i + 1] + fext[i])
@@ -356,7 +402,8 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
 
 @njit(cache=True, nogil=True)
 def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
-                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb):
+                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb,
+                  w0):
     """The whole reverse sweep: every group replayed and differentiated, last group first, then
     the initial state. On entry ``ub, vb, ab`` hold the seeds on the final state (usually zero);
     on exit the adjoints of (u_0, v_0, a_0), and ``grad`` the parameter gradients (rows as in
@@ -364,7 +411,8 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     most steps in one group. With the elastic-plastic law the checkpoints hold its state too
     (rows 3-5), and the adjoints of its state (``sb``, (2, P): residual overlap and unloading
     stiffness; on entry those of the final state, for a result that reads it, as the plastic work)
-    cross from group to group."""
+    cross from group to group. ``w0`` (1, P): the internal masses' positions at t = 0 (mass-in-mass
+    beads; their adjoints too cross from group to group)."""
     n = ab.shape[0]
     u = np.zeros(n + 1)
     v = np.zeros(n + 1)
@@ -382,6 +430,9 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     fs = np.zeros(n + 1)
     wb = np.zeros(n + 1)
     rb = np.zeros(n + 1)
+    inner = has_inner(ext)
+    wstore = np.zeros((max_rows if inner else 1, n))
+    wub, wvb, wab = np.zeros(n), np.zeros(n), np.zeros(n)
     n_groups = (n_blocks + group - 1) // group
     static = False
     for i in range(n):
@@ -398,18 +449,19 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
         b0 = gi * group
         b1 = min(b0 + group, n_blocks)
         rows = replay_group(ckpt[gi], u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
-                            wall_slot, ns_log, b0, b1, block, (ustore, vpstore, hstore, pstore), dyield, dmax, dres,
-                            kres, ext, ext.shape[0] > 0)
+                            wall_slot, ns_log, b0, b1, block, (ustore, vpstore, hstore, pstore, wstore), dyield, dmax,
+                            dres, kres, ext, ext.shape[0] > 0)
         if plastic:
             p = _steps_plastic(rows, ustore, vpstore, hstore, pstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, sb,
                                inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, seed_step, seed_contact,
-                               seed_w, p, grad, ext)
+                               seed_w, p, grad, ext, (wstore, wub, wvb, wab, inner))
         elif fused:
             p = _steps_dissipative(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass,
                                    kappa, damping, d0, fext, law, seed_step, seed_contact, seed_w, p, grad)
         elif general:
             p = _steps_general(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
-                               damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad, ext)
+                               damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad, ext,
+                               (wstore, wub, wvb, wab, inner))
         elif static:
             p = _steps_static(rows, ustore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, inv_mass, kappa, d0, fext,
                               seed_step, seed_contact, seed_w, p, grad)
@@ -417,4 +469,4 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
             p = _steps_plain(rows, ustore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, inv_mass, kappa, seed_step,
                              seed_contact, seed_w, p, grad)
     return _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
-                            seed_step, seed_contact, seed_w, p, grad, ext, dyield, sb)
+                            seed_step, seed_contact, seed_w, p, grad, ext, dyield, sb, (w0, wub, wvb, wab, inner))

@@ -30,6 +30,7 @@ from . import tangent as _tangent
 from .adjoint import STATE_U, STATE_V
 from ..core.generated import is_generated
 from .law_derivatives import law_engines
+from ..core.extension import EXT_W
 from ..core.layout import PAD, Packed, pack
 from .tape import replay_group, tape_forward
 from ..drivers.verlet import StepPlan, initialise, refine_peak, step_plan
@@ -39,11 +40,15 @@ __all__ = ["PARAMETERS", "Seeds", "Tape", "record", "gradient", "tangents", "CHE
 
 #: System arrays the engines differentiate, in the order of the kernels' gradient rows (v0 last):
 #: then a protected body's mount, its spring ``mount_k`` [N/m], dashpot ``mount_c`` [N s/m] and
-#: deflection at rest ``mount_d0`` [m] (scalars, as the System holds them), and the elastic-plastic
-#: law's yield overlaps ``dyield`` [m] (``System.yield_overlap()``; per contact).
+#: deflection at rest ``mount_d0`` [m] (scalars, as the System holds them), the elastic-plastic
+#: law's yield overlaps ``dyield`` [m] (``System.yield_overlap()``; per contact), and the internal
+#: springs ``res_k`` [N/m] and inverse internal masses ``res_inv_mass`` [1/kg] of mass-in-mass beads
+#: (per body, 0 where none).
 PARAMETERS = ("kappa", "damping", "d0", "de", "dx0", "rsum", "fext", "inv_mass", "v0", "mount_k", "mount_c",
-              "mount_d0", "dyield")
-_ROWS = 11  # gradient rows of the kernels: the eight per-slot arrays, the linear k and c, dyield
+              "mount_d0", "dyield", "res_k", "res_inv_mass")
+#: Gradient rows of the kernels: the eight per-slot arrays, the linear k and c, dyield, the internal
+#: springs and inverse internal masses.
+_ROWS = 13
 #: Most memory [bytes] the checkpoints of a reverse sweep may take; past it, checkpoints are kept
 #: every few blocks (the replay of a group then stores more steps at once).
 CHECKPOINT_BYTES = 256 * 2**20
@@ -143,6 +148,7 @@ class Tape:
     group: int
     u0: np.ndarray
     v0: np.ndarray
+    w0: np.ndarray  # (1, P): the internal masses' positions at t = 0 (mass-in-mass beads; zeros else)
 
     def sample_step(self, k: int) -> int:
         """Global step whose forces are sample ``k`` (-1 for sample 0, t = 0).
@@ -188,12 +194,27 @@ def _pstore(system: System, steps: int, n: int) -> np.ndarray:
     return np.zeros((1, steps, n)) if is_generated(system.law) else np.zeros((3, 1, 1))
 
 
+def _inner(system: System) -> bool:
+    """Whether the model has mass-in-mass beads (internal masses the engines step)."""
+    res_k = getattr(system, "res_k", None)
+    return res_k is not None and bool(np.any(res_k != 0.0))
+
+
+def _stores(system: System, steps: int, n: int, velocities: bool = False) -> tuple:
+    """What a replay of ``steps`` steps stores (``tape.replay_group``): positions, the velocities
+    the forces see (a general model's, or when ``velocities``), step lengths, the law's state, the
+    internal masses' positions."""
+    vel = velocities or system.general
+    return (np.zeros((steps, n)), np.zeros((steps if vel else 1, n)), np.zeros(steps), _pstore(system, steps, n),
+            np.zeros((steps if _inner(system) else 1, n)))
+
+
 def _step_arrays(system: System) -> int:
     """Arrays of P doubles the reverse sweep stores per step (positions; the velocities the forces
-    see; the elastic-plastic state, or a generated law's)."""
+    see; the elastic-plastic state, or a generated law's; the internal masses' positions)."""
     if system.law == kernels.LAW_ELASTOPLASTIC:
-        return 5
-    return 3 if is_generated(system.law) else 2 if system.general else 1
+        return 5 + _inner(system)
+    return (3 if is_generated(system.law) else 2 if system.general else 1) + _inner(system)
 
 
 def check_law(system: System) -> None:
@@ -206,10 +227,11 @@ def check_law(system: System) -> None:
     """
     from ...contact import LAW_CODES
 
-    if getattr(system, "res_k", None) is not None:
-        raise ConfigError("chain.elements", "gradients do not differentiate mass-in-mass beads yet; they cover "
-                          "chains of plain beads against a flat wall, a protected body or a free end")
     if is_generated(system.law):  # a registry law: its partials (and its state's), a protected body's mount
+        if _inner(system):
+            raise ConfigError("chain.elements", "gradients of a law declared in hertzchain.laws (power, "
+                              "hunt_crossley, a user's) do not differentiate mass-in-mass beads yet; the built-in "
+                              "laws do")
         law_engines(system.law)
         return
     if system.law not in LAWS:
@@ -222,8 +244,8 @@ def _checkpoints(system: System, plan: StepPlan, n_samples: int, sample_interval
                  n_slots: int) -> tuple[int, int, int, int]:
     """(blocks, rows per checkpoint, blocks per checkpoint, most steps of a block) of a taped run."""
     n_blocks = (n_samples - 1) * plan.n_sub
-    # u, v, a (and dmax, dres, kres; or a generated law's state)
-    rows = 6 if system.law == kernels.LAW_ELASTOPLASTIC else 4 if is_generated(system.law) else 3
+    # u, v, a (and dmax, dres, kres; or a generated law's state; then the internal masses' w, wv)
+    rows = (6 if system.law == kernels.LAW_ELASTOPLASTIC else 4 if is_generated(system.law) else 3) + 2 * _inner(system)
     per_ckpt = rows * n_slots * 8
     ns_max = plan.stride if plan.stride > 0 else math.ceil(sample_interval / plan.n_sub / plan.dt - 1e-9)
     group = max(1, GROUP_STEPS // max(ns_max, 1), math.ceil(n_blocks * per_ckpt / CHECKPOINT_BYTES))
@@ -305,6 +327,7 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     rec = np.array(wanted or [0], dtype=np.int64)
     u, v = w.u, w.v
     u0, v0 = u.copy(), v.copy()
+    w0 = (w.ext[:, EXT_W] if w.ext.shape[0] else np.zeros(w.n_slots)).reshape(1, -1).copy()
     g = np.zeros(w.n_slots + 1)
     a = np.zeros(w.n_slots)
     out_f = np.empty((n_samples, rec.size))
@@ -331,7 +354,7 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     return Tape(system=system, plan=plan, packed=w, time=np.arange(n_samples) * sample_interval, contacts=rec,
                 forces=out_f, max_force=fmax, max_force_sample=fmax_k, peak=peak.copy(), peak_step=int(kstar[0]),
                 peak_wall_force=fpk, peak_wall_time=t_pk, step_end=step_end, n_steps=int(acc[2]), ns_log=ns_log,
-                ckpt=ckpt, group=group, u0=u0, v0=v0)
+                ckpt=ckpt, group=group, u0=u0, v0=v0, w0=w0)
 
 
 def state_seed(slot: int, velocity: bool = False) -> int:
@@ -390,8 +413,7 @@ def _replay(tape: Tape, b0: int, b1: int, stores) -> tuple[np.ndarray, np.ndarra
     n = w.n_slots
     if stores is None:
         steps = int(tape.ns_log[b0:b1].max()) * (b1 - b0) if b1 > b0 else 1
-        stores = (np.zeros((steps, n)), np.zeros((steps if sy.general else 1, n)), np.zeros(steps),
-                  _pstore(sy, steps, n))
+        stores = _stores(sy, steps, n)
     block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub
     u, v, a, g = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n), np.zeros(n + 1)
     dmax, dres, kres = np.zeros(n), np.zeros(n), w.kappa.copy()
@@ -428,7 +450,7 @@ def replay_groups(tape: Tape, last_step: int):
     for b0 in range(0, n_blocks, tape.group):
         b1 = min(b0 + tape.group, n_blocks)
         steps = int(tape.ns_log[b0:b1].sum())
-        stores = (np.zeros((steps, n)), np.zeros((steps, n)), np.zeros(steps), _pstore(sy, steps, n))
+        stores = _stores(sy, steps, n, velocities=True)
         _replay(tape, b0, b1, stores)
         yield first, stores[0], stores[1], stores[2]
         first += steps
@@ -460,8 +482,7 @@ def replay(tape: Tape, first_group: int, last_group: int) -> tuple[int, np.ndarr
     b0, b1 = g0 * tape.group, min((last_group + 1) * tape.group, n_blocks)
     first = int(tape.ns_log[:b0].sum())
     steps = int(tape.ns_log[b0:b1].sum())
-    stores = (np.zeros((steps, n)), np.zeros((steps if sy.general else 1, n)), np.zeros(steps),
-              _pstore(sy, steps, n))
+    stores = _stores(sy, steps, n)
     _replay(tape, b0, b1, stores)
     return first, stores[0], stores[2]
 
@@ -492,6 +513,11 @@ def _unpack(system: System, grad: np.ndarray, v0bar: np.ndarray) -> dict[str, np
     dy = np.zeros(nc)
     dy[:min(nc, grad.shape[1])] = grad[10, :nc]
     out["dyield"] = dy
+    for name, r in (("res_k", 11), ("res_inv_mass", 12)):  # the internal masses of the moving bodies
+        arr = np.zeros(nbody)
+        m = min(moving, grad.shape[1])
+        arr[:m] = grad[r, :m]
+        out[name] = arr
     return out
 
 
@@ -544,11 +570,12 @@ def gradient(tape: Tape, seeds: Seeds, final_dres: np.ndarray | None = None) -> 
         _adjoint.reverse_sweep(tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab,
                                w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general,
                                w.wall_slot, seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield,
-                               sb)
+                               sb, tape.w0)
     else:
         _adjoint._adjoint_initial(tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
                                   w.rsum, w.fext, sy.law, sy.general, seeds.step, seeds.contact, seeds.weight,
-                                  seeds.step.size, grad, w.ext, w.dyield, sb)
+                                  seeds.step.size, grad, w.ext, w.dyield, sb,
+                                  (tape.w0, np.zeros(n), np.zeros(n), np.zeros(n), _inner(sy)))
     return _unpack(sy, grad, vb)
 
 
@@ -563,9 +590,9 @@ def _pad_rows(system: System, directions: dict[str, np.ndarray], n_dirs: int, n_
             m = min(arr.shape[1], moving)
             v0t[:, :m] = arr[:, :m]
             continue
-        if name == "dyield":
-            m = min(arr.shape[1], n_slots)
-            th[10, :, :m] += arr[:, :m]
+        if name in ("dyield", "res_k", "res_inv_mass"):
+            m = min(arr.shape[1], n_slots, system.kappa.size if name == "dyield" else moving)
+            th[{"dyield": 10, "res_k": 11, "res_inv_mass": 12}[name], :, :m] += arr[:, :m]
             continue
         if name in ("mount_k", "mount_c", "mount_d0"):
             th[{"mount_k": 8, "mount_c": 9, "mount_d0": 2}[name], :, mount] += arr[:, 0]

@@ -16,6 +16,11 @@ at which the forces are evaluated and the velocities the dissipative laws see (P
 The cost is one more primal run; the memory is 3 P / ``group`` doubles per block plus the steps
 of one group.
 
+Mass-in-mass beads (``ext``'s internal masses, ``extension.step_extended``): the internal masses
+are stepped with the beads by the same kick-drift-kick (:func:`open_inner`, :func:`bodies_kick`,
+the arithmetic of ``extension.body_accelerations``), their positions and velocities checkpointed
+(two more rows) and their positions at every step stored by the replays (one more P).
+
 Step convention (the KDK form of ``verlet_run``): step s, of length h, takes (u_s, v_s, a_s) to
 
     vh = v_s + h/2 a_s,  u_{s+1} = u_s + h vh,  vp_s = vh + h/2 a_s,
@@ -31,7 +36,7 @@ import numpy as np
 from numba import njit
 
 from ..core import kernels
-from ..core.extension import forces_linear
+from ..core.extension import EXT_IMIN, EXT_KIN, EXT_W, EXT_WV, body_accelerations, forces_linear, internal_acceleration
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -42,17 +47,63 @@ def _store(dst, row, src):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def open_inner(ext, wa, dt):
+    """The internal masses' part of a block's opening half kick and drift (``extension.step_extended``)."""
+    half = 0.5 * dt
+    for i in range(wa.shape[0]):
+        ext[i, EXT_WV] += half * wa[i]
+        ext[i, EXT_W] += dt * ext[i, EXT_WV]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def inner_accelerations(u, ext, wa):
+    """The internal masses' accelerations at the positions ``u`` (``extension.internal_acceleration``:
+    a function of the positions, so a replay from a checkpoint finds them bit for bit)."""
+    for i in range(wa.shape[0]):
+        wa[i] = internal_acceleration(ext[i, EXT_KIN], ext[i, EXT_W], u[i], ext[i, EXT_IMIN])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def bodies_kick(u, v, a, g, fext, inv_mass, dt, last, ext, wa, inner, xs):
+    """A step's accelerations from its forces ``g``, then the kick v += dt a and the next drift
+    u += dt v (a block's ``last`` step: only the closing half kick). With ``inner`` (mass-in-mass
+    beads) the internal springs join the accelerations and the internal masses are kicked and
+    drifted too (``extension.body_accelerations``, ``step_extended``: the same numbers), and ``xs``
+    receives every spring's stretch w - u at the step (the derivative engines read it)."""
+    half = 0.5 * dt
+    for i in range(a.shape[0]):
+        if inner:
+            xs[i] = ext[i, EXT_W] - u[i]
+            a[i], wa[i] = body_accelerations(g[i], g[i + 1], fext[i], inv_mass[i], ext[i, EXT_KIN], ext[i, EXT_W], u[i],
+                                             ext[i, EXT_IMIN])
+        else:
+            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+        if last:
+            v[i] += half * a[i]
+        else:
+            v[i] += dt * a[i]
+            u[i] += dt * v[i]
+        if inner and last:
+            ext[i, EXT_WV] += half * wa[i]
+        elif inner:
+            ext[i, EXT_WV] += dt * wa[i]
+            ext[i, EXT_W] += dt * ext[i, EXT_WV]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt, t0,
-                   step, peak, kstar, store, stores, s0, state, ext, ext_on):
+                   step, peak, kstar, store, stores, s0, state, extn):
     """One block of ``ns`` steps of length ``dt`` after :func:`_open_block`, as ``kernels.verlet_run`` steps it,
     with ``kernels.forces_general`` (dissipation, offsets), and with ``ext_on`` the linear mount of a
-    protected body (``kernels.forces_linear``: ``kernels.step_extended``'s numbers for a model
-    without mass-in-mass beads, whose internal terms are then zero). ``stores`` is (ustore, vpstore,
-    hstore, pstore: the elastic-plastic state before each step, (3, steps, P)), ``state`` the
-    elastic-plastic law's (dyield, dmax, dres, kres): tuples, because a call
+    protected body and the internal masses of mass-in-mass beads (``kernels.forces_linear``,
+    :func:`bodies_kick`: ``kernels.step_extended``'s numbers). ``stores`` is (ustore, vpstore,
+    hstore, pstore: the elastic-plastic state before each step, (3, steps, P), wstore: the internal
+    masses' positions), ``state`` the elastic-plastic law's (dyield, dmax, dres, kres), ``extn``
+    (ext, ext_on, inner: mass-in-mass beads, wa: their accelerations, xs: scratch): tuples, because a call
     with more than 30 arguments compiles to a star-args call, which Numba cannot inline."""
-    ustore, vpstore, hstore, pstore = stores
+    ustore, vpstore, hstore, pstore, wstore = stores
     dyield, dmax, dres, kres = state
+    ext, ext_on, inner, wa, xs = extn
     n = a.shape[0]
     half = 0.5 * dt
     plastic = store and law == kernels.LAW_ELASTOPLASTIC
@@ -63,6 +114,9 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
             _store(ustore, s0 + s, u)
             _store(vpstore, s0 + s, vp)
             hstore[s0 + s] = dt
+        if store and inner:
+            for i in range(n):
+                wstore[s0 + s, i] = ext[i, EXT_W]
         if plastic:  # the elastic-plastic state the step's forces start from
             for i in range(n):
                 pstore[0, s0 + s, i] = dmax[i]
@@ -75,15 +129,7 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
         kernels._track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
         if g[wall_slot + 1] > before:
             kstar[0] = step + s
-        if s < ns - 1:
-            for i in range(n):
-                a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-                v[i] += dt * a[i]
-                u[i] += dt * v[i]
-        else:
-            for i in range(n):
-                a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-                v[i] += half * a[i]
+        bodies_kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1, ext, wa, inner, xs)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -148,6 +194,35 @@ def _open_block(u, v, a, dt):
 
 
 @njit(cache=True, nogil=True)
+def has_inner(ext):
+    """Whether the extension ``ext`` holds internal masses (mass-in-mass beads)."""
+    for i in range(ext.shape[0]):
+        if ext[i, EXT_KIN] != 0.0:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True, inline="always")
+def checkpoint_inner(ck, ext):
+    """The internal masses' positions and velocities into the last two rows of checkpoint ``ck``."""
+    r = ck.shape[0] - 2
+    for i in range(ck.shape[1]):
+        ck[r, i] = ext[i, EXT_W]
+        ck[r + 1, i] = ext[i, EXT_WV]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def restore_inner(ck, u, ext, wa):
+    """The internal masses' state from checkpoint ``ck`` (:func:`checkpoint_inner`), their
+    accelerations from the positions (``u`` restored first)."""
+    r = ck.shape[0] - 2
+    for i in range(ck.shape[1]):
+        ext[i, EXT_W] = ck[r, i]
+        ext[i, EXT_WV] = ck[r + 1, i]
+    inner_accelerations(u, ext, wa)
+
+
+@njit(cache=True, nogil=True)
 def _fused(general, law, de, ext_on):
     """Whether ``kernels.verlet_run`` steps this system with its fused dissipative step: an
     aligned viscoelastic or dashpot chain without a protected body."""
@@ -172,10 +247,16 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
     largest sampled force ``fmax`` with the sample ``fmax_k`` it came from. Returns 0, or 1 when
     the state became non-finite. The elastic-plastic law's state (``dmax``, ``dres``, ``kres``:
     ``kernels.elastoplastic_force``) is carried in place, and checkpointed too when ``ckpt`` has
-    rows for it (6 rows: u, v, a, dmax, dres, kres).
+    rows for it (6 rows: u, v, a, dmax, dres, kres), and so are the internal masses of mass-in-mass
+    beads (their positions and velocities, the two rows after those).
     """
     n = a.shape[0]
-    plastic_rows = ckpt.shape[1] > 3
+    plastic_rows = law == kernels.LAW_ELASTOPLASTIC
+    inner = has_inner(ext)
+    wa = np.zeros(n)
+    xs = np.zeros(n)
+    if inner:
+        inner_accelerations(u, ext, wa)
     block = interval / n_sub
     adaptive = stride == 0
     ns = stride if not adaptive else int(acc[3])
@@ -204,19 +285,23 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
                         ckpt[c, 3, i] = dmax[i]
                         ckpt[c, 4, i] = dres[i]
                         ckpt[c, 5, i] = kres[i]
+                if inner:
+                    checkpoint_inner(ckpt[c], ext)
             ns_log[bi] = ns
             # The two paths are called apart (not through one function holding both): LLVM then
             # vectorises the elastic step as in verlet_run (~2.5x faster).
             dt = block / ns
             t0 = (k - 1) * interval + b * block
             _open_block(u, v, a, dt)
+            if inner:
+                open_inner(ext, wa, dt)
             if fused:
                 _dissipative_block(u, v, vp, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, t0,
                                    step, peak, kstar, False, dummy, dummy, dummy_h, 0)
             elif general:
                 _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns,
-                               dt, t0, step, peak, kstar, False, (dummy, dummy, dummy_h, dummy_p), 0,
-                               (dyield, dmax, dres, kres), ext, ext_on)
+                               dt, t0, step, peak, kstar, False, (dummy, dummy, dummy_h, dummy_p, dummy), 0,
+                               (dyield, dmax, dres, kres), (ext, ext_on, inner, wa, xs))
             else:
                 _elastic_block(u, v, a, g, inv_mass, kappa, d0, fext, wall_slot, ns, dt, block, t0, step, peak, kstar)
             step += ns
@@ -241,18 +326,22 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
                  ns_log, b0, b1, block, stores, dyield, dmax, dres, kres, ext, ext_on):
     """Run blocks ``b0`` to ``b1 - 1`` again from their group's checkpoint ``ckpt_g`` with the taped
     step counts, storing every step's force-evaluation state into ``stores`` = (ustore, vpstore,
-    hstore, pstore) (:func:`_general_block`; ``pstore``: the elastic-plastic state before each
-    step); returns the number of steps stored. ``u, v, a, g`` (and the elastic-plastic state) are scratch."""
+    hstore, pstore, wstore) (:func:`_general_block`; ``pstore``: the elastic-plastic state before each
+    step; ``wstore``: the internal masses' positions); returns the number of steps stored. ``u, v, a, g`` (and the elastic-plastic state) are scratch."""
     n = a.shape[0]
     for i in range(n):
         u[i] = ckpt_g[0, i]
         v[i] = ckpt_g[1, i]
         a[i] = ckpt_g[2, i]
-    if ckpt_g.shape[0] > 3:
+    if law == kernels.LAW_ELASTOPLASTIC:
         for i in range(n):
             dmax[i] = ckpt_g[3, i]
             dres[i] = ckpt_g[4, i]
             kres[i] = ckpt_g[5, i]
+    inner = has_inner(ext)
+    wa = np.zeros(n)
+    if inner:
+        restore_inner(ckpt_g, u, ext, wa)
     vp = np.zeros_like(v)
     fused = _fused(general, law, de, ext_on)
     peak = np.zeros(8)
@@ -262,13 +351,15 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
         ns = ns_log[b]
         dt = block / ns
         _open_block(u, v, a, dt)
+        if inner:
+            open_inner(ext, wa, dt)
         if fused:
             _dissipative_block(u, v, vp, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, 0.0, 0,
                                peak, kstar, True, stores[0], stores[1], stores[2], s0)
         elif general:
             _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt,
-                           0.0, 0, peak, kstar, True, stores, s0, (dyield, dmax, dres, kres), ext,
-                           ext_on)
+                           0.0, 0, peak, kstar, True, stores, s0, (dyield, dmax, dres, kres),
+                           (ext, ext_on, inner, wa, wa.copy()))
         else:
             _elastic_block_stored(u, v, a, g, inv_mass, kappa, d0, fext, ns, dt, stores[0], stores[2], s0)
         s0 += ns
