@@ -13,6 +13,10 @@ partials where it takes their forces, then every direction's step. Cost: about t
 per direction; it gives the derivative of every sample at once (the wall-force trace a fit
 needs), where the adjoint (:mod:`hertzchain.integrate.derivatives.adjoint`) gives one scalar's gradient for
 all parameters.
+
+Mass-in-mass beads: each internal mass carries its tangents (w', wv', wa') by the same steps, the
+spring's s' = k_in (w' - u') + k_in' (w - u) joining the body's acceleration and -(s / m_in)' the
+internal mass's (:func:`_inner_tangent`).
 """
 
 from __future__ import annotations
@@ -22,9 +26,9 @@ from numba import njit
 
 from ..core import kernels
 from .adjoint import STATE_U, STATE_V
-from ..core.extension import forces_linear
+from ..core.extension import EXT_IMIN, EXT_KIN, EXT_W, forces_linear
 from .partials import aligned_partials, contact_partials, mount_partials, plastic_contact_adjoint
-from .tape import _open_block
+from .tape import _open_block, bodies_kick, has_inner, inner_accelerations, open_inner
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -60,10 +64,11 @@ def _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, last, gw, gk):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt, last, gp, ext):
+def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt, last, gp, ext, inn):
     """One step of ``tape._general_block`` (forces of ``kernels.forces_general``, and of
     ``kernels.forces_linear`` for a protected body's mount in ``ext``: the same numbers), writing also
-    the contacts' partials into the rows of ``gp`` (rows 8, 9: by the mount's k and c)."""
+    the contacts' partials into the rows of ``gp`` (rows 8, 9: by the mount's k and c); ``inn`` =
+    (wa, inner, xs): mass-in-mass beads (``tape.bodies_kick``)."""
     n = a.shape[0]
     half = 0.5 * dt
     for i in range(n):
@@ -86,9 +91,8 @@ def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_m
         gp[5, j] = gdd
         gp[6, j] = gx
         gp[7, j] = gr
-    for i in range(n):
-        a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-        _kick(u, v, i, a[i], dt, last)
+    wa, inner, xs = inn
+    bodies_kick(u, v, a, g, fext, inv_mass, dt, last, ext, wa, inner, xs)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -143,11 +147,12 @@ def _plastic_partials(u, vv, kappa, damping, d0, de, dx0, rsum, dyield, dmax, dr
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _plastic_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dt, last, gp, ext, state, jac):
+def _plastic_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dt, last, gp, ext, state, jac,
+                  inn):
     """One step of ``tape._general_block`` for the elastic-plastic law (``kernels.forces_general``
     and the mount's ``forces_linear``: the same numbers, the state ``state`` = (dyield, dmax, dres,
     kres) carried in place), its contacts' Jacobians taken first, at the state the step starts from
-    (:func:`_plastic_partials`)."""
+    (:func:`_plastic_partials`); ``inn`` as for :func:`_general_step`."""
     dyield, dmax, dres, kres = state
     n = a.shape[0]
     half = 0.5 * dt
@@ -158,9 +163,8 @@ def _plastic_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_m
                            kres)
     if ext.shape[0] > 0:
         forces_linear(u, vp, d0, ext, g)
-    for i in range(n):
-        a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-        _kick(u, v, i, a[i], dt, last)
+    wa, inner, xs = inn
+    bodies_kick(u, v, a, g, fext, inv_mass, dt, last, ext, wa, inner, xs)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -208,11 +212,25 @@ def _parameter_forces(gp, gw, gk, th, pf, general, aligned):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fext, h, plastic, jac, st, th, gp):
+def _inner_tangent(i, o, dd, ut, wt, wat, at, th, thm, xs, ext, inv_mass):
+    """Body i's internal mass in direction dd (offset ``o``): the spring's tangent s' = k_in (w' - u')
+    + k_in' x (x = ``xs[i]``, its stretch w - u at the step) added to the body's acceleration tangent
+    (with (1/m)' k_in x), and the internal mass's wa' = -(s' / m_in + (1/m_in)' k_in x)."""
+    k = ext[i, EXT_KIN]
+    x = xs[i]
+    sp = k * (wt[o + i] - ut[o + i]) + th[11, dd, i] * x
+    at[o + i] += inv_mass[i] * sp + thm[o + i] * k * x
+    wat[o + i] = -(ext[i, EXT_IMIN] * sp + th[12, dd, i] * k * x)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fext, h, plastic, jac, st, th, gp,
+                  inner, inn_t, xs, ext):
     """One step of direction ``dd`` (the step's partials dF/dw in ``gw``, dF/dvrel in ``gv``, its
     parameter forces in ``pf``, its primal forces in ``g``; ``thf``, ``thm`` the tangents of f_ext
     and 1/m; with ``plastic`` the elastic-plastic contacts' Jacobians ``jac`` and state tangents
-    ``st``, :func:`_plastic_tangents`). Every per-direction array is flat (direction dd at offset dd (P + 1)) and indexed
+    ``st``, :func:`_plastic_tangents`; with ``inner`` the internal masses' tangents ``inn_t`` =
+    (w', wv', wa'), :func:`_inner_tangent`). Every per-direction array is flat (direction dd at offset dd (P + 1)) and indexed
     rather than cut into views: a view costs two atomic reference counts, more than a short loop."""
     n = inv_mass.shape[0]
     o = dd * (n + 1)
@@ -222,6 +240,12 @@ def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fe
         ut[o + i] += h * vh
         vpt[i] = vh + hh * at[o + i]
         vt[o + i] = vh
+    wt, wvt, wat = inn_t
+    if inner:
+        for i in range(n):
+            wvh = wvt[o + i] + hh * wat[o + i]
+            wt[o + i] += h * wvh
+            wvt[o + i] = wvh
     if plastic:  # a constant at every call: the branch not taken is dropped
         _plastic_tangents(jac, st, th, gp, ut, vpt, ft, o, dd, n)
     else:
@@ -229,6 +253,9 @@ def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fe
             ft[o + j + 1] = gw[j] * (ut[o + j] - ut[o + j + 1]) + gv[j] * (vpt[j] - vpt[j + 1]) + pf[o + j]
     for i in range(n):
         at[o + i] = inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i]) + thm[o + i] * (g[i] - g[i + 1] + fext[i])
+        if inner:
+            _inner_tangent(i, o, dd, ut, wt, wat, at, th, thm, xs, ext, inv_mass)
+            wvt[o + i] += hh * wat[o + i]
         vt[o + i] += hh * at[o + i]
 
 
@@ -303,6 +330,15 @@ def _tangent_loop(general: bool, aligned: bool, plastic: bool = False):
             for i in range(n):
                 thf[dd * (n + 1) + i] = th[6, dd, i]
                 thm[dd * (n + 1) + i] = th[7, dd, i]
+        inner = has_inner(ext)  # mass-in-mass beads: their accelerations, stretches and tangents
+        wa = np.zeros(n)
+        xs = np.zeros(n)
+        inn_t = (np.zeros(nd * (n + 1) if inner else 1), np.zeros(nd * (n + 1) if inner else 1),
+                 np.zeros(nd * (n + 1) if inner else 1))
+        if inner:
+            inner_accelerations(u, ext, wa)
+            for i in range(n):
+                xs[i] = ext[i, EXT_W] - u[i]
         p = 0
         jac = np.zeros((3, 11, n) if plastic else (1, 1, 1))  # the elastic-plastic contacts' Jacobians
         st = np.zeros((2, nd * (n + 1) if plastic else 1))  # and their state's tangents (dres', kres')
@@ -341,6 +377,8 @@ def _tangent_loop(general: bool, aligned: bool, plastic: bool = False):
                 ft[o + j + 1] = gw[j] * (ut[o + j] - ut[o + j + 1]) + gv[j] * (vt[o + j] - vt[o + j + 1]) + pf[o + j]
             for i in range(n):
                 at[o + i] = inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i]) + thm[o + i] * (g[i] - g[i + 1] + fext[i])
+                if inner:
+                    _inner_tangent(i, o, dd, ut, inn_t[0], inn_t[2], at, th, thm, xs, ext, inv_mass)
             for r in range(rec.shape[0]):
                 out_ft[dd, 0, r] = ft[o + rec[r] + 1]
         p = _seeded(-1, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)
@@ -354,25 +392,27 @@ def _tangent_loop(general: bool, aligned: bool, plastic: bool = False):
                     ns = kernels._adapt_stride(req, ns, relax, acc)
                 dt = block / ns
                 _open_block(u, v, a, dt)
+                if inner:
+                    open_inner(ext, wa, dt)
                 for s in range(ns):
                     # the primal step (forces at u_{s+1}, partials there), then the tangents' step s;
                     # ``general`` is a constant of the closure: the branch not taken is not compiled
                     if plastic:
                         _plastic_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dt,
-                                      s == ns - 1, gp, ext, state, jac)
+                                      s == ns - 1, gp, ext, state, jac, (wa, inner, xs))
                     elif general and aligned:
                         _aligned_step(u, v, a, g, kappa, damping, d0, fext, inv_mass, law, dt, s == ns - 1, gw, gv, gk,
                                       ga)
                     elif general:
                         _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt,
-                                      s == ns - 1, gp, ext)
+                                      s == ns - 1, gp, ext, (wa, inner, xs))
                     else:
                         _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, s == ns - 1, gw, gk)
                     if params and not plastic:
                         _parameter_forces(gp, gw, gk, th, pf, general, aligned)
                     for dd in range(nd):
                         _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fext, dt, plastic,
-                                      jac, st, th, gp)
+                                      jac, st, th, gp, inner, inn_t, xs, ext)
                     p = _seeded(step + s, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)
                 step += ns
             for r in range(rec.shape[0]):
