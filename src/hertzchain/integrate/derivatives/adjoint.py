@@ -401,6 +401,19 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
 
 
 @njit(cache=True, nogil=True)
+def group_starts(ns_log, group, n_blocks):
+    """The global number of the first step of every group of ``group`` blocks (and, last, the
+    run's steps), from the taped step counts ``ns_log``."""
+    n_groups = (n_blocks + group - 1) // group
+    starts = np.zeros(n_groups + 1, dtype=np.int64)
+    for b in range(n_blocks):
+        starts[b // group + 1] += ns_log[b]
+    for i in range(n_groups):
+        starts[i + 1] += starts[i]
+    return starts
+
+
+@njit(cache=True, nogil=True)
 def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
                   rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb,
                   w0):
@@ -437,12 +450,7 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     static = False
     for i in range(n):
         static = static or d0[i] != 0.0 or fext[i] != 0.0
-    # global number of the first step of every group
-    starts = np.zeros(n_groups + 1, dtype=np.int64)
-    for b in range(n_blocks):
-        starts[b // group + 1] += ns_log[b]
-    for i in range(n_groups):
-        starts[i + 1] += starts[i]
+    starts = group_starts(ns_log, group, n_blocks)
     p = seed_step.shape[0]
     fused = _fused(general, law, de, ext.shape[0] > 0)
     for gi in range(n_groups - 1, -1, -1):

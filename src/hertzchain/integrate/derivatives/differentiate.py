@@ -228,10 +228,6 @@ def check_law(system: System) -> None:
     from ...contact import LAW_CODES
 
     if is_generated(system.law):  # a registry law: its partials (and its state's), a protected body's mount
-        if _inner(system):
-            raise ConfigError("chain.elements", "gradients of a law declared in hertzchain.laws (power, "
-                              "hunt_crossley, a user's) do not differentiate mass-in-mass beads yet; the built-in "
-                              "laws do")
         law_engines(system.law)
         return
     if system.law not in LAWS:
@@ -562,10 +558,11 @@ def gradient(tape: Tape, seeds: Seeds, final_dres: np.ndarray | None = None) -> 
     if generated is not None and n_blocks:
         generated[3](tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab, w.inv_mass,
                      w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general, w.wall_slot, seeds.step,
-                     seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield, sb)
+                     seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield, sb, tape.w0)
     elif generated is not None:
         generated[4](tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext,
-                     seeds.step, seeds.contact, seeds.weight, seeds.step.size, grad, sb[0], w.ext)
+                     seeds.step, seeds.contact, seeds.weight, seeds.step.size, grad, sb[0], w.ext,
+                     (tape.w0, np.zeros(n), np.zeros(n), np.zeros(n), _inner(sy)))
     elif n_blocks:
         _adjoint.reverse_sweep(tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab,
                                w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general,

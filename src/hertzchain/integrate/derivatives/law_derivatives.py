@@ -20,7 +20,10 @@ state: 4 P doubles; a replayed step stores positions, predicted velocities and t
 it: 3 P). Non-smooth points are those of :mod:`hertzchain.integrate.derivatives.partials`: overlaps below
 ``kernels.DELTA_MIN`` count as zero (no delta-derivative), a force clipped at zero has no
 partials (its state's still flow), and a branch of the state update (Hunt-Crossley's running
-maximum) is held as the computed run took it.
+maximum) is held as the computed run took it. A protected body's mount and mass-in-mass beads
+are the extension's, stepped and differentiated by the pieces the hand-written engines use
+(:func:`partials.mount_partials`, ``tape.bodies_kick``, ``adjoint.inner_back``,
+``tangent._inner_tangent``).
 """
 
 from __future__ import annotations
@@ -28,13 +31,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .adjoint import _clear_seeds, _take_seeds
-from ..core.extension import extension_stride, forces_linear
+from .adjoint import _bodies_back, _clear_seeds, _take_seeds, group_starts, inner_back
+from ..core.extension import EXT_W, extension_stride, forces_linear
 from ..core.kernels import DELTA_MIN, _adapt_stride
 from ..core.primitives import _track_peak
 from .partials import mount_partials
-from .tangent import _seeded
-from .tape import _open_block
+from .tangent import _inner_tangent, _seeded
+from .tape import _open_block, bodies_kick, checkpoint_inner, has_inner, inner_accelerations, open_inner, restore_inner
 
 #: Rows of a contact's partials (of F, and of the new state): w, v, then the System parameters in
 #: the order of the gradient rows (kappa, damping, d0, de, dx0, rsum), then the state before, then
@@ -170,12 +173,18 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                      general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, n_samples, rec, out_f, fmax,
                      fmax_k, peak, kstar, acc, ns_log, step_end, ckpt, group, ext, ext_on):
         """``tape.tape_forward`` for the generated law (the arguments alike; ``dmax`` holds the
-        law's state, checkpointed as row 3): the generated run's steps, taped."""
+        law's state, checkpointed as row 3; mass-in-mass beads' internal masses as the last two): the
+        generated run's steps, taped."""
         n = a.shape[0]
         block = interval / n_sub
         adaptive = stride == 0
         ns = stride if not adaptive else int(acc[3])
         vp = np.zeros_like(v)
+        inner = has_inner(ext)
+        wa = np.zeros(n)
+        xs = np.zeros(n)
+        if inner:
+            inner_accelerations(u, ext, wa)
         step = 0
         step_end[0] = 0
         for k in range(1, n_samples):
@@ -192,11 +201,15 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                         ckpt[c, 1, i] = v[i]
                         ckpt[c, 2, i] = a[i]
                         ckpt[c, 3, i] = dmax[i]
+                    if inner:
+                        checkpoint_inner(ckpt[c], ext)
                 ns_log[bi] = ns
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
                 _open_block(u, v, a, dt)
+                if inner:
+                    open_inner(ext, wa, dt)
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + half * a[i]
@@ -205,7 +218,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                     _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
                     if g[wall_slot + 1] > before:
                         kstar[0] = step + s
-                    _kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1)
+                    bodies_kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1, ext, wa, inner, xs)
                 step += ns
             step_end[k] = step
             for j in range(rec.shape[0]):
@@ -224,15 +237,20 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
     @njit(nogil=True)
     def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
                      ns_log, b0, b1, block, stores, dyield, dmax, dres, kres, ext, ext_on):
-        """``tape.replay_group`` for the generated law: ``stores`` = (ustore, vpstore, hstore, pstore),
-        pstore[0] the state each step started from."""
-        ustore, vpstore, hstore, pstore = stores
+        """``tape.replay_group`` for the generated law: ``stores`` = (ustore, vpstore, hstore, pstore,
+        wstore), pstore[0] the state each step started from, wstore the internal masses' positions."""
+        ustore, vpstore, hstore, pstore, wstore = stores
         n = a.shape[0]
         for i in range(n):
             u[i] = ckpt_g[0, i]
             v[i] = ckpt_g[1, i]
             a[i] = ckpt_g[2, i]
             dmax[i] = ckpt_g[3, i]
+        inner = has_inner(ext)
+        wa = np.zeros(n)
+        xs = np.zeros(n)
+        if inner:
+            restore_inner(ckpt_g, u, ext, wa)
         vp = np.zeros_like(v)
         s0 = 0
         for b in range(b0, b1):
@@ -240,15 +258,20 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             dt = block / ns
             half = 0.5 * dt
             _open_block(u, v, a, dt)
+            if inner:
+                open_inner(ext, wa, dt)
             for s in range(ns):
                 for i in range(n):
                     vp[i] = v[i] + half * a[i]
                     ustore[s0 + s, i] = u[i]
                     vpstore[s0 + s, i] = vp[i]
                     pstore[0, s0 + s, i] = dmax[i]
+                if inner:
+                    for i in range(n):
+                        wstore[s0 + s, i] = ext[i, EXT_W]
                 hstore[s0 + s] = dt
                 step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax, ext, ext_on)
-                _kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1)
+                bodies_kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1, ext, wa, inner, xs)
             s0 += ns
         return s0
 
@@ -276,6 +299,13 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             for i in range(n):
                 thf[dd * (n + 1) + i] = th[6, dd, i]
                 thm[dd * (n + 1) + i] = th[7, dd, i]
+        inner = has_inner(ext)  # mass-in-mass beads: their accelerations, stretches and tangents
+        wa, xs = np.zeros(n), np.zeros(n)
+        wt, wvt, wat = np.zeros(m if inner else 1), np.zeros(m if inner else 1), np.zeros(m if inner else 1)
+        if inner:
+            inner_accelerations(u, ext, wa)
+            for i in range(n):
+                xs[i] = ext[i, EXT_W] - u[i]
         for j in range(n - 1):  # t = 0: F(u_0, v_0) from the state 0
             partials_ext(u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j], 0.0, cf,
                          ch, j, ext)
@@ -288,6 +318,8 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             _contact_tangents(cf, ch, ut, vpt, ft, st, pf, ph, o, n)
             for i in range(n):
                 at[o + i] = inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i]) + thm[o + i] * (g[i] - g[i + 1] + fext[i])
+                if inner:
+                    _inner_tangent(i, o, dd, ut, wt, wat, at, th, thm, xs, ext, inv_mass)
             for r in range(rec.shape[0]):
                 out_ft[dd, 0, r] = ft[o + rec[r] + 1]
         p = _seeded(-1, 0, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)
@@ -302,6 +334,8 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 dt = block / ns
                 hh = 0.5 * dt
                 _open_block(u, v, a, dt)
+                if inner:
+                    open_inner(ext, wa, dt)
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + hh * a[i]
@@ -309,7 +343,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                         partials_ext(u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j],
                                      rsum[j], state[j], cf, ch, j, ext)
                     step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, ext, ext_on)
-                    _kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1)
+                    bodies_kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1, ext, wa, inner, xs)
                     _parameter_forces(cf, ch, th, pf, ph)
                     for dd in range(nd):
                         o = dd * (n + 1)
@@ -318,10 +352,17 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                             ut[o + i] += dt * vh
                             vpt[i] = vh + hh * at[o + i]
                             vt[o + i] = vh
+                            if inner:
+                                wvh = wvt[o + i] + hh * wat[o + i]
+                                wt[o + i] += dt * wvh
+                                wvt[o + i] = wvh
                         _contact_tangents(cf, ch, ut, vpt, ft, st, pf, ph, o, n)
                         for i in range(n):
                             at[o + i] = (inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i])
                                          + thm[o + i] * (g[i] - g[i + 1] + fext[i]))
+                            if inner:
+                                _inner_tangent(i, o, dd, ut, wt, wat, at, th, thm, xs, ext, inv_mass)
+                                wvt[o + i] += hh * wat[o + i]
                             vt[o + i] += hh * at[o + i]
                     p = _seeded(step + s, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)
                 step += ns
@@ -335,11 +376,14 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
 
     @njit(nogil=True)
     def steps(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, sb, fb, fs, wb, rb, inv_mass, kappa,
-              damping, d0, de, dx0, rsum, fext, seed_step, seed_contact, seed_w, ptr, grad, cf, ch, ext):
+              damping, d0, de, dx0, rsum, fext, seed_step, seed_contact, seed_w, ptr, grad, cf, ch, ext, inn):
         """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse (``adjoint._steps_general`` with
-        the law's partials; ``sb`` the adjoints of the state after the step, carried backwards)."""
+        the law's partials; ``sb`` the adjoints of the state after the step, carried backwards;
+        ``inn`` = (wstore, wub, wvb, wab, inner): mass-in-mass beads, ``adjoint.inner_back``)."""
         n = ab.shape[0]
         p = ptr
+        wstore, wub, wvb, wab, inner = inn
+        fs1, wb1, rb1 = fs[1:], wb[1:], rb[1:]
         for sl in range(nsteps - 1, -1, -1):
             h = hstore[sl]
             hh = 0.5 * h
@@ -349,23 +393,18 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                                  damping[j], d0[j], de[j], dx0[j], rsum[j], pstore[0, sl, j], cf, ch, j, ext)
                 fbar = fb[j] + inv_mass[j + 1] * (ab[j + 1] + hh * vb[j + 1]) - inv_mass[j] * (ab[j] + hh * vb[j])
                 _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad)
-            for i in range(n):
-                abi = ab[i] + hh * vb[i]
-                grad[7, i] += abi * (fs[i] - fs[i + 1] + fext[i])
-                grad[6, i] += abi * inv_mass[i]
-                ub[i] += wb[i + 1] - wb[i]
-                vpb = rb[i + 1] - rb[i]
-                vh = vb[i] + h * ub[i] + vpb
-                ab[i] = hh * (vh + vpb)
-                vb[i] = vh
+            if inner:
+                inner_back(h, ustore, wstore, sl, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
+            _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, grad[7], grad[6], True, True)
             _clear_seeds(p, q, fb, seed_contact)
             p = q
         return p
 
     @njit(nogil=True)
     def initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, seed_step, seed_contact,
-                seed_w, ptr, grad, sb, ext):
-        """``adjoint._adjoint_initial`` for the generated law: the forces at t = 0 from the state 0."""
+                seed_w, ptr, grad, sb, ext, inn):
+        """``adjoint._adjoint_initial`` for the generated law: the forces at t = 0 from the state 0
+        (``inn`` = (w0, wub, wvb, wab, inner), as there)."""
         n = ab.shape[0]
         fb = np.zeros(n)
         p = _take_seeds(-1, ptr, fb, ub, vb, seed_step, seed_contact, seed_w)
@@ -377,6 +416,9 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                              rsum[j], 0.0, cf, ch, j, ext)
             fbar = fb[j] + inv_mass[j + 1] * ab[j + 1] - inv_mass[j] * ab[j]
             _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad)
+        w0, wub, wvb, wab, inner = inn
+        if inner:
+            inner_back(0.0, u0.reshape((1, u0.shape[0])), w0, 0, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
         for i in range(n):
             grad[6, i] += ab[i] * inv_mass[i]
             grad[7, i] += ab[i] * (fs[i] - fs[i + 1] + fext[i])
@@ -387,23 +429,22 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
     @njit(nogil=True)
     def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
                       rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield,
-                      sb):
+                      sb, w0):
         """``adjoint.reverse_sweep`` for the generated law (the arguments alike; ``sb[0]``: the
         adjoints of the law's state, zero on entry)."""
         n = ab.shape[0]
         u, v, a, g = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n), np.zeros(n + 1)
         state = np.zeros(n)
-        stores = (np.zeros((max_rows, n)), np.zeros((max_rows, n)), np.zeros(max_rows), np.zeros((1, max_rows, n)))
+        inner = has_inner(ext)
+        stores = (np.zeros((max_rows, n)), np.zeros((max_rows, n)), np.zeros(max_rows), np.zeros((1, max_rows, n)),
+                  np.zeros((max_rows if inner else 1, n)))
+        wub, wvb, wab = np.zeros(n), np.zeros(n), np.zeros(n)
         fb, fs, wb, rb = np.zeros(n), np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
         cf = np.zeros((n, ROWS))
         ch = np.zeros((n, ROWS))
         sbar = sb[0]
         n_groups = (n_blocks + group - 1) // group
-        starts = np.zeros(n_groups + 1, dtype=np.int64)
-        for b in range(n_blocks):
-            starts[b // group + 1] += ns_log[b]
-        for i in range(n_groups):
-            starts[i + 1] += starts[i]
+        starts = group_starts(ns_log, group, n_blocks)
         p = seed_step.shape[0]
         for gi in range(n_groups - 1, -1, -1):
             b0 = gi * group
@@ -413,26 +454,11 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                                 ext.shape[0] > 0)
             p = steps(rows, stores[0], stores[1], stores[2], stores[3], starts[gi], ub, vb, ab, sbar, fb, fs, wb, rb,
                       inv_mass, kappa, damping, d0, de, dx0, rsum, fext, seed_step, seed_contact, seed_w, p, grad, cf,
-                      ch, ext)
+                      ch, ext, (stores[4], wub, wvb, wab, inner))
         return initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, seed_step, seed_contact,
-                       seed_w, p, grad, sbar, ext)
+                       seed_w, p, grad, sbar, ext, (w0, wub, wvb, wab, inner))
 
     return tape_forward, replay_group, tangent_run, reverse_sweep, initial
-
-
-@njit(nogil=True, inline="always")
-def _kick(u, v, a, g, fext, inv_mass, dt, last):
-    """A step's accelerations from its forces, then the kick (and the next drift unless ``last``),
-    as the generated run writes them."""
-    if last:
-        for i in range(a.shape[0]):
-            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-            v[i] += 0.5 * dt * a[i]
-    else:
-        for i in range(a.shape[0]):
-            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-            v[i] += dt * a[i]
-            u[i] += dt * v[i]
 
 
 @njit(nogil=True, inline="always")
