@@ -20,7 +20,6 @@ from test_gradients import BASE, _with
 
 import hertzchain as hc
 from hertzchain.elements import Element
-from hertzchain.errors import ConfigError
 from hertzchain.gradients import sensitivity
 
 CYLINDERS = hc.Chain(np.linspace(20e-3, 12e-3, 6), "AISI52100", None,
@@ -95,10 +94,3 @@ def test_gradients_of_a_registry_law_with_a_flat_striker_match_differences():
                                                                           "stiffness": 6e11}, run={"duration": 1.2e-3})
     paths = ["striker.velocity", "striker.mass", "chain.diameters_mm[0]", "contact.exponent"]
     tg.assert_matches(sensitivity(cfg, paths), cfg, paths, tol=1e-5)
-
-
-def test_gradients_refuse_a_registry_law_with_a_body_naming_the_field():
-    cfg = _with(BASE, wall={"type": "body", "mass": 0.05, "stiffness": 2e5}, contact={"law": "hunt_crossley",
-                                                                                     "restitution": 0.8})
-    with pytest.raises(ConfigError, match="wall.type"):
-        sensitivity(cfg, ["striker.velocity"])
