@@ -34,9 +34,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..core.extension import EXT_CLIN, EXT_IMIN, EXT_KIN, EXT_KLIN
+from ..core.extension import EXT_IMIN, EXT_KIN
 from ..core.kernels import DELTA_MIN, LAW_ELASTOPLASTIC
-from .partials import aligned_partials, contact_partials, plastic_contact_adjoint
+from .partials import aligned_partials, contact_partials, mount_partials, plastic_contact_adjoint
 from .tape import _fused, has_inner, replay_group
 
 #: Seeds on the state rather than on a force: a seed's contact number STATE_U + i (STATE_V + i)
@@ -168,14 +168,13 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
                                                                    vpstore[sl, j + 1], kappa[j], damping[j], d0[j],
                                                                    de[j], dx0[j], rsum[j], law)
             fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
-            if linear and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
-                # the mount's spring and dashpot (extension.forces_linear): k delta + c d(delta)/dt
-                dl = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
-                rl = vpstore[sl, j] - vpstore[sl, j + 1]
-                f += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
-                gw += ext[j, EXT_KLIN]
-                g0 += ext[j, EXT_KLIN]
-                gv += ext[j, EXT_CLIN]
+            if linear:  # the mount's spring and dashpot (extension.forces_linear): k delta + c d(delta)/dt
+                fl, kl, cl, dl, rl = mount_partials(ext, j, ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
+                                                    vpstore[sl, j + 1], d0[j])
+                f += fl
+                gw += kl
+                g0 += kl
+                gv += cl
                 gkl[j] += fbar * dl
                 gcl[j] += fbar * rl
             fs1[j] = f
@@ -260,13 +259,13 @@ def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, f
             gde[j] += gdd
             gdx0[j] += gx
             grs[j] += gr
-            if linear and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
-                dl = ustore[sl, j] - ustore[sl, j + 1] + d0[j]
-                rl = vpstore[sl, j] - vpstore[sl, j + 1]
-                f += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
-                gw += fbar * ext[j, EXT_KLIN]
-                gv += fbar * ext[j, EXT_CLIN]
-                gd0[j] += fbar * ext[j, EXT_KLIN]
+            if linear:
+                fl, kl, cl, dl, rl = mount_partials(ext, j, ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
+                                                    vpstore[sl, j + 1], d0[j])
+                f += fl
+                gw += fbar * kl
+                gv += fbar * cl
+                gd0[j] += fbar * kl
                 gkl[j] += fbar * dl
                 gcl[j] += fbar * rl
             fs1[j] = f
@@ -377,13 +376,12 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
             grad[3, j] += fbar * gdd
             grad[4, j] += fbar * gx
             grad[5, j] += fbar * gr
-        if ext.shape[0] > 0 and (ext[j, EXT_KLIN] != 0.0 or ext[j, EXT_CLIN] != 0.0):
-            dl = u0[j] - u0[j + 1] + d0[j]
-            rl = v0[j] - v0[j + 1]
-            f += ext[j, EXT_KLIN] * dl + ext[j, EXT_CLIN] * rl
-            wbar += fbar * ext[j, EXT_KLIN]
-            rbar += fbar * ext[j, EXT_CLIN]
-            grad[2, j] += fbar * ext[j, EXT_KLIN]
+        if ext.shape[0] > 0:
+            fl, kl, cl, dl, rl = mount_partials(ext, j, u0[j], u0[j + 1], v0[j], v0[j + 1], d0[j])
+            f += fl
+            wbar += fbar * kl
+            rbar += fbar * cl
+            grad[2, j] += fbar * kl
             grad[8, j] += fbar * dl
             grad[9, j] += fbar * rl
         fs[j + 1] = f

@@ -37,7 +37,8 @@ from ..core.kernels import DELTA_MIN, _adapt_stride
 from ..core.primitives import _track_peak
 from .partials import mount_partials
 from .tangent import _inner_tangent, _seeded
-from .tape import _open_block, bodies_kick, checkpoint_inner, has_inner, inner_accelerations, open_inner, restore_inner
+from .tape import (bodies_kick, checkpoint_inner, has_inner, inner_accelerations, open_block, record_sample,
+                   restore_inner)
 
 #: Rows of a contact's partials (of F, and of the new state): w, v, then the System parameters in
 #: the order of the gradient rows (kappa, damping, d0, de, dx0, rsum), then the state before, then
@@ -207,9 +208,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 dt = block / ns
                 half = 0.5 * dt
                 t0 = (k - 1) * interval + b * block
-                _open_block(u, v, a, dt)
-                if inner:
-                    open_inner(ext, wa, dt)
+                open_block(u, v, a, dt, ext, wa, inner)
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + half * a[i]
@@ -221,14 +220,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                     bodies_kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1, ext, wa, inner, xs)
                 step += ns
             step_end[k] = step
-            for j in range(rec.shape[0]):
-                out_f[k, j] = g[rec[j] + 1]
-            for j in range(fmax.shape[0]):
-                x = g[j + 1]
-                up = x > fmax[j]
-                fmax_k[j] = k if up else fmax_k[j]
-                fmax[j] = x if up else fmax[j]
-            if not np.isfinite(g[1]) or not np.isfinite(v[0]):
+            if record_sample(k, g, v, rec, out_f, fmax, fmax_k):
                 acc[2] = step
                 return 1
         acc[2] = step
@@ -257,9 +249,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             ns = ns_log[b]
             dt = block / ns
             half = 0.5 * dt
-            _open_block(u, v, a, dt)
-            if inner:
-                open_inner(ext, wa, dt)
+            open_block(u, v, a, dt, ext, wa, inner)
             for s in range(ns):
                 for i in range(n):
                     vp[i] = v[i] + half * a[i]
@@ -333,9 +323,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                     ns = _adapt_stride(req, ns, relax, acc)
                 dt = block / ns
                 hh = 0.5 * dt
-                _open_block(u, v, a, dt)
-                if inner:
-                    open_inner(ext, wa, dt)
+                open_block(u, v, a, dt, ext, wa, inner)
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + hh * a[i]

@@ -28,7 +28,7 @@ from ..core import kernels
 from .adjoint import STATE_U, STATE_V
 from ..core.extension import EXT_IMIN, EXT_KIN, EXT_W, forces_linear
 from .partials import aligned_partials, contact_partials, mount_partials, plastic_contact_adjoint
-from .tape import _open_block, bodies_kick, has_inner, inner_accelerations, open_inner
+from .tape import bodies_kick, has_inner, inner_accelerations, open_block
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -64,20 +64,15 @@ def _elastic_step(u, v, a, g, kappa, d0, fext, inv_mass, dt, last, gw, gk):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt, last, gp, ext, inn):
-    """One step of ``tape._general_block`` (forces of ``kernels.forces_general``, and of
-    ``kernels.forces_linear`` for a protected body's mount in ``ext``: the same numbers), writing also
-    the contacts' partials into the rows of ``gp`` (rows 8, 9: by the mount's k and c); ``inn`` =
-    (wa, inner, xs): mass-in-mass beads (``tape.bodies_kick``)."""
-    n = a.shape[0]
-    half = 0.5 * dt
-    for i in range(n):
-        vp[i] = v[i] + half * a[i]
-    for j in range(n - 1):
-        fj, gw, gv, gk, ga, g0, gdd, gx, gr = contact_partials(u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j],
+def _general_partials(u, vv, kappa, damping, d0, de, dx0, rsum, law, g, gp, ext):
+    """Every contact's force (``kernels.forces_general``'s, plus the mount's in ``ext``) into ``g``
+    and its partials into the rows of ``gp`` (dF/dw, dF/dvrel, then kappa, damping, d0, de, dx0,
+    rsum, the mount's k and c) at positions ``u`` and velocities ``vv``."""
+    for j in range(kappa.shape[0] - 1):
+        fj, gw, gv, gk, ga, g0, gdd, gx, gr = contact_partials(u[j], u[j + 1], vv[j], vv[j + 1], kappa[j], damping[j],
                                                                d0[j], de[j], dx0[j], rsum[j], law)
         if ext.shape[0] > 0:
-            fl, kl, cl, gp[8, j], gp[9, j] = mount_partials(ext, j, u[j], u[j + 1], vp[j], vp[j + 1], d0[j])
+            fl, kl, cl, gp[8, j], gp[9, j] = mount_partials(ext, j, u[j], u[j + 1], vv[j], vv[j + 1], d0[j])
             fj += fl
             gw += kl
             g0 += kl
@@ -91,6 +86,19 @@ def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_m
         gp[5, j] = gdd
         gp[6, j] = gx
         gp[7, j] = gr
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _general_step(u, v, a, g, vp, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dt, last, gp, ext, inn):
+    """One step of ``tape._general_block`` (forces of ``kernels.forces_general``, and of
+    ``kernels.forces_linear`` for a protected body's mount in ``ext``: the same numbers), writing also
+    the contacts' partials into the rows of ``gp`` (rows 8, 9: by the mount's k and c); ``inn`` =
+    (wa, inner, xs): mass-in-mass beads (``tape.bodies_kick``)."""
+    n = a.shape[0]
+    half = 0.5 * dt
+    for i in range(n):
+        vp[i] = v[i] + half * a[i]
+    _general_partials(u, vp, kappa, damping, d0, de, dx0, rsum, law, g, gp, ext)
     wa, inner, xs = inn
     bodies_kick(u, v, a, g, fext, inv_mass, dt, last, ext, wa, inner, xs)
 
@@ -348,23 +356,10 @@ def _tangent_loop(general: bool, aligned: bool, plastic: bool = False):
             for dd in range(nd):
                 for j in range(n):
                     st[1, dd * (n + 1) + j] = th[0, dd, j]
-        # t = 0: a_0 from F(u_0, v_0) (the aligned elastic law reads no velocity)
-        for j in range(n - 1 if not plastic else 0):
-            fj, gw0, gv0, gk0, ga0, g00, gdd0, gx0, gr0 = contact_partials(u[j], u[j + 1], v[j], v[j + 1], kappa[j],
-                                                                           damping[j], d0[j], de[j], dx0[j], rsum[j], lw)
-            gp[0, j] = gw0
-            gp[1, j] = gv0
-            gp[2, j] = gk0
-            gp[3, j] = ga0
-            gp[4, j] = g00
-            gp[5, j] = gdd0
-            gp[6, j] = gx0
-            gp[7, j] = gr0
-            if ext_on:  # the mount at t = 0
-                _, kl, cl, gp[8, j], gp[9, j] = mount_partials(ext, j, u[j], u[j + 1], v[j], v[j + 1], d0[j])
-                gp[0, j] += kl
-                gp[4, j] += kl
-                gp[1, j] += cl
+        # t = 0: a_0 from F(u_0, v_0) (the aligned elastic law reads no velocity): the partials (into
+        # scratch forces: g holds those ``verlet.initialise`` took)
+        if not plastic:
+            _general_partials(u, v, kappa, damping, d0, de, dx0, rsum, lw, np.zeros(n + 1), gp, ext)
         _parameter_forces(gp, gw, gk, th, pf, True, False)
         for dd in range(nd):
             o = dd * (n + 1)
@@ -391,9 +386,7 @@ def _tangent_loop(general: bool, aligned: bool, plastic: bool = False):
                                                   block, c_steps, damping, law, ext, ext_on)
                     ns = kernels._adapt_stride(req, ns, relax, acc)
                 dt = block / ns
-                _open_block(u, v, a, dt)
-                if inner:
-                    open_inner(ext, wa, dt)
+                open_block(u, v, a, dt, ext, wa, inner)
                 for s in range(ns):
                     # the primal step (forces at u_{s+1}, partials there), then the tangents' step s;
                     # ``general`` is a constant of the closure: the branch not taken is not compiled

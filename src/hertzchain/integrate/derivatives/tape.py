@@ -56,6 +56,15 @@ def open_inner(ext, wa, dt):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def open_block(u, v, a, dt, ext, wa, inner):
+    """A block's opening half kick and drift (:func:`_open_block`), the internal masses' too with
+    ``inner`` (:func:`open_inner`)."""
+    _open_block(u, v, a, dt)
+    if inner:
+        open_inner(ext, wa, dt)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def inner_accelerations(u, ext, wa):
     """The internal masses' accelerations at the positions ``u`` (``extension.internal_acceleration``:
     a function of the positions, so a replay from a checkpoint finds them bit for bit)."""
@@ -193,6 +202,22 @@ def _open_block(u, v, a, dt):
         u[i] += dt * v[i]
 
 
+@njit(cache=True, nogil=True, inline="always")
+def record_sample(k, g, v, rec, out_f, fmax, fmax_k):
+    """Sample ``k`` of a taped run: the forces of the contacts ``rec`` into ``out_f[k]``, every
+    contact's largest sampled force ``fmax`` and the sample ``fmax_k`` it came from; returns True
+    when the state is no longer finite."""
+    for j in range(rec.shape[0]):
+        out_f[k, j] = g[rec[j] + 1]
+    g1 = g[1:]
+    for j in range(fmax.shape[0]):  # selects, not branches: LLVM vectorises them
+        x = g1[j]
+        up = x > fmax[j]
+        fmax_k[j] = k if up else fmax_k[j]
+        fmax[j] = x if up else fmax[j]
+    return not np.isfinite(g[1]) or not np.isfinite(v[0])
+
+
 @njit(cache=True, nogil=True)
 def has_inner(ext):
     """Whether the extension ``ext`` holds internal masses (mass-in-mass beads)."""
@@ -292,9 +317,7 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
             # vectorises the elastic step as in verlet_run (~2.5x faster).
             dt = block / ns
             t0 = (k - 1) * interval + b * block
-            _open_block(u, v, a, dt)
-            if inner:
-                open_inner(ext, wa, dt)
+            open_block(u, v, a, dt, ext, wa, inner)
             if fused:
                 _dissipative_block(u, v, vp, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, t0,
                                    step, peak, kstar, False, dummy, dummy, dummy_h, 0)
@@ -306,15 +329,7 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
                 _elastic_block(u, v, a, g, inv_mass, kappa, d0, fext, wall_slot, ns, dt, block, t0, step, peak, kstar)
             step += ns
         step_end[k] = step
-        for j in range(rec.shape[0]):
-            out_f[k, j] = g[rec[j] + 1]
-        g1 = g[1:]
-        for j in range(fmax.shape[0]):  # selects, not branches: LLVM vectorises them
-            x = g1[j]
-            up = x > fmax[j]
-            fmax_k[j] = k if up else fmax_k[j]
-            fmax[j] = x if up else fmax[j]
-        if not np.isfinite(g[1]) or not np.isfinite(v[0]):
+        if record_sample(k, g, v, rec, out_f, fmax, fmax_k):
             acc[2] = step
             return 1
     acc[2] = step
@@ -350,9 +365,7 @@ def replay_group(ckpt_g, u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum
     for b in range(b0, b1):
         ns = ns_log[b]
         dt = block / ns
-        _open_block(u, v, a, dt)
-        if inner:
-            open_inner(ext, wa, dt)
+        open_block(u, v, a, dt, ext, wa, inner)
         if fused:
             _dissipative_block(u, v, vp, a, g, inv_mass, kappa, damping, d0, fext, law, wall_slot, ns, dt, 0.0, 0,
                                peak, kstar, True, stores[0], stores[1], stores[2], s0)
