@@ -387,15 +387,24 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
         fs[j + 1] = f
         wb[j + 1] = wbar
         rb[j + 1] = rbar
+    initial_bodies_back(u0, ub, vb, ab, fs, wb, rb, inv_mass, fext, grad, ext, inn)
+    return p
+
+
+@njit(cache=True, nogil=True, inline="always")
+def initial_bodies_back(u0, ub, vb, ab, fs, wb, rb, inv_mass, fext, grad, ext, inn):
+    """The bodies' part of the adjoint of the state at t = 0 (a_0 a function of u_0 and v_0): 1/m
+    and f_ext collect a'_0 times the net force and 1/m, u' and v' the contacts' adjoints ``wb``,
+    ``rb`` (and the internal masses', ``inn`` = (w0, wub, wvb, wab, inner): :func:`inner_back` at
+    h = 0)."""
     w0, wub, wvb, wab, inner = inn
     if inner:
         inner_back(0.0, u0.reshape((1, u0.shape[0])), w0, 0, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
-    for i in range(n):
+    for i in range(ab.shape[0]):
         grad[6, i] += ab[i] * inv_mass[i]
         grad[7, i] += ab[i] * (fs[i] - fs[i + 1] + fext[i])
         ub[i] += wb[i + 1] - wb[i]
         vb[i] += rb[i + 1] - rb[i]
-    return p
 
 
 @njit(cache=True, nogil=True)

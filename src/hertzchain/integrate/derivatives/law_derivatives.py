@@ -31,13 +31,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .adjoint import _bodies_back, _clear_seeds, _take_seeds, group_starts, inner_back
+from .adjoint import _bodies_back, _clear_seeds, _take_seeds, group_starts, initial_bodies_back, inner_back
 from ..core.extension import EXT_W, extension_stride, forces_linear
 from ..core.kernels import DELTA_MIN, _adapt_stride
 from ..core.primitives import _track_peak
 from .partials import mount_partials
-from .tangent import _inner_tangent, _seeded
-from .tape import (bodies_kick, checkpoint_inner, has_inner, inner_accelerations, open_block, record_sample,
+from .tangent import _seeded, tangent_drift, tangent_kick
+from .tape import (bodies_kick, checkpoint, has_inner, inner_accelerations, open_block, record_sample,
                    restore_inner)
 
 #: Rows of a contact's partials (of F, and of the new state): w, v, then the System parameters in
@@ -197,13 +197,9 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                     ns = _adapt_stride(req, ns, relax, acc)
                 if bi % group == 0:
                     c = bi // group
+                    checkpoint(ckpt[c], u, v, a, ext, inner)
                     for i in range(n):
-                        ckpt[c, 0, i] = u[i]
-                        ckpt[c, 1, i] = v[i]
-                        ckpt[c, 2, i] = a[i]
                         ckpt[c, 3, i] = dmax[i]
-                    if inner:
-                        checkpoint_inner(ckpt[c], ext)
                 ns_log[bi] = ns
                 dt = block / ns
                 half = 0.5 * dt
@@ -291,7 +287,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 thm[dd * (n + 1) + i] = th[7, dd, i]
         inner = has_inner(ext)  # mass-in-mass beads: their accelerations, stretches and tangents
         wa, xs = np.zeros(n), np.zeros(n)
-        wt, wvt, wat = np.zeros(m if inner else 1), np.zeros(m if inner else 1), np.zeros(m if inner else 1)
+        inn_t = (np.zeros(m if inner else 1), np.zeros(m if inner else 1), np.zeros(m if inner else 1))
         if inner:
             inner_accelerations(u, ext, wa)
             for i in range(n):
@@ -306,10 +302,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 vt[o + i] = v0t[dd, i]
                 vpt[i] = vt[o + i]
             _contact_tangents(cf, ch, ut, vpt, ft, st, pf, ph, o, n)
-            for i in range(n):
-                at[o + i] = inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i]) + thm[o + i] * (g[i] - g[i + 1] + fext[i])
-                if inner:
-                    _inner_tangent(i, o, dd, ut, wt, wat, at, th, thm, xs, ext, inv_mass)
+            tangent_kick(ut, vt, at, ft, g, thf, thm, th, dd, o, inv_mass, fext, 0.0, inner, inn_t, xs, ext)
             for r in range(rec.shape[0]):
                 out_ft[dd, 0, r] = ft[o + rec[r] + 1]
         p = _seeded(-1, 0, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)
@@ -335,23 +328,9 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                     _parameter_forces(cf, ch, th, pf, ph)
                     for dd in range(nd):
                         o = dd * (n + 1)
-                        for i in range(n):
-                            vh = vt[o + i] + hh * at[o + i]
-                            ut[o + i] += dt * vh
-                            vpt[i] = vh + hh * at[o + i]
-                            vt[o + i] = vh
-                            if inner:
-                                wvh = wvt[o + i] + hh * wat[o + i]
-                                wt[o + i] += dt * wvh
-                                wvt[o + i] = wvh
+                        tangent_drift(ut, vt, at, vpt, o, dt, n, inner, inn_t)
                         _contact_tangents(cf, ch, ut, vpt, ft, st, pf, ph, o, n)
-                        for i in range(n):
-                            at[o + i] = (inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i])
-                                         + thm[o + i] * (g[i] - g[i + 1] + fext[i]))
-                            if inner:
-                                _inner_tangent(i, o, dd, ut, wt, wat, at, th, thm, xs, ext, inv_mass)
-                                wvt[o + i] += hh * wat[o + i]
-                            vt[o + i] += hh * at[o + i]
+                        tangent_kick(ut, vt, at, ft, g, thf, thm, th, dd, o, inv_mass, fext, dt, inner, inn_t, xs, ext)
                     p = _seeded(step + s, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)
                 step += ns
             for r in range(rec.shape[0]):
@@ -404,14 +383,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                              rsum[j], 0.0, cf, ch, j, ext)
             fbar = fb[j] + inv_mass[j + 1] * ab[j + 1] - inv_mass[j] * ab[j]
             _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad)
-        w0, wub, wvb, wab, inner = inn
-        if inner:
-            inner_back(0.0, u0.reshape((1, u0.shape[0])), w0, 0, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
-        for i in range(n):
-            grad[6, i] += ab[i] * inv_mass[i]
-            grad[7, i] += ab[i] * (fs[i] - fs[i + 1] + fext[i])
-            ub[i] += wb[i + 1] - wb[i]
-            vb[i] += rb[i + 1] - rb[i]
+        initial_bodies_back(u0, ub, vb, ab, fs, wb, rb, inv_mass, fext, grad, ext, inn)
         return p
 
     @njit(nogil=True)

@@ -238,28 +238,48 @@ def _tangent_step(ut, vt, at, ft, vpt, gw, gv, pf, g, thf, thm, dd, inv_mass, fe
     parameter forces in ``pf``, its primal forces in ``g``; ``thf``, ``thm`` the tangents of f_ext
     and 1/m; with ``plastic`` the elastic-plastic contacts' Jacobians ``jac`` and state tangents
     ``st``, :func:`_plastic_tangents`; with ``inner`` the internal masses' tangents ``inn_t`` =
-    (w', wv', wa'), :func:`_inner_tangent`). Every per-direction array is flat (direction dd at offset dd (P + 1)) and indexed
-    rather than cut into views: a view costs two atomic reference counts, more than a short loop."""
+    (w', wv', wa'), :func:`_inner_tangent`): :func:`tangent_drift`, the contacts' force tangents,
+    :func:`tangent_kick`."""
     n = inv_mass.shape[0]
     o = dd * (n + 1)
+    tangent_drift(ut, vt, at, vpt, o, h, n, inner, inn_t)
+    if plastic:  # a constant at every call: the branch not taken is dropped
+        _plastic_tangents(jac, st, th, gp, ut, vpt, ft, o, dd, n)
+    else:
+        for j in range(n - 1):  # gv = 0 for the elastic law: one loop, no branch
+            ft[o + j + 1] = gw[j] * (ut[o + j] - ut[o + j + 1]) + gv[j] * (vpt[j] - vpt[j + 1]) + pf[o + j]
+    tangent_kick(ut, vt, at, ft, g, thf, thm, th, dd, o, inv_mass, fext, h, inner, inn_t, xs, ext)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def tangent_drift(ut, vt, at, vpt, o, h, n, inner, inn_t):
+    """The first half kick and the drift of a step of length ``h`` for the direction at offset ``o``
+    (vh' = v' + h/2 a', u' += h vh', the predicted vp' = vh' + h/2 a' into ``vpt``), the internal
+    masses' too with ``inner``. Every per-direction array is flat (direction dd at offset dd (P + 1))
+    and indexed rather than cut into views: a view costs two atomic reference counts, more than a
+    short loop."""
     hh = 0.5 * h
     for i in range(n):
         vh = vt[o + i] + hh * at[o + i]
         ut[o + i] += h * vh
         vpt[i] = vh + hh * at[o + i]
         vt[o + i] = vh
-    wt, wvt, wat = inn_t
     if inner:
+        wt, wvt, wat = inn_t
         for i in range(n):
             wvh = wvt[o + i] + hh * wat[o + i]
             wt[o + i] += h * wvh
             wvt[o + i] = wvh
-    if plastic:  # a constant at every call: the branch not taken is dropped
-        _plastic_tangents(jac, st, th, gp, ut, vpt, ft, o, dd, n)
-    else:
-        for j in range(n - 1):  # gv = 0 for the elastic law: one loop, no branch
-            ft[o + j + 1] = gw[j] * (ut[o + j] - ut[o + j + 1]) + gv[j] * (vpt[j] - vpt[j + 1]) + pf[o + j]
-    for i in range(n):
+
+
+@njit(cache=True, nogil=True, inline="always")
+def tangent_kick(ut, vt, at, ft, g, thf, thm, th, dd, o, inv_mass, fext, h, inner, inn_t, xs, ext):
+    """The accelerations' tangents of direction dd (offset ``o``) from the force tangents ``ft``,
+    a'_i = (F'_{i-1} - F'_i + f_ext,i') / m_i + (1/m_i)' (net force)_i (the internal springs' with
+    ``inner``, :func:`_inner_tangent`), then the closing half kick (h = 0: the state at t = 0)."""
+    hh = 0.5 * h
+    wt, wvt, wat = inn_t
+    for i in range(inv_mass.shape[0]):
         at[o + i] = inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i]) + thm[o + i] * (g[i] - g[i + 1] + fext[i])
         if inner:
             _inner_tangent(i, o, dd, ut, wt, wat, at, th, thm, xs, ext, inv_mass)
@@ -370,10 +390,7 @@ def _tangent_loop(general: bool, aligned: bool, plastic: bool = False):
                 _plastic_tangents(jac, st, th, gp, ut, vpt, ft, o, dd, n)
             for j in range(n - 1 if not plastic else 0):
                 ft[o + j + 1] = gw[j] * (ut[o + j] - ut[o + j + 1]) + gv[j] * (vt[o + j] - vt[o + j + 1]) + pf[o + j]
-            for i in range(n):
-                at[o + i] = inv_mass[i] * (ft[o + i] - ft[o + i + 1] + thf[o + i]) + thm[o + i] * (g[i] - g[i + 1] + fext[i])
-                if inner:
-                    _inner_tangent(i, o, dd, ut, inn_t[0], inn_t[2], at, th, thm, xs, ext, inv_mass)
+            tangent_kick(ut, vt, at, ft, g, thf, thm, th, dd, o, inv_mass, fext, 0.0, inner, inn_t, xs, ext)
             for r in range(rec.shape[0]):
                 out_ft[dd, 0, r] = ft[o + rec[r] + 1]
         p = _seeded(-1, p, seed_step, seed_contact, seed_w, ft, ut, vt, nd, n, dj)

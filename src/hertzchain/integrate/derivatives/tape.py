@@ -228,17 +228,24 @@ def has_inner(ext):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def checkpoint_inner(ck, ext):
-    """The internal masses' positions and velocities into the last two rows of checkpoint ``ck``."""
-    r = ck.shape[0] - 2
+def checkpoint(ck, u, v, a, ext, inner):
+    """The state (u, v, a) into rows 0-2 of checkpoint ``ck`` (element loops: a slice assignment per
+    block cost as much as the block) and, with ``inner``, the internal masses' positions and
+    velocities into its last two rows (a law's state goes between: the caller's)."""
     for i in range(ck.shape[1]):
-        ck[r, i] = ext[i, EXT_W]
-        ck[r + 1, i] = ext[i, EXT_WV]
+        ck[0, i] = u[i]
+        ck[1, i] = v[i]
+        ck[2, i] = a[i]
+    if inner:
+        r = ck.shape[0] - 2
+        for i in range(ck.shape[1]):
+            ck[r, i] = ext[i, EXT_W]
+            ck[r + 1, i] = ext[i, EXT_WV]
 
 
 @njit(cache=True, nogil=True, inline="always")
 def restore_inner(ck, u, ext, wa):
-    """The internal masses' state from checkpoint ``ck`` (:func:`checkpoint_inner`), their
+    """The internal masses' state from checkpoint ``ck`` (:func:`checkpoint`), their
     accelerations from the positions (``u`` restored first)."""
     r = ck.shape[0] - 2
     for i in range(ck.shape[1]):
@@ -301,17 +308,12 @@ def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, 
                 ns = kernels._adapt_stride(req, ns, relax, acc)
             if bi % group == 0:
                 c = bi // group
-                for i in range(n):  # element loops: a slice assignment per block cost as much as the block
-                    ckpt[c, 0, i] = u[i]
-                    ckpt[c, 1, i] = v[i]
-                    ckpt[c, 2, i] = a[i]
+                checkpoint(ckpt[c], u, v, a, ext, inner)
                 if plastic_rows:
                     for i in range(n):
                         ckpt[c, 3, i] = dmax[i]
                         ckpt[c, 4, i] = dres[i]
                         ckpt[c, 5, i] = kres[i]
-                if inner:
-                    checkpoint_inner(ckpt[c], ext)
             ns_log[bi] = ns
             # The two paths are called apart (not through one function holding both): LLVM then
             # vectorises the elastic step as in verlet_run (~2.5x faster).
