@@ -36,7 +36,7 @@ from numba import njit
 
 from ..core.extension import EXT_IMIN, EXT_KIN
 from ..core.kernels import DELTA_MIN, LAW_ELASTOPLASTIC
-from .partials import aligned_partials, contact_partials, mount_partials, plastic_contact_adjoint
+from .partials import aligned_partials, contact_partials, has_mount, mount_partials, plastic_contact_adjoint
 from .tape import _fused, has_inner, replay_group
 
 #: Seeds on the state rather than on a force: a seed's contact number STATE_U + i (STATE_V + i)
@@ -168,7 +168,7 @@ def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, w
                                                                    vpstore[sl, j + 1], kappa[j], damping[j], d0[j],
                                                                    de[j], dx0[j], rsum[j], law)
             fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
-            if linear:  # the mount's spring and dashpot (extension.forces_linear): k delta + c d(delta)/dt
+            if linear and has_mount(ext, j):  # the mount's spring and dashpot (extension.forces_linear)
                 fl, kl, cl, dl, rl = mount_partials(ext, j, ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
                                                     vpstore[sl, j + 1], d0[j])
                 f += fl
@@ -259,7 +259,7 @@ def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, f
             gde[j] += gdd
             gdx0[j] += gx
             grs[j] += gr
-            if linear:
+            if linear and has_mount(ext, j):
                 fl, kl, cl, dl, rl = mount_partials(ext, j, ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
                                                     vpstore[sl, j + 1], d0[j])
                 f += fl
@@ -376,7 +376,7 @@ def _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, 
             grad[3, j] += fbar * gdd
             grad[4, j] += fbar * gx
             grad[5, j] += fbar * gr
-        if ext.shape[0] > 0:
+        if has_mount(ext, j):
             fl, kl, cl, dl, rl = mount_partials(ext, j, u0[j], u0[j + 1], v0[j], v0[j + 1], d0[j])
             f += fl
             wbar += fbar * kl

@@ -228,7 +228,7 @@ def check_law(system: System) -> None:
     from ...contact import LAW_CODES
 
     if is_generated(system.law):  # a registry law: its partials (and its state's), a protected body's mount
-        law_engines(system.law)
+        law_engines(system.law, _inner(system), system.extended)
         return
     if system.law not in LAWS:
         name = next((k for k, v in LAW_CODES.items() if v == system.law), str(system.law))
@@ -339,7 +339,7 @@ def record(system: System, duration: float, sample_interval: float, dt: float | 
     step_end = np.zeros(n_samples, dtype=np.int64)
     fmax_k = np.zeros(nc, dtype=np.int64)
     kstar = np.full(1, -1, dtype=np.int64)
-    forward = law_engines(system.law)[0] if is_generated(system.law) else tape_forward
+    forward = law_engines(system.law, _inner(system), system.extended)[0] if is_generated(system.law) else tape_forward
     status = forward(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap,
                      w.dyield, w.dmax, w.dres, w.kres, system.law, system.general, w.wall_slot, sample_interval,
                      plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, rec, out_f, fmax,
@@ -413,7 +413,7 @@ def _replay(tape: Tape, b0: int, b1: int, stores) -> tuple[np.ndarray, np.ndarra
     block = float(tape.time[1] - tape.time[0]) / tape.plan.n_sub
     u, v, a, g = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n), np.zeros(n + 1)
     dmax, dres, kres = np.zeros(n), np.zeros(n), w.kappa.copy()
-    replay = law_engines(sy.law)[1] if is_generated(sy.law) else replay_group
+    replay = law_engines(sy.law, _inner(sy), sy.extended)[1] if is_generated(sy.law) else replay_group
     replay(tape.ckpt[b0 // tape.group], u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
            w.fext, sy.law, sy.general, w.wall_slot, tape.ns_log, b0, b1, block, stores, w.dyield, dmax, dres, kres,
            w.ext, w.ext.shape[0] > 0)
@@ -554,7 +554,7 @@ def gradient(tape: Tape, seeds: Seeds, final_dres: np.ndarray | None = None) -> 
     sb = np.zeros((2, n))  # adjoints of the elastic-plastic state (residual overlap, stiffness) at the end
     if final_dres is not None:
         sb[0, :final_dres.size] = final_dres
-    generated = law_engines(sy.law) if is_generated(sy.law) else None
+    generated = law_engines(sy.law, _inner(sy), sy.extended) if is_generated(sy.law) else None
     if generated is not None and n_blocks:
         generated[3](tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab, w.inv_mass,
                      w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general, w.wall_slot, seeds.step,
@@ -654,10 +654,10 @@ def tangents(system: System, directions: dict[str, np.ndarray], duration: float,
     dj = np.zeros(n_dirs)
     seeds = seeds or Seeds.build([])
     if is_generated(system.law):  # the generated law's tangent run, its state's tangents too
-        status = law_engines(system.law)[2](u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
-                                            w.fext, w.dcap, w.dmax, sample_interval, plan.stride, plan.n_sub,
-                                            plan.n_eval, plan.c_steps, plan.relax, n_samples, acc, th, v0t, rec, out_f,
-                                            out_ft, seeds.step, seeds.contact, seeds.weight, dj, w.ext)
+        run = law_engines(system.law, _inner(system), system.extended)[2]
+        status = run(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, w.dcap, w.dmax,
+                     sample_interval, plan.stride, plan.n_sub, plan.n_eval, plan.c_steps, plan.relax, n_samples, acc, th,
+                     v0t, rec, out_f, out_ft, seeds.step, seeds.contact, seeds.weight, dj, w.ext)
     else:
         status = _tangent.tangent_run(u, v, a, g, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0, w.rsum,
                                       w.fext, w.dcap, system.law, system.general, w.wall_slot, sample_interval,

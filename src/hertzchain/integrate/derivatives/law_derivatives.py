@@ -35,9 +35,9 @@ from .adjoint import _bodies_back, _clear_seeds, _take_seeds, group_starts, init
 from ..core.extension import EXT_W, extension_stride, forces_linear
 from ..core.kernels import DELTA_MIN, _adapt_stride
 from ..core.primitives import _track_peak
-from .partials import mount_partials
+from .partials import has_mount, mount_partials
 from .tangent import _seeded, tangent_drift, tangent_kick
-from .tape import (bodies_kick, checkpoint, has_inner, inner_accelerations, open_block, record_sample,
+from .tape import (bodies_kick, checkpoint, inner_accelerations, open_block, record_sample,
                    restore_inner)
 
 #: Rows of a contact's partials (of F, and of the new state): w, v, then the System parameters in
@@ -53,10 +53,12 @@ def _no_state(d, rate, k, p, s):
     return 0.0, 0.0, 0.0, 0.0, 0.0, 1.0
 
 
-def law_engines(code: int):
+def law_engines(code: int, inner: bool = False, mount: bool = False):
     """(tape_forward, replay_group, tangent_run, reverse_sweep, initial) for the generated law of
-    engine code ``code``, built on first use; a :class:`ConfigError` naming ``contact.law`` for a
-    law with state that declares no ``state_partials``."""
+    engine code ``code`` (``inner``: for a model with mass-in-mass beads; ``mount``: with the
+    extension, a protected body's mount among it), built on first use; a
+    :class:`ConfigError` naming ``contact.law`` for a law with state that declares no
+    ``state_partials``."""
     from ...errors import ConfigError
     from ...laws import law_of_code
     from ...laws.spec import compiled
@@ -69,21 +71,25 @@ def law_engines(code: int):
                           "the state; add them to its LawSpec (docs/guide/laws.rst)")
     kernels = law_kernels(code)
     sp = compiled(spec.state_partials) if spec.state_partials is not None else _no_state
-    key = (code, id(kernels[0]), id(sp), id(spec.partials))
+    key = (code, id(kernels[0]), id(sp), id(spec.partials), bool(inner), bool(mount))
     if key not in _CACHE:
         _CACHE[key] = _build(compiled(spec.force), compiled(spec.state), compiled(spec.partials), sp, kernels[0],
-                             kernels[3], spec.state_size > 0)
+                             kernels[3], spec.state_size > 0, bool(inner), bool(mount))
     return _CACHE[key]
 
 
-def _build(force, update, partials, state_partials, gforces, gstride, stateful):
+def _build(force, update, partials, state_partials, gforces, gstride, stateful, inner, mount):
+    """The engines of one law; ``stateful`` (the law has a state), ``inner`` (mass-in-mass beads) and
+    ``mount`` (the extension's linear springs) are constants of the closures: Numba prunes the
+    branches not taken (the extension's, taken at run time, made the runs ~1.2x slower)."""
+    nrows = ROWS if mount else ROWS - 2  # columns of a contact's partials written (the mount's last)
     @njit(nogil=True, inline="always")
     def contact_partials(uj, uj1, vj, vj1, k, p, d0, de, dx0, rsum, s, cf, ch, j):
         """Axial force F of contact j (as the generated ``forces`` computes it) at state ``s`` before
         the step; writes its partials into row j of ``cf`` and those of the new state into ``ch``
         (columns: :data:`ROWS`). ``stateful`` (a constant of the closure: the branch not taken is
         not compiled) leaves a law without state its one carried state."""
-        for r in range(ROWS):
+        for r in range(nrows):
             cf[j, r] = 0.0
             ch[j, r] = 0.0
         ch[j, 8] = 1.0
@@ -145,7 +151,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
         (empty: none), in parallel with the law as the generated run adds them
         (``extension.forces_linear``): the axial force and its partials, columns 9, 10 by k and c."""
         f = contact_partials(uj, uj1, vj, vj1, k, p, d0, de, dx0, rsum, s, cf, ch, j)
-        if ext.shape[0] > 0:
+        if mount and has_mount(ext, j):
             fl, kl, cl, cf[j, 9], cf[j, 10] = mount_partials(ext, j, uj, uj1, vj, vj1, d0)
             cf[j, 0] += kl
             cf[j, 4] += kl
@@ -153,21 +159,22 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             f += fl
         return f
 
-    @njit(nogil=True, inline="always")
-    def step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, ext, ext_on):
-        """A step's forces as the generated run takes them: the law's, then the mount's."""
-        gforces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state)
-        if ext_on:
-            forces_linear(u, vp, d0, ext, g)
-
-    @njit(nogil=True, inline="always")
-    def step_stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps, ext,
-                    ext_on):
-        """The steps per block the generated run takes: the law's bound, plus the mount's."""
-        req = gstride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps)
-        if ext_on:
-            req += extension_stride(ext, inv_mass, block, c_steps)
-        return req
+    # The forces of a step are the law's (``gforces``), then, with ``mount``, the mount's
+    # (``extension.forces_linear``), called in the loops themselves: a wrapper around the two, even
+    # inlined, cost the taped run ~12 %.
+    if mount:
+        @njit(nogil=True, inline="always")
+        def step_stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps,
+                        ext):
+            """The steps per block the generated run takes: the law's bound, plus the extension's."""
+            return (gstride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps)
+                    + extension_stride(ext, inv_mass, block, c_steps))
+    else:
+        @njit(nogil=True, inline="always")
+        def step_stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps,
+                        ext):
+            """The steps per block the generated run takes (no extension)."""
+            return gstride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass, horizon, block, c_steps)
 
     @njit(nogil=True)
     def tape_forward(u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dcap, dyield, dmax, dres, kres, law,
@@ -181,7 +188,6 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
         adaptive = stride == 0
         ns = stride if not adaptive else int(acc[3])
         vp = np.zeros_like(v)
-        inner = has_inner(ext)
         wa = np.zeros(n)
         xs = np.zeros(n)
         if inner:
@@ -193,7 +199,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 bi = (k - 1) * n_sub + b
                 if adaptive and bi % n_eval == 0:
                     req = step_stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, dmax, inv_mass, n_eval * block,
-                                      block, c_steps, ext, ext_on)
+                                      block, c_steps, ext)
                     ns = _adapt_stride(req, ns, relax, acc)
                 if bi % group == 0:
                     c = bi // group
@@ -208,7 +214,9 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 for s in range(ns):
                     for i in range(n):
                         vp[i] = v[i] + half * a[i]
-                    step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax, ext, ext_on)
+                    gforces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax)
+                    if mount:
+                        forces_linear(u, vp, d0, ext, g)
                     before = peak[0]
                     _track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
                     if g[wall_slot + 1] > before:
@@ -234,7 +242,6 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             v[i] = ckpt_g[1, i]
             a[i] = ckpt_g[2, i]
             dmax[i] = ckpt_g[3, i]
-        inner = has_inner(ext)
         wa = np.zeros(n)
         xs = np.zeros(n)
         if inner:
@@ -256,7 +263,9 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                     for i in range(n):
                         wstore[s0 + s, i] = ext[i, EXT_W]
                 hstore[s0 + s] = dt
-                step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax, ext, ext_on)
+                gforces(u, vp, kappa, damping, d0, de, dx0, rsum, g, dmax)
+                if mount:
+                    forces_linear(u, vp, d0, ext, g)
                 bodies_kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1, ext, wa, inner, xs)
             s0 += ns
         return s0
@@ -270,7 +279,6 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
         tangents, the state's among them."""
         n = a.shape[0]
         nd = th.shape[1]
-        ext_on = ext.shape[0] > 0
         block = interval / n_sub
         adaptive = stride == 0
         ns = stride if not adaptive else int(acc[3])
@@ -285,7 +293,6 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             for i in range(n):
                 thf[dd * (n + 1) + i] = th[6, dd, i]
                 thm[dd * (n + 1) + i] = th[7, dd, i]
-        inner = has_inner(ext)  # mass-in-mass beads: their accelerations, stretches and tangents
         wa, xs = np.zeros(n), np.zeros(n)
         inn_t = (np.zeros(m if inner else 1), np.zeros(m if inner else 1), np.zeros(m if inner else 1))
         if inner:
@@ -295,7 +302,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
         for j in range(n - 1):  # t = 0: F(u_0, v_0) from the state 0
             partials_ext(u[j], u[j + 1], v[j], v[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j], rsum[j], 0.0, cf,
                          ch, j, ext)
-        _parameter_forces(cf, ch, th, pf, ph)
+        _parameter_forces(cf, ch, th, pf, ph, mount)
         for dd in range(nd):
             o = dd * (n + 1)
             for i in range(n):
@@ -312,7 +319,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 bi = (k - 1) * n_sub + b
                 if adaptive and bi % n_eval == 0:
                     req = step_stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, state, inv_mass,
-                                      n_eval * block, block, c_steps, ext, ext_on)
+                                      n_eval * block, block, c_steps, ext)
                     ns = _adapt_stride(req, ns, relax, acc)
                 dt = block / ns
                 hh = 0.5 * dt
@@ -323,9 +330,11 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                     for j in range(n - 1):  # partials at the state before the step, then the step
                         partials_ext(u[j], u[j + 1], vp[j], vp[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j],
                                      rsum[j], state[j], cf, ch, j, ext)
-                    step_forces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state, ext, ext_on)
+                    gforces(u, vp, kappa, damping, d0, de, dx0, rsum, g, state)
+                    if mount:
+                        forces_linear(u, vp, d0, ext, g)
                     bodies_kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1, ext, wa, inner, xs)
-                    _parameter_forces(cf, ch, th, pf, ph)
+                    _parameter_forces(cf, ch, th, pf, ph, mount)
                     for dd in range(nd):
                         o = dd * (n + 1)
                         tangent_drift(ut, vt, at, vpt, o, dt, n, inner, inn_t)
@@ -359,7 +368,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
                 f = partials_ext(ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j], vpstore[sl, j + 1], kappa[j],
                                  damping[j], d0[j], de[j], dx0[j], rsum[j], pstore[0, sl, j], cf, ch, j, ext)
                 fbar = fb[j] + inv_mass[j + 1] * (ab[j + 1] + hh * vb[j + 1]) - inv_mass[j] * (ab[j] + hh * vb[j])
-                _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad)
+                _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad, mount)
             if inner:
                 inner_back(h, ustore, wstore, sl, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
             _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, grad[7], grad[6], True, True)
@@ -382,7 +391,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
             f = partials_ext(u0[j], u0[j + 1], v0[j], v0[j + 1], kappa[j], damping[j], d0[j], de[j], dx0[j],
                              rsum[j], 0.0, cf, ch, j, ext)
             fbar = fb[j] + inv_mass[j + 1] * ab[j + 1] - inv_mass[j] * ab[j]
-            _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad)
+            _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad, mount)
         initial_bodies_back(u0, ub, vb, ab, fs, wb, rb, inv_mass, fext, grad, ext, inn)
         return p
 
@@ -395,7 +404,6 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
         n = ab.shape[0]
         u, v, a, g = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n), np.zeros(n + 1)
         state = np.zeros(n)
-        inner = has_inner(ext)
         stores = (np.zeros((max_rows, n)), np.zeros((max_rows, n)), np.zeros(max_rows), np.zeros((1, max_rows, n)),
                   np.zeros((max_rows if inner else 1, n)))
         wub, wvb, wab = np.zeros(n), np.zeros(n), np.zeros(n)
@@ -422,7 +430,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful):
 
 
 @njit(nogil=True, inline="always")
-def _parameter_forces(cf, ch, th, pf, ph):
+def _parameter_forces(cf, ch, th, pf, ph, mount):
     """pf[dd (P + 1) + j] = sum over the System parameters of dF_j/dtheta theta'_j along direction
     dd (rows kappa .. rsum of ``th``, and the mount's k and c, rows 8, 9), ph the same for the new
     state (which the mount does not move)."""
@@ -436,7 +444,7 @@ def _parameter_forces(cf, ch, th, pf, ph):
             for r in range(6):
                 x += cf[j, r + 2] * th[r, dd, j]
                 y += ch[j, r + 2] * th[r, dd, j]
-            pf[o + j] = x + cf[j, 9] * th[8, dd, j] + cf[j, 10] * th[9, dd, j]
+            pf[o + j] = x + cf[j, 9] * th[8, dd, j] + cf[j, 10] * th[9, dd, j] if mount else x
             ph[o + j] = y
 
 
@@ -452,7 +460,7 @@ def _contact_tangents(cf, ch, ut, vpt, ft, st, pf, ph, o, n):
 
 
 @njit(nogil=True, inline="always")
-def _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad):
+def _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad, mount):
     """Contact j's adjoint: ``fbar`` on its force and ``sb[j]`` on its new state to those of w, the
     relative velocity, the parameters (``grad`` rows 0-5; the mount's k and c, rows 8, 9) and the
     state before (into ``sb[j]``)."""
@@ -462,6 +470,7 @@ def _contact_adjoint(j, f, fbar, cf, ch, sb, fs, wb, rb, grad):
     rb[j + 1] = fbar * cf[j, 1] + sbar * ch[j, 1]
     for r in range(6):
         grad[r, j] += fbar * cf[j, r + 2] + sbar * ch[j, r + 2]
-    grad[8, j] += fbar * cf[j, 9]
-    grad[9, j] += fbar * cf[j, 10]
+    if mount:  # a constant at every call: the branch is dropped without the extension
+        grad[8, j] += fbar * cf[j, 9]
+        grad[9, j] += fbar * cf[j, 10]
     sb[j] = fbar * cf[j, 8] + sbar * ch[j, 8]

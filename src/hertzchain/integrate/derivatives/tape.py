@@ -78,25 +78,32 @@ def bodies_kick(u, v, a, g, fext, inv_mass, dt, last, ext, wa, inner, xs):
     u += dt v (a block's ``last`` step: only the closing half kick). With ``inner`` (mass-in-mass
     beads) the internal springs join the accelerations and the internal masses are kicked and
     drifted too (``extension.body_accelerations``, ``step_extended``: the same numbers), and ``xs``
-    receives every spring's stretch w - u at the step (the derivative engines read it)."""
+    receives every spring's stretch w - u at the step (the derivative engines read it). The
+    branches are taken outside the loops (a branch inside kept LLVM from vectorising them: the
+    taped runs ~15 % slower)."""
     half = 0.5 * dt
-    for i in range(a.shape[0]):
-        if inner:
+    if inner:
+        for i in range(a.shape[0]):
             xs[i] = ext[i, EXT_W] - u[i]
             a[i], wa[i] = body_accelerations(g[i], g[i + 1], fext[i], inv_mass[i], ext[i, EXT_KIN], ext[i, EXT_W], u[i],
                                              ext[i, EXT_IMIN])
-        else:
+            if last:
+                v[i] += half * a[i]
+                ext[i, EXT_WV] += half * wa[i]
+            else:
+                v[i] += dt * a[i]
+                u[i] += dt * v[i]
+                ext[i, EXT_WV] += dt * wa[i]
+                ext[i, EXT_W] += dt * ext[i, EXT_WV]
+    elif last:
+        for i in range(a.shape[0]):
             a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
-        if last:
             v[i] += half * a[i]
-        else:
+    else:
+        for i in range(a.shape[0]):
+            a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
             v[i] += dt * a[i]
             u[i] += dt * v[i]
-        if inner and last:
-            ext[i, EXT_WV] += half * wa[i]
-        elif inner:
-            ext[i, EXT_WV] += dt * wa[i]
-            ext[i, EXT_W] += dt * ext[i, EXT_WV]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -138,7 +145,19 @@ def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, 
         kernels._track_peak(g[wall_slot + 1], t0 + (s + 1) * dt, dt, peak)
         if g[wall_slot + 1] > before:
             kstar[0] = step + s
-        bodies_kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1, ext, wa, inner, xs)
+        # the plain kicks written here rather than through bodies_kick: inlined, its code for the
+        # internal masses (not taken) made the taped run ~15 % slower
+        if inner:
+            bodies_kick(u, v, a, g, fext, inv_mass, dt, s == ns - 1, ext, wa, inner, xs)
+        elif s < ns - 1:
+            for i in range(n):
+                a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+                v[i] += dt * a[i]
+                u[i] += dt * v[i]
+        else:
+            for i in range(n):
+                a[i] = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
+                v[i] += half * a[i]
 
 
 @njit(cache=True, nogil=True, inline="always")
