@@ -35,7 +35,7 @@ from .adjoint import _bodies_back, _clear_seeds, _take_seeds, group_starts, init
 from ..core.extension import EXT_W, extension_stride, forces_linear
 from ..core.kernels import DELTA_MIN, _adapt_stride
 from ..core.primitives import _track_peak
-from .partials import has_mount, mount_partials
+from .partials import contact_geometry, has_mount, mount_partials
 from .tangent import _seeded, tangent_drift, tangent_kick
 from .tape import (bodies_kick, checkpoint, inner_accelerations, open_block, record_sample,
                    restore_inner)
@@ -95,18 +95,13 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful, 
         ch[j, 8] = 1.0
         if k == 0.0:  # no contact: the state is carried
             return 0.0
+        d, c, dx, dist = contact_geometry(uj, uj1, d0, de, dx0, rsum)
         if de != 0.0:  # misaligned: delta = rsum - dist(dx), c = dx / dist, F = c f(delta, c vrel)
-            dx = dx0 - (uj - uj1)
-            dist = np.sqrt(dx * dx + de * de)
-            d = rsum - dist
-            c = dx / dist
             inv3 = 1.0 / (dist * dist * dist)
             c_w = -de * de * inv3  # dc/dw; dc/ddx0 = -dc/dw
             c_de = -dx * de * inv3
             d_w, d_0, d_de, d_dx0, d_rs = c, 0.0, -de / dist, -c, 1.0
         else:
-            d = uj - uj1 + d0
-            c = 1.0
             c_w, c_de = 0.0, 0.0
             d_w, d_0, d_de, d_dx0, d_rs = 1.0, 1.0, 0.0, 0.0, 0.0
         vrel = vj - vj1
