@@ -279,7 +279,9 @@ def engine_bytes(system: System, duration: float, sample_interval: float, dt: fl
     p = -(-(system.n_moving + 1) // PAD) * PAD  # the padded slots (layout.pack): moving bodies, ghost
     records = n_samples * (recorded + 4) * 8  # forces, times, step ends, scratch
     state = 24 * p * 8  # the packed System, the state, forces, trackers
-    per_dir = (_ROWS + 1 + 7) * (p + 1) * 8 + n_samples * recorded * 8  # th, v0t, the tangents, their records
+    # th, v0t, the tangents (and the internal masses', the elastic-plastic state's), their records
+    extra = 3 * _inner(system) + 2 * (system.law == kernels.LAW_ELASTOPLASTIC)
+    per_dir = (_ROWS + 1 + 7 + extra) * (p + 1) * 8 + n_samples * recorded * 8
     n_blocks, rows, group, ns_max = _checkpoints(system, plan, n_samples, sample_interval, p)
     tape = records + state + max(1, -(-n_blocks // group)) * rows * p * 8 + max(n_blocks, 1) * 8
     if directions:  # sensitivity() tapes the run, then runs the tangents (trace_sensitivity only the latter)
