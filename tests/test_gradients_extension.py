@@ -2,7 +2,8 @@
 inside a bead) and a protected body's mount, for the built-in laws and the registry laws
 (hertzchain.laws: Hunt-Crossley, the power law). The derivative engines step the internal masses
 and the mount as ``extension.step_extended`` does (the taped value is the engine's, bit for bit),
-and differentiate by the internal springs and masses too (a bead's size and density move them).
+and differentiate by the internal springs and masses too (a bead's size and density move them, and so
+do the element's own ``resonator.mass_fraction`` and ``frequency``, variables of their own).
 Checked against central finite differences of whole runs at a fixed small step, and the tangent
 model against the adjoint (two differentiations of the same steps: equal to rounding)."""
 
@@ -42,6 +43,7 @@ def _config(law: str, inner: bool, body: bool) -> dict:
 def test_extension_gradients_match_differences(law, inner, body):
     cfg = _config(law, inner, body)
     paths = ["striker.velocity", "chain.diameters_mm[2]", "materials.mysteel.density"] + \
+        (["elements.mim.resonator.frequency", "elements.mim.resonator.mass_fraction"] if inner else []) + \
         (["wall.mass"] if body else []) + \
         (["contact.restitution"] if law == "hunt_crossley" else ["contact.exponent"] if law == "power" else [])
     extra = ["wall.stiffness", "wall.damping"] if body else []

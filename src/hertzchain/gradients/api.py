@@ -59,7 +59,8 @@ def variable_unit(path: str) -> str:
                 return "1" if unit == "-" else unit
     return {"velocity": "m/s", "q": "1", "precompression": "N", "mass": "kg", "A": "s", "gamma": "N s/m",
             "stiffness": "N/m",
-            "density": "kg/m^3", "young": "Pa", "poisson": "1", "yield_stress": "Pa"}.get(tail.split("[")[0], "1")
+            "density": "kg/m^3", "young": "Pa", "poisson": "1", "yield_stress": "Pa", "frequency": "Hz",
+            "mass_fraction": "1"}.get(tail.split("[")[0], "1")
 
 
 @dataclass

@@ -39,15 +39,18 @@ def element_masses(elements, mass: np.ndarray, rho: np.ndarray, phi: np.ndarray)
             mass[:, b] = rho[:, b] * math.pi * phi[:, b] ** 2 * length / 4.0
 
 
-def element_resonators(elements, mass: np.ndarray, res_k: np.ndarray, res_inv_mass: np.ndarray) -> None:
+def element_resonators(elements, mass: np.ndarray, res_k: np.ndarray, res_inv_mass: np.ndarray, read) -> None:
     """Mass-in-mass beads (``Element.resonator``, ``bodies.extend``), in place: of a bead's whole
     mass m (``mass``, rows, N + 1) the internal mass f m rides on a spring f m (2 pi nu)^2 (into
-    ``res_k`` and ``res_inv_mass`` = 1 / (f m)), and ``mass`` keeps the shell's (1 - f) m."""
+    ``res_k`` and ``res_inv_mass`` = 1 / (f m)), and ``mass`` keeps the shell's (1 - f) m. The
+    fraction f and the frequency nu [Hz] are read through ``read`` (``setup._Reader``) as the fields
+    ``elements.NAME.resonator.mass_fraction`` and ``.frequency``: variables of their own."""
     for i, el in enumerate(elements):
         if el.resonator_fraction > 0:
             b = i + 1
-            m_in = el.resonator_fraction * mass[:, b]
-            res_k[:, b] = m_in * (2.0 * math.pi * el.resonator_frequency) ** 2
+            where = f"elements.{el.name}.resonator"
+            m_in = read(f"{where}.mass_fraction", el.resonator_fraction)[:, 0] * mass[:, b]
+            res_k[:, b] = m_in * (2.0 * math.pi * read(f"{where}.frequency", el.resonator_frequency)[:, 0]) ** 2
             res_inv_mass[:, b] = 1.0 / m_in
             mass[:, b] = mass[:, b] - m_in
 

@@ -26,7 +26,9 @@ Fields (units: the config's own, so ``diameters_mm`` is per mm):
   ``wall.damping`` [N s/m] of its mount, and a spherical face's ``wall.radius_of_curvature_mm``;
 - ``materials.NAME.density``, ``.young``, ``.poisson``, ``.yield_stress`` for a material of the
   config's ``[materials]`` or of the catalogue (``materials.AISI52100.young``): every body made
-  of it, the wall cap included.
+  of it, the wall cap included;
+- a mass-in-mass element's ``elements.NAME.resonator.mass_fraction`` and ``.frequency`` [Hz]:
+  every bead of that element (:func:`~hertzchain.gradients.faces.element_resonators`).
 
 For a config whose chain is not a list (``preset``, ``uniform``, ``taper``), ``chain.diameters_mm[i]``
 (and ``chain.offsets_mm[i]``) address bead i + 1 of the chain as built.
@@ -202,7 +204,7 @@ def _arrays(cfg, read: _Reader) -> dict[str, np.ndarray]:
     res_inv_mass = np.zeros((read.rows, n + 2), dtype=complex)  # and inverse internal masses
     if elements is not None:  # a given mass, a cylinder's (gradients.faces)
         element_masses(elements, mass, rho, phi)
-        element_resonators(elements, mass, res_k, res_inv_mass)
+        element_resonators(elements, mass, res_k, res_inv_mass, read)
     r = phi / 2.0
     inv_r = 1.0 / r[:, :-1] + 1.0 / r[:, 1:]
     striker_curvature: Any = 1.0 / r[:, 0]  # the striker's face: its sphere, a flat or a curved face
@@ -523,7 +525,8 @@ def _supported(path: str) -> str:
     return ("gradients know the continuous fields " + ", ".join(_SCALAR_FIELDS) + ", chain.diameters_mm[i], "
             "chain.offsets_mm[i], chain.offsets_fraction[i], chain.substitutions[i].diameter_mm, "
             "materials.NAME.{density,young,poisson,yield_stress} and a registry law's parameters given in the "
-            "config (contact.exponent, contact.stiffness, contact.restitution, contact.parameters.NAME)")
+            "config (contact.exponent, contact.stiffness, contact.restitution, contact.parameters.NAME), and a "
+            "mass-in-mass element's elements.NAME.resonator.{mass_fraction,frequency}")
 #: List items that share a row of the complex step are COLOURS apart: a bead's diameter or offset
 #: moves the entries of its own bead, body and two contacts only (indices i .. i + 1 for item i),
 #: so an entry e of a shared row belongs to the one item of its colour within e - 2 .. e + 2
