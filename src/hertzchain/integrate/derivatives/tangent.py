@@ -315,7 +315,7 @@ def _tangent_loop(general: bool, aligned: bool, plastic: bool = False, inner: bo
     """The tangent run, compiled on its own for the aligned elastic steps, the aligned dissipative
     ones, the general ones and the elastic-plastic law's, with or without mass-in-mass beads (one
     function holding them all made LLVM's code for the elastic steps ~1.6x slower; the internal
-    masses' branches, taken at run time, ~1.4x): ``general``, ``aligned``, ``plastic`` and
+    masses' branches, taken at run time, ~1.3x): ``general``, ``aligned``, ``plastic`` and
     ``inner`` are constants of the closure, and Numba prunes the branches not taken."""
 
     @njit(cache=True, nogil=True)
