@@ -24,8 +24,9 @@ from ..errors import ConfigError
 
 __all__ = ["Sensitivity", "TraceSensitivity", "sensitivity", "trace_sensitivity", "variable_unit", "memory_estimate"]
 
-#: With at most this many variables ``mode="auto"`` uses the tangent model (where it covers the
-#: law), else the adjoint. On chain 1 (benchmarks/gradient.py) the whole call costs ~2.8-3.3 runs
+#: With at most this many variables ``mode="auto"`` uses the tangent model (but for the
+#: elastic-plastic law, whose tangent costs more than its adjoint: ``differentiate.TANGENT_LAWS``),
+#: else the adjoint. On chain 1 (benchmarks/gradient.py) the whole call costs ~2.8-3.3 runs
 #: with the adjoint whatever the number of variables, ~1.6 plus ~0.7 per variable with the tangent:
 #: the tangent wins for one variable only, and serves whole signals (:func:`trace_sensitivity`).
 TANGENT_MAX_VARIABLES = 1
@@ -262,8 +263,8 @@ def sensitivity(config, variables: str | Sequence[str], objective: str = "peak_w
         ``"peak_contact_force[j]"``.
     mode : {"auto", "adjoint", "tangent"}
         Reverse mode (one sweep for any number of variables) or forward mode (one tangent per
-        variable); ``"auto"``: the tangent for one variable, the adjoint for more (or a law the
-        tangent model does not cover).
+        variable); ``"auto"``: the tangent for one variable, the adjoint for more (and for the
+        elastic-plastic law, whose tangent costs more: ``benchmarks/gradient.py``).
     window : (float, float), optional
         Time window [s] of ``energy_at_wall``.
     smoothing : float, optional
