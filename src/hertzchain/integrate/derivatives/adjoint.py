@@ -135,63 +135,89 @@ def inner_back(h, ustore, wstore, sl, ub, vb, ab, wub, wvb, wab, inv_mass, ext, 
         wvb[i] = wvh
 
 
-@njit(cache=True, nogil=True)
-def _steps_general(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
-                   d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, ptr, grad, ext, inn):
-    """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse, general forces; returns the seed pointer.
+def _general_steps(plastic: bool):
+    """The reverse steps of the general forces, compiled apart for the hand-written laws and for the
+    elastic-plastic law (``plastic``, a constant of the closure: Numba prunes the branch not taken)."""
 
-    ``grad`` rows: kappa, damping, d0, de, dx0, rsum, fext, inv_mass, then the linear spring and
-    dashpot of every contact (``ext``: a protected body's mount; an empty ``ext`` has none); with
-    mass-in-mass beads, ``inn`` = (wstore, wub, wvb, wab, inner) (:func:`inner_back`).
-    Seeds are sorted by step; ``ptr`` is one past the last seed not consumed yet. ``fb`` (zero on
-    entry and exit) receives a step's seeds; ``fs, wb, rb`` are scratch (size P + 1, slot 0 zero).
-    The loops read shifted views (``x1[j]`` for x[j + 1], made once) so that LLVM vectorises them,
-    the adjoint of a_{s+1}, a' + h/2 v', is formed where it is read, and the stored step is indexed
-    (a row view per step costs two atomic reference counts). The three kinds of steps (this one,
-    :func:`_steps_static`, :func:`_steps_plain`) are compiled apart: one function holding them all
-    compiled each into slower code.
-    """
-    n = ab.shape[0]
-    p = ptr
-    gk, gdamp, gd0, gde, gdx0, grs, gfext, ginv = grad[0], grad[1], grad[2], grad[3], grad[4], grad[5], grad[6], grad[7]
-    gkl, gcl = grad[8], grad[9]
-    wstore, wub, wvb, wab, inner = inn
-    ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
-    m = n - 1
-    linear = ext.shape[0] > 0
-    for sl in range(nsteps - 1, -1, -1):
-        h = hstore[sl]
-        hh = 0.5 * h
-        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
-        for j in range(m):
-            f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
-                                                                   vpstore[sl, j + 1], kappa[j], damping[j], d0[j],
-                                                                   de[j], dx0[j], rsum[j], law)
-            fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
-            if linear and has_mount(ext, j):  # the mount's spring and dashpot (extension.forces_linear)
-                fl, kl, cl, dl, rl = mount_partials(ext, j, ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
-                                                    vpstore[sl, j + 1], d0[j])
-                f += fl
-                gw += kl
-                g0 += kl
-                gv += cl
-                gkl[j] += fbar * dl
-                gcl[j] += fbar * rl
-            fs1[j] = f
-            wb1[j] = fbar * gw
-            rb1[j] = fbar * gv
-            gk[j] += fbar * gkk
-            gdamp[j] += fbar * ga
-            gd0[j] += fbar * g0
-            gde[j] += fbar * gdd
-            gdx0[j] += fbar * gx
-            grs[j] += fbar * gr
-        if inner:
-            inner_back(h, ustore, wstore, sl, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
-        _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
-        _clear_seeds(p, q, fb, seed_contact)
-        p = q
-    return p
+    @njit(cache=True, nogil=True)
+    def steps(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping, d0, de,
+              dx0, rsum, fext, law, seed_step, seed_contact, seed_w, ptr, grad, ext, inn, pl):
+        """Steps ``step0 + nsteps - 1`` down to ``step0`` in reverse, general forces; returns the seed
+        pointer.
+
+        ``grad`` rows: kappa, damping, d0, de, dx0, rsum, fext, inv_mass, then the linear spring and
+        dashpot of every contact (``ext``: a protected body's mount; an empty ``ext`` has none), the
+        yield overlaps (row 10); with mass-in-mass beads, ``inn`` = (wstore, wub, wvb, wab, inner)
+        (:func:`inner_back`). The elastic-plastic law (``plastic``, :func:`partials.plastic_contact_adjoint`,
+        offset beads included) reads ``pl`` = (pstore: the state (dmax, dres, kres) each step started
+        from; sb (2, P): the adjoints of the state (dres, kres) after the step being differentiated,
+        carried backwards from step to step and group to group; dyield).
+        Seeds are sorted by step; ``ptr`` is one past the last seed not consumed yet. ``fb`` (zero on
+        entry and exit) receives a step's seeds; ``fs, wb, rb`` are scratch (size P + 1, slot 0 zero).
+        The loops read shifted views (``x1[j]`` for x[j + 1], made once) so that LLVM vectorises them,
+        the adjoint of a_{s+1}, a' + h/2 v', is formed where it is read, and the stored step is indexed
+        (a row view per step costs two atomic reference counts). The kinds of steps (these,
+        :func:`_steps_dissipative`, :func:`_steps_static`, :func:`_steps_plain`) are compiled apart:
+        one function holding them all compiled each into slower code.
+        """
+        n = ab.shape[0]
+        p = ptr
+        gk, gdamp, gd0, gde, gdx0, grs, gfext, ginv = (grad[0], grad[1], grad[2], grad[3], grad[4], grad[5], grad[6],
+                                                       grad[7])
+        gkl, gcl, gdy = grad[8], grad[9], grad[10]
+        wstore, wub, wvb, wab, inner = inn
+        pstore, sb, dyield = pl
+        ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
+        m = n - 1
+        linear = ext.shape[0] > 0
+        for sl in range(nsteps - 1, -1, -1):
+            h = hstore[sl]
+            hh = 0.5 * h
+            q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
+            for j in range(m):
+                fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
+                if plastic:  # the adjoints of w, vrel, the parameters and the state in, at once
+                    f, wbar, rbar, kbar, abar, g0, gdd, gx, gr, dybar, sb[0, j], sb[1, j] = plastic_contact_adjoint(
+                        ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j], vpstore[sl, j + 1], kappa[j], damping[j],
+                        d0[j], de[j], dx0[j], rsum[j], dyield[j], pstore[0, sl, j], pstore[1, sl, j],
+                        pstore[2, sl, j], fbar, sb[0, j], sb[1, j])
+                    gdy[j] += dybar
+                else:  # the partials, times the force's adjoint
+                    f, gw, gv, gkk, ga, g0, gdd, gx, gr = contact_partials(
+                        ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j], vpstore[sl, j + 1], kappa[j], damping[j],
+                        d0[j], de[j], dx0[j], rsum[j], law)
+                    wbar, rbar, kbar, abar = fbar * gw, fbar * gv, fbar * gkk, fbar * ga
+                    g0, gdd, gx, gr = fbar * g0, fbar * gdd, fbar * gx, fbar * gr
+                if linear and has_mount(ext, j):  # the mount's spring and dashpot (extension.forces_linear)
+                    fl, kl, cl, dl, rl = mount_partials(ext, j, ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
+                                                        vpstore[sl, j + 1], d0[j])
+                    f += fl
+                    wbar += fbar * kl
+                    rbar += fbar * cl
+                    g0 += fbar * kl
+                    gkl[j] += fbar * dl
+                    gcl[j] += fbar * rl
+                fs1[j] = f
+                wb1[j] = wbar
+                rb1[j] = rbar
+                gk[j] += kbar
+                gdamp[j] += abar
+                gd0[j] += g0
+                gde[j] += gdd
+                gdx0[j] += gx
+                grs[j] += gr
+            if inner:
+                inner_back(h, ustore, wstore, sl, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
+            _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
+            _clear_seeds(p, q, fb, seed_contact)
+            p = q
+        return p
+
+    return steps
+
+
+_steps_general = _general_steps(False)
+_steps_plastic = _general_steps(True)
 
 
 @njit(cache=True, nogil=True)
@@ -220,59 +246,6 @@ def _steps_dissipative(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, f
             gk[j] += fbar * fk
             gdamp[j] += fbar * fa
             gd0[j] += fbar * fd
-        _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
-        _clear_seeds(p, q, fb, seed_contact)
-        p = q
-    return p
-
-
-@njit(cache=True, nogil=True)
-def _steps_plastic(nsteps, ustore, vpstore, hstore, pstore, step0, ub, vb, ab, fb, fs, wb, rb, sb, inv_mass, kappa,
-                   damping, d0, de, dx0, rsum, fext, dyield, seed_step, seed_contact, seed_w, ptr, grad, ext, inn):
-    """:func:`_steps_general` for the elastic-plastic law, offset beads included
-    (:func:`partials.plastic_contact_adjoint`): ``pstore`` holds the state (dmax, dres, kres) each
-    step started from, ``sb`` (2, P) the adjoints of the state (dres, kres) after the step being
-    differentiated, carried backwards from step to step (and group to group). ``grad`` row 10
-    receives the yield overlaps' gradient."""
-    n = ab.shape[0]
-    p = ptr
-    gk, gdamp, gd0, gde, gdx0, grs, gfext, ginv = grad[0], grad[1], grad[2], grad[3], grad[4], grad[5], grad[6], grad[7]
-    gdy, gkl, gcl = grad[10], grad[8], grad[9]
-    wstore, wub, wvb, wab, inner = inn
-    ab1, vb1, im1, fs1, wb1, rb1 = ab[1:], vb[1:], inv_mass[1:], fs[1:], wb[1:], rb[1:]
-    m = n - 1
-    linear = ext.shape[0] > 0
-    for sl in range(nsteps - 1, -1, -1):
-        h = hstore[sl]
-        hh = 0.5 * h
-        q = _take_seeds(step0 + sl, p, fb, ub, vb, seed_step, seed_contact, seed_w)
-        for j in range(m):
-            fbar = _force_adjoint(j, hh, fb, ab, ab1, vb, vb1, inv_mass, im1)
-            f, gw, gv, kbar, abar, g0, gdd, gx, gr, dybar, sb[0, j], sb[1, j] = plastic_contact_adjoint(
-                ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j], vpstore[sl, j + 1], kappa[j], damping[j], d0[j], de[j],
-                dx0[j], rsum[j], dyield[j], pstore[0, sl, j], pstore[1, sl, j], pstore[2, sl, j], fbar, sb[0, j],
-                sb[1, j])
-            gk[j] += kbar
-            gdamp[j] += abar
-            gdy[j] += dybar
-            gd0[j] += g0
-            gde[j] += gdd
-            gdx0[j] += gx
-            grs[j] += gr
-            if linear and has_mount(ext, j):
-                fl, kl, cl, dl, rl = mount_partials(ext, j, ustore[sl, j], ustore[sl, j + 1], vpstore[sl, j],
-                                                    vpstore[sl, j + 1], d0[j])
-                f += fl
-                gw += fbar * kl
-                gv += fbar * cl
-                gd0[j] += fbar * kl
-                gkl[j] += fbar * dl
-                gcl[j] += fbar * rl
-            fs1[j] = f
-            wb1[j] = gw
-            rb1[j] = gv
-        if inner:
-            inner_back(h, ustore, wstore, sl, ub, vb, ab, wub, wvb, wab, inv_mass, ext, grad)
         _bodies_back(h, ub, vb, ab, fs, fs1, wb, wb1, rb, rb1, inv_mass, fext, ginv, gfext, True, True)
         _clear_seeds(p, q, fb, seed_contact)
         p = q
@@ -467,16 +440,16 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
                             wall_slot, ns_log, b0, b1, block, (ustore, vpstore, hstore, pstore, wstore), dyield, dmax,
                             dres, kres, ext, ext.shape[0] > 0)
         if plastic:
-            p = _steps_plastic(rows, ustore, vpstore, hstore, pstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, sb,
-                               inv_mass, kappa, damping, d0, de, dx0, rsum, fext, dyield, seed_step, seed_contact,
-                               seed_w, p, grad, ext, (wstore, wub, wvb, wab, inner))
+            p = _steps_plastic(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
+                               damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad, ext,
+                               (wstore, wub, wvb, wab, inner), (pstore, sb, dyield))
         elif fused:
             p = _steps_dissipative(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass,
                                    kappa, damping, d0, fext, law, seed_step, seed_contact, seed_w, p, grad)
         elif general:
             p = _steps_general(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
                                damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad, ext,
-                               (wstore, wub, wvb, wab, inner))
+                               (wstore, wub, wvb, wab, inner), (pstore, sb, dyield))
         elif static:
             p = _steps_static(rows, ustore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, inv_mass, kappa, d0, fext,
                               seed_step, seed_contact, seed_w, p, grad)
