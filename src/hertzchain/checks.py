@@ -152,11 +152,13 @@ def estimate_resources(system, duration: float, probes, dt: float | None = None,
     ResourceEstimate
         Samples, signals, members, memory [bytes], steps and seconds on one core.
     """
-    from .integrate.drivers.verlet import step_plan
-
     n = system.n_beads
     samples, signals, memory = _records_size(n, system.has_wall, duration, probes, members, written)
     if integrator == "verlet":
+        # imported here only: the Verlet module defines its kernels on import (0.3 CPU-s that an
+        # rkn4 run, the default, never needs)
+        from .integrate.drivers.verlet import step_plan
+
         plan = step_plan(system, probes.sample_interval, dt, steps_per_radian)
         steps = duration / plan.dt
         per = NS_PER_BEAD_STEP["general" if system.general else "elastic"]
