@@ -21,11 +21,12 @@ from typing import Callable
 
 import numpy as np
 
-from ...errors import ConfigError, SimulationDiverged
+from ...errors import ConfigError
 from ...model import System
 from . import rkn_kernels as rk
 from ..core.kernels import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 from ..core.layout import pack
+from .rkn_chunks import advance_in_chunks, rkn_raw_run
 from .verlet import RawRun, check_time_step
 
 __all__ = ["run_rkn", "RKN_RTOL", "check_rkn"]
@@ -163,23 +164,6 @@ def run_rkn(system: System, duration: float, sample_interval: float, dt: float |
         from .rkn_threaded import threaded_advance
 
         advance = threaded_advance(threads, p, rec, ends)
-    if progress is not None:
-        progress(0, n_samples - 1)
-    k = 1
-    while k < n_samples:
-        k_stop = min(n_samples, k + per_call)
-        status = advance(state, scratch, chain, probes, control, k, k_stop, acc)
-        if status != 0:
-            raise SimulationDiverged(f"the integration diverged (non-finite state) before t = "
-                                     f"{k_stop * sample_interval:.4g} s with integrator 'rkn4'; "
-                                     + ("use a smaller run.dt" if dt is not None else
-                                        "check the inputs (masses, velocities) and report the case"))
-        k = k_stop
-        if progress is not None:
-            progress(k - 1, n_samples - 1)
-    return RawRun(time=np.arange(n_samples) * sample_interval, contact_force=out_f, kinetic_energy=out_ke,
-                  potential_energy=out_pe, dissipated_energy=np.zeros(n_samples),
-                  velocity=out_v if record_velocities else None, max_force=fmax, peak_wall_force=float(peak[0]),
-                  peak_wall_time=float(peak[1]), dt=float(acc[rk.A_HMIN]), integrator="rkn4",
-                  n_steps=int(acc[rk.A_STEPS]), contacts=rec, dt_max=float(acc[rk.A_HMAX]), adaptive=dt is None,
-                  displacement=out_u if record_positions else None)
+    advance_in_chunks(lambda k, k_stop: advance(state, scratch, chain, probes, control, k, k_stop, acc), n_samples,
+                      per_call, sample_interval, dt is not None, progress)
+    return rkn_raw_run(probes, acc, sample_interval, dt is not None, np.zeros(n_samples))

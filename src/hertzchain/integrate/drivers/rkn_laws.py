@@ -22,7 +22,6 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
-from ...errors import SimulationDiverged
 from ...model import System
 from ..core.disk_cache import INTEGRATE, files_digest, function_files_digest, on_disk
 from ..core.energies import contact_plastic_work, unloading_energy
@@ -30,6 +29,7 @@ from ..core.kernels import DELTA_MIN, elastoplastic_force
 from ..core.layout import pack
 from . import rkn_state_kernels as rs
 from .rkn_kernels import ChainArrays, ProbeBuffers, StepControl
+from .rkn_chunks import advance_in_chunks, rkn_raw_run
 from .verlet import RawRun
 
 __all__ = ["run_rkn_laws", "law_run"]
@@ -313,25 +313,9 @@ def run_rkn_laws(system: System, duration: float, sample_interval: float, dt: fl
     probes = ProbeBuffers(rec, out_f, out_ke, out_pe, out_d, out_v, bool(record_velocities), out_u,
                           bool(record_positions), fmax, peak)
     control = StepControl(float(sample_interval), 0.0 if dt is None else float(dt), float(eps), float(duration))
-    if progress is not None:
-        progress(0, n_samples - 1)
-    k = 1
-    while k < n_samples:
-        k_stop = min(n_samples, k + per_call)
-        status = run(state, chain, off, probes, control, k, k_stop, acc, out_w)
-        if status != 0:
-            raise SimulationDiverged(f"the integration diverged (non-finite state) before t = "
-                                     f"{k_stop * sample_interval:.4g} s with integrator 'rkn4'; "
-                                     + ("use a smaller run.dt" if dt is not None else
-                                        "check the inputs (masses, velocities) and report the case"))
-        k = k_stop
-        if progress is not None:
-            progress(k - 1, n_samples - 1)
-    return RawRun(time=np.arange(n_samples) * sample_interval, contact_force=out_f, kinetic_energy=out_ke,
-                  potential_energy=out_pe, dissipated_energy=out_d,
-                  velocity=out_v if record_velocities else None, max_force=fmax, peak_wall_force=float(peak[0]),
-                  peak_wall_time=float(peak[1]), dt=float(acc[rs.A_HMIN]), integrator="rkn4",
-                  n_steps=int(acc[rs.A_STEPS]), contacts=rec, dt_max=float(acc[rs.A_HMAX]), adaptive=dt is None,
-                  displacement=out_u if record_positions else None, plastic_work=out_w if plastic else None,
-                  residual_overlap=S[2, :nc].copy() if plastic else None,
-                  max_overlap=S[1, :nc].copy() if plastic else None)
+    advance_in_chunks(lambda k, k_stop: run(state, chain, off, probes, control, k, k_stop, acc, out_w), n_samples,
+                      per_call, sample_interval, dt is not None, progress)
+    return rkn_raw_run(probes, acc, sample_interval, dt is not None, out_d,
+                       plastic_work=out_w if plastic else None,
+                       residual_overlap=S[2, :nc].copy() if plastic else None,
+                       max_overlap=S[1, :nc].copy() if plastic else None)
