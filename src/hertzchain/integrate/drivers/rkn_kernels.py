@@ -217,14 +217,18 @@ def _max4(x):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def step_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc):
-    """The per-contact bounds of :func:`next_step` over the contacts of ``kappa`` (a chain's, or a
-    thread's block of them as views from the block's first contact): (max_j h_j^-10, max_j of the
-    stability term kappa_j^2 delta_j+ max(1/m_j, 1/m_{j+1})^2); ``st``, ``sc`` receive each
-    contact's 1 / time to its opening or closing and its crossing term for :func:`landing_bound`.
+def next_step(u, v, kappa, d0, inv_mass, eps, h_prev, h_max, sx, sw, st, sc):
+    """Size [s] of the next step from the synchronised state (see the module docstring).
+
+    ``eps`` [m/s] bounds the local velocity error e_j(h) of every contact; ``h_prev`` is the last
+    step (the step grows at most MAX_GROWTH-fold, and the overlaps are extrapolated over 2 h_prev
+    for the stability bound); ``h_max`` caps the step. ``sx``, ``sw``, ``st``, ``sc``: scratch
+    arrays of the slot count. Both bounds are taken squared, so that the loop needs no square root (it runs every
+    step), and written without branches, so that LLVM vectorises it; the maxima are exact
+    whatever the order of evaluation, so the step does not depend on the vectorisation.
     """
     inv_eps = 1.0 / eps
-    for j in range(kappa.shape[0]):
+    for j in range(inv_mass.shape[0]):
         d = u[j] - u[j + 1] + d0[j]
         r = v[j] - v[j + 1]
         ad = abs(d)
@@ -256,13 +260,8 @@ def step_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc):
         ar = abs(r)
         st[j] = ar / ad if d * r < 0.0 else 0.0
         sc[j] = ki2 * r2 * ar
-    return _max4(sx), _max4(sw)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def bounded_step(x, w, h_prev, h_max):
-    """The step [s] that :func:`step_bounds`' maxima ``x`` (max h_j^-10) and ``w`` (the stability
-    term) allow, at most MAX_GROWTH h_prev and h_max."""
+    x = _max4(sx)  # max_j h_j^(-10)
+    w = _max4(sw)  # max_j kappa_j^2 delta_j+ max(1/m_j, 1/m_{j+1})^2
     h = h_max
     if h_prev > 0.0 and MAX_GROWTH * h_prev < h:
         h = MAX_GROWTH * h_prev
@@ -273,39 +272,16 @@ def bounded_step(x, w, h_prev, h_max):
     if x > 0.0:
         hx = x ** -0.1
         h = hx if hx < h else h
-    return h
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def landing_bound(h, st, sc):
-    """1 / the step [s] that ends on the first opening or closing a step h would cross at an error
-    above sqrt(LAND_ERROR) eps (0: none); crossings within LAND_FLOOR h of the start are taken in
-    the step. ``st``, ``sc`` from :func:`step_bounds` (overwritten)."""
-    h5 = h * h * h * h * h
-    inv_h = 1.0 / h
-    for j in range(st.shape[0]):
-        y = st[j]
-        st[j] = y if (y > inv_h and y * LAND_FLOOR < inv_h and sc[j] * h5 > LAND_ERROR) else 0.0
-    return _max4(st)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def next_step(u, v, kappa, d0, inv_mass, eps, h_prev, h_max, sx, sw, st, sc):
-    """Size [s] of the next step from the synchronised state (see the module docstring).
-
-    ``eps`` [m/s] bounds the local velocity error e_j(h) of every contact; ``h_prev`` is the last
-    step (the step grows at most MAX_GROWTH-fold, and the overlaps are extrapolated over 2 h_prev
-    for the stability bound); ``h_max`` caps the step. ``sx``, ``sw``, ``st``, ``sc``: scratch
-    arrays of the slot count. Both bounds are taken squared, so that the loop needs no square root (it runs every
-    step), and written without branches, so that LLVM vectorises it; the maxima are exact
-    whatever the order of evaluation, so the step does not depend on the vectorisation.
-    """
-    x, w = step_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc)
-    h = bounded_step(x, w, h_prev, h_max)
     # A step that would cross a contact's opening or closing at an error above sqrt(LAND_ERROR) eps
     # ends on it instead (the next one then starts at the kink, whatever the phase of the crossing in the
     # step would have been: the error stops depending on where the steps happened to fall).
-    y = landing_bound(h, st, sc)
+    # Crossings within LAND_FLOOR h of the start are taken in the step.
+    h5 = h * h * h * h * h
+    inv_h = 1.0 / h
+    for j in range(inv_mass.shape[0]):
+        y = st[j]
+        st[j] = y if (y > inv_h and y * LAND_FLOOR < inv_h and sc[j] * h5 > LAND_ERROR) else 0.0
+    y = _max4(st)
     if y > 0.0:
         h = 1.0 / y
     return h

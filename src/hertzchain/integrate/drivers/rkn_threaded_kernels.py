@@ -31,7 +31,8 @@ from numba import njit
 from ..core.barrier import barrier
 from ..core.kernels import DELTA_MIN
 from . import rkn_kernels as rk
-from .rkn_kernels import (A_H, A_HMAX, A_HMIN, A_STEPS, A_T, A_TPREV, E_DKE, E_DPE, E_KE, E_PE, R_D, R_DDF, R_DF, R_F, R_Q, R_R)
+from .rkn_kernels import (A_H, A_HMAX, A_HMIN, A_STEPS, A_T, A_TPREV, E_DKE, E_DPE, E_KE, E_PE, LAND_ERROR, LAND_FLOOR,
+                          MAX_GROWTH, MAX_OMEGA_H, R_D, R_DDF, R_DF, R_F, R_Q, R_R)
 from .thread_blocks import COMPILED_IN
 from ..core.disk_cache import INTEGRATE, files_digest, on_disk
 
@@ -54,13 +55,56 @@ class RknTeam(NamedTuple):
     energy: np.ndarray
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _block_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc):
+    """``rkn_kernels.next_step``'s per-contact bounds, the same expressions, over the contacts of
+    ``kappa`` (views from the block's first: module docstring): (max h_j^-10, max of the
+    stability term)."""
+    inv_eps = 1.0 / eps
+    for j in range(kappa.shape[0]):
+        d = u[j] - u[j + 1] + d0[j]
+        r = v[j] - v[j + 1]
+        ad = abs(d)
+        r2 = r * r
+        km = kappa[j] * (inv_mass[j] + inv_mass[j + 1])
+        ki = km * inv_eps
+        ki2 = ki * ki
+        r4 = r2 * r2
+        ad5 = ad * ad * ad * ad * ad
+        sing = r4 * r4 / (ad5 + 1e-300)
+        cap = ki2 * r4 * r2
+        km2 = km * km
+        xj = ki2 * ((sing if sing < cap else cap) + 4.5 * km2 * r4 + 5.0625 * km2 * km2 * (ad5 if d > 0.0 else 0.0))
+        m = d if d > r else r
+        sx[j] = xj if m > 0.0 else 0.0
+        dp = d + 2.0 * h_prev * (r if r > 0.0 else 0.0)
+        dp = dp if dp > 0.0 else 0.0
+        im = inv_mass[j] if inv_mass[j] > inv_mass[j + 1] else inv_mass[j + 1]
+        sw[j] = kappa[j] * kappa[j] * dp * im * im
+        ar = abs(r)
+        st[j] = ar / ad if d * r < 0.0 else 0.0
+        sc[j] = ki2 * r2 * ar
+    return rk._max4(sx), rk._max4(sw)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _block_landing(h, st, sc):
+    """``rkn_kernels.next_step``'s landing bound over the block's contacts (views) for the step h."""
+    h5 = h * h * h * h * h
+    inv_h = 1.0 / h
+    for j in range(st.shape[0]):
+        y = st[j]
+        st[j] = y if (y > inv_h and y * LAND_FLOOR < inv_h and sc[j] * h5 > LAND_ERROR) else 0.0
+    return rk._max4(st)
+
+
 @njit(cache=True, nogil=True)
 def _agree_step(team, tid, sense, u, v, kappa, d0, inv_mass, eps, hl, h_max, s, e, scratch):
     """``rkn_kernels.next_step`` across the threads (module docstring): (h, sense)."""
     sx, sw, st, sc = scratch.sx, scratch.sw, scratch.st, scratch.sc
     part = team.part
-    xb, wb = rk.step_bounds(u[s:], v[s:], kappa[s:e], d0[s:e], inv_mass[s:], eps, hl, sx[s:e], sw[s:e], st[s:e],
-                            sc[s:e])
+    xb, wb = _block_bounds(u[s:], v[s:], kappa[s:e], d0[s:e], inv_mass[s:], eps, hl, sx[s:e], sw[s:e], st[s:e],
+                           sc[s:e])
     part[tid, 0] = xb
     part[tid, 1] = wb
     sense = barrier(team.bar, team.nthr, sense)
@@ -69,8 +113,16 @@ def _agree_step(team, tid, sense, u, v, kappa, d0, inv_mass, eps, hl, h_max, s, 
     for t in range(team.nthr):
         x = part[t, 0] if part[t, 0] > x else x
         w = part[t, 1] if part[t, 1] > w else w
-    h = rk.bounded_step(x, w, hl, h_max)
-    part[tid, 2] = rk.landing_bound(h, st[s:e], sc[s:e])
+    h = h_max
+    if hl > 0.0 and MAX_GROWTH * hl < h:
+        h = MAX_GROWTH * hl
+    if w > 0.0:
+        hw = MAX_OMEGA_H / np.sqrt(6.0 * np.sqrt(w))
+        h = hw if hw < h else h
+    if x > 0.0:
+        hx = x ** -0.1
+        h = hx if hx < h else h
+    part[tid, 2] = _block_landing(h, st[s:e], sc[s:e])
     sense = barrier(team.bar, team.nthr, sense)
     y = 0.0
     for t in range(team.nthr):
