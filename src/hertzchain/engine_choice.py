@@ -32,6 +32,7 @@ import os
 from dataclasses import dataclass
 
 from .errors import ConfigError
+from .parallel import usable_cores
 # the refusals' checks: plain Python, no compiled kernel imported
 from .integrate.drivers.refusals import INTEGRATORS as NAMED, refuse, why_not
 
@@ -75,15 +76,12 @@ def free_cores() -> tuple[int, float]:
         ``len(os.sched_getaffinity(0))`` (``os.cpu_count()`` where not available) and
         ``os.getloadavg()[0]``.
     """
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cores = os.cpu_count() or 1
+    cores = usable_cores()
     try:
         load = float(os.getloadavg()[0])
     except (AttributeError, OSError):
         load = 0.0
-    return max(1, cores), load
+    return cores, load
 
 
 def rkn4_threads_refusal(system) -> str | None:

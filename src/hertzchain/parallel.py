@@ -24,11 +24,13 @@ What makes a cluster of processes and machines work:
 from __future__ import annotations
 
 import itertools
+import os
 from typing import Any, Callable, Iterable, Iterator
 
 from .errors import ConfigError, HertzchainError
 
-__all__ = ["connect", "check_address", "results_as_completed", "results_in_order", "ClusterError",
+
+__all__ = ["usable_cores", "connect", "check_address", "results_as_completed", "results_in_order", "ClusterError",
            "IN_FLIGHT_PER_THREAD"]
 
 #: Tasks kept submitted per worker thread: enough to keep every worker busy while results travel
@@ -37,6 +39,14 @@ IN_FLIGHT_PER_THREAD = 2
 #: Seconds between two looks at a Dask cluster's finished tasks.
 POLL_S = 0.05
 
+
+def usable_cores() -> int:
+    """The cores this process may run on: its CPU affinity (``os.cpu_count()`` where the platform
+    has none), at least 1."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except (AttributeError, OSError):  # not on Linux
+        return max(os.cpu_count() or 1, 1)
 
 class ClusterError(HertzchainError):
     """The Dask cluster lost a task for good (its workers died every time it ran)."""

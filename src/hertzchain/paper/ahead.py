@@ -23,11 +23,11 @@ With one usable core, no ``fork``, or Numba's compilation switched off, nothing 
 from __future__ import annotations
 
 import multiprocessing
-import os
 import warnings
 from ..chain import Chain, paper_chain
 from ..interrupts import forked_worker_init
 from ..model import Model, Wall
+from ..parallel import usable_cores
 from ..probes import Probes
 from .protocol import Settings
 
@@ -83,13 +83,6 @@ def _compiling() -> bool:
     return not getattr(config, "DISABLE_JIT", False)  # (set by Numba from the environment at import)
 
 
-def _usable_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 class CompileAhead:
     """The fork compiling :data:`KINDS` (module docstring); make it before the first calibration.
 
@@ -106,7 +99,7 @@ class CompileAhead:
         self.kinds = tuple(k for k in (kinds or KINDS) if not (k == "elastic" and settings.elastic))
         self._ready: set[str] = set()
         self._proc = None
-        if not self.kinds or _usable_cores() < 2 or "fork" not in multiprocessing.get_all_start_methods() \
+        if not self.kinds or usable_cores() < 2 or "fork" not in multiprocessing.get_all_start_methods() \
                 or not _compiling():
             return
         ctx = multiprocessing.get_context("fork")

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import json
 import multiprocessing
-import os
 from pathlib import Path
 from typing import Callable
 
 from ..interrupts import forked_worker_init
+from ..parallel import usable_cores
 from .values import PAPER
 
 __all__ = ["start_laws_figure"]
@@ -58,10 +58,7 @@ def start_laws_figure(out_dir: str | Path) -> Callable[..., dict[str, Path]] | N
         return None
     if check_laws(laws) is not None or not (isinstance(eps, (int, float)) and 0 < eps <= 1):
         return None  # damaged: the redraw names what is wrong
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
+    cores = usable_cores()
     if not laws or cores < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return None
     pool = multiprocessing.get_context("fork").Pool(1, initializer=forked_worker_init)

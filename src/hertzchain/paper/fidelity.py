@@ -25,7 +25,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import multiprocessing
-import os
 import time
 import warnings
 from typing import TYPE_CHECKING, Any, Callable
@@ -34,6 +33,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .. import analysis, theory
+from ..parallel import usable_cores
 from ..chain import paper_chain
 from ..interrupts import forked_worker_init
 from ..errors import ConfigError, ElasticLimitWarning, HertzchainError
@@ -96,13 +96,6 @@ def _variant_numbers(settings: protocol.Settings, law: str, progress: Callable[[
                        settings)[law]
 
 
-def _cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 class LawVariants:
     """The chain studies of the other contact laws (:data:`LAW_VARIANTS`), shared with a process
     forked when this is made, so that they run on a second core beside the rest of the reproduction.
@@ -125,7 +118,7 @@ class LawVariants:
         self.settings = settings
         self.laws = [law for law in LAW_VARIANTS if law != _run_law(settings)]
         self._proc = None
-        if not self.laws or _cores() < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        if not self.laws or usable_cores() < 2 or "fork" not in multiprocessing.get_all_start_methods():
             self._ends: list[int] | SynchronizedArray = [0, len(self.laws)]
             self._lock = None
             return

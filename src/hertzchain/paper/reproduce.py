@@ -13,6 +13,7 @@ from typing import Callable
 import numpy as np
 
 from ..interrupts import forked_worker_init
+from ..parallel import usable_cores
 from .. import __version__, theory
 from ..result import save as _save
 from . import fidelity, protocol
@@ -356,13 +357,6 @@ def _draw_one(name: str) -> tuple[str, Path]:
     return name, figs.save_figure(makers[name](), Path(out_dir), name)
 
 
-def _usable_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
          progress: Callable[[str], None] | None = None, workers: int | None = None,
          extra: dict[str, Callable] | None = None, figures=FIGURE_NAMES,
@@ -381,7 +375,7 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     makers = {name: make for name, make in _figure_makers(studies, mis, subs, settings).items() if name in figures}
     makers.update(extra or {})
     order = [n for n in _DRAW_ORDER if n in makers] + [n for n in makers if n not in _DRAW_ORDER]
-    workers = min(len(FIGURE_NAMES), _usable_cores()) if workers is None else workers
+    workers = min(len(FIGURE_NAMES), usable_cores()) if workers is None else workers
     drawn: dict[str, Path] = {}
 
     def done(name, path):
@@ -416,7 +410,7 @@ def _draw_early(out_dir: str | Path, makers: dict[str, Callable]) -> Callable[..
     """
     global _DRAW_JOB
     order = [n for n in _DRAW_ORDER if n in makers] + [n for n in makers if n not in _DRAW_ORDER]
-    if _usable_cores() < 2 or "fork" not in multiprocessing.get_all_start_methods():
+    if usable_cores() < 2 or "fork" not in multiprocessing.get_all_start_methods():
         _DRAW_JOB = (out_dir, makers)
         try:
             drawn = dict(_draw_one(n) for n in order)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -467,10 +466,10 @@ def _where(client, n_threads: int | None) -> tuple[int, str]:
     (int, str)
         Cores, and the advice ending the long-run warning.
     """
-    from ..parallel import _is_dask, worker_threads
+    from ..parallel import _is_dask, usable_cores, worker_threads
 
     if client is None:
-        cores = n_threads or _usable_cores()
+        cores = n_threads or usable_cores()
         return cores, ((f"that is on {cores} cores; " if cores > 1 else "") + "fewer members (sweep.n), a shorter "
                        "run.duration or a Dask cluster (--scheduler) would be faster")
     cores = worker_threads(client)
@@ -580,14 +579,6 @@ def _sweep_estimate(cfg: SweepConfig, model, dt, duration: float, probes, trace_
                                    integrator=integrator)
         est = _replace(est, memory_bytes=est.memory_bytes + extra.memory_bytes)
     return est
-
-
-def _usable_cores() -> int:
-    """The cores this process may run on (its CPU affinity), at least 1."""
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except (AttributeError, OSError):
-        return max(os.cpu_count() or 1, 1)
 
 
 def _check_sweep_resources(cfg: SweepConfig, est, cores: int = 1, advice: str | None = None,
