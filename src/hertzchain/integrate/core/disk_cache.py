@@ -8,12 +8,22 @@ the law's force) was compiled again in every process. :func:`on_disk` keys such 
 by what it was built from: the text of the source files compiled into it and the constants it
 was built with (``variant``). An edit of any of those files gives a new key (compiled afresh); a
 file that cannot be read gives no key, and the closure stays cached in memory only.
+
+Numba names a compiled function's symbol by its qualified name and a number counted from 1 in
+each process (``FunctionIdentity._unique_ids``); a function loaded from the cache takes no
+number. So the first closure a process compiles gets number 1 in every process: two variants of
+one closure (the threaded loop of two laws) compiled first in two processes were stored under one
+symbol name with two bodies, and a process that loaded both ran the first body for both (an
+elastic-plastic run refused as "gains energy" after a dashpot run; numba/numba#10486).
+:func:`_distinct_symbols` draws the numbers at random instead, once per process, on import.
 """
 
 from __future__ import annotations
 
 import hashlib
 import inspect
+import itertools
+import secrets
 from pathlib import Path
 
 __all__ = ["on_disk", "files_digest", "function_files_digest"]
@@ -22,6 +32,35 @@ __all__ = ["on_disk", "files_digest", "function_files_digest"]
 INTEGRATE = Path(__file__).resolve().parents[1]
 
 _DIGESTS: dict = {}
+
+
+class _RandomIds:
+    """Numbers for Numba's symbol names drawn at random (62 bits, :mod:`secrets`: fresh in a
+    forked process too), so that two processes never give one name to two bodies."""
+
+    def __iter__(self):
+        return self
+
+    def __next__(self) -> int:
+        return secrets.randbits(62) | 1 << 62
+
+
+def _distinct_symbols() -> None:
+    """Replace Numba's per-process counter of function numbers by :class:`_RandomIds` (where this
+    Numba still keeps that counter: otherwise nothing changes)."""
+    try:
+        from numba.core.bytecode import FunctionIdentity
+    except ImportError:  # pragma: no cover - Numba moved it
+        return
+    if isinstance(getattr(FunctionIdentity, "_unique_ids", None), itertools.count):
+        FunctionIdentity._unique_ids = _RandomIds()
+
+
+_distinct_symbols()
+
+#: In every key: entries stored before the numbers were random (whose symbols may clash) are
+#: never loaded.
+_SYMBOLS = b"random function numbers"
 
 
 def _digest(paths) -> bytes:
@@ -69,7 +108,7 @@ def on_disk(dispatcher, *variant, sources: bytes):
     try:
         from numba.core.caching import FunctionCache, IndexDataCacheFile
 
-        key = hashlib.sha256(repr(variant).encode() + sources).hexdigest()
+        key = hashlib.sha256(repr(variant).encode() + sources + _SYMBOLS).hexdigest()
 
         class StableKey(FunctionCache):
             def __init__(self, py_func):
