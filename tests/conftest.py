@@ -59,3 +59,18 @@ def assert_sums_agree(a, b, total: float, n_terms: int) -> None:
     bound = 2.0 * n_terms * np.finfo(float).eps * total
     worst = float(np.max(np.abs(a - b))) if a.size else 0.0
     assert a.shape == b.shape and worst <= bound, f"sums differ by {worst:.3g} J > {bound:.3g} J"
+
+
+@pytest.fixture(autouse=True)
+def _sigint_handler_kept():
+    """Every test leaves Ctrl-C's handler as it found it: a handler left behind made a later
+    test of Ctrl-C (tests/test_sweep.py, in whichever worker ran after the culprit) fail, since
+    ``hertzchain.interrupts.latched`` keeps a handler a program installed."""
+    import signal
+
+    before = signal.getsignal(signal.SIGINT)
+    yield
+    after = signal.getsignal(signal.SIGINT)
+    if after is not before:
+        signal.signal(signal.SIGINT, before)
+        pytest.fail(f"the test left SIGINT's handler changed: {before!r} -> {after!r}")

@@ -4,7 +4,7 @@
 :func:`hertzchain.analysis.fit_pulse` with ``compiled=True`` and the default detection settings:
 F_m [N], T [s], tau [s] of the cos^6 fit of the loading part (paper Sec. III, eq. 4) and the
 front and tail momenta Q_F, Q_T [N s] (Fig. 5d). The same steps run in one compiled loop over the
-members (Numba ``prange``), with no Python per member: the clipping test, the noise estimate, the
+members (one loop per core, threads without the GIL), with no Python per member: the clipping test, the noise estimate, the
 detection of the first pulse and its start values, the loading part resampled ``refine`` times
 finer by the not-a-knot cubic spline (scipy's ``CubicSpline``), the window's fixed point by
 Gauss-Newton steps (:func:`~hertzchain.analysis.window_fit.window_fixed_point`), the baseline
@@ -21,13 +21,14 @@ gets status 1 and no numbers: the caller fits it with ``fit_pulse`` itself, whic
 from __future__ import annotations
 
 import math
-import threading
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from ..parallel import usable_cores
 from ..theory import HALF_MAX_PHASE
 from .pulse import MIN_BASELINE_POINTS, MIN_FIT_POINTS, PRE_PULSE_GAP, _D2_CORRELATION
 from .window_fit import _gauss_newton, _window, window_fixed_point
@@ -63,7 +64,7 @@ def _noise(f, block):
             s += d * d
         ms[k] = s / block
     spread = math.sqrt(2.0 * _D2_CORRELATION / block)
-    ref = np.percentile(ms, 25.0) / max(1.0 - 0.674 * spread, 0.2)
+    ref = _quantile(ms.copy(), 0.25) / max(1.0 - 0.674 * spread, 0.2)
     for _ in range(4):
         s = 0.0
         count = 0
@@ -93,31 +94,72 @@ def _min_count(y):
 
 
 @njit(cache=True)
-def _percentile_10(y):
-    """``np.percentile(y, 10)`` (numpy's linear method) by a partial sort; the smallest value when
-    more than the lowest 10 % (plus one) hold it (a wall's record before its pulse arrives: the
-    same number without the copy and the sort)."""
-    q = 0.1 * (y.size - 1)
-    k = int(math.floor(q))
-    lo, count = _min_count(y)
-    if count > k + 1:  # both order statistics the interpolation takes are the minimum
-        return lo
-    part = np.partition(y, k)
-    a = part[k]
-    b = part[k + 1:].min() if k + 1 < y.size else a
-    frac = q - k
+def _select(w, k):
+    """The k-th smallest value of ``w`` (from 0), ``w`` reordered in place so that every value after
+    index k is at least it (quickselect, Hoare's partition about a median of three). Written here
+    rather than ``np.partition``/``np.percentile``/``np.median``: Numba compiles those in ~1-3 s
+    each, and the first ensemble, sweep or Dask worker waited for them (issue 37)."""
+    lo = 0
+    hi = w.size - 1
+    while lo < hi:
+        a, b, c = w[lo], w[(lo + hi) // 2], w[hi]
+        pivot = max(min(a, b), min(max(a, b), c))
+        i, j = lo, hi
+        while i <= j:
+            while w[i] < pivot:
+                i += 1
+            while w[j] > pivot:
+                j -= 1
+            if i <= j:
+                w[i], w[j] = w[j], w[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:  # between the two parts: equal to the pivot
+            break
+    return w[k]
+
+
+@njit(cache=True)
+def _quantile(w, q):
+    """``np.quantile(w, q)`` (numpy's linear method, its rounding), ``w`` a scratch copy
+    (reordered)."""
+    x = q * (w.size - 1)
+    k = int(math.floor(x))
+    a = _select(w, k)
+    b = w[k + 1:].min() if k + 1 < w.size else a
+    frac = x - k
     d = b - a
     return b - d * (1.0 - frac) if frac >= 0.5 else a + d * frac
 
 
 @njit(cache=True)
-def _median(y):
-    """``np.median(y)``; the smallest value, without the copy and the sort, when more than half
-    the samples hold it (then both middle order statistics are that value)."""
+def _percentile_10(y):
+    """``np.percentile(y, 10)``; the smallest value when more than the lowest 10 % (plus one)
+    hold it (a wall's record before its pulse arrives: the same number without the copy)."""
+    k = int(math.floor(0.1 * (y.size - 1)))
     lo, count = _min_count(y)
-    if count > y.size // 2 + 1:
+    if count > k + 1:  # both order statistics the interpolation takes are the minimum
         return lo
-    return np.median(y)
+    return _quantile(y.copy(), 0.1)
+
+
+@njit(cache=True)
+def _median(y):
+    """``np.median(y)``; the smallest value, without the copy, when more than half the samples hold
+    it (then both middle order statistics are that value)."""
+    lo, count = _min_count(y)
+    n = y.size
+    if count > n // 2 + 1:
+        return lo
+    w = y.copy()
+    b = _select(w, n // 2)
+    if n % 2:
+        return b
+    return (w[:n // 2].max() + b) / 2.0  # numpy's mean of the two middle values
 
 
 @njit(cache=True)
@@ -185,8 +227,11 @@ def _spline_slopes(x, y):
     """First derivatives at the knots of the not-a-knot cubic spline through (x, y) (scipy's
     ``CubicSpline`` system, tridiagonal, by the Thomas algorithm); needs x.size >= 4."""
     n = x.size
-    dx = np.diff(x)
-    slope = np.diff(y) / dx
+    dx = np.empty(n - 1)
+    slope = np.empty(n - 1)
+    for i in range(n - 1):  # (np.diff: ~0.5 s more to compile)
+        dx[i] = x[i + 1] - x[i]
+        slope[i] = (y[i + 1] - y[i]) / dx[i]
     lower = np.zeros(n)  # A[i, i - 1]
     diag = np.zeros(n)
     upper = np.zeros(n)  # A[i, i + 1]
@@ -347,16 +392,18 @@ def _fit_one(t, f, min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out):
     return True
 
 
-# Numba's workqueue threading layer aborts the process when two threads launch parallel loops at
-# once (two Dask worker threads in one process); one launch already uses every core.
-_LAUNCH_LOCK = threading.Lock()
-
-
-@njit(parallel=True, cache=True)
-def _fit_all(t, force, min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out, status):
-    for m in prange(force.shape[0]):
+@njit(cache=True, nogil=True)
+def _fit_rows(t, force, min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out, status, start, stop):
+    """Rows [start, stop) of ``force``: each core a share of the rows in a thread of its own
+    (a plain loop without the GIL: Numba's ``prange`` compiled for ~6 s more, and two Dask worker
+    threads launching it at once aborted its threading layer)."""
+    for m in range(start, stop):
         ok = _fit_one(t, force[m], min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out[m])
         status[m] = FITTED if ok else FALLBACK
+
+
+#: Rows per thread below which one thread fits them all (a thread's start costs more than a fit).
+_ROWS_PER_THREAD = 8
 
 
 def fit_pulses(time: np.ndarray, force: np.ndarray, *, refine: int = 1, max_iter: int = 50,
@@ -386,9 +433,17 @@ def fit_pulses(time: np.ndarray, force: np.ndarray, *, refine: int = 1, max_iter
     f = np.ascontiguousarray(force, dtype=float)
     out = np.full((f.shape[0], len(PULSE_COLUMNS)), np.nan)
     status = np.empty(f.shape[0], dtype=np.int64)
-    with _LAUNCH_LOCK:
-        _fit_all(t, f, float(min_prominence), float(snr_min), float(fit_window[0]), float(fit_window[1]), int(max_iter),
-                 int(refine), out, status)
+    args = (t, f, float(min_prominence), float(snr_min), float(fit_window[0]), float(fit_window[1]), int(max_iter),
+            int(refine), out, status)
+    m = f.shape[0]
+    threads = max(1, min(usable_cores(), m // _ROWS_PER_THREAD))
+    if threads == 1:
+        _fit_rows(*args, 0, m)
+    else:
+        bounds = np.linspace(0, m, threads + 1).astype(int)
+        with ThreadPoolExecutor(threads) as pool:
+            for done in [pool.submit(_fit_rows, *args, bounds[i], bounds[i + 1]) for i in range(threads)]:
+                done.result()
     out[status != FITTED] = np.nan
     return out, status
 
@@ -398,7 +453,7 @@ def _flush_stale_cache() -> None:
     ``pulse.py``'s code (constants included) when either is newer than it: Numba's cache checks
     only the file of the cached function, and a caller compiles its callees' cached code in."""
     newest = max(Path(__file__).with_name(n).stat().st_mtime for n in ("window_fit.py", "pulse.py"))
-    compiled: tuple[Any, ...] = (_fit_loading, _fit_one, _fit_all)  # (their cache: private Numba API, untyped)
+    compiled: tuple[Any, ...] = (_fit_loading, _fit_one, _fit_rows)  # (their cache: private Numba API, untyped)
     for fn in compiled:
         try:
             index = Path(fn._cache._cache_file._index_path)
