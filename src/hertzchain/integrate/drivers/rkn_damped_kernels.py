@@ -108,6 +108,12 @@ MAX_GROWTH = 2.0
 #: the step (its error is then below ~EVENT_TOL (c h) |r|, c the damping rate); farther inside,
 #: the step is redone to end on it.
 EVENT_TOL = 1e-7
+#: A change of branch is landed on only where the contact's force at the step's end times
+#: m^-1 h (the most the step's velocities can be off by taking the change inside it) exceeds this
+#: fraction of ``eps``: two offset beads barely touching at rest (forces ~1e-13 N) clipped and
+#: reloaded in nearly every step, and landing on each took steps down to 1e-15 s (a misaligned
+#: chain 1 with the dashpot law ran for hours).
+EVENT_EPS = 1e-3
 #: Redos of one step at most (the root of the Hermite is accurate to O(h^4): a few suffice; the
 #: last try is kept).
 MAX_REDO = 12
@@ -308,6 +314,13 @@ def end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, mode, dis, ed, e
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _right(inv_mass, j):
+    """1/m of the body right of contact j: 0 past the last slot (contact P - 1 is padding, kappa
+    = 0; reading inv_mass[P] read past the array)."""
+    return inv_mass[j + 1] if j + 1 < inv_mass.shape[0] else 0.0
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _state(d, r, fu):
     """OPEN (delta < 0), CLIPPED (closed, no force) or LOADED (a force, or touching and closing:
     Kuwabara-Kono's force at delta = 0 is 0 but rises as delta^(1/2))."""
@@ -356,8 +369,8 @@ def _max_error(ed, c, kappa, damping, inv_mass, law, mode, h):
         d = ed[c, R_D, j]
         fu = ed[c, R_FU, j]
         if mode[j] > 0.0:  # open and clipped contacts carry no force
-            e, p = _contact_error(d if d > DELTA_MIN else 0.0, ed[c, R_R, j], fu, kappa[j], damping[j], inv_mass[j] + inv_mass[j + 1], law,
-                                  h, sh)
+            e, p = _contact_error(d if d > DELTA_MIN else 0.0, ed[c, R_R, j], fu, kappa[j], damping[j],
+                                  inv_mass[j] + _right(inv_mass, j), law, h, sh)
             if e > emax:
                 emax = e
                 pmax = p
@@ -378,7 +391,7 @@ def next_step(ed, c, kappa, damping, inv_mass, law, mode, eps, h_ref, h_max):
         r = ed[c, R_R, j]
         dp = d + 2.0 * h_ref * (r if r > 0.0 else 0.0)
         dp = dp if dp > 0.0 else 0.0
-        im = inv_mass[j] if inv_mass[j] > inv_mass[j + 1] else inv_mass[j + 1]
+        im = max(inv_mass[j], _right(inv_mass, j))
         sd = np.sqrt(dp)
         kt = 1.5 * kappa[j] * sd * im
         cj = (kappa[j] * damping[j] * sd if law == LAW_VISCOELASTIC else damping[j]) * im
@@ -433,19 +446,24 @@ def _hermite_root(y0, s0, y1, s1, h):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def event_inside(ed, b, c, h, mode):
+def event_inside(ed, b, c, h, mode, inv_mass, eps):
     """Where the law left a contact's branch ``mode`` in the step from end data ``ed[b]`` to
     ``ed[c]`` (its state at the end differs from the branch): the root theta of delta (a closing)
     or of F_u (a clip or reload) on the cubic Hermite through both ends. Returns the earliest
     theta in (EVENT_TOL, 1 - EVENT_TOL), 2 when a contact's branch was wrong from the start
     (theta <= EVENT_TOL: at the event; ``mode`` is switched there, the step must restart), else -1
-    (every event at the step's end: the next step takes the new branch)."""
+    (every event at the step's end: the next step takes the new branch). A change where the
+    contact's force at the step's end is below EVENT_EPS eps / (m^-1 h) is not landed on
+    (:data:`EVENT_EPS`)."""
     best = 2.0
     switched = False
     for j in range(ed.shape[2]):
         s1 = _state(ed[c, R_D, j], ed[c, R_R, j], ed[c, R_FU, j])
         m = mode[j] > 0.0
         if m == (s1 == LOADED):
+            continue
+        fe = max(abs(ed[c, R_FU, j]), abs(ed[c, R_F, j]))
+        if fe * (inv_mass[j] + _right(inv_mass, j)) * h <= EVENT_EPS * eps:
             continue
         if not m and ed[b, R_D, j] < 0.0:  # closing
             x = _hermite_root(ed[b, R_D, j], ed[b, R_R, j], ed[c, R_D, j], ed[c, R_R, j], h)
@@ -586,7 +604,7 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
                 end_data(un, vn, an, kappa, damping, d0, off, fext, mass, law, mode, 0.0, ed, ends, c)
                 if h_fixed > 0.0 or redo == MAX_REDO:
                     break
-                x = event_inside(ed, b, c, h, mode)
+                x = event_inside(ed, b, c, h, mode, inv_mass, eps)
                 if x < 0.0:
                     break
                 if x > 1.0:  # a branch switched at the start: its step is bounded afresh

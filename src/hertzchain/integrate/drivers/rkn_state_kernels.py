@@ -53,7 +53,7 @@ from numba import njit
 
 from ..core.primitives import DELTA_MIN
 from .rkn_damped_kernels import (A_H, A_HMAX, A_HMIN, A_HREF, A_STEPS, A_T, A_TPREV, E_D, E_DD, E_DKE, E_DPE, E_KE,
-                                 E_PE, ENDS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line)
+                                 E_PE, ENDS, EVENT_EPS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line)
 from .rkn_kernels import hermite, quintic, quintic_at_most
 
 __all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "GROWS", "REGIME"]
@@ -61,14 +61,14 @@ __all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "
 #: An event inside a step closer than this fraction of the step to one of its ends is taken in
 #: the step (the bisection of a branch along the step resolves 2^-40 of it).
 EVENT_TOL = 1e-7
-#: A change of branch is landed on only where the contact's force at the step's end (on either
-#: branch) times m^-1 h, the most a step's velocities can be off by taking the change inside it,
+#: EVENT_EPS (imported from rkn_damped_kernels, which lands its events by the same rule): a change
+#: of branch is landed on only where the contact's force at the step's end (on either branch) times
+#: m^-1 h, the most a step's velocities can be off by taking the change inside it,
 #: exceeds this fraction of ``eps``: the numerical precursor ahead of a pulse (overlaps ~1e-80 m,
 #: forces ~1e-110 N) crosses zero in nearly every step, and landing on each crossing cost
 #: thousands of redone steps on chain 1 for nothing a result can see. The state such a step
 #: commits is the law's update at the step's end (a max-type state that peaked inside it, at
 #: such forces, is overtaken by the pulse's: Hunt-Crossley's approach speed, the largest overlap).
-EVENT_EPS = 1e-3
 #: Rows of a step end's per-contact data ``ed[c]``: force along the axis (clipped, on the
 #: branch), its time derivative, overlap, rate, d(rate)/dt, the gap beyond the law's opening
 #: overlap, elastic energy, dissipated power on the branch, then the unclipped force on the branch
