@@ -31,8 +31,8 @@ from ..integrate.drivers.verlet import RawRun
 
 
 #: The ``engine`` attribute of a batch computed on the CPU, by its integrator.
-_ENGINE_CPU = "batched compiled velocity Verlet (numba prange), bit-identical to single runs"
-_ENGINE_RKN = ("batched compiled rkn4 (numba prange), bit-identical to single runs with integrator='rkn4' "
+_ENGINE_CPU = "batched compiled velocity Verlet (members dealt to threads), bit-identical to single runs"
+_ENGINE_RKN = ("batched compiled rkn4 (members dealt to threads), bit-identical to single runs with integrator='rkn4' "
                "(max_contact_force: over the run where max_force='run')")
 
 #: Per-member scalar attributes of a single run that become variables along ``member``.

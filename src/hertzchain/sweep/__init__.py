@@ -47,7 +47,7 @@ of a periodic chain, its band gaps in ``metrics.csv``).
   and its time, the energies at the end and the largest contact force over yield.
 
 Parallelism is passed in: locally each chunk already uses every core
-(Numba ``prange``); with a Dask ``distributed.Client`` (worker processes here or on other
+(a compiled loop per core); with a Dask ``distributed.Client`` (worker processes here or on other
 machines), an executor with ``submit``, or anything with ``map``, the chunks are farmed out
 (:mod:`hertzchain.parallel`) and written here as they come back.
 

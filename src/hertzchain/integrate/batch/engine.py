@@ -1,30 +1,28 @@
 """The batched engine on the CPU: every member of a packed batch advanced by one compiled loop.
 
-One ``@njit(parallel=True)`` loop (Numba ``prange``) hands every member to the very same
+One compiled loop per thread (:mod:`.dealt`: the members dealt to threads) hands every member to the very same
 :func:`hertzchain.integrate.core.kernels.verlet_run` on slices of the flat buffers of a
 :class:`~hertzchain.integrate.batch.buffers._Packed` (slices are views, so the kernel writes
 straight into the outputs), taken by the loop as three typed structures (:class:`Members`,
 :class:`FlatBuffers`, :class:`Records`) and handed to the kernel as its own. Velocity Verlet
 has no cross-member coupling and no reductions across members, so the thread that runs a member
 cannot change its result: every member's numbers are those of :func:`hertzchain.simulate` of it
-alone. :func:`_engine` runs the loop in chunks of samples (progress reports between them), one
-launch at a time.
+alone. :func:`_engine` runs the loop in chunks of samples (progress reports between them).
 """
 
 from __future__ import annotations
 
-import threading
 from typing import NamedTuple
 
-import numba
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ...errors import ConfigError
 from ...interrupts import check as check_interrupt
 from ..core import kernels
 from ..core.structures import ChainArrays, ContactArrays, Extension, VerletControl, VerletProbes, VerletState
 from .buffers import _Packed, check_members_finite
+from .dealt import default_threads, run_dealt
 from .rkn import rkn_engine, rkn_members
 from ..core.generated import is_generated, law_kernels
 
@@ -160,16 +158,15 @@ def _member(m, members, flat, records, interval):
     return state, chain, contacts, extension, probes, control
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, nogil=True)
 def _batch_kernel(order, members, flat, records, interval, k_start, k_stop, status):
-    """Advance every member from sample ``k_start`` to ``k_stop`` with :func:`kernels.verlet_run`.
+    """Advance the members ``order`` (a thread's share, :mod:`.dealt`) from sample ``k_start`` to
+    ``k_stop`` with :func:`kernels.verlet_run`.
 
-    Members (:class:`Members`, :class:`FlatBuffers`, :class:`Records`) are visited in the order
-    ``order`` (most expensive first, so that dynamic scheduling does not leave one long member
-    for the end). ``status[m]`` is the kernel's return value; a member that diverged is not
-    advanced again.
+    Members (:class:`Members`, :class:`FlatBuffers`, :class:`Records`). ``status[m]`` is the
+    kernel's return value; a member that diverged is not advanced again.
     """
-    for i in prange(order.shape[0]):
+    for i in range(order.shape[0]):
         m = order[i]
         if status[m] != 0:
             continue
@@ -187,9 +184,9 @@ def _generated_batch_kernel(code: int):
     if code not in _GENERATED:
         run = law_kernels(code)[1]
 
-        @njit(parallel=True)
+        @njit(nogil=True)
         def kernel(order, members, flat, records, interval, k_start, k_stop, status):
-            for i in prange(order.shape[0]):
+            for i in range(order.shape[0]):
                 m = order[i]
                 if status[m] != 0:
                     continue
@@ -199,12 +196,6 @@ def _generated_batch_kernel(code: int):
 
         _GENERATED[code] = kernel
     return _GENERATED[code]
-
-
-# The workqueue threading layer (the one available without TBB/OpenMP) aborts the process when two
-# threads launch parallel kernels at once, e.g. two Dask worker threads in one process; one launch
-# already uses every core, so serialising launches costs nothing.
-_LAUNCH_LOCK = threading.Lock()
 
 
 kernels.flush_stale_cache(_batch_kernel)
@@ -223,14 +214,7 @@ def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_fo
     """
     if integrator != "verlet":
         if rkn_members(pk):
-            with _LAUNCH_LOCK:
-                previous = numba.get_num_threads()
-                try:
-                    if n_threads is not None:
-                        numba.set_num_threads(int(n_threads))
-                    pk.rkn_steps = rkn_engine(pk, all_forces, rtol)
-                finally:
-                    numba.set_num_threads(previous)
+            pk.rkn_steps = rkn_engine(pk, all_forces, rtol, n_threads)
             pk.integrator = "rkn4"
             check_interrupt()
             if progress is not None:
@@ -244,30 +228,20 @@ def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_fo
     steps_per_sample = interval / pk.plan_dt
     status = np.zeros(pk.n_members, dtype=np.int64)
     # Cost of one sample per member (the general force loop is roughly twice the elastic one):
-    # the most expensive members go first so that the threads finish together.
+    # the most expensive members first, dealt round-robin, so that the threads finish together.
     cost = steps_per_sample * (pk.n_slots + 1) * np.where(pk.general, 2, 1) * np.where(pk.ext_on, 2, 1)
     order = np.argsort(-cost, kind="stable").astype(np.int64)
     # one launch per engine: the hand-written loop for the built-in laws, each generated law's own
     generated = np.array([is_generated(c) for c in pk.law[order]], dtype=bool)
     groups = [(_batch_kernel, order[~generated])] if not generated.all() else []
     groups += [(_generated_batch_kernel(int(c)), order[pk.law[order] == c]) for c in np.unique(pk.law[order[generated]])]
-    samples_per_call = max(1, int(CHUNK_SLOT_STEPS * max(1, n_threads or numba.get_num_threads()) // cost.sum()))
+    samples_per_call = max(1, int(CHUNK_SLOT_STEPS * default_threads(n_threads) // cost.sum()))
     structures = batch_structures(pk)
     k = 1
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_call)
-        with _LAUNCH_LOCK:
-            previous = numba.get_num_threads()
-            try:
-                if n_threads is not None:
-                    numba.set_num_threads(int(n_threads))
-                # Chunk size 1: members are handed out one at a time (dynamic scheduling), since
-                # their costs differ; the default static split would wait for the slowest block.
-                with numba.parallel_chunksize(1):
-                    for kernel, subset in groups:
-                        kernel(subset, *structures, interval, k, k_stop, status)
-            finally:
-                numba.set_num_threads(previous)
+        for kernel, subset in groups:
+            run_dealt(kernel, subset, n_threads, *structures, interval, k, k_stop, status)
         check_members_finite(status, k_stop * interval)
         check_interrupt()  # a Ctrl-C swallowed by a cleanup while the kernel ran (hertzchain.interrupts)
         k = k_stop

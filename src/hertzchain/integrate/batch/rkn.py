@@ -4,8 +4,8 @@ compiled loop.
 :func:`rkn_engine` runs every member of a packed batch (:class:`~.buffers._Packed`) with
 :func:`hertzchain.integrate.drivers.rkn_damped_kernels.damped_run`, the kernel of ``simulate(model,
 integrator="rkn4")`` on a chain with offsets or the Kuwabara-Kono or dashpot law (what
-``integrator="auto"`` picks for such a chain alone), inside one ``@njit(parallel=True)`` loop
-over the members (Numba ``prange``, members handed out one at a time): no Python per member. Its
+``integrator="auto"`` picks for such a chain alone), inside one compiled loop over the members
+per thread (:mod:`.dealt`): no Python per member. Its
 step control (``rtol`` :data:`~hertzchain.integrate.drivers.rkn.RKN_RTOL`, peak wall force within
 ~4e-7 of DOP853 on chain 1) needs ~1.3e3 steps where the Verlet of the batch takes ~7e4 on a
 misaligned chain 1 (3 ms at 100 ns samples).
@@ -21,9 +21,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numba
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..core import kernels
 from ..core.kernels import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
@@ -31,6 +30,7 @@ from ..drivers import rkn_damped_kernels as rk
 from ..drivers.rkn import DAMPED_EPS, RKN_RTOL
 from ..drivers.rkn_kernels import ChainArrays, ProbeBuffers, StepControl
 from .buffers import _Packed, check_members_finite
+from .dealt import run_dealt
 
 __all__ = ["rkn_members", "rkn_engine"]
 
@@ -49,7 +49,7 @@ def rkn_members(pk: _Packed) -> bool:
     return bool(pk.n_members) and bool(ok.all())
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, nogil=True)
 def _rkn_kernel(order, off, n_slots, u0, v0, mass, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot,
                 interval, n_samples, eps, h_max, rec, rec_off, out_f, f_off, out_ke, out_pe, out_ed, fmax, fmax_off,
                 peak, acc_out, all_forces, status):
@@ -58,7 +58,7 @@ def _rkn_kernel(order, off, n_slots, u0, v0, mass, inv_mass, kappa, damping, d0,
 
     ``acc_out[m]`` receives [steps, smallest step, largest step] and ``peak[m]`` [largest wall force,
     its time]; ``status[m]`` is ``damped_run``'s return value."""
-    for i in prange(order.shape[0]):
+    for i in range(order.shape[0]):
         m = order[i]
         s = off[m]
         p = n_slots[m]
@@ -138,10 +138,11 @@ def _flush_stale_cache() -> None:
 _flush_stale_cache()
 
 
-def rkn_engine(pk: _Packed, all_forces: bool = True, rtol: float | None = None) -> np.ndarray:
-    """Run every member of ``pk`` (:func:`rkn_members` holds) to the end on Numba's threads (the
-    caller sets their count and serialises launches); (M, 3) array of [steps, smallest step [s],
-    largest step [s]] per member.
+def rkn_engine(pk: _Packed, all_forces: bool = True, rtol: float | None = None,
+               n_threads: int | None = None) -> np.ndarray:
+    """Run every member of ``pk`` (:func:`rkn_members` holds) to the end on ``n_threads`` threads
+    (:func:`.dealt.run_dealt`; None: Numba's thread count); (M, 3) array of [steps, smallest step
+    [s], largest step [s]] per member.
 
     ``pk.peak[m, :2]`` receive the largest wall force [N] and its time [s] (``peak[m, 4] = 1``: the
     Verlet's parabola refinement does not apply); the step tolerance of member m is ``rtol``
@@ -152,15 +153,14 @@ def rkn_engine(pk: _Packed, all_forces: bool = True, rtol: float | None = None) 
     v_ref = np.array([np.max(np.abs(flat["v"][pk.off[m]:pk.off[m] + pk.n_slots[m] + 1])) for m in range(pk.n_members)])
     eps = (RKN_RTOL if rtol is None else rtol) * DAMPED_EPS * np.where(v_ref > 0, v_ref, 1.0)
     duration = (pk.n_samples - 1) * pk.interval
-    # most contacts first, so that dynamic scheduling does not leave a long member for the end
+    # most contacts first, dealt round-robin, so that the threads finish together
     order = np.argsort(-pk.n_slots, kind="stable").astype(np.int64)
     status = np.zeros(pk.n_members, dtype=np.int64)
     acc = np.zeros((pk.n_members, 3))
-    with numba.parallel_chunksize(1):
-        _rkn_kernel(order, pk.off, pk.n_slots, flat["u"], flat["v"], flat["mass"], flat["inv_mass"], flat["kappa"],
-                    flat["damping"], flat["d0"], flat["de"], flat["dx0"], flat["rsum"], flat["fext"], pk.law,
-                    pk.wall_slot, pk.interval, pk.n_samples, eps, duration, pk.rec, pk.rec_off, pk.out_f, pk.f_off,
-                    pk.out_ke, pk.out_pe, pk.out_ed, pk.fmax, pk.fmax_off, pk.peak, acc, all_forces, status)
+    run_dealt(_rkn_kernel, order, n_threads, pk.off, pk.n_slots, flat["u"], flat["v"], flat["mass"], flat["inv_mass"],
+              flat["kappa"], flat["damping"], flat["d0"], flat["de"], flat["dx0"], flat["rsum"], flat["fext"], pk.law,
+              pk.wall_slot, pk.interval, pk.n_samples, eps, duration, pk.rec, pk.rec_off, pk.out_f, pk.f_off,
+              pk.out_ke, pk.out_pe, pk.out_ed, pk.fmax, pk.fmax_off, pk.peak, acc, all_forces, status)
     check_members_finite(status, duration)
     pk.peak[:, 4] = 1.0
     return acc

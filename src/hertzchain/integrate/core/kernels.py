@@ -471,8 +471,11 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
             wa[i] = internal_acceleration(ext[i, EXT_KIN], ext[i, EXT_W], u[i], ext[i, EXT_IMIN])
     step = int(acc[2])
     lean = n >= LEAN_SLOTS  # long chain without precompression (d0 = fext = 0): step_elastic_lean
-    aligned = True  # no offsets: the dissipative laws' fused steps (step_damped)
-    unloaded = True  # no precompression, no external force
+    # Both flags start as a bool that is not the constant True (n >= 0): with ``= True`` Numba
+    # compiled plastic_block and dissipative_block twice, for the literal True and for a bool
+    # (~13 CPU-s more for a first run, issue 37).
+    aligned = n >= 0  # no offsets: the dissipative laws' fused steps (step_damped)
+    unloaded = n >= 0  # no precompression, no external force
     for i in range(n):
         unloaded = unloaded and d0[i] == 0.0 and fext[i] == 0.0
         aligned = aligned and de[i] == 0.0

@@ -1,0 +1,44 @@
+"""The members of a batch dealt to threads of this package's own, each running a compiled loop
+over its share without the GIL.
+
+The batched engines (:mod:`.engine`, :mod:`.rkn`) ran their member loop as Numba ``prange``:
+its parallel-loop compilation cost ~10 CPU-s per engine in every new process (the first design,
+sweep or ensemble, each test worker, each Dask worker; issue 37), and Numba's workqueue layer
+aborts the process when two threads launch such loops at once (two Dask worker threads), so
+launches were serialised. Here the members, sorted most expensive first, are dealt round-robin:
+thread t runs order[t], order[t + T], ... in one compiled call, so the threads' shares differ
+by at most one member's cost. A member's arithmetic does not depend on the thread that runs it:
+the results are the same whatever the count.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from typing import Callable
+
+import numba
+import numpy as np
+
+__all__ = ["default_threads", "run_dealt"]
+
+
+def default_threads(n_threads: int | None) -> int:
+    """``n_threads``, or Numba's configured thread count (``NUMBA_NUM_THREADS``: the usable cores
+    unless set) where None."""
+    return max(1, int(n_threads) if n_threads is not None else int(numba.config.NUMBA_NUM_THREADS))
+
+
+def run_dealt(kernel: Callable, order: np.ndarray, n_threads: int | None, *args) -> None:
+    """``kernel(share, *args)`` for the shares of ``order`` (member indices, most expensive
+    first) dealt round-robin to ``n_threads`` threads (:func:`default_threads`); ``kernel`` a
+    ``nogil`` compiled function over the members of its share. Returns when every share is done;
+    the first error a share raised is raised here."""
+    threads = min(default_threads(n_threads), order.shape[0])
+    if threads <= 1:
+        kernel(np.ascontiguousarray(order), *args)
+        return
+    shares = [np.ascontiguousarray(order[t::threads]) for t in range(threads)]
+    with ThreadPoolExecutor(threads, thread_name_prefix="hertzchain-batch") as pool:
+        futures = [pool.submit(kernel, share, *args) for share in shares]
+        for future in futures:
+            future.result()
