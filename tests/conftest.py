@@ -63,10 +63,12 @@ def assert_sums_agree(a, b, total: float, n_terms: int) -> None:
 
 @pytest.fixture(autouse=True)
 def _sigint_handler_kept():
-    """Every test leaves Ctrl-C's handler as it found it: a handler left behind made a later
-    test of Ctrl-C (tests/test_sweep.py, in whichever worker ran after the culprit) fail, since
-    ``hertzchain.interrupts.latched`` keeps a handler a program installed."""
+    """Every test leaves Ctrl-C's handling as it found it: SIGINT's handler, and no
+    ``hertzchain.interrupts.latched`` block open. Either left behind makes a later sweep in the
+    same worker swallow its Ctrl-C (tests/test_sweep.py's test of it failed twice in one session
+    in whichever worker ran it), so the test that leaves it fails instead."""
     import signal
+    import sys
 
     before = signal.getsignal(signal.SIGINT)
     yield
@@ -74,3 +76,7 @@ def _sigint_handler_kept():
     if after is not before:
         signal.signal(signal.SIGINT, before)
         pytest.fail(f"the test left SIGINT's handler changed: {before!r} -> {after!r}")
+    interrupts = sys.modules.get("hertzchain.interrupts")
+    if interrupts is not None and interrupts._state["depth"] != 0:  # a latched block left open
+        depth, interrupts._state["depth"] = interrupts._state["depth"], 0
+        pytest.fail(f"the test left hertzchain.interrupts.latched open ({depth} deep)")

@@ -116,3 +116,31 @@ def test_forked_figure_workers_stop_quietly_under_the_clis_sigterm_handler(tmp_p
     """, tmp_path)
     assert p.returncode == 0 and p.stdout.strip() == "done", p.stderr
     assert "Traceback" not in p.stderr and "Terminated" not in p.stderr, p.stderr
+
+
+def test_a_latched_block_in_another_thread_leaves_the_main_threads_alone():
+    """A sweep running in a worker thread (inside ``latched``) while the main thread starts one:
+    the main thread's block still installs the handler that remembers Ctrl-C (the worker's block
+    counted as nesting, and the main thread's Ctrl-C could be swallowed)."""
+    import threading
+
+    from hertzchain import interrupts
+
+    inside, release = threading.Event(), threading.Event()
+
+    def worker() -> None:
+        with interrupts.latched():
+            inside.set()
+            release.wait(10)
+
+    thread = threading.Thread(target=worker)
+    thread.start()
+    try:
+        assert inside.wait(10)
+        with interrupts.latched():
+            assert signal.getsignal(signal.SIGINT) is interrupts._handler
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        release.set()
+        thread.join(10)
+    assert interrupts._state["depth"] == 0

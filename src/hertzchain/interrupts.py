@@ -33,10 +33,16 @@ def latched() -> Iterator[None]:
     that a weakref callback or ``__del__`` swallowed.
 
     Only in the main thread, and only when SIGINT has Python's default handler: a program that
-    installed its own keeps it. Nested blocks share the outermost one's handler.
+    installed its own keeps it. Nested blocks share the outermost one's handler. In another
+    thread the block does nothing (signals reach the main thread only) and counts nothing: a
+    sweep or design search running in another thread kept the count above 0 (and two of them
+    could race on it), so a sweep started meanwhile in the main thread installed no handler and
+    swallowed its Ctrl-C.
     """
-    install = (_state["depth"] == 0 and threading.current_thread() is threading.main_thread()
-               and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    install = _state["depth"] == 0 and signal.getsignal(signal.SIGINT) is signal.default_int_handler
     previous = signal.signal(signal.SIGINT, _handler) if install else None
     _state["depth"] += 1
     try:

@@ -108,11 +108,10 @@ MAX_GROWTH = 2.0
 #: the step (its error is then below ~EVENT_TOL (c h) |r|, c the damping rate); farther inside,
 #: the step is redone to end on it.
 EVENT_TOL = 1e-7
-#: A change of branch is landed on only where the contact's force at the step's end times
-#: m^-1 h (the most the step's velocities can be off by taking the change inside it) exceeds this
-#: fraction of ``eps``: two offset beads barely touching at rest (forces ~1e-13 N) clipped and
-#: reloaded in nearly every step, and landing on each took steps down to 1e-15 s (a misaligned
-#: chain 1 with the dashpot law ran for hours).
+#: A change of branch is landed on only where the contact's force at the step's end times m^-1 h
+#: (the most the step's velocities can be off by taking the change inside it) exceeds this fraction
+#: of ``eps``: offset beads barely touching (~1e-13 N) clipped and reloaded in nearly every step,
+#: and landing on each took steps of 1e-15 s (a misaligned chain 1 ran for hours).
 EVENT_EPS = 1e-3
 #: Redos of one step at most (the root of the Hermite is accurate to O(h^4): a few suffice; the
 #: last try is kept).
@@ -315,8 +314,7 @@ def end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, mode, dis, ed, e
 
 @njit(cache=True, nogil=True, inline="always")
 def _right(inv_mass, j):
-    """1/m of the body right of contact j: 0 past the last slot (contact P - 1 is padding, kappa
-    = 0; reading inv_mass[P] read past the array)."""
+    """1/m right of contact j; 0 past the last slot (contact P - 1: padding, kappa = 0)."""
     return inv_mass[j + 1] if j + 1 < inv_mass.shape[0] else 0.0
 
 
@@ -452,9 +450,8 @@ def event_inside(ed, b, c, h, mode, inv_mass, eps):
     or of F_u (a clip or reload) on the cubic Hermite through both ends. Returns the earliest
     theta in (EVENT_TOL, 1 - EVENT_TOL), 2 when a contact's branch was wrong from the start
     (theta <= EVENT_TOL: at the event; ``mode`` is switched there, the step must restart), else -1
-    (every event at the step's end: the next step takes the new branch). A change where the
-    contact's force at the step's end is below EVENT_EPS eps / (m^-1 h) is not landed on
-    (:data:`EVENT_EPS`)."""
+    (every event at the step's end: the next step takes the new branch). Not landed on: changes
+    at forces below EVENT_EPS eps / (m^-1 h) at the step's end."""
     best = 2.0
     switched = False
     for j in range(ed.shape[2]):
@@ -462,8 +459,7 @@ def event_inside(ed, b, c, h, mode, inv_mass, eps):
         m = mode[j] > 0.0
         if m == (s1 == LOADED):
             continue
-        fe = max(abs(ed[c, R_FU, j]), abs(ed[c, R_F, j]))
-        if fe * (inv_mass[j] + _right(inv_mass, j)) * h <= EVENT_EPS * eps:
+        if max(abs(ed[c, R_FU, j]), abs(ed[c, R_F, j])) * (inv_mass[j] + _right(inv_mass, j)) * h <= EVENT_EPS * eps:
             continue
         if not m and ed[b, R_D, j] < 0.0:  # closing
             x = _hermite_root(ed[b, R_D, j], ed[b, R_R, j], ed[c, R_D, j], ed[c, R_R, j], h)
