@@ -247,22 +247,34 @@ def _fused_steps(u, v, vp, a, g, pw, kappa, damping, d0, fext, inv_mass, dyield,
 @njit(cache=True, nogil=True, inline="always")
 def _checkpoint(u, v, a, dmax, peak, acc, ck, save):
     """Copy the state a block changes (positions, velocities, accelerations, dmax, the wall-peak
-    tracker, the dissipated energy's accumulators) into ``ck`` (``save``) or back from it."""
+    tracker, the dissipated energy's accumulators) into ``ck`` (``save``) or back from it. Loops,
+    not slice assignments: each of those compiled Numba's formatted shape-error message (~1.5
+    CPU-s of every new process's first Verlet run, issue 37)."""
     n = a.shape[0]
-    if save:
-        ck[0, :n + 1] = u[:n + 1]
-        ck[1, :n + 1] = v[:n + 1]
-        ck[2, :n] = a
-        ck[3, :n] = dmax[:n]
-        ck[4, :8] = peak[:8]
-        ck[4, 8:10] = acc[:2]
-    else:
-        u[:n + 1] = ck[0, :n + 1]
-        v[:n + 1] = ck[1, :n + 1]
-        a[:] = ck[2, :n]
-        dmax[:n] = ck[3, :n]
-        peak[:8] = ck[4, :8]
-        acc[:2] = ck[4, 8:10]
+    for i in range(n + 1):
+        if save:
+            ck[0, i] = u[i]
+            ck[1, i] = v[i]
+        else:
+            u[i] = ck[0, i]
+            v[i] = ck[1, i]
+    for i in range(n):
+        if save:
+            ck[2, i] = a[i]
+            ck[3, i] = dmax[i]
+        else:
+            a[i] = ck[2, i]
+            dmax[i] = ck[3, i]
+    for i in range(8):
+        if save:
+            ck[4, i] = peak[i]
+        else:
+            peak[i] = ck[4, i]
+    for i in range(2):
+        if save:
+            ck[4, 8 + i] = acc[i]
+        else:
+            acc[i] = ck[4, 8 + i]
 
 
 #: Rows and columns beyond the chain's slots of :func:`plastic_block`'s scratch ``ck``: 5 rows,

@@ -145,6 +145,15 @@ class StateRun(NamedTuple):
     ends: np.ndarray
 
 
+@njit(cache=True, nogil=True)
+def _copy(dst, src):
+    """dst[:, :] = src by loops: the slice assignment's shape check compiles Numba's formatted
+    error message (~2.8 CPU-s in every new process, issue 37)."""
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            dst[i, j] = src[i, j]
+
+
 def build(law: LawAdapter):
     """The compiled (``accelerations``, ``end_data``, ``set_modes``, ``run``) of ``law`` (module
     docstring); ``run(state, chain, off, probes, control, k_start, k_stop, acc, out_w)`` advances
@@ -527,7 +536,7 @@ def build(law: LawAdapter):
                 else:
                     h = next_step(ed, b, kappa, damping, inv_mass, S, mode, eps, href, h_max)
                     href = h
-                Sp[:, :] = S
+                _copy(Sp, S)
                 for redo in range(MAX_REDO + 1):
                     step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, off, fext, inv_mass,
                          S, h, ed, b)
@@ -541,7 +550,7 @@ def build(law: LawAdapter):
                         commit_all(u, v, kappa, damping, d0, off, S, mode, last, ed, b)
                         accel(u, v, kappa, damping, d0, off, fext, inv_mass, S, mode, a, pw, 0.0)
                         end_data(u, v, a, kappa, damping, d0, off, fext, mass, S, mode, ends[b, E_D], ed, ends, b)
-                        Sp[:, :] = S
+                        _copy(Sp, S)
                         hm = next_step(ed, b, kappa, damping, inv_mass, S, mode, eps, href, h_max)
                         h = hm if hm < h else h
                     else:
