@@ -80,3 +80,16 @@ def _sigint_handler_kept():
     if interrupts is not None and interrupts._state["depth"] != 0:  # a latched block left open
         depth, interrupts._state["depth"] = interrupts._state["depth"], 0
         pytest.fail(f"the test left hertzchain.interrupts.latched open ({depth} deep)")
+
+
+@pytest.fixture
+def default_sigint():
+    """SIGINT with Python's default handler for the test (a process started in the background by a
+    shell without job control, ``cmd &``, inherits SIGINT ignored, and ``latched`` then rightly
+    leaves it so); the handler it had is put back after."""
+    import signal
+
+    before = signal.getsignal(signal.SIGINT)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)

@@ -118,7 +118,7 @@ def test_forked_figure_workers_stop_quietly_under_the_clis_sigterm_handler(tmp_p
     assert "Traceback" not in p.stderr and "Terminated" not in p.stderr, p.stderr
 
 
-def test_a_latched_block_in_another_thread_leaves_the_main_threads_alone():
+def test_a_latched_block_in_another_thread_leaves_the_main_threads_alone(default_sigint):
     """A sweep running in a worker thread (inside ``latched``) while the main thread starts one:
     the main thread's block still installs the handler that remembers Ctrl-C (the worker's block
     counted as nesting, and the main thread's Ctrl-C could be swallowed)."""

@@ -348,7 +348,7 @@ def test_chunk_tasks_and_results_survive_pickling(tmp_path):
         assert not np.all(ds["offset"].values == 0)
 
 
-def test_a_ctrl_c_swallowed_by_a_weakref_callback_still_stops_the_sweep(tmp_path, monkeypatch):
+def test_a_ctrl_c_swallowed_by_a_weakref_callback_still_stops_the_sweep(tmp_path, monkeypatch, default_sigint):
     """SIGINT handled while a weakref callback runs (as when the arrays of an engine call are
     freed): Python prints "Exception ignored" and drops that KeyboardInterrupt; one Ctrl-C in
     four to a sweep was lost that way and the sweep ran on. It must stop it all the same."""

@@ -251,30 +251,22 @@ def _checkpoint(u, v, a, dmax, peak, acc, ck, save):
     not slice assignments: each of those compiled Numba's formatted shape-error message (~1.5
     CPU-s of every new process's first Verlet run, issue 37)."""
     n = a.shape[0]
-    for i in range(n + 1):
+    _move(ck[0, :n + 1], u, save)
+    _move(ck[1, :n + 1], v, save)
+    _move(ck[2, :n], a, save)
+    _move(ck[3, :n], dmax, save)
+    _move(ck[4, :8], peak, save)
+    _move(ck[4, 8:10], acc, save)
+
+
+@njit(cache=True, nogil=True)
+def _move(row, x, save):
+    """``row`` (a slice of the checkpoint) from the first values of ``x`` (``save``), or back."""
+    for i in range(row.shape[0]):
         if save:
-            ck[0, i] = u[i]
-            ck[1, i] = v[i]
+            row[i] = x[i]
         else:
-            u[i] = ck[0, i]
-            v[i] = ck[1, i]
-    for i in range(n):
-        if save:
-            ck[2, i] = a[i]
-            ck[3, i] = dmax[i]
-        else:
-            a[i] = ck[2, i]
-            dmax[i] = ck[3, i]
-    for i in range(8):
-        if save:
-            ck[4, i] = peak[i]
-        else:
-            peak[i] = ck[4, i]
-    for i in range(2):
-        if save:
-            ck[4, 8 + i] = acc[i]
-        else:
-            acc[i] = ck[4, 8 + i]
+            x[i] = row[i]
 
 
 #: Rows and columns beyond the chain's slots of :func:`plastic_block`'s scratch ``ck``: 5 rows,
