@@ -25,12 +25,13 @@ from __future__ import annotations
 
 import itertools
 import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Iterable, Iterator
 
 from .errors import ConfigError, HertzchainError
 
 
-__all__ = ["usable_cores", "connect", "check_address", "results_as_completed", "results_in_order", "ClusterError",
+__all__ = ["usable_cores", "on_threads", "connect", "check_address", "results_as_completed", "results_in_order", "ClusterError",
            "IN_FLIGHT_PER_THREAD"]
 
 #: Tasks kept submitted per worker thread: enough to keep every worker busy while results travel
@@ -47,6 +48,20 @@ def usable_cores() -> int:
         return max(len(os.sched_getaffinity(0)), 1)
     except (AttributeError, OSError):  # not on Linux
         return max(os.cpu_count() or 1, 1)
+
+
+def on_threads(fn: Callable, shares: list, *args) -> None:
+    """``fn(share, *args)`` for every share, each on a thread of its own (one share: here), for
+    ``fn`` a compiled loop that releases the GIL (``nogil``) over the items of its share: the
+    batched engines' members, the pulse fits' rows. Returns when every share is done; the first
+    error a share raised is raised here."""
+    if len(shares) <= 1:
+        for share in shares:
+            fn(share, *args)
+        return
+    with ThreadPoolExecutor(len(shares), thread_name_prefix="hertzchain") as pool:
+        for done in [pool.submit(fn, share, *args) for share in shares]:
+            done.result()
 
 class ClusterError(HertzchainError):
     """The Dask cluster lost a task for good (its workers died every time it ran)."""

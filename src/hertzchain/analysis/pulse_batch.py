@@ -4,8 +4,8 @@
 :func:`hertzchain.analysis.fit_pulse` with ``compiled=True`` and the default detection settings:
 F_m [N], T [s], tau [s] of the cos^6 fit of the loading part (paper Sec. III, eq. 4) and the
 front and tail momenta Q_F, Q_T [N s] (Fig. 5d). The same steps run in one compiled loop over the
-members (one loop per core, threads without the GIL), with no Python per member: the clipping test, the noise estimate, the
-detection of the first pulse and its start values, the loading part resampled ``refine`` times
+members per core (threads without the GIL), with no Python per member: the clipping test, the
+noise estimate, the detection of the first pulse and its start values, the loading part resampled ``refine`` times
 finer by the not-a-knot cubic spline (scipy's ``CubicSpline``), the window's fixed point by
 Gauss-Newton steps (:func:`~hertzchain.analysis.window_fit.window_fixed_point`), the baseline
 loop and the momenta.
@@ -21,14 +21,13 @@ gets status 1 and no numbers: the caller fits it with ``fit_pulse`` itself, whic
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numba import njit
 
-from ..parallel import usable_cores
+from ..parallel import on_threads, usable_cores
 from ..theory import HALF_MAX_PHASE
 from .pulse import MIN_BASELINE_POINTS, MIN_FIT_POINTS, PRE_PULSE_GAP, _D2_CORRELATION
 from .window_fit import _gauss_newton, _window, window_fixed_point
@@ -393,11 +392,12 @@ def _fit_one(t, f, min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out):
 
 
 @njit(cache=True, nogil=True)
-def _fit_rows(t, force, min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out, status, start, stop):
-    """Rows [start, stop) of ``force``: each core a share of the rows in a thread of its own
-    (a plain loop without the GIL: Numba's ``prange`` compiled for ~6 s more, and two Dask worker
-    threads launching it at once aborted its threading layer)."""
-    for m in range(start, stop):
+def _fit_rows(rows, t, force, min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out, status):
+    """The rows ``rows`` of ``force``: each core a share of the rows in a thread of its own
+    (:func:`hertzchain.parallel.on_threads`; a plain loop without the GIL: Numba's ``prange``
+    compiled for ~6 s more, and two Dask worker threads launching it at once aborted its
+    threading layer)."""
+    for m in rows:
         ok = _fit_one(t, force[m], min_prominence, snr_min, w_lo, w_hi, max_iter, refine, out[m])
         status[m] = FITTED if ok else FALLBACK
 
@@ -433,17 +433,9 @@ def fit_pulses(time: np.ndarray, force: np.ndarray, *, refine: int = 1, max_iter
     f = np.ascontiguousarray(force, dtype=float)
     out = np.full((f.shape[0], len(PULSE_COLUMNS)), np.nan)
     status = np.empty(f.shape[0], dtype=np.int64)
-    args = (t, f, float(min_prominence), float(snr_min), float(fit_window[0]), float(fit_window[1]), int(max_iter),
-            int(refine), out, status)
-    m = f.shape[0]
-    threads = max(1, min(usable_cores(), m // _ROWS_PER_THREAD))
-    if threads == 1:
-        _fit_rows(*args, 0, m)
-    else:
-        bounds = np.linspace(0, m, threads + 1).astype(int)
-        with ThreadPoolExecutor(threads) as pool:
-            for done in [pool.submit(_fit_rows, *args, bounds[i], bounds[i + 1]) for i in range(threads)]:
-                done.result()
+    threads = max(1, min(usable_cores(), f.shape[0] // _ROWS_PER_THREAD))
+    on_threads(_fit_rows, np.array_split(np.arange(f.shape[0]), threads), t, f, float(min_prominence), float(snr_min),
+               float(fit_window[0]), float(fit_window[1]), int(max_iter), int(refine), out, status)
     out[status != FITTED] = np.nan
     return out, status
 

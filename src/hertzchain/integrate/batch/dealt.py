@@ -13,11 +13,12 @@ the results are the same whatever the count.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 import numba
 import numpy as np
+
+from ...parallel import on_threads
 
 __all__ = ["default_threads", "run_dealt"]
 
@@ -33,12 +34,5 @@ def run_dealt(kernel: Callable, order: np.ndarray, n_threads: int | None, *args)
     first) dealt round-robin to ``n_threads`` threads (:func:`default_threads`); ``kernel`` a
     ``nogil`` compiled function over the members of its share. Returns when every share is done;
     the first error a share raised is raised here."""
-    threads = min(default_threads(n_threads), order.shape[0])
-    if threads <= 1:
-        kernel(np.ascontiguousarray(order), *args)
-        return
-    shares = [np.ascontiguousarray(order[t::threads]) for t in range(threads)]
-    with ThreadPoolExecutor(threads, thread_name_prefix="hertzchain-batch") as pool:
-        futures = [pool.submit(kernel, share, *args) for share in shares]
-        for future in futures:
-            future.result()
+    threads = max(1, min(default_threads(n_threads), order.shape[0]))
+    on_threads(kernel, [np.ascontiguousarray(order[t::threads]) for t in range(threads)], *args)
