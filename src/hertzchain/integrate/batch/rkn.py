@@ -28,7 +28,7 @@ from ..core import kernels
 from ..core.kernels import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 from ..drivers import rkn_damped_kernels as rk
 from ..drivers.rkn import DAMPED_EPS, RKN_RTOL
-from ..drivers.rkn_kernels import ChainArrays, ProbeBuffers, StepControl
+from ..drivers.rkn_kernels import SAMPLE_BLOCK, ChainArrays, ProbeBuffers, StepControl
 from .buffers import _Packed, check_members_finite
 from .dealt import run_dealt
 
@@ -83,7 +83,7 @@ def _rkn_kernel(order, off, n_slots, u0, v0, mass, inv_mass, kappa, damping, d0,
         pw = np.zeros(p)
         mode = np.zeros(p)
         last = np.zeros(p)
-        fi = np.zeros(nc)
+        fi = np.zeros((nc, SAMPLE_BLOCK))
         ed = np.zeros((2, rk.ROWS, p))
         ends = np.zeros((2, rk.ENDS))
         off3 = np.empty((3, p))

@@ -26,7 +26,7 @@ import numpy as np
 from ...model import System
 from . import rkn_damped_kernels as rk
 from ..core.layout import pack
-from .rkn_kernels import ChainArrays, ProbeBuffers, StepControl
+from .rkn_kernels import SAMPLE_BLOCK, ChainArrays, ProbeBuffers, StepControl
 from .rkn_chunks import advance_in_chunks, rkn_raw_run
 from .verlet import RawRun
 
@@ -52,7 +52,7 @@ def run_rkn_damped(system: System, duration: float, sample_interval: float, dt: 
     # accelerations, new state, stage state (one slot more, always 0, read by contact P - 1), stages
     a, an, un, vn, us, vs = (np.zeros(p + 1) for _ in range(6))
     k2, k3, k4, up, vp, ap = (np.zeros(p) for _ in range(6))
-    fi = np.zeros(nc)
+    fi = np.zeros((nc, SAMPLE_BLOCK))  # a block of samples' forces (rkn_samples)
     ed = np.zeros((2, rk.ROWS, p))
     ends = np.zeros((2, rk.ENDS))
     pw = np.zeros(p)  # per contact: stage-weighted dissipated power

@@ -51,13 +51,11 @@ the fourth-order error of a force that changes at the contact's frequency and da
 step keeps max_j e_j(h) <= eps, grows at most :data:`MAX_GROWTH`-fold, and a Gershgorin bound
 keeps (omega + damping rate) h below :data:`MAX_RHO_H` (RK4 is stable to ~2.8 on both axes).
 
-Probes at the sample times: every contact's overlap by the quintic Hermite through (delta, r, q)
-at the step's ends (q = d(r)/dt, a_j - a_{j+1} for an aligned pair) and its rate by the cubic Hermite through (r, q), the force
-the law's at those (clipped): its time derivative is then the law's own, rate term included; the
-energies (kinetic, elastic, dissipated) by the cubic Hermite through their values and exact
-rates. Events end steps, so each step's interpolants are smooth. The peak wall force is the
-largest value of that interpolated force on a step where the wall force turns down (golden-
-section search).
+Probes (:mod:`.rkn_samples`): a contact's force is the law's (clipped) at its overlap's quintic
+Hermite through (delta, r, q = d(r)/dt) and its rate's cubic through (r, q) at the step's ends;
+the energies are the cubic Hermite through their values and exact rates. Events end steps, so
+each step's interpolants are smooth. The peak wall force is the largest interpolated force on a
+step where the wall force turns down (golden-section search).
 """
 
 from __future__ import annotations
@@ -70,13 +68,16 @@ from numba import njit
 from ..core import kernels
 from ..core.primitives import DELTA_MIN, LAW_VISCOELASTIC, _viscous_force
 from .rkn_kernels import hermite, quintic, quintic_at_most, force_bound
+from .rkn_samples import (PATH_ROWS, axial, block_of_samples, hermite_root, path_at, path_coefficients,
+                          record_bodies)
 
 
 class DampedState(NamedTuple):
     """The run's state (u, v, a = f(u, v)), the new state and stage state of a step, the stages
     k2..k4, each contact's stage-weighted dissipated power ``pw``, its branch in the step
     (``mode``) and in the last one (``last``), the step's start (up, vp, ap) when recorded, the
-    sampled forces ``fi`` and the end data of the last two step ends (``ed``, ``ends``)."""
+    sampled forces ``fi`` (contact, sample of a block) and the end data of the last two step ends
+    (``ed``, ``ends``)."""
 
     u: np.ndarray
     v: np.ndarray
@@ -414,36 +415,6 @@ def next_step(ed, c, kappa, damping, inv_mass, law, mode, eps, h_ref, h_max):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _hermite_root(y0, s0, y1, s1, h):
-    """theta in [0, 1] where the cubic Hermite through (y0, y0') and (y1, y1') (rates per second,
-    step h) crosses 0, y0 and y1 of opposite signs (Illinois regula falsi; the straight line
-    when a rate is not finite)."""
-    if not (np.isfinite(s0) and np.isfinite(s1)):
-        s0 = s1 = (y1 - y0) / h
-    lo, hi = 0.0, 1.0
-    flo, fhi = y0, y1
-    x = 0.0
-    side = 0
-    for _ in range(60):
-        x = (lo * fhi - hi * flo) / (fhi - flo)
-        w0, w0d, w1, w1d = hermite(x, h)
-        fx = w0 * y0 + w0d * s0 + w1 * y1 + w1d * s1
-        if (fx > 0.0) == (flo > 0.0):
-            lo, flo = x, fx
-            if side == -1:
-                fhi *= 0.5
-            side = -1
-        else:
-            hi, fhi = x, fx
-            if side == 1:
-                flo *= 0.5
-            side = 1
-        if hi - lo < 1e-12:
-            break
-    return x
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def event_inside(ed, b, c, h, mode, inv_mass, eps):
     """Where the law left a contact's branch ``mode`` in the step from end data ``ed[b]`` to
     ``ed[c]`` (its state at the end differs from the branch): the root theta of delta (a closing)
@@ -462,14 +433,14 @@ def event_inside(ed, b, c, h, mode, inv_mass, eps):
         if max(abs(ed[c, R_FU, j]), abs(ed[c, R_F, j])) * (inv_mass[j] + _right(inv_mass, j)) * h <= EVENT_EPS * eps:
             continue
         if not m and ed[b, R_D, j] < 0.0:  # closing
-            x = _hermite_root(ed[b, R_D, j], ed[b, R_R, j], ed[c, R_D, j], ed[c, R_R, j], h)
+            x = hermite_root(ed[b, R_D, j], ed[b, R_R, j], ed[c, R_D, j], ed[c, R_R, j], h)
         else:  # clip (loaded branch, F_u down through 0) or reload
             y0, y1 = ed[b, R_FU, j], ed[c, R_FU, j]
             if m:
                 y1 = y1 if y1 < 0.0 else -1e-300
             else:
                 y1 = y1 if y1 > 0.0 else 1e-300
-            x = _hermite_root(y0, ed[b, R_DFU, j], y1, ed[c, R_DFU, j], h)
+            x = hermite_root(y0, ed[b, R_DFU, j], y1, ed[c, R_DFU, j], h)
         if x <= EVENT_TOL:
             mode[j] = 0.0 if m else 1.0
             switched = True
@@ -489,14 +460,7 @@ def _force_w(ed, b, c, j, q, w, kappa, damping, d0, off, law):
     d = (q[0] * ed[b, R_D, j] + q[1] * ed[b, R_R, j] + q[2] * ed[b, R_Q, j] + q[3] * ed[c, R_D, j]
          + q[4] * ed[c, R_R, j] + q[5] * ed[c, R_Q, j])
     r = w[0] * ed[b, R_R, j] + w[1] * ed[b, R_Q, j] + w[2] * ed[c, R_R, j] + w[3] * ed[c, R_Q, j]
-    f, _ = _viscous_force(d, r, kappa[j], damping[j], law)
-    if off is not None:
-        de = off[G_DE, j]
-        if de != 0.0:
-            dist = off[G_RSUM, j] - d
-            x = dist * dist - de * de
-            f *= np.sqrt(x if x > 0.0 else 0.0) / dist
-    return f
+    return axial(_viscous_force(d, r, kappa[j], damping[j], law)[0], off, j, d)
 
 
 @njit(cache=True, nogil=True)
@@ -546,16 +510,13 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
     ``last`` those of the last one (a = f(u, v) on them); ``up``, ``vp``, ``ap`` the bodies' state at
     the step's start when recorded. Steps: ``h_fixed`` [s] when > 0 (no event location), else
     :func:`next_step` with ``eps`` [m/s] and ``h_max`` [s], redone to end on an event
-    (:func:`event_inside`). Probes as the module docstring says: forces of every contact into
-    ``fi`` (their running maxima into ``fmax``), the contacts ``rec`` into row k of ``out_f``,
-    energies into ``out_ke``, ``out_pe``, ``out_d``, velocities and positions of bodies 0..N when
-    asked. ``peak`` = [largest wall force up to ``h_max`` (the run's duration), its time].
-    ``acc`` = [time, previous step's start, last step, steps, smallest step, largest step, last
-    step the error bound chose].
-    A contact whose overlap's interpolant stays where its force is 0 over a step
-    (:func:`~.rkn_kernels.quintic_at_most`) is given 0 at that step's samples without interpolating:
-    the same numbers, ahead of a pulse at a fraction of the cost.
-    With ``all_forces`` False (a batch that keeps only its metrics) only the contacts ``rec`` are
+    (:func:`event_inside`). Probes, a step's samples a block at a time (module docstring): forces
+    into ``fi`` (their running maxima into ``fmax``; 0 without interpolating for a contact whose
+    overlap stays where its force is 0, :func:`~.rkn_kernels.quintic_at_most`), the contacts
+    ``rec`` into row k of ``out_f``, energies into ``out_ke``, ``out_pe``, ``out_d``, velocities and
+    positions of bodies 0..N when asked. ``peak`` = [largest wall force up to ``h_max`` (the run's
+    duration), its time]. ``acc`` = [time, previous step's start, last step, steps, smallest step,
+    largest step, last step the error bound chose]. With ``all_forces`` False (a batch that keeps only its metrics) only the contacts ``rec`` are
     interpolated at the samples, and ``fmax`` holds every contact's largest force over the run
     instead of over the samples: its value at every step's end and, in a step where its force
     turns down, the interpolant's maximum (as the wall's peak): never below the sampled maximum,
@@ -579,7 +540,14 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
     t_last = (k_stop - 1) * interval
     shut = np.zeros(nc, dtype=np.bool_)  # contacts without a force over the whole step
     seen = -1  # the step they were found for
-    for k in range(k_start, k_stop):
+    lo, hi = 0, 0  # the contacts lo..hi-1 hold every one with a force in it
+    pc = np.zeros((PATH_ROWS, nc))  # their paths over it (rkn_samples)
+    th = np.zeros(fi.shape[1])  # a block of samples in it: their theta
+    rec_at = np.zeros(nc, dtype=np.bool_)  # recorded contacts
+    for r in range(nrec):
+        rec_at[rec[r]] = True
+    k = k_start
+    while k < k_stop:
         tk = k * interval
         while t < tk:
             b = steps % 2
@@ -649,49 +617,65 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
             hl = h
             acc[A_HMIN] = h if h < acc[A_HMIN] else acc[A_HMIN]
             acc[A_HMAX] = h if h > acc[A_HMAX] else acc[A_HMAX]
-        # --- probes at tk, between the steps' ends tp < tk <= t
+        # --- probes at samples k..kb-1, between the steps' ends tp < tk <= t (rkn_samples)
         c = steps % 2
         b = 1 - c
         if steps != seen:  # a new step: the contacts whose force stays 0 over it (its overlap's
             seen = steps   # interpolant never above DELTA_MIN; a dashpot's: never above 0, or no rate)
+            lo, hi = nc, 0
             for r in range(nc if all_forces else nrec):
                 j = r if all_forces else rec[r]
                 shut[j] = quintic_at_most(ed[b, R_D, j], ed[b, R_R, j], ed[b, R_Q, j], ed[c, R_D, j], ed[c, R_R, j],
                                           ed[c, R_Q, j], hl,
                                           DELTA_MIN if law == LAW_VISCOELASTIC or damping[j] == 0.0 else 0.0)
-        theta = (tk - tp) / hl
-        hw = hermite(theta, hl)
-        if all_forces or k == k_stop - 1:  # (every contact at the last sample: a force still rising)
-            qw = quintic(theta, hl)
+                if not shut[j]:
+                    lo = j if j < lo else lo
+                    hi = j + 1 if j >= hi else hi
+                    path_coefficients(ed, b, c, j, hl, pc, R_D)
+        kb = block_of_samples(k, k_stop, interval, tp, t, hl, th)
+        nb = kb - k
+        for j in range(lo, hi):  # all_forces False: the recorded contacts among them (shut[j] is theirs)
+            if shut[j] or not (all_forces or rec_at[j]):
+                for m in range(nb):
+                    fi[j, m] = 0.0
+                continue
+            kj, cj = kappa[j], damping[j]
+            for m in range(nb):
+                d, rt = path_at(pc, j, th[m])
+                fi[j, m] = axial(_viscous_force(d, rt, kj, cj, law)[0], off, j, d)
+        if all_forces:
+            for j in range(lo, hi):
+                fm = fmax[j]
+                for m in range(nb):
+                    fm = fi[j, m] if fi[j, m] > fm else fm
+                fmax[j] = fm
+        elif kb == k_stop:  # every contact at the last sample: a force still rising
+            qw = quintic(th[nb - 1], hl)
+            hw = hermite(th[nb - 1], hl)
             for j in range(nc):
-                f = 0.0 if all_forces and shut[j] else _force_w(ed, b, c, j, qw, hw, kappa, damping, d0, off, law)
-                fi[j] = f
+                f = _force_w(ed, b, c, j, qw, hw, kappa, damping, d0, off, law)
                 fmax[j] = f if f > fmax[j] else fmax[j]
-            for r in range(nrec):
-                out_f[k, r] = fi[rec[r]]
-            if ws < nc and fi[ws] > peak[0]:
-                peak[0] = fi[ws]
-                peak[1] = tk
-        else:
+                if j == ws and f > peak[0]:
+                    peak[0] = f
+                    peak[1] = (k_stop - 1) * interval
+        for m in range(nb):
+            kk = k + m
             for r in range(nrec):
                 j = rec[r]
-                out_f[k, r] = 0.0 if shut[j] else _force_w(ed, b, c, j, quintic(theta, hl), hw, kappa, damping, d0,
-                                                            off, law)
-        w0, w0d, w1, w1d = hermite(theta, hl)
-        ke = w0 * ends[b, E_KE] + w0d * ends[b, E_DKE] + w1 * ends[c, E_KE] + w1d * ends[c, E_DKE]
-        out_ke[k] = ke
-        out_pe[k] = w0 * ends[b, E_PE] + w0d * ends[b, E_DPE] + w1 * ends[c, E_PE] + w1d * ends[c, E_DPE]
-        out_d[k] = w0 * ends[b, E_D] + w0d * ends[b, E_DD] + w1 * ends[c, E_D] + w1d * ends[c, E_DD]
-        if record_v:
-            for i in range(out_v.shape[1]):
-                out_v[k, i] = w0 * vp[i] + w0d * ap[i] + w1 * v[i] + w1d * a[i]
-        if record_u:
-            q0, q0d, q0dd, q1, q1d, q1dd = quintic(theta, hl)
-            for i in range(out_u.shape[1]):
-                out_u[k, i] = q0 * up[i] + q0d * vp[i] + q0dd * ap[i] + q1 * u[i] + q1d * v[i] + q1dd * a[i]
-        if not np.isfinite(ke) or not np.isfinite(ed[c, R_F, 0]):
-            acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS], acc[A_HREF] = t, tp, hl, steps, href
-            return 1
+                out_f[kk, r] = fi[j, m] if lo <= j < hi else 0.0
+            if all_forces and lo <= ws < hi and fi[ws, m] > peak[0]:
+                peak[0] = fi[ws, m]
+                peak[1] = kk * interval
+            w0, w0d, w1, w1d = hermite(th[m], hl)
+            ke = w0 * ends[b, E_KE] + w0d * ends[b, E_DKE] + w1 * ends[c, E_KE] + w1d * ends[c, E_DKE]
+            out_ke[kk] = ke
+            out_pe[kk] = w0 * ends[b, E_PE] + w0d * ends[b, E_DPE] + w1 * ends[c, E_PE] + w1d * ends[c, E_DPE]
+            out_d[kk] = w0 * ends[b, E_D] + w0d * ends[b, E_DD] + w1 * ends[c, E_D] + w1d * ends[c, E_DD]
+            record_bodies(out_v, record_v, out_u, record_u, kk, th[m], hl, up, vp, ap, u, v, a)
+            if not np.isfinite(ke) or not np.isfinite(ed[c, R_F, 0]):
+                acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS], acc[A_HREF] = t, tp, hl, steps, href
+                return 1
+        k = kb
     acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS], acc[A_HREF] = t, tp, hl, steps, href
     return 0
 

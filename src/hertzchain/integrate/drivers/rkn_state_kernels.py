@@ -54,7 +54,8 @@ from numba import njit
 from ..core.primitives import DELTA_MIN
 from .rkn_damped_kernels import (A_H, A_HMAX, A_HMIN, A_HREF, A_STEPS, A_T, A_TPREV, E_D, E_DD, E_DKE, E_DPE, E_KE,
                                  E_PE, ENDS, EVENT_EPS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line)
-from .rkn_kernels import hermite, quintic, quintic_at_most
+from .rkn_kernels import SAMPLE_BLOCK, hermite, quintic, quintic_at_most
+from .rkn_samples import PATH_ROWS, axial, block_of_samples, path_at, path_coefficients, record_bodies
 
 __all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "GROWS", "REGIME"]
 
@@ -405,14 +406,7 @@ def build(law: LawAdapter):
             return 0.0
         d, r, _ = path_w(ed, b, c, j, qw, hw, theta)
         f, _, _ = branch_force(d, r, kappa[j], damping[j], S, j, m)
-        f = f if f > 0.0 else 0.0
-        if off is not None:
-            de = off[0, j]
-            if de != 0.0:
-                dist = off[2, j] - d
-                x = dist * dist - de * de
-                f *= np.sqrt(x if x > 0.0 else 0.0) / dist
-        return f
+        return axial(f if f > 0.0 else 0.0, off, j, d)
 
     @njit(nogil=True)
     def force_at(ed, b, c, j, theta, h, kappa, damping, off, S, m):
@@ -513,10 +507,14 @@ def build(law: LawAdapter):
         hl = acc[A_H]
         href = acc[A_HREF]
         steps = int(acc[A_STEPS])
-        fi = np.zeros(nc)
+        fi = np.zeros((nc, SAMPLE_BLOCK))  # a block of samples' forces
         shut = np.zeros(nc, dtype=np.bool_)  # contacts whose force is 0 over the whole step
         seen = -1  # the step they were found for
-        for k in range(k_start, k_stop):
+        lo, hi = 0, 0  # the contacts lo..hi-1 hold every one with a force in it
+        pc = np.zeros((PATH_ROWS, nc))  # their paths over it (rkn_samples)
+        th = np.zeros(SAMPLE_BLOCK)  # a block of samples in it: their theta
+        k = k_start
+        while k < k_stop:
             tk = k * interval
             while t < tk:
                 b = steps % 2
@@ -592,7 +590,8 @@ def build(law: LawAdapter):
                 hl = h
                 acc[A_HMIN] = h if h < acc[A_HMIN] else acc[A_HMIN]
                 acc[A_HMAX] = h if h > acc[A_HMAX] else acc[A_HMAX]
-            # --- probes at tk, between the steps' ends tp < tk <= t (the step's branches and state)
+            # --- probes at samples k..kb-1, between the steps' ends tp < tk <= t (the step's
+            # branches and state; rkn_samples)
             c = steps % 2
             b = 1 - c
             # a new step: the contacts whose force stays 0 over it, without interpolating (the same
@@ -601,6 +600,7 @@ def build(law: LawAdapter):
             # ahead of a pulse) over the whole step (rkn_kernels.quintic_at_most)
             if steps != seen:
                 seen = steps
+                lo, hi = nc, 0
                 for j in range(nc):
                     m = int(last[j])
                     shut[j] = (m & LOADED) == 0 or (
@@ -608,37 +608,46 @@ def build(law: LawAdapter):
                                         hl, DELTA_MIN)
                         and branch_force(DELTA_MIN, ed[b, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0
                         and branch_force(DELTA_MIN, ed[c, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0)
-            theta = (tk - tp) / hl
-            qw = quintic(theta, hl)
-            hw = hermite(theta, hl)
-            for j in range(nc):
-                f = 0.0 if shut[j] else force_w(ed, b, c, j, qw, hw, theta, kappa, damping, off, Sp, int(last[j]))
-                fi[j] = f
-                fmax[j] = f if f > fmax[j] else fmax[j]
-            for r in range(nrec):
-                out_f[k, r] = fi[rec[r]]
-            if fi[ws] > peak[0]:
-                peak[0] = fi[ws]
-                peak[1] = tk
-            w0, w0d, w1, w1d = hermite(theta, hl)
-            ke = w0 * ends[b, E_KE] + w0d * ends[b, E_DKE] + w1 * ends[c, E_KE] + w1d * ends[c, E_DKE]
-            out_ke[k] = ke
-            # stored + plastic work has the rate sum F_el r: interpolated together, the work linearly
-            wk = (1.0 - theta) * ends[b, E_W] + theta * ends[c, E_W]
-            out_pe[k] = (w0 * (ends[b, E_PE] + ends[b, E_W]) + w0d * ends[b, E_DPE]
-                         + w1 * (ends[c, E_PE] + ends[c, E_W]) + w1d * ends[c, E_DPE]) - wk
-            out_w[k] = wk
-            out_d[k] = w0 * ends[b, E_D] + w0d * ends[b, E_DD] + w1 * ends[c, E_D] + w1d * ends[c, E_DD]
-            if record_v:
-                for i in range(out_v.shape[1]):
-                    out_v[k, i] = w0 * vp[i] + w0d * ap[i] + w1 * v[i] + w1d * a[i]
-            if record_u:
-                q0, q0d, q0dd, q1, q1d, q1dd = quintic(theta, hl)
-                for i in range(out_u.shape[1]):
-                    out_u[k, i] = q0 * up[i] + q0d * vp[i] + q0dd * ap[i] + q1 * u[i] + q1d * v[i] + q1dd * a[i]
-            if not np.isfinite(ke) or not np.isfinite(ed[c, 0, 0]):
-                acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS], acc[A_HREF] = t, tp, hl, steps, href
-                return 1
+                    if not shut[j]:
+                        lo = j if j < lo else lo
+                        hi = j + 1
+                        path_coefficients(ed, b, c, j, hl, pc, 2)
+            kb = block_of_samples(k, k_stop, interval, tp, t, hl, th)
+            nb = kb - k
+            for j in range(lo, hi):
+                m = int(last[j])
+                fm = fmax[j]
+                for i in range(nb):
+                    f = 0.0
+                    if not shut[j]:
+                        d, rt = path_at(pc, j, th[i])
+                        f, _, _ = branch_force(d, rt, kappa[j], damping[j], Sp, j, m)
+                        f = axial(f if f > 0.0 else 0.0, off, j, d)
+                    fi[j, i] = f
+                    fm = f if f > fm else fm
+                fmax[j] = fm
+            for i in range(nb):
+                kk = k + i
+                for r in range(nrec):
+                    j = rec[r]
+                    out_f[kk, r] = fi[j, i] if lo <= j < hi else 0.0
+                if lo <= ws < hi and fi[ws, i] > peak[0]:
+                    peak[0] = fi[ws, i]
+                    peak[1] = kk * interval
+                w0, w0d, w1, w1d = hermite(th[i], hl)
+                ke = w0 * ends[b, E_KE] + w0d * ends[b, E_DKE] + w1 * ends[c, E_KE] + w1d * ends[c, E_DKE]
+                out_ke[kk] = ke
+                # stored + plastic work has the rate sum F_el r: interpolated together, the work linearly
+                wk = (1.0 - th[i]) * ends[b, E_W] + th[i] * ends[c, E_W]
+                out_pe[kk] = (w0 * (ends[b, E_PE] + ends[b, E_W]) + w0d * ends[b, E_DPE]
+                              + w1 * (ends[c, E_PE] + ends[c, E_W]) + w1d * ends[c, E_DPE]) - wk
+                out_w[kk] = wk
+                out_d[kk] = w0 * ends[b, E_D] + w0d * ends[b, E_DD] + w1 * ends[c, E_D] + w1d * ends[c, E_DD]
+                record_bodies(out_v, record_v, out_u, record_u, kk, th[i], hl, up, vp, ap, u, v, a)
+                if not np.isfinite(ke) or not np.isfinite(ed[c, 0, 0]):
+                    acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS], acc[A_HREF] = t, tp, hl, steps, href
+                    return 1
+            k = kb
         acc[A_T], acc[A_TPREV], acc[A_H], acc[A_STEPS], acc[A_HREF] = t, tp, hl, steps, href
         return 0
 
