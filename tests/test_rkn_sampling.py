@@ -64,3 +64,36 @@ def test_model_text_is_built_once_and_follows_the_model():
         warnings.simplefilter("ignore")
         ds = hc.simulate(other, 1e-4)
     assert ds.attrs["model"] == json.dumps(other.describe())
+
+
+@pytest.mark.filterwarnings("ignore::hertzchain.ElasticLimitWarning")
+@pytest.mark.parametrize("law", [hc.HuntCrossley(0.8), hc.Elastoplastic(), hc.Dashpot(gamma=8.0)],
+                         ids=["hunt_crossley", "elastoplastic", "dashpot"])
+def test_law_kernels_fitted_samples_are_the_law_on_the_path(law):
+    """The dissipative and state kernels sample the law at each contact's interpolated path; where
+    a step holds FIT_SAMPLES samples or more, a contact far from its opening takes them from a
+    degree-5 fit of its force over the step (rkn_samples). The same run (the samples do not steer
+    the step) recorded every 100 ns (~20 samples a step: fitted) and every 1 us (~2 a step: the law
+    at every sample) agrees at the common times within the fit's documented error, and each
+    contact's largest force is its largest sample."""
+    from hertzchain.integrate.drivers import rkn_samples
+
+    model = hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.5), hc.Wall("flat"), law=law)
+    fine = hc.simulate(model, 2.5e-3, hc.Probes(sample_interval=1e-7, contacts=None))
+    coarse = hc.simulate(model, 2.5e-3, hc.Probes(sample_interval=1e-6, contacts=None))
+    assert fine.attrs["integrator_used"] == coarse.attrs["integrator_used"] == "rkn4"
+    assert fine.attrs["n_steps"] == coarse.attrs["n_steps"]
+    assert 2.5e-3 / fine.attrs["n_steps"] / 1e-7 > 2 * rkn_samples.FIT_SAMPLES  # the fine record's steps fit
+    assert 2.5e-3 / coarse.attrs["n_steps"] / 1e-6 < rkn_samples.FIT_SAMPLES  # the coarse one's do not
+    f, fc = fine.contact_force.values[::10], coarse.contact_force.values
+    peak = fc.max(axis=0)
+    assert peak.min() > 1.0  # the pulse crossed every contact
+    # each contact within 1e-9 of its own largest force (near its openings too: a fit there, not
+    # clear of the opening by FIT_CLEARANCE steps, errs by ~1e-8 of it and ~1e-4 of the force),
+    # and within 1e-8 of the force itself where that exceeds 1e-3 of the contact's largest
+    assert np.all(np.abs(f - fc).max(axis=0) <= 1e-9 * peak)
+    big = fc > 1e-3 * peak
+    assert np.all(np.abs(f - fc)[big] <= 1e-8 * fc[big])
+    np.testing.assert_allclose(fine.kinetic_energy.values[::10], coarse.kinetic_energy.values, rtol=1e-12, atol=0)
+    assert np.array_equal(fine.max_contact_force.values, np.maximum(fine.contact_force.values.max(axis=0),
+                                                                    fine.contact_force.values[0]))

@@ -18,8 +18,6 @@ metrics asks for, since interpolating every contact at every sample would cost m
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numba import njit
@@ -27,6 +25,7 @@ from numba import njit
 from ..core import kernels
 from ..core.kernels import LAW_DASHPOT, LAW_ELASTIC, LAW_VISCOELASTIC
 from ..drivers import rkn_damped_kernels as rk
+from ..drivers import rkn_kernels, rkn_samples
 from ..drivers.rkn import DAMPED_EPS, RKN_RTOL
 from ..drivers.rkn_kernels import SAMPLE_BLOCK, ChainArrays, ProbeBuffers, StepControl
 from .buffers import _Packed, check_members_finite
@@ -123,16 +122,9 @@ def _rkn_kernel(order, off, n_slots, u0, v0, mass, inv_mass, kappa, damping, d0,
 
 def _flush_stale_cache() -> None:
     """Drop the on-disk cache of :func:`_rkn_kernel` when ``rkn_damped_kernels.py`` (whose
-    ``damped_run`` it compiles in) is newer than it; ``kernels.flush_stale_cache`` watches the
-    files that compiles in. Numba's cache checks only the file of the cached function."""
-    kernels.flush_stale_cache(_rkn_kernel)
-    cache: Any = getattr(_rkn_kernel, "_cache", None)  # private Numba API, untyped
-    try:
-        index = Path(cache._cache_file._index_path)
-        if index.exists() and index.stat().st_mtime < Path(rk.__file__).stat().st_mtime:
-            cache.flush()
-    except (AttributeError, OSError):  # private Numba API moved or no cache: nothing to protect
-        pass
+    ``damped_run`` it compiles in) or a file that compiles in is newer than it. Numba's cache
+    checks only the file of the cached function."""
+    kernels.flush_stale_cache(_rkn_kernel, also=(rk.__file__, rkn_kernels.__file__, rkn_samples.__file__))
 
 
 _flush_stale_cache()

@@ -559,10 +559,10 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
     return 0
 
 
-def flush_stale_cache(*kernels_using: Any) -> None:
+def flush_stale_cache(*kernels_using: Any, also: tuple[str | Path, ...] = ()) -> None:
     """Drop the on-disk cache of these compiled functions when this module (or ``extension.py``,
-    ``energies.py``, ``primitives.py``, ``fused.py`` or ``plastic.py``, whose functions it compiles in) is newer
-    than it.
+    ``energies.py``, ``primitives.py``, ``fused.py`` or ``plastic.py``, whose functions it compiles in,
+    or a file in ``also``) is newer than it.
 
     Numba's cache only checks the source file of the cached function itself, not of the
     functions it calls; the batched engine's loops (``batch_engine._batch_kernel``,
@@ -573,10 +573,13 @@ def flush_stale_cache(*kernels_using: Any) -> None:
     ----------
     *kernels_using
         Numba dispatchers (``@njit(cache=True)``) that call functions of this module.
+    also
+        Other source files they compile in (the rkn4 kernels' interpolants, :mod:`..drivers.rkn_samples`).
     """
     # what the kernels compile in
     sources = [Path(__file__).with_name(name) for name in ("kernels.py", "extension.py", "energies.py",
                                                             "primitives.py", "fused.py", "plastic.py")]
+    sources += [Path(p) for p in also]
     newest = max(p.stat().st_mtime for p in sources)
     for fn in kernels_using:
         try:

@@ -66,6 +66,7 @@ import numpy as np
 from numba import njit
 
 from ..core import kernels
+from . import rkn_kernels, rkn_samples
 from ..core.primitives import DELTA_MIN, LAW_VISCOELASTIC, _viscous_force
 from .rkn_kernels import hermite, quintic, quintic_at_most, force_bound
 from .rkn_samples import (PATH_ROWS, axial, block_of_samples, hermite_root, path_at, path_coefficients,
@@ -680,5 +681,6 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
     return 0
 
 
-# the law's force (primitives.py) is compiled in: an edit there recompiles the run
-kernels.flush_stale_cache(damped_run)
+# the law's force (primitives.py) and the interpolants (rkn_kernels.py, rkn_samples.py) are compiled
+# in: an edit there recompiles the run
+kernels.flush_stale_cache(damped_run, also=(rkn_kernels.__file__, rkn_samples.__file__))

@@ -37,7 +37,8 @@ __all__ = ["run_rkn_laws", "law_run"]
 _BUILT: dict = {}
 #: The package's files compiled into these kernels (with the law's own: their on-disk cache key).
 _COMPILED_IN = ("drivers/rkn_state_kernels.py", "drivers/rkn_laws.py", "drivers/rkn_damped_kernels.py",
-                "drivers/rkn_kernels.py", "core/kernels.py", "core/primitives.py", "core/energies.py")
+                "drivers/rkn_kernels.py", "drivers/rkn_samples.py", "core/kernels.py", "core/primitives.py",
+                "core/energies.py")
 
 
 def _fixed(fn, value: float):

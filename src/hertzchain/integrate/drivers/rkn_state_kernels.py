@@ -55,7 +55,8 @@ from ..core.primitives import DELTA_MIN
 from .rkn_damped_kernels import (A_H, A_HMAX, A_HMIN, A_HREF, A_STEPS, A_T, A_TPREV, E_D, E_DD, E_DKE, E_DPE, E_KE,
                                  E_PE, ENDS, EVENT_EPS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line)
 from .rkn_kernels import SAMPLE_BLOCK, hermite, quintic, quintic_at_most
-from .rkn_samples import PATH_ROWS, axial, block_of_samples, path_at, path_coefficients, record_bodies
+from .rkn_samples import (FIT_NODES, FIT_SAMPLES, PATH_ROWS, axial, block_of_samples, fit_at, fit_coefficients,
+                          path_at, path_coefficients, record_bodies, smooth_over_step)
 
 __all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "GROWS", "REGIME"]
 
@@ -512,6 +513,8 @@ def build(law: LawAdapter):
         seen = -1  # the step they were found for
         lo, hi = 0, 0  # the contacts lo..hi-1 hold every one with a force in it
         pc = np.zeros((PATH_ROWS, nc))  # their paths over it (rkn_samples)
+        fitted = np.zeros(nc, dtype=np.bool_)  # ... or their forces fitted over it (rows 0-5 of pc)
+        fv = np.zeros(6)
         th = np.zeros(SAMPLE_BLOCK)  # a block of samples in it: their theta
         k = k_start
         while k < k_stop:
@@ -598,9 +601,12 @@ def build(law: LawAdapter):
             # numbers): off their loaded branch, or overlapped at most DELTA_MIN (the law's force at
             # zero overlap, 0 at the step's two rates: Hunt-Crossley, the power law; the precursor
             # ahead of a pulse) over the whole step (rkn_kernels.quintic_at_most)
+            # (a step holding FIT_SAMPLES or more: the force of a contact far from its opening
+            # fitted over the step from six of the law's values, rkn_samples)
             if steps != seen:
                 seen = steps
                 lo, hi = nc, 0
+                fits = hl >= FIT_SAMPLES * interval
                 for j in range(nc):
                     m = int(last[j])
                     shut[j] = (m & LOADED) == 0 or (
@@ -612,19 +618,32 @@ def build(law: LawAdapter):
                         lo = j if j < lo else lo
                         hi = j + 1
                         path_coefficients(ed, b, c, j, hl, pc, 2)
+                        fitted[j] = fits and smooth_over_step(ed[b, 5, j], ed[b, 3, j], ed[c, 5, j], ed[c, 3, j], hl)
+                        for i in range(6 if fitted[j] else 0):
+                            d, rt = path_at(pc, j, FIT_NODES[i])
+                            f, _, _ = branch_force(d, rt, kappa[j], damping[j], Sp, j, m)
+                            fitted[j] = fitted[j] and f > 0.0
+                            fv[i] = axial(f, off, j, d)
+                        if fitted[j]:
+                            fit_coefficients(fv, pc, j)
             kb = block_of_samples(k, k_stop, interval, tp, t, hl, th)
             nb = kb - k
-            for j in range(lo, hi):
+            for j in range(lo, hi):  # one loop a contact over the samples (vectorised where fitted)
                 m = int(last[j])
-                fm = fmax[j]
-                for i in range(nb):
-                    f = 0.0
-                    if not shut[j]:
+                if fitted[j]:
+                    for i in range(nb):
+                        fi[j, i] = fit_at(pc, j, th[i])
+                elif shut[j]:
+                    for i in range(nb):
+                        fi[j, i] = 0.0
+                else:
+                    for i in range(nb):
                         d, rt = path_at(pc, j, th[i])
                         f, _, _ = branch_force(d, rt, kappa[j], damping[j], Sp, j, m)
-                        f = axial(f if f > 0.0 else 0.0, off, j, d)
-                    fi[j, i] = f
-                    fm = f if f > fm else fm
+                        fi[j, i] = axial(f if f > 0.0 else 0.0, off, j, d)
+                fm = fmax[j]
+                for i in range(nb):
+                    fm = fi[j, i] if fi[j, i] > fm else fm
                 fmax[j] = fm
             for i in range(nb):
                 kk = k + i
