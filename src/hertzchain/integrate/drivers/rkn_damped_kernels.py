@@ -330,59 +330,71 @@ def _state(d, r, fu):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _contact_error(d, r, fu, k, c, im, law, h, sh):
-    """e_j(h) of one loaded contact (module docstring) [m/s], and its local exponent
-    d log e / d log h; ``sh`` = sqrt(h)."""
-    sd = np.sqrt(d)
-    ar = abs(r)
-    sr = np.sqrt(ar)
-    r4 = r * r * r * r
-    h5 = h * h * h * h * h
-    km = k * im
-    # right at the closing (delta = 0) only the crossing terms hold
-    s1 = km * r4 * h5 / (d * d * sd) if d > 0.0 else np.inf
-    c1 = km * ar * sr * h * h * sh
-    e1, p1 = (s1, 5.0) if s1 < c1 else (c1, 2.5)
-    e2, p2 = 0.0, 0.0
-    if law == LAW_VISCOELASTIC:
-        kv = km * c * ar
-        s2 = kv * r4 * h5 / (d * d * d * sd) if d > 0.0 else np.inf
-        c2 = kv * sr * h * sh
-        e2, p2 = (s2, 5.0) if s2 < c2 else (c2, 1.5)
-        rate = c * k * sd * im
-    else:
-        rate = c * im
-    w2 = 1.5 * km * sd
-    e3 = abs(fu) * im * (w2 * w2 + rate * rate * rate * rate) * h5
-    e = e1 + e2 + e3
-    p = (e1 * p1 + e2 * p2 + 5.0 * e3) / e if e > 0.0 else 5.0
-    return e, p
+def _error_terms(ed, c, kappa, damping, inv_mass, law, mode, et):
+    """The factors of e_j(h) (module docstring) that do not depend on h, of every contact on the
+    loaded branch ``mode`` (open and clipped contacts carry no force), into ``et[:, i]`` for the
+    i-th of them: those of h^5 and h^(5/2) of the Hertz part (right at the closing, delta = 0,
+    only the crossing term holds), of h^5 and h^(3/2) of Kuwabara-Kono's, of h^5 of the dynamics.
+    Returns how many; :func:`_max_error` evaluates them at each h that ``next_step`` tries."""
+    n = 0
+    for j in range(kappa.shape[0]):
+        if mode[j] > 0.0:
+            d = ed[c, R_D, j]
+            d = d if d > DELTA_MIN else 0.0
+            r = ed[c, R_R, j]
+            im = inv_mass[j] + _right(inv_mass, j)
+            km = kappa[j] * im
+            sd = np.sqrt(d)
+            ar = abs(r)
+            sr = np.sqrt(ar)
+            r4 = r * r * r * r
+            et[0, n] = km * r4 / (d * d * sd) if d > 0.0 else np.inf
+            et[1, n] = km * ar * sr
+            rate = damping[j] * im
+            if law == LAW_VISCOELASTIC:
+                kv = km * damping[j] * ar
+                et[2, n] = kv * r4 / (d * d * d * sd) if d > 0.0 else np.inf
+                et[3, n] = kv * sr
+                rate = damping[j] * kappa[j] * sd * im
+            w2 = 1.5 * km * sd
+            et[4, n] = abs(ed[c, R_FU, j]) * im * (w2 * w2 + rate * rate * rate * rate)
+            n += 1
+    return n
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _max_error(ed, c, kappa, damping, inv_mass, law, mode, h):
-    """(max_j e_j(h) over the contacts on the loaded branch ``mode``, that contact's local exponent)."""
+def _max_error(et, n, visco, h):
+    """(max_j e_j(h) over the ``n`` contacts of :func:`_error_terms`, that contact's local
+    exponent d log e / d log h)."""
     sh = np.sqrt(h)
+    h5 = h * h * h * h * h
     emax = 0.0
     pmax = 5.0
-    for j in range(kappa.shape[0]):
-        d = ed[c, R_D, j]
-        fu = ed[c, R_FU, j]
-        if mode[j] > 0.0:  # open and clipped contacts carry no force
-            e, p = _contact_error(d if d > DELTA_MIN else 0.0, ed[c, R_R, j], fu, kappa[j], damping[j],
-                                  inv_mass[j] + _right(inv_mass, j), law, h, sh)
-            if e > emax:
-                emax = e
-                pmax = p
+    for i in range(n):
+        s1 = et[0, i] * h5
+        c1 = et[1, i] * h * h * sh
+        e1, p1 = (s1, 5.0) if s1 < c1 else (c1, 2.5)
+        e2, p2 = 0.0, 0.0
+        if visco:
+            s2 = et[2, i] * h5
+            c2 = et[3, i] * h * sh
+            e2, p2 = (s2, 5.0) if s2 < c2 else (c2, 1.5)
+        e3 = et[4, i] * h5
+        e = e1 + e2 + e3
+        if e > emax:
+            emax = e
+            pmax = (e1 * p1 + e2 * p2 + 5.0 * e3) / e
     return emax, pmax
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def next_step(ed, c, kappa, damping, inv_mass, law, mode, eps, h_ref, h_max):
+def next_step(ed, c, kappa, damping, inv_mass, law, mode, eps, h_ref, h_max, et):
     """Size [s] of the next step from the end data ``ed[c]`` of the present state, its contacts on
-    the branches ``mode``: the largest h with max_j e_j(h) <= eps (Newton's method on log e against log h from the last step the bound
-    chose, ``h_ref``: log e is convex in log h, so the iterates approach from above), at most
-    MAX_GROWTH h_ref and ``h_max``, and within the stability bound (module docstring)."""
+    the branches ``mode``: the largest h with max_j e_j(h) <= eps (Newton's method on log e
+    against log h from the last step the bound chose, ``h_ref``: log e is convex in log h, so the
+    iterates approach from above; the bound's factors computed once into the scratch ``et``,
+    :func:`_error_terms`), at most MAX_GROWTH h_ref and ``h_max``, and within the stability bound
+    (module docstring)."""
     # stability: Gershgorin bounds of the stiffness and damping rates at overlaps one step ahead
     w = 0.0
     cw = 0.0
@@ -403,12 +415,14 @@ def next_step(ed, c, kappa, damping, inv_mass, law, mode, eps, h_ref, h_max):
     rho = 2.0 * np.sqrt(w) + 4.0 * cw
     if rho > 0.0 and MAX_RHO_H / rho < h:
         h = MAX_RHO_H / rho
-    e, p = _max_error(ed, c, kappa, damping, inv_mass, law, mode, h)
+    n = _error_terms(ed, c, kappa, damping, inv_mass, law, mode, et)
+    visco = law == LAW_VISCOELASTIC
+    e, p = _max_error(et, n, visco, h)
     if e <= eps:
         return h
     for _ in range(8):
         h *= (eps / e) ** (1.0 / p)
-        e, p = _max_error(ed, c, kappa, damping, inv_mass, law, mode, h)
+        e, p = _max_error(et, n, visco, h)
         if e <= eps * 1.0001:
             return h
     # every term grows at least as h^1.5: this factor bounds them all
@@ -540,6 +554,7 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
     steps = int(acc[A_STEPS])
     t_last = (k_stop - 1) * interval
     shut = np.zeros(nc, dtype=np.bool_)  # contacts without a force over the whole step
+    et = np.zeros((5, kappa.shape[0]))  # the error bound's factors (next_step)
     seen = -1  # the step they were found for
     lo, hi = 0, 0  # the contacts lo..hi-1 hold every one with a force in it
     pc = np.zeros((PATH_ROWS, nc))  # their paths over it (rkn_samples)
@@ -561,7 +576,7 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
             if h_fixed > 0.0:
                 h = h_fixed
             else:
-                h = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max)
+                h = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max, et)
                 href = h
             for redo in range(MAX_REDO + 1):
                 step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, off, fext, inv_mass, law, h,
@@ -574,7 +589,7 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
                     break
                 if x > 1.0:  # a branch switched at the start: its step is bounded afresh
                     restart(u, v, a, kappa, damping, d0, off, fext, mass, inv_mass, law, mode, pw, ed, ends, b)
-                    hm = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max)
+                    hm = next_step(ed, b, kappa, damping, inv_mass, law, mode, eps, href, h_max, et)
                     h = hm if hm < h else h
                 else:
                     h *= x
