@@ -216,6 +216,58 @@ def _max4(x):
     return x2 if x2 > x0 else x0
 
 
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def _contact_bound(u, v, kappa, d0, inv_mass, j, imr, inv_eps, h_prev, sx, sw, st, sc):
+    """Contact j's terms of :func:`next_step` into ``sx``, ``sw``, ``st``, ``sc`` (its docstring);
+    ``imr`` the inverse mass on its right (0 past the last slot)."""
+    d = u[j] - u[j + 1] + d0[j]
+    r = v[j] - v[j + 1]
+    ad = abs(d)
+    r2 = r * r
+    km = kappa[j] * (inv_mass[j] + imr)
+    ki = km * inv_eps
+    ki2 = ki * ki
+    r4 = r2 * r2
+    ad5 = ad * ad * ad * ad * ad
+    # e_j(h) <= eps  <=>  h^-10 >= ki^2 (min(r^8 |delta|^-5, ki^2 r^6) + 4.5 km^2 r^4
+    # + 5.0625 km^4 delta+^5): the crossing bound at tau < h, the smooth one beyond, and the
+    # oscillation term where the rate vanishes (padding and the free end: kappa = 0, no
+    # bound). A touching contact (delta = 0) takes the crossing bound; r = 0 gives 0, no NaN.
+    sing = r4 * r4 / (ad5 + 1e-300)
+    cap = ki2 * r4 * r2
+    km2 = km * km
+    xj = ki2 * ((sing if sing < cap else cap) + 4.5 * km2 * r4 + 5.0625 * km2 * km2 * (ad5 if d > 0.0 else 0.0))
+    # an open contact moving apart (or at rest) carries no force in this step: no bound (its
+    # opening was bounded while it was closed)
+    m = d if d > r else r
+    sx[j] = xj if m > 0.0 else 0.0
+    # stability: tangent stiffness k = (3/2) kappa delta^(1/2) at the overlap one step ahead
+    dp = d + 2.0 * h_prev * (r if r > 0.0 else 0.0)
+    dp = dp if dp > 0.0 else 0.0
+    im = inv_mass[j] if inv_mass[j] > imr else imr
+    sw[j] = kappa[j] * kappa[j] * dp * im * im
+    # a contact that will open (delta > 0 > r) or close (delta < 0 < r): 1 / its time to
+    # do so (linear), and ki^2 |r|^3 = h_f^-5, h_f the step whose crossing error is eps
+    ar = abs(r)
+    st[j] = ar / ad if d * r < 0.0 else 0.0
+    sc[j] = ki2 * r2 * ar
+
+
+@njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def contact_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc):
+    """:func:`next_step`'s per-contact terms for the contacts of ``kappa`` (``u``, ``v``,
+    ``inv_mass`` from the same first slot to the end: the threaded engine passes a block's views).
+    The last slot's contact (padding, kappa = 0) has nothing on its right: its loop is peeled off,
+    so that no contact reads the inverse mass past the array's end."""
+    inv_eps = 1.0 / eps
+    n = kappa.shape[0]
+    m = min(n, inv_mass.shape[0] - 1)
+    for j in range(m):
+        _contact_bound(u, v, kappa, d0, inv_mass, j, inv_mass[j + 1], inv_eps, h_prev, sx, sw, st, sc)
+    for j in range(m, n):
+        _contact_bound(u, v, kappa, d0, inv_mass, j, 0.0, inv_eps, h_prev, sx, sw, st, sc)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def next_step(u, v, kappa, d0, inv_mass, eps, h_prev, h_max, sx, sw, st, sc):
     """Size [s] of the next step from the synchronised state (see the module docstring).
@@ -227,39 +279,7 @@ def next_step(u, v, kappa, d0, inv_mass, eps, h_prev, h_max, sx, sw, st, sc):
     step), and written without branches, so that LLVM vectorises it; the maxima are exact
     whatever the order of evaluation, so the step does not depend on the vectorisation.
     """
-    inv_eps = 1.0 / eps
-    for j in range(inv_mass.shape[0]):
-        d = u[j] - u[j + 1] + d0[j]
-        r = v[j] - v[j + 1]
-        ad = abs(d)
-        r2 = r * r
-        km = kappa[j] * (inv_mass[j] + inv_mass[j + 1])
-        ki = km * inv_eps
-        ki2 = ki * ki
-        r4 = r2 * r2
-        ad5 = ad * ad * ad * ad * ad
-        # e_j(h) <= eps  <=>  h^-10 >= ki^2 (min(r^8 |delta|^-5, ki^2 r^6) + 4.5 km^2 r^4
-        # + 5.0625 km^4 delta+^5): the crossing bound at tau < h, the smooth one beyond, and the
-        # oscillation term where the rate vanishes (padding and the free end: kappa = 0, no
-        # bound). A touching contact (delta = 0) takes the crossing bound; r = 0 gives 0, no NaN.
-        sing = r4 * r4 / (ad5 + 1e-300)
-        cap = ki2 * r4 * r2
-        km2 = km * km
-        xj = ki2 * ((sing if sing < cap else cap) + 4.5 * km2 * r4 + 5.0625 * km2 * km2 * (ad5 if d > 0.0 else 0.0))
-        # an open contact moving apart (or at rest) carries no force in this step: no bound (its
-        # opening was bounded while it was closed)
-        m = d if d > r else r
-        sx[j] = xj if m > 0.0 else 0.0
-        # stability: tangent stiffness k = (3/2) kappa delta^(1/2) at the overlap one step ahead
-        dp = d + 2.0 * h_prev * (r if r > 0.0 else 0.0)
-        dp = dp if dp > 0.0 else 0.0
-        im = inv_mass[j] if inv_mass[j] > inv_mass[j + 1] else inv_mass[j + 1]
-        sw[j] = kappa[j] * kappa[j] * dp * im * im
-        # a contact that will open (delta > 0 > r) or close (delta < 0 < r): 1 / its time to
-        # do so (linear), and ki^2 |r|^3 = h_f^-5, h_f the step whose crossing error is eps
-        ar = abs(r)
-        st[j] = ar / ad if d * r < 0.0 else 0.0
-        sc[j] = ki2 * r2 * ar
+    contact_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc)
     x = _max4(sx)  # max_j h_j^(-10)
     w = _max4(sw)  # max_j kappa_j^2 delta_j+ max(1/m_j, 1/m_{j+1})^2
     h = h_max

@@ -53,7 +53,7 @@ from numba import njit
 
 from ..core.primitives import DELTA_MIN
 from .rkn_damped_kernels import (A_H, A_HMAX, A_HMIN, A_HREF, A_STEPS, A_T, A_TPREV, E_D, E_DD, E_DKE, E_DPE, E_KE,
-                                 E_PE, ENDS, EVENT_EPS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line)
+                                 E_PE, ENDS, EVENT_EPS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line, _right)
 from .rkn_kernels import SAMPLE_BLOCK, hermite, quintic, quintic_at_most
 from .rkn_samples import (FIT_NODES, FIT_SAMPLES, PATH_ROWS, axial, block_of_samples, fit_at, fit_coefficients,
                           path_at, path_coefficients, record_bodies, smooth_over_step)
@@ -298,7 +298,7 @@ def build(law: LawAdapter):
             d = ed[c, 2, j]
             r = ed[c, 3, j]
             gap = ed[c, 5, j]
-            im = inv_mass[j] + inv_mass[j + 1]
+            im = inv_mass[j] + _right(inv_mass, j)
             f = ed[c, 8, j]
             # the force a closing contact reaches in the step: the crossing error
             fx, _, _ = branch_force(d - (gap if gap > 0.0 else 0.0) + abs(r) * h, r, kappa[j], damping[j], S, j, m)
@@ -331,7 +331,7 @@ def build(law: LawAdapter):
                 continue
             r = ed[c, 3, j]
             d = ed[c, 2, j] + 2.0 * h_ref * (r if r > 0.0 else 0.0)
-            im = inv_mass[j] if inv_mass[j] > inv_mass[j + 1] else inv_mass[j + 1]
+            im = max(inv_mass[j], _right(inv_mass, j))
             kt, ct = tangents(d, r, kappa[j], damping[j], S, j, m)
             w = max(w, abs(kt) * im)
             cw = max(cw, abs(ct) * im)
@@ -383,7 +383,7 @@ def build(law: LawAdapter):
                 continue
             fa = abs(branch_force(d1, r1, kappa[j], damping[j], S, j, mn)[0])
             fb = abs(branch_force(d1, r1, kappa[j], damping[j], S, j, m)[0])
-            if (fa if fa > fb else fb) * (inv_mass[j] + inv_mass[j + 1]) * h <= EVENT_EPS * eps:
+            if (fa if fa > fb else fb) * (inv_mass[j] + _right(inv_mass, j)) * h <= EVENT_EPS * eps:
                 continue
             lo, hi = 0.0, 1.0
             for _ in range(40):

@@ -60,30 +60,7 @@ def _block_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc):
     """``rkn_kernels.next_step``'s per-contact bounds, the same expressions, over the contacts of
     ``kappa`` (views from the block's first: module docstring): (max h_j^-10, max of the
     stability term)."""
-    inv_eps = 1.0 / eps
-    for j in range(kappa.shape[0]):
-        d = u[j] - u[j + 1] + d0[j]
-        r = v[j] - v[j + 1]
-        ad = abs(d)
-        r2 = r * r
-        km = kappa[j] * (inv_mass[j] + inv_mass[j + 1])
-        ki = km * inv_eps
-        ki2 = ki * ki
-        r4 = r2 * r2
-        ad5 = ad * ad * ad * ad * ad
-        sing = r4 * r4 / (ad5 + 1e-300)
-        cap = ki2 * r4 * r2
-        km2 = km * km
-        xj = ki2 * ((sing if sing < cap else cap) + 4.5 * km2 * r4 + 5.0625 * km2 * km2 * (ad5 if d > 0.0 else 0.0))
-        m = d if d > r else r
-        sx[j] = xj if m > 0.0 else 0.0
-        dp = d + 2.0 * h_prev * (r if r > 0.0 else 0.0)
-        dp = dp if dp > 0.0 else 0.0
-        im = inv_mass[j] if inv_mass[j] > inv_mass[j + 1] else inv_mass[j + 1]
-        sw[j] = kappa[j] * kappa[j] * dp * im * im
-        ar = abs(r)
-        st[j] = ar / ad if d * r < 0.0 else 0.0
-        sc[j] = ki2 * r2 * ar
+    rk.contact_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc)
     return rk._max4(sx), rk._max4(sw)
 
 
