@@ -248,13 +248,16 @@ def overhead(repeat: int) -> dict:
 
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--json", type=Path, default=RESULTS / "time_to_accuracy.json", help="where to save the results")
+    ap.add_argument("--json", type=Path, help="where to save the results (default results/time_to_accuracy.json; "
+                                              "with --laws results/time_to_accuracy_laws.json)")
     ap.add_argument("--quick", action="store_true", help="fewer repetitions")
     ap.add_argument("--defaults-only", action="store_true",
                     help="only the defaults against DOP853 (elastic and dashpot_scaled chain 1, section 3)")
     ap.add_argument("--laws", action="store_true",
                     help="only every built-in law's default call on chain 1 against the elastic law's")
     args = ap.parse_args(argv)
+    if args.json is None:
+        args.json = RESULTS / ("time_to_accuracy_laws.json" if args.laws else "time_to_accuracy.json")
     quiet()
     repeat, repeat_scipy = (5, 1) if args.quick else (21, 3)
     info = machine_info()
