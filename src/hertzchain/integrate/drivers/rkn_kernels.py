@@ -482,18 +482,20 @@ def _quintic_coefficients(ed, b, c, h, coef, lo, hi):
     the contacts lo <= j < hi."""
     hh = h * h
     for j in range(lo, hi):
-        f0 = ed[b, R_F, j]
-        d0 = h * ed[b, R_DF, j]
-        e0 = 0.5 * hh * ed[b, R_DDF, j]
-        f1 = ed[c, R_F, j]
-        d1 = h * ed[c, R_DF, j]
-        e1 = 0.5 * hh * ed[c, R_DDF, j]
-        coef[0, j] = f0
-        coef[1, j] = d0
-        coef[2, j] = e0
-        coef[3, j] = 10.0 * (f1 - f0) - 6.0 * d0 - 4.0 * d1 - 3.0 * e0 + e1
-        coef[4, j] = 15.0 * (f0 - f1) + 8.0 * d0 + 7.0 * d1 + 3.0 * e0 - 2.0 * e1
-        coef[5, j] = 6.0 * (f1 - f0) - 3.0 * d0 - 3.0 * d1 - e0 + e1
+        quintic_row(coef, j, ed[b, R_F, j], h * ed[b, R_DF, j], 0.5 * hh * ed[b, R_DDF, j], ed[c, R_F, j],
+                    h * ed[c, R_DF, j], 0.5 * hh * ed[c, R_DDF, j])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def quintic_row(coef, j, y0, s0, e0, y1, s1, e1):
+    """coef[0:6, j]: the monomial coefficients in theta of the :func:`quintic` interpolant through
+    y, h y' and (h^2 / 2) y'' at a step's ends (``y0``, ``s0``, ``e0`` and ``y1``, ``s1``, ``e1``)."""
+    coef[0, j] = y0
+    coef[1, j] = s0
+    coef[2, j] = e0
+    coef[3, j] = 10.0 * (y1 - y0) - 6.0 * s0 - 4.0 * s1 - 3.0 * e0 + e1
+    coef[4, j] = 15.0 * (y0 - y1) + 8.0 * s0 + 7.0 * s1 + 3.0 * e0 - 2.0 * e1
+    coef[5, j] = 6.0 * (y1 - y0) - 3.0 * s0 - 3.0 * s1 - e0 + e1
 
 
 #: Samples of one step evaluated together (:func:`rkn_run`): the force quintics are evaluated one

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .rkn_kernels import hermite, quintic
+from .rkn_kernels import hermite, quintic, quintic_row
 
 __all__ = ["PATH_ROWS", "path_coefficients", "path_at", "axial", "block_of_samples", "record_bodies", "hermite_root"]
 
@@ -36,18 +36,8 @@ def path_coefficients(ed, b, c, j, h, pc, r_d):
     """Contact j's path over the step from end data ``ed[b]`` to ``ed[c]`` (rows ``r_d``, ``r_d + 1``,
     ``r_d + 2``: overlap, its rate, the rate's rate) into ``pc[:, j]``."""
     hh = 0.5 * h * h
-    d0 = ed[b, r_d, j]
-    s0 = h * ed[b, r_d + 1, j]
-    e0 = hh * ed[b, r_d + 2, j]
-    d1 = ed[c, r_d, j]
-    s1 = h * ed[c, r_d + 1, j]
-    e1 = hh * ed[c, r_d + 2, j]
-    pc[0, j] = d0
-    pc[1, j] = s0
-    pc[2, j] = e0
-    pc[3, j] = 10.0 * (d1 - d0) - 6.0 * s0 - 4.0 * s1 - 3.0 * e0 + e1
-    pc[4, j] = 15.0 * (d0 - d1) + 8.0 * s0 + 7.0 * s1 + 3.0 * e0 - 2.0 * e1
-    pc[5, j] = 6.0 * (d1 - d0) - 3.0 * s0 - 3.0 * s1 - e0 + e1
+    quintic_row(pc, j, ed[b, r_d, j], h * ed[b, r_d + 1, j], hh * ed[b, r_d + 2, j], ed[c, r_d, j],
+                h * ed[c, r_d + 1, j], hh * ed[c, r_d + 2, j])
     r0 = ed[b, r_d + 1, j]
     g0 = h * ed[b, r_d + 2, j]
     r1 = ed[c, r_d + 1, j]

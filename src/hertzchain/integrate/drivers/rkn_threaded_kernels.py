@@ -248,18 +248,8 @@ def _sample_setup(edb, edc, h, coef, cross):
             ncross += 1
     hh = h * h
     for j in range(lo, hi):
-        f0 = edb[R_F, j]
-        d0 = h * edb[R_DF, j]
-        e0 = 0.5 * hh * edb[R_DDF, j]
-        f1 = edc[R_F, j]
-        d1 = h * edc[R_DF, j]
-        e1 = 0.5 * hh * edc[R_DDF, j]
-        coef[0, j] = f0
-        coef[1, j] = d0
-        coef[2, j] = e0
-        coef[3, j] = 10.0 * (f1 - f0) - 6.0 * d0 - 4.0 * d1 - 3.0 * e0 + e1
-        coef[4, j] = 15.0 * (f0 - f1) + 8.0 * d0 + 7.0 * d1 + 3.0 * e0 - 2.0 * e1
-        coef[5, j] = 6.0 * (f1 - f0) - 3.0 * d0 - 3.0 * d1 - e0 + e1
+        rk.quintic_row(coef, j, edb[R_F, j], h * edb[R_DF, j], 0.5 * hh * edb[R_DDF, j], edc[R_F, j],
+                       h * edc[R_DF, j], 0.5 * hh * edc[R_DDF, j])
     return lo, hi, ncross
 
 
