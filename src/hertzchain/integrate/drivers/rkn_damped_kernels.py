@@ -331,11 +331,9 @@ def _state(d, r, fu):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _error_terms(ed, c, kappa, damping, inv_mass, law, mode, et):
-    """The factors of e_j(h) (module docstring) that do not depend on h, of every contact on the
-    loaded branch ``mode`` (open and clipped contacts carry no force), into ``et[:, i]`` for the
-    i-th of them: those of h^5 and h^(5/2) of the Hertz part (right at the closing, delta = 0,
-    only the crossing term holds), of h^5 and h^(3/2) of Kuwabara-Kono's, of h^5 of the dynamics.
-    Returns how many; :func:`_max_error` evaluates them at each h that ``next_step`` tries."""
+    """e_j(h)'s factors of h^5 and h^(5/2) (Hertz part; at delta = 0 only the crossing term), h^5
+    and h^(3/2) (Kuwabara-Kono's), h^5 (dynamics) into ``et[:, i]``, i counting the contacts on
+    the loaded branch ``mode``; returns their count (:func:`_max_error` evaluates them)."""
     n = 0
     for j in range(kappa.shape[0]):
         if mode[j] > 0.0:
