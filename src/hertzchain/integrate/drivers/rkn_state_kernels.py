@@ -499,6 +499,34 @@ def build(law: LawAdapter):
         ends[c, E_PE] = pe
         ends[c, E_W] = w
 
+    @njit(nogil=True, error_model="numpy", **NO_REFCOUNT)
+    def step_paths(ed, b, c, hl, fits, kappa, damping, off, Sp, last, shut, fitted, pc, fv):
+        """A step's samples, prepared once (``run``'s probes): which contacts carry no force over
+        it (``shut``), the others' paths (``pc``) and, with ``fits``, the fitted forces of those
+        clear of their opening (``fitted``; rows 0-5 of ``pc``, rkn_samples); returns the range
+        lo..hi-1 of the contacts with a force."""
+        lo, hi = kappa.shape[0], 0
+        for j in range(shut.shape[0]):
+            m = int(last[j])
+            shut[j] = (m & LOADED) == 0 or (
+                quintic_at_most(ed[b, 2, j], ed[b, 3, j], ed[b, 4, j], ed[c, 2, j], ed[c, 3, j], ed[c, 4, j], hl,
+                                DELTA_MIN)
+                and branch_force(DELTA_MIN, ed[b, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0
+                and branch_force(DELTA_MIN, ed[c, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0)
+            if not shut[j]:
+                lo = j if j < lo else lo
+                hi = j + 1
+                path_coefficients(ed, b, c, j, hl, pc, 2)
+                fitted[j] = fits and smooth_over_step(ed[b, 5, j], ed[b, 3, j], ed[c, 5, j], ed[c, 3, j], hl)
+                for i in range(6 if fitted[j] else 0):
+                    d, rt = path_at(pc, j, FIT_NODES[i])
+                    f, _, _ = branch_force(d, rt, kappa[j], damping[j], Sp, j, m)
+                    fitted[j] = fitted[j] and f > 0.0
+                    fv[i] = axial(f, off, j, d)
+                if fitted[j]:
+                    fit_coefficients(fv, pc, j)
+        return (lo, hi) if hi > 0 else (0, 0)
+
     @njit(nogil=True, error_model="numpy")
     def run(state, chain, off, probes, control, k_start, k_stop, acc, out_w):
         u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, last, S, Sp, up, vp, ap, ed, ends = state
@@ -610,27 +638,8 @@ def build(law: LawAdapter):
             # fitted over the step from six of the law's values, rkn_samples)
             if steps != seen:
                 seen = steps
-                lo, hi = nc, 0
-                fits = hl >= FIT_SAMPLES * interval
-                for j in range(nc):
-                    m = int(last[j])
-                    shut[j] = (m & LOADED) == 0 or (
-                        quintic_at_most(ed[b, 2, j], ed[b, 3, j], ed[b, 4, j], ed[c, 2, j], ed[c, 3, j], ed[c, 4, j],
-                                        hl, DELTA_MIN)
-                        and branch_force(DELTA_MIN, ed[b, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0
-                        and branch_force(DELTA_MIN, ed[c, 3, j], kappa[j], damping[j], Sp, j, m)[0] == 0.0)
-                    if not shut[j]:
-                        lo = j if j < lo else lo
-                        hi = j + 1
-                        path_coefficients(ed, b, c, j, hl, pc, 2)
-                        fitted[j] = fits and smooth_over_step(ed[b, 5, j], ed[b, 3, j], ed[c, 5, j], ed[c, 3, j], hl)
-                        for i in range(6 if fitted[j] else 0):
-                            d, rt = path_at(pc, j, FIT_NODES[i])
-                            f, _, _ = branch_force(d, rt, kappa[j], damping[j], Sp, j, m)
-                            fitted[j] = fitted[j] and f > 0.0
-                            fv[i] = axial(f, off, j, d)
-                        if fitted[j]:
-                            fit_coefficients(fv, pc, j)
+                lo, hi = step_paths(ed, b, c, hl, hl >= FIT_SAMPLES * interval, kappa, damping, off, Sp, last, shut,
+                                    fitted, pc, fv)
             kb = block_of_samples(k, k_stop, interval, tp, t, hl, th)
             nb = kb - k
             for j in range(lo, hi):  # one loop a contact over the samples (vectorised where fitted)
