@@ -67,15 +67,17 @@ def test_model_text_is_built_once_and_follows_the_model():
 
 
 @pytest.mark.filterwarnings("ignore::hertzchain.ElasticLimitWarning")
-@pytest.mark.parametrize("law", [hc.HuntCrossley(0.8), hc.Elastoplastic(), hc.Dashpot(gamma=8.0)],
-                         ids=["hunt_crossley", "elastoplastic", "dashpot"])
+@pytest.mark.parametrize("law", [hc.HuntCrossley(0.8), hc.HuntCrossley(0.1), hc.Elastoplastic(), hc.Dashpot(gamma=8.0)],
+                         ids=["hunt_crossley", "hunt_crossley_clipped", "elastoplastic", "dashpot"])
 def test_law_kernels_fitted_samples_are_the_law_on_the_path(law):
     """The dissipative and state kernels sample the law at each contact's interpolated path; where
     a step holds FIT_SAMPLES samples or more, a contact far from its opening takes them from a
     degree-5 fit of its force over the step (rkn_samples). The same run (the samples do not steer
     the step) recorded every 100 ns (~20 samples a step: fitted) and every 1 us (~2 a step: the law
     at every sample) agrees at the common times within the fit's documented error, and each
-    contact's largest force is its largest sample."""
+    contact's largest force is its largest sample. Hunt-Crossley at e = 0.1 is strongly damped:
+    its contacts clip (the damping pulls the force to 0) while still overlapped, and its steps
+    around the many events are short (its longest steps still fit)."""
     from hertzchain.integrate.drivers import rkn_samples
 
     model = hc.Model(hc.paper_chain("chain1"), hc.Striker(8e-3, 0.5), hc.Wall("flat"), law=law)
@@ -83,11 +85,11 @@ def test_law_kernels_fitted_samples_are_the_law_on_the_path(law):
     coarse = hc.simulate(model, 2.5e-3, hc.Probes(sample_interval=1e-6, contacts=None))
     assert fine.attrs["integrator_used"] == coarse.attrs["integrator_used"] == "rkn4"
     assert fine.attrs["n_steps"] == coarse.attrs["n_steps"]
-    assert 2.5e-3 / fine.attrs["n_steps"] / 1e-7 > 2 * rkn_samples.FIT_SAMPLES  # the fine record's steps fit
-    assert 2.5e-3 / coarse.attrs["n_steps"] / 1e-6 < rkn_samples.FIT_SAMPLES  # the coarse one's do not
+    assert fine.attrs["dt_max"] > 2 * rkn_samples.FIT_SAMPLES * 1e-7  # the fine record's long steps fit
+    assert coarse.attrs["dt_max"] < rkn_samples.FIT_SAMPLES * 1e-6  # the coarse one's do not
     f, fc = fine.contact_force.values[::10], coarse.contact_force.values
     peak = fc.max(axis=0)
-    assert peak.min() > 1.0  # the pulse crossed every contact
+    assert peak.min() > 0.1  # the pulse crossed every contact
     # each contact within 1e-9 of its own largest force (near its openings too: a fit there, not
     # clear of the opening by FIT_CLEARANCE steps, errs by ~1e-8 of it and ~1e-4 of the force),
     # and within 1e-8 of the force itself where that exceeds 1e-3 of the contact's largest

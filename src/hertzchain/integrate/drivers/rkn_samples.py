@@ -24,7 +24,8 @@ from numba import njit
 
 from .rkn_kernels import hermite, quintic, quintic_row
 
-__all__ = ["PATH_ROWS", "path_coefficients", "path_at", "axial", "block_of_samples", "record_bodies", "hermite_root"]
+__all__ = ["PATH_ROWS", "path_coefficients", "path_at", "axial", "block_of_samples", "record_bodies", "hermite_root",
+           "FIT_NODES", "FIT_MATRIX", "FIT_SAMPLES", "FIT_CLEARANCE", "smooth_over_step", "fit_coefficients", "fit_at"]
 
 #: Rows of a contact's path coefficients ``pc[:, j]``: six of the overlap's quintic, four of the
 #: rate's cubic (powers of theta, lowest first).

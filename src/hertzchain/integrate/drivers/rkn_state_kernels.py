@@ -508,6 +508,7 @@ def build(law: LawAdapter):
         lo, hi = kappa.shape[0], 0
         for j in range(shut.shape[0]):
             m = int(last[j])
+            fitted[j] = False  # (not the last step's fit)
             shut[j] = (m & LOADED) == 0 or (
                 quintic_at_most(ed[b, 2, j], ed[b, 3, j], ed[b, 4, j], ed[c, 2, j], ed[c, 3, j], ed[c, 4, j], hl,
                                 DELTA_MIN)
@@ -644,12 +645,12 @@ def build(law: LawAdapter):
             nb = kb - k
             for j in range(lo, hi):  # one loop a contact over the samples (vectorised where fitted)
                 m = int(last[j])
-                if fitted[j]:
-                    for i in range(nb):
-                        fi[j, i] = fit_at(pc, j, th[i])
-                elif shut[j]:
+                if shut[j]:
                     for i in range(nb):
                         fi[j, i] = 0.0
+                elif fitted[j]:
+                    for i in range(nb):
+                        fi[j, i] = fit_at(pc, j, th[i])
                 else:
                     for i in range(nb):
                         d, rt = path_at(pc, j, th[i])
