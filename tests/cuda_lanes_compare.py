@@ -118,6 +118,10 @@ def ptx() -> dict:
 if __name__ == "__main__":
     import sys
 
+    from simulator_core import pin_to_one_cpu
+
+    pin_to_one_cpu()
+
     if sys.argv[1:] == ["ptx"]:
         print(json.dumps(ptx()))
     else:

@@ -37,7 +37,11 @@ def compare(law, wall=None, chain=None) -> dict:
 
 
 if __name__ == "__main__":
+    from simulator_core import pin_to_one_cpu
+
     from hertzchain.elements import Element
+
+    pin_to_one_cpu()
 
     body = hc.Wall("body", mass=0.02, stiffness=1e6, damping=5.0)
     mim = hc.Chain(np.full(3, 10e-3), "AISI52100", None, Element("mim", resonator_fraction=0.3,
