@@ -224,7 +224,7 @@ def test_divergence_message_names_run_dt_only_when_it_was_given(monkeypatch):
     """Issue: the divergence message asked for a smaller run.dt when none was given."""
     from hertzchain.integrate.core import kernels
 
-    monkeypatch.setattr(kernels, "verlet_run", lambda *args: 1)  # the kernel reports a non-finite state
+    monkeypatch.setattr(kernels, "verlet_run_of", lambda kind: lambda *args: 1)  # the kernel reports a non-finite state
     model = hc.Model(hc.Chain.uniform(3, 26e-3), hc.Striker(8e-3, 0.2))
     with pytest.raises(SimulationDiverged) as auto:
         hc.simulate(model, 1e-4, integrator="verlet")  # the Verlet kernel patched above

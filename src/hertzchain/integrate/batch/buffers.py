@@ -107,7 +107,7 @@ def release_records() -> None:
 
 @dataclass
 class _Packed:
-    """A batch laid out for the engine: ragged flat buffers (see ``batch_engine._batch_kernel``),
+    """A batch laid out for the engine: ragged flat buffers (see ``batch_engine._batch_members``),
     per-member step plans and parameters, output buffers (sample 0 written) and the kernel's
     trackers."""
 

@@ -20,6 +20,7 @@ from numba import njit
 from ...errors import ConfigError
 from ...interrupts import check as check_interrupt
 from ..core import kernels
+from ..core.kernels import RUN_ELASTIC, RUN_EXTENDED, RUN_GENERAL, RUN_PLASTIC
 from ..core.structures import ChainArrays, ContactArrays, Extension, VerletControl, VerletProbes, VerletState
 from .buffers import _Packed, check_members_finite
 from .dealt import default_threads, run_dealt
@@ -158,10 +159,11 @@ def _member(m, members, flat, records, interval):
     return state, chain, contacts, extension, probes, control
 
 
-@njit(cache=True, nogil=True)
-def _batch_kernel(order, members, flat, records, interval, k_start, k_stop, status):
+@njit(cache=True, nogil=True, inline="always")
+def _batch_members(kind, order, members, flat, records, interval, k_start, k_stop, status):
     """Advance the members ``order`` (a thread's share, :mod:`.dealt`) from sample ``k_start`` to
-    ``k_stop`` with :func:`kernels.verlet_run`.
+    ``k_stop`` with the compiled Verlet run of ``kind`` (``kernels.run_kind``: every member of
+    ``order`` of that kind; a constant, so that a batch compiles only the runs its members need).
 
     Members (:class:`Members`, :class:`FlatBuffers`, :class:`Records`). ``status[m]`` is the
     kernel's return value; a member that diverged is not advanced again.
@@ -171,15 +173,50 @@ def _batch_kernel(order, members, flat, records, interval, k_start, k_stop, stat
         if status[m] != 0:
             continue
         state, chain, contacts, extension, probes, control = _member(m, members, flat, records, interval)
-        status[m] = kernels.verlet_run(state, chain, contacts, extension, probes, control, members.law[m],
-                                       members.general[m], k_start, k_stop)
+        law, general = members.law[m], members.general[m]
+        if kind == RUN_ELASTIC:
+            status[m] = kernels.verlet_run_elastic(state, chain, contacts, extension, probes, control, law, general,
+                                                   k_start, k_stop)
+        elif kind == RUN_GENERAL:
+            status[m] = kernels.verlet_run_general(state, chain, contacts, extension, probes, control, law, general,
+                                                   k_start, k_stop)
+        elif kind == RUN_PLASTIC:
+            status[m] = kernels.verlet_run_plastic(state, chain, contacts, extension, probes, control, law, general,
+                                                   k_start, k_stop)
+        else:
+            status[m] = kernels.verlet_run_extended(state, chain, contacts, extension, probes, control, law, general,
+                                                    k_start, k_stop)
+
+
+@njit(cache=True, nogil=True)
+def _batch_elastic(order, members, flat, records, interval, k_start, k_stop, status):
+    _batch_members(RUN_ELASTIC, order, members, flat, records, interval, k_start, k_stop, status)
+
+
+@njit(cache=True, nogil=True)
+def _batch_general(order, members, flat, records, interval, k_start, k_stop, status):
+    _batch_members(RUN_GENERAL, order, members, flat, records, interval, k_start, k_stop, status)
+
+
+@njit(cache=True, nogil=True)
+def _batch_plastic(order, members, flat, records, interval, k_start, k_stop, status):
+    _batch_members(RUN_PLASTIC, order, members, flat, records, interval, k_start, k_stop, status)
+
+
+@njit(cache=True, nogil=True)
+def _batch_extended(order, members, flat, records, interval, k_start, k_stop, status):
+    _batch_members(RUN_EXTENDED, order, members, flat, records, interval, k_start, k_stop, status)
+
+
+#: The batch kernel of each kind of Verlet run (``kernels.run_kind``).
+_BATCH_KERNELS = (_batch_elastic, _batch_general, _batch_plastic, _batch_extended)
 
 
 _GENERATED: dict = {}
 
 
 def _generated_batch_kernel(code: int):
-    """:func:`_batch_kernel` with the stepping loop generated from law ``code`` (:mod:`.generated`)
+    """:func:`_batch_members` with the stepping loop generated from law ``code`` (:mod:`.generated`)
     in place of ``kernels.verlet_run``; compiled once per law and process."""
     if code not in _GENERATED:
         run = law_kernels(code)[1]
@@ -198,7 +235,7 @@ def _generated_batch_kernel(code: int):
     return _GENERATED[code]
 
 
-kernels.flush_stale_cache(_batch_kernel)
+kernels.flush_stale_cache(*_BATCH_KERNELS)
 
 
 def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_forces: bool = True,
@@ -233,7 +270,10 @@ def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_fo
     order = np.argsort(-cost, kind="stable").astype(np.int64)
     # one launch per engine: the hand-written loop for the built-in laws, each generated law's own
     generated = np.array([is_generated(c) for c in pk.law[order]], dtype=bool)
-    groups = [(_batch_kernel, order[~generated])] if not generated.all() else []
+    kinds = np.array([kernels.run_kind(int(c), bool(gen), bool(ext))
+                      for c, gen, ext in zip(pk.law[order], pk.general[order], pk.ext_on[order])], dtype=np.int64)
+    groups = [(_BATCH_KERNELS[kind], order[~generated & (kinds == kind)])
+              for kind in np.unique(kinds[~generated])]
     groups += [(_generated_batch_kernel(int(c)), order[pk.law[order] == c]) for c in np.unique(pk.law[order[generated]])]
     samples_per_call = max(1, int(CHUNK_SLOT_STEPS * default_threads(n_threads) // cost.sum()))
     structures = batch_structures(pk)

@@ -34,6 +34,7 @@ from numba import njit
 
 from .disk_cache import INTEGRATE, files_digest, function_files_digest, on_disk
 from .extension import EXT_IMIN, EXT_KIN, EXT_W, close_sample, extended_steps, extension_stride, internal_acceleration
+from . import kernels
 from .kernels import DELTA_MIN, _adapt_stride, kinetic_energy
 from .primitives import _track_peak, kick, open_block, predict, total
 
@@ -428,10 +429,9 @@ def is_generated(code: int) -> bool:
     return int(code) >= FIRST_GENERATED_CODE
 
 
-def run_kernel(code: int):
-    """The stepping loop for law code ``code``: ``kernels.verlet_run`` or the law's generated ``run``."""
+def run_kernel(code: int, general: bool, extended: bool):
+    """The stepping loop for law code ``code`` (and ``System.general``, ``System.extended``): the
+    law's generated ``run``, or the hand-written run of that kind (``kernels.verlet_run_of``)."""
     if is_generated(code):
         return law_kernels(code)[1]
-    from .kernels import verlet_run
-
-    return verlet_run
+    return kernels.verlet_run_of(kernels.run_kind(code, general, extended))

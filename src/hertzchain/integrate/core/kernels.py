@@ -401,9 +401,30 @@ def _adapt_stride(req, ns, relax, acc):
     return ns
 
 
-@njit(cache=True, nogil=True)
-def verlet_run(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
+#: What a compiled Verlet run steps (``kind``, a compile-time constant of each, :func:`run_kind`):
+#: aligned elastic chains; the general force loop (the viscous laws, offsets); the elastic-plastic
+#: law; an extension (a protected body, mass-in-mass beads). One function held every path and a
+#: first run of any model compiled them all (30 CPU-s; an elastic chain now compiles its own, 5).
+RUN_ELASTIC, RUN_GENERAL, RUN_PLASTIC, RUN_EXTENDED = 0, 1, 2, 3
+
+
+def run_kind(law: int, general: bool, extended: bool) -> int:
+    """The ``kind`` of Verlet run a system needs (``System.general``, ``System.extended``)."""
+    if extended:
+        return RUN_EXTENDED
+    if not general:
+        return RUN_ELASTIC
+    return RUN_PLASTIC if law == LAW_ELASTOPLASTIC else RUN_GENERAL
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _verlet_run(kind, state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
     """Advance from sample ``k_start`` to ``k_stop`` (samples ``interval`` seconds apart) with velocity Verlet.
+
+    Inlined with ``kind`` (:func:`run_kind`) a constant into :func:`verlet_run_elastic`,
+    :func:`verlet_run_general`, :func:`verlet_run_plastic` and :func:`verlet_run_extended`
+    (:func:`verlet_run_of`): Numba drops the branches of the other kinds before it types them,
+    so each compiles only its own steps. A run of another kind than its arguments is refused.
 
     ``state`` (:class:`~.structures.VerletState`), ``chain`` (:class:`~.structures.ChainArrays`),
     ``contacts`` (:class:`~.structures.ContactArrays`), ``extension``
@@ -455,6 +476,10 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
     ext, ext_on, body_slot = extension
     rec, out_f, _, _, _, out_wp, _, _, _, _, fmax, peak, _ = probes
     interval, stride, n_sub, n_eval, c_steps, relax = control
+    expected = RUN_EXTENDED if ext_on else (RUN_ELASTIC if not general else (
+        RUN_PLASTIC if law == LAW_ELASTOPLASTIC else RUN_GENERAL))
+    if expected != kind:
+        raise ValueError("verlet_run: this compiled run steps another kind of model (kernels.run_kind)")
     n = a.shape[0]
     nout = rec.shape[0]
     block = interval / n_sub
@@ -497,7 +522,7 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
             dt = block / ns
             half = 0.5 * dt
             t0 = (k - 1) * interval + b * block
-            if ext_on:
+            if kind == RUN_EXTENDED:
                 step_extended(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dyield, dmax,
                               dres, kres, ext, body_slot, wall_slot, t0, dt, ns, peak, acc)
                 step += ns
@@ -505,18 +530,18 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
             for i in range(n):
                 v[i] += half * a[i]
                 u[i] += dt * v[i]
-            if general and aligned and law != LAW_ELASTOPLASTIC:
+            if kind == RUN_GENERAL and aligned:
                 # aligned viscous chains: one fused pass per step, the same numbers as the general
                 # path (the elastic-plastic law's fused steps, while no contact yields: plastic_block)
                 dissipative_block(u, v, vp, a, g, kappa, cd, d0, fext, inv_mass, law, unloaded, ns, dt, t0, wall_slot,
                                   peak, acc)
-            elif general and law == LAW_ELASTIC:  # offsets: the fused steps of fused.py, the same numbers
+            elif kind == RUN_GENERAL and law == LAW_ELASTIC:  # offsets: the fused steps of fused.py, the same numbers
                 offset_elastic_block(u, v, a, g, ec, kappa, d0, de, dx0, rsum, fext, inv_mass, ns, dt, t0, wall_slot,
                                      peak)
-            elif general and law != LAW_ELASTOPLASTIC:
+            elif kind == RUN_GENERAL:
                 offset_dissipative_block(u, v, a, g, ec, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, ns,
                                          dt, t0, wall_slot, peak, acc)
-            elif general:
+            elif kind == RUN_PLASTIC:
                 plastic_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dyield, dmax, dres,
                               kres, aligned, ns, dt, t0, wall_slot, peak, acc, ck)
             else:
@@ -542,13 +567,13 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
         for j in range(fmax.shape[0]):
             x = g1[j]
             fmax[j] = x if x > fmax[j] else fmax[j]  # a ternary vectorises; Numba's max() does not
-        if law == LAW_ELASTOPLASTIC:
+        if kind != RUN_ELASTIC and law == LAW_ELASTOPLASTIC:
             ke = kinetic_energy(v, mass)
             pe = potential_energy_plastic(u, d0, de, dx0, rsum, fext, dres, kres)
             out_wp[k] = plastic_work(kappa, dyield, dmax, dres)
-        elif general and not aligned and not ext_on:  # the contact energies the fused steps left in ec
+        elif kind == RUN_GENERAL and not aligned:  # the contact energies the fused steps left in ec
             ke, pe = energies_offset(u, v, mass, fext, ec)
-        elif general:
+        elif kind != RUN_ELASTIC:
             ke = kinetic_energy(v, mass)
             pe = potential_energy(u, g, kappa, d0, de, dx0, rsum, fext, False)
         else:
@@ -557,6 +582,36 @@ def verlet_run(state, chain, contacts, extension, probes, control, law, general,
             return 1
     acc[2] = step
     return 0
+
+
+@njit(cache=True, nogil=True)
+def verlet_run_elastic(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
+    """:func:`_verlet_run` of an aligned elastic chain (``RUN_ELASTIC``)."""
+    return _verlet_run(RUN_ELASTIC, state, chain, contacts, extension, probes, control, law, general, k_start, k_stop)
+
+
+@njit(cache=True, nogil=True)
+def verlet_run_general(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
+    """:func:`_verlet_run` of the general force loop (``RUN_GENERAL``)."""
+    return _verlet_run(RUN_GENERAL, state, chain, contacts, extension, probes, control, law, general, k_start, k_stop)
+
+
+@njit(cache=True, nogil=True)
+def verlet_run_plastic(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
+    """:func:`_verlet_run` of the elastic-plastic law (``RUN_PLASTIC``)."""
+    return _verlet_run(RUN_PLASTIC, state, chain, contacts, extension, probes, control, law, general, k_start, k_stop)
+
+
+@njit(cache=True, nogil=True)
+def verlet_run_extended(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
+    """:func:`_verlet_run` of a model with the extension (``RUN_EXTENDED``)."""
+    return _verlet_run(RUN_EXTENDED, state, chain, contacts, extension, probes, control, law, general, k_start,
+                       k_stop)
+
+
+def verlet_run_of(kind: int):
+    """The compiled Verlet run of ``kind`` (:func:`run_kind`)."""
+    return (verlet_run_elastic, verlet_run_general, verlet_run_plastic, verlet_run_extended)[kind]
 
 
 def flush_stale_cache(*kernels_using: Any, also: tuple[str | Path, ...] = ()) -> None:
@@ -594,4 +649,5 @@ def flush_stale_cache(*kernels_using: Any, also: tuple[str | Path, ...] = ()) ->
 # extension.py, primitives.py, fused.py and plastic.py into itself:
 # an edit there must recompile it too (Numba's cache only checks the file of the function it caches).
 flush_stale_cache(forces_general, dissipative_block, _kk_block, _kk_block_unloaded, _dashpot_block,
-                  _dashpot_block_unloaded, plastic_block, offset_elastic_block, offset_dissipative_block, verlet_run)
+                  _dashpot_block_unloaded, plastic_block, offset_elastic_block, offset_dissipative_block,
+                  verlet_run_elastic, verlet_run_general, verlet_run_plastic, verlet_run_extended)

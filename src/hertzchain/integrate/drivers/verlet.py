@@ -246,7 +246,7 @@ def run_verlet(system: System, duration: float, sample_interval: float, dt: floa
     if progress is not None:
         progress(0, n_samples - 1)  # the checks passed and the work starts
     k = 1
-    stepper = run_kernel(system.law)  # kernels.verlet_run, or the loop generated from the law
+    stepper = run_kernel(system.law, system.general, system.extended)  # hand-written, or generated from the law
     chain, contacts_, extension, control = w.chain(), w.contacts(), w.extension(), plan.control(sample_interval)
     while k < n_samples:
         k_stop = min(n_samples, k + samples_per_chunk)
