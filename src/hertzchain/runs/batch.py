@@ -9,7 +9,7 @@ numerical is re-implemented here:
   same kernel calls, in the same order, as :func:`hertzchain.integrate.drivers.verlet.run_verlet`;
 - the padded arrays of all members are concatenated into flat ragged buffers (one offset table);
 - one compiled loop per thread (members dealt to threads) hands every member to the very same
-  :func:`hertzchain.integrate.core.kernels.verlet_run` on slices of those buffers (slices are views,
+  :func:`hertzchain.integrate.core.kernels._verlet_run` on slices of those buffers (slices are views,
   so the kernel writes straight into the outputs). Velocity Verlet has no cross-member coupling
   and no reductions across members, so the thread that runs a member cannot change its result.
 

@@ -1,7 +1,7 @@
 """The batched engine on the CPU: every member of a packed batch advanced by one compiled loop.
 
 One compiled loop per thread (:mod:`.dealt`: the members dealt to threads) hands every member to the very same
-:func:`hertzchain.integrate.core.kernels.verlet_run` on slices of the flat buffers of a
+:func:`hertzchain.integrate.core.kernels._verlet_run` on slices of the flat buffers of a
 :class:`~hertzchain.integrate.batch.buffers._Packed` (slices are views, so the kernel writes
 straight into the outputs), taken by the loop as three typed structures (:class:`Members`,
 :class:`FlatBuffers`, :class:`Records`) and handed to the kernel as its own. Velocity Verlet
@@ -99,7 +99,7 @@ class FlatBuffers(NamedTuple):
 
 class Records(NamedTuple):
     """Every member's probes (flat or one row per member, :class:`Members`) and its wall-peak
-    tracker and accumulators (``peak[m]``, ``acc[m]``: ``kernels.verlet_run``'s)."""
+    tracker and accumulators (``peak[m]``, ``acc[m]``: ``kernels._verlet_run``'s)."""
 
     rec: np.ndarray
     out_f: np.ndarray
@@ -217,7 +217,7 @@ _GENERATED: dict = {}
 
 def _generated_batch_kernel(code: int):
     """:func:`_batch_members` with the stepping loop generated from law ``code`` (:mod:`.generated`)
-    in place of ``kernels.verlet_run``; compiled once per law and process."""
+    in place of ``kernels._verlet_run``; compiled once per law and process."""
     if code not in _GENERATED:
         run = law_kernels(code)[1]
 

@@ -207,7 +207,7 @@ def extended_steps(forces):
 
 @njit(cache=True, nogil=True, inline="always")
 def close_sample(k, ke, pe, u, v, a, g, d0, extension, probes, acc, step):
-    """The end of sample ``k`` that every Verlet loop shares (``kernels.verlet_run`` and a registry
+    """The end of sample ``k`` that every Verlet loop shares (``kernels._verlet_run`` and a registry
     law's generated run): the extension's energies added to the kinetic ``ke`` and potential ``pe``
     energies [J] and its body recorded (``extension``: :class:`~.structures.Extension`), then the
     energies, the dissipated energy acc[0] and the velocities (when recorded) written to ``probes``

@@ -1,6 +1,6 @@
 """Fused Verlet steps of misaligned chains (bead centres off the axis): one vectorisable pass per step.
 
-Called by :func:`hertzchain.integrate.core.kernels.verlet_run` for the blocks of a chain with offsets and
+Called by :func:`hertzchain.integrate.core.kernels._verlet_run` for the blocks of a chain with offsets and
 the elastic, Kuwabara-Kono or dashpot law (the elastic-plastic law keeps the general path's two
 passes). Arrays and layout as in :mod:`hertzchain.integrate.core.kernels`.
 
@@ -119,7 +119,7 @@ def step_offset_dissipative(u, v, a, g, e, kappa, damping, d0, de, dx0, rsum, fe
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def offset_elastic_block(u, v, a, g, e, kappa, d0, de, dx0, rsum, fext, inv_mass, ns, dt, t0, wall_slot, peak):
-    """The ``ns`` steps of a block of ``kernels.verlet_run`` for a misaligned elastic chain
+    """The ``ns`` steps of a block of ``kernels._verlet_run`` for a misaligned elastic chain
     (:func:`step_offset_elastic`; the block's opening half kick and drift done by the caller), with
     the wall peak; ``e`` receives the contacts' Hertz energies at the block's end
     (:func:`energies_offset`). No power: the elastic law dissipates nothing (the general path adds
@@ -136,7 +136,7 @@ def offset_elastic_block(u, v, a, g, e, kappa, d0, de, dx0, rsum, fext, inv_mass
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc"})
 def offset_dissipative_block(u, v, a, g, e, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, ns, dt, t0,
                              wall_slot, peak, acc):
-    """The ``ns`` steps of a block of ``kernels.verlet_run`` for a misaligned viscoelastic or
+    """The ``ns`` steps of a block of ``kernels._verlet_run`` for a misaligned viscoelastic or
     dashpot chain (:func:`step_offset_dissipative`), with the dissipated energy's trapezoidal
     integral in acc[0:2], the wall peak and the contacts' Hertz energies at the block's end in
     ``e``; as ``kernels.dissipative_block``, whose power sum may be reassociated (the forces,

@@ -11,7 +11,7 @@ law's ``force``/``state``/``energy``/``partials`` (Numba inlines the jitted clos
   as ``kernels.forces_general`` writes them (the same overlap geometry, misaligned pairs
   included, the same d == 0 convention), the law's state updated in place; returns the
   dissipated power (F - F(rate = 0)) d(delta)/dt [W];
-- ``run``: :func:`hertzchain.integrate.core.kernels.verlet_run` with the same arguments (the typed
+- ``run``: :func:`hertzchain.integrate.core.kernels._verlet_run` with the same arguments (the typed
   structures of :mod:`.structures`, a protected body's and mass-in-mass beads' extension
   included: :func:`~.extension.extended_steps` around the law's force pass, its bound
   :func:`~.extension.extension_stride` added to the law's) and the same kick-drift-kick steps, adaptive

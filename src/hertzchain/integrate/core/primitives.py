@@ -96,7 +96,7 @@ def kick(u, v, vp, a, g, fext, inv_mass, dt, half, last):
     """The bodies' accelerations a_i = (F_{i-1} - F_i + f_ext,i) / m_i from the forces ``g``, then
     v += dt a, u += dt v with the next step's predicted velocities vp = v + (dt/2) a (or, when
     ``last``, the closing half kick v += half a): the numbers of the update loops of
-    ``kernels.verlet_run``."""
+    ``kernels._verlet_run``."""
     for i in range(a.shape[0]):
         ai = (g[i] - g[i + 1] + fext[i]) * inv_mass[i]
         a[i] = ai
@@ -111,7 +111,7 @@ def kick(u, v, vp, a, g, fext, inv_mass, dt, half, last):
 
 @njit(cache=True, nogil=True)
 def _track_peak(fw, t, dt, peak):
-    """Running maximum of the wall force with its neighbours (see ``kernels.verlet_run``)."""
+    """Running maximum of the wall force with its neighbours (see ``kernels._verlet_run``)."""
     if fw > peak[0]:
         peak[0] = fw
         peak[1] = t

@@ -8,7 +8,7 @@ local arrays as before and compile to the same code. The arrays are those of
 
 - :class:`ChainArrays`: the chain as every run reads it (the fourth-order runs of
   :mod:`hertzchain.integrate.drivers.rkn_kernels` too);
-- the Verlet family (``kernels.verlet_run``, the loop :mod:`.generated` builds from a registry
+- the Verlet family (``kernels._verlet_run``, the loop :mod:`.generated` builds from a registry
   law, the threaded runs of :mod:`hertzchain.integrate.drivers.threaded`): :class:`VerletState`,
   :class:`ContactArrays`, :class:`Extension`, :class:`VerletProbes` and :class:`VerletControl`.
   The fourth-order runs keep their own state, probes and step control (other fields: no plastic
@@ -83,7 +83,7 @@ class VerletProbes(NamedTuple):
     (threaded runs; a single-thread run's driver copies ``u`` between its calls) positions [m] of
     bodies 0..N when ``record_v`` / ``record_u``, every contact's largest sampled force in ``fmax``
     [N], the protected body's [displacement, velocity, acceleration, work] in row k of ``out_b``;
-    ``peak`` (8 slots) tracks the wall force between steps (``kernels.verlet_run``)."""
+    ``peak`` (8 slots) tracks the wall force between steps (``kernels._verlet_run``)."""
 
     rec: np.ndarray
     out_f: np.ndarray

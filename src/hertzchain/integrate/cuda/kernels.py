@@ -1,4 +1,4 @@
-"""The CUDA kernels of the batched engine: :func:`kernels.verlet_run`'s velocity Verlet on a GPU.
+"""The CUDA kernels of the batched engine: :func:`kernels._verlet_run`'s velocity Verlet on a GPU.
 
 Written with ``numba.cuda``, the same Numba family as the CPU kernels, so they also run on a CPU
 through Numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1``). Compiled lazily (:func:`_kernels`,
@@ -195,7 +195,7 @@ def _kernels() -> dict:
 
     @cuda.jit(device=True, **inline)
     def plastic_probes(row, u, kappa, d0, de, dx0, rsum, fext, dyield, dmax, dres, kres, out_pe, out_wp, n, m):
-        """The elastic-plastic member m's probes at a sample (row ``row``), as kernels.verlet_run
+        """The elastic-plastic member m's probes at a sample (row ``row``), as kernels._verlet_run
         takes them: the potential energy is what the unloading curves give back
         (energies.potential_energy_plastic, written over the Hertz sum of ``sample``) and the
         plastic work so far (energies.plastic_work)."""
@@ -310,7 +310,7 @@ def _kernels() -> dict:
                       dres, kres, law, general, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax, k_start,
                       k_stop, rec, out_f, out_ke, out_pe, out_ed, out_wp, out_v, record_v, fmax, peak, acc, status, wa,
                       ext, ext_on, body_slot, out_b):
-        """kernels.verlet_run for member m = the thread's index, samples k_start..k_stop - 1.
+        """kernels._verlet_run for member m = the thread's index, samples k_start..k_stop - 1.
 
         Sample k is written at row k - k_start of out_f (rows, rec, M), out_ke/pe/ed/wp (rows, M)
         and out_v (rows, bodies, M). The elastic-plastic state (dyield ... kres, (slot, member))

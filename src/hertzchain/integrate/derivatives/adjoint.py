@@ -224,7 +224,7 @@ _steps_plastic = _general_steps(True)
 def _steps_dissipative(nsteps, ustore, vpstore, hstore, step0, ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa, damping,
                        d0, fext, law, seed_step, seed_contact, seed_w, ptr, grad):
     """:func:`_steps_general` for an aligned viscoelastic or dashpot chain without a protected body
-    (the chains ``kernels.verlet_run`` steps with its fused dissipative step): the partials of
+    (the chains ``kernels._verlet_run`` steps with its fused dissipative step): the partials of
     Kuwabara-Kono's and the dashpot's partials (``partials.law_partials``) written out with selects, so that
     LLVM vectorises the contact loop."""
     n = ab.shape[0]

@@ -120,7 +120,7 @@ class Tape:
     max_force, max_force_sample : numpy.ndarray
         Every contact's largest sampled force [N] and the sample it came from.
     peak : numpy.ndarray
-        The wall-peak tracker (``kernels.verlet_run``); ``peak_step`` the step of its maximum.
+        The wall-peak tracker (``kernels._verlet_run``); ``peak_step`` the step of its maximum.
     peak_wall_force, peak_wall_time : float
         Refined as :func:`hertzchain.integrate.drivers.verlet.refine_peak` does [N, s].
     step_end : numpy.ndarray

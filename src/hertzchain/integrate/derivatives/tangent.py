@@ -8,7 +8,7 @@ For D directions theta' (one per parameter of interest), each step propagates
     a'_{s+1,i} = (F'_{i-1} - F'_i + f_ext,i') / m_i + (1/m_i)' (net force)_i,  v'_{s+1} = vh' + h/2 a'_{s+1}
 
 (step convention of :mod:`hertzchain.integrate.derivatives.tape`). The primal steps are those of
-``kernels.verlet_run`` (the same adaptive choices and arithmetic), each step taking its contacts'
+``kernels._verlet_run`` (the same adaptive choices and arithmetic), each step taking its contacts'
 partials where it takes their forces, then every direction's step. Cost: about two runs plus one
 per direction; it gives the derivative of every sample at once (the wall-force trace a fit
 needs), where the adjoint (:mod:`hertzchain.integrate.derivatives.adjoint`) gives one scalar's gradient for
@@ -33,7 +33,7 @@ from .tape import bodies_kick, has_inner, inner_accelerations, open_block
 
 @njit(cache=True, nogil=True, inline="always")
 def _kick(u, v, i, ai, dt, last):
-    """Body i's update after its acceleration ``ai`` (``kernels.verlet_run``'s step): the kick
+    """Body i's update after its acceleration ``ai`` (``kernels._verlet_run``'s step): the kick
     v += dt a then the drift u += dt v, or in a block's ``last`` step only the closing half kick."""
     if last:
         v[i] += 0.5 * dt * ai
@@ -333,7 +333,7 @@ def _tangent_loop(general: bool, aligned: bool, plastic: bool = False, inner: bo
         ``v0t`` (D, P): tangent of the initial velocities. Records, at every sample k, the primal
         forces ``out_f[k]`` and tangent forces ``out_ft[:, k]`` of the contacts ``rec``; accumulates
         dj[dd] += seed_w F'^(seed_step)_(seed_contact) (seeds sorted by step; step -1: t = 0).
-        Every step is the engine's (``kernels.verlet_run``: the same adaptive choices and arithmetic),
+        Every step is the engine's (``kernels._verlet_run``: the same adaptive choices and arithmetic),
         taking each contact's partials where it takes its force. Returns 0, or 1 when the state
         became non-finite.
         """

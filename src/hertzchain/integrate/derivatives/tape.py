@@ -1,4 +1,4 @@
-"""The primal run of the derivative engines: velocity Verlet exactly as :func:`kernels.verlet_run`
+"""The primal run of the derivative engines: velocity Verlet exactly as :func:`kernels._verlet_run`
 steps it, with the step sequence and checkpoints recorded (the "tape").
 
 A sensitivity is the derivative of the result the engine computes, on the step sequence it used:
@@ -108,7 +108,7 @@ def bodies_kick(u, v, a, g, fext, inv_mass, dt, last, ext, wa, inner, xs):
 @njit(cache=True, nogil=True, inline="always")
 def _general_block(u, v, a, g, vp, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, wall_slot, ns, dt, t0,
                    step, peak, kstar, store, stores, s0, state, extn):
-    """One block of ``ns`` steps of length ``dt`` after :func:`_open_block`, as ``kernels.verlet_run`` steps it,
+    """One block of ``ns`` steps of length ``dt`` after :func:`_open_block`, as ``kernels._verlet_run`` steps it,
     with ``kernels.forces_general`` (dissipation, offsets), and with ``ext_on`` the linear mount of a
     protected body and the internal masses of mass-in-mass beads (``kernels.forces_linear``,
     :func:`bodies_kick`: ``kernels.step_extended``'s numbers). ``stores`` is (ustore, vpstore,
@@ -274,7 +274,7 @@ def restore_inner(ck, u, ext, wa):
 
 @njit(cache=True, nogil=True)
 def _fused(general, law, de, ext_on):
-    """Whether ``kernels.verlet_run`` steps this system with its fused dissipative step: an
+    """Whether ``kernels._verlet_run`` steps this system with its fused dissipative step: an
     aligned viscoelastic or dashpot chain without a protected body."""
     aligned = True
     for i in range(de.shape[0]):

@@ -20,7 +20,7 @@ measured from the track's axis) besides the axial displacement u, and
 Axial motion along the track is free, as in the 1D model (beads roll along the groove).
 
 A pair with ey == 0 (exactly) takes the very arithmetic of the 1D kernels' aligned branch, and
-the stepping below is that of ``kernels.verlet_run``'s general path: an aligned chain (every
+the stepping below is that of ``kernels._verlet_run``'s general path: an aligned chain (every
 offset zero) never gets a transverse force, its y stays exactly 0, and the run repeats the 1D
 engine's numbers bit for bit (tests/test_lateral.py).
 """
@@ -181,7 +181,7 @@ def lateral_run(u, v, a, g, y, w, ay, gy, fy, mass, inv_mass, kappa, damping, d0
                 stiffness, friction, rest, vslip, law, wall_slot, interval, stride, n_sub, n_eval, c_steps, relax,
                 k_start, k_stop, rec, out_f, out_ke, out_pe, out_ed, out_kl, out_fl, out_y, out_w, out_p, fmax, peak,
                 acc):
-    """Advance samples ``k_start`` .. ``k_stop`` - 1 with velocity Verlet on (u, y); see ``kernels.verlet_run``.
+    """Advance samples ``k_start`` .. ``k_stop`` - 1 with velocity Verlet on (u, y); see ``kernels._verlet_run``.
 
     The stepping (blocks, adaptive step, leapfrog with fused half kicks, predicted velocities for
     the rate-dependent forces, wall-peak tracking) is that of ``verlet_run``'s general path, with

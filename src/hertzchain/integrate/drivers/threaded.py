@@ -6,7 +6,7 @@ chains run the loops of this module; every other model the thread function that
 :mod:`hertzchain.integrate.drivers.threaded_laws` builds from the law's one-contact function, with the
 same blocks, publication and barrier. Aligned elastic chains: every thread owns a block of consecutive
 slots (a multiple of 8, so that no cache line is written by two threads) and runs
-:func:`kernels.verlet_run`'s elastic loop over it: the same per-body arithmetic in the same order
+:func:`kernels._verlet_run`'s elastic loop over it: the same per-body arithmetic in the same order
 (``kernels.step_elastic``, ``step_elastic_lean``, ``final_step_elastic``), so positions,
 velocities, forces and the wall peak are bit for bit those of one thread. The only exchange is
 the position of the body on either side of a block: each thread publishes its first and last
@@ -148,7 +148,7 @@ def _publish(pub, par, tid, u, s, e):
 
 
 def _thread_run(tid, team, state, chain, contacts, probes, control, k_start, k_stop):
-    """Thread ``tid``'s share of ``kernels.verlet_run`` (aligned elastic chain) from sample
+    """Thread ``tid``'s share of ``kernels._verlet_run`` (aligned elastic chain) from sample
     ``k_start`` to ``k_stop``: its block of :class:`~.thread_blocks.ThreadTeam` ``team``, whose
     ``pub`` (2, nthr, 2) holds the first and last position of each block, by parity
     (:func:`_publish`), ``energy`` (nthr, 2) the blocks' energy sums; the other structures are

@@ -11,7 +11,7 @@ a thread function built here, once per law and process, from the law's one-conta
   that :func:`hertzchain.integrate.core.generated.law_kernels` builds from the law's ``force`` and
   ``state``, the contact of the generated single-thread loop.
 
-A step is the single-thread general path's (``kernels.verlet_run``, ``generated``'s ``run``):
+A step is the single-thread general path's (``kernels._verlet_run``, ``generated``'s ``run``):
 the forces at the drifted positions and at the velocities predicted half a step ahead,
 v + (dt/2) a, then a = (F_{i-1} - F_i + f_ext) / m, the kick and the drift (the closing half kick
 at a block's end); fused into one pass over a thread's bodies (as ``kernels.step_dissipative``),
@@ -208,7 +208,7 @@ def _build(contact, stride, energies, stateful, plastic, fused, variant):
         velocity of each block, by parity, ``energy`` (nthr, 3) the blocks' kinetic, potential
         energies and plastic work, ``edacc`` (nthr, 2) their dissipated energy and last
         dissipated power (kept from call to call); the other structures are
-        ``kernels.verlet_run``'s. Thread 0 keeps ``acc`` (the others a copy: the same numbers).
+        ``kernels._verlet_run``'s. Thread 0 keeps ``acc`` (the others a copy: the same numbers).
         Returns 1 when the state is not finite (every thread sees the same sums), else 0."""
         u, v, a, g, acc = state
         mass, inv_mass, kappa, damping, d0, fext, ws = chain

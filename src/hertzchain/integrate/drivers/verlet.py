@@ -105,7 +105,7 @@ def _stride(sample_interval: float, dt: float) -> tuple[int, float]:
 
 @dataclass(frozen=True)
 class StepPlan:
-    """How the kernel steps through sample intervals (see ``kernels.verlet_run``).
+    """How the kernel steps through sample intervals (see ``kernels._verlet_run``).
 
     ``stride`` > 0: fixed step dt = interval / stride. ``stride`` == 0: adaptive; each interval is
     cut into ``n_sub`` blocks and the number of steps per block is re-evaluated every ``n_eval``
@@ -159,7 +159,7 @@ def initialise(system: System, w: Packed, u, v, g, a, rec, out_f, out_ke, out_pe
 
     Shared by :func:`run_verlet` and the batched engine, which passes per-member views, so
     both start from exactly the same numbers. ``peak`` and ``acc`` (8 slots each) are the
-    kernel's wall-peak tracker and accumulators (see ``kernels.verlet_run``). ``out_wp`` receives
+    kernel's wall-peak tracker and accumulators (see ``kernels._verlet_run``). ``out_wp`` receives
     the plastic work of the elastic-plastic law (the state ``w.dmax``... is that of the static
     overlaps after this call). An extended system also takes its extension array ``ext``
     (``w.ext`` when None) and, with a protected body, the body's record ``out_b``.
