@@ -215,11 +215,12 @@ _BATCH_KERNELS = (_batch_elastic, _batch_general, _batch_plastic, _batch_extende
 _GENERATED: dict = {}
 
 
-def _generated_batch_kernel(code: int):
+def _generated_batch_kernel(code: int, extended: bool):
     """:func:`_batch_members` with the stepping loop generated from law ``code`` (:mod:`.generated`)
-    in place of ``kernels._verlet_run``; compiled once per law and process."""
-    if code not in _GENERATED:
-        run = law_kernels(code)[1]
+    for members without or with the extension (``extended``) in place of ``kernels._verlet_run``;
+    compiled once per law, kind and process."""
+    if (code, extended) not in _GENERATED:
+        run = law_kernels(code)[1][int(extended)]
 
         @njit(nogil=True)
         def kernel(order, members, flat, records, interval, k_start, k_stop, status):
@@ -231,8 +232,8 @@ def _generated_batch_kernel(code: int):
                 status[m] = run(state, chain, contacts, extension, probes, control, members.law[m],
                                 members.general[m], k_start, k_stop)
 
-        _GENERATED[code] = kernel
-    return _GENERATED[code]
+        _GENERATED[code, extended] = kernel
+    return _GENERATED[code, extended]
 
 
 kernels.flush_stale_cache(*_BATCH_KERNELS)
@@ -274,7 +275,9 @@ def _engine(pk: _Packed, progress, n_threads, integrator: str = "verlet", all_fo
                       for c, gen, ext in zip(pk.law[order], pk.general[order], pk.ext_on[order])], dtype=np.int64)
     groups = [(_BATCH_KERNELS[kind], order[~generated & (kinds == kind)])
               for kind in np.unique(kinds[~generated])]
-    groups += [(_generated_batch_kernel(int(c)), order[pk.law[order] == c]) for c in np.unique(pk.law[order[generated]])]
+    ext = pk.ext_on[order]
+    groups += [(_generated_batch_kernel(int(c), bool(e)), order[(pk.law[order] == c) & (ext == e)])
+               for c in np.unique(pk.law[order[generated]]) for e in np.unique(ext[generated & (pk.law[order] == c)])]
     samples_per_call = max(1, int(CHUNK_SLOT_STEPS * default_threads(n_threads) // cost.sum()))
     structures = batch_structures(pk)
     k = 1

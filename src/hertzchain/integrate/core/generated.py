@@ -11,7 +11,8 @@ law's ``force``/``state``/``energy``/``partials`` (Numba inlines the jitted clos
   as ``kernels.forces_general`` writes them (the same overlap geometry, misaligned pairs
   included, the same d == 0 convention), the law's state updated in place; returns the
   dissipated power (F - F(rate = 0)) d(delta)/dt [W];
-- ``run``: :func:`hertzchain.integrate.core.kernels._verlet_run` with the same arguments (the typed
+- ``runs``: two compiled runs, for models without and with the extension (:func:`run_kernel`
+  picks one), each :func:`hertzchain.integrate.core.kernels._verlet_run` with the same arguments (the typed
   structures of :mod:`.structures`, a protected body's and mass-in-mass beads' extension
   included: :func:`~.extension.extended_steps` around the law's force pass, its bound
   :func:`~.extension.extension_stride` added to the law's) and the same kick-drift-kick steps, adaptive
@@ -46,8 +47,8 @@ _COMPILED_IN = ("core/generated.py", "core/kernels.py", "core/primitives.py", "c
 
 
 def law_kernels(code: int):
-    """(forces, run, energy, stride, contact) compiled for the law of engine code ``code``; built on
-    first use (``stride``: the adaptive step's steps per block, which the sensitivity engines' taped
+    """(forces, runs, energy, stride, contact) compiled for the law of engine code ``code``; built on
+    first use (``runs``: without and with the extension; ``stride``: the adaptive step's steps per block, which the sensitivity engines' taped
     run, :mod:`hertzchain.integrate.derivatives.law_derivatives`, takes as the run does; ``contact``: one
     contact of ``forces``, the threaded engine's force, :mod:`hertzchain.integrate.drivers.threaded_laws`)."""
     from ...laws import law_of_code
@@ -68,8 +69,9 @@ def law_kernels(code: int):
             sources = law_files + files_digest(*(INTEGRATE / name for name in _COMPILED_IN))
             variant = ("generated", spec.name, spec.dissipative, spec.overlap_at_energy is not None,
                        spec.constant_parameters, spec.state_size)
-            forces, run, energy, stride, contact = built
-            built = (on_disk(forces, *variant, "forces", sources=sources), on_disk(run, *variant, "run", sources=sources),
+            forces, runs, energy, stride, contact = built
+            runs = tuple(on_disk(r, *variant, "run", extended, sources=sources) for extended, r in enumerate(runs))
+            built = (on_disk(forces, *variant, "forces", sources=sources), runs,
                      on_disk(energy, *variant, "energy", sources=sources),
                      on_disk(stride, *variant, "stride", sources=sources), contact)
         _CACHE[key] = built
@@ -362,64 +364,72 @@ def _build(force, update, stored, partials, inverse, dissipative, constants=(), 
 
     ext_block = extended_steps(law_forces)
 
-    @njit(nogil=True)
-    def run(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
-        u, v, a, g, acc = state
-        mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
-        de, dx0, rsum, dcap, _, dmax, _, _ = contacts
-        ext, ext_on, body_slot = extension
-        rec, out_f, _, _, _, _, _, _, _, _, fmax, peak, _ = probes
-        interval, stride_, n_sub, n_eval, c_steps, relax = control
-        n = a.shape[0]
-        if dmax.shape[0] < n:  # the law's state lives in dmax: the caller must give one slot per contact
-            raise ValueError("generated law: the state array (dmax) is shorter than the contacts")
-        nout = rec.shape[0]
-        block = interval / n_sub
-        adaptive = stride_ == 0
-        ns = stride_ if not adaptive else int(acc[3])
-        vp = np.zeros_like(v)
-        pw = np.zeros(n)
-        aligned = True
-        for i in range(n):
-            aligned = aligned and de[i] == 0.0
-        wa = np.zeros(n)
-        if ext_on:  # the internal masses' accelerations: a function of the positions, not state
+    def make_run(extended):
+        """The run of a model with (``extended``) or without the extension (a protected body,
+        mass-in-mass beads), a compile-time constant: each compiles only its own steps (the
+        extension's ~2.5 CPU-s of a first run of Hunt-Crossley's 12)."""
+        @njit(nogil=True)
+        def run(state, chain, contacts, extension, probes, control, law, general, k_start, k_stop):
+            u, v, a, g, acc = state
+            mass, inv_mass, kappa, damping, d0, fext, wall_slot = chain
+            de, dx0, rsum, dcap, _, dmax, _, _ = contacts
+            ext, ext_on, body_slot = extension
+            rec, out_f, _, _, _, _, _, _, _, _, fmax, peak, _ = probes
+            interval, stride_, n_sub, n_eval, c_steps, relax = control
+            n = a.shape[0]
+            if ext_on != extended:  # a compile-time constant against the model's extension
+                raise ValueError("generated law: this compiled run steps the other kind of model (extension)")
+            if dmax.shape[0] < n:  # the law's state lives in dmax: the caller must give one slot per contact
+                raise ValueError("generated law: the state array (dmax) is shorter than the contacts")
+            nout = rec.shape[0]
+            block = interval / n_sub
+            adaptive = stride_ == 0
+            ns = stride_ if not adaptive else int(acc[3])
+            vp = np.zeros_like(v)
+            pw = np.zeros(n)
+            aligned = True
             for i in range(n):
-                wa[i] = internal_acceleration(ext[i, EXT_KIN], ext[i, EXT_W], u[i], ext[i, EXT_IMIN])
-        step = int(acc[2])
-        for k in range(k_start, k_stop):
-            for b in range(n_sub):
-                if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
-                    req = stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, dmax, inv_mass, n_eval * block,
-                                 block, c_steps)
-                    if ext_on:
-                        req += extension_stride(ext, inv_mass, block, c_steps)
-                    ns = _adapt_stride(req, ns, relax, acc)
-                dt = block / ns
-                half = 0.5 * dt
-                t0 = (k - 1) * interval + b * block
-                if ext_on:
-                    ext_block(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dmax, dmax,
-                              dmax, dmax, ext, body_slot, wall_slot, t0, dt, ns, peak, acc)
+                aligned = aligned and de[i] == 0.0
+            wa = np.zeros(n)
+            if ext_on:  # the internal masses' accelerations: a function of the positions, not state
+                for i in range(n):
+                    wa[i] = internal_acceleration(ext[i, EXT_KIN], ext[i, EXT_W], u[i], ext[i, EXT_IMIN])
+            step = int(acc[2])
+            for k in range(k_start, k_stop):
+                for b in range(n_sub):
+                    if adaptive and ((k - 1) * n_sub + b) % n_eval == 0:
+                        req = stride(u, v, a, kappa, damping, d0, de, dx0, rsum, dcap, dmax, inv_mass, n_eval * block,
+                                     block, c_steps)
+                        if extended:
+                            req += extension_stride(ext, inv_mass, block, c_steps)
+                        ns = _adapt_stride(req, ns, relax, acc)
+                    dt = block / ns
+                    half = 0.5 * dt
+                    t0 = (k - 1) * interval + b * block
+                    if extended:
+                        ext_block(u, v, vp, a, wa, g, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, law, dmax, dmax,
+                                  dmax, dmax, ext, body_slot, wall_slot, t0, dt, ns, peak, acc)
+                        step += ns
+                        continue
+                    open_block(u, v, a, dt, half)
+                    law_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dmax, aligned, ns, dt,
+                              t0, wall_slot, peak, acc)
                     step += ns
-                    continue
-                open_block(u, v, a, dt, half)
-                law_block(u, v, vp, a, g, pw, kappa, damping, d0, de, dx0, rsum, fext, inv_mass, dmax, aligned, ns, dt,
-                          t0, wall_slot, peak, acc)
-                step += ns
-            for j in range(nout):
-                out_f[k, j] = g[rec[j] + 1]
-            for j in range(fmax.shape[0]):
-                x = g[j + 1]
-                fmax[j] = x if x > fmax[j] else fmax[j]
-            ke = kinetic_energy(v, mass)
-            pe = energy(u, kappa, damping, d0, de, dx0, rsum, fext)
-            if close_sample(k, ke, pe, u, v, a, g, d0, extension, probes, acc, step):
-                return 1
-        acc[2] = step
-        return 0
+                for j in range(nout):
+                    out_f[k, j] = g[rec[j] + 1]
+                for j in range(fmax.shape[0]):
+                    x = g[j + 1]
+                    fmax[j] = x if x > fmax[j] else fmax[j]
+                ke = kinetic_energy(v, mass)
+                pe = energy(u, kappa, damping, d0, de, dx0, rsum, fext)
+                if close_sample(k, ke, pe, u, v, a, g, d0, extension, probes, acc, step):
+                    return 1
+            acc[2] = step
+            return 0
 
-    return forces, run, energy, stride, contact
+        return run
+
+    return forces, (make_run(False), make_run(True)), energy, stride, contact
 
 
 def is_generated(code: int) -> bool:
@@ -433,5 +443,5 @@ def run_kernel(code: int, general: bool, extended: bool):
     """The stepping loop for law code ``code`` (and ``System.general``, ``System.extended``): the
     law's generated ``run``, or the hand-written run of that kind (``kernels.verlet_run_of``)."""
     if is_generated(code):
-        return law_kernels(code)[1]
+        return law_kernels(code)[1][int(bool(extended))]
     return kernels.verlet_run_of(kernels.run_kind(code, general, extended))
