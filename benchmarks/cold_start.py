@@ -11,7 +11,7 @@ ran it once (Numba's cache: compile once per installation). ``build_model`` is t
 calibrated law (``chain1.toml``'s ``dashpot_scaled``) its calibration runs compile the law's engine,
 so the first simulate after it only loads it; the first run's cost is their sum.
 
-    .venv/bin/python benchmarks/cold_start.py [--json benchmarks/results/cold_start.json]
+    .venv/bin/python benchmarks/cold_start.py [--json benchmarks/results/cold_start.json] [--integrator verlet]
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from hertzchain.config import build_model, load_config
 ta = time.process_time()
 model = build_model(load_config(sys.argv[1], ()))  # a calibrated law's runs compile its engine here
 t1 = time.process_time()
-ds = hc.simulate(model)
+ds = hc.simulate(model, integrator=sys.argv[2])
 t2 = time.process_time()
 from numba.core.registry import CPUDispatcher
 import gc
@@ -54,10 +54,11 @@ print(json.dumps({"import_cpu_s": ta - t0, "build_model_cpu_s": t1 - ta, "simula
 """
 
 
-def _child(config: str, env: dict) -> dict:
+def _child(config: str, integrator: str, env: dict) -> dict:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
-    out = subprocess.run([sys.executable, "-c", FIRST, config], env=env, capture_output=True, text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", FIRST, config, integrator], env=env, capture_output=True, text=True,
+                         check=True)
     wall = time.perf_counter() - t
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -68,15 +69,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", default=str(RESULTS / "cold_start.json"))
     ap.add_argument("--configs", nargs="+", default=["examples/chain1_elastic.toml", "examples/chain1.toml"])
+    ap.add_argument("--integrator", default="auto",
+                    help="the integrator of the first simulate (default: auto, what a user gets); e.g. verlet")
     args = ap.parse_args()
     repo = Path(__file__).resolve().parents[1]
     res = {"load_average_before": os.getloadavg()}
     for config in args.configs:
         with tempfile.TemporaryDirectory(prefix="hc-numba-cache-") as cache:
             env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-            cold = _child(str(repo / config), env)
-            warm = _child(str(repo / config), env)
-        res[config] = {"cold": cold, "warm": warm}
+            cold = _child(str(repo / config), args.integrator, env)
+            warm = _child(str(repo / config), args.integrator, env)
+        res[config] = {"cold": cold, "warm": warm, "integrator_asked": args.integrator}
         for label, r in (("cold", cold), ("warm", warm)):
             print(f"{config} {label}: process {r['process_cpu_s']:.2f} CPU-s ({r['process_wall_s']:.2f} s wall), "
                   f"build_model {r['build_model_cpu_s']:.2f} + first simulate {r['simulate_cpu_s']:.2f} CPU-s "
