@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 
 from ..core.extension import EXT_IMIN, EXT_KIN
-from ..core.kernels import DELTA_MIN, LAW_ELASTOPLASTIC
+from ..core.kernels import DELTA_MIN, LAW_ELASTOPLASTIC, RUN_ELASTIC, RUN_GENERAL, RUN_PLASTIC
 from .partials import aligned_partials, contact_partials, has_mount, mount_partials, plastic_contact_adjoint
 from .tape import _fused, has_inner, replay_group
 
@@ -393,10 +393,17 @@ def group_starts(ns_log, group, n_blocks):
     return starts
 
 
-@njit(cache=True, nogil=True)
-def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
-                  rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb,
-                  w0):
+def sweep_kind(law: int, general: bool) -> int:
+    """The kind of reverse sweep (``kernels.RUN_ELASTIC``, ``RUN_GENERAL`` or ``RUN_PLASTIC``; a
+    protected body or mass-in-mass beads step with the general loop) a system needs."""
+    if not general:
+        return RUN_ELASTIC
+    return RUN_PLASTIC if law == LAW_ELASTOPLASTIC else RUN_GENERAL
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _reverse_sweep(kind, ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de,
+                   dx0, rsum, fext, law, general, wall_slot, rest):
     """The whole reverse sweep: every group replayed and differentiated, last group first, then
     the initial state. On entry ``ub, vb, ab`` hold the seeds on the final state (usually zero);
     on exit the adjoints of (u_0, v_0, a_0), and ``grad`` the parameter gradients (rows as in
@@ -405,7 +412,15 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
     (rows 3-5), and the adjoints of its state (``sb``, (2, P): residual overlap and unloading
     stiffness; on entry those of the final state, for a result that reads it, as the plastic work)
     cross from group to group. ``w0`` (1, P): the internal masses' positions at t = 0 (mass-in-mass
-    beads; their adjoints too cross from group to group)."""
+    beads; their adjoints too cross from group to group). Inlined with ``kind`` (:func:`sweep_kind`)
+    a constant into :func:`reverse_sweep_of`'s three sweeps, each compiling only its own steps (an
+    elastic chain's first sweep compiled the general and elastic-plastic steps too). ``rest``: the
+    arguments (seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb, w0), in a tuple
+    (a call of more than 30 arguments compiles to ``f(*args)``, which Numba does not inline)."""
+    seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb, w0 = rest
+    expected = RUN_ELASTIC if not general else (RUN_PLASTIC if law == LAW_ELASTOPLASTIC else RUN_GENERAL)
+    if expected != kind:
+        raise ValueError("reverse_sweep: this compiled sweep differentiates another kind of model (sweep_kind)")
     n = ab.shape[0]
     u = np.zeros(n + 1)
     v = np.zeros(n + 1)
@@ -439,14 +454,14 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
         rows = replay_group(ckpt[gi], u, v, a, g, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
                             wall_slot, ns_log, b0, b1, block, (ustore, vpstore, hstore, pstore, wstore), dyield, dmax,
                             dres, kres, ext, ext.shape[0] > 0)
-        if plastic:
+        if kind == RUN_PLASTIC:
             p = _steps_plastic(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
                                damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad, ext,
                                (wstore, wub, wvb, wab, inner), (pstore, sb, dyield))
-        elif fused:
+        elif kind == RUN_GENERAL and fused:
             p = _steps_dissipative(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass,
                                    kappa, damping, d0, fext, law, seed_step, seed_contact, seed_w, p, grad)
-        elif general:
+        elif kind == RUN_GENERAL:
             p = _steps_general(rows, ustore, vpstore, hstore, starts[gi], ub, vb, ab, fb, fs, wb, rb, inv_mass, kappa,
                                damping, d0, de, dx0, rsum, fext, law, seed_step, seed_contact, seed_w, p, grad, ext,
                                (wstore, wub, wvb, wab, inner), (pstore, sb, dyield))
@@ -458,3 +473,35 @@ def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_
                              seed_contact, seed_w, p, grad)
     return _adjoint_initial(u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0, rsum, fext, law, general,
                             seed_step, seed_contact, seed_w, p, grad, ext, dyield, sb, (w0, wub, wvb, wab, inner))
+
+
+@njit(cache=True, nogil=True)
+def _sweep_elastic(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
+                   rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb,
+                   w0):
+    return _reverse_sweep(RUN_ELASTIC, ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa,
+                          damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
+                          (seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb, w0))
+
+
+@njit(cache=True, nogil=True)
+def _sweep_general(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
+                   rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb,
+                   w0):
+    return _reverse_sweep(RUN_GENERAL, ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa,
+                          damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
+                          (seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb, w0))
+
+
+@njit(cache=True, nogil=True)
+def _sweep_plastic(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
+                   rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb,
+                   w0):
+    return _reverse_sweep(RUN_PLASTIC, ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa,
+                          damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
+                          (seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb, w0))
+
+
+def reverse_sweep_of(law: int, general: bool):
+    """The compiled reverse sweep for a system's law code and ``System.general``."""
+    return (_sweep_elastic, _sweep_general, _sweep_plastic)[sweep_kind(law, general)]

@@ -394,7 +394,7 @@ def _build(force, update, partials, state_partials, gforces, gstride, stateful, 
     def reverse_sweep(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
                       rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield,
                       sb, w0):
-        """``adjoint.reverse_sweep`` for the generated law (the arguments alike; ``sb[0]``: the
+        """``adjoint._reverse_sweep`` for the generated law (the arguments alike; ``sb[0]``: the
         adjoints of the law's state, zero on entry)."""
         n = ab.shape[0]
         u, v, a, g = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n), np.zeros(n + 1)
