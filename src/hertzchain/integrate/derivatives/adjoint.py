@@ -477,31 +477,26 @@ def _reverse_sweep(kind, ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, a
 
 @njit(cache=True, nogil=True)
 def _sweep_elastic(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
-                   rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb,
-                   w0):
+                   rsum, fext, law, general, wall_slot, rest):
     return _reverse_sweep(RUN_ELASTIC, ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa,
-                          damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
-                          (seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb, w0))
+                          damping, d0, de, dx0, rsum, fext, law, general, wall_slot, rest)
 
 
 @njit(cache=True, nogil=True)
 def _sweep_general(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
-                   rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb,
-                   w0):
+                   rsum, fext, law, general, wall_slot, rest):
     return _reverse_sweep(RUN_GENERAL, ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa,
-                          damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
-                          (seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb, w0))
+                          damping, d0, de, dx0, rsum, fext, law, general, wall_slot, rest)
 
 
 @njit(cache=True, nogil=True)
 def _sweep_plastic(ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa, damping, d0, de, dx0,
-                   rsum, fext, law, general, wall_slot, seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb,
-                   w0):
+                   rsum, fext, law, general, wall_slot, rest):
     return _reverse_sweep(RUN_PLASTIC, ckpt, ns_log, group, n_blocks, block, u0, v0, ub, vb, ab, inv_mass, kappa,
-                          damping, d0, de, dx0, rsum, fext, law, general, wall_slot,
-                          (seed_step, seed_contact, seed_w, grad, max_rows, ext, dyield, sb, w0))
+                          damping, d0, de, dx0, rsum, fext, law, general, wall_slot, rest)
 
 
 def reverse_sweep_of(law: int, general: bool):
-    """The compiled reverse sweep for a system's law code and ``System.general``."""
+    """The compiled reverse sweep for a system's law code and ``System.general``: called with
+    :func:`_reverse_sweep`'s arguments after ``kind``."""
     return (_sweep_elastic, _sweep_general, _sweep_plastic)[sweep_kind(law, general)]

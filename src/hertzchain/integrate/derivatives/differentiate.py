@@ -568,8 +568,8 @@ def gradient(tape: Tape, seeds: Seeds, final_dres: np.ndarray | None = None) -> 
     elif n_blocks:
         _adjoint.reverse_sweep_of(sy.law, sy.general)(
             tape.ckpt, tape.ns_log, tape.group, n_blocks, block, tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa,
-            w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general, w.wall_slot, seeds.step, seeds.contact,
-            seeds.weight, grad, max_rows, w.ext, w.dyield, sb, tape.w0)
+            w.damping, w.d0, w.de, w.dx0, w.rsum, w.fext, sy.law, sy.general, w.wall_slot,
+            (seeds.step, seeds.contact, seeds.weight, grad, max_rows, w.ext, w.dyield, sb, tape.w0))
     else:
         _adjoint._adjoint_initial(tape.u0, tape.v0, ub, vb, ab, w.inv_mass, w.kappa, w.damping, w.d0, w.de, w.dx0,
                                   w.rsum, w.fext, sy.law, sy.general, seeds.step, seeds.contact, seeds.weight,
