@@ -12,7 +12,8 @@ law's ``force``/``state``/``energy``/``partials`` (Numba inlines the jitted clos
   included, the same d == 0 convention), the law's state updated in place; returns the
   dissipated power (F - F(rate = 0)) d(delta)/dt [W];
 - ``runs``: two compiled runs, for models without and with the extension (:func:`run_kernel`
-  picks one), each :func:`hertzchain.integrate.core.kernels._verlet_run` with the same arguments (the typed
+  picks one), each :func:`hertzchain.integrate.core.kernels._verlet_run` with the same arguments
+  after its ``kind`` (the typed
   structures of :mod:`.structures`, a protected body's and mass-in-mass beads' extension
   included: :func:`~.extension.extended_steps` around the law's force pass, its bound
   :func:`~.extension.extension_stride` added to the law's) and the same kick-drift-kick steps, adaptive
@@ -48,8 +49,9 @@ _COMPILED_IN = ("core/generated.py", "core/kernels.py", "core/primitives.py", "c
 
 def law_kernels(code: int):
     """(forces, runs, energy, stride, contact) compiled for the law of engine code ``code``; built on
-    first use (``runs``: without and with the extension; ``stride``: the adaptive step's steps per block, which the sensitivity engines' taped
-    run, :mod:`hertzchain.integrate.derivatives.law_derivatives`, takes as the run does; ``contact``: one
+    first use (``runs``: the runs without and with the extension; ``stride``: the adaptive step's
+    steps per block, which the sensitivity engines' taped run,
+    :mod:`hertzchain.integrate.derivatives.law_derivatives`, takes as the run does; ``contact``: one
     contact of ``forces``, the threaded engine's force, :mod:`hertzchain.integrate.drivers.threaded_laws`)."""
     from ...laws import law_of_code
     from ...laws.spec import compiled
