@@ -42,7 +42,13 @@ def damped_force(d, rate, kappa, c, visco):
     delta^(1/2) = 0 and so F = +-0, which the floor already selects to 0: only the dashpot, whose
     rate term pushes at any overlap, needs the select on d."""
     dd = d if d > DELTA_MIN else 0.0
-    sd = np.sqrt(dd)
+    return damped_force_sd(d, dd, np.sqrt(dd), rate, kappa, c, visco)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def damped_force_sd(d, dd, sd, rate, kappa, c, visco):
+    """:func:`damped_force` given its clamped overlap ``dd`` (d where d > DELTA_MIN, else 0) and
+    ``sd`` = sqrt(dd), for callers that need the square root again."""
     fel = kappa * dd * sd
     if visco:
         f = fel + c * sd * rate

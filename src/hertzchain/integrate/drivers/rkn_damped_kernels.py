@@ -67,7 +67,7 @@ from numba import njit
 
 from ..core import kernels
 from . import rkn_kernels, rkn_samples
-from ..core.primitives import DELTA_MIN, LAW_VISCOELASTIC, _viscous_force
+from ..core.primitives import DELTA_MIN, LAW_VISCOELASTIC, _viscous_force, damped_force_sd
 from .rkn_kernels import hermite, quintic, quintic_at_most, force_bound
 from .rkn_samples import (PATH_ROWS, axial, block_of_samples, hermite_root, path_at, path_coefficients,
                           record_bodies)
@@ -248,9 +248,9 @@ def step_dissipation(ed, b, c, pw, mode, h):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _unclipped(d, r, q, k, c, law):
-    """(F_u, dF_u/dt) of a contact at overlap d > 0, rate r, d(rate)/dt q (before the clip)."""
-    sd = np.sqrt(d)
+def _unclipped(d, sd, r, q, k, c, law):
+    """(F_u, dF_u/dt) of a contact at overlap d > 0 (``sd`` = sqrt(d)), rate r, d(rate)/dt q
+    (before the clip)."""
     if law == LAW_VISCOELASTIC:
         fu = k * sd * (d + c * r)
         dfu = k * (1.5 * sd * r + c * (0.5 * r * r / sd + sd * q))
@@ -278,10 +278,15 @@ def end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, mode, dis, ed, e
         dv = v[i] - v[i + 1]
         d, cc, r, k = _line(u[i] - u[i + 1], dv, d0, off, i)
         q = cc * (a[i] - a[i + 1]) - k * dv * dv
-        f, fel = _viscous_force(d, r, kappa[i], damping[i], law)
+        visco = law == LAW_VISCOELASTIC
+        # damped_force's numbers with its square root kept for F_u and the branch's force (three
+        # square roots of one overlap per contact were a third of this loop's time)
+        dc = d if d > DELTA_MIN else 0.0
+        sd = np.sqrt(dc)
+        f, fel = damped_force_sd(d, dc, sd, r, kappa[i], kappa[i] * damping[i] if visco else damping[i], visco)
         fu, dfu = 0.0, 0.0
         if d > DELTA_MIN:
-            fu, dfu = _unclipped(d, r, q, kappa[i], damping[i], law)
+            fu, dfu = _unclipped(d, sd, r, q, kappa[i], damping[i], law)
         elif d >= 0.0:
             fu = f
         ed[c, R_F, i] = cc * f
@@ -293,8 +298,7 @@ def end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, mode, dis, ed, e
         ed[c, R_DFU, i] = dfu
         el = 0.4 * fel * (d if d > 0.0 else 0.0)
         ed[c, R_E, i] = el
-        if mode[i] > 0.0:  # the branch's force: F_u, extended below delta = 0 as at 0
-            sd = np.sqrt(d) if d > DELTA_MIN else 0.0
+        if mode[i] > 0.0:  # the branch's force: F_u, extended below delta = 0 as at 0 (sd = 0)
             fb = fel + (kappa[i] * damping[i] * sd * r if law == LAW_VISCOELASTIC else damping[i] * r)
         else:
             fb = 0.0
