@@ -26,7 +26,7 @@ __all__ = ["default_threads", "run_dealt"]
 def default_threads(n_threads: int | None) -> int:
     """``n_threads``, or Numba's configured thread count (``NUMBA_NUM_THREADS``: the usable cores
     unless set) where None."""
-    return max(1, int(n_threads) if n_threads is not None else int(numba.config.NUMBA_NUM_THREADS))
+    return max(1, int(n_threads) if n_threads is not None else int(numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]
 
 
 def run_dealt(kernel: Callable, order: np.ndarray, n_threads: int | None, *args) -> None:

@@ -53,7 +53,7 @@ def _distinct_symbols() -> None:
     except ImportError:  # pragma: no cover - Numba moved it
         return
     if isinstance(getattr(FunctionIdentity, "_unique_ids", None), itertools.count):
-        FunctionIdentity._unique_ids = _RandomIds()
+        FunctionIdentity._unique_ids = _RandomIds()  # type: ignore[assignment]  # (a drop-in for its count)
 
 
 _distinct_symbols()

@@ -249,8 +249,7 @@ def step_dissipation(ed, b, c, pw, mode, h):
 
 @njit(cache=True, nogil=True, inline="always")
 def _unclipped(d, sd, r, q, k, c, law):
-    """(F_u, dF_u/dt) of a contact at overlap d > 0 (``sd`` = sqrt(d)), rate r, d(rate)/dt q
-    (before the clip)."""
+    """(F_u, dF_u/dt) at overlap d > 0 (``sd`` = sqrt(d)), rate r, d(rate)/dt q (before the clip)."""
     if law == LAW_VISCOELASTIC:
         fu = k * sd * (d + c * r)
         dfu = k * (1.5 * sd * r + c * (0.5 * r * r / sd + sd * q))
@@ -278,11 +277,9 @@ def end_data(u, v, a, kappa, damping, d0, off, fext, mass, law, mode, dis, ed, e
         dv = v[i] - v[i + 1]
         d, cc, r, k = _line(u[i] - u[i + 1], dv, d0, off, i)
         q = cc * (a[i] - a[i + 1]) - k * dv * dv
-        visco = law == LAW_VISCOELASTIC
-        # damped_force's numbers with its square root kept for F_u and the branch's force (three
-        # square roots of one overlap per contact were a third of this loop's time)
-        dc = d if d > DELTA_MIN else 0.0
+        dc = d if d > DELTA_MIN else 0.0  # damped_force's, its square root shared with F_u and fb below
         sd = np.sqrt(dc)
+        visco = law == LAW_VISCOELASTIC
         f, fel = damped_force_sd(d, dc, sd, r, kappa[i], kappa[i] * damping[i] if visco else damping[i], visco)
         fu, dfu = 0.0, 0.0
         if d > DELTA_MIN:

@@ -46,7 +46,7 @@ the force's (first or second) derivative times (EVENT_TOL h)^2 h, below eps for 
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -87,6 +87,12 @@ LOADED, GROWS, REGIME = 1, 2, 4
 #: (an atomic operation each), and every contact's force the law's state ``S``: ~35 % of a Hunt-
 #: Crossley step on chain 1 (perf), the run 5.8 -> 3.8 ms (1 us samples), the same numbers bit for bit.
 NO_REFCOUNT = {"_nrt": False}
+
+
+def njit_no_refcount(**options: Any) -> Callable[[Callable], Any]:
+    """``numba.njit(**options)`` without reference counting (:data:`NO_REFCOUNT`): a keyword
+    Numba takes but does not declare in the type stubs it ships (from 0.68)."""
+    return njit(**options, **NO_REFCOUNT)  # type: ignore[call-overload]
 
 
 class LawAdapter(NamedTuple):
@@ -180,7 +186,7 @@ def build(law: LawAdapter):
             fu, fel, _ = lforce(d - gap, r, k, p, S, j, (m & GROWS) != 0)
         return fu, fel, gap
 
-    @njit(nogil=True, **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True)
     def branch_at(d, r, q, k, p, S, j, tau):
         """The branch a contact's state (d, r, q = d(rate)/dt) puts it on (module docstring)."""
         if k == 0.0:
@@ -195,7 +201,7 @@ def build(law: LawAdapter):
             m |= REGIME
         return m
 
-    @njit(nogil=True, **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True)
     def accel(us, vs, kappa, damping, d0, off, fext, inv_mass, S, mode, out, pw, weight):
         """a = f(us, vs) on the branches ``mode``; adds ``weight`` times each contact's dissipated
         power (F - F_el) r to ``pw``."""
@@ -209,7 +215,7 @@ def build(law: LawAdapter):
             fprev = f
 
     if ltangent is None:
-        @njit(nogil=True, **NO_REFCOUNT)
+        @njit_no_refcount(nogil=True)
         def tangents(d, r, k, p, S, j, m):
             """(dF/d delta, dF/d rate) on branch m by central differences of the law's force."""
             hd = 1e-7 * (abs(d) + 1e-12)
@@ -231,7 +237,7 @@ def build(law: LawAdapter):
                 kt = 0.0
             return kt, ct
 
-    @njit(nogil=True, error_model="numpy", **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True, error_model="numpy")
     def end_data(u, v, a, kappa, damping, d0, off, fext, mass, S, mode, dis, ed, ends, c):
         """Per contact into ``ed[c]`` (rows R_*) on the branches ``mode`` (with the state ``S``),
         the energies and their rates into ``ends[c]`` (``rkn_damped_kernels.end_data``'s)."""
@@ -279,13 +285,13 @@ def build(law: LawAdapter):
         ends[c, E_D] = dis
         ends[c, E_DD] = dd
 
-    @njit(nogil=True, **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True)
     def set_modes(ed, b, kappa, damping, S, mode, tau):
         """Every contact's branch from its state at ``ed[b]``."""
         for j in range(kappa.shape[0]):
             mode[j] = branch_at(ed[b, 2, j], ed[b, 3, j], ed[b, 4, j], kappa[j], damping[j], S, j, tau)
 
-    @njit(nogil=True, error_model="numpy", **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True, error_model="numpy")
     def max_error(ed, c, kappa, damping, inv_mass, S, mode, h):
         """(max_j e_j(h) over the loaded contacts (module docstring), its local exponent)."""
         emax = 0.0
@@ -318,7 +324,7 @@ def build(law: LawAdapter):
                 pmax = (e1 * p1 + 5.0 * e3) / e
         return emax, pmax
 
-    @njit(nogil=True, error_model="numpy", **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True, error_model="numpy")
     def next_step(ed, c, kappa, damping, inv_mass, S, mode, eps, h_ref, h_max):
         """The largest h with max_j e_j(h) <= eps, at most MAX_GROWTH h_ref and h_max, within the
         stability bound (omega + damping rate) h <= MAX_RHO_H (tangents at twice the overlap a
@@ -365,7 +371,7 @@ def build(law: LawAdapter):
         """(delta, rate, d(rate)/dt) of contact j at theta of the step (:func:`path_w`)."""
         return path_w(ed, b, c, j, quintic(theta, h), hermite(theta, h), theta)
 
-    @njit(nogil=True, error_model="numpy", **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True, error_model="numpy")
     def event_inside(ed, b, c, h, kappa, damping, inv_mass, S, mode, eps):
         """Earliest theta in (EVENT_TOL, 1 - EVENT_TOL) where a contact leaves its branch (its
         branch at the end differs; bisection along :func:`path`); 2 when one left it at the step's
@@ -414,12 +420,12 @@ def build(law: LawAdapter):
         f, _, _ = branch_force(d, r, kappa[j], damping[j], S, j, m)
         return axial(f if f > 0.0 else 0.0, off, j, d)
 
-    @njit(nogil=True, **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True)
     def force_at(ed, b, c, j, theta, h, kappa, damping, off, S, m):
         """Contact j's force along the axis at theta of the step, on branch m (clipped)."""
         return force_w(ed, b, c, j, quintic(theta, h), hermite(theta, h), theta, kappa, damping, off, S, m)
 
-    @njit(nogil=True, **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True)
     def peak_in_step(ed, b, c, j, h, kappa, damping, off, S, m):
         """(largest interpolated force of contact j in the step, its theta): golden section."""
         g = 0.6180339887498949
@@ -444,7 +450,7 @@ def build(law: LawAdapter):
         x = 0.5 * (lo + hi)
         return force_at(ed, b, c, j, x, h, kappa, damping, off, S, m), x
 
-    @njit(nogil=True, error_model="numpy", **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True, error_model="numpy")
     def step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, off, fext, inv_mass, S, h, ed, b):
         """One classical RKN step (``rkn_damped_kernels.step``) on the branches ``mode``."""
         n = inv_mass.shape[0]
@@ -470,7 +476,7 @@ def build(law: LawAdapter):
             vn[i] = v[i] + h6 * (a[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
         accel(un, vn, kappa, damping, d0, off, fext, inv_mass, S, mode, an, pw, 0.0)
 
-    @njit(nogil=True, **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True)
     def commit_all(u, v, kappa, damping, d0, off, S, mode, last, ed, b):
         """Commit every contact's state at the state (u, v); a contact that closes (loaded now,
         not in the last step) takes it at its closing (gap 0)."""
@@ -484,7 +490,7 @@ def build(law: LawAdapter):
                 d -= gap
             lcommit(d, r, kappa[j], damping[j], S, j)
 
-    @njit(nogil=True, **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True)
     def energies(u, kappa, damping, d0, off, fext, S, ends, c):
         """The stored energy (minus the work of f_ext) and the law's other dissipated energy
         (plastic work) at the end ``c`` from the committed state ``S``."""
@@ -499,7 +505,7 @@ def build(law: LawAdapter):
         ends[c, E_PE] = pe
         ends[c, E_W] = w
 
-    @njit(nogil=True, error_model="numpy", **NO_REFCOUNT)
+    @njit_no_refcount(nogil=True, error_model="numpy")
     def step_paths(ed, b, c, hl, fits, kappa, damping, off, Sp, last, shut, fitted, pc, fv):
         """A step's samples, prepared once (``run``'s probes): which contacts carry no force over
         it (``shut``), the others' paths (``pc``) and, with ``fits``, the fitted forces of those
