@@ -224,6 +224,7 @@ def main() -> int:
                          "value is recorded as such)")
     ap.add_argument("--stages", type=int, default=1000,
                     help="members of the per-stage timing on one thread, in this process (0: none)")
+    ap.add_argument("--json", type=Path, default=RESULTS / "ensemble_scale.json", help="where to save the results")
     args = ap.parse_args()
     info = {"machine": machine_info(), "load_before": load(), "members": args.members, "chunk_size": args.chunk_size,
             "ensemble": "examples/tolerance_ensemble.toml, store = 'metrics'"
@@ -294,8 +295,8 @@ def main() -> int:
                   f"{d['metrics_identical']}", flush=True)
     info["load_after"] = load()
     print(f"load average after: {info['load_after']}")
-    save_json(info, RESULTS / "ensemble_scale.json")
-    print(f"saved {RESULTS / 'ensemble_scale.json'}")
+    save_json(info, args.json)
+    print(f"saved {args.json}")
     return 0
 
 

@@ -23,10 +23,13 @@ Run from the repository root (needs the ``[explore]`` extra, selenium, ``/usr/bi
 
 from __future__ import annotations
 
+import argparse
 import json
 import statistics
 import sys
 import time
+
+from pathlib import Path
 
 from _common import RESULTS, REPO, machine_info
 
@@ -65,6 +68,9 @@ def _summary(latencies: list[float], computed: list[float]) -> dict:
 
 
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", type=Path, default=RESULTS / "explore_latency.json", help="where to save the results")
+    args = ap.parse_args()
     port = free_port()
     started = time.perf_counter()
     proc = start_explorer(port)
@@ -95,8 +101,8 @@ def main() -> None:
         "first_page_s": first_page,
         "machine": machine_info(),
     }
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "explore_latency.json").write_text(json.dumps(result, indent=2) + "\n")
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps(result, indent=2) + "\n")
     for name, sc in scenarios.items():
         lat, comp = sc["latency_s"], sc["server_compute_s"]
         print(f"{name}: control change -> new plot: median {lat['median'] * 1e3:.0f} ms (min {lat['min'] * 1e3:.0f}, "

@@ -11,11 +11,13 @@ ratio measured / estimated lies in [1/1.3, 1.3].
     .venv/bin/python benchmarks/memory_estimates.py            # every example (~3 min)
     .venv/bin/python benchmarks/memory_estimates.py chain1      # the examples whose name contains it
 
-Prints a table and saves ``benchmarks/results/memory_estimates.json`` with the machine's description.
+Prints a table and saves ``benchmarks/results/memory_estimates.json`` (``--json PATH``: elsewhere) with the
+machine's description.
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
 import sys
@@ -87,7 +89,10 @@ def peak_rss(argv: list[str]) -> tuple[int, int, str]:
         return usage.ru_maxrss * 1024, proc.returncode, err.read().decode(errors="replace")[-500:]
 
 
-def main(select: list[str]) -> int:
+def main(select: list[str], json_path: Path | None = None) -> int:
+    """Every documented example (or those whose names contain one of ``select``); the results are
+    saved (to ``json_path``, default results/memory_estimates.json) when every example ran or a
+    path is given."""
     jobs = [("run", n) for n in RUNS] + [("sweep", n) for n in SWEEPS] + [("design", n) for n in DESIGNS]
     jobs = [j for j in jobs if not select or any(s in j[1] for s in select)]
     rows, failed = [], []
@@ -108,12 +113,18 @@ def main(select: list[str]) -> int:
         print(f"{name:22s} {kind:6s} {est.peak_bytes / 2**20:12.0f} {est.memory_bytes / 2**20:8.0f} "
               f"{peak / 2**20:12.0f} {ratio:6.2f}{'' if ok else '  <-- outside'}")
     out = {"machine": machine_info(), "tolerance": TOLERANCE, "examples": rows, "all_within": not failed}
-    if not select:
-        save_json(out, RESULTS / "memory_estimates.json")
-        print(f"saved {RESULTS / 'memory_estimates.json'}")
+    if not select or json_path is not None:
+        path = json_path or RESULTS / "memory_estimates.json"
+        save_json(out, path)
+        print(f"saved {path}")
     print("every estimate holds" if not failed else f"outside [1/{TOLERANCE}, {TOLERANCE}]: {', '.join(failed)}")
     return 1 if failed else 0
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("names", nargs="*", help="only the examples whose name contains one of these")
+    ap.add_argument("--json", type=Path, help="where to save the results (default results/memory_estimates.json, "
+                                              "written when every example ran)")
+    args = ap.parse_args()
+    sys.exit(main(args.names, args.json))
