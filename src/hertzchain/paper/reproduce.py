@@ -572,12 +572,14 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
         subs = protocol.run_substitutions(settings)
         for _ in range(3):
             tick("Fig. 3c: substitutions")
+        # lateral freedom first: its engine is compiled before the offset one, whose compilation
+        # (the fork's last, ~8 CPU-s) these runs then overlap instead of waiting for it
+        ahead.wait("lateral")
+        lateral, cost = fidelity.run_lateral_misalignment(settings, progress=tick)
         ahead.wait("offset")
         mis = protocol.run_misalignment(settings)
         for _ in range(6):
             tick("Fig. 3a-b: misaligned beads")
-        ahead.wait("lateral")
-        lateral, cost = fidelity.run_lateral_misalignment(settings, progress=tick)
         law_rows = variants.finish(studies, tick)
     finally:
         ahead.close()
