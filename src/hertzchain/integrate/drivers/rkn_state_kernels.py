@@ -55,8 +55,8 @@ from ..core.primitives import DELTA_MIN
 from .rkn_damped_kernels import (A_H, A_HMAX, A_HMIN, A_HREF, A_STEPS, A_T, A_TPREV, E_D, E_DD, E_DKE, E_DPE, E_KE,
                                  E_PE, ENDS, EVENT_EPS, MAX_GROWTH, MAX_REDO, MAX_RHO_H, _line, _right)
 from .rkn_kernels import SAMPLE_BLOCK, hermite, quintic, quintic_at_most
-from .rkn_samples import (FIT_NODES, FIT_SAMPLES, PATH_ROWS, axial, block_of_samples, fit_at, fit_coefficients,
-                          path_at, path_coefficients, record_bodies, smooth_over_step)
+from .rkn_samples import (FIT_FLOOR, FIT_NODES, FIT_SAMPLES, PATH_ROWS, axial, block_of_samples, fit_at,
+                          fit_coefficients, path_at, path_coefficients, record_bodies, smooth_over_step)
 
 __all__ = ["LawAdapter", "StateRun", "build", "ROWS", "ENDS", "E_W", "LOADED", "GROWS", "REGIME"]
 
@@ -506,11 +506,12 @@ def build(law: LawAdapter):
         ends[c, E_W] = w
 
     @njit_no_refcount(nogil=True, error_model="numpy")
-    def step_paths(ed, b, c, hl, fits, kappa, damping, off, Sp, last, shut, fitted, pc, fv):
+    def step_paths(ed, b, c, hl, fits, floor, kappa, damping, off, Sp, last, shut, fitted, pc, fv):
         """A step's samples, prepared once (``run``'s probes): which contacts carry no force over
         it (``shut``), the others' paths (``pc``) and, with ``fits``, the fitted forces of those
-        clear of their opening (``fitted``; rows 0-5 of ``pc``, rkn_samples); returns the range
-        lo..hi-1 of the contacts with a force."""
+        clear of their opening or whose force stays at or below ``floor`` [N] (``fitted``; rows
+        0-5 of ``pc``, rkn_samples: FIT_CLEARANCE, FIT_FLOOR); returns the range lo..hi-1 of the
+        contacts with a force."""
         lo, hi = kappa.shape[0], 0
         for j in range(shut.shape[0]):
             m = int(last[j])
@@ -524,11 +525,14 @@ def build(law: LawAdapter):
                 lo = j if j < lo else lo
                 hi = j + 1
                 path_coefficients(ed, b, c, j, hl, pc, 2)
-                fitted[j] = fits and smooth_over_step(ed[b, 5, j], ed[b, 3, j], ed[c, 5, j], ed[c, 3, j], hl)
+                clear = smooth_over_step(ed[b, 5, j], ed[b, 3, j], ed[c, 5, j], ed[c, 3, j], hl)
+                faint = not clear and ed[b, 0, j] <= floor and ed[c, 0, j] <= floor
+                fitted[j] = fits and (clear or faint)
                 for i in range(6 if fitted[j] else 0):
                     d, rt = path_at(pc, j, FIT_NODES[i])
                     f, _, _ = branch_force(d, rt, kappa[j], damping[j], Sp, j, m)
-                    fitted[j] = fitted[j] and f > 0.0
+                    f = f if f > 0.0 else 0.0
+                    fitted[j] = fitted[j] and (f <= floor if faint else f > 0.0)
                     fv[i] = axial(f, off, j, d)
                 if fitted[j]:
                     fit_coefficients(fv, pc, j)
@@ -556,6 +560,7 @@ def build(law: LawAdapter):
         fitted = np.zeros(nc, dtype=np.bool_)  # ... or their forces fitted over it (rows 0-5 of pc)
         fv = np.zeros(6)
         th = np.zeros(SAMPLE_BLOCK)  # a block of samples in it: their theta
+        fscale = fmax.max() if nc > 0 else 0.0  # the largest force sampled so far (FIT_FLOOR: step_paths)
         k = k_start
         while k < k_stop:
             tk = k * interval
@@ -645,8 +650,8 @@ def build(law: LawAdapter):
             # fitted over the step from six of the law's values, rkn_samples)
             if steps != seen:
                 seen = steps
-                lo, hi = step_paths(ed, b, c, hl, hl >= FIT_SAMPLES * interval, kappa, damping, off, Sp, last, shut,
-                                    fitted, pc, fv)
+                lo, hi = step_paths(ed, b, c, hl, hl >= FIT_SAMPLES * interval, FIT_FLOOR * fscale, kappa, damping,
+                                    off, Sp, last, shut, fitted, pc, fv)
             kb = block_of_samples(k, k_stop, interval, tp, t, hl, th)
             nb = kb - k
             for j in range(lo, hi):  # one loop a contact over the samples (vectorised where fitted)
@@ -666,6 +671,7 @@ def build(law: LawAdapter):
                 for i in range(nb):
                     fm = fi[j, i] if fi[j, i] > fm else fm
                 fmax[j] = fm
+                fscale = fm if fm > fscale else fscale
             for i in range(nb):
                 kk = k + i
                 for r in range(nrec):
