@@ -265,12 +265,10 @@ def _open(u, v, a, c, d):
 def _step(team, tid, sense, u, v, a, g, sq, kappa, d0, fext, inv_mass, h, s, e):
     """One SRKN_6^b step of size h over the block (``rkn_kernels.step``); returns the sense."""
     _open(u[s:e], v[s:e], a[s:e], rk.B1 * h, rk.A1 * h)
-    kicks = (rk.B2, rk.B3, rk.B4, rk.B3, rk.B2)
-    drifts = (rk.A2, rk.A3, rk.A3, rk.A2, rk.A1)
     par = 0
-    for m in range(5):
+    for m in range(rk.INNER_KICKS.shape[0]):
         sense = _publish(team, tid, par, u, s, e, sense)
-        _stage(team, tid, par, u, v, kappa, d0, fext, inv_mass, kicks[m] * h, drifts[m] * h, s, e)
+        _stage(team, tid, par, u, v, kappa, d0, fext, inv_mass, rk.INNER_KICKS[m] * h, rk.INNER_DRIFTS[m] * h, s, e)
         par = 1 - par
     sense = _publish(team, tid, par, u, s, e, sense)
     _closing(team, tid, par, u, v, a, g, sq, kappa, d0, fext, inv_mass, rk.B1 * h, s, e)
