@@ -209,29 +209,29 @@ def step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, 
     ``pw[j]`` the weighted sum P_1 + 2 P_2 + 2 P_3 + P_4 of contact j's dissipated power over the
     stages (:func:`step_dissipation`)."""
     n = inv_mass.shape[0]
-    hh = 0.5 * h
-    h8 = 0.125 * h * h
-    for i in range(n):
-        us[i] = u[i] + hh * v[i] + h8 * a[i]
-        vs[i] = v[i] + hh * a[i]
-        pw[i] = ed[b, R_P, i]
-    _accel(us, vs, kappa, damping, d0, off, fext, inv_mass, law, mode, k2, pw, 2.0)
-    for i in range(n):
-        vs[i] = v[i] + hh * k2[i]
-    _accel(us, vs, kappa, damping, d0, off, fext, inv_mass, law, mode, k3, pw, 2.0)
-    h2 = 0.5 * h * h
-    for i in range(n):
-        us[i] = u[i] + h * v[i] + h2 * k3[i]
-        vs[i] = v[i] + h * k3[i]
-    _accel(us, vs, kappa, damping, d0, off, fext, inv_mass, law, mode, k4, pw, 1.0)
-    h6 = h / 6.0
-    hh6 = h * h6
-    for i in range(n):
-        un[i] = u[i] + h * v[i] + hh6 * (a[i] + k2[i] + k3[i])
-        vn[i] = v[i] + h6 * (a[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
-    # the end's accelerations on the step's branches: the interpolants of this step are smooth up
-    # to its end even when an instant falls within EVENT_TOL of it (the next step restarts there)
-    _accel(un, vn, kappa, damping, d0, off, fext, inv_mass, law, mode, an, pw, 0.0)
+    hh, h8, h2, h6, hh6 = 0.5 * h, 0.125 * h * h, 0.5 * h * h, h / 6.0, h * (h / 6.0)
+    # the four force passes are one loop over the stages: _accel is compiled once, not four times
+    # (~1 CPU-s less for each of the engine's specialisations in a new environment), the same numbers
+    for s in range(4):
+        if s == 0:
+            for i in range(n):
+                us[i] = u[i] + hh * v[i] + h8 * a[i]
+                vs[i] = v[i] + hh * a[i]
+                pw[i] = ed[b, R_P, i]
+        elif s == 1:
+            for i in range(n):
+                vs[i] = v[i] + hh * k2[i]
+        elif s == 2:
+            for i in range(n):
+                us[i] = u[i] + h * v[i] + h2 * k3[i]
+                vs[i] = v[i] + h * k3[i]
+        else:
+            for i in range(n):
+                un[i] = u[i] + h * v[i] + hh6 * (a[i] + k2[i] + k3[i])
+                vn[i] = v[i] + h6 * (a[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+        # the last pass: f at the end on the step's branches (interpolants smooth up to its end)
+        _accel(un if s == 3 else us, vn if s == 3 else vs, kappa, damping, d0, off, fext, inv_mass, law, mode,
+               k2 if s == 0 else (k3 if s == 1 else (k4 if s == 2 else an)), pw, 2.0 if s < 2 else (1.0 if s == 2 else 0.0))
 
 
 @njit(cache=True, nogil=True)
