@@ -101,13 +101,13 @@ def test_forked_figure_workers_stop_quietly_under_the_clis_sigterm_handler(tmp_p
     the pool's initializer the workers take SIGTERM's default and ignore SIGINT (the parent stops
     the pool on Ctrl-C): the pool's end prints nothing, whatever the workers were doing."""
     p = _python("""
-        import multiprocessing, signal, sys, time
+        import signal, sys, time
         from hertzchain.cli.main import _on_sigterm
-        from hertzchain.interrupts import forked_worker_init
+        from hertzchain.interrupts import forked_pool
 
         signal.signal(signal.SIGTERM, _on_sigterm)  # what the CLI installs
         for _ in range(5):
-            with multiprocessing.get_context("fork").Pool(2, initializer=forked_worker_init) as pool:
+            with forked_pool(2) as pool:  # as reproduce starts its drawing processes
                 assert pool.apply(signal.getsignal, (signal.SIGTERM,)) == signal.SIG_DFL
                 assert pool.apply(signal.getsignal, (signal.SIGINT,)) == signal.SIG_IGN
                 pool.map_async(time.sleep, [0.2, 0.2])  # busy workers, stopped by the with block

@@ -17,7 +17,7 @@ import threading
 from contextlib import contextmanager
 from typing import Iterator
 
-__all__ = ["latched", "check", "forked_worker_init"]
+__all__ = ["latched", "check", "forked_worker_init", "held_signals", "forked_pool", "start_forked"]
 
 _state = {"depth": 0, "pending": False}
 
@@ -76,4 +76,47 @@ def forked_worker_init() -> None:
 
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # forked by forked_pool / start_forked with both signals blocked: one sent meanwhile (a pool
+    # stopped at once) is delivered now, to the dispositions just set
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD)
     gc.freeze()
+
+
+#: The signals blocked while a process forks (:func:`held_signals`).
+_HELD = {signal.SIGINT, signal.SIGTERM}
+
+
+@contextmanager
+def held_signals() -> Iterator[None]:
+    """SIGINT and SIGTERM blocked in this thread while the block runs (it forks).
+
+    A forked child starts with its parent's Python signal handlers, which run at the child's first
+    bytecode, before :func:`forked_worker_init` resets them. A SIGTERM that reaches the child
+    there (a pool stopped right after it started: ``redraw`` of a damaged folder) raised the CLI's
+    :class:`~hertzchain.cli.main.Terminated` in it, outside multiprocessing's ``try``, so the child
+    did not exit: it returned into its parent's code and went on running it (a second copy of a
+    test, then a test runner waiting forever for work; its parent waiting forever for it). The
+    child inherits the blocked mask and :func:`forked_worker_init` unblocks both signals once
+    their dispositions are its own; the parent receives any that arrived meanwhile on leaving the
+    block."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def forked_pool(processes: int):
+    """A ``multiprocessing`` pool of ``processes`` forked workers, started under
+    :func:`held_signals`, each running :func:`forked_worker_init` first."""
+    import multiprocessing
+
+    with held_signals():
+        return multiprocessing.get_context("fork").Pool(processes, initializer=forked_worker_init)
+
+
+def start_forked(process) -> None:
+    """Start the fork-context ``multiprocessing.Process`` ``process`` under :func:`held_signals`
+    (its target must call :func:`forked_worker_init` first)."""
+    with held_signals():
+        process.start()

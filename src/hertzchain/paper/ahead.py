@@ -25,7 +25,7 @@ from __future__ import annotations
 import multiprocessing
 import warnings
 from ..chain import Chain, paper_chain
-from ..interrupts import forked_worker_init
+from ..interrupts import forked_worker_init, start_forked
 from ..model import Model, Wall
 from ..parallel import usable_cores
 from ..probes import Probes
@@ -106,7 +106,7 @@ class CompileAhead:
         self._go = ctx.Event()
         self._reader, writer = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(target=self._forked, args=(settings, writer), daemon=True)
-        self._proc.start()
+        start_forked(self._proc)
         writer.close()
 
     def _forked(self, settings: Settings, writer) -> None:

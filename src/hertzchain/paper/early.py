@@ -15,7 +15,7 @@ import multiprocessing
 from pathlib import Path
 from typing import Callable
 
-from ..interrupts import forked_worker_init
+from ..interrupts import forked_pool
 from ..parallel import usable_cores
 from .values import PAPER
 
@@ -61,7 +61,7 @@ def start_laws_figure(out_dir: str | Path) -> Callable[..., dict[str, Path]] | N
     cores = usable_cores()
     if not laws or cores < 2 or "fork" not in multiprocessing.get_all_start_methods():
         return None
-    pool = multiprocessing.get_context("fork").Pool(1, initializer=forked_worker_init)
+    pool = forked_pool(1)
     pending = pool.apply_async(_draw_laws, (str(out_dir), laws, eps))
 
     def finish(cancel: bool = False) -> dict[str, Path]:

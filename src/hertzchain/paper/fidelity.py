@@ -35,7 +35,7 @@ from matplotlib.figure import Figure
 from .. import analysis, theory
 from ..parallel import usable_cores
 from ..chain import paper_chain
-from ..interrupts import forked_worker_init
+from ..interrupts import forked_worker_init, start_forked
 from ..errors import ConfigError, ElasticLimitWarning, HertzchainError
 from ..model import Model, Wall
 
@@ -127,7 +127,7 @@ class LawVariants:
         self._ends, self._lock = ends, ends.get_lock()
         self._reader, writer = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(target=self._forked, args=(writer,), daemon=True)
-        self._proc.start()
+        start_forked(self._proc)
         writer.close()
 
     def _claim(self, front: bool) -> str | None:

@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..interrupts import forked_worker_init
+from ..interrupts import forked_pool
 from ..parallel import usable_cores
 from .. import __version__, theory
 from ..result import save as _save
@@ -386,7 +386,7 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     _DRAW_JOB = (out_dir, makers)
     try:
         if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
-            with multiprocessing.get_context("fork").Pool(workers, initializer=forked_worker_init) as pool:
+            with forked_pool(workers) as pool:
                 drawing = pool.imap_unordered(_draw_one, order)  # the figures are handed out now
                 if meanwhile is not None:
                     meanwhile()
@@ -419,7 +419,7 @@ def _draw_early(out_dir: str | Path, makers: dict[str, Callable]) -> Callable[..
         return lambda cancel=False: {} if cancel else drawn
     _DRAW_JOB = (out_dir, makers)
     try:
-        pool = multiprocessing.get_context("fork").Pool(1, initializer=forked_worker_init)
+        pool = forked_pool(1)
     finally:
         _DRAW_JOB = None
     pending = pool.map_async(_draw_one, order)
