@@ -258,8 +258,9 @@ def _contact_bound(u, v, kappa, d0, inv_mass, j, imr, inv_eps, h_prev, sx, sw, s
 def contact_bounds(u, v, kappa, d0, inv_mass, eps, h_prev, sx, sw, st, sc):
     """:func:`next_step`'s per-contact terms for the contacts of ``kappa`` (``u``, ``v``,
     ``inv_mass`` from the same first slot to the end: the threaded engine passes a block's views).
-    The last slot's contact (padding, kappa = 0) has nothing on its right: its loop is peeled off,
-    so that no contact reads the inverse mass past the array's end."""
+    The last slot's contact (padding, kappa = 0) has nothing on its right: it takes 0 there (a
+    select in the one loop, which inlines the bound once), so that no contact reads the inverse
+    mass past the array's end."""
     inv_eps = 1.0 / eps
     n = kappa.shape[0]
     m = min(n, inv_mass.shape[0] - 1)
