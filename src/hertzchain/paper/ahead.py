@@ -2,8 +2,8 @@
 
 A reproduction in a fresh installation (an empty Numba cache) compiled every engine in its own
 process, one after another, as each model kind came up: the calibrated law's engine (the aligned
-chains), the same engine's offset specialisation (Fig. 3a-b), the elastic law's engine (the
-wall/chain ratio) and the two-dimensional engine (Fig. 3 with lateral freedom), ~20 CPU-s while
+chains, and the offset beads of Fig. 3a-b, which share its one specialisation), the elastic law's
+engine (the wall/chain ratio) and the two-dimensional engine (Fig. 3 with lateral freedom), while
 the second core idled. :class:`CompileAhead` forks a process that makes a short run of each kind
 the reproduction runs later (its kernels then lie in Numba's on-disk cache) while this one
 calibrates and runs the aligned chains; :meth:`CompileAhead.wait` holds the reproduction before its
@@ -12,10 +12,8 @@ compiling them a second time. The results are those of a run that compiled its o
 cache holds the code the same compilation gives.
 
 Numba's cache index is not safe against two processes adding *different* signatures of one
-function at the same time (each may give its entry the same data file), so the fork compiles the
-offset specialisation of the calibrated law's engine, which shares its functions with the aligned
-one, only once this process has compiled that (:meth:`CompileAhead.go`); the two-dimensional
-and the elastic engines share no compiled function with it and start at once.
+function at the same time (each may give its entry the same data file): the kinds compiled ahead
+share no compiled function with the calibrated law's engine, which this process compiles.
 
 With one usable core, no ``fork``, or Numba's compilation switched off, nothing is forked and every ``wait`` returns at once: each run compiles what it needs, as before.
 """
@@ -33,9 +31,9 @@ from .protocol import Settings
 
 __all__ = ["CompileAhead", "KINDS"]
 
-#: The model kinds compiled ahead, in the order the fork compiles them: those sharing no compiled
-#: function with the calibrated law's aligned engine first (they start at once), then the offset one.
-KINDS = ("lateral", "elastic", "offset")
+#: The model kinds compiled ahead, in the order the fork compiles them (neither shares a compiled
+#: function with the calibrated law's engine).
+KINDS = ("lateral", "elastic")
 
 #: Simulated time of each short run [s]: a few steps, enough to reach every kernel of the run.
 _SHORT = 2e-6
@@ -61,14 +59,11 @@ def _short_run(settings: Settings, kind: str) -> None:
 
         fidelity.warm_lateral(settings, _placeholder_law(settings))
         return
-    if kind == "elastic":  # the wall/chain ratio's (protocol.run_wall_chain_ratio)
-        from ..contact import Elastic
+    # the wall/chain ratio's (protocol.run_wall_chain_ratio)
+    from ..contact import Elastic
 
-        model = Model(Chain.uniform(3, chain2.diameters[0], settings.material), striker, Wall("flat"), Elastic())
-        probes = Probes(settings.sample_interval / 4, contacts=(1, 3))
-    else:  # an offset bead (protocol.run_misalignment)
-        model = Model(chain2.truncated(3).with_offsets({2: 1e-3}), striker, Wall("flat"), _placeholder_law(settings))
-        probes = Probes(settings.sample_interval, contacts=(3,))
+    model = Model(Chain.uniform(3, chain2.diameters[0], settings.material), striker, Wall("flat"), Elastic())
+    probes = Probes(settings.sample_interval / 4, contacts=(1, 3))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         simulate(model, _SHORT, probes)
@@ -103,7 +98,6 @@ class CompileAhead:
                 or not _compiling():
             return
         ctx = multiprocessing.get_context("fork")
-        self._go = ctx.Event()
         self._reader, writer = ctx.Pipe(duplex=False)
         self._proc = ctx.Process(target=self._forked, args=(settings, writer), daemon=True)
         start_forked(self._proc)
@@ -113,8 +107,6 @@ class CompileAhead:
         forked_worker_init()
         try:
             for kind in self.kinds:
-                if kind == "offset":
-                    self._go.wait()
                 try:
                     _short_run(settings, kind)
                 except Exception:  # noqa: BLE001 - the reproduction's own run compiles it and reports any error
@@ -123,17 +115,10 @@ class CompileAhead:
         finally:
             writer.close()
 
-    def go(self) -> None:
-        """Say that this process compiled the calibrated law's aligned engine: the fork may now
-        compile its offset specialisation (module docstring)."""
-        if self._proc is not None:
-            self._go.set()
-
     def wait(self, kind: str) -> None:
         """Return once ``kind`` is compiled (at once when nothing was forked or the fork ended)."""
         if kind not in self.kinds:
             return
-        self.go()  # (an offset run before the aligned ones: nothing left to protect)
         while self._proc is not None and kind not in self._ready:
             try:
                 self._ready.add(self._reader.recv())

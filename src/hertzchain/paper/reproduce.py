@@ -541,22 +541,14 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     tick = progress or (lambda msg: None)
-    # the engines of the later model kinds (offset beads, the elastic ratio, lateral freedom) are
-    # compiled by a forked process while this one calibrates the law and runs the aligned chains on
-    # its engine (paper/ahead.py); each kind's runs wait for theirs and load them from the cache
+    # the engines of the later model kinds (the elastic ratio, lateral freedom) are compiled by a
+    # forked process while this one calibrates the law and runs the aligned chains on its engine
+    # (paper/ahead.py); each kind's runs wait for theirs and load them from the cache
     ahead = CompileAhead(settings)
     variants = None
 
-    def after_run(msg: str) -> None:
-        # each run's tick: the first one's run (after the calibration) compiled the calibrated
-        # law's aligned engine, so the fork may start its offset specialisation ~1 s earlier than
-        # after both chains' analyses
-        ahead.go()
-        tick(msg)
-
     try:
-        studies = {name: protocol.run_chain_study(name, settings, after_run) for name in ("chain1", "chain2")}
-        ahead.go()
+        studies = {name: protocol.run_chain_study(name, settings, tick) for name in ("chain1", "chain2")}
         ahead.wait("elastic")
         ratio = protocol.run_wall_chain_ratio(settings)
         tick("wall/chain ratio")
@@ -572,11 +564,8 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
         subs = protocol.run_substitutions(settings)
         for _ in range(3):
             tick("Fig. 3c: substitutions")
-        # lateral freedom first: its engine is compiled before the offset one, whose compilation
-        # (the fork's last, ~8 CPU-s) these runs then overlap instead of waiting for it
         ahead.wait("lateral")
         lateral, cost = fidelity.run_lateral_misalignment(settings, progress=tick)
-        ahead.wait("offset")
         mis = protocol.run_misalignment(settings)
         for _ in range(6):
             tick("Fig. 3a-b: misaligned beads")

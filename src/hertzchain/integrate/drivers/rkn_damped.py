@@ -58,8 +58,9 @@ def run_rkn_damped(system: System, duration: float, sample_interval: float, dt: 
     pw = np.zeros(p)  # per contact: stage-weighted dissipated power
     mode = np.zeros(p)  # per contact: its branch in the present step (1: carries a force)
     last = np.zeros(p)  # ... in the last step (at the start: the state's)
-    # offset pairs' geometry (rows rk.G_*), None for an aligned chain (its own specialisation)
-    off = np.ascontiguousarray(np.stack([w.de, w.dx0, w.rsum])) if system.misaligned else None
+    # offset pairs' geometry (rows rk.G_*); an aligned chain's has no columns, so that aligned and
+    # misaligned chains share one compiled run (the kernels test the width once, outside their loops)
+    off = np.ascontiguousarray(np.stack([w.de, w.dx0, w.rsum])) if system.misaligned else np.zeros((3, 0))
     rk.accelerations(u, v, w.kappa, w.damping, w.d0, off, w.fext, w.inv_mass, law, a)
     rk.end_data(u, v, a, w.kappa, w.damping, w.d0, off, w.fext, w.mass, law, last, 0.0, ed, ends, 0)
     rk.set_modes(ed, 0, last)  # the state's branches (on which a is f(u, v)), and the power on them

@@ -20,21 +20,19 @@ delta^(5/2) (whose delta^(3/2) singularity at the opening a quadrature would mis
 is conserved to the method's order (:func:`step_dissipation`). f(u', v') is the next step's k1:
 four force passes per step.
 
-Non-smooth instants of a contact, each an *event* the step lands on (a step that would straddle one
-has the error of a jump or kink, of order 1 or 2 in h whatever the method): its closing (delta
-crosses 0 upwards: the dashpot force jumps by gamma r, Kuwabara-Kono's rises as delta^(1/2)), the
-clip (the unclipped force F_u crosses 0 downwards while unloading: dF/dt jumps to 0) and a reload
-(F_u back above 0 while delta > 0). A step is taken with every contact on a fixed *branch*
-(``mode``: loaded, the unclipped force F_u extended smoothly, or no force), the one its state
-at the step's start gives, so that no stage sees the other side of an instant. After the step,
-where a contact's state at the end (open, closed and clipped, loaded) leaves its branch, the step
-is redone ending on the instant (the root of the cubic Hermite of delta or F_u through its values
-and rates at both ends), until the instant lies within :data:`EVENT_TOL` of a step's end; an
-instant at the step's start (a state that ended the last step just short of it) switches the
-branch and restarts the step. The step's end data (accelerations, their rates, the dissipated
-power) are on the step's own branches, so that its interpolants are smooth up to its end; where the
-next step's branches differ (an instant within EVENT_TOL of the end), it restarts on them
-(:func:`restart`). The opening after a clip carries no force on either side: no event.
+Non-smooth instants of a contact, each an *event* the step lands on (a step that would straddle one has the
+error of a jump or kink, of order 1 or 2 in h whatever the method): its closing (delta crosses 0 upwards: the
+dashpot force jumps by gamma r, Kuwabara-Kono's rises as delta^(1/2)), the clip (the unclipped force F_u crosses
+0 downwards while unloading: dF/dt jumps to 0) and a reload (F_u back above 0 while delta > 0). A step is taken
+with every contact on a fixed *branch* (``mode``: loaded, the unclipped force F_u extended smoothly, or no
+force), the one its state at the step's start gives, so that no stage sees the other side of an instant. After
+the step, where a contact's state at the end (open, closed and clipped, loaded) leaves its branch, the step is
+redone ending on the instant (the root of the cubic Hermite of delta or F_u through its values and rates at both
+ends), until the instant lies within :data:`EVENT_TOL` of a step's end; an instant at the step's start (a state
+that ended the last step just short of it) switches the branch and restarts the step. The step's end data
+(accelerations, their rates, the dissipated power) are on the step's own branches, so that its interpolants are
+smooth up to its end; where the next step's branches differ (an instant within EVENT_TOL of the end), it
+restarts on them (:func:`restart`). The opening after a clip carries no force on either side: no event.
 
 Step control (:func:`next_step`): per loaded contact j the local velocity error of a step h is
 bounded by
@@ -51,11 +49,10 @@ the fourth-order error of a force that changes at the contact's frequency and da
 step keeps max_j e_j(h) <= eps, grows at most :data:`MAX_GROWTH`-fold, and a Gershgorin bound
 keeps (omega + damping rate) h below :data:`MAX_RHO_H` (RK4 is stable to ~2.8 on both axes).
 
-Probes (:mod:`.rkn_samples`): a contact's force is the law's (clipped) at its overlap's quintic
-Hermite through (delta, r, q = d(r)/dt) and its rate's cubic through (r, q) at the step's ends;
-the energies are the cubic Hermite through their values and exact rates. Events end steps, so
-each step's interpolants are smooth. The peak wall force is the largest interpolated force on a
-step where the wall force turns down (golden-section search).
+Probes (:mod:`.rkn_samples`): a contact's force is the law's (clipped) at its overlap's quintic Hermite through
+(delta, r, q = d(r)/dt) and its rate's cubic through (r, q) at the step's ends; the energies are the cubic
+Hermite through their values and exact rates. Events end steps, so each step's interpolants are smooth. The peak
+wall force is the largest interpolated force on a step where the wall force turns down (golden-section search).
 """
 
 from __future__ import annotations
@@ -101,27 +98,25 @@ class DampedState(NamedTuple):
     ed: np.ndarray
     ends: np.ndarray
 
-#: Largest (omega + damping rate) h (Gershgorin bounds); RK4 is stable to ~2.8 on the imaginary and
-#: the negative real axis, and the error control keeps real steps below this.
+#: Largest (omega + damping rate) h (Gershgorin bounds); RK4 is stable to ~2.8 on the imaginary and the negative
+#: real axis, and the error control keeps real steps below this.
 MAX_RHO_H = 1.0
 #: A step grows at most by this factor over the last step the error bound chose.
 MAX_GROWTH = 2.0
-#: An event inside a step closer than this fraction of the step to one of its ends is taken in
-#: the step (its error is then below ~EVENT_TOL (c h) |r|, c the damping rate); farther inside,
-#: the step is redone to end on it.
+#: An event inside a step closer than this fraction of the step to one of its ends is taken in the step (its
+#: error is then below ~EVENT_TOL (c h) |r|, c the damping rate); farther inside, the step is redone to end on it.
 EVENT_TOL = 1e-7
-#: A change of branch is landed on only where the contact's force at the step's end times m^-1 h
-#: (the most the step's velocities can be off by taking the change inside it) exceeds this fraction
-#: of ``eps``: offset beads barely touching (~1e-13 N) clipped and reloaded in nearly every step,
-#: and landing on each took steps of 1e-15 s (a misaligned chain 1 ran for hours).
+#: A change of branch is landed on only where the contact's force at the step's end times m^-1 h (the most the
+#: step's velocities can be off by taking the change inside it) exceeds this fraction of ``eps``: offset beads
+#: barely touching (~1e-13 N) clipped and reloaded in nearly every step, and landing on each took steps of 1e-15 s
+#: (a misaligned chain 1 ran for hours).
 EVENT_EPS = 1e-3
-#: Redos of one step at most (the root of the Hermite is accurate to O(h^4): a few suffice; the
-#: last try is kept).
+#: Redos of one step at most (the root of the Hermite is accurate to O(h^4): a few suffice; the last try is kept).
 MAX_REDO = 12
 
-#: Rows of a step end's per-contact data ``ed[c]``: force, its time derivative, overlap, rate,
-#: d(rate)/dt, unclipped force and its time derivative, elastic energy, dissipated power (on the
-#: branch of the step ending there; :func:`end_data`).
+#: Rows of a step end's per-contact data ``ed[c]``: force, its time derivative, overlap, rate, d(rate)/dt,
+#: unclipped force and its time derivative, elastic energy, dissipated power (on the branch of the step ending
+#: there; :func:`end_data`).
 R_F, R_DF, R_D, R_R, R_Q, R_FU, R_DFU, R_E, R_P = 0, 1, 2, 3, 4, 5, 6, 7, 8
 ROWS = 9
 #: Slots of ``ends[c]``: energies [J] and their rates [W] (dissipated: D and the power).
@@ -133,9 +128,9 @@ A_T, A_TPREV, A_H, A_STEPS, A_HMIN, A_HMAX, A_HREF = 0, 1, 2, 3, 4, 5, 6
 OPEN, CLIPPED, LOADED = 0, 1, 2
 
 
-#: Rows of the offsets array ``off`` (``layout.pack``'s arrays; None for an aligned chain, which
-#: compiles a specialisation without them): perpendicular offset difference e_{j+1} - e_j, axial
-#: distance of centres at rest and R_j + R_{j+1} of an offset pair [m].
+#: Rows of the offsets array ``off`` (``layout.pack``'s arrays): perpendicular offset difference e_{j+1} - e_j,
+#: axial distance of centres at rest and R_j + R_{j+1} of an offset pair [m]. No columns for an aligned chain: one
+#: specialisation for both (the width is a loop invariant, so LLVM keeps an offset-free copy of each contact loop).
 G_DE, G_DX0, G_RSUM = 0, 1, 2
 
 
@@ -146,7 +141,7 @@ def _line(du, dv, d0, off, j):
     delta = R_j + R_{j+1} - d and its force acts along the line of centres, dx / d of it along
     the axis (docs/conventions.rst, misalignment); d2(delta)/dt2 = (dx / d) (a_j - a_{j+1})
     - (de^2 / d^3) dv^2. An aligned pair: (du + d0_j, 1, dv, 0)."""
-    if off is not None:
+    if off is not None and off.shape[1] > 0:
         de = off[G_DE, j]
         if de != 0.0:
             dx = off[G_DX0, j] - du
@@ -515,8 +510,8 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
 
     ``state`` (:class:`DampedState`), ``chain`` (:class:`~.rkn_kernels.ChainArrays`), ``probes``
     (:class:`~.rkn_kernels.ProbeBuffers`) and ``control`` (:class:`~.rkn_kernels.StepControl`)
-    carry the arrays and numbers named below; ``off`` the offset pairs' geometry (rows G_*, None
-    for an aligned chain), ``law`` the law's code.
+    carry the arrays and numbers named below; ``off`` the offset pairs' geometry (rows G_*, no
+    columns for an aligned chain), ``law`` the law's code.
 
     On entry and exit (u, v, a) is the state at time acc[A_T], a = f(u, v); the end data of the
     last two step ends are ``ed[c]``, ``ends[c]`` (this one) and ``ed[1 - c]``, ``ends[1 - c]``
@@ -655,9 +650,14 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
                     fi[j, m] = 0.0
                 continue
             kj, cj = kappa[j], damping[j]
-            for m in range(nb):
-                d, rt = path_at(pc, j, th[m])
-                fi[j, m] = axial(_viscous_force(d, rt, kj, cj, law)[0], off, j, d)
+            if off is not None and off.shape[1] > 0 and off[G_DE, j] != 0.0:
+                for m in range(nb):
+                    d, rt = path_at(pc, j, th[m])
+                    fi[j, m] = axial(_viscous_force(d, rt, kj, cj, law)[0], off, j, d)
+            else:  # two loops: the aligned one stays vectorised (a select inside halves its speed)
+                for m in range(nb):
+                    d, rt = path_at(pc, j, th[m])
+                    fi[j, m] = _viscous_force(d, rt, kj, cj, law)[0]
         if all_forces:
             for j in range(lo, hi):
                 fm = fmax[j]

@@ -61,8 +61,9 @@ def path_at(pc, j, x):
 def axial(f, off, j, d):
     """The part along the chain's axis of a contact force f [N] at overlap d [m]: f itself for an
     aligned pair, f dx / dist for a pair whose centres are ``off[0, j]`` apart across the axis
-    (dist = ``off[2, j]`` - d, the centres' distance; ``off`` None for an aligned chain)."""
-    if off is not None:
+    (dist = ``off[2, j]`` - d, the centres' distance; ``off`` without columns, or None, for an
+    aligned chain)."""
+    if off is not None and off.shape[1] > 0:
         de = off[0, j]
         if de != 0.0:
             dist = off[2, j] - d
