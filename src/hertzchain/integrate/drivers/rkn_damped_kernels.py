@@ -66,8 +66,8 @@ from ..core import kernels
 from . import rkn_kernels, rkn_samples
 from ..core.primitives import DELTA_MIN, LAW_VISCOELASTIC, _viscous_force, damped_force_sd
 from .rkn_kernels import hermite, quintic, quintic_at_most, force_bound
-from .rkn_samples import (PATH_ROWS, axial, block_of_samples, hermite_root, path_at, path_coefficients,
-                          record_bodies)
+from .rkn_samples import PATH_ROWS, axial, axial_factor, block_of_samples, hermite_root, path_at, path_coefficients, \
+    record_bodies
 
 
 class DampedState(NamedTuple):
@@ -136,18 +136,18 @@ G_DE, G_DX0, G_RSUM = 0, 1, 2
 
 @njit(cache=True, nogil=True, inline="always")
 def _line(du, dv, d0, off, j):
-    """(delta, dx / d, d(delta)/dt, de^2 / d^3) of contact j from du = u_j - u_{j+1} and
-    dv = v_j - v_{j+1}: an offset pair (de != 0) has d = sqrt(dx^2 + de^2), dx = dx0 - du,
-    delta = R_j + R_{j+1} - d and its force acts along the line of centres, dx / d of it along
-    the axis (docs/conventions.rst, misalignment); d2(delta)/dt2 = (dx / d) (a_j - a_{j+1})
-    - (de^2 / d^3) dv^2. An aligned pair: (du + d0_j, 1, dv, 0)."""
+    """(delta, dx / d, d(delta)/dt, de^2 / d^3) of contact j from du = u_j - u_{j+1} and dv = v_j - v_{j+1}: an
+    offset pair (de != 0) has d = sqrt(dx^2 + de^2), dx = dx0 - du, delta = R_j + R_{j+1} - d and its force acts
+    along the line of centres, dx / d of it along the axis (docs/conventions.rst, misalignment); d2(delta)/dt2 =
+    (dx / d) (a_j - a_{j+1}) - (de^2 / d^3) dv^2. An aligned pair: (du + d0_j, 1, dv, 0), chosen by selects,
+    not a branch, in a misaligned chain (its contact loops vectorise)."""
     if off is not None and off.shape[1] > 0:
         de = off[G_DE, j]
-        if de != 0.0:
-            dx = off[G_DX0, j] - du
-            dist = np.sqrt(dx * dx + de * de)
-            cc = dx / dist
-            return off[G_RSUM, j] - dist, cc, cc * dv, de * de / (dist * dist * dist)
+        lined = de != 0.0
+        dx = off[G_DX0, j] - du
+        dist = np.sqrt(dx * dx + de * de) if lined else 1.0
+        cc = dx / dist if lined else 1.0
+        return (off[G_RSUM, j] - dist if lined else du + d0[j]), cc, cc * dv, de * de / (dist * dist * dist)
     return du + d0[j], 1.0, dv, 0.0
 
 
@@ -231,10 +231,9 @@ def step(u, v, a, un, vn, an, us, vs, k2, k3, k4, pw, mode, kappa, damping, d0, 
 
 @njit(cache=True, nogil=True)
 def step_dissipation(ed, b, c, pw, mode, h):
-    """Energy [J] dissipated in the step of size h from ``ed[b]`` to ``ed[c]`` (after
-    :func:`step` and :func:`end_data`): the stages' quadrature for each contact that carries a
-    force (``mode``), the fall of the elastic energy of each that does not (open or clipped: it
-    dissipates exactly that)."""
+    """Energy [J] dissipated in the step of size h from ``ed[b]`` to ``ed[c]`` (after :func:`step` and
+    :func:`end_data`): the stages' quadrature for each contact that carries a force (``mode``), the fall of the
+    elastic energy of each that does not (open or clipped: it dissipates exactly that)."""
     h6 = h / 6.0
     e = 0.0
     for j in range(ed.shape[2]):
@@ -651,9 +650,10 @@ def damped_run(state, chain, off, law, probes, control, k_start, k_stop, acc, al
                 continue
             kj, cj = kappa[j], damping[j]
             if off is not None and off.shape[1] > 0 and off[G_DE, j] != 0.0:
+                de2, rsum = off[G_DE, j] * off[G_DE, j], off[G_RSUM, j]
                 for m in range(nb):
                     d, rt = path_at(pc, j, th[m])
-                    fi[j, m] = axial(_viscous_force(d, rt, kj, cj, law)[0], off, j, d)
+                    fi[j, m] = _viscous_force(d, rt, kj, cj, law)[0] * axial_factor(de2, rsum, d)
             else:  # two loops: the aligned one stays vectorised (a select inside halves its speed)
                 for m in range(nb):
                     d, rt = path_at(pc, j, th[m])

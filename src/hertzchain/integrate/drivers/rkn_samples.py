@@ -58,17 +58,24 @@ def path_at(pc, j, x):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def axial_factor(de2, rsum, d):
+    """dx / dist of an offset pair at overlap d [m]: the share of its force along the chain's axis
+    (de2: the square of its centres' distance across the axis, rsum = R_j + R_{j+1}, dist = rsum - d
+    the centres' distance). Without a branch, so that a loop over samples of it vectorises."""
+    dist = rsum - d
+    x = dist * dist - de2
+    return np.sqrt(x if x > 0.0 else 0.0) / dist
+
+
+@njit(cache=True, nogil=True, inline="always")
 def axial(f, off, j, d):
     """The part along the chain's axis of a contact force f [N] at overlap d [m]: f itself for an
     aligned pair, f dx / dist for a pair whose centres are ``off[0, j]`` apart across the axis
-    (dist = ``off[2, j]`` - d, the centres' distance; ``off`` without columns, or None, for an
-    aligned chain)."""
+    (:func:`axial_factor`; ``off`` without columns, or None, for an aligned chain)."""
     if off is not None and off.shape[1] > 0:
         de = off[0, j]
         if de != 0.0:
-            dist = off[2, j] - d
-            x = dist * dist - de * de
-            f *= np.sqrt(x if x > 0.0 else 0.0) / dist
+            f *= axial_factor(de * de, off[2, j], d)
     return f
 
 
