@@ -85,10 +85,13 @@ def _rkn_kernel(order, off, n_slots, u0, v0, mass, inv_mass, kappa, damping, d0,
         fi = np.zeros((nc, SAMPLE_BLOCK))
         ed = np.zeros((2, rk.ROWS, p))
         ends = np.zeros((2, rk.ENDS))
-        off3 = np.empty((3, p))
-        off3[rk.G_DE] = de[s:s + p]
-        off3[rk.G_DX0] = dx0[s:s + p]
-        off3[rk.G_RSUM] = rsum[s:s + p]
+        # an aligned member's offsets have no columns: its contact loops skip the offset geometry
+        # (rk.G_DE's comment) instead of taking it by selects
+        off3 = np.empty((3, p if np.any(de[s:s + p] != 0.0) else 0))
+        if off3.shape[1] > 0:
+            off3[rk.G_DE] = de[s:s + p]
+            off3[rk.G_DX0] = dx0[s:s + p]
+            off3[rk.G_RSUM] = rsum[s:s + p]
         ms, ims, ka, da, dz, fx = mass[s:s + p], inv_mass[s:s + p], kappa[s:s + p], damping[s:s + p], d0[s:s + p], \
             fext[s:s + p]
         lw = law[m]
