@@ -235,7 +235,12 @@ def main() -> int:
               + ("" if args.rtol is None else f"; run.rtol = {args.rtol:g} (not the default)"), flush=True)
         # One chunk alone first: the process's fixed cost (imports, loading the compiled kernels,
         # planning), so that the CPU time per member can be given without it (the marginal cost,
-        # what a million members multiply) and the extrapolation adds it once.
+        # what a million members multiply) and the extrapolation adds it once. A small sweep
+        # before it fills Numba's cache: a chunk that compiled the engine would count the
+        # compilation as fixed cost, which a million members pay once per installation, and
+        # understate the marginal cost by ~1 CPU-ms a member.
+        local_run(sweep_file(folder, 16, 16, args.rtol), folder / "warm")
+        shutil.rmtree(folder / "warm")
         one = local_run(sweep_file(folder, args.chunk_size, args.chunk_size, args.rtol), folder / "one")
         shutil.rmtree(folder / "one")
         r = local_run(sweep_file(folder, args.members, args.chunk_size, args.rtol), folder / "local")
