@@ -285,3 +285,26 @@ def test_real_write_limit_is_a_clean_error(tmp_path):
     assert f"error: {out}: cannot be written: the file is too large for the file system" in proc.stderr
     assert "Traceback" not in proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.toml"]
+
+
+def test_full_numba_cache_names_its_folder(tmp_path):
+    """Numba lets a failed write of its cache of compiled kernels (a full disk, a quota, here the
+    file-size limit) through without a file name; the error names the cache's folder and what to
+    do instead of "a file". A cold cache of its own, so that the kernels are written first."""
+    import resource
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(SMALL_RUN)
+    cache = tmp_path / "numba_cache"
+    cache.mkdir()
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (16_000, 16_000))
+
+    proc = subprocess.run([sys.executable, "-m", "hertzchain.cli", "run", str(cfg), "--out", str(tmp_path / "r.nc"),
+                           "-q"], capture_output=True, text=True, timeout=300, preexec_fn=limit,
+                          env={**os.environ, "NUMBA_CACHE_DIR": str(cache)})
+    assert proc.returncode == 2, proc.stderr
+    assert f"error: Numba's cache of compiled kernels ({cache}" in proc.stderr, proc.stderr
+    assert "File too large" in proc.stderr and "NUMBA_CACHE_DIR" in proc.stderr
+    assert "Traceback" not in proc.stderr and not (tmp_path / "r.nc").exists()

@@ -123,8 +123,7 @@ def _main(argv: list[str] | None) -> int:
                    "or record fewer contacts (probes.contacts)", err=True)
         return 2
     except OSError as exc:  # a file the job needed could not be read or written
-        where = exc.filename if exc.filename is not None else "a file"
-        click.echo(f"error: {where}: {exc.strerror or exc}", err=True)
+        click.echo(f"error: {_what_failed(exc)}: {exc.strerror or exc}{_numba_cache_hint(exc)}", err=True)
         return 2
     except Exception as exc:  # a bug: say so plainly, full traceback on request
         if os.environ.get("HERTZCHAIN_DEBUG"):
@@ -133,6 +132,34 @@ def _main(argv: list[str] | None) -> int:
                    "This is a bug in hertzchain; rerun with HERTZCHAIN_DEBUG=1 for the traceback.", err=True)
         return 1
     return 0
+
+
+def _numba_cache_folder(exc: OSError) -> str | None:
+    """The folder of Numba's cache of compiled kernels when ``exc`` was raised writing it (a full
+    disk, a quota or file-size limit): Numba lets that error through without a file name, so it is
+    read from the traceback's frames (``numba.core.caching`` objects keep their ``_cache_path``)."""
+    folder = None
+    tb = exc.__traceback__
+    while tb is not None:
+        frame = tb.tb_frame
+        if frame.f_globals.get("__name__") == "numba.core.caching":
+            folder = getattr(frame.f_locals.get("self"), "_cache_path", None) or folder
+        tb = tb.tb_next
+    return folder
+
+
+def _what_failed(exc: OSError) -> str:
+    if exc.filename is not None:
+        return str(exc.filename)
+    folder = _numba_cache_folder(exc)
+    return "a file" if folder is None else f"Numba's cache of compiled kernels ({folder})"
+
+
+def _numba_cache_hint(exc: OSError) -> str:
+    if exc.filename is not None or _numba_cache_folder(exc) is None:
+        return ""
+    return ("; free space there, or point NUMBA_CACHE_DIR at a writable folder with room (each new kind of "
+            "model compiles its kernels once and keeps them there)")
 
 
 def entry() -> None:
