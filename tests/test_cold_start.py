@@ -46,6 +46,29 @@ def test_calibrated_chain1_compiles_only_the_engine_it_runs():
                       ["hertzchain.integrate.drivers.rkn_damped_kernels", "hertzchain.integrate.drivers.rkn_kernels"])
 
 
+OFFSETS = """
+import json, warnings
+warnings.simplefilter("ignore")
+import hertzchain as hc
+from hertzchain.integrate.drivers import rkn_damped_kernels as rk
+chain, striker, law = hc.paper_chain("chain1").truncated(6), hc.Striker(8e-3, 0.2), hc.Dashpot(gamma=8.0)
+models = [hc.Model(c, striker, hc.Wall("flat"), law) for c in (chain, chain.with_offsets({3: 2e-5}))]
+runs = [hc.simulate(m, 2e-4).attrs["integrator_used"] for m in models]
+print(json.dumps({"integrators": runs, "signatures": len(rk.damped_run.signatures)}))
+"""
+
+
+def test_aligned_and_offset_chains_share_one_compiled_engine():
+    """An aligned chain's offsets are an array without columns, not None, so that aligned and
+    offset chains run one compiled ``damped_run`` (rkn_damped_kernels.G_DE): a specialisation of
+    its own for each cost ~6 CPU-s more in a fresh environment and in a cold ``reproduce``."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, "-c", OFFSETS], capture_output=True, text=True, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    seen = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert seen == {"integrators": ["rkn4", "rkn4"], "signatures": 1}
+
+
 def test_calibration_on_rkn4_matches_the_verlet():
     """The calibration's engine does not move the law: the calibrated dashpot measures the target
     eps (xtol 1e-5 on gamma moves eps by ~1e-7), and the fitted contacts' peak forces are the
