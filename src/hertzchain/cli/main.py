@@ -123,7 +123,7 @@ def _main(argv: list[str] | None) -> int:
                    "or record fewer contacts (probes.contacts)", err=True)
         return 2
     except OSError as exc:  # a file the job needed could not be read or written
-        click.echo(f"error: {_what_failed(exc)}: {exc.strerror or exc}{_numba_cache_hint(exc)}", err=True)
+        click.echo(f"error: {_os_error_message(exc)}", err=True)
         return 2
     except Exception as exc:  # a bug: say so plainly, full traceback on request
         if os.environ.get("HERTZCHAIN_DEBUG"):
@@ -148,18 +148,16 @@ def _numba_cache_folder(exc: OSError) -> str | None:
     return folder
 
 
-def _what_failed(exc: OSError) -> str:
+def _os_error_message(exc: OSError) -> str:
+    """What could not be read or written, and why: the file, else Numba's cache with what to do."""
+    reason = exc.strerror or str(exc)
     if exc.filename is not None:
-        return str(exc.filename)
+        return f"{exc.filename}: {reason}"
     folder = _numba_cache_folder(exc)
-    return "a file" if folder is None else f"Numba's cache of compiled kernels ({folder})"
-
-
-def _numba_cache_hint(exc: OSError) -> str:
-    if exc.filename is not None or _numba_cache_folder(exc) is None:
-        return ""
-    return ("; free space there, or point NUMBA_CACHE_DIR at a writable folder with room (each new kind of "
-            "model compiles its kernels once and keeps them there)")
+    if folder is None:
+        return f"a file: {reason}"
+    return (f"Numba's cache of compiled kernels ({folder}): {reason}; free space there, or point NUMBA_CACHE_DIR "
+            "at a writable folder with room (each new kind of model compiles its kernels once and keeps them there)")
 
 
 def entry() -> None:
