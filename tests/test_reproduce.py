@@ -321,3 +321,29 @@ def test_redraw_names_a_mistyped_summary(summary, tmp_path, capsys, edit, messag
     err = capsys.readouterr().err
     last = err.strip().splitlines()[-1]  # after the progress bar, when the report is what cannot read it
     assert last.startswith(f"error: {tmp_path / 'r' / 'summary.json'}: ") and message in last, err
+
+
+def _refuse_to_write():
+    from hertzchain.errors import ConfigError
+
+    raise ConfigError("data/chain1_truncated_16.nc", "cannot write it: No space left on device")
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_draw_runs_its_jobs_and_names_a_failed_write_after_the_others(tmp_path, workers):
+    """reproduce() hands the traces' writes and Fig. 3's numbers to the drawing processes: every
+    job runs even when one fails (no trace is lost to another's error), each result reaches the
+    caller, and the failure arrives as the ConfigError it was, naming its file."""
+    from functools import partial
+
+    from hertzchain.errors import ConfigError
+    from hertzchain.paper.reproduce import draw
+
+    got = {}
+    jobs = [partial(sum, [1, 2]), _refuse_to_write, partial((tmp_path / "trace.nc").write_text, "written")]
+    with pytest.raises(ConfigError) as err:
+        draw(tmp_path, None, None, None, Settings(), figures=(), workers=workers, jobs=jobs,
+             job_done=got.__setitem__)
+    assert err.value.field == "data/chain1_truncated_16.nc" and "No space left" in err.value.message
+    assert got == {0: 3, 2: len("written")}
+    assert (tmp_path / "trace.nc").read_text() == "written"

@@ -27,6 +27,11 @@ class ConfigError(HertzchainError, ValueError):
         self.message = message
         super().__init__(f"{field}: {message}")
 
+    def __reduce__(self):
+        # rebuilt from (field, message), not from the one formatted argument Exception pickles:
+        # an error raised in a forked worker (a trace that cannot be written) reaches the parent
+        return type(self), (self.field, self.message)
+
 
 class SimulationDiverged(HertzchainError, FloatingPointError):
     """The integration produced non-finite numbers (time step far too large, bad input)."""

@@ -7,8 +7,9 @@ import math
 import multiprocessing
 import os
 import time
+from functools import partial
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -173,21 +174,18 @@ def build_summary(studies: dict[str, ChainStudy], ratio: dict, speed: dict, sett
 
 
 
-def _save_data(out: Path, studies, mis, subs, ratio) -> None:
-    """Every simulated trace, as single-precision compressed NetCDF (enough to redraw figures)."""
+def _traces(out: Path, studies, mis, subs, ratio, lateral) -> list[tuple[Path, Callable[[], object]]]:
+    """Every simulated trace's file and the call that writes it (single-precision compressed
+    NetCDF: enough to redraw the figures), in the order the reproduction ran them."""
     data = out / "data"
-
-    def save(ds, path):
-        _save(ds, path, single_precision=True)
-
-    for name, study in studies.items():
-        for n, ds in study.wall.items():
-            save(ds, data / f"{name}_truncated_{n:02d}.nc")
-    for (bead, frac), ds in mis.items():
-        save(ds, data / f"fig3_chain2_offset_bead{bead}_e{frac:.2f}.nc")
-    for label, ds in subs.items():
-        save(ds, data / f"fig3c_chain1_24_{SUB_TAGS[label]}.nc")
-    save(ratio["dataset"], data / "uniform16_elastic_wall_chain_ratio.nc")
+    jobs = [(data / f"{name}_truncated_{n:02d}.nc", ds) for name, study in studies.items() for n, ds in study.wall.items()]
+    jobs += [(data / f"fig3_chain2_offset_bead{bead}_e{frac:.2f}.nc", ds) for (bead, frac), ds in mis.items()]
+    jobs += [(data / f"fig3c_chain1_24_{SUB_TAGS[label]}.nc", ds) for label, ds in subs.items()]
+    jobs.append((data / "uniform16_elastic_wall_chain_ratio.nc", ratio["dataset"]))
+    # the figure needs the wall force; the per-body transverse records would add ~2 MB a run
+    jobs += [(data / f"fig3_lateral_{label}_bead{b}_e{frac:.2f}.nc", ds.drop_vars(["lateral_displacement", "momentum"]))
+             for (label, b, frac), ds in lateral.items()]
+    return [(path, partial(_save, ds, path, single_precision=True)) for path, ds in jobs]
 
 
 #: Variables of a trace that the analysis and the figures read (the rest stays on disk).
@@ -345,22 +343,28 @@ def _figure_makers(studies, mis, subs, settings) -> dict:
 
 
 #: What the forked drawing processes draw from (set by :func:`draw` just before it forks, so the
-#: children inherit the data instead of receiving a pickled copy).
+#: children inherit the data instead of receiving a pickled copy): (folder, makers, jobs).
 _DRAW_JOB: tuple | None = None
 
+#: The prefix of a job of :func:`draw` that is not a figure (its number in ``jobs`` follows).
+_JOB = "job:"
 
-def _draw_one(name: str) -> tuple[str, Path]:
+
+def _draw_one(name: str) -> tuple[str, object]:
     from . import figures as figs
 
     assert _DRAW_JOB is not None  # (set by _draw_all before the processes fork)
-    out_dir, makers = _DRAW_JOB
+    out_dir, makers, jobs = _DRAW_JOB
+    if name.startswith(_JOB):
+        return name, jobs[int(name[len(_JOB):])]()
     return name, figs.save_figure(makers[name](), Path(out_dir), name)
 
 
 def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
          progress: Callable[[str], None] | None = None, workers: int | None = None,
          extra: dict[str, Callable] | None = None, figures=FIGURE_NAMES,
-         meanwhile: Callable[[], None] | None = None) -> dict[str, Path]:
+         jobs: Sequence[Callable[[], object]] = (),
+         job_done: Callable[[int, object], None] | None = None) -> dict[str, Path]:
     """Draw Figs. 1-6 (PNG + PDF) into ``out_dir``; returns {name: png path}.
 
     Text layout makes drawing CPU-bound, so the figures are drawn by ``workers`` forked processes
@@ -368,37 +372,53 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
     one core). ``extra`` ({name: function returning a figure}, e.g. :func:`_fidelity_makers`) is
     drawn in the same processes, so that every figure shares the cores; ``progress(message)`` is
     called after each of Figs. 1-6 is written (not after the extra ones: :func:`count_steps`).
-    ``figures`` names the ones of Figs. 1-6 to draw (default all). ``meanwhile()`` is run in this
-    process once the drawing processes have their figures (before the figures, without them).
+    ``figures`` names the ones of Figs. 1-6 to draw (default all). ``jobs`` (calls without
+    arguments: writing the traces, numbers; each result, picklable, is passed to
+    ``job_done(index, result)``) are shared out among the same processes after the figures,
+    filling the cores as the figures end (sequentially: before the figures). Every job and figure
+    runs even when one fails (a figure that cannot be drawn loses no data); the first error is
+    then raised.
     """
     global _DRAW_JOB
     makers = {name: make for name, make in _figure_makers(studies, mis, subs, settings).items() if name in figures}
     makers.update(extra or {})
     order = [n for n in _DRAW_ORDER if n in makers] + [n for n in makers if n not in _DRAW_ORDER]
+    names = order + [f"{_JOB}{i}" for i in range(len(jobs))]
     workers = min(len(FIGURE_NAMES), usable_cores()) if workers is None else workers
     drawn: dict[str, Path] = {}
+    errors: list[BaseException] = []
 
-    def done(name, path):
-        drawn[name] = path
+    def done(name, result):
+        if name.startswith(_JOB):
+            if job_done is not None:
+                job_done(int(name[len(_JOB):]), result)
+            return
+        drawn[name] = result
         if progress is not None and name in FIGURE_NAMES:
             progress(f"drew {name}")
 
-    _DRAW_JOB = (out_dir, makers)
+    _DRAW_JOB = (out_dir, makers, list(jobs))
     try:
         if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
             with forked_pool(workers) as pool:
-                drawing = pool.imap_unordered(_draw_one, order)  # the figures are handed out now
-                if meanwhile is not None:
-                    meanwhile()
-                for name, path in drawing:
-                    done(name, path)
+                results = pool.imap_unordered(_draw_one, names)  # the jobs are handed out now
+                while True:
+                    try:
+                        done(*next(results))
+                    except StopIteration:
+                        break
+                    except Exception as exc:  # noqa: BLE001 - raised below, once the other jobs are done
+                        errors.append(exc)
         else:
-            if meanwhile is not None:
-                meanwhile()
-            for name in order:
-                done(*_draw_one(name))
+            for name in names[len(order):] + order:
+                try:
+                    done(*_draw_one(name))
+                except Exception as exc:  # noqa: BLE001 - raised below, once the other jobs are done
+                    errors.append(exc)
     finally:
         _DRAW_JOB = None
+    if errors:
+        raise errors[0]
     return {name: drawn[name] for name in makers}
 
 
@@ -411,13 +431,13 @@ def _draw_early(out_dir: str | Path, makers: dict[str, Callable]) -> Callable[..
     global _DRAW_JOB
     order = [n for n in _DRAW_ORDER if n in makers] + [n for n in makers if n not in _DRAW_ORDER]
     if usable_cores() < 2 or "fork" not in multiprocessing.get_all_start_methods():
-        _DRAW_JOB = (out_dir, makers)
+        _DRAW_JOB = (out_dir, makers, [])
         try:
             drawn = dict(_draw_one(n) for n in order)
         finally:
             _DRAW_JOB = None
         return lambda cancel=False: {} if cancel else drawn
-    _DRAW_JOB = (out_dir, makers)
+    _DRAW_JOB = (out_dir, makers, [])
     try:
         pool = forked_pool(1)
     finally:
@@ -548,16 +568,18 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     variants = None
 
     try:
-        studies = {name: protocol.run_chain_study(name, settings, tick) for name in ("chain1", "chain2")}
+        studies = {"chain1": protocol.run_chain_study("chain1", settings, tick)}
+        # where the model and the paper disagree: other contact laws (paper/fidelity.py), started now
+        # in a forked process and shared with this one once its own runs are done. The fork inherits
+        # what this process has compiled (the run's law's engine, the pulse fit: chain 1's study ran
+        # them) and loads the elastic engine from the cache the compiling fork filled, so that a cold
+        # run compiles none of them twice, nor two processes one function at once (ahead.py); started
+        # before chain 2's study, not after it, it is done about when this process's own runs are.
         ahead.wait("elastic")
+        variants = fidelity.LawVariants(settings)
+        studies["chain2"] = protocol.run_chain_study("chain2", settings, tick)
         ratio = protocol.run_wall_chain_ratio(settings)
         tick("wall/chain ratio")
-        # where the model and the paper disagree: other contact laws (paper/fidelity.py), started now
-        # in a forked process and shared with this one once its own runs are done; the fork inherits
-        # the kernels compiled or loaded so far (the run's law's and the elastic ones), so that a cold
-        # run compiles none of them twice. The speed check (recalibrations on the loaded engine) runs
-        # beside it and beside the offset engine's compilation.
-        variants = fidelity.LawVariants(settings)
         speed = protocol.run_speed_check(settings)
         for _ in range(10):
             tick("two-speed check")
@@ -576,33 +598,35 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
             variants.cancel()
     t_sim = time.perf_counter() - t0
 
-    def save_data() -> None:
-        _save_data(out, studies, mis, subs, ratio)
-        for (label, b, frac), ds in lateral.items():
-            # the figure needs the wall force; the per-body transverse records would add ~2 MB a run
-            _save(ds.drop_vars(["lateral_displacement", "momentum"]),
-                  out / "data" / f"fig3_lateral_{label}_bead{b}_e{frac:.2f}.nc", single_precision=True)
-
+    writes = [write for _, write in _traces(out, studies, mis, subs, ratio, lateral)]
     summary = build_summary(studies, ratio, speed, settings, {"simulation_s": t_sim})
     summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
-    summary["fidelity"] = {"laws": law_rows,
-                           "misalignment": fidelity.misalignment_numbers(mis, lateral),
+    summary["fidelity"] = {"laws": law_rows, "misalignment": None,
                            "tracks": {k: t.describe() for k, t in fidelity.TRACKS.items()},
                            "lateral_cost": cost}
-    # the verdicts read the numbers as summary.json stores them (rounded), so they rebuild exactly
-    summary["claims"] = build_claims(_round(summary))
+
+    def numbers(misalignment: dict) -> None:
+        summary["fidelity"]["misalignment"] = misalignment
+        # the verdicts read the numbers as summary.json stores them (rounded), so they rebuild exactly
+        summary["claims"] = build_claims(_round(summary))
+
     if figures:
         from .report import write_report
 
-        # the traces are written (~50 files, a few CPU-s of HDF5) while the forked processes draw
+        # the traces (~50 files, ~4 CPU-s of HDF5) and Fig. 3's numbers (pulse fits, and SciPy's
+        # peak finder: 0.4 s to import) are made by the drawing processes beside the figures: on
+        # two cores this process writing the traces beside two drawing ones outlasted them
         fig_paths = draw(out, studies, mis, subs, settings, tick, extra=_fidelity_makers(summary, mis, lateral),
-                         meanwhile=save_data)
+                         jobs=[partial(fidelity.misalignment_numbers, mis, lateral), *writes],
+                         job_done=lambda i, result: numbers(result) if i == 0 else None)
         summary["figures"] = _figure_numbers(studies, mis, subs, settings)
         summary["timing"]["total_s"] = time.perf_counter() - t0
         write_report(out, _round(summary), fig_paths, settings.describe())
         tick("wrote the report")
     else:
-        save_data()
+        for write in writes:
+            write()
+        numbers(fidelity.misalignment_numbers(mis, lateral))
     summary["timing"]["total_s"] = time.perf_counter() - t0
     _write_summary(out, summary)
     return summary
