@@ -100,6 +100,14 @@ def test_reproduce_from_the_wheel_in_an_empty_folder(installed):
         assert (out / name).is_file(), name
     s = json.loads((out / "summary.json").read_text())
     assert s["hertzchain_version"] == hc.__version__
+    # the traces and Fig. 3's numbers are made by the drawing processes (paper.reproduce.draw's jobs)
+    from hertzchain.paper.inputs import expected_traces
+    from hertzchain.paper.protocol import N0
+
+    missing = [name for name in [*expected_traces(N0), "uniform16_elastic_wall_chain_ratio.nc"]
+               if not (out / "data" / name).is_file()]
+    assert not missing, missing
+    assert s["fidelity"]["misalignment"]["rigid"] and len(s["claims"]) >= 10
     # The installed reproduction finds the paper's physics, as the tree's does (tests/test_reproduce.py):
     # eps measured back = the calibrated 0.985, Q_fit within the paper's error bar of eq. 8's Q_th.
     assert s["eps"] == pytest.approx(0.985, rel=3e-3)
