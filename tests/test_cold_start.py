@@ -250,3 +250,32 @@ def test_a_kind_compiled_ahead_is_loaded_not_compiled(tmp_path):
         pytest.skip("no second core or no fork here")
     assert seen["stats"]["lateral_run"] == [1, 0]
     assert all(misses == 0 for _, misses in seen["stats"].values()), seen["stats"]
+
+
+def test_the_compiling_fork_runs_the_wall_chain_ratio_with_the_same_numbers(monkeypatch):
+    """reproduce's compiling fork (paper/ahead.py) also runs the elastic wall/chain ratio once its
+    kernels are compiled and sends it back: the same numbers and trace, bit for bit, as this
+    process's run (the same compiled kernels), and this process does not run it again."""
+    import numpy as np
+
+    from hertzchain.paper import ahead as ahead_module
+    from hertzchain.paper.protocol import Settings, run_wall_chain_ratio
+
+    settings = Settings()
+    ahead = ahead_module.CompileAhead(settings, kinds=("elastic",))
+    if ahead._proc is None:  # one usable core or no fork: nothing runs ahead, by design
+        pytest.skip("no second core or no fork here")
+
+    def not_here(_settings):
+        raise AssertionError("the ratio was run again in this process")
+
+    try:
+        with monkeypatch.context() as m:
+            m.setattr(ahead_module, "run_wall_chain_ratio", not_here)  # (the fork holds the real one)
+            theirs = ahead.wall_chain_ratio()
+    finally:
+        ahead.close()
+    mine = run_wall_chain_ratio(settings)
+    assert theirs["force_ratio"] == mine["force_ratio"] and theirs["duration_ratio"] == mine["duration_ratio"]
+    for name in ("wall_force", "contact_force", "kinetic_energy"):
+        assert np.array_equal(theirs["dataset"][name].values, mine["dataset"][name].values), name

@@ -15,6 +15,12 @@ Numba's cache index is not safe against two processes adding *different* signatu
 function at the same time (each may give its entry the same data file): the kinds compiled ahead
 share no compiled function with the calibrated law's engine, which this process compiles.
 
+Its kernels compiled, the fork also runs the wall/chain ratio (the elastic uniform chain,
+:func:`~hertzchain.paper.protocol.run_wall_chain_ratio`) and sends it back
+(:meth:`CompileAhead.wall_chain_ratio`): a cold reproduction's second core is otherwise idle
+until this process has compiled its own engine, and the run, on the same compiled kernels, gives
+the same numbers here or there.
+
 With one usable core, no ``fork``, or Numba's compilation switched off, nothing is forked and every ``wait`` returns at once: each run compiles what it needs, as before.
 """
 
@@ -22,12 +28,14 @@ from __future__ import annotations
 
 import multiprocessing
 import warnings
+from typing import Callable
+
 from ..chain import Chain, paper_chain
 from ..interrupts import forked_worker_init, start_forked
 from ..model import Model, Wall
 from ..parallel import usable_cores
 from ..probes import Probes
-from .protocol import Settings
+from .protocol import Settings, run_wall_chain_ratio
 
 __all__ = ["CompileAhead", "KINDS"]
 
@@ -91,8 +99,10 @@ class CompileAhead:
     """
 
     def __init__(self, settings: Settings, kinds: tuple[str, ...] | None = None) -> None:
+        self.settings = settings
         self.kinds = tuple(k for k in (kinds or KINDS) if not (k == "elastic" and settings.elastic))
         self._ready: set[str] = set()
+        self._ratio: dict | None = None
         self._proc = None
         if not self.kinds or usable_cores() < 2 or "fork" not in multiprocessing.get_all_start_methods() \
                 or not _compiling():
@@ -112,18 +122,40 @@ class CompileAhead:
                 except Exception:  # noqa: BLE001 - the reproduction's own run compiles it and reports any error
                     pass
                 writer.send(kind)
+            if "elastic" in self.kinds:  # (its engine now in the cache: nothing compiled beside this process)
+                try:
+                    writer.send(("ratio", run_wall_chain_ratio(settings)))
+                except Exception:  # noqa: BLE001 - the reproduction runs it itself and reports any error
+                    writer.send(("ratio", None))
         finally:
             writer.close()
 
-    def wait(self, kind: str) -> None:
-        """Return once ``kind`` is compiled (at once when nothing was forked or the fork ended)."""
-        if kind not in self.kinds:
-            return
-        while self._proc is not None and kind not in self._ready:
+    def _receive(self, done: Callable[[], bool]) -> None:
+        """Read the fork's messages until ``done()`` (or the fork ended)."""
+        while self._proc is not None and not done():
             try:
-                self._ready.add(self._reader.recv())
+                message = self._reader.recv()
             except EOFError:  # the fork ended (or died): the runs compile what is left
                 self.close()
+                return
+            if isinstance(message, tuple):
+                self._ratio = message[1]
+                self.close()  # its last message
+            else:
+                self._ready.add(message)
+
+    def wait(self, kind: str) -> None:
+        """Return once ``kind`` is compiled (at once when nothing was forked or the fork ended)."""
+        if kind in self.kinds:
+            self._receive(lambda: kind in self._ready)
+
+    def wall_chain_ratio(self) -> dict:
+        """:func:`~hertzchain.paper.protocol.run_wall_chain_ratio` of the settings: the fork's run
+        (module docstring), or this process's where there is none or it failed."""
+        if "elastic" in self.kinds:
+            self._receive(lambda: self._ratio is not None)
+        ratio, self._ratio = self._ratio, None
+        return ratio if ratio is not None else run_wall_chain_ratio(self.settings)
 
     def close(self) -> None:
         """Stop the fork (at the end, or after a failure)."""

@@ -563,7 +563,8 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
     tick = progress or (lambda msg: None)
     # the engines of the later model kinds (the elastic ratio, lateral freedom) are compiled by a
     # forked process while this one calibrates the law and runs the aligned chains on its engine
-    # (paper/ahead.py); each kind's runs wait for theirs and load them from the cache
+    # (paper/ahead.py); each kind's runs wait for theirs and load them from the cache. The fork then
+    # runs the elastic wall/chain ratio itself.
     ahead = CompileAhead(settings)
     variants = None
 
@@ -571,14 +572,14 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
         studies = {"chain1": protocol.run_chain_study("chain1", settings, tick)}
         # where the model and the paper disagree: other contact laws (paper/fidelity.py), started now
         # in a forked process and shared with this one once its own runs are done. The fork inherits
-        # what this process has compiled (the run's law's engine, the pulse fit: chain 1's study ran
-        # them) and loads the elastic engine from the cache the compiling fork filled, so that a cold
+        # what this process has compiled (the run's law's engine: chain 1's study ran it) and loads
+        # the elastic engine from the cache the compiling fork filled, so that a cold
         # run compiles none of them twice, nor two processes one function at once (ahead.py); started
         # before chain 2's study, not after it, it is done about when this process's own runs are.
         ahead.wait("elastic")
         variants = fidelity.LawVariants(settings)
         studies["chain2"] = protocol.run_chain_study("chain2", settings, tick)
-        ratio = protocol.run_wall_chain_ratio(settings)
+        ratio = ahead.wall_chain_ratio()  # run by the compiling fork once its kernels are compiled
         tick("wall/chain ratio")
         speed = protocol.run_speed_check(settings)
         for _ in range(10):
