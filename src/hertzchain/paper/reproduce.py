@@ -9,7 +9,7 @@ import os
 import time
 from functools import partial
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -350,7 +350,7 @@ _DRAW_JOB: tuple | None = None
 _JOB = "job:"
 
 
-def _draw_one(name: str) -> tuple[str, object]:
+def _draw_one(name: str) -> tuple[str, Any]:
     from . import figures as figs
 
     assert _DRAW_JOB is not None  # (set by _draw_all before the processes fork)
@@ -364,7 +364,7 @@ def draw(out_dir: str | Path, studies, mis, subs, settings: Settings,
          progress: Callable[[str], None] | None = None, workers: int | None = None,
          extra: dict[str, Callable] | None = None, figures=FIGURE_NAMES,
          jobs: Sequence[Callable[[], object]] = (),
-         job_done: Callable[[int, object], None] | None = None) -> dict[str, Path]:
+         job_done: Callable[[int, Any], None] | None = None) -> dict[str, Path]:
     """Draw Figs. 1-6 (PNG + PDF) into ``out_dir``; returns {name: png path}.
 
     Text layout makes drawing CPU-bound, so the figures are drawn by ``workers`` forked processes
