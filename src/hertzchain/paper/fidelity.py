@@ -351,7 +351,7 @@ def _fig3_row(ds, ref_fit, fit=None) -> dict:
     """The row of one Fig. 3 trace against the aligned chain's fit ``ref_fit`` (``fit``: the
     trace's own, when already made)."""
     t, f = ds.time.values, ds.wall_force.values
-    fit = fit or analysis.fit_pulse(t, f)
+    fit = fit if fit is not None else analysis.fit_pulse(t, f)
     row = {"peak_force": fit.peak_force, "duration": fit.duration, "time_of_flight": fit.time_of_flight,
            "tail_oscillation": tail_oscillation(t, f, fit),
            "peak_force_change": fit.peak_force / ref_fit.peak_force - 1,

@@ -174,9 +174,9 @@ def build_summary(studies: dict[str, ChainStudy], ratio: dict, speed: dict, sett
 
 
 
-def _traces(out: Path, studies, mis, subs, ratio, lateral) -> list[tuple[Path, Callable[[], object]]]:
-    """Every simulated trace's file and the call that writes it (single-precision compressed
-    NetCDF: enough to redraw the figures), in the order the reproduction ran them."""
+def _trace_writes(out: Path, studies, mis, subs, ratio, lateral) -> list[Callable[[], object]]:
+    """A call writing each simulated trace into ``out/data`` (single-precision compressed NetCDF:
+    enough to redraw the figures), in the order the reproduction ran them."""
     data = out / "data"
     jobs = [(data / f"{name}_truncated_{n:02d}.nc", ds) for name, study in studies.items() for n, ds in study.wall.items()]
     jobs += [(data / f"fig3_chain2_offset_bead{bead}_e{frac:.2f}.nc", ds) for (bead, frac), ds in mis.items()]
@@ -185,7 +185,7 @@ def _traces(out: Path, studies, mis, subs, ratio, lateral) -> list[tuple[Path, C
     # the figure needs the wall force; the per-body transverse records would add ~2 MB a run
     jobs += [(data / f"fig3_lateral_{label}_bead{b}_e{frac:.2f}.nc", ds.drop_vars(["lateral_displacement", "momentum"]))
              for (label, b, frac), ds in lateral.items()]
-    return [(path, partial(_save, ds, path, single_precision=True)) for path, ds in jobs]
+    return [partial(_save, ds, path, single_precision=True) for path, ds in jobs]
 
 
 #: Variables of a trace that the analysis and the figures read (the rest stays on disk).
@@ -599,7 +599,7 @@ def reproduce(out_dir: str | Path, settings: Settings | None = None,
             variants.cancel()
     t_sim = time.perf_counter() - t0
 
-    writes = [write for _, write in _traces(out, studies, mis, subs, ratio, lateral)]
+    writes = _trace_writes(out, studies, mis, subs, ratio, lateral)
     summary = build_summary(studies, ratio, speed, settings, {"simulation_s": t_sim})
     summary["elastic_limit"] = elastic_limit_summary(studies, mis, subs)
     summary["fidelity"] = {"laws": law_rows, "misalignment": None,
